@@ -1,0 +1,3 @@
+from pinarray.cli import main
+
+raise SystemExit(main())

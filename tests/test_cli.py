@@ -1,0 +1,37 @@
+"""The `pinarray` command as a user meets it: help, version, one-line errors, exit status 2."""
+
+import subprocess
+import sys
+
+from pinarray import __version__
+from pinarray.cli import main
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "pinarray", *args], capture_output=True, text=True, timeout=60
+    )
+
+
+def test_version_and_help():
+    assert run("--version").stdout.strip() == f"pinarray {__version__}"
+    helped = run("--help")
+    assert helped.returncode == 0 and "grid" in helped.stdout
+
+
+def test_grid_prints_the_layout_and_the_classes_around_pin_10(capsys):
+    assert main(["grid", "--table"]) == 0
+    out = capsys.readouterr().out
+    assert "13 14 15 16" in out and " 1  2  3  4" in out
+    # around pin 10: row of 13..16 reads B A B D
+    assert "B A B D" in out
+    assert "10 ->" in out
+
+
+def test_a_users_mistake_is_one_line_on_stderr_with_status_2():
+    result = run("grid", "--pin", "17")
+    assert result.returncode == 2
+    assert result.stdout == ""
+    lines = result.stderr.strip().splitlines()
+    assert lines == ["pinarray: pin 17 is not on the 4x4 grid: expected a pin from 1 to 16"]
+    assert "Traceback" not in result.stderr
