@@ -1,0 +1,292 @@
+"""Results files as the lab relies on them: BIDS names, rows on disk at once, safe resume."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from pinarray.errors import PinArrayError, ResultsError
+from pinarray.manifest import (
+    LabelError,
+    RunPaths,
+    find_unfinished,
+    read_manifest,
+    set_status,
+    write_manifest,
+)
+from pinarray.results import (
+    BEH_COLUMNS,
+    EVENT_COLUMNS,
+    RunWriter,
+    TrialRecord,
+    read_trials,
+    remaining_plan,
+    split_torn_tail,
+)
+
+PLAN = [{"trial": n, "pin": p, "frequency_hz": f}
+        for n, (p, f) in enumerate([(4, 10), (7, 3), (10, 5), (1, 10), (16, 3)], start=1)]
+
+
+def start(root, subject="S01", session=1, task="localisation", plan=PLAN):
+    return RunWriter.start(root, subject, session, task, plan, seed=42,
+                           protocol_sha256="0" * 64, port="sim://", servo_models=["STS3215"],
+                           experimenter="AB")
+
+
+def localisation(trial, status="ok", response="4", **more):
+    return TrialRecord(trial=trial, block=1, task="localisation", onset_s=12.5 * trial,
+                       duration_s=10.0, status=status, response=response, response_time_s=1.5,
+                       pin=4, frequency_hz=10.0, error_class="correct", **more)
+
+
+@pytest.mark.parametrize("label", ["../x", "a b", "a/b", "", "sub_1", "x-1", "é1", None])
+def test_a_label_that_is_not_alphanumeric_is_refused_naming_the_label(tmp_path, label):
+    with pytest.raises(LabelError) as refused:
+        start(tmp_path, subject=label)
+    assert isinstance(refused.value, PinArrayError)
+    assert repr(label) in str(refused.value) and "letters and digits" in str(refused.value)
+    assert not any(tmp_path.iterdir())
+
+
+def test_a_run_is_laid_out_as_bids_and_the_next_run_gets_the_next_number(tmp_path):
+    first = start(tmp_path)
+    first.finish()
+    beh = tmp_path / "sub-S01" / "ses-1" / "beh"
+    assert first.paths.beh_tsv == beh / "sub-S01_ses-1_task-localisation_run-1_beh.tsv"
+    assert first.paths.events_tsv.name == "sub-S01_ses-1_task-localisation_run-1_events.tsv"
+    second = start(tmp_path)
+    second.close()
+    assert second.paths.run == 2
+    assert RunPaths.from_file(second.paths.manifest) == second.paths
+
+
+def test_the_sidecar_describes_every_column_with_units_or_levels(tmp_path):
+    writer = start(tmp_path)
+    writer.close()
+    sidecar = json.loads(writer.paths.file("beh", "json").read_text())
+    assert list(sidecar) == list(BEH_COLUMNS)
+    assert all(entry["Description"] for entry in sidecar.values())
+    assert sidecar["onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
+    assert set(sidecar["status"]["Levels"]) == {"ok", "redone", "aborted", "invalid"}
+    events = json.loads(writer.paths.file("events", "json").read_text())
+    assert list(events) == list(EVENT_COLUMNS)
+
+
+def test_the_manifest_holds_the_plan_and_the_provenance_before_trial_one(tmp_path):
+    writer = start(tmp_path)
+    manifest = read_manifest(writer.paths.manifest)
+    writer.close()
+    assert [dict(e) for e in manifest.plan] == PLAN
+    assert manifest.status == "running" and manifest.seed == 42
+    assert manifest.servo_models == ("STS3215",) and manifest.port == "sim://"
+    assert manifest.machine["hostname"] and manifest.software_version
+    assert manifest.started_at[-6] in "+-"  # an explicit UTC offset, e.g. +02:00
+
+
+def test_each_row_is_fsynced_before_write_trial_returns(tmp_path, monkeypatch):
+    writer = start(tmp_path)
+    synced = []
+    real_fsync = os.fsync
+
+    def spy(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}") if os.path.exists("/proc") else fd)
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", spy)
+    writer.write_trial(localisation(1))
+    # A separate reader sees the row while the writer is still open.
+    assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1]
+    writer.close()
+    if os.path.exists("/proc"):
+        assert synced == [str(writer.paths.beh_tsv), str(writer.paths.events_tsv)]
+    else:
+        assert len(synced) == 2
+
+
+def test_a_torn_last_line_is_left_out_and_resume_drops_it_keeping_every_earlier_row(tmp_path):
+    writer = start(tmp_path)
+    for n in (1, 2, 3):
+        writer.write_trial(localisation(n))
+    writer.close()
+    with open(writer.paths.beh_tsv, "a") as handle:
+        handle.write("4\t1\tlocalisation\t4\tn/a\tn/a\t10\t")
+    assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1, 2, 3]
+    resumed = RunWriter.resume(writer.paths)
+    assert resumed.repaired.startswith("4\t1\tlocalisation")
+    assert [dict(e)["trial"] for e in resumed.remaining()] == [4, 5]
+    resumed.write_trial(localisation(4))
+    resumed.close()
+    text = writer.paths.beh_tsv.read_text()
+    assert text.endswith("\n") and text.count("\n") == 5
+    assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1, 2, 3, 4]
+
+
+def test_split_torn_tail_only_ever_cuts_the_last_row():
+    header = "\t".join(BEH_COLUMNS).encode() + b"\n"
+    row = b"\t".join([b"1"] * len(BEH_COLUMNS)) + b"\n"
+    whole = header + row + row
+    assert split_torn_tail(whole, len(BEH_COLUMNS)) == (len(whole), b"")
+    assert split_torn_tail(whole + b"1\t2", len(BEH_COLUMNS)) == (len(whole), b"1\t2")
+    assert split_torn_tail(whole + b"\0\0\0", len(BEH_COLUMNS))[0] == len(whole)
+    short = b"1\t2\n"
+    assert split_torn_tail(whole + short, len(BEH_COLUMNS)) == (len(whole), short)
+    assert split_torn_tail(header[:5], len(BEH_COLUMNS)) == (0, header[:5])
+
+
+def test_resume_rebuilds_the_events_row_a_crash_left_out(tmp_path):
+    writer = start(tmp_path)
+    for n in (1, 2):
+        writer.write_trial(localisation(n))
+    writer.close()
+    lines = writer.paths.events_tsv.read_text().splitlines(keepends=True)
+    writer.paths.events_tsv.write_text("".join(lines[:-1]) + lines[-1][:7])
+    RunWriter.resume(writer.paths).close()
+    rebuilt = writer.paths.events_tsv.read_text().splitlines()
+    assert rebuilt == [line.rstrip("\n") for line in lines]
+
+
+def test_resume_runs_exactly_the_unfinished_trials_in_plan_order_and_marks_them(tmp_path):
+    writer = start(tmp_path)
+    writer.write_trial(localisation(1))
+    writer.write_trial(localisation(2, status="redone"))
+    writer.write_trial(localisation(2))
+    writer.write_trial(localisation(3, status="invalid"))
+    writer.write_trial(localisation(4, status="aborted"))
+    writer.close()
+    resumed = RunWriter.resume(writer.paths)
+    assert [dict(e)["trial"] for e in resumed.remaining()] == [4, 5]
+    written = resumed.write_trial(localisation(4))
+    resumed.finish()
+    assert written.resumed
+    rows = read_trials(writer.paths.beh_tsv)
+    assert [r.resumed for r in rows] == [False] * 5 + [True]
+    manifest = read_manifest(writer.paths.manifest)
+    assert manifest.status == "completed" and len(manifest.resumed_at) == 1
+
+
+def test_practice_trials_do_not_finish_main_trials_with_the_same_number():
+    plan = [{"trial": 1, "practice": True}, {"trial": 1}, {"trial": 2}]
+    left = remaining_plan(plan, [localisation(1, practice=True)])
+    assert left == [{"trial": 1}, {"trial": 2}]
+
+
+def test_a_failed_manifest_update_leaves_the_old_one_whole(tmp_path, monkeypatch):
+    writer = start(tmp_path)
+    writer.close()
+    before = writer.paths.manifest.read_bytes()
+
+    def refuse(*args):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", refuse)
+    with pytest.raises(OSError):
+        set_status(writer.paths.manifest, "aborted", "fire alarm")
+    assert writer.paths.manifest.read_bytes() == before
+    assert [p.name for p in writer.paths.beh_dir.iterdir() if p.name.startswith(".")] == []
+
+
+def test_a_crash_inside_the_writer_marks_the_manifest_crashed_and_it_can_be_found(tmp_path):
+    with pytest.raises(ConnectionError), start(tmp_path) as writer:
+        writer.write_trial(localisation(1))
+        raise ConnectionError("servo 7 stopped answering")
+    finished = start(tmp_path, task="motion")
+    finished.finish()
+    found = find_unfinished(tmp_path, "S01")
+    assert [(p.task, m.status) for p, m in found] == [("localisation", "crashed")]
+    assert "servo 7" in found[0][1].abort_reason
+    with pytest.raises(ResultsError, match="completed"):
+        RunWriter.resume(finished.paths)
+
+
+def test_a_hand_edited_manifest_with_a_repeated_trial_is_refused(tmp_path):
+    writer = start(tmp_path)
+    writer.close()
+    manifest = read_manifest(writer.paths.manifest)
+    data = manifest.to_json()
+    data["plan"].append({"trial": 1})
+    writer.paths.manifest.write_text(json.dumps(data))
+    with pytest.raises(ResultsError, match="twice"):
+        read_manifest(writer.paths.manifest)
+    write_manifest(writer.paths.manifest, manifest)
+    assert read_manifest(writer.paths.manifest) == manifest
+
+
+responses = st.one_of(st.none(), st.sampled_from(["none", "left", "right", "unsure"]))
+seconds = st.floats(0, 1e5, allow_nan=False, allow_infinity=False)
+
+
+@given(
+    onset=seconds, duration=seconds, response_time=st.one_of(st.none(), seconds),
+    response=responses, felt=st.one_of(st.none(), st.booleans()),
+    direction=st.sampled_from(["left", "right", "none"]), row=st.integers(0, 3),
+)
+def test_any_motion_row_reads_back_exactly_as_written(
+    tmp_path_factory, onset, duration, response_time, response, felt, direction, row
+):
+    record = TrialRecord(trial=3, block=2, task="motion", onset_s=onset, duration_s=duration,
+                         response=response, response_time_s=response_time, row=row,
+                         direction=direction, perceived_motion=felt,
+                         direction_correct=None if felt is None else not felt)
+    writer = start(tmp_path_factory.mktemp("r"), task="motion")
+    writer.write_trial(record)
+    writer.close()
+    assert read_trials(writer.paths.beh_tsv) == [record]
+
+
+CHILD = textwrap.dedent("""
+    import sys
+    from pathlib import Path
+    from pinarray.manifest import RunPaths
+    from pinarray.results import RunWriter, TrialRecord
+
+    root, mode = Path(sys.argv[1]), sys.argv[2]
+    if mode == "start":
+        plan = [{"trial": n} for n in range(1, 3001)]
+        writer = RunWriter.start(root, "S01", 1, "localisation", plan, seed=1,
+                                 protocol_sha256="", port="sim://")
+    else:
+        writer = RunWriter.resume(RunPaths(root, "S01", "1", "localisation", 1))
+    for entry in writer.remaining():
+        n = entry["trial"]
+        writer.write_trial(TrialRecord(trial=n, block=1, task="localisation", onset_s=n,
+                                       duration_s=10.0, response=str(n % 16 + 1),
+                                       pin=n % 16 + 1, frequency_hz=5.0,
+                                       error_class="correct"))
+    writer.finish()
+""")
+
+
+def _run_and_kill(root, mode, rows_before_kill):
+    child = subprocess.Popen([sys.executable, "-c", CHILD, str(root), mode])
+    beh = RunPaths(root, "S01", "1", "localisation", 1).beh_tsv
+    while child.poll() is None:
+        if beh.exists() and beh.stat().st_size > rows_before_kill * 60:
+            child.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.001)
+    child.wait(timeout=60)
+    return child.returncode
+
+
+def test_a_run_sigkilled_while_writing_resumes_with_no_row_lost_or_repeated(tmp_path):
+    kills = 0
+    for mode, rows in (("start", 400), ("resume", 1200), ("resume", 2200)):
+        kills += _run_and_kill(tmp_path, mode, rows) == -signal.SIGKILL
+    finisher = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path), "resume"],
+                              timeout=120)
+    assert finisher.returncode == 0
+    assert kills >= 1  # the test is only meaningful if a kill landed mid-run
+    paths = RunPaths(tmp_path, "S01", "1", "localisation", 1)
+    rows = read_trials(paths.beh_tsv)
+    assert [r.trial for r in rows] == list(range(1, 3001))
+    assert paths.events_tsv.read_text().count("\n") == 3001
+    assert read_manifest(paths.manifest).status == "completed"
+    assert any(r.resumed for r in rows)
