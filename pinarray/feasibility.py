@@ -1,0 +1,85 @@
+"""Can the servo follow a train? Travel reachable in each half-cycle from speed and acceleration.
+
+A servo that must stop at each end of its stroke covers, in time ``T`` from standstill to
+standstill, ``v*T`` steps when acceleration is unlimited, ``a*T^2/4`` when it never reaches
+top speed (``T <= 2v/a``), and ``v*T - v^2/a`` otherwise (trapezoidal profile).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from pinarray.protocol import NS_PER_S, PinCalibration, ServoSettings, Train
+
+
+def reachable_steps(duration_ns: float, speed_steps_per_s: float, accel_steps_per_s2: float | None) -> float:
+    """Steps a servo can travel in ``duration_ns``, starting and ending at rest."""
+    t_s = duration_ns / NS_PER_S
+    v = speed_steps_per_s
+    if accel_steps_per_s2 is None:
+        return v * t_s
+    a = accel_steps_per_s2
+    if t_s <= 2 * v / a:
+        return a * t_s * t_s / 4
+    return v * t_s - v * v / a
+
+
+def travel_time_s(steps: float, speed_steps_per_s: float, accel_steps_per_s2: float | None) -> float:
+    """Shortest time to travel ``steps`` from standstill to standstill, in seconds."""
+    v = speed_steps_per_s
+    if accel_steps_per_s2 is None:
+        return steps / v
+    a = accel_steps_per_s2
+    if steps <= v * v / a:
+        return 2 * math.sqrt(steps / a)
+    return steps / v + v / a
+
+
+@dataclass(frozen=True)
+class Feasibility:
+    """How much of a pin's calibrated stroke a train can really produce."""
+
+    pin: int
+    frequency_hz: float
+    stroke_steps: int  # |up - down| as calibrated
+    reachable_steps: float  # in the shorter half-cycle
+    max_frequency_hz: float  # highest frequency at which the full stroke is reachable
+
+    @property
+    def feasible(self) -> bool:
+        return self.reachable_steps >= self.stroke_steps
+
+    @property
+    def amplitude_fraction(self) -> float:
+        return 1.0 if self.feasible else self.reachable_steps / self.stroke_steps
+
+    def describe(self, servo: ServoSettings, lever_mm: float) -> str:
+        def angle(steps: float) -> float:
+            return steps * 360.0 / servo.steps_per_turn
+
+        def travel_mm(steps: float) -> float:
+            return lever_mm * math.radians(angle(steps))
+
+        return (
+            f"pin {self.pin} cannot follow {self.frequency_hz:g} Hz: its stroke of "
+            f"{self.stroke_steps} steps ({angle(self.stroke_steps):.1f} deg, "
+            f"{travel_mm(self.stroke_steps):.2f} mm) needs at most {self.max_frequency_hz:.2f} Hz; "
+            f"at {self.frequency_hz:g} Hz only {self.reachable_steps:.0f} steps "
+            f"({angle(self.reachable_steps):.1f} deg, {travel_mm(self.reachable_steps):.2f} mm, "
+            f"{self.amplitude_fraction:.0%} of the stroke) are reachable"
+        )
+
+
+def check_train(train: Train, calibration: PinCalibration, servo: ServoSettings) -> Feasibility:
+    """Feasibility of ``train`` on the pin ``calibration`` describes, with ``servo``'s limits."""
+    up = calibration.position_for_width(train.up_width_ns)
+    down = calibration.position_for_width(train.down_width_ns)
+    stroke = abs(up - down)
+    shorter_share = min(train.duty_cycle, 1 - train.duty_cycle)
+    half_ns = float(shorter_share / train.frequency_hz) * NS_PER_S
+    accel = servo.acceleration_steps_per_s2
+    reachable = reachable_steps(half_ns, servo.speed_steps_per_s, accel)
+    needed_s = travel_time_s(stroke, servo.speed_steps_per_s, accel)
+    max_hz = float(shorter_share) / needed_s if needed_s > 0 else math.inf
+    return Feasibility(calibration.pin, float(train.frequency_hz), stroke, reachable, max_hz)

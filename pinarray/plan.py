@@ -1,0 +1,246 @@
+"""The trial plan: which condition each trial presents, in which order. Seeded and reproducible.
+
+Trials are numbered 1..N in plan order (practice trials first), and that number is the one
+every output uses. The same protocol and seed give a byte-identical plan.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from pinarray.errors import PinArrayError
+from pinarray.protocol import Condition, Design, Ordering, Protocol
+
+SEARCH_BUDGET_STEPS = 200_000
+
+
+@dataclass(frozen=True)
+class PlannedTrial:
+    trial: int  # 1..N in plan order, the number every output uses
+    block: int  # 0 for practice, then 1..blocks
+    practice: bool
+    condition: Condition
+
+    def record(self) -> dict:
+        """JSON-safe description, as stored in manifests and compile outputs."""
+        c = self.condition
+        return {
+            "trial": self.trial,
+            "block": self.block,
+            "practice": self.practice,
+            "stimulus": c.stimulus,
+            "pin": c.pin,
+            "frequency_hz": None if c.frequency_hz is None else str(c.frequency_hz),
+            "direction": None if c.direction is None else c.direction.value,
+            "row": c.row,
+        }
+
+
+@dataclass(frozen=True)
+class TrialPlan:
+    seed: int
+    trials: tuple[PlannedTrial, ...]
+
+    def __len__(self) -> int:
+        return len(self.trials)
+
+    def trial(self, number: int) -> PlannedTrial:
+        if not 1 <= number <= len(self.trials):
+            raise PinArrayError(f"trial {number} is not in the plan: expected 1 to {len(self.trials)}")
+        return self.trials[number - 1]
+
+    def to_json(self) -> str:
+        return json.dumps({"seed": self.seed, "trials": [t.record() for t in self.trials]}, indent=1)
+
+
+def _value(condition: Condition, attribute: str):
+    return getattr(condition, attribute)
+
+
+def _max_count_problem(counts: Counter, limit: int, attribute: str, size: int) -> str | None:
+    value, count = counts.most_common(1)[0]
+    # `count` equal values need `count / limit` runs separated by at least one other trial.
+    if count > limit * (size - count + 1):
+        others = size - count
+        return (
+            f"impossible order constraint: {attribute} {value} appears {count} times among "
+            f"{size} trials, but with runs of at most {limit} the other {others} trials can "
+            f"separate at most {limit * (others + 1)}"
+        )
+    return None
+
+
+def ordering_problem(design: Design) -> str | None:
+    """Why the design's constraints cannot be met, or None. Checked at validation, never a hang."""
+    limits = design.constraints.limits()
+    if not limits:
+        return None
+    if design.ordering in (Ordering.SEQUENTIAL, Ordering.LATIN_SQUARE):
+        return (
+            f"order constraints ({', '.join(limits)}) need a random order; "
+            f"'{design.ordering.value}' fixes the order itself"
+        )
+    pool = list(design.conditions) * design.repetitions
+    if design.ordering is Ordering.FULL_RANDOM:
+        pool = pool * design.blocks
+    for attribute, limit in limits.items():
+        counts = Counter(_value(c, attribute) for c in pool)
+        problem = _max_count_problem(counts, limit, attribute, len(pool))
+        if problem:
+            return problem
+    return None
+
+
+def _feasible(remaining: Counter, limits: dict[str, int], runs: dict[str, tuple[object, int]]) -> bool:
+    size = sum(remaining.values())
+    if not size:
+        return True
+    for attribute, limit in limits.items():
+        counts: Counter = Counter()
+        for condition, n in remaining.items():
+            counts[_value(condition, attribute)] += n
+        value, count = counts.most_common(1)[0]
+        last, run = runs.get(attribute, (None, 0))
+        head = limit - run if value == last else limit
+        if count > head + limit * (size - count):
+            return False
+    return True
+
+
+def constrained_shuffle(
+    items: list[Condition], limits: dict[str, int], rng: np.random.Generator,
+    runs: dict[str, tuple[object, int]] | None = None,
+) -> list[Condition]:
+    """A random order of ``items`` with runs of equal attribute values capped by ``limits``.
+
+    Depth-first search over random choices, pruned by a counting bound, with a step budget so
+    a pathological case ends in an error rather than a hang.
+    """
+    if not limits:
+        order = list(items)
+        rng.shuffle(order)
+        return order
+    remaining = Counter(items)
+    runs = dict(runs or {})
+    # A stack of (candidates still to try at this depth, runs before the choice).
+    path: list[Condition] = []
+    stack: list[tuple[list[Condition], dict]] = []
+
+    def candidates() -> list[Condition]:
+        keys = [c for c in remaining if remaining[c] > 0]
+        keys.sort(key=lambda c: repr(c.key))
+        weights = np.array([remaining[c] for c in keys], dtype=float)
+        order = rng.choice(len(keys), size=len(keys), replace=False, p=weights / weights.sum())
+        return [keys[i] for i in order]
+
+    stack.append((candidates(), dict(runs)))
+    steps = 0
+    while len(path) < len(items):
+        steps += 1
+        if steps > SEARCH_BUDGET_STEPS:
+            raise PinArrayError(
+                f"could not order {len(items)} trials under the constraints {limits} within "
+                f"{SEARCH_BUDGET_STEPS} search steps; relax no_repeat/max_run"
+            )
+        options, runs_before = stack[-1]
+        if not options:
+            stack.pop()
+            if not path:
+                raise PinArrayError(f"no order of the trials satisfies the constraints {limits}")
+            undone = path.pop()
+            remaining[undone] += 1
+            continue
+        choice = options.pop()
+        new_runs = {}
+        allowed = True
+        for attribute, limit in limits.items():
+            value = _value(choice, attribute)
+            last, run = runs_before.get(attribute, (None, 0))
+            run = run + 1 if value == last else 1
+            if run > limit:
+                allowed = False
+                break
+            new_runs[attribute] = (value, run)
+        if not allowed:
+            continue
+        remaining[choice] -= 1
+        if not _feasible(remaining, limits, new_runs):
+            remaining[choice] += 1
+            continue
+        path.append(choice)
+        stack.append((candidates() if len(path) < len(items) else [], new_runs))
+    return path
+
+
+def _runs_after(sequence: list[Condition], limits: dict[str, int]) -> dict[str, tuple[object, int]]:
+    runs: dict[str, tuple[object, int]] = {}
+    for condition in sequence:
+        for attribute in limits:
+            value = _value(condition, attribute)
+            last, run = runs.get(attribute, (None, 0))
+            runs[attribute] = (value, run + 1 if value == last else 1)
+    return runs
+
+
+def williams_square(n: int) -> list[list[int]]:
+    """A balanced Latin square (Williams design): each condition follows each other equally.
+
+    For odd ``n`` the mirrored rows are appended, giving 2n rows.
+    """
+    first = [0]
+    low, high = 1, n - 1
+    for i in range(1, n):
+        if i % 2:
+            first.append(low)
+            low += 1
+        else:
+            first.append(high)
+            high -= 1
+    rows = [[(x + r) % n for x in first] for r in range(n)]
+    if n % 2:
+        rows += [row[::-1] for row in rows]
+    return rows
+
+
+def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
+    """The seeded trial plan; the seed is the argument, else the protocol's, else a fresh one."""
+    design = protocol.design
+    if seed is None:
+        seed = design.seed if design.seed is not None else secrets.randbits(32)
+    rng = np.random.default_rng(seed)
+    limits = design.constraints.limits()
+    conditions = list(design.conditions)
+    blocks: list[list[Condition]] = []
+    if design.ordering is Ordering.SEQUENTIAL:
+        blocks = [conditions * design.repetitions for _ in range(design.blocks)]
+    elif design.ordering is Ordering.LATIN_SQUARE:
+        square = williams_square(len(conditions))
+        offset = int(rng.integers(len(square)))
+        for b in range(design.blocks):
+            row = square[(offset + b) % len(square)]
+            blocks.append([conditions[i] for i in row] * design.repetitions)
+    elif design.ordering is Ordering.FULL_RANDOM:
+        pooled = constrained_shuffle(conditions * design.repetitions * design.blocks, limits, rng)
+        size = len(conditions) * design.repetitions
+        blocks = [pooled[i * size:(i + 1) * size] for i in range(design.blocks)]
+    else:
+        runs: dict[str, tuple[object, int]] = {}
+        for _ in range(design.blocks):
+            block = constrained_shuffle(conditions * design.repetitions, limits, rng, runs)
+            runs = _runs_after(block, limits)
+            blocks.append(block)
+
+    trials: list[PlannedTrial] = []
+    if design.practice_trials:
+        picks = rng.permutation(len(conditions) * -(-design.practice_trials // len(conditions)))
+        for i in picks[: design.practice_trials]:
+            trials.append(PlannedTrial(len(trials) + 1, 0, True, conditions[int(i) % len(conditions)]))
+    for number, block in enumerate(blocks, start=1):
+        for condition in block:
+            trials.append(PlannedTrial(len(trials) + 1, number, False, condition))
+    return TrialPlan(seed, tuple(trials))

@@ -1,0 +1,246 @@
+"""The validated protocol: device calibration, stimuli and experiment design as frozen values.
+
+Built by `pinarray.protocol_load` from YAML; everything here is already checked, so the
+compiler and the player never see a bad number. Frequencies and durations are exact
+(`fractions.Fraction` or integer nanoseconds): a 0.1 s period is not a binary float.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+from fractions import Fraction
+
+from pinarray.errors import PinArrayError
+from pinarray.grid import Grid
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class ServoSettings:
+    """What playback sets on every servo (RAM only, never EEPROM).
+
+    ``acceleration_register`` is in the servo's units of 100 step/s^2; 0 means the servo's own
+    maximum, which the feasibility check treats as unlimited (speed-limited motion).
+    """
+
+    model: str = "STS3215"
+    baud_rate: int = 1_000_000
+    speed_steps_per_s: int = 3000
+    acceleration_register: int = 0
+    steps_per_turn: int = 4096
+
+    @property
+    def acceleration_steps_per_s2(self) -> int | None:
+        """Acceleration limit in step/s^2, or None for the servo's maximum."""
+        return self.acceleration_register * 100 or None
+
+
+@dataclass(frozen=True)
+class PinCalibration:
+    """One pin's servo and calibrated positions, in servo steps.
+
+    ``positions_by_width_ns`` maps a hobby-servo pulse width to the position it commands (the
+    seed drove its servos with 1.5 ms and 2 ms pulses); ``min_steps``..``max_steps`` are the
+    calibrated stroke limits no command may leave; ``lever_mm`` turns angle into pin travel.
+    """
+
+    pin: int
+    servo_id: int
+    rest_steps: int
+    min_steps: int
+    max_steps: int
+    positions_by_width_ns: tuple[tuple[int, int], ...]
+    lever_mm: float = 6.0
+
+    def position_for_width(self, width_ns: int) -> int:
+        for width, position in self.positions_by_width_ns:
+            if width == width_ns:
+                return position
+        known = ", ".join(f"{w / 1e6:g} ms" for w, _ in self.positions_by_width_ns)
+        raise PinArrayError(
+            f"pin {self.pin}: no calibrated position for a {width_ns / 1e6:g} ms pulse; "
+            f"calibrated widths: {known}"
+        )
+
+
+@dataclass(frozen=True)
+class Device:
+    """The stimulator: grid, servo settings and one calibration per pin."""
+
+    grid: Grid
+    servo: ServoSettings
+    pins: tuple[PinCalibration, ...]
+    port: str = "sim://"
+    scale_infeasible: bool = False  # scale strokes the servo cannot follow instead of refusing
+
+    def calibration(self, pin: int) -> PinCalibration:
+        self.grid.check_pin(pin)
+        return self.pins[pin - 1]
+
+    def degrees(self, steps: int | float) -> float:
+        return steps * 360.0 / self.servo.steps_per_turn
+
+
+@dataclass(frozen=True)
+class Train:
+    """A periodic pulse train for one pin: the seed's per-channel parameters.
+
+    Each cycle of ``1/frequency_hz`` holds ``pulses_per_cycle`` servo pulses in equal slots; the
+    first ``up_pulses`` have width ``up_width_ns`` (pin lifted), the rest ``down_width_ns``.
+    The seed's train is 10 pulses a cycle, 5 up (2 ms) and 5 down (1.5 ms).
+    ``phase`` delays the pattern by that fraction of a cycle, in [0, 1).
+    """
+
+    frequency_hz: Fraction
+    duration_ns: int
+    pulses_per_cycle: int = 10
+    up_pulses: int = 5
+    up_width_ns: int = 2_000_000
+    down_width_ns: int = 1_500_000
+    phase: Fraction = Fraction(0)
+
+    @property
+    def duty_cycle(self) -> Fraction:
+        return Fraction(self.up_pulses, self.pulses_per_cycle)
+
+    @property
+    def slot_ns(self) -> Fraction:
+        """Exact time between pulse starts, in nanoseconds."""
+        return NS_PER_S / (self.frequency_hz * self.pulses_per_cycle)
+
+    def with_frequency(self, frequency_hz: Fraction) -> Train:
+        return Train(
+            frequency_hz, self.duration_ns, self.pulses_per_cycle, self.up_pulses,
+            self.up_width_ns, self.down_width_ns, self.phase,
+        )
+
+
+class WaveKind(StrEnum):
+    RIGHTWARDS = "rightwards"
+    LEFTWARDS = "leftwards"
+    NONE = "none"  # the seed's "no wave": the central pin alternates with the lateral ones
+
+
+@dataclass(frozen=True)
+class PinDrive:
+    """One train played on one pin, starting ``delay_ns`` after the trial's stimulus onset."""
+
+    pin: int
+    train: Train
+    delay_ns: int = 0
+
+
+@dataclass(frozen=True)
+class Wave:
+    """A travelling wave (or the seed's no-wave control) along pins of one row.
+
+    Step ``i`` starts at ``i * soa_ns``; a sweep visits the pins left to right (rightwards) or
+    right to left (leftwards); the no-wave alternates the central pin and the two lateral ones
+    for the same number of steps.
+    """
+
+    kind: WaveKind
+    row: int  # 1 = bottom row, as the lab counts
+    pins: tuple[int, ...]  # left to right
+    train: Train
+    soa_ns: int
+
+    def drives(self) -> tuple[PinDrive, ...]:
+        if self.kind is WaveKind.NONE:
+            centre = len(self.pins) // 2
+            laterals = (self.pins[centre - 1], self.pins[centre + 1])
+            steps = [(self.pins[centre],) if i % 2 == 0 else laterals for i in range(len(self.pins))]
+        else:
+            order = self.pins if self.kind is WaveKind.RIGHTWARDS else self.pins[::-1]
+            steps = [(pin,) for pin in order]
+        return tuple(
+            PinDrive(pin, self.train, i * self.soa_ns) for i, group in enumerate(steps) for pin in group
+        )
+
+
+@dataclass(frozen=True)
+class Stimulus:
+    """A named stimulus: a train (pin chosen by the design) or a wave."""
+
+    name: str
+    train: Train | None = None
+    wave: Wave | None = None
+
+
+class Paradigm(StrEnum):
+    LOCALISATION = "localisation"
+    APPARENT_MOTION = "apparent_motion"
+
+
+class Ordering(StrEnum):
+    SEQUENTIAL = "sequential"  # conditions as listed, every block
+    RANDOM = "random"  # shuffled within each block
+    FULL_RANDOM = "full_random"  # shuffled across all blocks
+    LATIN_SQUARE = "latin_square"  # balanced Latin square rows, one per block
+
+
+@dataclass(frozen=True)
+class Condition:
+    """What one trial presents: a train on a pin (localisation) or a wave (apparent motion)."""
+
+    stimulus: str
+    pin: int | None = None
+    frequency_hz: Fraction | None = None
+    direction: WaveKind | None = None
+    row: int | None = None
+
+    @property
+    def key(self) -> tuple:
+        return (self.stimulus, self.pin, self.frequency_hz, self.direction)
+
+
+@dataclass(frozen=True)
+class Constraints:
+    """Ordering constraints on consecutive trials.
+
+    ``no_repeat`` names condition attributes that may not repeat on consecutive trials
+    (e.g. ``pin``); ``max_run`` caps how many consecutive trials may share an attribute value.
+    """
+
+    no_repeat: tuple[str, ...] = ()
+    max_run: tuple[tuple[str, int], ...] = ()
+
+    def limits(self) -> dict[str, int]:
+        limits = {attribute: 1 for attribute in self.no_repeat}
+        for attribute, length in self.max_run:
+            limits[attribute] = min(length, limits.get(attribute, length))
+        return limits
+
+
+@dataclass(frozen=True)
+class Design:
+    """Blocks of trials for one paradigm, how they are ordered, and the pauses between them."""
+
+    paradigm: Paradigm
+    conditions: tuple[Condition, ...]  # one block's worth, before repetitions
+    repetitions: int  # each condition this many times per block
+    blocks: int
+    ordering: Ordering
+    constraints: Constraints
+    seed: int | None
+    inter_trial_interval_ns: int
+    practice_trials: int
+
+
+@dataclass(frozen=True)
+class Protocol:
+    name: str
+    description: str
+    device: Device
+    stimuli: tuple[Stimulus, ...]
+    design: Design
+    source: str = "<protocol>"
+    sha256: str = ""
+
+    def stimulus(self, name: str) -> Stimulus:
+        for stimulus in self.stimuli:
+            if stimulus.name == name:
+                return stimulus
+        raise PinArrayError(f"{self.source}: no stimulus named {name!r}")
