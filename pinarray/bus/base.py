@@ -1,0 +1,143 @@
+"""What the player needs from a servo bus, as plain values; no vendor SDK, no I/O.
+
+The player and session speak servo ids and positions in steps; which servo moves which pin
+is the protocol's business (`servo_setup_from_device`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Protocol
+
+from pinarray.bus.registers import STS3215_MODEL_NUMBER, StatusError
+from pinarray.errors import BusError
+
+# Model-number register values by the name a protocol file uses.
+MODEL_NUMBERS = {"STS3215": STS3215_MODEL_NUMBER}
+
+
+class PortLost(BusError):
+    """The serial port vanished mid-run (USB unplugged, adapter reset)."""
+
+
+@dataclass(frozen=True)
+class ServoSetup:
+    """One servo as playback needs it: where rest is and the calibrated limits, in steps."""
+
+    servo_id: int
+    pin: int
+    rest_steps: int
+    min_steps: int
+    max_steps: int
+
+
+@dataclass(frozen=True)
+class BusSetup:
+    """Everything the connect handshake checks and sets.
+
+    Attributes
+    ----------
+    servos : tuple of ServoSetup
+        Every servo the device section names.
+    model_number : int
+        Model-number register value every servo must report (777 = STS3215).
+    speed_steps_per_s : int
+        Goal speed written to RAM at connect, in steps per second (0 = the servo's maximum).
+    acceleration_register : int
+        Acceleration register value, in 100 step/s^2 units (0 = the servo's maximum).
+    """
+
+    servos: tuple[ServoSetup, ...]
+    model_number: int = STS3215_MODEL_NUMBER
+    speed_steps_per_s: int = 0
+    acceleration_register: int = 0
+
+    @property
+    def servo_ids(self) -> tuple[int, ...]:
+        return tuple(s.servo_id for s in self.servos)
+
+    def servo(self, servo_id: int) -> ServoSetup:
+        for each in self.servos:
+            if each.servo_id == servo_id:
+                return each
+        raise KeyError(servo_id)
+
+
+@dataclass(frozen=True)
+class Telemetry:
+    """One servo's slow-changing state, read outside the timing-critical path."""
+
+    servo_id: int
+    position_steps: int
+    load_permille: int  # signed, 0.1 % of stall torque
+    voltage_v: float
+    temperature_c: int
+    errors: StatusError
+
+
+@dataclass(frozen=True)
+class BusStats:
+    """Counters since the bus was opened."""
+
+    bytes_written: int
+    bytes_read: int
+    sync_writes: int
+    goals_written: int
+    retries: int
+
+
+@dataclass(frozen=True)
+class SafeStopReport:
+    """What `Bus.rest_and_release` managed: ids confirmed at rest, released, and silent."""
+
+    at_rest_ids: tuple[int, ...]
+    released_ids: tuple[int, ...]
+    silent_ids: tuple[int, ...]
+    port_lost: bool = False
+
+    @property
+    def complete(self) -> bool:
+        return not self.silent_ids and not self.port_lost
+
+
+class Bus(Protocol):
+    """A connected servo bus (real or simulated) that the player drives."""
+
+    setup: BusSetup
+
+    def write_goals(self, goals_steps: Mapping[int, int]) -> int: ...
+
+    def read_telemetry(self, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]: ...
+
+    def move_to_rest(self) -> None: ...
+
+    def rest_and_release(self) -> SafeStopReport: ...
+
+    def stats(self) -> BusStats: ...
+
+    def close(self) -> None: ...
+
+
+def servo_setup_from_device(device) -> BusSetup:
+    """Build a `BusSetup` from a protocol's ``Device`` (``pinarray.protocol.Device``)."""
+    servos = tuple(
+        ServoSetup(
+            servo_id=c.servo_id,
+            pin=c.pin,
+            rest_steps=c.rest_steps,
+            min_steps=c.min_steps,
+            max_steps=c.max_steps,
+        )
+        for c in device.pins
+    )
+    model_name = str(device.servo.model).upper()
+    if model_name not in MODEL_NUMBERS:
+        known = ", ".join(MODEL_NUMBERS)
+        raise BusError(f"servo model {device.servo.model!r} is not one this driver knows ({known})")
+    return BusSetup(
+        servos=servos,
+        model_number=MODEL_NUMBERS[model_name],
+        speed_steps_per_s=device.servo.speed_steps_per_s,
+        acceleration_register=device.servo.acceleration_register,
+    )

@@ -1,0 +1,123 @@
+"""One place that decides between hardware and simulation: `open_bus(url)`.
+
+``url`` is either a serial device (``/dev/ttyUSB0``, ``COM3``, or any pyserial URL such as
+``spy:///dev/ttyUSB0``) or a simulated bus ``sim://?ids=1-16&...`` (grammar in
+`pinarray.bus.faults`). Both end up as a `FeetechBus` talking through the real
+``scservo_sdk``; only the object under ``PortHandler.ser`` differs.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from pinarray.bus.base import BusSetup
+from pinarray.bus.faults import is_sim_url, parse_sim_url
+from pinarray.clock import Clock, MonotonicClock, VirtualClock
+from pinarray.errors import BusError
+
+# The SDK's own assumption about a USB-serial adapter's latency timer, in milliseconds.
+DEFAULT_LATENCY_MS = 16.0
+SIM_LATENCY_MS = 1.0
+SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
+
+
+def latency_timer_ms(device: str, sysfs: Path = SYSFS_USB_SERIAL) -> int | None:
+    """The USB-serial latency timer of ``device`` in ms (Linux), or None if not applicable."""
+    if not sys.platform.startswith("linux"):
+        return None
+    tty = Path(os.path.realpath(device)).name  # /dev/serial/by-id/... links to ttyUSB0
+    path = sysfs / tty / "latency_timer"
+    try:
+        return int(path.read_text().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def latency_warning(device: str, sysfs: Path = SYSFS_USB_SERIAL) -> str | None:
+    """A how-to-fix message when the adapter's latency timer is above 1 ms."""
+    timer_ms = latency_timer_ms(device, sysfs)
+    if timer_ms is None or timer_ms <= 1:
+        return None
+    tty = Path(os.path.realpath(device)).name
+    path = sysfs / tty / "latency_timer"
+    return (
+        f"{device}: USB latency timer is {timer_ms} ms (above 1 ms), so every servo read "
+        f"waits up to {timer_ms} ms; fix it with `echo 1 | sudo tee {path}` (lasts until "
+        "unplugged), or permanently with a udev rule: ACTION==\"add\", SUBSYSTEM==\"usb-serial\", "
+        "DRIVER==\"ftdi_sio\", ATTR{latency_timer}=\"1\""
+    )
+
+
+def open_bus(
+    url: str,
+    setup: BusSetup | None = None,
+    clock: Clock | None = None,
+    baud_rate: int = 1_000_000,
+    retries: int = 3,
+):
+    """Open a real or simulated servo bus and, given a `BusSetup`, run the handshake.
+
+    Parameters
+    ----------
+    url : str
+        A serial device path / pyserial URL, or ``sim://?...``.
+    setup : BusSetup, optional
+        Servos to expect; when given, `FeetechBus.connect` checks them and enables torque.
+    clock : Clock, optional
+        Defaults to a `VirtualClock` for ``sim://`` and a `MonotonicClock` for hardware.
+    baud_rate : int
+        Wire speed in bit/s (a ``baud=`` key in a sim URL wins).
+    retries : int
+        Extra attempts after a transient failure.
+
+    Returns
+    -------
+    FeetechBus
+        Connected bus; ``.sim`` holds the `SimBus` for a simulated one. Call
+        ``rest_and_release()`` and ``close()`` when done.
+    """
+    from pinarray.bus.feetech import ClockedPortHandler, FeetechBus
+
+    warnings: list[str] = []
+    if is_sim_url(url):
+        from pinarray.bus.sim import SimBus, SimSerial
+
+        config = parse_sim_url(url)
+        clock = clock or VirtualClock()
+        baud_rate = config.baud_rate or baud_rate
+        sim = SimBus(config, clock)
+
+        def open_serial():
+            return SimSerial(sim, clock, baud_rate, port=url)
+
+        latency_ms = SIM_LATENCY_MS
+    else:
+        import serial
+
+        sim = None
+        clock = clock or MonotonicClock()
+        timer_ms = latency_timer_ms(url)
+        latency_ms = float(timer_ms) if timer_ms is not None else DEFAULT_LATENCY_MS
+        if (message := latency_warning(url)) is not None:
+            warnings.append(message)
+
+        def open_serial():
+            return serial.serial_for_url(url, baudrate=baud_rate, timeout=0)
+
+    port = ClockedPortHandler(url, clock, open_serial, latency_ms, baud_rate)
+    try:
+        port.openPort()
+    except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
+        raise BusError(f"cannot open servo port {url}: {exc}") from None
+    bus = FeetechBus(port, clock, retries=retries)
+    bus.sim = sim
+    bus.warnings.extend(warnings)
+    if setup is not None:
+        try:
+            bus.connect(setup)
+        except BaseException:
+            bus.close()
+            raise
+    return bus
