@@ -1,0 +1,159 @@
+"""Combined CASR + DHD control (seed 001, eqs. 9.6-9.9) and the force-ramp tracking run."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from pinarray.softness._checks import SoftnessError
+from pinarray.softness.control import (
+    SEED_EXAMPLE_MATERIAL,
+    ActuatorLags,
+    Material,
+    ValveRange,
+    control_commands,
+    first_order_lag,
+    simulate_force_ramp,
+)
+from pinarray.softness.identification import M1_R11_FORCE_AREA, M2_R14_FORCE_DISPLACEMENT
+from pinarray.softness.tf_display import ConeDisplay
+from tests.softness.strategies import log_uniform, with_zero
+
+CASR = ConeDisplay()
+# alpha = 1.4e8 N/m^4 keeps the cone unbottomed up to alpha (pi R^2)^2 = 2.4665 N
+UNBOTTOMED_FORCES_N = with_zero(log_uniform(1e-6, 2.4))
+
+
+def test_the_seed_material_in_si_units():
+    # alpha = 1.4 N/cm^4 = 1.4e8 N/m^4; beta = 1/23 cm/N = 1/2300 m/N
+    assert_allclose(SEED_EXAMPLE_MATERIAL.alpha_n_per_m4, 1.4e8, rtol=1e-15)
+    assert_allclose(SEED_EXAMPLE_MATERIAL.beta_m_per_n, 1 / 2300, rtol=1e-15)
+    from_fits = Material.from_fits(M1_R11_FORCE_AREA, M2_R14_FORCE_DISPLACEMENT)
+    assert_allclose(from_fits.alpha_n_per_m4, 1.4e8, rtol=1e-15)
+    assert_allclose(from_fits.beta_m_per_n, 1 / 2300, rtol=1e-15)
+
+
+def test_commands_for_one_point_four_newtons_by_hand():
+    commands = control_commands(SEED_EXAMPLE_MATERIAL, 1.4)
+    # A_m = sqrt(1.4 / 1.4e8) = 1e-4 m^2; p = alpha A_m = 1.4e4 Pa (eq. 9.7)
+    assert_allclose(commands.material_area_m2, 1e-4, rtol=1e-15)
+    assert_allclose(commands.pressure_pa, 1.4e4, rtol=1e-15)
+    # z_C = (H / R) sqrt(A / pi) = (0.01 / 0.0065) * 5.6418958e-3 = 8.67983975e-3 m
+    assert_allclose(commands.casr_displacement_m, 8.6798397469e-3, rtol=1e-9)
+    # z_m = 1.4 / 2300 = 6.0869565e-4 m; z_D = z_m - z_C = -8.07114409e-3 m: the DHD must pull
+    assert_allclose(commands.material_displacement_m, 6.086956522e-4, rtol=1e-9)
+    assert_allclose(commands.dhd_displacement_m, -8.0711440947e-3, rtol=1e-9)
+    assert commands.dhd_must_pull and not commands.pressure_out_of_range
+    assert not commands.display_bottomed
+
+
+def test_a_soft_enough_material_lets_the_dhd_push():
+    # beta = 1 cm/N: z_m = 14 mm at 1.4 N, more than z_C = 8.68 mm
+    commands = control_commands(Material(1.4e8, 0.01), 1.4)
+    assert_allclose(commands.dhd_displacement_m, 0.014 - 8.6798397469e-3, rtol=1e-9)
+    assert not commands.dhd_must_pull
+
+
+@given(force=UNBOTTOMED_FORCES_N)
+def test_the_casr_pushes_back_with_the_material_force_at_the_material_area(force):
+    commands = control_commands(SEED_EXAMPLE_MATERIAL, force)
+    assert_allclose(
+        CASR.area_m2(commands.casr_displacement_m), commands.material_area_m2, rtol=1e-12
+    )
+    rendered = CASR.force_n(commands.pressure_pa, commands.casr_displacement_m)
+    assert_allclose(rendered, force, rtol=1e-12)
+
+
+@given(force=UNBOTTOMED_FORCES_N, beta=log_uniform(1e-5, 1e-1))
+def test_dhd_displacement_matches_eq_9_9(force, beta):
+    commands = control_commands(Material(1.4e8, beta), force)
+    z_c, p = commands.casr_displacement_m, commands.pressure_pa
+    # z_D = beta p pi R^2 / H^2 z_C^2 - z_C
+    eq_9_9 = beta * p * np.pi * 0.0065**2 / 0.01**2 * z_c**2 - z_c
+    assert_allclose(commands.dhd_displacement_m, eq_9_9, rtol=1e-9, atol=1e-15)
+    assert_allclose(z_c + commands.dhd_displacement_m, beta * force, rtol=1e-9, atol=1e-15)
+
+
+def test_flags_for_the_valve_range_and_a_bottomed_display():
+    # p = sqrt(alpha F): 1 N -> 11832 Pa, beyond a 10 kPa valve; 0.5 N -> 8367 Pa is fine
+    commands = control_commands(SEED_EXAMPLE_MATERIAL, [0.5, 1.0, 3.0], valve=ValveRange(0, 10e3))
+    assert commands.pressure_out_of_range.tolist() == [False, True, True]
+    # 3 N wants A = sqrt(3 / 1.4e8) = 1.464e-4 m^2 > pi R^2 = 1.327e-4 m^2
+    assert commands.display_bottomed.tolist() == [False, False, True]
+    assert commands.casr_displacement_m[2] == CASR.height_m
+
+
+def test_a_valve_that_cannot_hold_a_small_pressure_is_flagged():
+    commands = control_commands(SEED_EXAMPLE_MATERIAL, [0.0, 1e-4], valve=ValveRange(1e3, 1e5))
+    assert commands.pressure_out_of_range.tolist() == [True, True]
+
+
+def test_a_lag_follows_a_ramp_exactly_whatever_the_step():
+    # tau x' = t - x, x(0) = 0: x(t) = t - tau + tau e^(-t/tau); tau = 0.1 s, step 0.25 s
+    time = np.arange(0, 2.01, 0.25)
+    expected = time - 0.1 + 0.1 * np.exp(-time / 0.1)
+    assert_allclose(first_order_lag(time, 0.25, 0.1), expected, rtol=1e-13, atol=1e-15)
+
+
+def test_a_lag_on_a_curved_command_converges_at_second_order():
+    def error(step):
+        time = np.arange(0, 1 + step / 2, step)
+        # tau x' = sin(w t) - x, x(0) = 0, tau = 0.05, w = 2 pi: exact solution below
+        tau, w = 0.05, 2 * np.pi
+        exact = (np.sin(w * time) - w * tau * np.cos(w * time) + w * tau * np.exp(-time / tau)) / (
+            1 + (w * tau) ** 2
+        )
+        return np.max(np.abs(first_order_lag(np.sin(w * time), step, tau) - exact))
+
+    assert error(0.01) / error(0.005) > 3.5
+
+
+def test_an_ideal_system_tracks_the_material_exactly():
+    run = simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 1.0, 1e-3, lags=ActuatorLags(0, 0))
+    assert run.time_s.size == 1001
+    assert_allclose(run.rendered_area_m2, run.commands.material_area_m2, rtol=1e-12, atol=1e-20)
+    assert_allclose(
+        run.rendered_displacement_m, run.commands.material_displacement_m, rtol=1e-9, atol=1e-15
+    )
+
+
+def test_lagging_actuators_leave_a_tracking_error_that_shrinks_with_the_lag():
+    def worst_error(lag_s):
+        run = simulate_force_ramp(
+            SEED_EXAMPLE_MATERIAL, 2.0, 1.0, 1e-3, lags=ActuatorLags(lag_s, lag_s)
+        )
+        return np.max(np.abs(run.displacement_error_m[run.time_s > 0.2]))
+
+    assert worst_error(0.05) > worst_error(0.005) > 0
+
+
+def test_a_saturated_valve_makes_the_display_too_soft():
+    run = simulate_force_ramp(
+        SEED_EXAMPLE_MATERIAL, 2.0, 1.0, 1e-3, valve=ValveRange(0, 5e3), lags=ActuatorLags(0, 0)
+    )
+    flagged = run.commands.pressure_out_of_range
+    assert flagged.any() and not flagged.all()
+    # where the valve caps the pressure the same force spreads over a larger area
+    assert np.all(run.area_error_m2[flagged] > 0)
+    assert np.all(run.pressure_pa <= 5e3)
+
+
+@given(step=st.floats(1e-4, 0.5))
+def test_the_ramp_starts_at_zero_and_ends_at_the_peak(step):
+    run = simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 1.0, step)
+    assert run.commands.force_n[0] == 0.0
+    assert_allclose(run.commands.force_n[-1], 2.0)
+    assert run.time_s[-1] == 1.0
+    assert np.all(np.isfinite(run.rendered_displacement_m))
+
+
+def test_bad_runs_are_rejected():
+    with pytest.raises(SoftnessError, match="longer than the ramp"):
+        simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 1.0, 2.0)
+    with pytest.raises(SoftnessError, match="peak_force_n"):
+        simulate_force_ramp(SEED_EXAMPLE_MATERIAL, np.nan, 1.0, 0.01)
+    with pytest.raises(SoftnessError, match="min_pa < max_pa"):
+        ValveRange(2e4, 1e4)
+    with pytest.raises(SoftnessError, match="beta_m_per_n"):
+        Material(1e8, -1.0)

@@ -1,0 +1,109 @@
+"""The forceps pipeline (seed 000, 4.1): force/displacement samples -> modulus -> force/area
+through Hertz -> the pressure a display needs to replicate the tissue."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from pinarray.softness._checks import SoftnessError
+from pinarray.softness.forceps import TissueModel, fit_tissue
+from pinarray.softness.hertz import HertzContact
+from pinarray.softness.tf_display import ConeDisplay
+from tests.softness.strategies import forces_n, log_uniform, moduli_pa, radii_m, strains, with_zero
+
+LINEAR = TissueModel(radius_m=0.01, e0_pa=1e5)  # E = 75 kPa, nu = 0.5
+STIFFENING = TissueModel(radius_m=0.01, e0_pa=1e5, e1_pa=1e6)
+
+
+def test_a_constant_modulus_tissue_by_hand():
+    # delta = 1e-4 m -> eps = sqrt(1e-4 / 0.01) = 0.1, a = 1 mm;
+    # F = (4/3) R^2 eps^3 E* = (4/3) * 1e-4 * 1e-3 * 1e5 = 0.04/3 N
+    assert_allclose(LINEAR.force_for_approach_n(1e-4), 0.04 / 3, rtol=1e-14)
+    assert_allclose(LINEAR.area_for_force_m2(0.04 / 3), np.pi * 1e-6, rtol=1e-14)
+    # p = F / A = (0.04/3) / (pi 1e-6) = 4244.13 Pa = 4 E* eps / (3 pi)
+    assert_allclose(LINEAR.display_pressure_pa(np.pi * 1e-6), 4e4 / (3 * np.pi), rtol=1e-14)
+    # E = E* (1 - nu^2) = 1e5 * 0.75
+    assert_allclose(LINEAR.young_modulus_pa(0.1), 75e3, rtol=1e-15)
+
+
+def test_a_stiffening_tissue_by_hand():
+    # eps = 0.1: E* = 1e5 + 1e6 * 0.1 = 2e5 Pa, so twice the force of the linear tissue
+    assert_allclose(STIFFENING.effective_modulus_pa(0.1), 2e5, rtol=1e-15)
+    assert_allclose(STIFFENING.force_for_approach_n(1e-4), 0.08 / 3, rtol=1e-14)
+    assert_allclose(STIFFENING.area_for_force_m2(0.08 / 3), np.pi * 1e-6, rtol=1e-13)
+
+
+@given(force=with_zero(forces_n), radius=radii_m, modulus=moduli_pa)
+def test_a_constant_modulus_agrees_with_the_hertz_contact(force, radius, modulus):
+    tissue = TissueModel(radius, modulus)
+    hertz = HertzContact(radius, modulus)
+    assert_allclose(tissue.area_for_force_m2(force), hertz.contact_area_m2(force), rtol=1e-13)
+
+
+@given(force=forces_n, radius=radii_m, e0=moduli_pa, growth=log_uniform(1e-3, 1e3))
+def test_area_round_trips_for_stiffening_tissue_from_micronewtons(force, radius, e0, growth):
+    tissue = TissueModel(radius, e0, e0 * growth)
+    area = tissue.area_for_force_m2(force)
+    assert_allclose(tissue.force_for_area_n(area), force, rtol=1e-12)
+
+
+@given(strain=strains, e0=moduli_pa, softening=st.floats(0.01, 0.74))
+def test_area_round_trips_for_softening_tissue_on_its_rising_branch(strain, e0, softening):
+    # e1 = -softening * e0 keeps force rising up to eps = 0.75 / softening > 1
+    tissue = TissueModel(0.01, e0, -softening * e0)
+    force = tissue.force_for_strain_n(strain)
+    assert_allclose(tissue.strain_for_area(tissue.area_for_force_m2(force)), strain, rtol=1e-12)
+
+
+def test_softening_past_the_rising_branch_is_refused():
+    tissue = TissueModel(0.01, 1e5, -1e6)  # force stops rising at eps = 0.075
+    with pytest.raises(SoftnessError, match="stops rising"):
+        tissue.force_for_strain_n(0.1)
+    with pytest.raises(SoftnessError, match="beyond the largest force"):
+        tissue.area_for_force_m2(10.0)
+
+
+@given(area=st.floats(0.0, ConeDisplay().max_area_m2))
+def test_the_display_pressure_reproduces_the_tissue_force_on_the_cone(area):
+    cone = ConeDisplay()
+    pressure = STIFFENING.display_pressure_pa(area)
+    rendered = cone.force_n(pressure, cone.indentation_for_area_m(area))
+    assert_allclose(rendered, STIFFENING.force_for_area_n(area), rtol=1e-12, atol=1e-300)
+
+
+def test_the_fit_recovers_a_stiffening_tissue_from_forceps_samples():
+    approach = np.linspace(0, 3e-3, 40)
+    fit = fit_tissue(approach, STIFFENING.force_for_approach_n(approach), radius_m=0.01)
+    assert_allclose([fit.model.e0_pa, fit.model.e1_pa], [1e5, 1e6], rtol=1e-9)
+    assert fit.rms_residual_n < 1e-12
+
+
+def test_a_constant_fit_of_stiffening_samples_leaves_residuals():
+    approach = np.linspace(0, 3e-3, 40)
+    force = STIFFENING.force_for_approach_n(approach)
+    constant = fit_tissue(approach, force, radius_m=0.01, strain_dependent=False)
+    assert constant.model.e1_pa == 0.0
+    assert constant.rms_residual_n > 1e-3
+
+
+@given(seed=st.integers(0, 2**32 - 1))
+def test_noisy_samples_give_residuals_orthogonal_to_the_model_terms(seed):
+    rng = np.random.default_rng(seed)
+    approach = np.sort(rng.uniform(0, 3e-3, 30))
+    force = STIFFENING.force_for_approach_n(approach) + rng.normal(0, 0.01, approach.size)
+    fit = fit_tissue(approach, force, radius_m=0.01)
+    for column in (np.sqrt(0.01) * approach**1.5, approach**2):
+        assert abs(column @ fit.residuals_n) < 1e-9 * np.linalg.norm(column) * np.linalg.norm(force)
+
+
+def test_samples_that_are_not_a_contact_are_refused():
+    with pytest.raises(SoftnessError, match="never closed"):
+        fit_tissue([0.0, 0.0, 0.0], [0.0, 0.1, 0.2], radius_m=0.01)
+    with pytest.raises(SoftnessError, match="not positive"):
+        fit_tissue([1e-3, 2e-3, 3e-3], [-1.0, -2.0, -3.0], radius_m=0.01)
+    with pytest.raises(SoftnessError, match="approach_m"):
+        fit_tissue([1e-3, -2e-3], [1.0, 2.0], radius_m=0.01)
+    with pytest.raises(SoftnessError, match="poisson"):
+        TissueModel(0.01, 1e5, poisson=0.6)

@@ -1,0 +1,72 @@
+"""The telescopic display (seed 000, 4.2): a staircase F_i = p_0 A_i, and pressures that
+make it follow a tissue's force/area curve."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from pinarray.softness._checks import SoftnessError
+from pinarray.softness.telescopic import TelescopicDisplay, staircase_points
+
+# A_0 = 10 mm^2, each cylinder doubles the area, a new one every 1 mm, four cylinders.
+DISPLAY = TelescopicDisplay(
+    central_area_m2=1e-5, area_ratio=2.0, step_height_m=1e-3, cylinder_count=4
+)
+
+
+def test_areas_grow_by_the_ratio_on_each_step():
+    assert_allclose(DISPLAY.step_areas_m2, [1e-5, 2e-5, 4e-5, 8e-5], rtol=1e-15)
+
+
+def test_the_finger_meets_one_more_cylinder_every_step_height():
+    # 0.5 mm: central only; 1.5 mm: second; 3.5 mm: fourth; 10 mm: still the fourth (the last)
+    assert_allclose(
+        DISPLAY.area_m2([0.0, 0.5e-3, 1.5e-3, 3.5e-3, 10e-3]), [1e-5, 1e-5, 2e-5, 8e-5, 8e-5]
+    )
+
+
+def test_a_constant_pressure_gives_a_force_staircase():
+    # 10 kPa: F_i = 1e4 * A_i = 0.1, 0.2, 0.4, 0.8 N
+    assert_allclose(DISPLAY.force_n(1e4, [0.5e-3, 1.5e-3, 2.5e-3, 3.5e-3]), [0.1, 0.2, 0.4, 0.8])
+
+
+def test_a_pressure_schedule_puts_every_step_on_the_target_curve():
+    def target(area):  # F = 1e4 A + 1e9 A^2
+        return 1e4 * area + 1e9 * area**2
+
+    # p_i = F(A_i) / A_i = 1e4 + 1e9 A_i = 2e4, 3e4, 5e4, 9e4 Pa
+    assert_allclose(DISPLAY.pressure_schedule_pa(target), [2e4, 3e4, 5e4, 9e4], rtol=1e-14)
+    # one pressure for all: sum F_i A_i / sum A_i^2 with F_i = 0.2, 0.6, 2.0, 7.2 N:
+    # (2e-6 + 1.2e-5 + 8e-5 + 5.76e-4) / (1e-10 * (1 + 4 + 16 + 64)) = 6.7e-4 / 8.5e-9
+    assert_allclose(DISPLAY.best_constant_pressure_pa(target), 6.7e-4 / 8.5e-9, rtol=1e-13)
+
+
+@given(
+    area=st.floats(1e-7, 1e-4),
+    ratio=st.floats(1.01, 4.0),
+    count=st.integers(1, 12),
+    pressure=st.floats(1.0, 1e6),
+)
+def test_force_never_falls_as_the_finger_goes_deeper(area, ratio, count, pressure):
+    display = TelescopicDisplay(area, ratio, 1e-3, count)
+    depth = np.linspace(0, 1.5e-3 * count, 200)
+    assert np.all(np.diff(display.force_n(pressure, depth)) >= 0)
+
+
+def test_staircase_points_trace_each_step_flat():
+    depth, force = staircase_points(DISPLAY, 1e4)
+    assert_allclose(depth, [0, 1e-3, 1e-3, 2e-3, 2e-3, 3e-3, 3e-3, 4e-3])
+    assert_allclose(force, [0.1, 0.1, 0.2, 0.2, 0.4, 0.4, 0.8, 0.8])
+
+
+def test_impossible_displays_are_rejected():
+    with pytest.raises(SoftnessError, match="area_ratio must be greater than 1"):
+        TelescopicDisplay(1e-5, 1.0, 1e-3, 3)
+    with pytest.raises(SoftnessError, match="cylinder_count"):
+        TelescopicDisplay(1e-5, 2.0, 1e-3, 0)
+    with pytest.raises(SoftnessError, match="step_height_m"):
+        TelescopicDisplay(1e-5, 2.0, -1e-3, 3)
+    with pytest.raises(SoftnessError, match="indentation_m"):
+        DISPLAY.area_m2(np.nan)
