@@ -88,6 +88,25 @@ class PlaybackReport:
     def bytes_on_wire(self) -> int:
         return self.bytes_written + self.bytes_read
 
+    @classmethod
+    def merged(cls, reports: list[PlaybackReport]) -> PlaybackReport:
+        """Several trials as one report (frame times stay relative to each trial's onset)."""
+
+        def joined(name: str) -> np.ndarray:
+            arrays = [getattr(r, name) for r in reports]
+            return np.concatenate(arrays) if arrays else np.zeros(0, dtype=np.int64)
+
+        return cls(
+            onset_ns=reports[0].onset_ns if reports else 0,
+            scheduled_ns=joined("scheduled_ns"),
+            sent_ns=joined("sent_ns"),
+            goals_written=sum(r.goals_written for r in reports),
+            bytes_written=sum(r.bytes_written for r in reports),
+            bytes_read=sum(r.bytes_read for r in reports),
+            retries=sum(r.retries for r in reports),
+            telemetry=tuple(t for r in reports for t in r.telemetry),
+        )
+
     def deadline_error_ns(self, percentile: float) -> int:
         """Lateness of the frames at ``percentile`` (0-100), in nanoseconds."""
         if not len(self.errors_ns):

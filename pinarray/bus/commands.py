@@ -1,7 +1,196 @@
-"""Subcommands of this area (filled in by its issue)."""
+"""`pinarray play`, `pinarray scan` and `pinarray sim-serve`: the servo bus from the shell."""
 
 import argparse
 
+SIM_DEFAULT = "sim://"
+
+PLAY_EPILOG = """\
+Bus choice: --port PATH drives real servos (a device such as /dev/ttyUSB0 or a pyserial URL);
+--sim [URL] (the default) drives simulated ones, e.g. --sim 'sim://?drop=0.01&corrupt=0.01'
+(see `pinarray sim-serve --help` for the URL keys); the simulated ids default to the
+protocol's servo ids.
+
+Time: with the simulator, --time-scale 0 (the default) runs in virtual time: nothing sleeps,
+the report shows what the schedule and the wire allow. --time-scale X > 0 runs in real time
+sped up X times (1 = real time). Real servos always run at --time-scale 1.
+
+Ctrl-C or SIGTERM stop playback cleanly: pins go to rest and torque off before exit.
+"""
+
+SERVE_EPILOG = """\
+Fault keys (also usable in --sim URLs of play/scan): drop=P and corrupt=P (probabilities
+0-1), missing=IDS, extra=IDS, overload=IDS, overheat=IDS, voltage=IDS, vanish_after=N
+(instruction packets before the port disappears), return_delay_us=US, seed=S.
+Example: pinarray sim-serve --ids 1-16 --faults 'drop=0.01&overheat=5'
+"""
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add this area's subcommands to the `pinarray` parser."""
+    """Add ``play``, ``scan`` and ``sim-serve`` to the `pinarray` parser."""
+    p = subparsers.add_parser(
+        "play",
+        help="play a protocol's trials on real or simulated servos",
+        epilog=PLAY_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("file", help="protocol YAML file")
+    p.add_argument("--trial", type=int, metavar="N", help="play only trial N of the plan")
+    _add_bus_choice(p)
+    p.add_argument(
+        "--time-scale", type=float, default=None, metavar="X",
+        help="simulator only: 0 = virtual time (default), X > 0 = real time sped up X times",
+    )
+    p.add_argument("--seed", type=int, default=None, help="seed of the trial order")
+    p.set_defaults(func=_cmd_play)
+
+    p = subparsers.add_parser(
+        "scan",
+        help="list the servos that answer: model, voltage, temperature, error bits",
+        epilog="The simulated bus is the default; use --port for hardware.",
+    )
+    _add_bus_choice(p)
+    p.add_argument("--ids", default="0-252", help="ids to ping, e.g. 1-16 (default 0-252)")
+    p.add_argument("--baud", type=int, default=1_000_000, help="bit/s (default 1000000)")
+    p.set_defaults(func=_cmd_scan)
+
+    p = subparsers.add_parser(
+        "sim-serve",
+        help="serve simulated servos on a pseudo-terminal and print its path",
+        epilog=SERVE_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--ids", default="1-16", help="servo ids (default 1-16)")
+    p.add_argument("--faults", default="", metavar="QUERY", help="fault keys, URL query style")
+    p.set_defaults(func=_cmd_sim_serve)
+
+
+def _add_bus_choice(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--port", metavar="PATH", help="serial device of real servos")
+    group.add_argument(
+        "--sim", nargs="?", const=SIM_DEFAULT, metavar="URL",
+        help="simulated servos (default), optionally a sim:// URL with faults",
+    )
+
+
+def _bus_url(args: argparse.Namespace, servo_ids: tuple[int, ...] | None) -> str:
+    if args.port:
+        return args.port
+    url = args.sim or SIM_DEFAULT
+    if servo_ids and "ids=" not in url:
+        from pinarray.bus.faults import is_sim_url
+
+        if not is_sim_url(url):
+            from pinarray.errors import PinArrayError
+
+            raise PinArrayError(f"--sim expects a sim:// URL, found {url!r}")
+        ids = ",".join(map(str, servo_ids))
+        url += ("&" if "?" in url else "?") + f"ids={ids}"
+    return url
+
+
+def _cmd_play(args: argparse.Namespace) -> int:
+    from pinarray.bus.base import servo_setup_from_device
+    from pinarray.bus.transport import open_bus
+    from pinarray.clock import MonotonicClock, ScaledClock, VirtualClock
+    from pinarray.errors import PinArrayError
+    from pinarray.plan import make_plan
+    from pinarray.player import PlaybackReport, pins_made_safe, play_trial, sigterm_raises
+    from pinarray.protocol_load import load_protocol
+    from pinarray.schedule import compile_trial
+
+    protocol = load_protocol(args.file)
+    plan = make_plan(protocol, seed=args.seed)
+    trials = (plan.trial(args.trial),) if args.trial is not None else plan.trials
+    setup = servo_setup_from_device(protocol.device)
+    url = _bus_url(args, setup.servo_ids)
+    if args.port:
+        if args.time_scale not in (None, 1.0):
+            raise PinArrayError("real servos play in real time: --time-scale must be 1")
+        clock = MonotonicClock()
+    elif not args.time_scale:
+        clock = VirtualClock()
+    else:
+        clock = ScaledClock(args.time_scale)
+
+    reports: list[PlaybackReport] = []
+    with sigterm_raises():
+        bus = open_bus(url, setup, clock, baud_rate=protocol.device.servo.baud_rate)
+        for warning in bus.warnings:
+            print(f"pinarray: warning: {warning}")
+        print(f"{protocol.name}: {len(trials)} trial(s) on {url} (seed {plan.seed})")
+        try:
+            with pins_made_safe(bus):
+                bus.move_to_rest()
+                for planned in trials:
+                    targets = compile_trial(protocol, planned).targets
+                    report = play_trial(bus, targets, clock, release_at_end=False)
+                    reports.append(report)
+                    kind = "practice" if planned.practice else f"block {planned.block}"
+                    print(f"trial {planned.trial} ({kind}): {report.summary()}", flush=True)
+        finally:
+            bus.close()
+    total = PlaybackReport.merged(reports)
+    print(f"played {len(reports)} trial(s): {total.summary()}, {total.retries} retries; "
+          "pins at rest, torque off")
+    return 0
+
+
+def _cmd_scan(args: argparse.Namespace) -> int:
+    from pinarray.bus.faults import parse_ids
+    from pinarray.bus.registers import STS3215_MODEL_NUMBER
+    from pinarray.bus.transport import open_bus
+    from pinarray.errors import BusError
+
+    ids = parse_ids(args.ids)
+    url = _bus_url(args, None)
+    bus = open_bus(url, baud_rate=args.baud, retries=1)
+    try:
+        for warning in bus.warnings:
+            print(f"pinarray: warning: {warning}")
+        found = 0
+        print(f"{'id':>3}  {'model':<14} {'position':>8} {'voltage':>8} {'temp':>6}  errors")
+        for servo_id in ids:
+            model = bus.ping(servo_id, retry=False)
+            if model is None:
+                continue
+            found += 1
+            name = f"{model} (STS3215)" if model == STS3215_MODEL_NUMBER else str(model)
+            try:
+                (reading,) = bus.read_telemetry((servo_id,))
+            except BusError as error:
+                print(f"{servo_id:>3}  {name:<14} telemetry failed: {error}")
+                continue
+            print(
+                f"{servo_id:>3}  {name:<14} {reading.position_steps:>8} "
+                f"{reading.voltage_v:>7.1f}V {reading.temperature_c:>4}°C  "
+                f"{reading.errors.describe()}"
+            )
+        print(f"{found} servo(s) answered on {url} (ids {args.ids} pinged)")
+    finally:
+        bus.close()
+    return 0
+
+
+def _cmd_sim_serve(args: argparse.Namespace) -> int:
+    import signal
+
+    from pinarray.bus.faults import parse_sim_url
+    from pinarray.bus.serve import PtyServer
+
+    query = f"ids={args.ids}" + (f"&{args.faults.lstrip('?&')}" if args.faults else "")
+    server = PtyServer(parse_sim_url(f"sim://?{query}"))
+
+    def stop(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    print(f"simulated servos {args.ids} on {server.path}  (Ctrl-C or SIGTERM to stop)", flush=True)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    print("sim-serve stopped", flush=True)
+    return 0
