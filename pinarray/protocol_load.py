@@ -16,7 +16,7 @@ from pinarray.protocol import (
     NS_PER_S, Condition, Constraints, Design, Device, Ordering, Paradigm, PinCalibration,
     Protocol, ServoSettings, Stimulus, Train, Wave, WaveKind,
 )
-from pinarray.yaml_nodes import Node, Reader
+from pinarray.yaml_nodes import Invalid, Node, Reader
 
 MS = Fraction(1_000_000)  # ns per ms
 MAX_DURATION_S = 48 * 3600
@@ -223,10 +223,7 @@ def _stimuli(reader: Reader, node: Node, device: Device | None):
         if name is None:
             continue
         nodes[name] = value_node
-        is_wave = hasattr(value_node, "value") and isinstance(value_node.value, list) and any(
-            getattr(k, "value", None) == "wave" for k, _ in value_node.value if hasattr(k, "value")
-        )
-        if is_wave:
+        if _is_wave(value_node):
             waves.append((name, value_node))
             continue
         train = reader.attempt(lambda v=value_node: _train(reader, v))
@@ -240,6 +237,13 @@ def _stimuli(reader: Reader, node: Node, device: Device | None):
     if not pairs and not reader.errors:
         reader.error(node, "expected at least one stimulus, found none")
     return tuple(stimuli), nodes
+
+
+def _is_wave(node: Node) -> bool:
+    """A stimulus is a wave when its mapping has a ``wave`` key (trains have none)."""
+    return isinstance(node.value, list) and any(
+        isinstance(pair, tuple) and getattr(pair[0], "value", None) == "wave" for pair in node.value
+    )
 
 
 def _train(reader: Reader, node: Node) -> Train:
@@ -267,7 +271,7 @@ def _train(reader: Reader, node: Node) -> Train:
     for label, width in (("up", up_ns), ("down", down_ns)):
         if width > slot_ns:
             where = keys.get("pulse_width_ms", keys["frequency_hz"])
-            raise reader.error(where, f"expected pulse widths within the pulse period: a {label} pulse of {width / 1e6:g} ms does not fit the {float(slot_ns) / 1e6:g} ms period of {per_cycle} pulses per cycle at {float(frequency):g} Hz")
+            raise reader.error(where, f"expected pulse widths within the pulse period: the {label} pulse of {width / 1e6:g} ms does not fit the {float(slot_ns) / 1e6:g} ms period of {per_cycle} pulses per cycle at {float(frequency):g} Hz")
     if duration_ns < train.slot_ns:
         raise reader.error(keys["duration_s"], f"expected a signal length of at least one pulse period ({float(slot_ns) / 1e6:g} ms), found {float(duration) * 1e3:g} ms")
     return train
@@ -297,6 +301,9 @@ def _wave(reader: Reader, node: Node, device: Device | None, trains: dict[str, T
     if kind is WaveKind.NONE and len(pins) % 2 == 0:
         raise reader.error(keys.get("pins", keys["row"]), f"a no-wave alternates a central pin with its two lateral ones: expected an odd number of pins, found {len(pins)}; list them with 'pins:'")
     train_name = reader.string(keys["train"], "the train each pin plays")
+    if train_name not in trains and train_name in nodes and nodes[train_name] is not node:
+        if not _is_wave(nodes[train_name]):
+            raise Invalid(train_name)  # a broken train, already reported
     if train_name not in trains:
         known = ", ".join(sorted(trains)) or "none"
         raise reader.error(keys["train"], f"expected the name of a pulse train stimulus ({known}), found {train_name!r}")
@@ -321,19 +328,27 @@ def _design(reader: Reader, node: Node, device: Device, stimuli, stimulus_nodes)
     keys = reader.mapping(node, DESIGN_KEYS, {"paradigm"}, "design")
     paradigm = Paradigm(reader.string(keys["paradigm"], "the paradigm", tuple(p.value for p in Paradigm)))
     by_name = {s.name: s for s in stimuli}
-    if paradigm is Paradigm.LOCALISATION:
-        conditions = _localisation(reader, node, keys, device, by_name)
-    else:
-        conditions = _motion(reader, node, keys, by_name)
-    repetitions = reader.integer(keys["repetitions"], "repetitions", 1, 1000) if "repetitions" in keys else 1
-    blocks = reader.integer(keys["blocks"], "blocks", 1, 1000) if "blocks" in keys else 1
-    ordering = Ordering(reader.string(keys["order"], "the order", tuple(o.value for o in Ordering))) if "order" in keys else Ordering.RANDOM
-    constraints = _constraints(reader, keys["constraints"]) if "constraints" in keys else Constraints()
+    read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
+    conditions = reader.attempt(lambda: read_conditions(reader, node, keys, device, by_name, stimulus_nodes))
+    def optional(key, read, default):
+        return reader.attempt(lambda: read(keys[key]), default) if key in keys else default
+
+    repetitions = optional("repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1)
+    blocks = optional("blocks", lambda n: reader.integer(n, "blocks", 1, 1000), 1)
+    ordering = Ordering(optional(
+        "order", lambda n: reader.string(n, "the order", tuple(o.value for o in Ordering)), Ordering.RANDOM.value
+    ))
+    constraints = optional("constraints", lambda n: _constraints(reader, n), Constraints())
     seed = None
     if "seed" in keys and not keys["seed"].tag.endswith(":null"):
-        seed = reader.integer(keys["seed"], "the seed", 0, 2**63 - 1)
-    iti = reader.number(keys["inter_trial_interval_s"], "the inter-trial interval", "s", allow_zero=True, maximum=3600) if "inter_trial_interval_s" in keys else Fraction(2)
-    practice = reader.integer(keys["practice_trials"], "practice trials", 0, 100) if "practice_trials" in keys else 0
+        seed = optional("seed", lambda n: reader.integer(n, "the seed", 0, 2**63 - 1), None)
+    iti = optional(
+        "inter_trial_interval_s",
+        lambda n: reader.number(n, "the inter-trial interval", "s", allow_zero=True, maximum=3600), Fraction(2),
+    )
+    practice = optional("practice_trials", lambda n: reader.integer(n, "practice trials", 0, 100), 0)
+    if conditions is None:
+        raise Invalid("conditions")  # their problems are already recorded
     design = Design(paradigm, conditions, repetitions, blocks, ordering, constraints, seed,
                     round(iti * NS_PER_S), practice)
     from pinarray.plan import ordering_problem
@@ -344,19 +359,21 @@ def _design(reader: Reader, node: Node, device: Device, stimuli, stimulus_nodes)
     return design
 
 
-def _localisation(reader, node, keys, device: Device, by_name) -> tuple[Condition, ...]:
+def _localisation(reader, node, keys, device: Device, by_name, declared) -> tuple[Condition, ...]:
     for key in ("stimulus", "pins", "frequencies_hz"):
         if key not in keys:
             raise reader.error(node, f"a localisation design needs a {key!r} key, found none")
-    name = reader.string(keys["stimulus"], "the stimulus")
-    stimulus = by_name.get(name)
-    if stimulus is None or stimulus.train is None:
-        trains = ", ".join(s.name for s in by_name.values() if s.train) or "none"
-        raise reader.error(keys["stimulus"], f"expected the name of a pulse train ({trains}), found {name!r}")
     pin_nodes = reader.sequence(keys["pins"], "the pins")
     pins = [reader.attempt(lambda n=n: _pin(reader, n, device.grid)) for n in pin_nodes]
     if len(set(pins)) != len(pins):
         raise reader.error(keys["pins"], f"expected each pin once, found {pins}")
+    name = reader.string(keys["stimulus"], "the stimulus")
+    stimulus = by_name.get(name)
+    if stimulus is None and name in declared:
+        raise Invalid(name)  # declared but broken: its own problem is already reported
+    if stimulus is None or stimulus.train is None:
+        trains = ", ".join(s.name for s in by_name.values() if s.train) or "none"
+        raise reader.error(keys["stimulus"], f"expected the name of a pulse train ({trains}), found {name!r}")
     conditions = []
     for frequency_node in reader.sequence(keys["frequencies_hz"], "the frequencies"):
         frequency = reader.number(frequency_node, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ)
@@ -380,13 +397,15 @@ def _check_train_on_pins(reader: Reader, node: Node, train: Train, pins, device:
             raise reader.error(node, result.describe(device.servo, calibration.lever_mm) + "; lower the frequency or the stroke, or set device: feasibility: scale")
 
 
-def _motion(reader, node, keys, by_name) -> tuple[Condition, ...]:
+def _motion(reader, node, keys, device, by_name, declared) -> tuple[Condition, ...]:
     if "configurations" not in keys:
         raise reader.error(node, "an apparent_motion design needs a 'configurations' key (wave stimuli), found none")
     conditions = []
     for item in reader.sequence(keys["configurations"], "the configurations"):
         name = reader.string(item, "a configuration")
         stimulus = by_name.get(name)
+        if stimulus is None and name in declared:
+            raise Invalid(name)  # declared but broken: its own problem is already reported
         if stimulus is None or stimulus.wave is None:
             waves = ", ".join(s.name for s in by_name.values() if s.wave) or "none"
             raise reader.error(item, f"expected the name of a wave stimulus ({waves}), found {name!r}")

@@ -24,6 +24,7 @@ from math import gcd
 import numpy as np
 
 from pinarray.errors import PinArrayError
+from pinarray.feasibility import check_train
 from pinarray.protocol import Device, PinDrive, Protocol, Train
 
 # Largest intermediate the int64 path may meet; beyond it we fall back to exact Python ints.
@@ -157,6 +158,10 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
 
         up = calibration.position_for_width(drive.train.up_width_ns)
         down = calibration.position_for_width(drive.train.down_width_ns)
+        if device.scale_infeasible:
+            # The protocol asked for strokes the servo cannot follow to shrink, not fail.
+            fraction = check_train(drive.train, calibration, device.servo).amplitude_fraction
+            up = down + int((up - down) * fraction)
         positions = np.where(is_up, up, down).astype(np.int32)
         drive_end_ns = drive.delay_ns + drive.train.duration_ns
         # The drive starts from rest and hands the pin back at rest when its signal ends.

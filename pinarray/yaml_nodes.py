@@ -77,6 +77,7 @@ class Reader:
         if not isinstance(node, yaml.MappingNode):
             raise self.error(node, f"expected a mapping for the {what}, found {describe(node)}")
         out: dict[str, Node] = {}
+        suggested: set[str] = set()
         for key_node, value_node in node.value:
             key = self.scalar_value(key_node)
             key_text = str(key)
@@ -85,12 +86,17 @@ class Reader:
                 continue
             if key_text not in allowed:
                 hint = difflib.get_close_matches(key_text, sorted(allowed), n=1)
+                suggested.update(hint)
                 suggestion = f"; did you mean {hint[0]!r}?" if hint else f"; expected one of {', '.join(sorted(allowed))}"
                 self.error(key_node, f"unknown key {key_text!r} in the {what}{suggestion}")
                 continue
             out[key_text] = value_node
-        for key in sorted(required - out.keys()):
-            self.error(node, f"the {what} needs a {key!r} key, found none")
+        missing = sorted(required - out.keys())
+        for key in missing:
+            if key not in suggested:  # a misspelt key was already reported with its hint
+                self.error(node, f"the {what} needs a {key!r} key, found none")
+        if missing:
+            raise Invalid(f"missing {missing}")
         return out
 
     def items(self, node: Node, what: str) -> list[tuple[Node, Node]]:

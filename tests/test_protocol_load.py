@@ -1,0 +1,229 @@
+"""Protocol files as a lab member writes them: what is accepted, and every mistake located."""
+
+import subprocess
+import sys
+import textwrap
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+from pinarray.errors import ProtocolErrors
+from pinarray.protocol import Paradigm, WaveKind
+from pinarray.protocol_load import load_protocol, parse_protocol
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+
+MINIMAL = """\
+protocol: mini
+stimuli:
+  buzz:
+    frequency_hz: 5
+    duration_s: 1
+design:
+  paradigm: localisation
+  stimulus: buzz
+  pins: [1, 2]
+  frequencies_hz: [5]
+"""
+
+
+def problems(text: str) -> list[str]:
+    with pytest.raises(ProtocolErrors) as caught:
+        parse_protocol(textwrap.dedent(text), "p.yaml")
+    return [e.located() for e in caught.value.errors]
+
+
+def test_the_seed_localisation_protocol_is_8_pins_by_3_frequencies_of_10_s():
+    protocol = load_protocol(PROTOCOLS / "localisation.yaml")
+    design = protocol.design
+    assert design.paradigm is Paradigm.LOCALISATION
+    assert {c.pin for c in design.conditions} == {1, 4, 6, 7, 10, 11, 13, 16}
+    assert {c.frequency_hz for c in design.conditions} == {3, 5, 10}
+    train = protocol.stimulus("seed_train").train
+    # "5 pulses of 1.5 ms and five pulses of 2 ms" per cycle, 10 s
+    assert (train.pulses_per_cycle, train.up_pulses) == (10, 5)
+    assert (train.up_width_ns, train.down_width_ns) == (2_000_000, 1_500_000)
+    assert train.duration_ns == 10_000_000_000
+    assert len(protocol.sha256) == 64
+
+
+def test_the_seed_apparent_motion_protocol_has_three_configurations_on_one_row():
+    protocol = load_protocol(PROTOCOLS / "apparent_motion.yaml")
+    directions = [c.direction for c in protocol.design.conditions]
+    assert directions == [WaveKind.RIGHTWARDS, WaveKind.LEFTWARDS, WaveKind.NONE]
+    assert {c.row for c in protocol.design.conditions} == {2}
+    assert protocol.design.blocks == 2 and protocol.design.repetitions == 2
+    # no SOA given: Tactile Brush, 0.32 x 400 ms + 47.3 ms
+    assert protocol.stimulus("rightwards").wave.soa_ns == 175_300_000
+
+
+def test_the_demo_touches_all_16_pins_in_under_a_minute():
+    protocol = load_protocol(PROTOCOLS / "demo.yaml")
+    design = protocol.design
+    pins = [c.pin for c in design.conditions]
+    assert sorted(pins) == list(range(1, 17))
+    total_ns = sum(
+        protocol.stimulus(c.stimulus).train.duration_ns + design.inter_trial_interval_ns
+        for c in design.conditions
+    )
+    assert total_ns < 60 * 10**9
+
+
+def test_defaults_give_pin_n_to_servo_n_and_the_seed_pulse_widths():
+    protocol = parse_protocol(MINIMAL)
+    assert [c.servo_id for c in protocol.device.pins] == list(range(1, 17))
+    train = protocol.stimulus("buzz").train
+    assert train.frequency_hz == 5 and train.duty_cycle == Fraction(1, 2)
+
+
+def test_decimals_are_exact_and_fractions_are_accepted():
+    protocol = parse_protocol(MINIMAL.replace("frequency_hz: 5", 'frequency_hz: "1/3"').replace(
+        "duration_s: 1", "duration_s: 30"))
+    assert protocol.stimulus("buzz").train.frequency_hz == Fraction(1, 3)
+    protocol = parse_protocol(MINIMAL.replace("frequency_hz: 5", "frequency_hz: 0.1").replace(
+        "duration_s: 1", "duration_s: 20"))
+    assert protocol.stimulus("buzz").train.frequency_hz == Fraction(1, 10)
+
+
+def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
+    protocol = parse_protocol(MINIMAL.replace("duration_s: 1", "duration_s: 1\n    phase_deg: 450"))
+    assert protocol.stimulus("buzz").train.phase == Fraction(1, 4)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "where", "message"),
+    [
+        ("frequency_hz: 5\n", "frequncy_hz: 5\n", "4:5", "unknown key 'frequncy_hz' in the pulse train; did you mean 'frequency_hz'?"),
+        ("frequency_hz: 5\n", "frequency_hz: .nan\n", "4:19", "expected a finite number of Hz"),
+        ("frequency_hz: 5\n", "frequency_hz: -.inf\n", "4:19", "expected a finite number of Hz"),
+        ("frequency_hz: 5\n", "frequency_hz: 0\n", "4:19", "expected the frequency more than 0 Hz, found 0"),
+        ("duration_s: 1\n", "duration_s: -2\n", "5:17", "expected the signal length more than 0 s, found -2"),
+        ("duration_s: 1\n", "duration_s: 1e9\n", "5:17", "at most 172800 s"),
+        ("duration_s: 1\n", "duration_s: ten\n", "5:17", "expected a number of s for the signal length, found 'ten'"),
+        ("pins: [1, 2]", "pins: [1, 99]", "9:13", "expected a pin from 1 to 16 on the 4x4 grid, found 99"),
+        ("stimulus: buzz", "stimulus: bzz", "8:13", "expected the name of a pulse train (buzz), found 'bzz'"),
+        ("paradigm: localisation", "paradigm: localization", "7:13", "did you mean 'localisation'?"),
+        ("duration_s: 1\n", "duration_s: 1\n    duty_cycle: 0.33\n", "6:17", "whole number of the 10 pulses"),
+        ("duration_s: 1\n", "duration_s: 1\n    duty_cycle: 1\n", "6:17", "strictly between 0 and 1"),
+        ("duration_s: 1\n", "duration_s: 1\n    pulse_width_ms: {up: 30, down: 1.5}\n", "6:21", "the up pulse of 30 ms does not fit the 20 ms period"),
+        ("pins: [1, 2]", "pins: 1", "9:9", "expected a list for the pins, found '1'"),
+    ],
+)
+def test_each_mistake_is_reported_at_its_line_and_column(old, new, where, message):
+    assert old in MINIMAL
+    (line,) = problems(MINIMAL.replace(old, new, 1))
+    assert line.startswith(f"p.yaml:{where}: ")
+    assert message in line
+
+
+def test_all_problems_of_a_file_are_reported_together():
+    text = MINIMAL.replace("frequency_hz: 5\n", "frequency_hz: .nan\n", 1).replace("pins: [1, 2]", "pins: [1, 17]")
+    lines = problems(text)
+    assert [line.split(": ")[0] for line in lines] == ["p.yaml:4:19", "p.yaml:9:13"]
+
+
+def test_malformed_yaml_and_duplicate_keys_are_located():
+    (line,) = problems("protocol: x\nstimuli: [1,\n")
+    assert line.startswith("p.yaml:3:1: malformed YAML")
+    lines = problems(MINIMAL.replace("protocol: mini\n", "protocol: mini\nprotocol: again\n"))
+    assert lines[0].startswith("p.yaml:2:1: duplicate key 'protocol'")
+
+
+def test_an_empty_file_is_a_clear_error():
+    (line,) = problems("")
+    assert "expected a protocol, found an empty file" in line
+
+
+def test_a_stroke_the_servo_cannot_follow_is_refused_with_what_is_achievable():
+    text = MINIMAL.replace("frequencies_hz: [5]", "frequencies_hz: [5, 40]").replace("duration_s: 1", "duration_s: 1\n    pulse_width_ms: {up: 2.0, down: 1.5}")
+    (line,) = problems(text)
+    assert line.startswith("p.yaml:11:")  # the 40 Hz entry
+    assert "pin 1 cannot follow 40 Hz" in line
+    assert "needs at most 13.16 Hz" in line  # 114 steps at 3000 steps/s: 38 ms per half-cycle
+    assert "only 38 steps" in line  # 12.5 ms x 3000 steps/s = 37.5 steps
+
+
+def test_a_protocol_may_ask_for_infeasible_strokes_to_be_scaled_instead():
+    text = ("device:\n  feasibility: scale\n" + MINIMAL).replace("frequencies_hz: [5]", "frequencies_hz: [40]")
+    protocol = parse_protocol(text)
+    assert protocol.device.scale_infeasible
+
+
+def test_an_impossible_ordering_constraint_is_reported_at_validation():
+    text = MINIMAL.replace("pins: [1, 2]", "pins: [1]").replace(
+        "frequencies_hz: [5]", "frequencies_hz: [3, 5]\n  constraints:\n    no_repeat: [pin]")
+    (line,) = problems(text)
+    assert line.startswith("p.yaml:12:")
+    assert "impossible order constraint: pin 1 appears 2 times among 2 trials" in line
+
+
+def test_a_no_wave_needs_a_central_pin():
+    text = """\
+    protocol: m
+    stimuli:
+      tap: {frequency_hz: 5, duration_s: 0.4}
+      still: {wave: none, row: 1, train: tap}
+    design: {paradigm: apparent_motion, configurations: [still]}
+    """
+    (line,) = problems(text)
+    assert "expected an odd number of pins, found 4" in line and line.startswith("p.yaml:4:")
+
+
+def test_validate_prints_ok_or_located_lines_and_exits_2(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(MINIMAL.replace("pins: [1, 2]", "pins: [1, 17]"))
+    result = subprocess.run(
+        [sys.executable, "-m", "pinarray", "validate", str(PROTOCOLS / "demo.yaml"), str(bad)],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert result.returncode == 2
+    assert result.stdout.startswith(f"{PROTOCOLS / 'demo.yaml'}: ok")
+    assert result.stderr == f"{bad}:9:13: expected a pin from 1 to 16 on the 4x4 grid, found 17\n"
+
+
+def test_validate_loads_neither_the_ui_nor_plotting():
+    code = (
+        "import sys; from pinarray.cli import main; "
+        f"main(['validate', r'{PROTOCOLS / 'localisation.yaml'}']); "
+        "print(sorted(m for m in ('textual', 'matplotlib') if m in sys.modules))"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert result.stdout.strip().endswith("[]")
+
+
+def test_a_missing_file_is_one_line():
+    result = subprocess.run(
+        [sys.executable, "-m", "pinarray", "validate", "nowhere.yaml"],
+        capture_output=True, text=True, timeout=60,
+    )
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "nowhere.yaml: no such protocol file" in result.stderr
+
+
+def test_compile_writes_every_pulse_of_every_trial_numbered_as_in_the_plan(tmp_path):
+    import csv
+
+    from pinarray.cli import main
+    from pinarray.plan import make_plan
+
+    out = tmp_path / "pulses.csv"
+    assert main(["compile", str(PROTOCOLS / "demo.yaml"), "--seed", "4", "--out", str(out)]) == 0
+    with out.open() as stream:
+        rows = list(csv.reader(stream))
+    assert rows[0] == ["trial", "pin", "start_ns", "width_ns"]
+    plan = make_plan(load_protocol(PROTOCOLS / "demo.yaml"), 4)
+    pins_by_trial = {int(r[0]): int(r[1]) for r in rows[1:]}
+    assert pins_by_trial == {t.trial: t.condition.pin for t in plan.trials}
+    assert len(rows) - 1 == 16 * 100  # 2 s x 5 Hz x 10 pulses per pin
+
+
+def test_preview_draws_a_text_timeline_and_a_png(tmp_path, capsys):
+    from pinarray.cli import main
+
+    png = tmp_path / "t.png"
+    assert main(["preview", str(PROTOCOLS / "apparent_motion.yaml"), "--trial", "2", "--seed", "1",
+                 "--png", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "pin  5 |" in out and "pin  7 |" in out and "#" in out
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
