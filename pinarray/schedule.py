@@ -194,12 +194,12 @@ def _changes_only(parts: list[tuple[np.ndarray, ...]], device: Device, end_ns: i
     same_instant_next[:-1] = (pin[1:] == pin[:-1]) & (time[1:] == time[:-1])
     keep = ~same_instant_next
     pin, time, position = pin[keep], time[keep], position[keep]
-    rest = np.array([c.rest_steps for c in device.pins], dtype=np.int32)
     previous = np.empty_like(position)
     previous[1:] = position[:-1]
     first_of_pin = np.ones(len(pin), dtype=bool)
     first_of_pin[1:] = pin[1:] != pin[:-1]
-    previous[first_of_pin] = rest[pin[first_of_pin] - 1]
+    # Only the active pins' rest positions: the array's size must not cost anything.
+    previous[first_of_pin] = [device.calibration(int(p)).rest_steps for p in pin[first_of_pin]]
     changed = position != previous
     pin, time, position = pin[changed], time[changed], position[changed]
     by_time = np.lexsort((pin, time))
