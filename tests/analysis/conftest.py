@@ -1,0 +1,59 @@
+"""A hand-built results set whose every number is worked out by hand in the tests."""
+
+import pytest
+
+from pinarray.results import RunWriter, TrialRecord
+
+# (subject, frequency_hz, stimulated pin, response, status, practice)
+LOCALISATION = [
+    ("A", 3.0, 10, "10", "ok", False),    # correct
+    ("A", 3.0, 10, "9", "ok", False),     # A: left neighbour on the same row
+    ("A", 3.0, 10, "5", "ok", False),     # B: diagonal neighbour
+    ("A", 3.0, 10, "none", "ok", False),  # nothing felt
+    ("A", 10.0, 4, "4", "ok", False),     # correct
+    ("A", 10.0, 4, "4", "ok", False),     # correct
+    ("A", 10.0, 4, "8", "ok", False),     # A: the pin above
+    ("A", 10.0, 10, "16", "ok", False),   # D
+    ("A", 10.0, 1, "1", "ok", True),      # practice: not counted
+    ("A", 10.0, 1, "2", "redone", False),  # redone: not counted
+    ("B", 3.0, 1, "3", "ok", False),      # C: same row, two along
+    ("B", 3.0, 1, "1", "ok", False),      # correct
+    ("B", 10.0, 4, "3", "ok", False),     # A
+]
+# (subject, wave direction, response)
+MOTION = [
+    ("A", "left", "left"), ("A", "left", "right"), ("A", "right", "none"),
+    ("A", "right", "unsure"), ("A", "none", "none"), ("A", "none", "left"),
+    ("B", "left", "left"), ("B", "right", "right"),
+]
+
+
+def _write(root, subject, task, records):
+    writer = RunWriter.start(root, subject, 1, task, [{"trial": r.trial} for r in records],
+                             seed=0, protocol_sha256="", port="sim://")
+    for record in records:
+        writer.write_trial(record)
+    writer.finish()
+    return writer.paths
+
+
+@pytest.fixture
+def results_root(tmp_path):
+    root = tmp_path / "results"
+    for subject in ("A", "B"):
+        localisation = [
+            TrialRecord(trial=n, block=1, task="localisation", onset_s=12.0 * n,
+                        duration_s=10.0, status=status, response=response, pin=pin,
+                        frequency_hz=frequency, practice=practice)
+            for n, (_, frequency, pin, response, status, practice) in enumerate(
+                (row for row in LOCALISATION if row[0] == subject), start=1)
+        ]
+        motion = [
+            TrialRecord(trial=n, block=1, task="motion", onset_s=4.0 * n, duration_s=3.0,
+                        response=response, row=1, direction=direction)
+            for n, (_, direction, response) in enumerate(
+                (row for row in MOTION if row[0] == subject), start=1)
+        ]
+        _write(root, subject, "localisation", localisation)
+        _write(root, subject, "motion", motion)
+    return root
