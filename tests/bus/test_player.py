@@ -1,0 +1,118 @@
+"""The player: absolute deadlines, limit refusal, and a safe stop on every way out."""
+
+import numpy as np
+import pytest
+
+from pinarray.clock import VirtualClock
+from pinarray.errors import PinArrayError
+from pinarray.player import PlaybackAborted, Terminated, pins_made_safe, play_trial
+
+from .lab import assert_safe, pulse_train, sim_bus, targets
+
+
+def test_frames_go_out_exactly_on_their_deadlines_in_virtual_time():
+    bus = sim_bus()
+    train = pulse_train(range(1, 17), 10, 5)
+    report = play_trial(bus, train, bus.clock, telemetry_interval_ns=None)
+    assert report.frames_sent == 10
+    np.testing.assert_array_equal(report.scheduled_ns, np.unique(train.time_ns))
+    np.testing.assert_array_equal(report.sent_ns, report.scheduled_ns)
+    assert report.deadline_error_ns(100) == 0
+    assert report.bytes_written >= 10 * 56
+
+
+def test_frames_faster_than_the_wire_fall_behind_without_drifting_the_schedule():
+    # 16 servos every 400 us needs 560 us of wire per frame: each frame is later than the last.
+    bus = sim_bus()
+    changes = [(k * 400_000, pin, 2100 if k % 2 == 0 else 2048)
+               for k in range(20) for pin in range(1, 17)]
+    report = play_trial(bus, targets(changes, 50_000_000), bus.clock, telemetry_interval_ns=None)
+    errors = report.errors_ns
+    assert errors[0] == 0 and np.all(np.diff(errors) > 0)
+    np.testing.assert_array_equal(report.scheduled_ns, np.arange(20) * 400_000)
+
+
+def test_a_schedule_outside_calibrated_limits_is_refused_before_anything_is_sent():
+    bus = sim_bus()
+    before = bus.stats()
+    bad = targets([(0, 3, 2100), (500_000_000, 6, 2500)], 1_000_000_000)
+    with pytest.raises(PinArrayError) as caught:
+        play_trial(bus, bad, bus.clock)
+    assert "pin 6 (servo 6) would go to 2500 steps at 0.500 s" in str(caught.value)
+    assert "limits 1900..2300" in str(caught.value)
+    assert bus.stats() == before
+
+
+def test_the_bus_itself_refuses_a_goal_outside_the_limits():
+    bus = sim_bus()
+    with pytest.raises(PinArrayError, match="pin 2 \\(servo 2\\): GOAL_POSITION 1000"):
+        bus.write_goals({2: 1000})
+
+
+def test_a_normal_end_leaves_pins_at_rest_with_torque_off():
+    bus = sim_bus()
+    report = play_trial(bus, pulse_train([1, 6, 11, 16], 5, 3), bus.clock)
+    assert report.safe_stop.complete
+    assert_safe(bus)
+
+
+class StopAt(VirtualClock):
+    """Virtual time that raises ``error`` when the player waits for frame ``frame``."""
+
+    def __init__(self, error: BaseException, frame: int):
+        super().__init__()
+        self.error, self.frame, self.waits = error, frame, 0
+        self.armed = False
+
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        if self.armed:
+            self.waits += 1
+            if self.waits == self.frame:
+                self.armed = False
+                raise self.error
+        super().sleep_until_ns(deadline_ns)
+
+
+@pytest.mark.parametrize("error, expected", [
+    (KeyboardInterrupt(), KeyboardInterrupt),
+    (Terminated("terminated by SIGTERM"), PlaybackAborted),
+    (RuntimeError("bug in a callback"), RuntimeError),
+])
+def test_every_way_out_leaves_pins_at_rest_with_torque_off(error, expected):
+    from pinarray.bus.transport import open_bus
+
+    from .lab import device_setup
+
+    clock = StopAt(error, frame=4)
+    bus = open_bus("sim://?ids=1-16", device_setup(), clock)
+    clock.armed = True
+    with pytest.raises(expected):
+        play_trial(bus, pulse_train(range(1, 17), 5, 5), clock)
+    assert_safe(bus)
+
+
+def test_pins_made_safe_covers_a_whole_session_of_trials():
+    bus = sim_bus()
+    with pytest.raises(KeyboardInterrupt), pins_made_safe(bus):
+        play_trial(bus, pulse_train([2], 5, 2), bus.clock, release_at_end=False)
+        assert bus.sim.servos[2].torque_enabled  # still holding between trials
+        raise KeyboardInterrupt
+    assert_safe(bus)
+
+
+def test_the_simulated_pin_never_moves_faster_than_the_servo_can():
+    from pinarray.bus.sim_servo import MAX_SPEED_STEPS_PER_S
+
+    bus = sim_bus()
+    servo = bus.sim.servos[1]
+    servo.start_recording()
+    report = play_trial(bus, pulse_train([1], 10, 10, up_steps=2300), bus.clock)
+    times = np.array([s.time_ns for s in servo.trajectory], dtype=np.int64)
+    positions = np.array([s.position_steps for s in servo.trajectory])
+    speeds = np.abs(np.diff(positions)) / (np.diff(times) / 1e9)
+    assert speeds.max() <= MAX_SPEED_STEPS_PER_S * 1.001
+    # 252 steps each way in 50 ms is out of reach: no 100 ms cycle swings the full stroke.
+    for cycle in range(10):
+        start_ns = report.onset_ns + cycle * 100_000_000
+        in_cycle = (times >= start_ns) & (times < start_ns + 100_000_000)
+        assert np.ptp(positions[in_cycle]) < 252 / 2
