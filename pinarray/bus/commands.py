@@ -92,7 +92,7 @@ def _bus_url(args: argparse.Namespace, servo_ids: tuple[int, ...] | None) -> str
 def _cmd_play(args: argparse.Namespace) -> int:
     from pinarray.bus.base import servo_setup_from_device
     from pinarray.bus.transport import open_bus
-    from pinarray.clock import MonotonicClock, ScaledClock, VirtualClock
+    from pinarray.clock import Clock, MonotonicClock, ScaledClock, VirtualClock
     from pinarray.errors import PinArrayError
     from pinarray.plan import make_plan
     from pinarray.player import PlaybackReport, pins_made_safe, play_trial, sigterm_raises
@@ -104,6 +104,7 @@ def _cmd_play(args: argparse.Namespace) -> int:
     trials = (plan.trial(args.trial),) if args.trial is not None else plan.trials
     setup = servo_setup_from_device(protocol.device)
     url = _bus_url(args, setup.servo_ids)
+    clock: Clock
     if args.port:
         if args.time_scale not in (None, 1.0):
             raise PinArrayError("real servos play in real time: --time-scale must be 1")
