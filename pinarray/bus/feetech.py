@@ -10,6 +10,7 @@ safe stop that puts every pin at rest and releases torque wherever the bus still
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
 import serial
 from scservo_sdk import (
@@ -33,6 +34,9 @@ from pinarray.bus.registers import (
 )
 from pinarray.clock import Clock
 from pinarray.errors import BusError
+
+if TYPE_CHECKING:
+    from pinarray.bus.sim import SimBus
 
 TRANSIENT_RESULTS = (COMM_RX_TIMEOUT, COMM_RX_CORRUPT)
 REST_TOLERANCE_STEPS = 4
@@ -117,7 +121,7 @@ class FeetechBus:
         self.packets = PacketHandler(0)
         self.setup = BusSetup(servos=())
         self.warnings: list[str] = []
-        self.sim = None  # the SimBus behind a simulated port, for tests and benchmarks
+        self.sim: SimBus | None = None  # behind a simulated port; for tests and benchmarks
         self._last_goals: dict[int, int] = {}
         self._sync_writes = 0
         self._goals_written = 0

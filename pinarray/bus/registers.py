@@ -122,11 +122,11 @@ def to_bytes(value: int, size: int) -> bytes:
     return value.to_bytes(size, "little")
 
 
-def from_bytes(data: bytes | list[int]) -> int:
+def from_bytes(data: bytes | bytearray | list[int]) -> int:
     """Little-endian wire bytes -> register value."""
     return int.from_bytes(bytes(data), "little")
 
 
-def checksum(body: bytes | list[int]) -> int:
+def checksum(body: bytes | bytearray | list[int]) -> int:
     """Packet checksum over id, length, instruction/error and parameters: ``~sum & 0xFF``."""
     return ~sum(body) & 0xFF
