@@ -32,7 +32,7 @@ from pinarray.softness._checks import (
 )
 from pinarray.softness.identification import Fit
 
-_BISECTION_STEPS = 64
+_MAX_STEPS = 200
 
 
 @dataclass(frozen=True)
@@ -116,9 +116,9 @@ class TissueModel:
     def area_for_force_m2(self, force_n: object) -> np.ndarray:
         """Contact area at a force, m^2 (the inverse of `force_for_area_n`).
 
-        Closed form for a constant modulus; otherwise a vectorised bisection on the strain,
-        bracketed by the closed form with the smallest modulus on the rising branch, so a
-        micro-newton force keeps the same relative precision as a ten-newton one.
+        Closed form for a constant modulus; otherwise a safeguarded Newton iteration on the
+        strain, bracketed by the closed form with the smallest modulus on the rising branch,
+        so a micro-newton force keeps the same relative precision as a ten-newton one.
         """
         force = nonnegative("force_n", force_n)
         scale = 0.75 * force / self.radius_m**2  # eps^3 E*(eps) must equal this
@@ -137,13 +137,33 @@ class TissueModel:
             high = np.minimum(np.cbrt(scale / (0.25 * self.e0_pa)), self.max_strain)
         else:
             high = np.cbrt(scale / self.e0_pa)
-        low = np.zeros_like(high)
-        for _ in range(_BISECTION_STEPS):
-            middle = 0.5 * (low + high)
-            below = middle**3 * (self.e0_pa + self.e1_pa * middle) < scale
-            low = np.where(below, middle, low)
-            high = np.where(below, high, middle)
-        return np.pi * (self.radius_m * 0.5 * (low + high)) ** 2
+        strain = _safeguarded_newton(self.e0_pa, self.e1_pa, scale, high)
+        return np.pi * (self.radius_m * strain) ** 2
+
+
+def _safeguarded_newton(e0: float, e1: float, target: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """Solve eps^3 (e0 + e1 eps) = target for eps in [0, high], elementwise.
+
+    Newton's method from the upper end of the bracket, falling back to bisection whenever a
+    step would leave the bracket, which shrinks every iteration; stops when no element moves
+    by more than a few ulps.
+    """
+    low = np.zeros_like(high)
+    x = high.copy()
+    for _ in range(_MAX_STEPS):
+        excess = x**3 * (e0 + e1 * x) - target
+        below = excess < 0
+        low = np.where(below, x, low)
+        high = np.where(below, high, x)
+        slope = x**2 * (3 * e0 + 4 * e1 * x)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            newton = x - excess / slope
+        step = np.where((newton >= low) & (newton <= high), newton, 0.5 * (low + high))
+        settled = np.all(np.abs(step - x) <= 4 * np.finfo(float).eps * step)
+        x = step
+        if settled:
+            break
+    return x
 
 
 def fit_tissue(
