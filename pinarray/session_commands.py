@@ -1,7 +1,193 @@
-"""Subcommands of this area (filled in by its issue)."""
+"""`pinarray batch`: run whole sessions without a UI, answered from a file or a simulated observer."""
+
+from __future__ import annotations
 
 import argparse
 
+BATCH_EPILOG = """\
+Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'
+for localisation, none/left/right/unsure for apparent motion) or from --observer MODEL, a
+simulated subject: 'default' reproduces the seed's figures, or override parameters such as
+'correct_10hz=0.7,motion_felt=0.9'.
+
+Results go to DIR/sub-ID/ses-N/beh/ (BIDS layout); every trial is on disk the moment it ends.
+A run that was killed resumes with --resume: exactly the remaining trials, in plan order.
+"""
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add this area's subcommands to the `pinarray` parser."""
+    p = subparsers.add_parser(
+        "batch", help="run sessions without a UI (scripted answers or a simulated observer)",
+        epilog=BATCH_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("files", nargs="+", metavar="FILE", help="protocol files, run one after another")
+    p.add_argument("--subject", required=True, help="subject label (letters and digits)")
+    p.add_argument("--session", default="1", help="session label (default 1)")
+    p.add_argument("--experimenter", default="", help="who ran it, for the manifest")
+    bus = p.add_mutually_exclusive_group()
+    bus.add_argument("--port", metavar="PATH", help="serial device of real servos")
+    bus.add_argument("--sim", nargs="?", const="sim://", metavar="URL", help="simulated servos (default)")
+    answers = p.add_mutually_exclusive_group(required=True)
+    answers.add_argument("--responses", metavar="CSV", help="answers by trial number")
+    answers.add_argument("--observer", metavar="MODEL", help="a simulated subject ('default' or overrides)")
+    p.add_argument("--seed", type=int, help="plan seed (default: the protocol's, else a new one)")
+    p.add_argument("--time-scale", type=float, metavar="X",
+                   help="simulator only: 0 or absent = virtual time, X > 0 = real time sped up X times")
+    p.add_argument("--results", default="results", metavar="DIR", help="results folder (default results/)")
+    p.add_argument("--resume", action="store_true", help="continue the subject's unfinished run")
+    p.set_defaults(func=_cmd_batch)
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from pinarray.manifest import check_label
+    from pinarray.protocol_load import load_protocol
+
+    subject = check_label("subject", args.subject)
+    session = check_label("session", args.session)
+    protocols = [load_protocol(path) for path in args.files]  # every file checked before any runs
+    responses = _read_responses(args.responses) if args.responses else None
+    for protocol in protocols:
+        run_batch(protocol, args, subject, session, responses)
+    return 0
+
+
+def _read_responses(path: str) -> dict[int, str]:
+    import csv
+
+    from pinarray.errors import PinArrayError
+
+    try:
+        with open(path, newline="", encoding="utf-8") as stream:
+            reader = csv.DictReader(stream)
+            if reader.fieldnames is None or not {"trial", "response"} <= set(reader.fieldnames):
+                raise PinArrayError(f"{path}:1: expected the columns trial,response, found {reader.fieldnames}")
+            answers: dict[int, str] = {}
+            for line, row in enumerate(reader, start=2):
+                try:
+                    trial = int(row["trial"])
+                except (TypeError, ValueError):
+                    raise PinArrayError(f"{path}:{line}: expected a trial number, found {row['trial']!r}") from None
+                answers[trial] = (row["response"] or "").strip()
+            return answers
+    except OSError as problem:
+        raise PinArrayError(f"{path}: cannot read the responses: {problem.strerror}") from None
+
+
+def _open_writer(protocol, args, subject: str, session: str, task: str, url_for_manifest: str):
+    """(writer, plan) for a new run or the subject's unfinished one."""
+    import sys
+
+    from pinarray.errors import PinArrayError
+    from pinarray.manifest import find_unfinished
+    from pinarray.plan import make_plan
+    from pinarray.results import RunWriter
+    from pinarray.session import plan_records
+
+    unfinished = find_unfinished(args.results, subject, session, task) if args.resume else []
+    if args.resume and not unfinished:
+        # Killed before its manifest was written, or never started: nothing to lose, start it.
+        print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; starting a new run",
+              file=sys.stderr)
+    if unfinished:
+        paths, manifest = unfinished[-1]
+        if manifest.protocol_sha256 != protocol.sha256:
+            raise PinArrayError(
+                f"{protocol.source} changed since run {paths.run} started (SHA-256 differs); "
+                "resume with the protocol file it started with"
+            )
+        plan = make_plan(protocol, manifest.seed)
+        if [dict(e) for e in manifest.plan] != plan_records(plan):
+            raise PinArrayError(f"{paths.manifest}: the saved plan does not match the protocol's plan for seed {manifest.seed}")
+        return RunWriter.resume(paths), plan
+    plan = make_plan(protocol, args.seed)
+    writer = RunWriter.start(
+        args.results, subject, session, task, plan_records(plan), seed=plan.seed,
+        protocol_sha256=protocol.sha256, port=url_for_manifest,
+        servo_models=[protocol.device.servo.model] * protocol.device.grid.pin_count,
+        experimenter=args.experimenter,
+    )
+    return writer, plan
+
+
+def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None) -> None:
+    import sys
+
+    from pinarray.errors import PinArrayError
+    from pinarray.observer import SimulatedObserver, parse_observer
+    from pinarray.player import Terminated, sigterm_raises
+    from pinarray.rig import Rig, choose_clock
+    from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
+
+    task = task_label(protocol)
+    clock = choose_clock(args.port, args.time_scale)
+    observer = None
+    if responses is None:
+        observer = SimulatedObserver(parse_observer(args.observer), seed=args.seed)
+    with sigterm_raises():
+        rig = Rig(protocol, args.port, args.sim, clock)
+        try:
+            for warning in rig.warnings:
+                print(f"pinarray: warning: {warning}", file=sys.stderr)
+            writer, plan = _open_writer(protocol, args, subject, session, task, rig.url)
+            with writer:
+                run = Session(protocol, plan, writer, rig, clock)
+                if responses is not None:
+                    missing = [t.trial for t in run.queue if t.trial not in responses]
+                    if missing:
+                        run.abort("responses file incomplete")
+                        raise PinArrayError(
+                            f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
+                            + (" ..." if len(missing) > 10 else "")
+                        )
+                progress = Progress(f"{task} sub-{subject} ses-{session}", run.total, run.done_count)
+                try:
+                    run.begin()
+                    while run.phase is Phase.READY:
+                        run.present()
+                        if run.phase is Phase.FAULT:
+                            run.abort(f"bus fault: {run.fault}")
+                            raise PinArrayError(f"trial {run.current.trial}: {run.fault}")
+                        condition = run.current.condition
+                        if responses is not None:
+                            answer = responses[run.current.trial]
+                        elif condition.pin is not None:
+                            answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
+                        else:
+                            answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
+                        run.respond(answer, response_time_s=None)  # scripted: no real response time
+                        progress.update(run.done_count)
+                except (Terminated, KeyboardInterrupt) as stop:
+                    run.abort(str(stop) or "interrupted (Ctrl-C)")
+                    raise
+                progress.close()
+            print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed {plan.seed}, run {writer.paths.run})")
+        finally:
+            safe = rig.close()
+            if not safe.complete:
+                from pinarray.player import describe
+
+                print(f"pinarray: warning: {describe(safe)}", file=sys.stderr)
+
+
+class Progress:
+    """A one-line progress bar on a terminal; silent when stderr is not one."""
+
+    def __init__(self, label: str, total: int, done: int, width: int = 30):
+        import sys
+
+        self.label, self.total, self.width = label, max(total, 1), width
+        self.stream = sys.stderr
+        self.live = self.stream.isatty()
+        self.update(done)
+
+    def update(self, done: int) -> None:
+        if not self.live:
+            return
+        filled = self.width * done // self.total
+        bar = "#" * filled + "-" * (self.width - filled)
+        self.stream.write(f"\r{self.label} [{bar}] {done}/{self.total}")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.live:
+            self.stream.write("\n")

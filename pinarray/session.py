@@ -1,0 +1,267 @@
+"""The session engine: one subject's run through a plan, as a state machine. No UI code.
+
+    instructions -> [ready -> stimulus -> response] x N -> done
+                     pause/resume from ready or response; redo from response;
+                     abort (with a reason) from anywhere before done
+
+Each trial row is written (and fsync'd) by the `RunWriter` the moment the trial ends, so the
+engine can be killed at any point and resumed with exactly the remaining trials. The engine
+is driven by a caller: `pinarray batch` loops over it, the TUI calls it from a worker. It
+waits only through its `Clock` (the inter-trial interval) and the `Stimulator` (the stimulus).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Protocol as Interface
+
+from pinarray.errors import PinArrayError
+from pinarray.grid import Grid
+from pinarray.plan import PlannedTrial, TrialPlan
+from pinarray.protocol import NS_PER_S, Paradigm, Protocol, WaveKind
+from pinarray.results import RunWriter, TrialRecord
+from pinarray.schedule import TrialSchedule, compile_trial
+
+DIRECTION_LABEL = {WaveKind.RIGHTWARDS: "right", WaveKind.LEFTWARDS: "left", WaveKind.NONE: "none"}
+MOTION_RESPONSES = ("none", "left", "right", "unsure")
+
+
+class Phase(StrEnum):
+    INSTRUCTIONS = "instructions"
+    READY = "ready"  # the next trial is waiting to be presented
+    STIMULUS = "stimulus"  # the pins are moving
+    RESPONSE = "response"  # waiting for the subject's answer
+    FAULT = "fault"  # the stimulus failed; retry or abort
+    PAUSED = "paused"
+    DONE = "done"
+    ABORTED = "aborted"
+
+
+class SessionError(PinArrayError):
+    """An action the session cannot take now, or a response it cannot accept."""
+
+
+class Stimulator(Interface):
+    """What presents a compiled trial: real or simulated servos, or nothing at all."""
+
+    def present(self, schedule: TrialSchedule) -> int:
+        """Play the trial; return the clock time (ns) of its stimulus onset."""
+        ...
+
+
+MEASURED = object()  # respond(): take the response time from the session's clock
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """What the last finished trial was, for live counts on a screen."""
+
+    record: TrialRecord
+    remaining: int
+
+
+def task_label(protocol: Protocol) -> str:
+    """The BIDS task label: the protocol's name with anything but letters and digits dropped."""
+    label = "".join(ch for ch in protocol.name if ch.isalnum())
+    if not label:
+        raise PinArrayError(f"{protocol.source}: the protocol name {protocol.name!r} has no letters or digits for a task label")
+    return label
+
+
+def plan_records(plan: TrialPlan) -> list[dict]:
+    return [t.record() for t in plan.trials]
+
+
+class Session:
+    """One run of a protocol for one subject.
+
+    Parameters
+    ----------
+    protocol, plan
+        What to present, and in which order (the plan saved in the run's manifest).
+    writer
+        The run's results writer (new or resumed).
+    stimulator
+        Presents each trial; its exceptions (`PinArrayError`) put the session in FAULT.
+    clock
+        Measures onsets and response times and waits out the inter-trial interval.
+    on_change
+        Called with the session after every state change (the UI refreshes from it).
+    """
+
+    def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
+                 clock, on_change: Callable[[Session], None] | None = None):
+        self.protocol = protocol
+        self.plan = plan
+        self.writer = writer
+        self.stimulator = stimulator
+        self.clock = clock
+        self.on_change = on_change or (lambda session: None)
+        self.grid: Grid = protocol.device.grid
+        self.task = task_label(protocol)
+        remaining = {int(entry["trial"]) for entry in writer.remaining()}
+        self.queue: list[PlannedTrial] = [t for t in plan.trials if t.trial in remaining]
+        self.current: PlannedTrial | None = None
+        self.phase = Phase.INSTRUCTIONS
+        self._paused_from: Phase | None = None
+        self._run_start_ns = clock.now_ns()
+        self._onset_ns = 0
+        self._next_allowed_ns = self._run_start_ns
+        self.fault = ""
+        self.last: TrialOutcome | None = None
+
+    # -- what the caller can ask ---------------------------------------------------------------
+
+    @property
+    def total(self) -> int:
+        return len(self.plan.trials)
+
+    @property
+    def done_count(self) -> int:
+        return self.total - len(self.queue) - (1 if self.current is not None else 0)
+
+    @property
+    def records(self) -> list[TrialRecord]:
+        return self.writer.records
+
+    def _set(self, phase: Phase) -> None:
+        self.phase = phase
+        self.on_change(self)
+
+    def _require(self, *phases: Phase) -> None:
+        if self.phase not in phases:
+            allowed = " or ".join(p.value for p in phases)
+            raise SessionError(f"cannot do that now: the session is at {self.phase.value}, expected {allowed}")
+
+    # -- transitions -----------------------------------------------------------------------------
+
+    def begin(self) -> None:
+        """Leave the instructions: the first remaining trial becomes ready."""
+        self._require(Phase.INSTRUCTIONS)
+        self._advance()
+
+    def _advance(self) -> None:
+        if self.queue:
+            self.current = self.queue.pop(0)
+            self._set(Phase.READY)
+        else:
+            self.current = None
+            self.writer.finish("completed")
+            self._set(Phase.DONE)
+
+    def present(self) -> None:
+        """Wait out the inter-trial interval, then play the current trial's stimulus."""
+        self._require(Phase.READY)
+        assert self.current is not None
+        schedule = compile_trial(self.protocol, self.current)
+        self.clock.sleep_until_ns(self._next_allowed_ns)
+        self._onset_ns = self.clock.now_ns()
+        self._set(Phase.STIMULUS)
+        try:
+            self._onset_ns = self.stimulator.present(schedule)
+        except PinArrayError as error:
+            self.fault = str(error)
+            self._write(status="invalid", duration_ns=self.clock.now_ns() - self._onset_ns)
+            self._set(Phase.FAULT)
+            return
+        self._duration_ns = schedule.end_ns
+        self._set(Phase.RESPONSE)
+
+    def retry(self) -> None:
+        """After a fault: present the same trial again (its failed row stays, marked invalid)."""
+        self._require(Phase.FAULT)
+        self.fault = ""
+        self._set(Phase.READY)
+
+    def respond(self, response: str | int | None, response_time_s: float | None | object = MEASURED) -> TrialOutcome:
+        """Record the subject's answer to the current trial and move on.
+
+        Localisation takes a pin number (or None / "none" for "nothing felt"); apparent
+        motion takes none / left / right / unsure. ``response_time_s`` defaults to the time
+        since stimulus onset on the session's clock; None records it as not applicable
+        (scripted answers have no response time).
+        """
+        self._require(Phase.RESPONSE)
+        text = self._check_response(response)
+        if response_time_s is MEASURED:
+            response_time_s = (self.clock.now_ns() - self._onset_ns) / NS_PER_S
+        record = self._write(status="ok", response=text, response_time_s=response_time_s)
+        self._next_allowed_ns = self.clock.now_ns() + self.protocol.design.inter_trial_interval_ns
+        self.last = TrialOutcome(record, len(self.queue))
+        self._advance()
+        return self.last
+
+    def redo(self) -> None:
+        """Present the current trial again; its first presentation is logged as redone."""
+        self._require(Phase.RESPONSE)
+        self._write(status="redone")
+        self._set(Phase.READY)
+
+    def pause(self) -> None:
+        self._require(Phase.READY, Phase.RESPONSE)
+        self._paused_from = self.phase
+        self._set(Phase.PAUSED)
+
+    def resume(self) -> None:
+        self._require(Phase.PAUSED)
+        assert self._paused_from is not None
+        self._set(self._paused_from)
+        self._paused_from = None
+
+    def abort(self, reason: str) -> None:
+        """Stop the run for good (it can still be resumed later with --resume)."""
+        if self.phase in (Phase.DONE, Phase.ABORTED):
+            return
+        if self.current is not None and self.phase in (Phase.RESPONSE, Phase.STIMULUS) or (
+            self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE
+        ):
+            self._write(status="aborted")
+        self.writer.finish("aborted", reason or "aborted by the experimenter")
+        self._set(Phase.ABORTED)
+
+    # -- rows ----------------------------------------------------------------------------------
+
+    def _check_response(self, response: str | int | None) -> str:
+        if self.protocol.design.paradigm is Paradigm.LOCALISATION:
+            if response is None or response == "none":
+                return "none"
+            try:
+                pin = int(response)
+            except (TypeError, ValueError):
+                raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {response!r}") from None
+            if not 1 <= pin <= self.grid.pin_count:
+                raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
+            return str(pin)
+        if response not in MOTION_RESPONSES:
+            raise SessionError(f"expected one of {', '.join(MOTION_RESPONSES)}, found {response!r}")
+        return str(response)
+
+    def _write(self, status: str, response: str | None = None, response_time_s: float | None = None,
+               duration_ns: int | None = None) -> TrialRecord:
+        planned = self.current
+        assert planned is not None
+        condition = planned.condition
+        fields: dict = {}
+        if condition.pin is not None:
+            fields = {"pin": condition.pin, "frequency_hz": float(condition.frequency_hz)}
+            if response is not None:
+                fields["error_class"] = "none" if response == "none" else self.grid.classify(condition.pin, int(response)).value
+        else:
+            direction = DIRECTION_LABEL[condition.direction]
+            fields = {"row": condition.row, "direction": direction}
+            if response is not None:
+                felt = response != "none"
+                fields["perceived_motion"] = felt
+                if felt and direction != "none":
+                    fields["direction_correct"] = response == direction
+        if duration_ns is None:
+            duration_ns = getattr(self, "_duration_ns", 0)
+        record = TrialRecord(
+            trial=planned.trial, block=planned.block, task=self.task,
+            onset_s=(self._onset_ns - self._run_start_ns) / NS_PER_S, duration_s=duration_ns / NS_PER_S,
+            status=status, response=response, response_time_s=response_time_s,
+            practice=planned.practice, **fields,
+        )
+        return self.writer.write_trial(record)

@@ -1,0 +1,234 @@
+"""Whole sessions on the simulated array in virtual time, checked row by row on disk."""
+
+import csv
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from pinarray.clock import VirtualClock
+from pinarray.errors import BusError
+from pinarray.grid import classify
+from pinarray.manifest import read_manifest
+from pinarray.plan import make_plan
+from pinarray.protocol_load import load_protocol
+from pinarray.results import RunWriter, read_trials
+from pinarray.rig import Rig
+from pinarray.session import Phase, Session, SessionError, plan_records, task_label
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+LOCALISATION = PROTOCOLS / "localisation.yaml"
+MOTION = PROTOCOLS / "apparent_motion.yaml"
+
+
+def open_session(tmp_path, path, seed=3, stimulator=None):
+    protocol = load_protocol(path)
+    plan = make_plan(protocol, seed)
+    clock = VirtualClock()
+    writer = RunWriter.start(tmp_path, "01", "1", task_label(protocol), plan_records(plan),
+                             seed=seed, protocol_sha256=protocol.sha256, port="sim://")
+    rig = stimulator or Rig(protocol, None, None, clock)
+    return Session(protocol, plan, writer, rig, clock), rig
+
+
+def rows_on_disk(session):
+    return read_trials(session.writer.paths.beh_tsv)
+
+
+def test_a_whole_localisation_session_logs_every_trial_as_it_happened(tmp_path):
+    session, rig = open_session(tmp_path, LOCALISATION)
+    answers = {}
+    with rig:
+        session.begin()
+        while session.phase is Phase.READY:
+            session.present()
+            assert session.phase is Phase.RESPONSE
+            planned = session.current
+            # the subject is right on odd trials and names the pin to the right otherwise
+            answer = planned.condition.pin if planned.trial % 2 else planned.condition.pin % 16 + 1
+            answers[planned.trial] = answer
+            session.respond(answer)
+    assert session.phase is Phase.DONE
+    rows = rows_on_disk(session)
+    assert [r.trial for r in rows] == list(range(1, 27))
+    for row, planned in zip(rows, session.plan.trials, strict=True):
+        assert (row.pin, row.frequency_hz) == (planned.condition.pin, float(planned.condition.frequency_hz))
+        assert row.response == str(answers[row.trial])
+        assert row.error_class == classify(row.pin, answers[row.trial])
+        assert row.status == "ok" and row.practice == planned.practice and row.block == planned.block
+        assert row.duration_s == 10 and row.response_time_s >= 10
+    onsets = [r.onset_s for r in rows]
+    assert all(b - a >= 13 for a, b in zip(onsets, onsets[1:]))  # 10 s stimulus + 3 s interval
+    assert read_manifest(session.writer.paths.manifest).status == "completed"
+    with open(session.writer.paths.events_tsv) as stream:
+        assert len(list(csv.reader(stream, delimiter="\t"))) == 27
+
+
+def test_a_whole_motion_session_scores_felt_motion_and_direction(tmp_path):
+    session, rig = open_session(tmp_path, MOTION)
+    cycle = ["right", "left", "none", "unsure"]
+    with rig:
+        session.begin()
+        while session.phase is Phase.READY:
+            session.present()
+            session.respond(cycle[session.current.trial % 4])
+    rows = rows_on_disk(session)
+    assert len(rows) == 13
+    for row in rows:
+        answer = cycle[row.trial % 4]
+        assert row.response == answer
+        assert row.perceived_motion is (answer != "none")
+        if answer == "none" or row.direction == "none":
+            assert row.direction_correct is None
+        else:
+            assert row.direction_correct is (answer == row.direction)
+    assert {r.direction for r in rows} == {"left", "right", "none"}
+
+
+def test_redo_logs_the_first_presentation_and_presents_the_trial_again(tmp_path):
+    session, rig = open_session(tmp_path, LOCALISATION)
+    with rig:
+        session.begin()
+        session.present()
+        first = session.current.trial
+        session.redo()
+        assert session.phase is Phase.READY and session.current.trial == first
+        session.present()
+        session.respond(1)
+    rows = rows_on_disk(session)
+    assert [(r.trial, r.status) for r in rows] == [(first, "redone"), (first, "ok")]
+
+
+def test_pause_holds_the_session_until_resumed(tmp_path):
+    session, rig = open_session(tmp_path, LOCALISATION)
+    with rig:
+        session.begin()
+        session.pause()
+        with pytest.raises(SessionError, match="session is at paused"):
+            session.present()
+        session.resume()
+        assert session.phase is Phase.READY
+        session.present()
+        session.pause()
+        session.resume()
+        session.respond("none")
+    assert rows_on_disk(session)[0].error_class == "none"
+
+
+def test_a_bad_answer_is_refused_and_nothing_is_written(tmp_path):
+    session, rig = open_session(tmp_path, LOCALISATION)
+    with rig:
+        session.begin()
+        session.present()
+        with pytest.raises(SessionError, match="expected a pin number from 1 to 16 or 'none', found 17"):
+            session.respond(17)
+    assert rows_on_disk(session) == []
+
+
+def test_abort_marks_the_trial_and_the_run_and_resume_presents_it_again(tmp_path):
+    session, rig = open_session(tmp_path, LOCALISATION)
+    with rig:
+        session.begin()
+        session.present()
+        session.respond(4)
+        session.present()
+        aborted = session.current.trial
+        session.abort("subject needed a break")
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert (manifest.status, manifest.abort_reason) == ("aborted", "subject needed a break")
+    assert [r.status for r in rows_on_disk(session)] == ["ok", "aborted"]
+
+    protocol = load_protocol(LOCALISATION)
+    writer = RunWriter.resume(session.writer.paths)
+    resumed = Session(protocol, make_plan(protocol, 3), writer, None, VirtualClock())
+    assert resumed.queue[0].trial == aborted and len(resumed.queue) == 25
+
+
+class FailingOnce:
+    """A stimulator whose first presentation fails as a lost servo would."""
+
+    def __init__(self, clock):
+        self.calls = 0
+        self.clock = clock
+
+    def present(self, schedule):
+        self.calls += 1
+        if self.calls == 1:
+            raise BusError("servo 6 (pin 6): no status packet after 3 retries")
+        return self.clock.now_ns()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        pass
+
+
+def test_a_bus_fault_marks_the_trial_invalid_and_retry_presents_it_again(tmp_path):
+    session, _ = open_session(tmp_path, LOCALISATION, stimulator=FailingOnce(VirtualClock()))
+    session.stimulator.clock = session.clock
+    session.begin()
+    session.present()
+    assert session.phase is Phase.FAULT and "servo 6" in session.fault
+    session.retry()
+    session.present()
+    session.respond(6)
+    rows = rows_on_disk(session)
+    assert [r.status for r in rows] == ["invalid", "ok"] and rows[0].trial == rows[1].trial
+
+
+def batch(*args, timeout=120):
+    return subprocess.run([sys.executable, "-m", "pinarray", "batch", *args],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_batch_with_a_responses_file_runs_the_session_it_describes(tmp_path):
+    plan = make_plan(load_protocol(MOTION), 9)
+    answers = tmp_path / "answers.csv"
+    answers.write_text("trial,response\n" + "".join(f"{t.trial},left\n" for t in plan.trials))
+    result = batch(str(MOTION), "--subject", "p7", "--responses", str(answers), "--seed", "9",
+                   "--results", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    (beh,) = (tmp_path / "out").rglob("*_beh.tsv")
+    rows = read_trials(beh)
+    assert [r.response for r in rows] == ["left"] * 13
+    assert [r.trial for r in rows] == [t.trial for t in plan.trials]
+
+
+def test_batch_refuses_unsafe_labels_and_incomplete_answers_in_one_line(tmp_path):
+    result = batch(str(MOTION), "--subject", "../x", "--observer", "default", "--results", str(tmp_path))
+    assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1
+    assert "subject" in result.stderr and "Traceback" not in result.stderr
+    answers = tmp_path / "a.csv"
+    answers.write_text("trial,response\n1,left\n")
+    result = batch(str(MOTION), "--subject", "p1", "--responses", str(answers), "--results", str(tmp_path))
+    assert result.returncode == 2 and "no response for trial(s) 2, 3" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("kill_after_s", [0.2, 1.0, 1.8, 2.6])
+def test_a_batch_killed_at_any_moment_resumes_with_exactly_the_remaining_trials(tmp_path, kill_after_s):
+    out = tmp_path / "out"
+    common = [str(LOCALISATION), "--subject", "k1", "--observer", "default", "--seed", "21",
+              "--results", str(out)]
+    process = subprocess.Popen([sys.executable, "-m", "pinarray", "batch", *common, "--time-scale", "50"],
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(kill_after_s + random.Random(kill_after_s).random() * 0.2)
+    os.kill(process.pid, signal.SIGKILL)
+    process.wait(timeout=30)
+    result = batch(*common, "--resume")
+    assert result.returncode == 0, result.stderr
+    (beh,) = out.rglob("*_beh.tsv")
+    rows = read_trials(beh)
+    ok = [r for r in rows if r.status == "ok"]
+    assert [r.trial for r in ok] == list(range(1, 27))  # none lost, none repeated, plan order
+    assert any(r.resumed for r in ok) or len(rows) == 26
+    first_resumed = next((i for i, r in enumerate(ok) if r.resumed), len(ok))
+    assert all(r.resumed for r in ok[first_resumed:])
+    (manifest,) = out.rglob("*_manifest.json")
+    assert read_manifest(manifest).status == "completed"
