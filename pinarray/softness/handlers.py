@@ -5,6 +5,8 @@ with ``--png``/``--out``, writes a plot. numpy and the models are imported insid
 handler so that the CLI starts without them.
 """
 
+from typing import Any
+
 
 def _table(headers: list[str], rows) -> None:
     cells = [[f"{v:.6g}" if isinstance(v, float) else str(v) for v in row] for row in rows]
@@ -78,6 +80,7 @@ def telescopic(args) -> int:
     import numpy as np
 
     from pinarray.softness.forceps import TissueModel
+    from pinarray.softness.hertz import effective_modulus_pa
     from pinarray.softness.telescopic import TelescopicDisplay, staircase_points
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA
 
@@ -92,7 +95,8 @@ def telescopic(args) -> int:
     target = None
     if args.match_young_kpa is not None:
         tissue = TissueModel(
-            args.match_radius_mm * M_PER_MM, args.match_young_kpa * PA_PER_KPA / 0.75
+            args.match_radius_mm * M_PER_MM,
+            float(effective_modulus_pa(args.match_young_kpa * PA_PER_KPA, 0.5)),
         )
         schedule = display.pressure_schedule_pa(tissue.force_for_area_n)
         columns += [tissue.force_for_area_n(areas), schedule / PA_PER_KPA]
@@ -158,6 +162,7 @@ def fit(args) -> int:
 
     from pinarray.softness.identification import (
         M1_R11_FORCE_AREA,
+        Fit,
         fit_force_area,
         fit_force_displacement,
     )
@@ -172,6 +177,8 @@ def fit(args) -> int:
         noisy = M1_R11_FORCE_AREA.force_n(area) + rng.normal(0.0, args.noise_n, area.size)
         samples = Samples("area", area, noisy)
         print(f"no --csv: eq. 9.4 (M1, R = 1.1 cm) sampled with {args.noise_n:g} N noise")
+    fit: Fit[Any]
+    m: Any
     if samples.kind == "area":
         fit = fit_force_area(samples.x_si, samples.force_n)
         m = fit.model
