@@ -82,6 +82,7 @@ COMMAND_MODULES = (
     "pinarray.session_commands",
     "pinarray.analysis.commands",
     "pinarray.softness.commands",
+    "pinarray.tui.commands",
 )
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from pinarray.bus.commands import add_bus_choice
+
 BATCH_EPILOG = """\
 Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'
 for localisation, none/left/right/unsure for apparent motion) or from --observer MODEL, a
@@ -24,9 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--subject", required=True, help="subject label (letters and digits)")
     p.add_argument("--session", default="1", help="session label (default 1)")
     p.add_argument("--experimenter", default="", help="who ran it, for the manifest")
-    bus = p.add_mutually_exclusive_group()
-    bus.add_argument("--port", metavar="PATH", help="serial device of real servos")
-    bus.add_argument("--sim", nargs="?", const="sim://", metavar="URL", help="simulated servos (default)")
+    add_bus_choice(p)
     answers = p.add_mutually_exclusive_group(required=True)
     answers.add_argument("--responses", metavar="CSV", help="answers by trial number")
     answers.add_argument("--observer", metavar="MODEL", help="a simulated subject ('default' or overrides)")

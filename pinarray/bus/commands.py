@@ -2,7 +2,7 @@
 
 import argparse
 
-SIM_DEFAULT = "sim://"
+from pinarray.rig import SIM_DEFAULT
 
 PLAY_EPILOG = """\
 Bus choice: --port PATH drives real servos (a device such as /dev/ttyUSB0 or a pyserial URL);
@@ -35,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("file", help="protocol YAML file")
     p.add_argument("--trial", type=int, metavar="N", help="play only trial N of the plan")
-    _add_bus_choice(p)
+    add_bus_choice(p)
     p.add_argument(
         "--time-scale", type=float, default=None, metavar="X",
         help="simulator only: 0 = virtual time (default), X > 0 = real time sped up X times",
@@ -48,7 +48,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="list the servos that answer: model, voltage, temperature, error bits",
         epilog="The simulated bus is the default; use --port for hardware.",
     )
-    _add_bus_choice(p)
+    add_bus_choice(p)
     p.add_argument("--ids", default="0-252", help="ids to ping, e.g. 1-16 (default 0-252)")
     p.add_argument("--baud", type=int, default=1_000_000, help="bit/s (default 1000000)")
     p.set_defaults(func=_cmd_scan)
@@ -64,7 +64,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_sim_serve)
 
 
-def _add_bus_choice(parser: argparse.ArgumentParser) -> None:
+def add_bus_choice(parser: argparse.ArgumentParser) -> None:
+    """--port PATH (real servos) or --sim [URL] (the default), never both."""
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--port", metavar="PATH", help="serial device of real servos")
     group.add_argument(
@@ -73,66 +74,27 @@ def _add_bus_choice(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _bus_url(args: argparse.Namespace, servo_ids: tuple[int, ...] | None) -> str:
-    if args.port:
-        return args.port
-    url = args.sim or SIM_DEFAULT
-    if servo_ids and "ids=" not in url:
-        from pinarray.bus.faults import is_sim_url
-
-        if not is_sim_url(url):
-            from pinarray.errors import PinArrayError
-
-            raise PinArrayError(f"--sim expects a sim:// URL, found {url!r}")
-        ids = ",".join(map(str, servo_ids))
-        url += ("&" if "?" in url else "?") + f"ids={ids}"
-    return url
-
-
 def _cmd_play(args: argparse.Namespace) -> int:
-    from pinarray.bus.base import servo_setup_from_device
-    from pinarray.bus.transport import open_bus
-    from pinarray.clock import Clock, MonotonicClock, ScaledClock, VirtualClock
-    from pinarray.errors import PinArrayError
     from pinarray.plan import make_plan
-    from pinarray.player import PlaybackReport, pins_made_safe, play_trial, sigterm_raises
+    from pinarray.player import PlaybackReport, sigterm_raises
     from pinarray.protocol_load import load_protocol
+    from pinarray.rig import Rig, choose_clock
     from pinarray.schedule import compile_trial
 
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, seed=args.seed)
     trials = (plan.trial(args.trial),) if args.trial is not None else plan.trials
-    setup = servo_setup_from_device(protocol.device)
-    url = _bus_url(args, setup.servo_ids)
-    clock: Clock
-    if args.port:
-        if args.time_scale not in (None, 1.0):
-            raise PinArrayError("real servos play in real time: --time-scale must be 1")
-        clock = MonotonicClock()
-    elif not args.time_scale:
-        clock = VirtualClock()
-    else:
-        clock = ScaledClock(args.time_scale)
-
-    reports: list[PlaybackReport] = []
-    with sigterm_raises():
-        bus = open_bus(url, setup, clock, baud_rate=protocol.device.servo.baud_rate)
-        for warning in bus.warnings:
+    clock = choose_clock(args.port, args.time_scale)
+    with sigterm_raises(), Rig(protocol, args.port, args.sim, clock) as rig:
+        for warning in rig.warnings:
             print(f"pinarray: warning: {warning}")
-        print(f"{protocol.name}: {len(trials)} trial(s) on {url} (seed {plan.seed})")
-        try:
-            with pins_made_safe(bus):
-                bus.move_to_rest()
-                for planned in trials:
-                    targets = compile_trial(protocol, planned).targets
-                    report = play_trial(bus, targets, clock, release_at_end=False)
-                    reports.append(report)
-                    kind = "practice" if planned.practice else f"block {planned.block}"
-                    print(f"trial {planned.trial} ({kind}): {report.summary()}", flush=True)
-        finally:
-            bus.close()
-    total = PlaybackReport.merged(reports)
-    print(f"played {len(reports)} trial(s): {total.summary()}, {total.retries} retries; "
+        print(f"{protocol.name}: {len(trials)} trial(s) on {rig.url} (seed {plan.seed})")
+        for planned in trials:
+            rig.present(compile_trial(protocol, planned))
+            kind = "practice" if planned.practice else f"block {planned.block}"
+            print(f"trial {planned.trial} ({kind}): {rig.reports[-1].summary()}", flush=True)
+    total = PlaybackReport.merged(rig.reports)
+    print(f"played {len(rig.reports)} trial(s): {total.summary()}, {total.retries} retries; "
           "pins at rest, torque off")
     return 0
 
@@ -144,7 +106,7 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     from pinarray.errors import BusError
 
     ids = parse_ids(args.ids)
-    url = _bus_url(args, None)
+    url = args.port or args.sim or SIM_DEFAULT
     bus = open_bus(url, baud_rate=args.baud, retries=1)
     try:
         for warning in bus.warnings:
