@@ -73,42 +73,6 @@ def _read_responses(path: str) -> dict[int, str]:
         raise PinArrayError(f"{path}: cannot read the responses: {problem.strerror}") from None
 
 
-def _open_writer(protocol, args, subject: str, session: str, task: str, url_for_manifest: str):
-    """(writer, plan) for a new run or the subject's unfinished one."""
-    import sys
-
-    from pinarray.errors import PinArrayError
-    from pinarray.manifest import find_unfinished
-    from pinarray.plan import make_plan
-    from pinarray.results import RunWriter
-    from pinarray.session import plan_records
-
-    unfinished = find_unfinished(args.results, subject, session, task) if args.resume else []
-    if args.resume and not unfinished:
-        # Killed before its manifest was written, or never started: nothing to lose, start it.
-        print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; starting a new run",
-              file=sys.stderr)
-    if unfinished:
-        paths, manifest = unfinished[-1]
-        if manifest.protocol_sha256 != protocol.sha256:
-            raise PinArrayError(
-                f"{protocol.source} changed since run {paths.run} started (SHA-256 differs); "
-                "resume with the protocol file it started with"
-            )
-        plan = make_plan(protocol, manifest.seed)
-        if [dict(e) for e in manifest.plan] != plan_records(plan):
-            raise PinArrayError(f"{paths.manifest}: the saved plan does not match the protocol's plan for seed {manifest.seed}")
-        return RunWriter.resume(paths), plan
-    plan = make_plan(protocol, args.seed)
-    writer = RunWriter.start(
-        args.results, subject, session, task, plan_records(plan), seed=plan.seed,
-        protocol_sha256=protocol.sha256, port=url_for_manifest,
-        servo_models=[protocol.device.servo.model] * protocol.device.grid.pin_count,
-        experimenter=args.experimenter,
-    )
-    return writer, plan
-
-
 def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None) -> None:
     import sys
 
@@ -117,6 +81,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     from pinarray.player import Terminated, sigterm_raises
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
+    from pinarray.session_setup import open_run
 
     task = task_label(protocol)
     clock = choose_clock(args.port, args.time_scale)
@@ -128,7 +93,12 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
         try:
             for warning in rig.warnings:
                 print(f"pinarray: warning: {warning}", file=sys.stderr)
-            writer, plan = _open_writer(protocol, args, subject, session, task, rig.url)
+            writer, plan = open_run(protocol, args.results, subject, session, task, resume=args.resume,
+                                    seed=args.seed, port_url=rig.url, experimenter=args.experimenter)
+            if args.resume and not writer.resumed:
+                # Killed before its manifest was written, or never started: nothing to lose.
+                print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; "
+                      "starting a new run", file=sys.stderr)
             with writer:
                 run = Session(protocol, plan, writer, rig, clock)
                 if responses is not None:
