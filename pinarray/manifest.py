@@ -32,7 +32,8 @@ from pinarray.errors import ResultsError
 
 DEFAULT_RESULTS_ROOT = Path("results")
 STATUSES = ("running", "completed", "aborted", "crashed")
-UNFINISHED_STATUSES = ("running", "crashed")
+# An aborted run (the experimenter stopped, or quit the UI) resumes like a crashed one.
+UNFINISHED_STATUSES = ("running", "crashed", "aborted")
 _LABEL = re.compile(r"[A-Za-z0-9]+")
 _RUN_FILE = re.compile(
     r"sub-(?P<sub>[A-Za-z0-9]+)_ses-(?P<ses>[A-Za-z0-9]+)_task-(?P<task>[A-Za-z0-9]+)"
@@ -293,7 +294,7 @@ def set_status(path: Path | str, status: str, reason: str = "") -> SessionManife
 def find_unfinished(
     root: Path | str, subject: str, session: str | int | None = None, task: str | None = None
 ) -> list[tuple[RunPaths, SessionManifest]]:
-    """Runs of ``subject`` whose manifest says running or crashed, oldest run first.
+    """Runs of ``subject`` whose manifest says running, crashed or aborted, oldest run first.
 
     A run killed outright (SIGKILL, power cut) still says ``running``: nothing was left alive
     to change it, which is why both statuses count as unfinished.

@@ -19,6 +19,7 @@ from typing import Any
 
 from pinarray.errors import ResultsError
 from pinarray.manifest import (
+    UNFINISHED_STATUSES,
     RunPaths,
     SessionManifest,
     check_label,
@@ -34,9 +35,9 @@ from pinarray.manifest import (
 
 NA = "n/a"  # BIDS spelling of "not applicable"
 TRIAL_STATUSES = ("ok", "redone", "aborted", "invalid")
-# Rows that finish their trial: an "invalid" trial happened and is not run again; a "redone"
-# or "aborted" one is presented again (after a redo, or on resume).
-FINISHING_STATUSES = ("ok", "invalid")
+# Only an "ok" row finishes its trial. A "redone", "aborted" or "invalid" one (the stimulus
+# failed, e.g. a bus fault) is presented again: after a redo or retry, or on resume.
+FINISHING_STATUSES = ("ok",)
 ERROR_CLASSES = ("correct", "A", "B", "C", "D", "none")
 MOTION_RESPONSES = ("none", "left", "right", "unsure")
 DIRECTIONS = ("left", "right", "none")
@@ -140,7 +141,7 @@ BEH_COLUMNS: dict[str, tuple[str, str, str | dict[str, str] | None]] = {
     "status": ("status", "What became of the trial.",
                {"ok": "completed and counted", "redone": "repeated at the experimenter's "
                 "request; a later row holds the repeat", "aborted": "cut short; presented "
-                "again on resume", "invalid": "completed but marked unusable"}),
+                "again on resume", "invalid": "the stimulus failed (e.g. a bus fault); presented again"}),
     "practice": ("practice", "Whether this was a practice trial (not analysed).",
                  {"true": "practice", "false": "main trial"}),
     "resumed": ("resumed", "Whether the trial ran after the session was resumed.",
@@ -369,9 +370,9 @@ class RunWriter:
     def resume(cls, paths: RunPaths) -> RunWriter:
         """Reopen an unfinished run: drop a torn row, rebuild missing events, mark running."""
         manifest = read_manifest(paths.manifest)
-        if manifest.status not in ("running", "crashed"):
+        if manifest.status not in UNFINISHED_STATUSES:
             raise ResultsError(f"{paths.manifest}: the run is {manifest.status}; "
-                               "only a running or crashed run can be resumed")
+                               f"only a {'/'.join(UNFINISHED_STATUSES)} run can be resumed")
         repaired = repair_tail(paths.beh_tsv, len(BEH_COLUMNS))
         records = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
         repair_tail(paths.events_tsv, len(EVENT_COLUMNS))
