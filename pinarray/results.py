@@ -118,7 +118,7 @@ BEH_COLUMNS: dict[str, tuple[str, str, str | dict[str, str] | None]] = {
     "task": ("task", "Task label: which experiment this row belongs to.", None),
     "pin": ("pin", "Stimulated pin, numbered as the subject sees it (1 = bottom-left, "
             "16 = top-right on the 4x4 grid).", None),
-    "row": ("row", "Grid row the apparent-motion wave runs along (0 = bottom row).", None),
+    "row": ("row", "Grid row the apparent-motion wave runs along (1 = bottom row).", None),
     "direction": ("direction", "Direction of the stimulated wave.",
                   {"left": "wave travels leftwards", "right": "wave travels rightwards",
                    "none": "no wave: the central pin alternates with the lateral ones"}),
