@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
+from functools import cache
 
 import numpy as np
 
@@ -67,6 +68,12 @@ class ObserverModel:
     no_wave_felt: float = 0.30
 
     def __post_init__(self) -> None:
+        # Tuples all the way down keep the model hashable, so its calibration is cached.
+        object.__setattr__(self, "correct_by_frequency",
+                           tuple((float(f), float(c)) for f, c in self.correct_by_frequency))
+        object.__setattr__(self, "pin_acuity",
+                           tuple((int(p), float(a)) for p, a in self.pin_acuity))
+        object.__setattr__(self, "calibration_pins", tuple(self.calibration_pins))
         for name in ("miss_rate", "motion_felt", "direction_given_felt", "unsure_given_felt",
                      "no_wave_felt"):
             _check_fraction(name, getattr(self, name))
@@ -109,10 +116,6 @@ class ObserverModel:
         """The pins the anchors average over."""
         return self.calibration_pins or tuple(self.grid.pins)
 
-    def _distances(self) -> np.ndarray:
-        cells = np.array([self.grid.cell(p) for p in self.grid.pins], dtype=float)
-        return np.sqrt(((cells[:, None, :] - cells[None, :, :]) ** 2).sum(axis=2))
-
     def _acuity(self) -> np.ndarray:
         factors = np.ones(self.grid.pin_count)
         for pin, factor in self.pin_acuity:
@@ -121,7 +124,7 @@ class ObserverModel:
 
     def _felt_matrix(self, sigma: float) -> np.ndarray:
         """P(report column pin | stimulated row pin, felt) for a spread of ``sigma`` pitches."""
-        weights = np.exp(-self._distances() / (sigma * self._acuity()[:, None]))
+        weights = np.exp(-_distances(self.grid) / (sigma * self._acuity()[:, None]))
         return weights / weights.sum(axis=1, keepdims=True)
 
     def _mean_correct(self, sigma: float) -> float:
@@ -141,9 +144,7 @@ class ObserverModel:
 
     def sigma(self, frequency_hz: float) -> float:
         """Spatial spread at ``frequency_hz``, in grid pitches (before per-pin acuity)."""
-        anchors = sorted(self.correct_by_frequency)
-        log_f = [math.log(f) for f, _ in anchors]
-        log_sigma = [math.log(self._solve_sigma(c)) for _, c in anchors]
+        log_f, log_sigma = _log_anchor_sigmas(self)
         return math.exp(float(np.interp(math.log(frequency_hz), log_f, log_sigma)))
 
     def report_probabilities(self, frequency_hz: float) -> np.ndarray:
@@ -191,6 +192,23 @@ class ObserverModel:
         wrong = 1 - self.direction_given_felt - self.unsure_given_felt
         return {"none": 1 - felt, direction: felt * self.direction_given_felt,
                 _OPPOSITE[direction]: felt * wrong, "unsure": felt * self.unsure_given_felt}
+
+
+@cache
+def _distances(grid: Grid) -> np.ndarray:
+    """Centre-to-centre distances between all pins, in grid pitches; read-only."""
+    cells = np.array([grid.cell(p) for p in grid.pins], dtype=float)
+    distances = np.sqrt(((cells[:, None, :] - cells[None, :, :]) ** 2).sum(axis=2))
+    distances.flags.writeable = False
+    return distances
+
+
+@cache
+def _log_anchor_sigmas(model: ObserverModel) -> tuple[list[float], list[float]]:
+    # Models are frozen and hashable, so each one's bisections run once per process.
+    anchors = sorted(model.correct_by_frequency)
+    return ([math.log(f) for f, _ in anchors],
+            [math.log(model._solve_sigma(c)) for _, c in anchors])
 
 
 def _check_fraction(name: str, value: float) -> None:
