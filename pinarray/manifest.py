@@ -297,7 +297,7 @@ def find_unfinished(
     """Runs of ``subject`` whose manifest says running, crashed or aborted, oldest run first.
 
     A run killed outright (SIGKILL, power cut) still says ``running``: nothing was left alive
-    to change it, which is why both statuses count as unfinished.
+    to change it, which is why ``running`` counts as unfinished too.
     """
     subject = check_label("subject", subject)
     ses = "*" if session is None else check_label("session", session)

@@ -141,7 +141,8 @@ BEH_COLUMNS: dict[str, tuple[str, str, str | dict[str, str] | None]] = {
     "status": ("status", "What became of the trial.",
                {"ok": "completed and counted", "redone": "repeated at the experimenter's "
                 "request; a later row holds the repeat", "aborted": "cut short; presented "
-                "again on resume", "invalid": "the stimulus failed (e.g. a bus fault); presented again"}),
+                "again on resume",
+                "invalid": "the stimulus failed (e.g. a bus fault); presented again"}),
     "practice": ("practice", "Whether this was a practice trial (not analysed).",
                  {"true": "practice", "false": "main trial"}),
     "resumed": ("resumed", "Whether the trial ran after the session was resumed.",
