@@ -1,0 +1,82 @@
+"""The end of a run: the summary `pinarray analyse` would give, and where the files went."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from textual import on
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Button, Footer, Static
+
+from pinarray.analysis import summary_lines
+from pinarray.player import describe
+from pinarray.session import Phase, Session
+from pinarray.tui.lab import Lab
+
+
+def shown_path(path: Path) -> str:
+    """A path relative to the working folder when it is inside it (shorter, and copyable)."""
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
+class EndScreen(Screen):
+    """How the run ended, its numbers, its files, and how the pins were left.
+
+    Parameters
+    ----------
+    session : Session
+        The finished or aborted run.
+    lab : Lab
+        For the results folder.
+    safe_stop : SafeStopReport or None
+        What the final rest-and-release achieved.
+    """
+
+    BINDINGS = [Binding("n", "new", "new session")]
+
+    def __init__(self, session: Session, lab: Lab, safe_stop):
+        super().__init__()
+        self.session = session
+        self.lab = lab
+        self.safe_stop = safe_stop
+
+    def compose(self) -> ComposeResult:
+        session, paths = self.session, self.session.writer.paths
+        manifest = session.writer.manifest
+        if session.phase is Phase.DONE:
+            headline = f"Run {paths.run} complete: {session.total} trials."
+        else:
+            headline = (f"Run {paths.run} aborted ({manifest.abort_reason}) after "
+                        f"{session.done_count} of {session.total} trials. "
+                        "Resume it from the start screen: same subject, session and protocol.")
+        pins = describe(self.safe_stop) if self.safe_stop is not None else "not connected"
+        outcome = "-done" if session.phase is Phase.DONE else "-aborted"
+        files = (paths.beh_tsv, paths.events_tsv, paths.manifest)
+        yield Static(f"{session.protocol.name} · sub-{paths.subject} ses-{paths.session}",
+                     id="title")
+        with Vertical(id="end-body"):
+            yield Static(headline, id="headline", classes=outcome)
+            yield Static("Summary (main trials with status ok, as `pinarray analyse` counts them)",
+                         classes="caption")
+            yield Static("\n".join(summary_lines(session.records)), id="summary")
+            yield Static("Files", classes="caption")
+            yield Static("\n".join(shown_path(p) for p in files), id="files")
+            yield Static(f"Pins: {pins}", id="pins-left")
+            with Horizontal(id="end-buttons"):
+                yield Button("New session (n)", id="new", variant="primary")
+                yield Button("Quit (q)", id="quit")
+        yield Footer()
+
+    @on(Button.Pressed, "#new")
+    def action_new(self) -> None:
+        self.app.pop_screen()  # the start screen is underneath
+
+    @on(Button.Pressed, "#quit")
+    async def _quit(self) -> None:
+        await self.app.action_quit()

@@ -1,0 +1,138 @@
+"""The rig and the session of one sitting at the experimenter's desk; no UI code.
+
+The screens ask the `Lab` to connect, test a pin, open a run and present trials; the Lab
+makes sure that however the sitting ends (finished, aborted, quit, terminal closed) a
+stimulus in progress is cut short, the run's manifest says how it ended, and the pins go to
+rest with torque off.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from pinarray.clock import Clock
+from pinarray.protocol import Protocol
+from pinarray.rig import Rig
+from pinarray.session import Phase, Session, task_label
+from pinarray.session_setup import open_run
+from pinarray.tui.stopping import StoppableClock, Stopped
+
+QUIT_REASON = "quit from the UI"
+# How long closing waits for a cut-short stimulus to rest its pins, in seconds.
+STOP_WAIT_S = 30.0
+
+RigFactory = Callable[[Protocol, "str | None", "str | None", Clock], Rig]
+
+
+@dataclass(frozen=True)
+class SessionRequest:
+    """What the start screen decided: which protocol, for whom, on which bus."""
+
+    protocol: Protocol
+    subject: str
+    session: str
+    experimenter: str
+    port: str | None  # a serial device of real servos; None for the simulator
+    sim_url: str | None
+    seed: int | None
+    resume: bool
+
+    @property
+    def task(self) -> str:
+        return task_label(self.protocol)
+
+
+class Lab:
+    """Owns the connected rig and the open session.
+
+    Parameters
+    ----------
+    results_root : Path
+        Where runs are written (BIDS layout below it).
+    clock_factory : callable
+        ``clock_factory(port)`` gives the clock of a new connection (virtual in tests).
+    rig_factory : callable
+        ``rig_factory(protocol, port, sim_url, clock)``; `Rig` unless a test injects faults.
+    """
+
+    def __init__(self, results_root: Path, clock_factory: Callable[[str | None], Clock],
+                 rig_factory: RigFactory = Rig):
+        self.results_root = Path(results_root)
+        self.clock_factory = clock_factory
+        self.rig_factory = rig_factory
+        self.request: SessionRequest | None = None
+        self.rig: Rig | None = None
+        self.clock: StoppableClock | None = None
+        self.session: Session | None = None
+        self._idle = threading.Event()
+        self._idle.set()
+
+    # -- hardware ---------------------------------------------------------------------------
+
+    def connect(self, request: SessionRequest) -> Rig:
+        """Open the bus and run the handshake (blocking: call it from a worker)."""
+        self.release()
+        self.request = request
+        base = self.clock_factory(request.port)
+        rig = self.rig_factory(request.protocol, request.port, request.sim_url, base)
+        self.clock = StoppableClock(base)
+        # The player waits on the stoppable clock; the bus keeps the plain one (see Stopped).
+        rig.clock = self.clock
+        self.rig = rig
+        return rig
+
+    def test_pin(self, pin: int) -> None:
+        """Wiggle one pin (blocking: call it from a worker)."""
+        assert self.rig is not None
+        self.request.protocol.device.grid.check_pin(pin)
+        self._busy(lambda: self.rig.test_pin(pin))
+
+    def release(self):
+        """Pins to rest, torque off, port closed; the `SafeStopReport`, or None if not connected."""
+        rig, self.rig = self.rig, None
+        return rig.close() if rig is not None else None
+
+    # -- the run ----------------------------------------------------------------------------
+
+    def open_session(self, on_change: Callable[[Session], None] | None = None) -> Session:
+        """Start (or resume) the request's run on the connected rig."""
+        request = self.request
+        assert request is not None and self.rig is not None and self.clock is not None
+        writer, plan = open_run(
+            request.protocol, self.results_root, request.subject, request.session, request.task,
+            resume=request.resume, seed=request.seed, port_url=self.rig.url,
+            experimenter=request.experimenter,
+        )
+        self.session = Session(request.protocol, plan, writer, self.rig, self.clock, on_change)
+        return self.session
+
+    def present(self) -> None:
+        """Present the current trial (blocking: call it from a worker)."""
+        assert self.session is not None
+        self._busy(self.session.present)
+
+    def _busy(self, job: Callable[[], None]) -> None:
+        self._idle.clear()
+        try:
+            job()
+        except Stopped:
+            pass  # cut short in the inter-trial interval: nothing played, nothing to log
+        finally:
+            self._idle.set()
+
+    def finish(self, reason: str = QUIT_REASON):
+        """End the sitting: cut a stimulus short, mark an unfinished run aborted, pins to rest.
+
+        Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
+        if nothing was connected).
+        """
+        if self.clock is not None:
+            self.clock.stop()
+        self._idle.wait(STOP_WAIT_S)
+        session, self.session = self.session, None
+        if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):
+            session.abort(reason)
+        return self.release()

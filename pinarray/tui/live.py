@@ -1,0 +1,97 @@
+"""What the run screen shows that is computed, not drawn: moving pins and running counts.
+
+Pure functions of a compiled trial or of the rows written so far, so they are tested
+without a terminal.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from pinarray.results import TrialRecord
+from pinarray.schedule import TargetList
+
+
+@dataclass(frozen=True, eq=False)
+class LiftTimeline:
+    """When each pin of one trial is away from rest, from the trial's target changes.
+
+    Attributes
+    ----------
+    pins : tuple of int
+        Pins the trial moves.
+    times_ns : tuple of numpy.ndarray
+        Per pin, the times (ns from stimulus onset) its goal position changes.
+    lifted : tuple of numpy.ndarray
+        Per pin and change, whether the new goal is away from the pin's rest position.
+    """
+
+    pins: tuple[int, ...]
+    times_ns: tuple[np.ndarray, ...]
+    lifted: tuple[np.ndarray, ...]
+
+    @classmethod
+    def from_targets(cls, targets: TargetList, rest_steps: dict[int, int]) -> LiftTimeline:
+        pins = tuple(int(p) for p in np.unique(targets.pin))
+        times, lifted = [], []
+        for pin in pins:
+            mine = targets.pin == pin
+            times.append(targets.time_ns[mine])
+            lifted.append(targets.position_steps[mine] != rest_steps[pin])
+        return cls(pins, tuple(times), tuple(lifted))
+
+    def lifted_at(self, elapsed_ns: int) -> frozenset[int]:
+        """Pins away from rest ``elapsed_ns`` after onset (none before onset)."""
+        up = set()
+        for pin, times, lifted in zip(self.pins, self.times_ns, self.lifted, strict=True):
+            last = int(np.searchsorted(times, elapsed_ns, side="right")) - 1
+            if last >= 0 and lifted[last]:
+                up.add(pin)
+        return frozenset(up)
+
+
+@dataclass(frozen=True)
+class LiveCounts:
+    """Counted trials so far (main trials with status ok; practice and redone rows aside)."""
+
+    counted: int
+    correct: int  # localisation: the stimulated pin named
+    error_classes: tuple[tuple[str, int], ...]  # localisation: A-D and "none" felt
+    felt: int  # motion: wave trials felt as motion
+    wave_trials: int  # motion: trials with a wave (left or right)
+    direction_right: int  # motion: felt wave trials named in the right direction
+    direction_named: int  # motion: felt wave trials with a direction answer
+    practice_done: int
+
+    @classmethod
+    def of(cls, records: list[TrialRecord]) -> LiveCounts:
+        counted = [r for r in records if r.counts]
+        classes = Counter(r.error_class for r in counted if r.is_localisation)
+        waves = [r for r in counted if r.is_motion and r.direction != "none"]
+        named = [r for r in waves if r.direction_correct is not None]
+        return cls(
+            counted=len(counted),
+            correct=classes.pop("correct", 0),
+            error_classes=tuple((c, classes.get(c, 0)) for c in ("A", "B", "C", "D", "none")),
+            felt=sum(1 for r in waves if r.perceived_motion),
+            wave_trials=len(waves),
+            direction_right=sum(1 for r in named if r.direction_correct),
+            direction_named=len(named),
+            practice_done=sum(1 for r in records if r.practice and r.status == "ok"),
+        )
+
+    def lines(self, localisation: bool) -> list[str]:
+        """Short lines for the counts panel."""
+        if localisation:
+            errors = "  ".join(f"{c} {n}" for c, n in self.error_classes if c != "none")
+            lines = [f"correct {self.correct}/{self.counted}", errors,
+                     f"nothing felt {dict(self.error_classes)['none']}"]
+        else:
+            lines = [f"motion felt {self.felt}/{self.wave_trials} wave trials",
+                     f"direction right {self.direction_right}/{self.direction_named}"]
+        if self.practice_done:
+            lines.append(f"practice done {self.practice_done} (not counted)")
+        return lines

@@ -1,0 +1,163 @@
+"""Pre-flight: connect, show every servo's state, wiggle pins, then begin the run."""
+
+from __future__ import annotations
+
+from textual import on, work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal
+from textual.screen import Screen
+from textual.widgets import Button, DataTable, Footer, Input, Static
+
+from pinarray.errors import PinArrayError
+from pinarray.tui.lab import Lab, SessionRequest
+
+COLUMNS = ("servo", "pin", "answers", "model", "position (steps)", "voltage (V)",
+           "temperature (°C)", "errors")
+
+
+class PreflightScreen(Screen):
+    """Checks the hardware before the participant arrives.
+
+    Parameters
+    ----------
+    lab : Lab
+        Connects the rig (in a worker thread) and later opens the run.
+    request : SessionRequest
+        What the start screen chose.
+    """
+
+    BINDINGS = [Binding("escape", "back", "back"), Binding("b", "begin", "begin run")]
+
+    def __init__(self, lab: Lab, request: SessionRequest):
+        super().__init__()
+        self.lab = lab
+        self.request = request
+        self.connected = False
+
+    def compose(self) -> ComposeResult:
+        r = self.request
+        bus = r.port or "simulated array"
+        verb = "resume" if r.resume else "new run"
+        yield Static(f"Pre-flight · {r.protocol.name} · sub-{r.subject} ses-{r.session} · "
+                     f"{verb} · {bus}", id="title")
+        yield Static("Connecting…", id="preflight-status")
+        yield DataTable(id="servos", cursor_type="none", zebra_stripes=True)
+        with Horizontal(id="test-row"):
+            yield Input(placeholder="pin", id="test-pin", type="integer")
+            yield Button("Test pin", id="test", disabled=True)
+            yield Static("wiggles one pin 3 times so you can feel or see it move", classes="hint")
+        with Horizontal(id="preflight-buttons"):
+            yield Button("Begin run (b)", id="begin", variant="primary", disabled=True)
+            yield Button("Connect again", id="reconnect", disabled=True)
+            yield Button("Back (Esc)", id="back")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one(DataTable).add_columns(*COLUMNS)
+        self._connect()
+
+    def _status(self, text: str, problem: bool = False) -> None:
+        status = self.query_one("#preflight-status", Static)
+        status.update(text)
+        status.set_class(problem, "-problem")
+
+    def _ready(self, connected: bool) -> None:
+        self.connected = connected
+        self.query_one("#begin", Button).disabled = not connected
+        self.query_one("#test", Button).disabled = not connected
+        self.query_one("#reconnect", Button).disabled = connected
+        self.refresh_bindings()
+
+    # -- hardware work, in threads -----------------------------------------------------------
+
+    @work(thread=True, exclusive=True, group="hardware")
+    def _connect(self) -> None:
+        try:
+            rig = self.lab.connect(self.request)
+            readings = rig.telemetry()
+        except PinArrayError as problem:
+            self.app.call_from_thread(self._failed, str(problem))
+            return
+        note = "; ".join(rig.warnings)
+        self.app.call_from_thread(self._connected, readings, rig.url, note)
+
+    @work(thread=True, exclusive=True, group="hardware")
+    def _test(self, pin: int) -> None:
+        try:
+            self.lab.test_pin(pin)
+            readings = self.lab.rig.telemetry()
+        except PinArrayError as problem:
+            self.app.call_from_thread(self._status, f"Test of pin {pin} failed: {problem}", True)
+            return
+        self.app.call_from_thread(self._connected, readings, self.lab.rig.url, f"pin {pin} tested")
+
+    # -- results, on the UI thread -----------------------------------------------------------
+
+    def _connected(self, readings, url: str, note: str) -> None:
+        table = self.query_one(DataTable)
+        table.clear()
+        by_id = {t.servo_id: t for t in readings}
+        model = self.request.protocol.device.servo.model
+        for servo in self.lab.rig.setup.servos:
+            t = by_id.get(servo.servo_id)
+            if t is None:
+                table.add_row(str(servo.servo_id), str(servo.pin), "no", model, "", "", "", "")
+            else:
+                table.add_row(str(servo.servo_id), str(servo.pin), "yes", model,
+                              str(t.position_steps), f"{t.voltage_v:.1f}", str(t.temperature_c),
+                              t.errors.describe())
+        faulty = [t.servo_id for t in readings if t.errors.describe() != "none"]
+        text = f"Connected to {url}: {len(readings)} servo(s) answer, model checked at connect."
+        if faulty:
+            text += f" Servo(s) {', '.join(map(str, faulty))} report errors."
+        if note:
+            text += f" ({note})"
+        self._status(text, bool(faulty))
+        self._ready(True)
+
+    def _failed(self, problem: str) -> None:
+        self._status(f"Could not connect: {problem}\nCheck power and cables, then Connect again, "
+                     "or Back to choose another array.", True)
+        self._ready(False)
+
+    # -- buttons -----------------------------------------------------------------------------
+
+    @on(Button.Pressed, "#test")
+    @on(Input.Submitted, "#test-pin")
+    def _test_pressed(self) -> None:
+        text = self.query_one("#test-pin", Input).value.strip()
+        if not self.connected:
+            return
+        try:
+            pin = self.request.protocol.device.grid.check_pin(int(text))
+        except (ValueError, PinArrayError):
+            count = self.request.protocol.device.grid.pin_count
+            self._status(f"Test pin: expected a pin from 1 to {count}, found {text!r}", True)
+            return
+        self._status(f"Testing pin {pin}…")
+        self._test(pin)
+
+    @on(Button.Pressed, "#reconnect")
+    def _reconnect(self) -> None:
+        self._status("Connecting…")
+        self._connect()
+
+    @on(Button.Pressed, "#begin")
+    def action_begin(self) -> None:
+        from pinarray.tui.run_screen import RunScreen
+
+        if not self.connected:
+            return
+        try:
+            session = self.lab.open_session()
+        except PinArrayError as problem:
+            self._status(f"Cannot open the run: {problem}", True)
+            return
+        self.app.switch_screen(RunScreen(self.lab, session))
+
+    @on(Button.Pressed, "#back")
+    def action_back(self) -> None:
+        self.workers.cancel_group(self, "hardware")
+        self.lab.release()  # pins to rest, torque off, before anything else is chosen
+        self.app.pop_screen()

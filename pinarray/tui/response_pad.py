@@ -1,0 +1,136 @@
+"""Where the experimenter enters the subject's answer, with keys or the mouse."""
+
+from __future__ import annotations
+
+from textual import events, on
+from textual.app import ComposeResult
+from textual.containers import Horizontal
+from textual.message import Message
+from textual.reactive import reactive
+from textual.widget import Widget
+from textual.widgets import Button, Static
+
+# Motion answers by key; arrows too, since the subject says "left" or "right".
+MOTION_KEYS = {"l": "left", "left": "left", "r": "right", "right": "right",
+               "n": "none", "u": "unsure"}
+MOTION_BUTTONS = (("left", "← left (l)"), ("right", "right (r) →"),
+                  ("none", "no motion (n)"), ("unsure", "unsure (u)"))
+
+
+class ResponsePad(Widget, can_focus=True):
+    """The answer entry: a pin number for localisation, a direction for apparent motion.
+
+    Localisation: digits then Enter; ``0`` or ``n`` means nothing felt; a pin clicked on the
+    grid is put in the entry (`choose`) and Enter confirms it. Motion: one key answers.
+    The pad only collects answers; the run screen decides whether they are accepted.
+
+    Parameters
+    ----------
+    localisation : bool
+        Which paradigm's answers to take.
+    pin_count : int
+        Most digits a pin number can have follow from it.
+    """
+
+    class Answered(Message):
+        """An answer was entered: a pin number as text, ``none``, or a motion answer."""
+
+        def __init__(self, answer: str):
+            super().__init__()
+            self.answer = answer
+
+    class Proceed(Message):
+        """Enter with nothing typed: the experimenter wants the next step."""
+
+    class Typed(Message):
+        """The entry changed (so the grid can show the pin being typed)."""
+
+        def __init__(self, entry: str):
+            super().__init__()
+            self.entry = entry
+
+    entry: reactive[str] = reactive("")
+    accepting: reactive[bool] = reactive(False)
+
+    def __init__(self, localisation: bool, pin_count: int = 16, **kwargs):
+        super().__init__(**kwargs)
+        self.localisation = localisation
+        self.digits = len(str(pin_count))
+
+    def compose(self) -> ComposeResult:
+        if self.localisation:
+            yield Static(id="entry")
+            yield Static("type the pin number, Enter to confirm · 0 or n: nothing felt · "
+                         "or click a pin", classes="hint")
+        else:
+            with Horizontal(id="motion-buttons"):
+                for answer, label in MOTION_BUTTONS:
+                    yield Button(label, id=f"answer-{answer}", disabled=True)
+
+    def on_mount(self) -> None:
+        self._draw()
+
+    def watch_entry(self) -> None:
+        self._draw()
+        self.post_message(self.Typed(self.entry))
+
+    def watch_accepting(self) -> None:
+        self.set_class(self.accepting, "-accepting")
+        for button in self.query(Button):
+            button.disabled = not self.accepting
+        self._draw()
+
+    def _draw(self) -> None:
+        if not self.localisation or not self.is_mounted:
+            return
+        shown = "nothing felt" if self.entry == "none" else self.entry
+        cursor = "▏" if self.accepting else ""
+        self.query_one("#entry", Static).update(f"answer: {shown}{cursor}")
+
+    def choose(self, pin: int) -> None:
+        """Put a clicked pin in the entry; a second click on the same pin confirms it."""
+        if not self.accepting:
+            return
+        if self.entry == str(pin):
+            self._answer(self.entry)
+        else:
+            self.entry = str(pin)
+
+    def clear(self) -> None:
+        self.entry = ""
+
+    def _answer(self, answer: str) -> None:
+        self.post_message(self.Answered(answer))
+
+    def on_key(self, event: events.Key) -> None:
+        key = event.key
+        if key == "enter":
+            event.stop()
+            if not self.accepting or not self.entry:
+                self.post_message(self.Proceed())
+            else:
+                self._answer(self.entry)
+            return
+        if not self.accepting:
+            return
+        if not self.localisation:
+            if key in MOTION_KEYS:
+                event.stop()
+                self._answer(MOTION_KEYS[key])
+            return
+        if key == "backspace":
+            event.stop()
+            self.entry = "" if self.entry == "none" else self.entry[:-1]
+        elif key == "n" or (key == "0" and self.entry in ("", "none")):
+            event.stop()
+            self.entry = "none"
+        elif key.isdigit():
+            event.stop()
+            base = "" if self.entry == "none" else self.entry
+            self.entry = key if len(base) >= self.digits else base + key
+
+    @on(Button.Pressed)
+    def _button(self, event: Button.Pressed) -> None:
+        event.stop()
+        self._answer(str(event.button.id).removeprefix("answer-"))
+        self.focus()

@@ -1,0 +1,171 @@
+"""The start screen: protocol, subject, session, experimenter, bus, seed; resume if unfinished."""
+
+from __future__ import annotations
+
+import secrets
+from collections.abc import Callable
+from pathlib import Path
+
+from textual import on
+from textual.app import ComposeResult
+from textual.containers import Grid, Horizontal, Vertical
+from textual.screen import Screen
+from textual.widgets import Button, Footer, Input, Label, Select, Static
+
+from pinarray.errors import PinArrayError
+from pinarray.manifest import check_label
+from pinarray.protocol import Protocol
+from pinarray.tui.lab import SessionRequest
+
+SIM = "sim"
+
+
+def protocol_files(options) -> list[Path]:
+    """The command line's file first, then the protocols folder's YAML files by name."""
+    found = sorted(Path(options.protocols_dir).glob("*.yaml")) if options.protocols_dir else []
+    first = [Path(options.protocol_path)] if options.protocol_path else []
+    return first + [p for p in found if not first or p.resolve() != first[0].resolve()]
+
+
+class StartScreen(Screen):
+    """Collects a `SessionRequest` and opens the pre-flight screen with it.
+
+    Parameters
+    ----------
+    options : TuiOptions
+        Command-line choices (protocol file, bus, results folder, seed).
+    list_ports : callable
+        (device, description) of each serial port found.
+    """
+
+    def __init__(self, options, list_ports: Callable[[], list[tuple[str, str]]]):
+        super().__init__()
+        self.options = options
+        self.files = protocol_files(options)
+        self.ports = list_ports()
+        # Shown and recorded before the run starts, so a session can be replayed exactly.
+        self.default_seed = options.seed if options.seed is not None else secrets.randbelow(2**31)
+        self._unfinished = None
+
+    def compose(self) -> ComposeResult:
+        sim_url = self.options.sim_url
+        buses = [("simulated array" + (f" ({sim_url})" if sim_url else ""), SIM)]
+        buses += [(f"{device} · {about}", device) for device, about in self.ports]
+        if self.options.port and self.options.port not in {d for d, _ in self.ports}:
+            buses.append((self.options.port, self.options.port))
+        yield Static("pinarray · start a session", id="title")
+        with Vertical(id="start-form"):
+            with Grid(id="fields"):
+                yield Label("Protocol")
+                yield Select([(p.name, str(p)) for p in self.files], id="protocol",
+                             allow_blank=True,
+                             value=str(self.files[0]) if self.files else Select.BLANK)
+                yield Label("Subject")
+                yield Input(placeholder="letters and digits, e.g. 01", id="subject")
+                yield Label("Session")
+                yield Input("1", id="session")
+                yield Label("Experimenter")
+                yield Input(placeholder="your initials (optional)", id="experimenter")
+                yield Label("Array")
+                yield Select(buses, id="bus", allow_blank=False, value=self.options.port or SIM)
+                yield Label("Seed")
+                yield Input(str(self.default_seed), id="seed", type="integer")
+            yield Static(id="resume-info")
+            yield Static(id="start-error")
+            with Horizontal(id="start-buttons"):
+                yield Button("Start new run", id="start", variant="primary")
+                yield Button("Resume", id="resume", disabled=True)
+                yield Button("Quit", id="quit")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.query_one("#subject", Input).focus()
+        self._look_for_unfinished()
+
+    def on_screen_resume(self) -> None:
+        self._look_for_unfinished()  # back from a run: it may have become resumable
+
+    # -- reading the form --------------------------------------------------------------------
+
+    def _value(self, field: str) -> str:
+        return self.query_one(f"#{field}", Input).value.strip()
+
+    def _protocol(self) -> Protocol:
+        from pinarray.protocol_load import load_protocol
+
+        chosen = self.query_one("#protocol", Select).value
+        if chosen is Select.BLANK:
+            raise PinArrayError("choose a protocol (none found in protocols/; "
+                                "give one on the command line: pinarray tui FILE)")
+        return load_protocol(str(chosen))
+
+    def _request(self, resume: bool) -> SessionRequest:
+        protocol = self._protocol()
+        subject = check_label("subject", self._value("subject"))
+        session = check_label("session", self._value("session"))
+        seed_text = self._value("seed")
+        try:
+            seed = int(seed_text) if seed_text else None
+        except ValueError:
+            raise PinArrayError(f"the seed must be a whole number, found {seed_text!r}") from None
+        bus = self.query_one("#bus", Select).value
+        port = None if bus == SIM else str(bus)
+        return SessionRequest(protocol, subject, session, self._value("experimenter"),
+                              port, self.options.sim_url if port is None else None, seed, resume)
+
+    @on(Input.Changed, "#subject, #session")
+    @on(Select.Changed, "#protocol")
+    def _look_for_unfinished(self) -> None:
+        from pinarray.results import read_trials, remaining_plan
+        from pinarray.session import task_label
+        from pinarray.session_setup import unfinished_run
+
+        info = self.query_one("#resume-info", Static)
+        self._unfinished = None
+        try:
+            protocol = self._protocol()
+            subject = check_label("subject", self._value("subject"))
+            session = check_label("session", self._value("session"))
+            found = unfinished_run(self.options.results_root, subject, session,
+                                   task_label(protocol))
+        except PinArrayError:
+            found = None  # the form is not complete yet; Start will say what is wrong
+        self.query_one("#resume", Button).disabled = found is None
+        if found is None:
+            info.update("")
+            return
+        paths, manifest = found
+        rows = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
+        left = len(remaining_plan(manifest.plan, rows))
+        why = f" ({manifest.abort_reason})" if manifest.abort_reason else ""
+        info.update(f"Unfinished run {paths.run}: {manifest.status}{why}, "
+                    f"{len(manifest.plan) - left} of {len(manifest.plan)} trials done, "
+                    f"seed {manifest.seed}. Resume continues it.")
+        self._unfinished = found
+
+    # -- buttons -----------------------------------------------------------------------------
+
+    @on(Button.Pressed, "#start")
+    @on(Input.Submitted)
+    def _start(self) -> None:
+        self._go(resume=False)
+
+    @on(Button.Pressed, "#resume")
+    def _resume(self) -> None:
+        self._go(resume=True)
+
+    @on(Button.Pressed, "#quit")
+    async def _quit(self) -> None:
+        await self.app.action_quit()
+
+    def _go(self, resume: bool) -> None:
+        from pinarray.tui.preflight_screen import PreflightScreen
+
+        error = self.query_one("#start-error", Static)
+        try:
+            request = self._request(resume)
+        except PinArrayError as problem:
+            error.update(str(problem))
+            return
+        error.update("")
+        self.app.push_screen(PreflightScreen(self.app.lab, request))

@@ -1,0 +1,53 @@
+"""Helpers for driving the experimenter's UI through Textual's Pilot in virtual time."""
+
+from pathlib import Path
+
+import pytest
+
+from pinarray.clock import VirtualClock
+from pinarray.rig import Rig
+from pinarray.tui.app import PinArrayApp, TuiOptions
+
+PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
+LOCALISATION = PROTOCOLS / "localisation.yaml"
+MOTION = PROTOCOLS / "apparent_motion.yaml"
+SIZE = (120, 40)
+
+
+def make_app(results, protocol=LOCALISATION, seed=3, sim_url=None, rig_factory=Rig):
+    """The app on the simulated array in virtual time: a whole session runs instantly."""
+    options = TuiOptions(protocol_path=protocol, protocols_dir=PROTOCOLS,
+                         results_root=Path(results), sim_url=sim_url, time_scale=0, seed=seed)
+    return PinArrayApp(options, clock_factory=lambda port: VirtualClock(),
+                       rig_factory=rig_factory, list_ports=lambda: [])
+
+
+async def settle(pilot):
+    """Let every worker finish and every message it posted be handled."""
+    for _ in range(3):
+        await pilot.app.workers.wait_for_complete()
+        await pilot.pause()
+
+
+async def fill_start(pilot, subject="01", session=None):
+    """Type the subject (and session) on the start screen."""
+    await pilot.click("#subject")
+    await pilot.press(*subject)
+    if session is not None:
+        await pilot.click("#session")
+        await pilot.press("ctrl+a", "backspace", *session)
+    await settle(pilot)
+
+
+async def to_run_screen(pilot, subject="01", resume=False):
+    """Start screen -> pre-flight (connected) -> run screen, with instructions showing."""
+    await fill_start(pilot, subject)
+    await pilot.click("#resume" if resume else "#start")
+    await settle(pilot)
+    await pilot.press("b")
+    await settle(pilot)
+
+
+@pytest.fixture
+def results(tmp_path):
+    return tmp_path / "results"

@@ -1,0 +1,84 @@
+"""Whole sessions driven through the UI by keys and clicks, checked in the results files."""
+
+from pinarray.grid import classify
+from pinarray.manifest import read_manifest
+from pinarray.results import read_trials
+from pinarray.session import DIRECTION_LABEL, Phase
+from pinarray.tui.end_screen import EndScreen
+from pinarray.tui.run_screen import RunScreen
+from tests.tui.conftest import MOTION, SIZE, make_app, settle, to_run_screen
+
+
+async def test_a_whole_localisation_session_by_typing_and_clicking(results):
+    app = make_app(results)
+    answers = {}
+    async with app.run_test(size=SIZE) as pilot:
+        await to_run_screen(pilot)
+        screen = app.screen
+        assert isinstance(screen, RunScreen)
+        session = screen.session
+        await pilot.press("space")  # leave the instructions
+        await settle(pilot)
+        while session.phase is Phase.READY:
+            await pilot.press("space")
+            await settle(pilot)
+            assert session.phase is Phase.RESPONSE
+            planned = session.current
+            pin = planned.condition.pin
+            if planned.trial % 3 == 0:
+                answers[planned.trial] = "none"
+                await pilot.press("n", "enter")
+            elif planned.trial % 3 == 1:
+                answers[planned.trial] = str(pin)
+                await pilot.press(*str(pin), "enter")
+            else:  # the pin to its right on the grid, clicked twice (choose, confirm)
+                answers[planned.trial] = str(pin % 16 + 1)
+                await pilot.click(f"#pin-{pin % 16 + 1}")
+                await pilot.click(f"#pin-{pin % 16 + 1}")
+            await settle(pilot)
+        assert isinstance(app.screen, EndScreen)
+        summary = str(app.screen.query_one("#summary").render())
+        assert "Hz:" in summary and "% correct" in summary
+    (beh,) = results.rglob("*_beh.tsv")
+    rows = read_trials(beh)
+    assert [r.trial for r in rows] == list(range(1, 27))
+    for row in rows:
+        assert row.status == "ok" and row.response == answers[row.trial]
+        expected = "none" if row.response == "none" else classify(row.pin, int(row.response))
+        assert row.error_class == expected
+    assert [r.practice for r in rows[:3]] == [True, True, False]
+    (manifest,) = results.rglob("*_manifest.json")
+    assert read_manifest(manifest).status == "completed" and read_manifest(manifest).seed == 3
+
+
+async def test_a_whole_motion_session_by_keys_and_buttons(results):
+    app = make_app(results, protocol=MOTION, seed=5)
+    keys = {"left": "l", "right": "r", "none": "n", "unsure": "u"}
+    given = {}
+    async with app.run_test(size=SIZE) as pilot:
+        await to_run_screen(pilot)
+        session = app.screen.session
+        await pilot.press("enter")  # Enter, like Space, leaves the instructions
+        await settle(pilot)
+        while session.phase is Phase.READY:
+            await pilot.press("enter")
+            await settle(pilot)
+            planned = session.current
+            truth = DIRECTION_LABEL[planned.condition.direction]
+            answer = truth if planned.trial % 4 else "unsure"
+            given[planned.trial] = answer
+            if planned.trial % 2:
+                await pilot.press(keys[answer])
+            else:
+                await pilot.click(f"#answer-{answer}")
+            await settle(pilot)
+        assert isinstance(app.screen, EndScreen)
+        assert "motion felt" in str(app.screen.query_one("#summary").render())
+    (beh,) = results.rglob("*_beh.tsv")
+    rows = read_trials(beh)
+    assert len(rows) == 13 and all(r.status == "ok" for r in rows)
+    for row in rows:
+        assert row.response == given[row.trial]
+        assert row.perceived_motion is (row.response != "none")
+        if row.direction != "none" and row.response != "none":
+            assert row.direction_correct is (row.response == row.direction)
