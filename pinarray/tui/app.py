@@ -58,7 +58,7 @@ class PinArrayApp(App[str]):
     BINDINGS = [
         Binding("q", "quit", "quit"),
         # Ctrl-C must leave the run resumable and the pins at rest, like q.
-        Binding("ctrl+c", "quit", "quit", show=False, priority=True),
+        Binding("ctrl+c", "quit", "quit", priority=True),
     ]
 
     def __init__(self, options: TuiOptions = TuiOptions(),

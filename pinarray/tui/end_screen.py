@@ -39,6 +39,8 @@ class EndScreen(Screen):
     """
 
     BINDINGS = [Binding("n", "new", "new session")]
+    # Nothing focused: Enter or Space still arriving from the last trial must not leave.
+    AUTO_FOCUS = None
 
     def __init__(self, session: Session, lab: Lab, safe_stop):
         super().__init__()

@@ -54,7 +54,9 @@ class PreflightScreen(Screen):
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one(DataTable).add_columns(*COLUMNS)
+        table = self.query_one(DataTable)
+        for label in COLUMNS:
+            table.add_column(label, width=max(len(label), 8))
         self._connect()
 
     def _status(self, text: str, problem: bool = False) -> None:
@@ -80,7 +82,7 @@ class PreflightScreen(Screen):
             self.app.call_from_thread(self._failed, str(problem))
             return
         note = "; ".join(rig.warnings)
-        self.app.call_from_thread(self._connected, readings, rig.url, note)
+        self.app.call_from_thread(self._connected, readings, note)
 
     @work(thread=True, exclusive=True, group="hardware")
     def _test(self, pin: int) -> None:
@@ -90,11 +92,11 @@ class PreflightScreen(Screen):
         except PinArrayError as problem:
             self.app.call_from_thread(self._status, f"Test of pin {pin} failed: {problem}", True)
             return
-        self.app.call_from_thread(self._connected, readings, self.lab.rig.url, f"pin {pin} tested")
+        self.app.call_from_thread(self._connected, readings, f"pin {pin} tested")
 
     # -- results, on the UI thread -----------------------------------------------------------
 
-    def _connected(self, readings, url: str, note: str) -> None:
+    def _connected(self, readings, note: str) -> None:
         table = self.query_one(DataTable)
         table.clear()
         by_id = {t.servo_id: t for t in readings}
@@ -108,7 +110,9 @@ class PreflightScreen(Screen):
                               str(t.position_steps), f"{t.voltage_v:.1f}", str(t.temperature_c),
                               t.errors.describe())
         faulty = [t.servo_id for t in readings if t.errors.describe() != "none"]
-        text = f"Connected to {url}: {len(readings)} servo(s) answer, model checked at connect."
+        where = self.request.port or "the simulated array"
+        text = (f"Connected to {where}: {len(readings)} of {len(self.lab.rig.setup.servos)} "
+                f"servos answer, all {model} (checked at connect).")
         if faulty:
             text += f" Servo(s) {', '.join(map(str, faulty))} report errors."
         if note:

@@ -116,7 +116,9 @@ class RunScreen(Screen):
         self.query_one(ProgressBar).update(total=session.total, progress=session.done_count)
         self.query_one("#stimulus", Static).update(self._describe_stimulus())
         hint = PHASE_HINT.get(phase, "")
-        if phase is Phase.RESPONSE:
+        if phase is Phase.INSTRUCTIONS:
+            hint = f"{session.protocol.description}\n{hint}"
+        elif phase is Phase.RESPONSE:
             hint = ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
                     else "Subject's answer: l / r / n (no motion) / u (unsure).")
             hint += "  d: redo the trial"

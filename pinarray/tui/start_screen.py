@@ -15,6 +15,7 @@ from textual.widgets import Button, Footer, Input, Label, Select, Static
 from pinarray.errors import PinArrayError
 from pinarray.manifest import check_label
 from pinarray.protocol import Protocol
+from pinarray.rig import SIM_DEFAULT
 from pinarray.tui.lab import SessionRequest
 
 SIM = "sim"
@@ -43,13 +44,17 @@ class StartScreen(Screen):
         self.options = options
         self.files = protocol_files(options)
         self.ports = list_ports()
-        # Shown and recorded before the run starts, so a session can be replayed exactly.
-        self.default_seed = options.seed if options.seed is not None else secrets.randbelow(2**31)
         self._unfinished = None
+
+    def _new_seed(self) -> str:
+        # Shown and recorded before the run starts, so a session can be replayed exactly.
+        seed = self.options.seed
+        return str(seed if seed is not None else secrets.randbelow(2**31))
 
     def compose(self) -> ComposeResult:
         sim_url = self.options.sim_url
-        buses = [("simulated array" + (f" ({sim_url})" if sim_url else ""), SIM)]
+        faults = f" ({sim_url})" if sim_url and sim_url != SIM_DEFAULT else ""
+        buses = [("simulated array" + faults, SIM)]
         buses += [(f"{device} · {about}", device) for device, about in self.ports]
         if self.options.port and self.options.port not in {d for d, _ in self.ports}:
             buses.append((self.options.port, self.options.port))
@@ -69,7 +74,7 @@ class StartScreen(Screen):
                 yield Label("Array")
                 yield Select(buses, id="bus", allow_blank=False, value=self.options.port or SIM)
                 yield Label("Seed")
-                yield Input(str(self.default_seed), id="seed", type="integer")
+                yield Input(self._new_seed(), id="seed", type="integer")
             yield Static(id="resume-info")
             yield Static(id="start-error")
             with Horizontal(id="start-buttons"):
@@ -83,6 +88,7 @@ class StartScreen(Screen):
         self._look_for_unfinished()
 
     def on_screen_resume(self) -> None:
+        self.query_one("#seed", Input).value = self._new_seed()  # the next subject's own order
         self._look_for_unfinished()  # back from a run: it may have become resumable
 
     # -- reading the form --------------------------------------------------------------------

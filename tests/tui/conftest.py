@@ -35,7 +35,7 @@ async def fill_start(pilot, subject="01", session=None):
     await pilot.press(*subject)
     if session is not None:
         await pilot.click("#session")
-        await pilot.press("ctrl+a", "backspace", *session)
+        await pilot.press("end", "ctrl+u", *session)
     await settle(pilot)
 
 

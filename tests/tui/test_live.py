@@ -1,0 +1,34 @@
+"""The run screen's computed parts: which pins are up at a moment, and the running counts."""
+
+from pinarray.plan import make_plan
+from pinarray.protocol_load import load_protocol
+from pinarray.results import TrialRecord
+from pinarray.schedule import compile_trial
+from pinarray.tui.live import LiftTimeline, LiveCounts
+from tests.tui.conftest import LOCALISATION
+
+MS = 1_000_000
+
+
+def test_a_5_hz_pin_is_up_for_the_first_100_ms_of_each_200_ms_cycle_and_down_after_the_end():
+    protocol = load_protocol(LOCALISATION)
+    trial = next(t for t in make_plan(protocol, 3).trials
+                 if t.condition.pin == 6 and t.condition.frequency_hz == 5)
+    timeline = LiftTimeline.from_targets(compile_trial(protocol, trial).targets, {6: 2048})
+    up = [ms for ms in (-1, 0, 50, 99, 100, 150, 200, 250, 9_999, 10_001)
+          if timeline.lifted_at(ms * MS)]
+    assert up == [0, 50, 99, 200, 250]
+
+
+def record(trial, error_class, practice=False, status="ok"):
+    return TrialRecord(trial=trial, block=0 if practice else 1, task="t", onset_s=0, duration_s=1,
+                       status=status, response="none" if error_class == "none" else "1",
+                       pin=1, frequency_hz=5.0, error_class=error_class, practice=practice)
+
+
+def test_counts_leave_out_practice_and_redone_trials():
+    counts = LiveCounts.of([record(1, "A", practice=True), record(2, "correct"),
+                            record(3, "B", status="redone"), record(3, "B"), record(4, "none")])
+    assert (counts.counted, counts.correct, counts.practice_done) == (3, 1, 1)
+    assert counts.lines(localisation=True)[:3] == ["correct 1/3", "A 0  B 1  C 0  D 0",
+                                                   "nothing felt 1"]

@@ -1,0 +1,209 @@
+"""Pause, redo, abort (and resume), quit, bus faults and mistakes, driven through the UI."""
+
+from pinarray.errors import BusError
+from pinarray.manifest import read_manifest
+from pinarray.results import read_trials
+from pinarray.rig import Rig
+from pinarray.session import Phase
+from pinarray.tui.confirm import Confirm
+from pinarray.tui.end_screen import EndScreen
+from pinarray.tui.preflight_screen import PreflightScreen
+from pinarray.tui.run_screen import RunScreen
+from pinarray.tui.start_screen import StartScreen
+from tests.tui.conftest import SIZE, fill_start, make_app, settle, to_run_screen
+
+
+def rows(results):
+    (beh,) = results.rglob("*_beh.tsv")
+    return read_trials(beh)
+
+
+def manifest(results):
+    (path,) = results.rglob("*_manifest.json")
+    return read_manifest(path)
+
+
+def text(app, selector):
+    return str(app.screen.query_one(selector).render())
+
+
+async def present(pilot):
+    await pilot.press("space")
+    await settle(pilot)
+
+
+async def begin(pilot):
+    """From the start screen to the first trial's response."""
+    await to_run_screen(pilot)
+    await present(pilot)  # leave the instructions
+    await present(pilot)
+    return pilot.app.screen.session
+
+
+async def test_pause_holds_the_run_until_p_again(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        await pilot.press("p")
+        assert session.phase is Phase.PAUSED and "PAUSED" in text(app, "#phase")
+        await pilot.press("6", "enter")  # answers are not taken while paused
+        await settle(pilot)
+        assert session.phase is Phase.PAUSED and session.records == []
+        await pilot.press("p")
+        assert session.phase is Phase.RESPONSE
+        await pilot.press("6", "enter")
+        await settle(pilot)
+        await pilot.press("p")
+        await present(pilot)  # Space does nothing while paused
+        assert session.phase is Phase.PAUSED
+        await pilot.press("p")
+        assert session.phase is Phase.READY
+    assert [r.status for r in rows(results)] == ["ok"]
+
+
+async def test_redo_logs_the_first_presentation_and_presents_the_trial_again(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        first = session.current.trial
+        await pilot.press("d")
+        assert session.phase is Phase.READY and session.current.trial == first
+        await present(pilot)
+        await pilot.press("1", "enter")
+        await settle(pilot)
+    assert [(r.trial, r.status) for r in rows(results)] == [(first, "redone"), (first, "ok")]
+
+
+async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        await pilot.press("4", "enter")
+        await present(pilot)
+        cut = session.current.trial
+        await pilot.press("a")
+        assert isinstance(app.screen, Confirm)
+        await pilot.press("n")  # changed their mind
+        assert isinstance(app.screen, RunScreen) and session.phase is Phase.RESPONSE
+        await pilot.press("a", "y")
+        await settle(pilot)
+        assert isinstance(app.screen, EndScreen)
+        assert "aborted (aborted by the experimenter) after 1 of 26" in text(app, "#headline")
+        assert manifest(results).status == "aborted"
+        assert [r.status for r in rows(results)] == ["ok", "aborted"]
+
+        await pilot.press("n")  # new session: back to the start screen, subject still filled in
+        await settle(pilot)
+        assert isinstance(app.screen, StartScreen)
+        assert "Unfinished run 1: aborted" in text(app, "#resume-info")
+        await pilot.click("#resume")
+        await settle(pilot)
+        await pilot.press("b")
+        await settle(pilot)
+        resumed = app.screen.session
+        assert resumed.done_count == 1 and resumed.writer.resumed
+        await present(pilot)
+        await present(pilot)
+        assert resumed.current.trial == cut
+        await pilot.press("n", "enter")
+        await settle(pilot)
+    last = rows(results)[-1]
+    assert (last.trial, last.status, last.resumed, last.response) == (cut, "ok", True, "none")
+
+
+async def test_quitting_mid_run_leaves_a_resumable_run_and_keeps_every_row(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await begin(pilot)
+        await pilot.press("7", "enter")
+        await settle(pilot)
+        await pilot.press("ctrl+c")
+        await settle(pilot)
+    assert app.lab.rig is None  # pins at rest, torque off, port closed
+    run = manifest(results)
+    assert (run.status, run.abort_reason) == ("aborted", "quit from the UI")
+    assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
+
+
+class RigFailingOnce(Rig):
+    """The real simulated rig, except that its first stimulus fails as a lost servo would."""
+
+    failures = 1
+
+    def present(self, schedule):
+        if self.failures:
+            self.failures -= 1
+            raise BusError("servo 6 (pin 6): no status packet after 3 retries")
+        return super().present(schedule)
+
+
+async def test_a_bus_fault_is_shown_in_words_and_retry_presents_the_trial_again(results):
+    app = make_app(results, rig_factory=RigFailingOnce)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        assert session.phase is Phase.FAULT
+        shown = text(app, "#phase")
+        assert "BUS FAULT: servo 6 (pin 6): no status packet" in shown and "t: retry" in shown
+        await pilot.press("t")
+        await present(pilot)
+        assert session.phase is Phase.RESPONSE
+        await pilot.press("2", "enter")
+        await settle(pilot)
+    first, second = rows(results)
+    assert (first.status, second.status, first.trial) == ("invalid", "ok", second.trial)
+
+
+async def test_a_bus_fault_then_abort_keeps_the_invalid_row(results):
+    app = make_app(results, rig_factory=RigFailingOnce)
+    async with app.run_test(size=SIZE) as pilot:
+        await begin(pilot)
+        await pilot.press("a", "y")
+        await settle(pilot)
+        assert isinstance(app.screen, EndScreen)
+    assert [r.status for r in rows(results)] == ["invalid"]
+    assert manifest(results).status == "aborted"
+
+
+async def test_mistakes_are_explained_on_screen_and_nothing_is_written(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot, subject="a-b")
+        await pilot.click("#start")
+        await settle(pilot)
+        assert isinstance(app.screen, StartScreen)
+        assert "subject label 'a-b' is not allowed" in text(app, "#start-error")
+        await pilot.click("#subject")
+        await pilot.press("end", "ctrl+u", "0", "1")
+        await pilot.press("enter")
+        await settle(pilot)
+        assert isinstance(app.screen, PreflightScreen)
+        await pilot.click("#test-pin")
+        await pilot.press("9", "9", "enter")
+        assert "expected a pin from 1 to 16, found '99'" in text(app, "#preflight-status")
+        await pilot.press("end", "ctrl+u", "6", "enter")
+        await settle(pilot)
+        assert "pin 6 tested" in text(app, "#preflight-status")
+        await pilot.click("#begin")
+        await settle(pilot)
+        session = app.screen.session
+        await present(pilot)
+        await present(pilot)
+        await pilot.press("1", "7", "enter")
+        await settle(pilot)
+        assert "expected a pin number from 1 to 16 or 'none', found 17" in text(app, "#problem")
+        assert session.phase is Phase.RESPONSE and session.records == []
+
+
+async def test_a_failed_handshake_names_the_missing_servos_and_back_returns_to_start(results):
+    app = make_app(results, sim_url="sim://?missing=3,7")
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        shown = text(app, "#preflight-status")
+        assert shown.startswith("Could not connect:") and "3" in shown and "7" in shown
+        assert app.screen.query_one("#begin").disabled
+        await pilot.press("escape")
+        await settle(pilot)
+        assert isinstance(app.screen, StartScreen)
+    assert not list(results.rglob("*_beh.tsv"))
