@@ -72,7 +72,7 @@ DEFAULT_POSITIONS = ((1_500_000, 2048), (2_000_000, 2162))
 
 def _device(reader: Reader, node: Node | None) -> Device | None:
     if node is None:
-        return _default_device(Grid(), ServoSettings(), {}, reader)
+        return _pin_calibrations(reader, Grid(), ServoSettings(), {})
     keys = reader.attempt(
         lambda: reader.mapping(node, {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility"},
                                what="device section"),
@@ -105,7 +105,7 @@ def _device(reader: Reader, node: Node | None) -> Device | None:
             servo_id = reader.attempt(lambda v=value_node: reader.integer(v, "a servo id", 0, 253), None)
             if pin is not None and servo_id is not None:
                 ids[pin] = (servo_id, value_node)
-    device = _default_device(grid, servo, base, reader, overrides, ids, keys.get("servo_ids"))
+    device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get("servo_ids"))
     if device is None:
         return None
     return Device(device.grid, device.servo, device.pins, port, scale)
@@ -167,7 +167,10 @@ def _calibration_fields(reader: Reader, node: Node, what: str) -> dict:
     return fields
 
 
-def _default_device(grid, servo, base, reader, overrides=None, ids=None, ids_node=None) -> Device | None:
+def _pin_calibrations(reader: Reader, grid: Grid, servo: ServoSettings, base: dict,
+                      overrides: dict | None = None, ids: dict | None = None,
+                      ids_node: Node | None = None) -> Device | None:
+    """One calibration per pin: the shared one, overridden per pin; every position in limits."""
     overrides = overrides or {}
     ids = ids or {}
     pins = []
@@ -176,15 +179,14 @@ def _default_device(grid, servo, base, reader, overrides=None, ids=None, ids_nod
         fields = {**base, **overrides.get(pin, {})}
         positions = fields.get("positions") or tuple((w, p, None) for w, p in DEFAULT_POSITIONS)
         rest, rest_node = fields.get("rest_steps", (positions[0][1], None))
-        (low, high), limits_node = fields.get("limits", ((min(p for _, p, _ in positions + ((0, rest, None),)) - 50,
-                                                          max(p for _, p, _ in positions + ((0, rest, None),)) + 50), None))
-        for _, position, position_node in positions:
+        # Without explicit limits a pin may go exactly where it is calibrated to go, no further.
+        span = [p for _, p, _ in positions] + [rest]
+        (low, high), limits_node = fields.get("limits", ((min(span), max(span)), None))
+        checks = [(position, node, "position") for _, position, node in positions] + [(rest, rest_node, "rest position")]
+        for position, node, what in checks:
             if not low <= position <= high:
-                reader.error(position_node or limits_node, f"pin {pin}: position {position} steps is outside its limits [{low}, {high}]")
+                reader.error(node or limits_node, f"pin {pin}: {what} {position} steps is outside its limits [{low}, {high}]")
                 ok = False
-        if not low <= rest <= high:
-            reader.error(rest_node or limits_node, f"pin {pin}: rest position {rest} steps is outside its limits [{low}, {high}]")
-            ok = False
         servo_id = ids.get(pin, (pin, None))[0]
         pins.append(PinCalibration(
             pin, servo_id, rest, low, high, tuple((w, p) for w, p, _ in positions), fields.get("lever_mm", 6.0)

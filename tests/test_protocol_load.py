@@ -227,3 +227,34 @@ def test_preview_draws_a_text_timeline_and_a_png(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "pin  5 |" in out and "pin  7 |" in out and "#" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+DEVICE = """\
+device:
+  calibration:
+    rest_steps: 2048
+    positions: {1.5: 2048, 2.0: 2162}
+    limits_steps: [2000, 2200]
+  pins:
+    4: {positions: {1.5: 2048, 2.0: 2150}}
+  servo_ids: {16: 20}
+"""
+
+
+def test_per_pin_calibration_and_servo_ids_override_the_shared_ones():
+    device = parse_protocol(DEVICE + MINIMAL).device
+    assert device.calibration(4).position_for_width(2_000_000) == 2150
+    assert device.calibration(3).position_for_width(2_000_000) == 2162
+    assert (device.calibration(16).servo_id, device.calibration(15).servo_id) == (20, 15)
+    assert (device.calibration(1).min_steps, device.calibration(1).max_steps) == (2000, 2200)
+
+
+def test_without_limits_a_pin_may_only_reach_its_calibrated_positions():
+    device = parse_protocol(MINIMAL).device
+    assert (device.calibration(7).min_steps, device.calibration(7).max_steps) == (2048, 2162)
+
+
+def test_calibration_outside_the_limits_and_shared_servo_ids_are_refused():
+    lines = problems(DEVICE.replace("2.0: 2150", "2.0: 2300").replace("{16: 20}", "{16: 3}") + MINIMAL)
+    assert lines[0].startswith("p.yaml:7:") and "pin 4: position 2300 steps is outside its limits [2000, 2200]" in lines[0]
+    assert lines[1].startswith("p.yaml:8:") and "servo id 3 drives both pin 3 and pin 16" in lines[1]
