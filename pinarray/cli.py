@@ -31,7 +31,9 @@ def _cmd_grid(args: argparse.Namespace) -> int:
 
     grid = Grid(args.rows, args.columns, args.pitch_mm)
     grid.check_pin(args.pin)
-    print(f"Pin grid {grid.rows}x{grid.columns}, {grid.pitch_mm:g} mm pitch, as the subject feels it:")
+    print(
+        f"Pin grid {grid.rows}x{grid.columns}, {grid.pitch_mm:g} mm pitch, as the subject feels it:"
+    )
     print(render_layout(grid))
     print()
     print(f"Error classes when pin {args.pin} moves (* = correct):")

@@ -13,7 +13,9 @@ from dataclasses import dataclass
 from pinarray.protocol import NS_PER_S, PinCalibration, ServoSettings, Train
 
 
-def reachable_steps(duration_ns: float, speed_steps_per_s: float, accel_steps_per_s2: float | None) -> float:
+def reachable_steps(
+    duration_ns: float, speed_steps_per_s: float, accel_steps_per_s2: float | None
+) -> float:
     """Steps a servo can travel in ``duration_ns``, starting and ending at rest."""
     t_s = duration_ns / NS_PER_S
     v = speed_steps_per_s
@@ -25,7 +27,9 @@ def reachable_steps(duration_ns: float, speed_steps_per_s: float, accel_steps_pe
     return v * t_s - v * v / a
 
 
-def travel_time_s(steps: float, speed_steps_per_s: float, accel_steps_per_s2: float | None) -> float:
+def travel_time_s(
+    steps: float, speed_steps_per_s: float, accel_steps_per_s2: float | None
+) -> float:
     """Shortest time to travel ``steps`` from standstill to standstill, in seconds."""
     v = speed_steps_per_s
     if accel_steps_per_s2 is None:

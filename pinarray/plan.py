@@ -51,11 +51,15 @@ class TrialPlan:
 
     def trial(self, number: int) -> PlannedTrial:
         if not 1 <= number <= len(self.trials):
-            raise PinArrayError(f"trial {number} is not in the plan: expected 1 to {len(self.trials)}")
+            raise PinArrayError(
+                f"trial {number} is not in the plan: expected 1 to {len(self.trials)}"
+            )
         return self.trials[number - 1]
 
     def to_json(self) -> str:
-        return json.dumps({"seed": self.seed, "trials": [t.record() for t in self.trials]}, indent=1)
+        return json.dumps(
+            {"seed": self.seed, "trials": [t.record() for t in self.trials]}, indent=1
+        )
 
 
 def _value(condition: Condition, attribute: str):
@@ -96,7 +100,9 @@ def ordering_problem(design: Design) -> str | None:
     return None
 
 
-def _feasible(remaining: Counter, limits: dict[str, int], runs: dict[str, tuple[object, int]]) -> bool:
+def _feasible(
+    remaining: Counter, limits: dict[str, int], runs: dict[str, tuple[object, int]]
+) -> bool:
     size = sum(remaining.values())
     if not size:
         return True
@@ -113,7 +119,9 @@ def _feasible(remaining: Counter, limits: dict[str, int], runs: dict[str, tuple[
 
 
 def constrained_shuffle(
-    items: list[Condition], limits: dict[str, int], rng: np.random.Generator,
+    items: list[Condition],
+    limits: dict[str, int],
+    rng: np.random.Generator,
     runs: dict[str, tuple[object, int]] | None = None,
 ) -> list[Condition]:
     """A random order of ``items`` with runs of equal attribute values capped by ``limits``.
@@ -227,7 +235,7 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     elif design.ordering is Ordering.FULL_RANDOM:
         pooled = constrained_shuffle(conditions * design.repetitions * design.blocks, limits, rng)
         size = len(conditions) * design.repetitions
-        blocks = [pooled[i * size:(i + 1) * size] for i in range(design.blocks)]
+        blocks = [pooled[i * size : (i + 1) * size] for i in range(design.blocks)]
     else:
         runs: dict[str, tuple[object, int]] = {}
         for _ in range(design.blocks):
@@ -239,7 +247,9 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     if design.practice_trials:
         picks = rng.permutation(len(conditions) * -(-design.practice_trials // len(conditions)))
         for i in picks[: design.practice_trials]:
-            trials.append(PlannedTrial(len(trials) + 1, 0, True, conditions[int(i) % len(conditions)]))
+            trials.append(
+                PlannedTrial(len(trials) + 1, 0, True, conditions[int(i) % len(conditions)])
+            )
     for number, block in enumerate(blocks, start=1):
         for condition in block:
             trials.append(PlannedTrial(len(trials) + 1, number, False, condition))

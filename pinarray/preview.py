@@ -11,7 +11,11 @@ from pinarray.schedule import TrialSchedule
 
 def describe_trial(planned: PlannedTrial) -> str:
     c = planned.condition
-    what = f"{c.direction.value} wave on row {c.row}" if c.direction else f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
+    what = (
+        f"{c.direction.value} wave on row {c.row}"
+        if c.direction
+        else f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
+    )
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 
@@ -30,10 +34,15 @@ def _lifted_ranges(schedule: TrialSchedule, protocol: Protocol, pin: int) -> lis
     return spans
 
 
-def text_timeline(protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, width: int) -> str:
+def text_timeline(
+    protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, width: int
+) -> str:
     """One line per active pin; '#' where the pin is lifted during that column's time slice."""
     end_ns = max(schedule.end_ns, 1)
-    lines = [describe_trial(planned), f"{end_ns / 1e9:g} s, one column = {end_ns / width / 1e6:.3g} ms"]
+    lines = [
+        describe_trial(planned),
+        f"{end_ns / 1e9:g} s, one column = {end_ns / width / 1e6:.3g} ms",
+    ]
     for pin in schedule.active_pins:
         cells = np.zeros(width, dtype=bool)
         for start, stop in _lifted_ranges(schedule, protocol, pin):
@@ -45,7 +54,9 @@ def text_timeline(protocol: Protocol, planned: PlannedTrial, schedule: TrialSche
     return "\n".join(lines)
 
 
-def draw_timeline(protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, path: str) -> None:
+def draw_timeline(
+    protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, path: str
+) -> None:
     """The commanded position of each active pin over time, as a PNG."""
     import matplotlib
 
@@ -55,7 +66,9 @@ def draw_timeline(protocol: Protocol, planned: PlannedTrial, schedule: TrialSche
     from pinarray.errors import PinArrayError
 
     pins = schedule.active_pins
-    fig, axes = plt.subplots(len(pins), 1, sharex=True, figsize=(9, 0.8 + 0.7 * len(pins)), squeeze=False)
+    fig, axes = plt.subplots(
+        len(pins), 1, sharex=True, figsize=(9, 0.8 + 0.7 * len(pins)), squeeze=False
+    )
     for ax, pin in zip(axes[:, 0], pins, strict=True):
         rest = protocol.device.calibration(pin).rest_steps
         mask = schedule.targets.pin == pin

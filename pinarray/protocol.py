@@ -112,8 +112,13 @@ class Train:
 
     def with_frequency(self, frequency_hz: Fraction) -> Train:
         return Train(
-            frequency_hz, self.duration_ns, self.pulses_per_cycle, self.up_pulses,
-            self.up_width_ns, self.down_width_ns, self.phase,
+            frequency_hz,
+            self.duration_ns,
+            self.pulses_per_cycle,
+            self.up_pulses,
+            self.up_width_ns,
+            self.down_width_ns,
+            self.phase,
         )
 
 
@@ -151,12 +156,16 @@ class Wave:
         if self.kind is WaveKind.NONE:
             centre = len(self.pins) // 2
             laterals = (self.pins[centre - 1], self.pins[centre + 1])
-            steps = [(self.pins[centre],) if i % 2 == 0 else laterals for i in range(len(self.pins))]
+            steps = [
+                (self.pins[centre],) if i % 2 == 0 else laterals for i in range(len(self.pins))
+            ]
         else:
             order = self.pins if self.kind is WaveKind.RIGHTWARDS else self.pins[::-1]
             steps = [(pin,) for pin in order]
         return tuple(
-            PinDrive(pin, self.train, i * self.soa_ns) for i, group in enumerate(steps) for pin in group
+            PinDrive(pin, self.train, i * self.soa_ns)
+            for i, group in enumerate(steps)
+            for pin in group
         )
 
 

@@ -17,8 +17,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("compile", help="write every pulse of every trial as CSV")
     p.add_argument("file", metavar="FILE")
     p.add_argument("--seed", type=int, help="plan seed (default: the protocol's, else a new one)")
-    p.add_argument("--out", required=True, help="CSV path (trial,pin,start_ns,width_ns); - for stdout")
-    p.add_argument("--targets", help="also write servo target changes (trial,pin,time_ns,position_steps)")
+    p.add_argument(
+        "--out", required=True, help="CSV path (trial,pin,start_ns,width_ns); - for stdout"
+    )
+    p.add_argument(
+        "--targets", help="also write servo target changes (trial,pin,time_ns,position_steps)"
+    )
     p.set_defaults(func=_compile)
 
     p = subparsers.add_parser("preview", help="a timeline of one trial's pins")
@@ -69,7 +73,10 @@ def _scaled_notes(protocol) -> list[str]:
             calibration = protocol.device.calibration(drive.pin)
             result = check_train(drive.train, calibration, protocol.device.servo)
             if not result.feasible:
-                notes.append(f"scaled to {result.amplitude_fraction:.0%}: " + result.describe(protocol.device.servo, calibration.lever_mm))
+                notes.append(
+                    f"scaled to {result.amplitude_fraction:.0%}: "
+                    + result.describe(protocol.device.servo, calibration.lever_mm)
+                )
     return notes
 
 
@@ -106,19 +113,34 @@ def _compile(args: argparse.Namespace) -> int:
             schedule = compile_trial(protocol, planned)
             p = schedule.pulses
             writer.writerows(
-                zip([planned.trial] * len(p), p.pin.tolist(), p.start_ns.tolist(), p.width_ns.tolist(), strict=True)
+                zip(
+                    [planned.trial] * len(p),
+                    p.pin.tolist(),
+                    p.start_ns.tolist(),
+                    p.width_ns.tolist(),
+                    strict=True,
+                )
             )
             pulses += len(p)
             if target_writer:
                 t = schedule.targets
                 target_writer.writerows(
-                    zip([planned.trial] * len(t), t.pin.tolist(), t.time_ns.tolist(), t.position_steps.tolist(), strict=True)
+                    zip(
+                        [planned.trial] * len(t),
+                        t.pin.tolist(),
+                        t.time_ns.tolist(),
+                        t.position_steps.tolist(),
+                        strict=True,
+                    )
                 )
     finally:
         for stream in (out, targets_out):
             if stream not in (None, sys.stdout):
                 stream.close()
-    print(f"{args.file}: {len(plan)} trials, {pulses} pulses, seed {plan.seed} -> {args.out}", file=sys.stderr)
+    print(
+        f"{args.file}: {len(plan)} trials, {pulses} pulses, seed {plan.seed} -> {args.out}",
+        file=sys.stderr,
+    )
     return 0
 
 

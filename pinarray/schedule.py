@@ -16,6 +16,7 @@ the array cost nothing.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -134,7 +135,7 @@ def _check_no_overlap(drives: Sequence[PinDrive]) -> None:
         by_pin.setdefault(drive.pin, []).append(drive)
     for pin, pin_drives in by_pin.items():
         pin_drives.sort(key=lambda d: d.delay_ns)
-        for before, after in zip(pin_drives, pin_drives[1:]):
+        for before, after in itertools.pairwise(pin_drives):
             if before.delay_ns + before.train.duration_ns > after.delay_ns:
                 raise PinArrayError(
                     f"pin {pin} is driven twice at once: a train from {before.delay_ns / 1e6:g} ms "
@@ -168,13 +169,17 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
         times = np.concatenate((starts, [drive_end_ns]))
         positions = np.concatenate((positions, [calibration.rest_steps])).astype(np.int32)
         target_parts.append(
-            (np.full(len(times), drive.pin, dtype=np.int16), times, positions,
-             np.full(len(times), order, dtype=np.int32))
+            (
+                np.full(len(times), drive.pin, dtype=np.int16),
+                times,
+                positions,
+                np.full(len(times), order, dtype=np.int32),
+            )
         )
         end_ns = max(end_ns, drive_end_ns)
 
     if pulse_parts:
-        pin, start, width = (np.concatenate(column) for column in zip(*pulse_parts))
+        pin, start, width = (np.concatenate(column) for column in zip(*pulse_parts, strict=True))
     else:
         pin, start, width = (np.empty(0, np.int16), np.empty(0, np.int64), np.empty(0, np.int64))
     by_time = np.lexsort((pin, start))
@@ -186,7 +191,7 @@ def _changes_only(parts: list[tuple[np.ndarray, ...]], device: Device, end_ns: i
     if not parts:
         empty = np.empty(0, np.int64)
         return TargetList(empty, empty.astype(np.int16), empty.astype(np.int32), end_ns)
-    pin, time, position, order = (np.concatenate(column) for column in zip(*parts))
+    pin, time, position, order = (np.concatenate(column) for column in zip(*parts, strict=True))
     # Per pin in time order; at equal times the later drive wins (one ends as the next starts).
     index = np.lexsort((order, time, pin))
     pin, time, position = pin[index], time[index], position[index]
@@ -242,7 +247,9 @@ def render_dense(
         return out
     rows = rows[chosen]
     first = _first_sample_at_or_after(pulses.start_ns[chosen], sample_rate_hz)
-    stop = _first_sample_at_or_after(pulses.start_ns[chosen] + pulses.width_ns[chosen], sample_rate_hz)
+    stop = _first_sample_at_or_after(
+        pulses.start_ns[chosen] + pulses.width_ns[chosen], sample_rate_hz
+    )
     edges = np.zeros((len(pins), samples + 1), dtype=np.int32)
     np.add.at(edges, (rows, np.minimum(first, samples)), 1)
     np.add.at(edges, (rows, np.minimum(stop, samples)), -1)

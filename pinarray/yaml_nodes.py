@@ -60,14 +60,20 @@ class Reader:
             mark = problem.problem_mark or problem.context_mark
             what = problem.problem or problem.context or "malformed YAML"
             error = ProtocolError(
-                f"malformed YAML: {what}", self.source,
-                mark.line + 1 if mark else 0, mark.column + 1 if mark else 0,
+                f"malformed YAML: {what}",
+                self.source,
+                mark.line + 1 if mark else 0,
+                mark.column + 1 if mark else 0,
             )
             raise ProtocolErrors([error]) from None
         except yaml.YAMLError as problem:
-            raise ProtocolErrors([ProtocolError(f"malformed YAML: {problem}", self.source)]) from None
+            raise ProtocolErrors(
+                [ProtocolError(f"malformed YAML: {problem}", self.source)]
+            ) from None
         if root is None:
-            raise ProtocolErrors([ProtocolError("expected a protocol, found an empty file", self.source)])
+            raise ProtocolErrors(
+                [ProtocolError("expected a protocol, found an empty file", self.source)]
+            )
         return root
 
     def mapping(
@@ -87,7 +93,11 @@ class Reader:
             if key_text not in allowed:
                 hint = difflib.get_close_matches(key_text, sorted(allowed), n=1)
                 suggested.update(hint)
-                suggestion = f"; did you mean {hint[0]!r}?" if hint else f"; expected one of {', '.join(sorted(allowed))}"
+                suggestion = (
+                    f"; did you mean {hint[0]!r}?"
+                    if hint
+                    else f"; expected one of {', '.join(sorted(allowed))}"
+                )
                 self.error(key_node, f"unknown key {key_text!r} in the {what}{suggestion}")
                 continue
             out[key_text] = value_node
@@ -118,7 +128,9 @@ class Reader:
         if not isinstance(node, yaml.SequenceNode):
             raise self.error(node, f"expected a list for {what}, found {describe(node)}")
         if len(node.value) < min_items:
-            raise self.error(node, f"expected at least {min_items} item(s) in {what}, found {len(node.value)}")
+            raise self.error(
+                node, f"expected at least {min_items} item(s) in {what}, found {len(node.value)}"
+            )
         return list(node.value)
 
     # -- scalars -----------------------------------------------------------------------------
@@ -135,7 +147,9 @@ class Reader:
         if choices and value not in choices:
             hint = difflib.get_close_matches(value, choices, n=1)
             extra = f"; did you mean {hint[0]!r}?" if hint else ""
-            raise self.error(node, f"expected {what} to be one of {', '.join(choices)}, found {value!r}{extra}")
+            raise self.error(
+                node, f"expected {what} to be one of {', '.join(choices)}, found {value!r}{extra}"
+            )
         return value
 
     def boolean(self, node: Node, what: str) -> bool:
@@ -145,8 +159,14 @@ class Reader:
         return value
 
     def number(
-        self, node: Node, what: str, unit: str, *, minimum: Fraction | int | None = 0,
-        maximum: Fraction | int | None = None, allow_zero: bool = False,
+        self,
+        node: Node,
+        what: str,
+        unit: str,
+        *,
+        minimum: Fraction | int | None = 0,
+        maximum: Fraction | int | None = None,
+        allow_zero: bool = False,
     ) -> Fraction:
         """An exact number: 0.1 means 1/10; "1/3" is accepted; NaN and infinities are not."""
         value = self.scalar_value(node)
@@ -159,22 +179,34 @@ class Reader:
             if math.isfinite(value):
                 exact = Fraction(repr(value))  # the shortest decimal that reads back: "0.1" -> 1/10
             else:
-                raise self.error(node, f"expected a finite number of {unit} for {what}, found {node.value}")
+                raise self.error(
+                    node, f"expected a finite number of {unit} for {what}, found {node.value}"
+                )
         elif isinstance(value, str):
             try:
                 exact = Fraction(value.strip())
             except (ValueError, ZeroDivisionError):
                 exact = None
         if exact is None:
-            raise self.error(node, f"expected a number of {unit} for {what}, found {describe(node)}")
+            raise self.error(
+                node, f"expected a number of {unit} for {what}, found {describe(node)}"
+            )
         if minimum is not None and (exact < minimum or (exact == minimum and not allow_zero)):
             relation = "at least" if allow_zero else "more than"
-            raise self.error(node, f"expected {what} {relation} {float(minimum):g} {unit}, found {float(exact):g}")
+            raise self.error(
+                node,
+                f"expected {what} {relation} {float(minimum):g} {unit}, found {float(exact):g}",
+            )
         if maximum is not None and exact > maximum:
-            raise self.error(node, f"expected {what} of at most {float(maximum):g} {unit}, found {float(exact):g}")
+            raise self.error(
+                node,
+                f"expected {what} of at most {float(maximum):g} {unit}, found {float(exact):g}",
+            )
         return exact
 
-    def integer(self, node: Node, what: str, minimum: int | None = None, maximum: int | None = None) -> int:
+    def integer(
+        self, node: Node, what: str, minimum: int | None = None, maximum: int | None = None
+    ) -> int:
         value = self.scalar_value(node)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(node, f"expected a whole number for {what}, found {describe(node)}")

@@ -37,7 +37,9 @@ def test_trials_are_numbered_in_plan_order_with_practice_first():
     assert [t.trial for t in plan.trials] == list(range(1, 27))
     assert [t.practice for t in plan.trials[:3]] == [True, True, False]
     assert {t.block for t in plan.trials if not t.practice} == {1}
-    main = Counter((t.condition.pin, t.condition.frequency_hz) for t in plan.trials if not t.practice)
+    main = Counter(
+        (t.condition.pin, t.condition.frequency_hz) for t in plan.trials if not t.practice
+    )
     assert len(main) == 24 and set(main.values()) == {1}
 
 
@@ -84,7 +86,7 @@ def test_the_latin_square_is_balanced(n):
     square = williams_square(n)
     for row in square:
         assert sorted(row) == list(range(n))
-    for column in zip(*square):
+    for column in zip(*square, strict=True):
         assert Counter(column) == Counter({c: len(square) // n for c in range(n)})
     follows = Counter(pair for row in square for pair in itertools.pairwise(row))
     assert set(follows.values()) == {len(square) // n}
@@ -95,8 +97,11 @@ def test_sequential_and_latin_square_orders_are_deterministic_per_block():
     text = (PROTOCOLS / "demo.yaml").read_text()
     demo = parse_protocol(text)
     assert [t.condition.pin for t in make_plan(demo, 1).trials] == list(range(1, 17))
-    latin = parse_protocol(text.replace("order: sequential", "order: latin_square").replace(
-        "frequencies_hz: [5]", "frequencies_hz: [5]\n  blocks: 3"))
+    latin = parse_protocol(
+        text.replace("order: sequential", "order: latin_square").replace(
+            "frequencies_hz: [5]", "frequencies_hz: [5]\n  blocks: 3"
+        )
+    )
     plan = make_plan(latin, 5)
     blocks = [[t.condition.pin for t in plan.trials if t.block == b] for b in (1, 2, 3)]
     assert all(sorted(b) == list(range(1, 17)) for b in blocks)

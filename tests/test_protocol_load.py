@@ -78,11 +78,17 @@ def test_defaults_give_pin_n_to_servo_n_and_the_seed_pulse_widths():
 
 
 def test_decimals_are_exact_and_fractions_are_accepted():
-    protocol = parse_protocol(MINIMAL.replace("frequency_hz: 5", 'frequency_hz: "1/3"').replace(
-        "duration_s: 1", "duration_s: 30"))
+    protocol = parse_protocol(
+        MINIMAL.replace("frequency_hz: 5", 'frequency_hz: "1/3"').replace(
+            "duration_s: 1", "duration_s: 30"
+        )
+    )
     assert protocol.stimulus("buzz").train.frequency_hz == Fraction(1, 3)
-    protocol = parse_protocol(MINIMAL.replace("frequency_hz: 5", "frequency_hz: 0.1").replace(
-        "duration_s: 1", "duration_s: 20"))
+    protocol = parse_protocol(
+        MINIMAL.replace("frequency_hz: 5", "frequency_hz: 0.1").replace(
+            "duration_s: 1", "duration_s: 20"
+        )
+    )
     assert protocol.stimulus("buzz").train.frequency_hz == Fraction(1, 10)
 
 
@@ -94,19 +100,69 @@ def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
 @pytest.mark.parametrize(
     ("old", "new", "where", "message"),
     [
-        ("frequency_hz: 5\n", "frequncy_hz: 5\n", "4:5", "unknown key 'frequncy_hz' in the pulse train; did you mean 'frequency_hz'?"),
+        (
+            "frequency_hz: 5\n",
+            "frequncy_hz: 5\n",
+            "4:5",
+            "unknown key 'frequncy_hz' in the pulse train; did you mean 'frequency_hz'?",
+        ),
         ("frequency_hz: 5\n", "frequency_hz: .nan\n", "4:19", "expected a finite number of Hz"),
         ("frequency_hz: 5\n", "frequency_hz: -.inf\n", "4:19", "expected a finite number of Hz"),
-        ("frequency_hz: 5\n", "frequency_hz: 0\n", "4:19", "expected the frequency more than 0 Hz, found 0"),
-        ("duration_s: 1\n", "duration_s: -2\n", "5:17", "expected the signal length more than 0 s, found -2"),
+        (
+            "frequency_hz: 5\n",
+            "frequency_hz: 0\n",
+            "4:19",
+            "expected the frequency more than 0 Hz, found 0",
+        ),
+        (
+            "duration_s: 1\n",
+            "duration_s: -2\n",
+            "5:17",
+            "expected the signal length more than 0 s, found -2",
+        ),
         ("duration_s: 1\n", "duration_s: 1e9\n", "5:17", "at most 172800 s"),
-        ("duration_s: 1\n", "duration_s: ten\n", "5:17", "expected a number of s for the signal length, found 'ten'"),
-        ("pins: [1, 2]", "pins: [1, 99]", "9:13", "expected a pin from 1 to 16 on the 4x4 grid, found 99"),
-        ("stimulus: buzz", "stimulus: bzz", "8:13", "expected the name of a pulse train (buzz), found 'bzz'"),
-        ("paradigm: localisation", "paradigm: localization", "7:13", "did you mean 'localisation'?"),
-        ("duration_s: 1\n", "duration_s: 1\n    duty_cycle: 0.33\n", "6:17", "whole number of the 10 pulses"),
-        ("duration_s: 1\n", "duration_s: 1\n    duty_cycle: 1\n", "6:17", "strictly between 0 and 1"),
-        ("duration_s: 1\n", "duration_s: 1\n    pulse_width_ms: {up: 30, down: 1.5}\n", "6:21", "the up pulse of 30 ms does not fit the 20 ms period"),
+        (
+            "duration_s: 1\n",
+            "duration_s: ten\n",
+            "5:17",
+            "expected a number of s for the signal length, found 'ten'",
+        ),
+        (
+            "pins: [1, 2]",
+            "pins: [1, 99]",
+            "9:13",
+            "expected a pin from 1 to 16 on the 4x4 grid, found 99",
+        ),
+        (
+            "stimulus: buzz",
+            "stimulus: bzz",
+            "8:13",
+            "expected the name of a pulse train (buzz), found 'bzz'",
+        ),
+        (
+            "paradigm: localisation",
+            "paradigm: localization",
+            "7:13",
+            "did you mean 'localisation'?",
+        ),
+        (
+            "duration_s: 1\n",
+            "duration_s: 1\n    duty_cycle: 0.33\n",
+            "6:17",
+            "whole number of the 10 pulses",
+        ),
+        (
+            "duration_s: 1\n",
+            "duration_s: 1\n    duty_cycle: 1\n",
+            "6:17",
+            "strictly between 0 and 1",
+        ),
+        (
+            "duration_s: 1\n",
+            "duration_s: 1\n    pulse_width_ms: {up: 30, down: 1.5}\n",
+            "6:21",
+            "the up pulse of 30 ms does not fit the 20 ms period",
+        ),
         ("pins: [1, 2]", "pins: 1", "9:9", "expected a list for the pins, found '1'"),
     ],
 )
@@ -118,7 +174,9 @@ def test_each_mistake_is_reported_at_its_line_and_column(old, new, where, messag
 
 
 def test_all_problems_of_a_file_are_reported_together():
-    text = MINIMAL.replace("frequency_hz: 5\n", "frequency_hz: .nan\n", 1).replace("pins: [1, 2]", "pins: [1, 17]")
+    text = MINIMAL.replace("frequency_hz: 5\n", "frequency_hz: .nan\n", 1).replace(
+        "pins: [1, 2]", "pins: [1, 17]"
+    )
     lines = problems(text)
     assert [line.split(": ")[0] for line in lines] == ["p.yaml:4:19", "p.yaml:9:13"]
 
@@ -136,7 +194,9 @@ def test_an_empty_file_is_a_clear_error():
 
 
 def test_a_stroke_the_servo_cannot_follow_is_refused_with_what_is_achievable():
-    text = MINIMAL.replace("frequencies_hz: [5]", "frequencies_hz: [5, 40]").replace("duration_s: 1", "duration_s: 1\n    pulse_width_ms: {up: 2.0, down: 1.5}")
+    text = MINIMAL.replace("frequencies_hz: [5]", "frequencies_hz: [5, 40]").replace(
+        "duration_s: 1", "duration_s: 1\n    pulse_width_ms: {up: 2.0, down: 1.5}"
+    )
     (line,) = problems(text)
     assert line.startswith("p.yaml:11:")  # the 40 Hz entry
     assert "pin 1 cannot follow 40 Hz" in line
@@ -145,14 +205,17 @@ def test_a_stroke_the_servo_cannot_follow_is_refused_with_what_is_achievable():
 
 
 def test_a_protocol_may_ask_for_infeasible_strokes_to_be_scaled_instead():
-    text = ("device:\n  feasibility: scale\n" + MINIMAL).replace("frequencies_hz: [5]", "frequencies_hz: [40]")
+    text = ("device:\n  feasibility: scale\n" + MINIMAL).replace(
+        "frequencies_hz: [5]", "frequencies_hz: [40]"
+    )
     protocol = parse_protocol(text)
     assert protocol.device.scale_infeasible
 
 
 def test_an_impossible_ordering_constraint_is_reported_at_validation():
     text = MINIMAL.replace("pins: [1, 2]", "pins: [1]").replace(
-        "frequencies_hz: [5]", "frequencies_hz: [3, 5]\n  constraints:\n    no_repeat: [pin]")
+        "frequencies_hz: [5]", "frequencies_hz: [3, 5]\n  constraints:\n    no_repeat: [pin]"
+    )
     (line,) = problems(text)
     assert line.startswith("p.yaml:12:")
     assert "impossible order constraint: pin 1 appears 2 times among 2 trials" in line
@@ -175,7 +238,9 @@ def test_validate_prints_ok_or_located_lines_and_exits_2(tmp_path):
     bad.write_text(MINIMAL.replace("pins: [1, 2]", "pins: [1, 17]"))
     result = subprocess.run(
         [sys.executable, "-m", "pinarray", "validate", str(PROTOCOLS / "demo.yaml"), str(bad)],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert result.returncode == 2
     assert result.stdout.startswith(f"{PROTOCOLS / 'demo.yaml'}: ok")
@@ -188,14 +253,18 @@ def test_validate_loads_neither_the_ui_nor_plotting():
         f"main(['validate', r'{PROTOCOLS / 'localisation.yaml'}']); "
         "print(sorted(m for m in ('textual', 'matplotlib') if m in sys.modules))"
     )
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
+    )
     assert result.stdout.strip().endswith("[]")
 
 
 def test_a_missing_file_is_one_line():
     result = subprocess.run(
         [sys.executable, "-m", "pinarray", "validate", "nowhere.yaml"],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "nowhere.yaml: no such protocol file" in result.stderr
@@ -222,8 +291,21 @@ def test_preview_draws_a_text_timeline_and_a_png(tmp_path, capsys):
     from pinarray.cli import main
 
     png = tmp_path / "t.png"
-    assert main(["preview", str(PROTOCOLS / "apparent_motion.yaml"), "--trial", "2", "--seed", "1",
-                 "--png", str(png)]) == 0
+    assert (
+        main(
+            [
+                "preview",
+                str(PROTOCOLS / "apparent_motion.yaml"),
+                "--trial",
+                "2",
+                "--seed",
+                "1",
+                "--png",
+                str(png),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "pin  5 |" in out and "pin  7 |" in out and "#" in out
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -255,6 +337,13 @@ def test_without_limits_a_pin_may_only_reach_its_calibrated_positions():
 
 
 def test_calibration_outside_the_limits_and_shared_servo_ids_are_refused():
-    lines = problems(DEVICE.replace("2.0: 2150", "2.0: 2300").replace("{16: 20}", "{16: 3}") + MINIMAL)
-    assert lines[0].startswith("p.yaml:7:") and "pin 4: position 2300 steps is outside its limits [2000, 2200]" in lines[0]
-    assert lines[1].startswith("p.yaml:8:") and "servo id 3 drives both pin 3 and pin 16" in lines[1]
+    lines = problems(
+        DEVICE.replace("2.0: 2150", "2.0: 2300").replace("{16: 20}", "{16: 3}") + MINIMAL
+    )
+    assert (
+        lines[0].startswith("p.yaml:7:")
+        and "pin 4: position 2300 steps is outside its limits [2000, 2200]" in lines[0]
+    )
+    assert (
+        lines[1].startswith("p.yaml:8:") and "servo id 3 drives both pin 3 and pin 16" in lines[1]
+    )

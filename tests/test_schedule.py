@@ -9,7 +9,16 @@ from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
-from pinarray.protocol import NS_PER_S, Device, PinCalibration, PinDrive, ServoSettings, Train, Wave, WaveKind
+from pinarray.protocol import (
+    NS_PER_S,
+    Device,
+    PinCalibration,
+    PinDrive,
+    ServoSettings,
+    Train,
+    Wave,
+    WaveKind,
+)
 from pinarray.schedule import compile_drives, render_dense, train_pulses
 
 UP, DOWN, REST = 2162, 2048, 2048
@@ -18,7 +27,8 @@ UP, DOWN, REST = 2162, 2048, 2048
 def device(rows: int = 4, columns: int = 4, speed: int = 3000, scale: bool = False) -> Device:
     grid = Grid(rows, columns)
     pins = tuple(
-        PinCalibration(p, p, REST, 2000, 2200, ((1_500_000, DOWN), (2_000_000, UP))) for p in grid.pins
+        PinCalibration(p, p, REST, 2000, 2200, ((1_500_000, DOWN), (2_000_000, UP)))
+        for p in grid.pins
     )
     return Device(grid, ServoSettings(speed_steps_per_s=speed), pins, scale_infeasible=scale)
 
@@ -29,7 +39,11 @@ def seed_train(frequency_hz, duration_s=10, phase=Fraction(0)) -> Train:
 
 def exact_start_ns(k: int, train: Train) -> int:
     """Pulse k's start as an exact rational, rounded once (halves up), computed independently."""
-    t = (k + train.phase * train.pulses_per_cycle) * Fraction(NS_PER_S) / (train.frequency_hz * train.pulses_per_cycle)
+    t = (
+        (k + train.phase * train.pulses_per_cycle)
+        * Fraction(NS_PER_S)
+        / (train.frequency_hz * train.pulses_per_cycle)
+    )
     return int((2 * t + 1) // 2)
 
 
@@ -70,7 +84,9 @@ def test_a_tenth_of_a_hertz_is_not_a_binary_float():
 def test_exotic_decimals_fall_back_to_exact_big_integers():
     train = seed_train(Fraction("3.14159"), duration_s=60)
     starts, _, _ = train_pulses(train)
-    assert [int(s) for s in starts[-3:]] == [exact_start_ns(k, train) for k in range(len(starts) - 3, len(starts))]
+    assert [int(s) for s in starts[-3:]] == [
+        exact_start_ns(k, train) for k in range(len(starts) - 3, len(starts))
+    ]
 
 
 def test_phase_delays_the_pattern_and_wraps_at_a_full_cycle():
@@ -128,7 +144,12 @@ def test_a_leftwards_wave_mirrors_it_and_the_no_wave_alternates_centre_and_sides
     left = Wave(WaveKind.LEFTWARDS, 2, (5, 6, 7), train, 100_000_000).drives()
     assert [(d.pin, d.delay_ns) for d in left] == [(7, 0), (6, 100_000_000), (5, 200_000_000)]
     still = Wave(WaveKind.NONE, 2, (5, 6, 7), train, 250_000_000).drives()
-    assert [(d.pin, d.delay_ns) for d in still] == [(6, 0), (5, 250_000_000), (7, 250_000_000), (6, 500_000_000)]
+    assert [(d.pin, d.delay_ns) for d in still] == [
+        (6, 0),
+        (5, 250_000_000),
+        (7, 250_000_000),
+        (6, 500_000_000),
+    ]
 
 
 def test_a_pin_driven_twice_at_once_is_refused():
@@ -139,7 +160,9 @@ def test_a_pin_driven_twice_at_once_is_refused():
 
 def test_back_to_back_trains_on_one_pin_send_no_redundant_targets():
     train = seed_train(5, Fraction(2, 5))
-    schedule = compile_drives([PinDrive(6, train, 0), PinDrive(6, train, train.duration_ns)], device())
+    schedule = compile_drives(
+        [PinDrive(6, train, 0), PinDrive(6, train, train.duration_ns)], device()
+    )
     positions = schedule.targets.position_steps
     assert (np.diff(positions) != 0).all()
     assert len(schedule.targets) == 8  # 4 cycles, up and down each
