@@ -34,6 +34,10 @@ class ProtocolErrors(PinArrayError):
         super().__init__("\n".join(e.located() for e in errors))
 
 
+class Interrupted(PinArrayError):
+    """The run was asked to stop (SIGTERM): not a fault of the stimulus, the bus or the input."""
+
+
 class BusError(PinArrayError):
     """The servo bus failed; the message names the servo ids and the register."""
 

@@ -22,7 +22,7 @@ import numpy as np
 from pinarray.bus.base import Bus, BusSetup, SafeStopReport, Telemetry
 from pinarray.bus.registers import StatusError
 from pinarray.clock import Clock
-from pinarray.errors import BusError, PinArrayError
+from pinarray.errors import BusError, Interrupted, PinArrayError
 from pinarray.schedule import TargetList
 
 # Time between "go" and the first frame, so frame 0 is not late by construction.
@@ -31,7 +31,7 @@ DEFAULT_LEAD_NS = 20_000_000
 TELEMETRY_SLACK_NS = 5_000_000
 
 
-class Terminated(PinArrayError):
+class Terminated(Interrupted):
     """The process was asked to stop (SIGTERM); raised inside playback so pins go to rest."""
 
 
@@ -213,6 +213,9 @@ def play_trial(
         index = len(frames)
         clock.sleep_until_ns(onset_ns + targets.end_ns)
         readings.extend(_checked(bus.read_telemetry(ids), setup))
+    except Interrupted:
+        bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
+        raise
     except PinArrayError as error:
         safe = bus.rest_and_release()
         raise PlaybackAborted(

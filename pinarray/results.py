@@ -425,7 +425,8 @@ class RunWriter:
         return self
 
     def __exit__(self, kind, error, traceback) -> None:
-        if kind is None:
+        if kind is None or self.manifest.status != "running":
+            # Nothing went wrong, or the caller already recorded how the run ended.
             self.close()
         elif issubclass(kind, KeyboardInterrupt):
             self.finish("aborted", "interrupted (Ctrl-C)")

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Protocol as Interface
 
-from pinarray.errors import PinArrayError
+from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol import NS_PER_S, Paradigm, Protocol, WaveKind
@@ -108,6 +108,7 @@ class Session:
         self._paused_from: Phase | None = None
         self._run_start_ns = clock.now_ns()
         self._onset_ns = 0
+        self._duration_ns = 0
         self._next_allowed_ns = self._run_start_ns
         self.fault = ""
         self.last: TrialOutcome | None = None
@@ -161,6 +162,8 @@ class Session:
         self._set(Phase.STIMULUS)
         try:
             self._onset_ns = self.stimulator.present(schedule)
+        except Interrupted:
+            raise  # not a stimulus fault: the caller aborts the run
         except PinArrayError as error:
             self.fault = str(error)
             self._write(status="invalid", duration_ns=self.clock.now_ns() - self._onset_ns)
@@ -214,9 +217,9 @@ class Session:
         """Stop the run for good (it can still be resumed later with --resume)."""
         if self.phase in (Phase.DONE, Phase.ABORTED):
             return
-        if self.current is not None and self.phase in (Phase.RESPONSE, Phase.STIMULUS) or (
-            self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE
-        ):
+        if self.phase is Phase.STIMULUS:
+            self._write(status="aborted", duration_ns=self.clock.now_ns() - self._onset_ns)
+        elif self.phase is Phase.RESPONSE or (self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE):
             self._write(status="aborted")
         self.writer.finish("aborted", reason or "aborted by the experimenter")
         self._set(Phase.ABORTED)
@@ -257,7 +260,7 @@ class Session:
                 if felt and direction != "none":
                     fields["direction_correct"] = response == direction
         if duration_ns is None:
-            duration_ns = getattr(self, "_duration_ns", 0)
+            duration_ns = self._duration_ns
         record = TrialRecord(
             trial=planned.trial, block=planned.block, task=self.task,
             onset_s=(self._onset_ns - self._run_start_ns) / NS_PER_S, duration_s=duration_ns / NS_PER_S,

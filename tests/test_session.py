@@ -232,3 +232,25 @@ def test_a_batch_killed_at_any_moment_resumes_with_exactly_the_remaining_trials(
     assert all(r.resumed for r in ok[first_resumed:])
     (manifest,) = out.rglob("*_manifest.json")
     assert read_manifest(manifest).status == "completed"
+
+
+def test_sigterm_during_a_batch_aborts_the_run_and_marks_the_trial_cut_short(tmp_path):
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "batch", str(LOCALISATION), "--subject", "t1", "--observer",
+         "default", "--time-scale", "20", "--results", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + 60
+    while not list(out.rglob("*_beh.tsv")) or len(read_trials(next(out.rglob("*_beh.tsv")))) < 2:
+        assert time.monotonic() < deadline and process.poll() is None
+        time.sleep(0.05)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 2 and stderr.strip() == "pinarray: terminated by SIGTERM"
+    (manifest,) = out.rglob("*_manifest.json")
+    assert read_manifest(manifest).status == "aborted"
+    rows = read_trials(next(out.rglob("*_beh.tsv")))
+    # a trial cut short is logged aborted; between trials there is nothing to cut short
+    assert rows[-1].status in ("ok", "aborted") and all(r.status == "ok" for r in rows[:-1])
+    assert rows[-1].status == "ok" or rows[-1].duration_s < 10
