@@ -70,7 +70,6 @@ class RunScreen(Screen):
         self._active: frozenset[int] = frozenset()
         self._onset_ns = 0
         self._ending = False
-        self._drawn_phase: Phase | None = None
 
     def compose(self) -> ComposeResult:
         protocol, request = self.session.protocol, self.lab.request
@@ -134,9 +133,6 @@ class RunScreen(Screen):
         self.query_one("#counts", Static).update("\n".join(counts))
         self.query_one("#last", Static).update(self._describe_last())
         self._draw_grid(frozenset())
-        if phase is not self._drawn_phase:
-            self._drawn_phase = phase
-            self.refresh_bindings()  # the footer redraws itself: only when actions change
 
     def _draw_grid(self, lifted: frozenset[int]) -> None:
         chosen = None
@@ -163,7 +159,8 @@ class RunScreen(Screen):
         record = self.session.last.record
         if record.is_localisation:
             answer = "nothing felt" if record.response == "none" else f"pin {record.response}"
-            return f"last: trial {record.trial}, pin {record.pin} → {answer} ({record.error_class})"
+            return (f"last: trial {record.trial}, pin {record.pin} → {answer} "
+                    f"({record.error_class})")
         return f"last: trial {record.trial}, {record.direction} wave → {record.response}"
 
     def _tick(self) -> None:
@@ -188,25 +185,17 @@ class RunScreen(Screen):
 
     # -- actions ------------------------------------------------------------------------------
 
-    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        phase = self.session.phase
-        allowed = {
-            "present": (Phase.INSTRUCTIONS, Phase.READY),
-            "pause": (Phase.READY, Phase.RESPONSE, Phase.PAUSED),
-            "redo": (Phase.RESPONSE,),
-            "retry": (Phase.FAULT,),
-            "abort": tuple(p for p in Phase if p not in (Phase.DONE, Phase.ABORTED)),
-        }.get(action)
-        if allowed is None:
-            return True
-        return None if phase not in allowed or self._ending else True  # None: shown dimmed
-
     def action_present(self) -> None:
         session = self.session
         if session.phase is Phase.INSTRUCTIONS:
             session.begin()
             return
         if session.phase is not Phase.READY:
+            # Space pressed twice, or during the stimulus: harmless, so said only where useful.
+            advice = {Phase.PAUSED: "p resumes first",
+                      Phase.FAULT: "t retries the trial, a aborts the run"}.get(session.phase)
+            if advice:
+                self.query_one("#problem", Static).update(advice)
             return
         self.query_one("#problem", Static).update("")
         schedule = compile_trial(session.protocol, session.current)
@@ -217,19 +206,30 @@ class RunScreen(Screen):
         self.query_one(ResponsePad).clear()
         self.run_worker(self.lab.present, thread=True, group="stimulus", name="present")
 
+    def _try(self, action) -> None:
+        """Run a session action; one it cannot take now is explained, never raised."""
+        problem = self.query_one("#problem", Static)
+        try:
+            action()
+        except SessionError as error:
+            problem.update(str(error))
+            return
+        problem.update("")
+
     def action_pause(self) -> None:
-        if self.session.phase is Phase.PAUSED:
-            self.session.resume()
-        else:
-            self.session.pause()
+        paused = self.session.phase is Phase.PAUSED
+        self._try(self.session.resume if paused else self.session.pause)
 
     def action_redo(self) -> None:
-        self.session.redo()
+        self._try(self.session.redo)
 
     def action_retry(self) -> None:
-        self.session.retry()
+        self._try(self.session.retry)
 
     def action_abort(self) -> None:
+        if self._ending:
+            return
+
         def confirmed(yes: bool | None) -> None:
             if yes:
                 self._end(ABORT_REASON)
@@ -268,7 +268,6 @@ class RunScreen(Screen):
             return
         self._ending = True
         self._ticker.pause()
-        self.refresh_bindings()
         self.query_one("#phase", Static).update("Closing the run; pins to rest…")
         self.app.finish_run(self.session, reason)
 

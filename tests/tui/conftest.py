@@ -24,7 +24,10 @@ def make_app(results, protocol=LOCALISATION, seed=3, sim_url=None, rig_factory=R
 
 async def settle(pilot):
     """Let every worker finish and every message it posted be handled."""
-    for _ in range(3):
+    await pilot.app.workers.wait_for_complete()
+    await pilot.pause()
+    # A finished worker's messages may start another (the end of a run closes the rig).
+    while any(worker.is_running for worker in pilot.app.workers):
         await pilot.app.workers.wait_for_complete()
         await pilot.pause()
 

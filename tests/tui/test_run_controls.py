@@ -207,3 +207,28 @@ async def test_a_failed_handshake_names_the_missing_servos_and_back_returns_to_s
         await settle(pilot)
         assert isinstance(app.screen, StartScreen)
     assert not list(results.rglob("*_beh.tsv"))
+
+
+async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_pins(results):
+    import time
+
+    from pinarray.clock import ScaledClock
+
+    app = make_app(results)
+    app.lab.clock_factory = lambda port: ScaledClock(1.0)  # the 10 s stimulus really takes 10 s
+    async with app.run_test(size=SIZE) as pilot:
+        await to_run_screen(pilot)
+        session = app.screen.session
+        await pilot.press("space", "space")
+        await pilot.pause(0.3)
+        assert session.phase is Phase.STIMULUS
+        pin = session.current.condition.pin
+        assert [c.pin for c in app.screen.query("PinCell.-active")] == [pin]
+        assert {c.pin for c in app.screen.query("PinCell.-lifted")} <= {pin}
+        started = time.monotonic()
+        await pilot.press("q")
+        await settle(pilot)
+    assert time.monotonic() - started < 2
+    assert app.lab.rig is None
+    assert [r.status for r in rows(results)] == ["invalid"]
+    assert manifest(results).abort_reason == "quit from the UI"

@@ -1,0 +1,64 @@
+"""What the experimenter sees: start, run and end screens, fixed seed and virtual time."""
+
+from pathlib import Path
+
+import pytest
+from textual.widgets import Input
+
+from pinarray.session import Phase
+from tests.tui.conftest import SIZE, fill_start, make_app, settle, to_run_screen
+
+
+@pytest.fixture
+def app(tmp_path, monkeypatch):
+    # Results under the working folder, so the end screen shows the same short paths each time.
+    monkeypatch.chdir(tmp_path)
+    return make_app(Path("results"))
+
+
+async def still(pilot):
+    for entry in pilot.app.screen.query(Input):
+        entry.cursor_blink = False
+    await settle(pilot)
+
+
+def test_start_screen(app, snap_compare):
+    async def run_before(pilot):
+        await fill_start(pilot, subject="07")
+        await pilot.click("#experimenter")
+        await pilot.press("J", "K")
+        await still(pilot)
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=run_before)
+
+
+def test_run_screen_with_a_pin_typed_after_two_practice_trials(app, snap_compare):
+    async def run_before(pilot):
+        await to_run_screen(pilot)
+        session = pilot.app.screen.session
+        await pilot.press("space")
+        for answer in ("1", "none"):
+            await pilot.press("space")
+            await settle(pilot)
+            session.respond(answer)
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press("1")
+        await still(pilot)
+        assert session.phase is Phase.RESPONSE
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=run_before)
+
+
+def test_end_screen_of_a_whole_localisation_run(app, snap_compare):
+    async def run_before(pilot):
+        await to_run_screen(pilot)
+        session = pilot.app.screen.session
+        session.begin()
+        while session.phase is Phase.READY:  # the keys are tested elsewhere; here the result
+            session.present()
+            pin = session.current.condition.pin
+            session.respond(pin if session.current.trial % 3 else pin % 16 + 1)
+        await still(pilot)
+
+    assert snap_compare(app, terminal_size=SIZE, run_before=run_before)
