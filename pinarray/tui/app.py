@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import os
 import signal
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -80,11 +81,21 @@ class PinArrayApp(App[str]):
         self.push_screen(StartScreen(self.options, self.list_ports))
         try:
             loop = asyncio.get_running_loop()
-            for number in (signal.SIGHUP, signal.SIGTERM):
-                # Closing the terminal or `kill`: same as q, so the pins go to rest.
-                loop.add_signal_handler(number, lambda: self.call_later(self.action_quit))
-        except (NotImplementedError, RuntimeError, ValueError):
+            # `kill`: same as q. Closing the terminal: see `_hang_up`.
+            loop.add_signal_handler(signal.SIGTERM, lambda: self.call_later(self.action_quit))
+            loop.add_signal_handler(signal.SIGHUP, self._hang_up)
+        except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             pass  # not the main thread (tests) or no such signals (Windows)
+
+    def _hang_up(self) -> None:
+        """The terminal is gone: close the run and rest the pins, then leave at once.
+
+        A normal exit would restore a terminal that no longer exists, and Textual's driver
+        then waits forever (seen closing a tmux window mid-run). Rows and the manifest are
+        already fsync'd by the time `Lab.finish` returns, so nothing is lost by not unwinding.
+        """
+        self.lab.finish()
+        os._exit(128 + signal.SIGHUP)
 
     def finish_run(self, session: Session, reason: str) -> None:
         """End the run (aborted with ``reason`` unless complete) and show the end screen."""

@@ -116,6 +116,9 @@ class RunScreen(Screen):
         self.query_one("#stimulus", Static).update(self._describe_stimulus())
         hint = PHASE_HINT.get(phase, "")
         if phase is Phase.INSTRUCTIONS:
+            if session.writer.resumed:
+                hint = (f"Resumed: {session.done_count} of {session.total} trials were done; the "
+                        f"other {len(session.queue)} follow in plan order.\n{hint}")
             hint = f"{session.protocol.description}\n{hint}"
         elif phase is Phase.RESPONSE:
             hint = ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
@@ -151,7 +154,10 @@ class RunScreen(Screen):
         if condition.pin is not None:
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
-        return f"stimulus: {DIRECTION_LABEL[condition.direction]} wave on pins {pins}"
+        direction = DIRECTION_LABEL[condition.direction]
+        if direction == "none":
+            return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
+        return f"stimulus: {direction}wards wave on pins {pins}"
 
     def _describe_last(self) -> str:
         if self.session.last is None:
@@ -276,4 +282,4 @@ def _pins_of(session: Session, condition) -> tuple[int, ...]:
     if condition.pin is not None:
         return (condition.pin,)
     stimulus = session.protocol.stimulus(condition.stimulus)
-    return tuple(sorted(d.pin for d in stimulus.wave.drives()))
+    return tuple(sorted({d.pin for d in stimulus.wave.drives()}))

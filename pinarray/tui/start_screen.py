@@ -137,6 +137,8 @@ class StartScreen(Screen):
         except PinArrayError:
             found = None  # the form is not complete yet; Start will say what is wrong
         self.query_one("#resume", Button).disabled = found is None
+        self.query_one("#resume", Button).variant = "default" if found is None else "primary"
+        self.query_one("#start", Button).variant = "primary" if found is None else "default"
         if found is None:
             info.update("")
             return
@@ -152,9 +154,13 @@ class StartScreen(Screen):
     # -- buttons -----------------------------------------------------------------------------
 
     @on(Button.Pressed, "#start")
-    @on(Input.Submitted)
     def _start(self) -> None:
         self._go(resume=False)
+
+    @on(Input.Submitted)
+    def _enter(self) -> None:
+        # Enter continues an unfinished run rather than leaving it behind for a new one.
+        self._go(resume=self._unfinished is not None)
 
     @on(Button.Pressed, "#resume")
     def _resume(self) -> None:
