@@ -84,11 +84,17 @@ class Lab:
         self.rig = rig
         return rig
 
+    def connected(self) -> Rig:
+        """The connected rig (only asked for once `connect` has succeeded)."""
+        assert self.rig is not None, "not connected"
+        return self.rig
+
     def test_pin(self, pin: int) -> None:
         """Wiggle one pin (blocking: call it from a worker)."""
-        assert self.rig is not None
-        self.request.protocol.device.grid.check_pin(pin)
-        self._busy(lambda: self.rig.test_pin(pin))
+        rig, request = self.rig, self.request
+        assert rig is not None and request is not None
+        request.protocol.device.grid.check_pin(pin)
+        self._busy(lambda: rig.test_pin(pin))
 
     def release(self):
         """Pins to rest, torque off, port closed; the `SafeStopReport`, or None if not connected."""

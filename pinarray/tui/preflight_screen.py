@@ -88,7 +88,7 @@ class PreflightScreen(Screen):
     def _test(self, pin: int) -> None:
         try:
             self.lab.test_pin(pin)
-            readings = self.lab.rig.telemetry()
+            readings = self.lab.connected().telemetry()
         except PinArrayError as problem:
             self.app.call_from_thread(self._status, f"Test of pin {pin} failed: {problem}", True)
             return
@@ -101,7 +101,7 @@ class PreflightScreen(Screen):
         table.clear()
         by_id = {t.servo_id: t for t in readings}
         model = self.request.protocol.device.servo.model
-        for servo in self.lab.rig.setup.servos:
+        for servo in self.lab.connected().setup.servos:
             t = by_id.get(servo.servo_id)
             if t is None:
                 table.add_row(str(servo.servo_id), str(servo.pin), "no", model, "", "", "", "")
@@ -111,7 +111,8 @@ class PreflightScreen(Screen):
                               t.errors.describe())
         faulty = [t.servo_id for t in readings if t.errors.describe() != "none"]
         where = self.request.port or "the simulated array"
-        text = (f"Connected to {where}: {len(readings)} of {len(self.lab.rig.setup.servos)} "
+        servos = self.lab.connected().setup.servos
+        text = (f"Connected to {where}: {len(readings)} of {len(servos)} "
                 f"servos answer, all {model} (checked at connect).")
         if faulty:
             text += f" Servo(s) {', '.join(map(str, faulty))} report errors."

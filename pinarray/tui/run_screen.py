@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -19,6 +21,9 @@ from pinarray.tui.lab import Lab
 from pinarray.tui.live import LiftTimeline, LiveCounts
 from pinarray.tui.pin_grid import PinGrid
 from pinarray.tui.response_pad import ResponsePad
+
+if TYPE_CHECKING:
+    from pinarray.tui.app import PinArrayApp
 
 # Redraws of the moving pins per second while a stimulus plays.
 GRID_FPS = 20
@@ -73,6 +78,7 @@ class RunScreen(Screen):
 
     def compose(self) -> ComposeResult:
         protocol, request = self.session.protocol, self.lab.request
+        assert request is not None
         used = {pin for c in protocol.design.conditions for pin in _pins_of(self.session, c)}
         yield Static(f"{protocol.name} · sub-{request.subject} ses-{request.session} · "
                      f"run {self.session.writer.paths.run}", id="title")
@@ -93,8 +99,14 @@ class RunScreen(Screen):
 
     def on_mount(self) -> None:
         clock = self.lab.clock
-        # Changes come from the worker thread too; post_message is safe from any thread.
-        self.session.on_change = lambda s: self.post_message(self.Changed(s.phase, clock.now_ns()))
+        assert clock is not None
+        self.clock = clock
+
+        def changed(session: Session) -> None:
+            # Called from the worker thread too; post_message is safe from any thread.
+            self.post_message(self.Changed(session.phase, clock.now_ns()))
+
+        self.session.on_change = changed
         self._ticker = self.set_interval(1 / GRID_FPS, self._tick, pause=True)
         self.query_one(ResponsePad).focus()
         self._draw()
@@ -154,6 +166,7 @@ class RunScreen(Screen):
         if condition.pin is not None:
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
+        assert condition.direction is not None
         direction = DIRECTION_LABEL[condition.direction]
         if direction == "none":
             return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
@@ -171,7 +184,7 @@ class RunScreen(Screen):
 
     def _tick(self) -> None:
         if self._timeline is not None:
-            elapsed_ns = self.lab.clock.now_ns() - self._onset_ns
+            elapsed_ns = self.clock.now_ns() - self._onset_ns
             self._draw_grid(self._timeline.lifted_at(elapsed_ns))
 
     # -- session changes ----------------------------------------------------------------------
@@ -275,11 +288,12 @@ class RunScreen(Screen):
         self._ending = True
         self._ticker.pause()
         self.query_one("#phase", Static).update("Closing the run; pins to rest…")
-        self.app.finish_run(self.session, reason)
+        cast("PinArrayApp", self.app).finish_run(self.session, reason)
 
 
 def _pins_of(session: Session, condition) -> tuple[int, ...]:
     if condition.pin is not None:
         return (condition.pin,)
-    stimulus = session.protocol.stimulus(condition.stimulus)
-    return tuple(sorted({d.pin for d in stimulus.wave.drives()}))
+    wave = session.protocol.stimulus(condition.stimulus).wave
+    assert wave is not None
+    return tuple(sorted({d.pin for d in wave.drives()}))

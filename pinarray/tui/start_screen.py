@@ -5,6 +5,7 @@ from __future__ import annotations
 import secrets
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 from textual import on
 from textual.app import ComposeResult
@@ -13,10 +14,13 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer, Input, Label, Select, Static
 
 from pinarray.errors import PinArrayError
-from pinarray.manifest import check_label
+from pinarray.manifest import RunPaths, SessionManifest, check_label
 from pinarray.protocol import Protocol
 from pinarray.rig import SIM_DEFAULT
 from pinarray.tui.lab import SessionRequest
+
+if TYPE_CHECKING:
+    from pinarray.tui.app import PinArrayApp
 
 SIM = "sim"
 
@@ -44,7 +48,7 @@ class StartScreen(Screen):
         self.options = options
         self.files = protocol_files(options)
         self.ports = list_ports()
-        self._unfinished = None
+        self._unfinished: tuple[RunPaths, SessionManifest] | None = None
 
     def _new_seed(self) -> str:
         # Shown and recorded before the run starts, so a session can be replayed exactly.
@@ -180,4 +184,5 @@ class StartScreen(Screen):
             error.update(str(problem))
             return
         error.update("")
-        self.app.push_screen(PreflightScreen(self.app.lab, request))
+        lab = cast("PinArrayApp", self.app).lab
+        self.app.push_screen(PreflightScreen(lab, request))
