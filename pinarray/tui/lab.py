@@ -125,7 +125,7 @@ class Lab:
         try:
             job()
         except Stopped:
-            pass  # cut short in the inter-trial interval: nothing played, nothing to log
+            pass  # cut short: `finish` aborts the run, logging a trial that was playing
         finally:
             self._idle.set()
 

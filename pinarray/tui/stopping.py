@@ -5,13 +5,13 @@ from __future__ import annotations
 import threading
 
 from pinarray.clock import Clock
-from pinarray.errors import PinArrayError
+from pinarray.errors import Interrupted
 
 # Longest single wait between looks at the stop flag, in clock nanoseconds.
 SLICE_NS = 50_000_000
 
 
-class Stopped(PinArrayError):
+class Stopped(Interrupted):
     """The experimenter quit or aborted while the session was waiting or playing."""
 
 
@@ -20,8 +20,8 @@ class StoppableClock:
 
     Only the session's and the player's waits go through it, never the bus's own: a wait
     cut short inside a packet exchange would leave the safe stop talking to a confused
-    port. Raising a `PinArrayError` lets the player rest the pins and the session log the
-    cut trial as invalid, the way any bus fault is handled.
+    port. `Stopped` is an `Interrupted`, not a fault: the player rests the pins and re-raises,
+    and the session, aborted next, logs the cut trial as aborted (presented again on resume).
 
     Parameters
     ----------
