@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/pinarray grid
+	$(BIN)/pinarray tui protocols/localisation.yaml --sim
 
 test: $(STAMP)
 	$(BIN)/python -m pytest
