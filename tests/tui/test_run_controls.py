@@ -228,8 +228,9 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
         started = time.monotonic()
         await pilot.press("q")
         await settle(pilot)
-    assert time.monotonic() - started < 2
+    # The stimulus lasts 10 s; well under that proves it was cut short (no tight timing here).
+    assert time.monotonic() - started < 8
     assert app.lab.rig is None
     (cut,) = rows(results)
-    assert cut.status == "aborted" and 0 < cut.duration_s < 2  # stopped early, not a fault
+    assert cut.status == "aborted" and 0 < cut.duration_s < 8  # stopped early, not a fault
     assert manifest(results).abort_reason == "quit from the UI"
