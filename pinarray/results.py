@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pinarray.errors import ResultsError
+from pinarray.signals import deferred_signals
 from pinarray.manifest import (
     UNFINISHED_STATUSES,
     RunPaths,
@@ -296,7 +297,7 @@ def _plan_key(entry: Mapping[str, Any]) -> tuple[int, bool]:
 
 
 def finished_trials(records: Iterable[TrialRecord]) -> frozenset[tuple[int, bool]]:
-    """(trial, practice) of every trial whose row finishes it (status ok or invalid)."""
+    """(trial, practice) of every trial whose row finishes it (status ok)."""
     return frozenset((r.trial, r.practice) for r in records if r.status in FINISHING_STATUSES)
 
 
@@ -407,9 +408,10 @@ class RunWriter:
         """
         if self.resumed and not record.resumed:
             record = replace(record, resumed=True)
-        self._beh.append(trial_row(record))
-        self._events.append(event_row(record))
-        self.records.append(record)
+        with deferred_signals():  # a Ctrl-C must not fall between the two files
+            self._beh.append(trial_row(record))
+            self._events.append(event_row(record))
+            self.records.append(record)
         return record
 
     def finish(self, status: str = "completed", reason: str = "") -> None:

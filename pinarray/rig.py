@@ -64,11 +64,11 @@ class Rig:
         self.warnings = list(self.bus.warnings)
         self.reports: list = []
         self._released = False
-        self.bus.move_to_rest()
-
-    @property
-    def servo_models(self) -> tuple[str, ...]:
-        return tuple(self.protocol.device.servo.model for _ in self.setup.servos)
+        try:
+            self.bus.move_to_rest()
+        except BaseException:
+            self.close()  # torque is on by now: nobody else holds this rig to release it
+            raise
 
     def present(self, schedule) -> int:
         """Play one trial and return its onset (clock ns); pins then hold at rest."""

@@ -12,6 +12,7 @@ waits only through its `Clock` (the inter-trial interval) and the `Stimulator` (
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
@@ -109,6 +110,7 @@ class Session:
         self._run_start_ns = clock.now_ns()
         self._onset_ns = 0
         self._duration_ns = 0
+        self._presenting = threading.Lock()
         self._next_allowed_ns = self._run_start_ns
         self.fault = ""
         self.last: TrialOutcome | None = None
@@ -155,6 +157,16 @@ class Session:
     def present(self) -> None:
         """Wait out the inter-trial interval, then play the current trial's stimulus."""
         self._require(Phase.READY)
+        if not self._presenting.acquire(blocking=False):
+            # The phase stays READY through the inter-trial wait: a second call must not
+            # present the same trial again from another thread.
+            raise SessionError("a trial is already being presented")
+        try:
+            self._present()
+        finally:
+            self._presenting.release()
+
+    def _present(self) -> None:
         assert self.current is not None
         schedule = compile_trial(self.protocol, self.current)
         self.clock.sleep_until_ns(self._next_allowed_ns)

@@ -254,3 +254,39 @@ def test_sigterm_during_a_batch_aborts_the_run_and_marks_the_trial_cut_short(tmp
     # a trial cut short is logged aborted; between trials there is nothing to cut short
     assert rows[-1].status in ("ok", "aborted") and all(r.status == "ok" for r in rows[:-1])
     assert rows[-1].status == "ok" or rows[-1].duration_s < 10
+
+
+def test_a_second_present_during_the_interval_is_refused_not_played_twice(tmp_path):
+    import threading
+
+    class IntervalClock(VirtualClock):
+        """Holds the first inter-trial wait until released, as a real interval would."""
+
+        def __init__(self):
+            super().__init__()
+            self.waiting = threading.Event()
+            self.release = threading.Event()
+
+        def sleep_until_ns(self, deadline_ns):
+            self.waiting.set()
+            self.release.wait(10)
+            super().sleep_until_ns(deadline_ns)
+
+    class Counting:
+        calls = 0
+
+        def present(self, schedule):
+            Counting.calls += 1
+            return 0
+
+    session, _ = open_session(tmp_path, LOCALISATION, stimulator=Counting())
+    session.clock = IntervalClock()
+    session.begin()
+    worker = threading.Thread(target=session.present)
+    worker.start()
+    assert session.clock.waiting.wait(10) and session.phase is Phase.READY
+    with pytest.raises(SessionError, match="already being presented"):
+        session.present()
+    session.clock.release.set()
+    worker.join(10)
+    assert Counting.calls == 1 and session.phase is Phase.RESPONSE

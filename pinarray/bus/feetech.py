@@ -34,6 +34,7 @@ from pinarray.bus.registers import (
 )
 from pinarray.clock import Clock
 from pinarray.errors import BusError
+from pinarray.signals import deferred_signals
 
 if TYPE_CHECKING:
     from pinarray.bus.sim import SimBus
@@ -364,8 +365,19 @@ class FeetechBus:
         return tuple(sorted(arrived))
 
     def rest_and_release(self, timeout_ns: int = 2_000_000_000) -> SafeStopReport:
-        """Pins to rest, then torque off, on every servo that still answers. Never raises."""
+        """Pins to rest, then torque off, on every servo that still answers. Never raises.
+
+        Ctrl-C and SIGTERM are held back until it is done, so a second one cannot leave
+        servos holding torque.
+        """
+        with deferred_signals():
+            return self._rest_and_release(timeout_ns)
+
+    def _rest_and_release(self, timeout_ns: int) -> SafeStopReport:
         ids = self.setup.servo_ids
+        # An exchange cut short by an exception leaves the SDK's busy flag and maybe half a
+        # reply behind; without this, every safe-stop write would be refused as "port busy".
+        self._discard_stale_input()
         try:
             at_rest = self.move_to_rest(timeout_ns)
         except PortLost:
