@@ -16,13 +16,13 @@ from pinarray.errors import PinArrayError
 Handler = Callable[[argparse.Namespace], int]
 
 
-def _positive_int(text: str) -> int:
+def _grid_size(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a number of at least 1, found {value}")
+    if not 1 <= value <= 64:
+        raise argparse.ArgumentTypeError(f"expected a number from 1 to 64, found {value}")
     return value
 
 
@@ -64,8 +64,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("grid", help="print the pin numbering and the localisation error classes")
-    p.add_argument("--rows", type=_positive_int, default=4)
-    p.add_argument("--columns", type=_positive_int, default=4)
+    p.add_argument("--rows", type=_grid_size, default=4)
+    p.add_argument("--columns", type=_grid_size, default=4)
     p.add_argument("--pitch-mm", type=float, default=2.0)
     p.add_argument("--pin", type=int, default=10, help="stimulated pin to classify around")
     p.add_argument("--table", action="store_true", help="also print the full class table")

@@ -218,6 +218,8 @@ def williams_square(n: int) -> list[list[int]]:
 def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     """The seeded trial plan; the seed is the argument, else the protocol's, else a fresh one."""
     design = protocol.design
+    if seed is not None and not 0 <= seed < 2**63:
+        raise PinArrayError(f"a plan seed must be a whole number from 0 to 2^63-1, found {seed}")
     if seed is None:
         seed = design.seed if design.seed is not None else secrets.randbits(32)
     rng = np.random.default_rng(seed)

@@ -218,8 +218,9 @@ def play_trial(
         raise
     except PinArrayError as error:
         safe = bus.rest_and_release()
+        where = f"at frame {index + 1} of {len(frames)}" if index < len(frames) else "after the last frame"
         raise PlaybackAborted(
-            f"playback stopped at frame {index + 1} of {len(frames)}: {error}; {describe(safe)}",
+            f"playback stopped {where}: {error}; {describe(safe)}",
             safe,
         ) from error
     except BaseException:

@@ -15,6 +15,8 @@ from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
 
 NS_PER_S = 1_000_000_000
+# Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
+BAUD_RATES = (38_400, 57_600, 115_200, 128_000, 250_000, 500_000, 1_000_000)
 
 
 @dataclass(frozen=True)

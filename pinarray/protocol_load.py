@@ -11,8 +11,10 @@ from pathlib import Path
 
 from pinarray.errors import PinArrayError, ProtocolError, ProtocolErrors
 from pinarray.feasibility import Feasibility, check_train
+from pinarray.schedule import check_no_overlap
 from pinarray.grid import Grid
 from pinarray.protocol import (
+    BAUD_RATES,
     NS_PER_S,
     Condition,
     Constraints,
@@ -192,11 +194,10 @@ def _servo(reader: Reader, node: Node) -> ServoSettings:
     baud = d.baud_rate
     if "baud_rate" in keys:
         baud = reader.integer(keys["baud_rate"], "the baud rate")
-        allowed = (38400, 57600, 115200, 128000, 250000, 500000, 1_000_000)
-        if baud not in allowed:
+        if baud not in BAUD_RATES:
             raise reader.error(
                 keys["baud_rate"],
-                f"expected a baud rate the servos support ({', '.join(map(str, allowed))}), found {baud}",
+                f"expected a baud rate the servos support ({', '.join(map(str, BAUD_RATES))}), found {baud}",
             )
     speed = (
         reader.integer(keys["speed_steps_per_s"], "the servo speed (steps/s)", 1, 10_000)
@@ -514,7 +515,15 @@ def _wave(
     else:
         # Tactile Brush (Israr & Poupyrev): SOA = 0.32 x duration + 47.3 ms.
         soa = Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS
-    return Wave(kind, row, pins, train, round(soa))
+    wave = Wave(kind, row, pins, train, round(soa))
+    if device is not None:
+        # What a localisation train gets checked for, each pin of the wave gets too.
+        _check_train_on_pins(reader, keys["train"], train, pins, device)
+    try:
+        check_no_overlap(wave.drives())
+    except PinArrayError as problem:
+        raise reader.error(keys.get("soa_ms", node), str(problem)) from None
+    return wave
 
 
 # -- design ------------------------------------------------------------------------------------

@@ -361,12 +361,16 @@ class RunWriter:
         ``provenance`` is the keywords of `pinarray.manifest.new_manifest`: ``seed``,
         ``protocol_sha256``, ``port``, and optionally ``servo_models`` and ``experimenter``.
         """
-        paths = next_run(root, subject, session, task)
-        manifest = new_manifest(paths, plan, **provenance)
-        write_manifest(paths.manifest, manifest)
-        for suffix, sidecar in (("beh", beh_sidecar()), ("events", events_sidecar())):
-            write_atomically(paths.file(suffix, "json"), json.dumps(sidecar, indent=2) + "\n")
-        return cls(paths, manifest, [], resumed=False)
+        try:
+            paths = next_run(root, subject, session, task)
+            manifest = new_manifest(paths, plan, **provenance)
+            write_manifest(paths.manifest, manifest)
+            for suffix, sidecar in (("beh", beh_sidecar()), ("events", events_sidecar())):
+                write_atomically(paths.file(suffix, "json"), json.dumps(sidecar, indent=2) + "\n")
+            return cls(paths, manifest, [], resumed=False)
+        except OSError as problem:
+            where = problem.filename or root
+            raise ResultsError(f"{where}: cannot write results there: {problem.strerror}") from None
 
     @classmethod
     def resume(cls, paths: RunPaths) -> RunWriter:

@@ -129,7 +129,7 @@ def train_pulses(train: Train) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return starts[keep], widths[keep], is_up[keep]
 
 
-def _check_no_overlap(drives: Sequence[PinDrive]) -> None:
+def check_no_overlap(drives: Sequence[PinDrive]) -> None:
     by_pin: dict[int, list[PinDrive]] = {}
     for drive in drives:
         by_pin.setdefault(drive.pin, []).append(drive)
@@ -146,7 +146,7 @@ def _check_no_overlap(drives: Sequence[PinDrive]) -> None:
 
 def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
     """Compile the pin drives of one trial into pulses and changed-only servo targets."""
-    _check_no_overlap(drives)
+    check_no_overlap(drives)
     pulse_parts: list[tuple[np.ndarray, ...]] = []
     target_parts: list[tuple[np.ndarray, ...]] = []
     end_ns = 0

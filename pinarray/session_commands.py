@@ -81,9 +81,19 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     from pinarray.player import Terminated, sigterm_raises
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
+    from pinarray.plan import make_plan
     from pinarray.session_setup import open_run
 
     task = task_label(protocol)
+    if responses is not None:
+        # Checked before anything is opened, so a short file leaves no half-started run behind.
+        count = len(make_plan(protocol, 0))  # every seed numbers the same trials 1..N
+        missing = [n for n in range(1, count + 1) if n not in responses]
+        if missing:
+            raise PinArrayError(
+                f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
+                + (" ..." if len(missing) > 10 else "")
+            )
     clock = choose_clock(args.port, args.time_scale)
     observer = None
     if responses is None:
@@ -101,14 +111,6 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                       "starting a new run", file=sys.stderr)
             with writer:
                 run = Session(protocol, plan, writer, rig, clock)
-                if responses is not None:
-                    missing = [t.trial for t in run.queue if t.trial not in responses]
-                    if missing:
-                        run.abort("responses file incomplete")
-                        raise PinArrayError(
-                            f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
-                            + (" ..." if len(missing) > 10 else "")
-                        )
                 progress = Progress(f"{task} sub-{subject} ses-{session}", run.total, run.done_count)
                 try:
                     run.begin()

@@ -138,7 +138,12 @@ class Reader:
     def scalar_value(self, node: Node) -> Any:
         if not isinstance(node, yaml.ScalarNode):
             raise self.error(node, f"expected a single value, found {describe(node)}")
-        return _constructor.construct_object(node)
+        try:
+            return _constructor.construct_object(node)
+        except (yaml.YAMLError, ValueError, TypeError, OverflowError) as problem:
+            # e.g. "!!python/name:os.system" (refused by the safe loader) or a date 2024-13-45
+            what = getattr(problem, "problem", None) or str(problem)
+            raise self.error(node, f"expected a plain value, found {node.value!r} ({what})") from None
 
     def string(self, node: Node, what: str, choices: tuple[str, ...] = ()) -> str:
         value = self.scalar_value(node)

@@ -347,3 +347,34 @@ def test_calibration_outside_the_limits_and_shared_servo_ids_are_refused():
     assert (
         lines[1].startswith("p.yaml:8:") and "servo id 3 drives both pin 3 and pin 16" in lines[1]
     )
+
+
+def test_wave_pins_get_the_same_checks_as_a_localisation_train():
+    text = """\
+    protocol: m
+    stimuli:
+      tap: {frequency_hz: 40, duration_s: 0.4}
+      right: {wave: rightwards, row: 1, train: tap}
+    design: {paradigm: apparent_motion, configurations: [right]}
+    """
+    (line,) = problems(text)
+    assert line.startswith("p.yaml:4:") and "pin 1 cannot follow 40 Hz" in line
+
+
+def test_a_no_wave_whose_centre_taps_overlap_is_refused_at_validation():
+    text = """\
+    protocol: m
+    stimuli:
+      tap: {frequency_hz: 5, duration_s: 0.4}
+      still: {wave: none, row: 1, pins: [1, 2, 3], train: tap, soa_ms: 100}
+    design: {paradigm: apparent_motion, configurations: [still]}
+    """
+    (line,) = problems(text)
+    assert line.startswith("p.yaml:4:") and "pin 2 is driven twice at once" in line
+
+
+def test_yaml_tags_and_impossible_dates_are_located_errors_not_tracebacks():
+    (line,) = problems(MINIMAL.replace("frequency_hz: 5\n", "frequency_hz: !!python/name:os.system 5\n"))
+    assert line.startswith("p.yaml:4:19: expected a plain value")
+    (line,) = problems(MINIMAL.replace("duration_s: 1\n", "duration_s: 2024-13-45\n"))
+    assert line.startswith("p.yaml:5:17: expected a plain value")

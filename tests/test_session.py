@@ -290,3 +290,19 @@ def test_a_second_present_during_the_interval_is_refused_not_played_twice(tmp_pa
     session.clock.release.set()
     worker.join(10)
     assert Counting.calls == 1 and session.phase is Phase.RESPONSE
+
+
+def test_an_incomplete_answers_file_leaves_no_half_started_run(tmp_path):
+    answers = tmp_path / "a.csv"
+    answers.write_text("trial,response\n1,left\n")
+    result = batch(str(MOTION), "--subject", "p2", "--responses", str(answers), "--results", str(tmp_path / "out"))
+    assert result.returncode == 2
+    assert not (tmp_path / "out").exists()
+
+
+def test_results_that_cannot_be_written_are_one_line(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    result = batch(str(MOTION), "--subject", "p3", "--observer", "default", "--results", str(blocker))
+    assert result.returncode == 2 and "cannot write results there: Not a directory" in result.stderr
+    assert "Traceback" not in result.stderr and blocker.read_text() == "not a folder"

@@ -29,7 +29,13 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     trials = load_results(args.results)
     summaries = summarise_subjects((t.subject, t.record) for t in trials)
     sources = sorted({t.source for t in trials})
-    page = write_report(summaries, sources, Path(args.out))
+    try:
+        page = write_report(summaries, sources, Path(args.out))
+    except OSError as problem:
+        from pinarray.errors import ResultsError
+
+        raise ResultsError(f"{problem.filename or args.out}: cannot write the report there: "
+                           f"{problem.strerror}") from None
     pooled = summaries[0]
     print(f"{len(trials)} trial rows from {len(sources)} file(s), "
           f"{len(pooled.subjects)} subject(s)")

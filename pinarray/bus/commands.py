@@ -2,6 +2,7 @@
 
 import argparse
 
+from pinarray.protocol import BAUD_RATES
 from pinarray.rig import SIM_DEFAULT
 
 PLAY_EPILOG = """\
@@ -50,7 +51,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     add_bus_choice(p)
     p.add_argument("--ids", default="0-252", help="ids to ping, e.g. 1-16 (default 0-252)")
-    p.add_argument("--baud", type=int, default=1_000_000, help="bit/s (default 1000000)")
+    p.add_argument("--baud", type=int, default=1_000_000, choices=BAUD_RATES, metavar="BAUD",
+                   help="bit/s (default 1000000)")
     p.set_defaults(func=_cmd_scan)
 
     p = subparsers.add_parser(

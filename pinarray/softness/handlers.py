@@ -7,6 +7,9 @@ handler so that the CLI starts without them.
 
 from typing import Any
 
+# A tracking run keeps every step in memory: 10 million steps is about a gigabyte.
+MAX_TRACK_STEPS = 10_000_000
+
 
 def _table(headers: list[str], rows) -> None:
     cells = [[f"{v:.6g}" if isinstance(v, float) else str(v) for v in row] for row in rows]
@@ -87,7 +90,9 @@ def telescopic(args) -> int:
     display = TelescopicDisplay(
         args.central_area_mm2 * M2_PER_MM2, args.area_ratio, args.step_mm * M_PER_MM, args.cylinders
     )
-    pressure = args.pressure_kpa * PA_PER_KPA
+    from pinarray.softness._checks import nonnegative
+
+    pressure = float(nonnegative("--pressure-kpa", args.pressure_kpa)) * PA_PER_KPA
     areas = display.step_areas_m2
     steps = np.arange(display.cylinder_count)
     columns = [steps, steps * args.step_mm, areas / M2_PER_MM2, pressure * areas]
@@ -172,6 +177,9 @@ def fit(args) -> int:
     if args.csv:
         samples = read_samples(args.csv)
     else:
+        from pinarray.softness._checks import nonnegative
+
+        nonnegative("--noise-n", args.noise_n)
         rng = np.random.default_rng(args.seed)
         area = np.linspace(0.0, 3 * M2_PER_CM2, 30)
         noisy = M1_R11_FORCE_AREA.force_n(area) + rng.normal(0.0, args.noise_n, area.size)
@@ -237,6 +245,15 @@ def track(args) -> int:
     material = Material.from_cm(args.alpha_n_per_cm4, args.beta_cm_per_n)
     valve = ValveRange(args.valve_min_kpa * PA_PER_KPA, args.valve_max_kpa * PA_PER_KPA)
     lags = ActuatorLags(args.valve_lag_ms * S_PER_MS, args.dhd_lag_ms * S_PER_MS)
+    from pinarray.softness._checks import SoftnessError
+
+    steps = args.duration_s / (args.time_step_ms * S_PER_MS) if args.time_step_ms > 0 else 0
+    if steps > MAX_TRACK_STEPS:
+        raise SoftnessError(
+            f"--time-step-ms {args.time_step_ms:g} gives {steps:.3g} steps over {args.duration_s:g} s; "
+            f"expected at most {MAX_TRACK_STEPS:,} (a step of at least "
+            f"{args.duration_s / MAX_TRACK_STEPS / S_PER_MS:.2g} ms)"
+        )
     run = simulate_force_ramp(
         material,
         args.peak_force_n,
