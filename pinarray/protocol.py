@@ -81,9 +81,6 @@ class Device:
         self.grid.check_pin(pin)
         return self.pins[pin - 1]
 
-    def degrees(self, steps: int | float) -> float:
-        return steps * 360.0 / self.servo.steps_per_turn
-
 
 @dataclass(frozen=True)
 class Train:

@@ -101,11 +101,6 @@ class TrialRecord:
         return self.direction is not None
 
     @property
-    def reported_pin(self) -> int | None:
-        """The pin the subject named, or None for "nothing felt" and non-localisation rows."""
-        return int(self.response) if self.is_localisation and _is_int(self.response) else None
-
-    @property
     def counts(self) -> bool:
         """Whether analysis counts this row: a main (not practice) trial with status ok."""
         return self.status == "ok" and not self.practice

@@ -22,11 +22,10 @@ from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol import NS_PER_S, Paradigm, Protocol, WaveKind
-from pinarray.results import RunWriter, TrialRecord
+from pinarray.results import MOTION_RESPONSES, RunWriter, TrialRecord
 from pinarray.schedule import TrialSchedule, compile_trial
 
 DIRECTION_LABEL = {WaveKind.RIGHTWARDS: "right", WaveKind.LEFTWARDS: "left", WaveKind.NONE: "none"}
-MOTION_RESPONSES = ("none", "left", "right", "unsure")
 
 
 class Phase(StrEnum):

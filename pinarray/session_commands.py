@@ -109,6 +109,12 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 # Killed before its manifest was written, or never started: nothing to lose.
                 print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; "
                       "starting a new run", file=sys.stderr)
+            if writer.resumed and args.seed is not None and args.seed != plan.seed:
+                print(f"pinarray: warning: resuming run {writer.paths.run} with its own seed {plan.seed}; "
+                      f"--seed {args.seed} is ignored", file=sys.stderr)
+            if writer.repaired:
+                print(f"pinarray: warning: dropped a half-written last row from {writer.paths.beh_tsv}: "
+                      f"{writer.repaired!r}", file=sys.stderr)
             with writer:
                 run = Session(protocol, plan, writer, rig, clock)
                 progress = Progress(f"{task} sub-{subject} ses-{session}", run.total, run.done_count)
