@@ -11,7 +11,6 @@ from pathlib import Path
 
 from pinarray.errors import PinArrayError, ProtocolError, ProtocolErrors
 from pinarray.feasibility import Feasibility, check_train
-from pinarray.schedule import check_no_overlap
 from pinarray.grid import Grid
 from pinarray.protocol import (
     BAUD_RATES,
@@ -30,6 +29,7 @@ from pinarray.protocol import (
     Wave,
     WaveKind,
 )
+from pinarray.schedule import check_no_overlap
 from pinarray.yaml_nodes import Invalid, Node, Reader
 
 MS = Fraction(1_000_000)  # ns per ms
@@ -608,15 +608,8 @@ def _localisation(reader, node, keys, device: Device, by_name, declared) -> tupl
     pins = [reader.attempt(lambda n=n: _pin(reader, n, device.grid)) for n in pin_nodes]
     if len(set(pins)) != len(pins):
         raise reader.error(keys["pins"], f"expected each pin once, found {pins}")
-    name = reader.string(keys["stimulus"], "the stimulus")
-    stimulus = by_name.get(name)
-    if stimulus is None and name in declared:
-        raise Invalid(name)  # declared but broken: its own problem is already reported
-    if stimulus is None or stimulus.train is None:
-        trains = ", ".join(s.name for s in by_name.values() if s.train) or "none"
-        raise reader.error(
-            keys["stimulus"], f"expected the name of a pulse train ({trains}), found {name!r}"
-        )
+    stimulus = _stimulus_named(reader, keys["stimulus"], by_name, declared, wave=False)
+    name = stimulus.name
     conditions = []
     for frequency_node in reader.sequence(keys["frequencies_hz"], "the frequencies"):
         frequency = reader.number(frequency_node, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ)
@@ -624,6 +617,19 @@ def _localisation(reader, node, keys, device: Device, by_name, declared) -> tupl
         _check_train_on_pins(reader, frequency_node, train, [p for p in pins if p], device)
         conditions.extend(Condition(name, pin, frequency) for pin in pins if pin)
     return tuple(conditions)
+
+
+def _stimulus_named(reader: Reader, node: Node, by_name, declared, wave: bool) -> Stimulus:
+    """The pulse train (or wave) a design names at ``node``."""
+    what = "wave stimulus" if wave else "pulse train"
+    name = reader.string(node, f"the name of a {what}")
+    stimulus = by_name.get(name)
+    if stimulus is None and name in declared:
+        raise Invalid(name)  # declared but broken: its own problem is already reported
+    if stimulus is None or (stimulus.wave is None) == wave:
+        known = ", ".join(s.name for s in by_name.values() if (s.wave is None) != wave) or "none"
+        raise reader.error(node, f"expected the name of a {what} ({known}), found {name!r}")
+    return stimulus
 
 
 def _check_train_on_pins(reader: Reader, node: Node, train: Train, pins, device: Device) -> None:
@@ -656,16 +662,8 @@ def _motion(reader, node, keys, device, by_name, declared) -> tuple[Condition, .
         )
     conditions = []
     for item in reader.sequence(keys["configurations"], "the configurations"):
-        name = reader.string(item, "a configuration")
-        stimulus = by_name.get(name)
-        if stimulus is None and name in declared:
-            raise Invalid(name)  # declared but broken: its own problem is already reported
-        if stimulus is None or stimulus.wave is None:
-            waves = ", ".join(s.name for s in by_name.values() if s.wave) or "none"
-            raise reader.error(
-                item, f"expected the name of a wave stimulus ({waves}), found {name!r}"
-            )
-        conditions.append(Condition(name, direction=stimulus.wave.kind, row=stimulus.wave.row))
+        stimulus = _stimulus_named(reader, item, by_name, declared, wave=True)
+        conditions.append(Condition(stimulus.name, direction=stimulus.wave.kind, row=stimulus.wave.row))
     return tuple(conditions)
 
 

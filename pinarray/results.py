@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 from pinarray.errors import ResultsError
-from pinarray.signals import deferred_signals
 from pinarray.manifest import (
     UNFINISHED_STATUSES,
     RunPaths,
@@ -33,6 +32,7 @@ from pinarray.manifest import (
     write_atomically,
     write_manifest,
 )
+from pinarray.signals import deferred_signals
 
 NA = "n/a"  # BIDS spelling of "not applicable"
 TRIAL_STATUSES = ("ok", "redone", "aborted", "invalid")

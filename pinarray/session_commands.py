@@ -78,10 +78,10 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
 
     from pinarray.errors import PinArrayError
     from pinarray.observer import SimulatedObserver, parse_observer
+    from pinarray.plan import make_plan
     from pinarray.player import Terminated, sigterm_raises
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
-    from pinarray.plan import make_plan
     from pinarray.session_setup import open_run
 
     task = task_label(protocol)

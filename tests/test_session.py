@@ -1,6 +1,7 @@
 """Whole sessions on the simulated array in virtual time, checked row by row on disk."""
 
 import csv
+import itertools
 import os
 import random
 import signal
@@ -63,7 +64,7 @@ def test_a_whole_localisation_session_logs_every_trial_as_it_happened(tmp_path):
         assert row.status == "ok" and row.practice == planned.practice and row.block == planned.block
         assert row.duration_s == 10 and row.response_time_s >= 10
     onsets = [r.onset_s for r in rows]
-    assert all(b - a >= 13 for a, b in zip(onsets, onsets[1:]))  # 10 s stimulus + 3 s interval
+    assert all(b - a >= 13 for a, b in itertools.pairwise(onsets))  # 10 s stimulus + 3 s interval
     assert read_manifest(session.writer.paths.manifest).status == "completed"
     with open(session.writer.paths.events_tsv) as stream:
         assert len(list(csv.reader(stream, delimiter="\t"))) == 27

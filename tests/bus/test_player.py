@@ -5,7 +5,7 @@ import pytest
 
 from pinarray.clock import VirtualClock
 from pinarray.errors import PinArrayError
-from pinarray.player import PlaybackAborted, Terminated, pins_made_safe, play_trial
+from pinarray.player import Terminated, pins_made_safe, play_trial
 
 from .lab import assert_safe, pulse_train, sim_bus, targets
 
