@@ -110,6 +110,7 @@ class Session:
         self._onset_ns = 0
         self._duration_ns = 0
         self._presenting = threading.Lock()
+        self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
         self._next_allowed_ns = self._run_start_ns
         self.fault = ""
         self.last: TrialOutcome | None = None
@@ -165,9 +166,15 @@ class Session:
         finally:
             self._presenting.release()
 
-    def _present(self) -> None:
+    def current_schedule(self) -> TrialSchedule:
+        """The current trial compiled, once per trial (the UI shows it while it plays)."""
         assert self.current is not None
-        schedule = compile_trial(self.protocol, self.current)
+        if self._compiled is None or self._compiled[0] is not self.current:
+            self._compiled = (self.current, compile_trial(self.protocol, self.current))
+        return self._compiled[1]
+
+    def _present(self) -> None:
+        schedule = self.current_schedule()
         self.clock.sleep_until_ns(self._next_allowed_ns)
         self._onset_ns = self.clock.now_ns()
         self._set(Phase.STIMULUS)

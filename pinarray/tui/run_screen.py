@@ -14,7 +14,6 @@ from textual.widgets import Footer, ProgressBar, Static
 
 from pinarray.player import DEFAULT_LEAD_NS
 from pinarray.protocol import Paradigm
-from pinarray.schedule import compile_trial
 from pinarray.session import DIRECTION_LABEL, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.lab import Lab
@@ -217,7 +216,7 @@ class RunScreen(Screen):
                 self.query_one("#problem", Static).update(advice)
             return
         self.query_one("#problem", Static).update("")
-        schedule = compile_trial(session.protocol, session.current)
+        schedule = session.current_schedule()
         device = session.protocol.device
         rest = {pin: device.calibration(pin).rest_steps for pin in schedule.active_pins}
         self._timeline = LiftTimeline.from_targets(schedule.targets, rest)
