@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pinarray.bus.base import Bus, BusSetup, SafeStopReport, Telemetry
+from pinarray.bus.base import Bus, BusSetup, PortLost, SafeStopReport, Telemetry
 from pinarray.bus.registers import StatusError
 from pinarray.clock import Clock
 from pinarray.delivery import DEFAULT_TOLERANCE_NS, Change, DeliveryLedger, DeliveryRecord
@@ -362,7 +362,7 @@ def play_prepared(
             verifier.work_until(end_ns)
             clock.sleep_until_ns(end_ns)
             verifier.work_until(end_ns + SETTLE_NS)
-            readings = _checked(bus.read_telemetry(setup.servo_ids), setup)
+            readings = _checked(_telemetry(bus, setup.servo_ids), setup)
         except Interrupted:
             bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
             raise
@@ -393,6 +393,20 @@ def play_prepared(
 def play_trial(bus: Bus, targets: TargetList, clock: Clock, **options) -> PlaybackReport:
     """`prepare_trial` then `play_prepared` (same options), in this process."""
     return play_prepared(bus, prepare_trial(bus, targets), clock, **options)
+
+
+def _telemetry(bus: Bus, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
+    """Each servo's state after the trial; one that does not answer now is skipped (the
+    delivery record already says what reached it, and the next trial's read-backs will tell)."""
+    readings: list[Telemetry] = []
+    for servo_id in servo_ids:
+        try:
+            readings.extend(bus.read_telemetry((servo_id,)))
+        except PortLost:
+            raise
+        except BusError:
+            continue
+    return tuple(readings)
 
 
 def _checked(readings: tuple[Telemetry, ...], setup: BusSetup) -> tuple[Telemetry, ...]:

@@ -53,6 +53,8 @@ SPIN_NS = 200_000
 # How often the parent looks at the stop request and the child while a trial plays, in s.
 WATCH_S = 0.02
 START_TIMEOUT_S = 30.0
+# How long a player process whose socket closed may take to finish exiting, in s.
+EXIT_WAIT_S = 1.0
 PR_SET_TIMERSLACK = 29
 REALTIME_HOWTO = ("grant it with `sudo setcap cap_sys_nice+ep \"$(readlink -f .venv/bin/python)\"` "
                   "or an rtprio limit in /etc/security/limits.conf (README: real-time priority)")
@@ -225,9 +227,11 @@ class PlayerProcess:
                 self._died(doing)
 
     def _died(self, doing: str):
-        if self.alive:
+        try:
+            status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
+        except subprocess.TimeoutExpired:
             self.process.kill()
-        status = self.process.wait()
+            status = self.process.wait()
         self._errors.seek(0)
         last_words = self._errors.read().decode(errors="replace").strip().splitlines()[-1:]
         how = (f"killed by signal {-status}" if status < 0 else f"exit status {status}")
@@ -305,7 +309,9 @@ def _serve(conn: Connection, port_fd: int) -> int:
     assert isinstance(hello, Hello), hello
     problem = make_realtime(hello.realtime_priority) if hello.realtime_priority else ""
     clock = ControlledClock(conn, hello.spin_ns)
-    bus = hello.handover.attach(port_fd, clock) if hello.handover is not None else None
+    # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
+    bus_clock = MonotonicClock(hello.spin_ns)
+    bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
     conn.send(Ready(problem))
     released = False
     try:

@@ -310,6 +310,7 @@ class Link:
             The replies that arrived and fit; a missing id means no fitting reply in time.
         """
         self.drain()
+        self.reader.longest_params = max((e.params_length for e in expected), default=0)
         start_ns = self.clock.now_ns()
         limit_ns = start_ns + self.reply_time_ns(len(packet), expected)
         if deadline_ns is not None:

@@ -107,12 +107,18 @@ class StatusReader:
         Bytes thrown away while hunting for a header.
     bad_checksums : int
         Packets dropped for a wrong checksum.
+    longest_params : int
+        The most data bytes a status packet may carry; the link sets it to the longest reply
+        it waits for.
     """
 
     def __init__(self) -> None:
         self._buffer = bytearray()
         self.skipped_bytes = 0
         self.bad_checksums = 0
+        # A length byte claiming more data than any awaited reply carries is noise (a flipped
+        # bit): waiting for it would swallow the real reply behind it.
+        self.longest_params = MAX_PACKET_BYTES - STATUS_OVERHEAD_BYTES
 
     def clear(self) -> int:
         """Forget a half-received packet; returns how many bytes were dropped."""
@@ -144,7 +150,7 @@ class StatusReader:
                 return found
             servo_id, length = buffer[2], buffer[3]
             if servo_id == 0xFF or servo_id == BROADCAST_ID or length < 2 or (
-                length + 4 > MAX_PACKET_BYTES
+                length - 2 > self.longest_params
             ):
                 # FF FF FF ...: the first FF was noise; a broadcast id or a length that cannot
                 # be: not a status packet. Move one byte on and hunt again.
