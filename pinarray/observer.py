@@ -182,6 +182,8 @@ class ObserverModel:
 
     def individual(self, offsets: SubjectOffsets) -> ObserverModel:
         """The model of one subject: its own anchors and motion rates, no further spread."""
+        if self.subject_sd_logit == 0 and offsets == SubjectOffsets():
+            return self  # every subject of a population without spread is the same one
         centres = _population_centres(self)
         anchors = tuple(
             (f, self.chance + (self.ceiling - self.chance)

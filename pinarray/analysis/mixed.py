@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 MIN_SUBJECTS = 6
-QUADRATURE_NODES = 15
+QUADRATURE_NODES = 25
 _Z_95 = 1.959963984540054
 _LOG_SD_BOUNDS = (math.log(1e-4), math.log(20.0))
 

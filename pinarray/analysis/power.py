@@ -10,18 +10,7 @@ study with subjects as the unit, as `pinarray analyse` does. Over many studies p
   which checks the observer's calibration), its spread from study to study, and the average
   half-width of the 95 % t interval a study of N subjects would report.
 
-Criteria (two-sided tests at ``ALPHA``, subjects as the unit):
-
-- *frequency effect*: paired t-test of each subject's correct % at the highest against the
-  lowest frequency, p < ALPHA and higher at the highest;
-- *rising means*: the across-subject mean correct % rises strictly from frequency to frequency;
-- *error A on top*: the mean % of error A exceeds B, C and D at every frequency;
-- *pin P best*: the pin the model localises best (pin 4 by default) has the highest mean
-  correct % over all frequencies, strictly;
-- *direction above chance*: one-sample t-test of each subject's direction-right % (of the
-  wave trials felt) against 50 %, p < ALPHA and above;
-- *motion felt more on waves*: paired t-test of each subject's felt % on wave against no-wave
-  trials, p < ALPHA and higher on waves.
+The criteria are defined in `CRITERIA` (tests two-sided at `ALPHA`, subjects as the unit).
 """
 
 from __future__ import annotations
@@ -41,6 +30,20 @@ from pinarray.protocol import Protocol
 
 ALPHA = 0.05
 TARGET_POWER = 0.8
+CRITERIA = {
+    "frequency effect": "paired t-test of each subject's correct % at the highest against the "
+                        "lowest frequency: p < 0.05 and higher at the highest",
+    "rising means": "the across-subject mean correct % rises strictly from each frequency to "
+                    "the next",
+    "error A on top": "the across-subject mean % of error A exceeds B, C and D at every "
+                      "frequency",
+    "pin best": "the pin the model localises best (pin 4 by default) has the highest "
+                "across-subject mean correct % over all frequencies, strictly (no tie)",
+    "direction above chance": "one-sample t-test of each subject's direction-right % (of the "
+                              "wave trials felt) against 50 %: p < 0.05 and above",
+    "motion felt more on waves": "paired t-test of each subject's felt % on wave against "
+                                 "no-wave trials: p < 0.05 and higher on waves",
+}
 
 
 @dataclass(frozen=True)
@@ -257,13 +260,13 @@ class PowerCurves:
         if measures:
             lines += ["", "precision: mean of the across-subject means over studies (their SD "
                       "from study to study) [average 95 % t interval half-width], in %",
-                      f"{'subjects':>8}  " + "".join(f"{m:<26}" for m in measures)]
+                      (f"{'subjects':>8}  " + "".join(f"{m:<26}" for m in measures)).rstrip()]
             cells = {(p.measure, p.subjects): p for p in self.precision}
             for n in counts:
-                lines.append(f"{n:>8}  " + "".join(
+                lines.append((f"{n:>8}  " + "".join(
                     f"{cells[m, n].mean_pct:5.1f} ({cells[m, n].sd_pct:4.1f}) "
                     f"[±{cells[m, n].t_half_width_pct:4.1f}]".ljust(26) if (m, n) in cells
-                    else "-".ljust(26) for m in measures))
+                    else "-".ljust(26) for m in measures)).rstrip())
         return lines
 
 
@@ -301,12 +304,30 @@ def caption(curves: PowerCurves) -> str:
             f"(seed {curves.seed}) in which it was found; shaded: 95 % Wilson interval of that "
             f"share (Monte-Carlo error). Simulated subjects differ with an SD of "
             f"{curves.model.subject_sd_logit:g} logit units; tests are two-sided at "
-            f"p < {ALPHA:g} with subjects as the unit (see power.csv and the module notes). "
+            f"p < {ALPHA:g} with subjects as the unit (criteria defined in power.md). "
             f"Dashed: {100 * TARGET_POWER:.0f} % power.")
 
 
+def _definition(criterion: str) -> str:
+    return CRITERIA["pin best" if criterion.startswith("pin ") else criterion]
+
+
+def power_markdown(curves: PowerCurves, figure: str) -> str:
+    """The power page: how it was simulated, the criteria, the table and the figure."""
+    lines = [f"# How many subjects? Protocol '{curves.protocol}'", "",
+             f"{curves.studies} simulated studies per number of subjects (seed {curves.seed}); "
+             f"simulated subjects drawn from the observer population with a between-subject "
+             f"SD of {curves.model.subject_sd_logit:g} logit units, calibrated on pins "
+             f"{', '.join(map(str, curves.model.pins))}. Each study is analysed with subjects "
+             "as the unit.", "", "## Criteria", ""]
+    lines += [f"- **{c}**: {_definition(c)}" for c in curves.criteria]
+    lines += ["", "## Results", "", "```", *curves.table_lines(), "```", "",
+              f"![power curves]({figure})", "", f"*{caption(curves)}*", ""]
+    return "\n".join(lines)
+
+
 def write_power(curves: PowerCurves, out: Path) -> list[Path]:
-    """power.csv, precision.csv and power_curves.png/.pdf in ``out``."""
+    """power.md, power.csv, precision.csv and power_curves.png/.pdf in ``out``."""
     import csv
 
     from pinarray.analysis.plots import plot_power
@@ -331,4 +352,7 @@ def write_power(curves: PowerCurves, out: Path) -> list[Path]:
         for q in curves.precision:
             writer.writerow([q.measure, q.subjects, curves.studies, f"{q.mean_pct:.2f}",
                              f"{q.sd_pct:.2f}", f"{q.t_half_width_pct:.2f}"])
-    return [table, precision, *plot_power(curves, out / "power_curves", caption(curves))]
+    figures = plot_power(curves, out / "power_curves", caption(curves))
+    page = out / "power.md"
+    page.write_text(power_markdown(curves, figures[0].name), encoding="utf-8")
+    return [page, table, precision, *figures]
