@@ -113,7 +113,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     clock = choose_clock(args.port, args.time_scale, paced=True)
     observer = None
     if responses is None:
-        observer = SimulatedObserver(parse_observer(args.observer), seed=args.seed)
+        observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
     with stop_on_signals(StopRequest()) as stop:
         rig = Rig(protocol, args.port, args.sim, clock, stop)
         try:
