@@ -218,18 +218,23 @@ class _TrainPulses(NamedTuple):
     width_ns: np.ndarray  # int64
 
 
-def _train_pulses(train: Train, delay_ns: int = 0) -> _TrainPulses:
-    """The pulses of ``train`` that start at or after 0 and end within its length, delayed."""
+def _train_pulses(
+    train: Train, delay_ns: int = 0, out: tuple[np.ndarray, np.ndarray] | None = None
+) -> _TrainPulses:
+    """The pulses of ``train`` that start at or after 0 and end within its length, delayed.
+
+    ``out``: arrays for the starts and widths, as long as `_index_range` counts, to write
+    into instead of new ones; the pulses kept are views of their beginning.
+    """
     _check_periods(train)
     first, count = _index_range(train)
     slot_ns = train.slot_ns
     line = _line(train.phase * train.pulses_per_cycle * slot_ns, slot_ns)
-    starts = np.empty(count, dtype=np.int64)
+    starts, widths = out or (np.empty(count, dtype=np.int64), np.empty(count, dtype=np.int64))
     _fill_starts(starts, first, line, delay_ns)
     cycle = [train.up_width_ns] * train.up_pulses + [train.down_width_ns] * (
         train.pulses_per_cycle - train.up_pulses
     )
-    widths = np.empty(count, dtype=np.int64)
     _fill_cycle(widths, first, cycle[: train.pulses_per_cycle])
     # The first index is the earliest pulse at or after onset. Starts rise by at least the
     # whole part of a slot and no width exceeds it, so the pulses that end within the signal
@@ -334,18 +339,18 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
     one that begins wins.
     """
     check_no_overlap(drives)
-    # Pin, then time order; identical (train, delay) pairs share one computation.
+    # Pin, then time order: the order the pulses of equal starts take.
     ordered = sorted(drives, key=lambda d: (d.pin, d.delay_ns))
-    computed: dict[tuple[Train, int], _TrainPulses] = {}
-    for drive in ordered:
-        key = (drive.train, drive.delay_ns)
-        if key not in computed:
-            computed[key] = _train_pulses(drive.train, drive.delay_ns)
     end_ns = max((d.delay_ns + d.train.duration_ns for d in drives), default=0)
-    pulses = _merge_pulses([(d.pin, computed[d.train, d.delay_ns]) for d in ordered])
+    if len({(d.train, d.delay_ns) for d in ordered}) == 1:
+        shared = _train_pulses(ordered[0].train, ordered[0].delay_ns)
+        each = [shared] * len(ordered)
+        pulses = _one_train_pulses([d.pin for d in ordered], shared)
+    else:
+        each, pulses = _sorted_pulses(ordered)
 
     own_targets: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
-    for drive in ordered:
+    for drive, drive_pulses in zip(ordered, each, strict=True):
         calibration = device.calibration(drive.pin)
         up = calibration.position_for_width(drive.train.up_width_ns)
         down = calibration.position_for_width(drive.train.down_width_ns)
@@ -355,7 +360,7 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
             up = down + int((up - down) * fraction)
         own_targets.setdefault(drive.pin, []).append(
             _drive_targets(
-                computed[drive.train, drive.delay_ns],
+                drive_pulses,
                 drive.train,
                 up,
                 down,
@@ -371,29 +376,40 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
     return TrialSchedule(tuple(drives), pulses, _merge_targets(by_pin, end_ns), end_ns)
 
 
-def _merge_pulses(parts: list[tuple[int, _TrainPulses]]) -> PulseList:
-    """All pulses by start then pin, from per-drive pulses given in pin, then time order."""
-    if not parts:
-        return PulseList(np.empty(0, np.int16), np.empty(0, np.int64), np.empty(0, np.int64))
-    pins = [pin for pin, _ in parts]
-    first = parts[0][1]
-    if len(parts) == 1:
-        return PulseList(np.full(len(first.start_ns), pins[0], np.int16), *first[1:])
-    if all(p is first for _, p in parts):
-        # One train on several pins at once (distinct pins, or they would overlap): each
-        # start repeats once per pin, pins in order. Interleave; nothing to sort.
-        shape = (len(first.start_ns), len(pins))
-        pin, start, width = (np.empty(shape, dtype) for dtype in (np.int16, np.int64, np.int64))
-        pin[:] = pins
-        start[:] = first.start_ns[:, None]
-        width[:] = first.width_ns[:, None]
-        return PulseList(pin.ravel(), start.ravel(), width.ravel())
-    pin = np.concatenate([np.full(len(p.start_ns), n, np.int16) for n, p in parts])
-    start = np.concatenate([p.start_ns for _, p in parts])
-    width = np.concatenate([p.width_ns for _, p in parts])
-    # Each part is sorted; the stable sort keeps equal starts in pin order.
-    by_time = np.argsort(start, kind="stable")
-    return PulseList(pin[by_time], start[by_time], width[by_time])
+def _one_train_pulses(pins: list[int], train: _TrainPulses) -> PulseList:
+    """The pulses of one train played at once on distinct ``pins`` (in order), by start, pin.
+
+    Each start repeats once per pin: an interleave, with nothing to sort.
+    """
+    if len(pins) == 1:
+        return PulseList(np.full(len(train.start_ns), pins[0], np.int16), *train[1:])
+    shape = (len(train.start_ns), len(pins))
+    pin, start, width = (np.empty(shape, dtype) for dtype in (np.int16, np.int64, np.int64))
+    pin[:] = pins
+    start[:] = train.start_ns[:, None]
+    width[:] = train.width_ns[:, None]
+    return PulseList(pin.ravel(), start.ravel(), width.ravel())
+
+
+def _sorted_pulses(ordered: list[PinDrive]) -> tuple[list[_TrainPulses], PulseList]:
+    """Each drive's pulses and all of them by start then pin, from drives in pin, time order.
+
+    The drives write their pulses one after the other into one buffer (no copy to join them);
+    each drive's run is sorted, and a stable sort keeps equal starts in pin order.
+    """
+    counts = [_index_range(d.train)[1] for d in ordered]
+    start = np.empty(sum(counts), dtype=np.int64)
+    width = np.empty(sum(counts), dtype=np.int64)
+    pin = np.empty(sum(counts), dtype=np.int16)
+    each = []
+    used = 0
+    for drive, count in zip(ordered, counts, strict=True):
+        out = (start[used : used + count], width[used : used + count])
+        each.append(_train_pulses(drive.train, drive.delay_ns, out))
+        pin[used : used + len(each[-1].start_ns)] = drive.pin
+        used += len(each[-1].start_ns)
+    by_time = np.argsort(start[:used], kind="stable")
+    return each, PulseList(pin[by_time], start[by_time], width[by_time])
 
 
 def _merge_targets(
