@@ -30,6 +30,8 @@ from pinarray.bus.registers import MAX_SERVO_ID, StatusError
 from pinarray.errors import PinArrayError
 
 SIM_SCHEME = "sim"
+# The simulated array every command uses unless told otherwise.
+SIM_DEFAULT = f"{SIM_SCHEME}://"
 
 _ERROR_KEYS = {
     "overload": StatusError.OVERLOAD,
