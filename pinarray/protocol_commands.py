@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from pinarray.protocol_load import validate_file
+    from pinarray.protocol.load import validate_file
 
     status = 0
     for path in args.files:
@@ -63,8 +63,8 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _scaled_notes(protocol) -> list[str]:
-    from pinarray.drives import trial_drives
-    from pinarray.feasibility import check_train
+    from pinarray.protocol.drives import trial_drives
+    from pinarray.protocol.feasibility import check_train
 
     if not protocol.device.scale_infeasible:
         return []
@@ -173,7 +173,7 @@ def _table(path: str, columns: tuple[str, ...]) -> _CsvTable | _NpzTable:
 
 def _compile(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
-    from pinarray.protocol_load import load_protocol
+    from pinarray.protocol.load import load_protocol
     from pinarray.schedule import compile_trial
 
     protocol = load_protocol(args.file)
@@ -206,7 +206,7 @@ def _compile(args: argparse.Namespace) -> int:
 def _preview(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
     from pinarray.preview import text_timeline
-    from pinarray.protocol_load import load_protocol
+    from pinarray.protocol.load import load_protocol
     from pinarray.schedule import compile_trial
 
     protocol = load_protocol(args.file)

@@ -29,10 +29,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pinarray.drives import check_no_overlap, trial_drives
 from pinarray.errors import PinArrayError
-from pinarray.feasibility import check_train
 from pinarray.protocol import Device, PinDrive, Protocol, Train
+from pinarray.protocol.drives import check_no_overlap, trial_drives
+from pinarray.protocol.feasibility import check_train
 
 __all__ = [
     "Frame",

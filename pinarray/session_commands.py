@@ -42,7 +42,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     import sys
 
     from pinarray.manifest import check_label
-    from pinarray.protocol_load import load_protocol
+    from pinarray.protocol.load import load_protocol
 
     subject = check_label("subject", args.subject)
     session = check_label("session", args.session)

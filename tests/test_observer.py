@@ -13,7 +13,7 @@ from pinarray import observer as observer_module
 from pinarray.errors import PinArrayError
 from pinarray.grid import classify
 from pinarray.observer import ObserverModel, SimulatedObserver, SubjectOffsets, parse_observer
-from pinarray.protocol_load import load_protocol
+from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 LOCALISATION = load_protocol(PROTOCOLS / "localisation.yaml")

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from pinarray.errors import PinArrayError
 from pinarray.plan import constrained_shuffle, make_plan, williams_square
 from pinarray.protocol import Condition
-from pinarray.protocol_load import load_protocol, parse_protocol
+from pinarray.protocol.load import load_protocol, parse_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 

@@ -10,7 +10,7 @@ import pytest
 
 from pinarray.errors import ProtocolErrors
 from pinarray.protocol import Paradigm, WaveKind
-from pinarray.protocol_load import load_protocol, parse_protocol
+from pinarray.protocol.load import load_protocol, parse_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 

@@ -10,7 +10,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError
-from pinarray.feasibility import check_train
 from pinarray.grid import Grid
 from pinarray.protocol import (
     NS_PER_S,
@@ -22,6 +21,7 @@ from pinarray.protocol import (
     Wave,
     WaveKind,
 )
+from pinarray.protocol.feasibility import check_train
 from pinarray.schedule import compile_drives, pulse_indices, render_dense, train_pulses
 
 UP, DOWN, REST = 2162, 2048, 2048

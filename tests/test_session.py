@@ -18,7 +18,7 @@ from pinarray.errors import BusError
 from pinarray.grid import classify
 from pinarray.manifest import read_manifest
 from pinarray.plan import make_plan
-from pinarray.protocol_load import load_protocol
+from pinarray.protocol.load import load_protocol
 from pinarray.results import RunWriter, read_trials
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, SessionError, plan_records, task_label

@@ -142,7 +142,7 @@ def _cmd_power(args: argparse.Namespace) -> int:
     from pinarray.analysis.power import power_study, write_power
     from pinarray.errors import ResultsError
     from pinarray.observer import parse_observer
-    from pinarray.protocol_load import load_protocol
+    from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)
     model = parse_observer(args.observer).for_protocol(protocol)

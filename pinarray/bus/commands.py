@@ -115,7 +115,7 @@ def _cmd_play(args: argparse.Namespace) -> int:
 
     from pinarray.plan import make_plan
     from pinarray.player import PlaybackReport, describe
-    from pinarray.protocol_load import load_protocol
+    from pinarray.protocol.load import load_protocol
     from pinarray.rig import Rig, choose_clock
     from pinarray.schedule import compile_trial
     from pinarray.stop import StopRequest, stop_on_signals
@@ -157,7 +157,7 @@ def _cmd_timing(args: argparse.Namespace) -> int:
     import sys
 
     from pinarray.errors import PinArrayError
-    from pinarray.protocol_load import load_protocol, parse_protocol
+    from pinarray.protocol.load import load_protocol, parse_protocol
     from pinarray.rig import Rig, choose_clock
     from pinarray.stop import StopRequest, stop_on_signals
 

@@ -101,7 +101,7 @@ class StartScreen(Screen):
         return self.query_one(f"#{field}", Input).value.strip()
 
     def _protocol(self) -> Protocol:
-        from pinarray.protocol_load import load_protocol
+        from pinarray.protocol.load import load_protocol
 
         chosen = self.query_one("#protocol", Select).value
         if chosen is Select.BLANK:

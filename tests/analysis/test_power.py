@@ -20,7 +20,7 @@ from pinarray.analysis.power import (
 )
 from pinarray.grid import DEFAULT_GRID
 from pinarray.observer import ObserverModel
-from pinarray.protocol_load import load_protocol
+from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 LOCALISATION = load_protocol(PROTOCOLS / "localisation.yaml")

@@ -19,7 +19,7 @@ from pinarray.analysis.power import power_study, protocol_design, simulate_subje
 from pinarray.analysis.study import study
 from pinarray.grid import classify
 from pinarray.observer import ObserverModel, SimulatedObserver
-from pinarray.protocol_load import load_protocol
+from pinarray.protocol.load import load_protocol
 from pinarray.results import RunWriter, TrialRecord, trial_row
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"

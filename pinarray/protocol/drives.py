@@ -10,7 +10,7 @@ import itertools
 from collections.abc import Sequence
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Condition, PinDrive, Protocol
+from pinarray.protocol.model import Condition, PinDrive, Protocol
 
 
 def check_no_overlap(drives: Sequence[PinDrive]) -> None:

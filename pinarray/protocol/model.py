@@ -1,6 +1,6 @@
 """The validated protocol: device calibration, stimuli and experiment design as frozen values.
 
-Built by `pinarray.protocol_load` from YAML; everything here is already checked, so the
+Built by `pinarray.protocol.load` from YAML; everything here is already checked, so the
 compiler and the player never see a bad number. Frequencies and durations are exact
 (`fractions.Fraction` or integer nanoseconds): a 0.1 s period is not a binary float.
 """

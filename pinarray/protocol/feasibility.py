@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pinarray.protocol import NS_PER_S, PinCalibration, ServoSettings, Train
+from pinarray.protocol.model import NS_PER_S, PinCalibration, ServoSettings, Train
 
 
 def reachable_steps(

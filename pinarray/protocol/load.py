@@ -9,11 +9,11 @@ import hashlib
 from fractions import Fraction
 from pathlib import Path
 
-from pinarray.drives import check_no_overlap
 from pinarray.errors import PinArrayError, ProtocolError, ProtocolErrors
-from pinarray.feasibility import Feasibility, check_train
 from pinarray.grid import Grid
-from pinarray.protocol import (
+from pinarray.protocol.drives import check_no_overlap
+from pinarray.protocol.feasibility import Feasibility, check_train
+from pinarray.protocol.model import (
     BAUD_RATES,
     NS_PER_S,
     Condition,
@@ -30,7 +30,7 @@ from pinarray.protocol import (
     Wave,
     WaveKind,
 )
-from pinarray.yaml_nodes import Invalid, Node, Reader
+from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 
 MS = Fraction(1_000_000)  # ns per ms
 MAX_DURATION_S = 48 * 3600

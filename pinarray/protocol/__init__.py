@@ -1,0 +1,31 @@
+"""Protocols: the validated model (`model`), read from YAML (`load`, over `yaml_nodes`), with
+the drive and feasibility checks a protocol must pass (`drives`, `feasibility`).
+
+The model's names are importable from here (``from pinarray.protocol import Protocol``);
+loading is ``from pinarray.protocol.load import load_protocol``.
+"""
+
+from pinarray.protocol.model import (
+    BAUD_RATES,
+    NS_PER_S,
+    Condition,
+    Constraints,
+    Design,
+    Device,
+    Ordering,
+    Paradigm,
+    PinCalibration,
+    PinDrive,
+    Protocol,
+    ServoSettings,
+    Stimulus,
+    Train,
+    Wave,
+    WaveKind,
+)
+
+__all__ = [
+    "BAUD_RATES", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Ordering",
+    "Paradigm", "PinCalibration", "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train",
+    "Wave", "WaveKind",
+]
