@@ -9,7 +9,7 @@ import pytest
 
 from pinarray import cli
 from pinarray.analysis import plots
-from pinarray.analysis.commands import register
+from pinarray.cli.analysis import register
 from pinarray.errors import ResultsError
 from pinarray.manifest import RunPaths
 from tests.analysis.conftest import localisation_row
@@ -190,7 +190,7 @@ def test_bad_options_are_one_line_errors_with_status_2(results_root, tmp_path, c
 
 
 def test_registering_the_command_loads_neither_numpy_nor_matplotlib():
-    probe = ("import sys, argparse, pinarray.analysis.commands as c;"
+    probe = ("import sys, argparse, pinarray.cli.analysis as c;"
              "c.register(argparse.ArgumentParser().add_subparsers());"
              "print(sorted(m for m in ('numpy', 'matplotlib', 'scipy') if m in sys.modules))")
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,

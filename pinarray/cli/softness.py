@@ -75,11 +75,11 @@ def _add(sub, name: str, help_text: str) -> argparse.ArgumentParser:
 
 
 def _later(name: str):
-    """The handler ``name`` of `pinarray.softness.handlers`, imported only when it runs."""
+    """The handler ``name`` of `pinarray.cli.softness_handlers`, imported only when it runs."""
 
     def run(args: argparse.Namespace) -> int:
-        from pinarray.softness import handlers
+        from pinarray.cli import softness_handlers
 
-        return getattr(handlers, name)(args)
+        return getattr(softness_handlers, name)(args)
 
     return run
