@@ -159,7 +159,7 @@ def measure(rate_hz: int, realtime: bool, folder: Path, redraw=None) -> tuple[Sa
             trial = prepare_trial(bus, targets)
             reference_onset = run_reference(receiver.path, trial, realtime, folder)
             report = (redraw or (lambda call: call()))(
-                lambda: player.play(trial, tolerance_ns=TOLERANCE_NS))
+                lambda player=player, trial=trial: player.play(trial, tolerance_ns=TOLERANCE_NS))
         finally:
             player.close()
             bus.rest_and_release()
@@ -244,8 +244,8 @@ class Redrawing:
 
 
 def tui_redrawing(folder: Path, quiet: dict) -> None:
-    print(f"\nthe same with the experimenter UI redrawing the pin grid in the parent process "
-          f"(real-time priority); change against the quiet run above")
+    print("\nthe same with the experimenter UI redrawing the pin grid in the parent process "
+          "(real-time priority); change against the quiet run above")
     print(HEADER + "  player p99 change")
     for rate in RATES:
         reference, ours = measure(rate, True, folder, redraw=Redrawing())
@@ -278,7 +278,7 @@ def noticing_a_dead_player(folder: Path, tries: int = 10) -> None:
         trial = prepare_trial(bus, wave(100, 10))
         killed_at = []
 
-        def kill(pid=player.process.pid):
+        def kill(pid=player.process.pid, killed_at=killed_at):
             killed_at.append(time.monotonic())
             os.kill(pid, signal.SIGKILL)
 
