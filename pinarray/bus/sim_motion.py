@@ -21,7 +21,7 @@ goal in the direction of approach and the horn stops on the goal itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 NS_PER_S = 1_000_000_000
@@ -172,7 +172,7 @@ def plan_move(time_ns: int, state: MotionState, goal_steps: float, drive: Drive)
         horn_ahead = bool(drive.load_direction) or (goal_steps - h0) * way >= 0
         if ahead >= stopping and horn_ahead and drive.speed(way) > 0:
             pieces = _run(time_ns, q0, abs(v0), h0, way, ahead, drive)
-            return Move(tuple(pieces), drive)
+            return _landed(pieces, goal_steps, drive)
         # Brake to a stop first, then come back (or go on) from rest.
         brake_s = abs(v0) / a
         q1 = q0 + way * stopping
@@ -191,6 +191,14 @@ def plan_move(time_ns: int, state: MotionState, goal_steps: float, drive: Drive)
         pieces.append(Piece(time_ns, q0, 0.0, 0.0, h0))
         return Move(tuple(pieces), drive)
     pieces.extend(_run(time_ns, q0, 0.0, h0, _sign(target - q0), distance, drive))
+    return _landed(pieces, goal_steps, drive)
+
+
+def _landed(pieces: list[Piece], goal_steps: float, drive: Drive) -> Move:
+    """The move, with the last rounding error taken off the horn's final position."""
+    final = pieces[-1]
+    if abs(final.horn_steps - goal_steps) < 1e-6:
+        pieces[-1] = replace(final, horn_steps=goal_steps)
     return Move(tuple(pieces), drive)
 
 
