@@ -235,9 +235,11 @@ class SimBus:
 
     def _at(self, servo_id: int, baud_rate: int | None) -> list[SimServo]:
         """Every servo answering at ``servo_id`` that hears the host's speed."""
-        return [
-            s for s in self.all_servos() if s.servo_id == servo_id and s.hears(baud_rate)
-        ]
+        servo = self.servos.get(servo_id)
+        found = [servo] if servo is not None and servo.hears(baud_rate) else []
+        if self._shadowed:
+            found += [s for s in self._shadowed if s.servo_id == servo_id and s.hears(baud_rate)]
+        return found
 
     def _renumber(self) -> None:
         """Keep `servos` keyed by each servo's current ID register after an ID write."""

@@ -42,6 +42,30 @@ from pinarray.bus.registers import (
 from pinarray.bus.sim_motion import Drive, MotionState, Move, at_rest, plan_move
 
 TABLE_SIZE = 256
+# Addresses as plain ints: the hot paths below run for every packet of every servo.
+_ID = Register.ID.address
+_BAUD = Register.BAUD_RATE.address
+_RETURN_DELAY = Register.RETURN_DELAY_TIME.address
+_STATUS_LEVEL = Register.STATUS_RETURN_LEVEL.address
+_MIN_ANGLE = Register.MIN_ANGLE_LIMIT.address
+_MAX_ANGLE = Register.MAX_ANGLE_LIMIT.address
+_MAX_VOLTAGE = Register.MAX_VOLTAGE_LIMIT.address
+_MIN_VOLTAGE = Register.MIN_VOLTAGE_LIMIT.address
+_PHASE = Register.PHASE.address
+_OFFSET = Register.POSITION_OFFSET.address
+_MODE = Register.OPERATING_MODE.address
+_TORQUE = Register.TORQUE_ENABLE.address
+_ACCEL = Register.ACCELERATION.address
+_GOAL = Register.GOAL_POSITION.address
+_SPEED = Register.GOAL_SPEED.address
+_LOCK = Register.LOCK.address
+_PRESENT_POSITION = Register.PRESENT_POSITION.address
+_PRESENT_SPEED = Register.PRESENT_SPEED.address
+_PRESENT_LOAD = Register.PRESENT_LOAD.address
+_PRESENT_VOLTAGE = Register.PRESENT_VOLTAGE.address
+_PRESENT_TEMPERATURE = Register.PRESENT_TEMPERATURE.address
+_SERVO_STATUS = Register.SERVO_STATUS.address
+_MOVING = Register.MOVING.address
 # Addresses a write cannot change: version and model (0-4), and the feedback block (56-70).
 READ_ONLY = frozenset(range(0, 5)) | frozenset(range(56, 71))
 # Writes here change where or how the horn goes: limits (9-12), phase (18), offset and mode
@@ -126,6 +150,7 @@ class SimServo:
         self.supply_v = supply_v or model.nominal_voltage_v
         self.backlash_steps = model.backlash_steps if backlash_steps is None else backlash_steps
         self.load_fraction = load_fraction
+        self._max_accel = model.max_acceleration_steps_per_s2
         self._pending: tuple[int, bytes] | None = None  # a REG_WRITE awaiting ACTION
         start = MotionState(float(position_steps), 0.0, float(position_steps))
         self._move: Move = at_rest(start_ns, start, self._drive())
@@ -144,35 +169,42 @@ class SimServo:
             value, register.size
         )
 
+    def _word(self, address: int) -> int:
+        return self.table[address] | self.table[address + 1] << 8
+
+    def _put_word(self, address: int, value: int) -> None:
+        self.table[address] = value & 0xFF
+        self.table[address + 1] = value >> 8 & 0xFF
+
     @property
     def servo_id(self) -> int:
-        return self.get(Register.ID)
+        return self.table[_ID]
 
     @property
     def return_delay_ns(self) -> int:
-        return self.get(Register.RETURN_DELAY_TIME) * 2_000
+        return self.table[_RETURN_DELAY] * 2_000
 
     @property
     def status_return_level(self) -> int:
-        return self.get(Register.STATUS_RETURN_LEVEL)
+        return self.table[_STATUS_LEVEL]
 
     @property
     def torque_enabled(self) -> bool:
-        return bool(self.get(Register.TORQUE_ENABLE))
+        return bool(self.table[_TORQUE])
 
     @property
     def goal_steps(self) -> int:
         """The Goal Position register as written (before clamping), in steps."""
-        return decode_position(self.get(Register.GOAL_POSITION))
+        return decode_position(self._word(_GOAL))
 
     @property
     def offset_steps(self) -> int:
-        return decode_sign_magnitude(self.get(Register.POSITION_OFFSET), OFFSET_SIGN_BIT)
+        return decode_sign_magnitude(self._word(_OFFSET), OFFSET_SIGN_BIT)
 
     @property
     def target_steps(self) -> int:
         """Where the horn is sent: the goal clamped into the angle limits, in steps."""
-        low, high = self.get(Register.MIN_ANGLE_LIMIT), self.get(Register.MAX_ANGLE_LIMIT)
+        low, high = self._word(_MIN_ANGLE), self._word(_MAX_ANGLE)
         if low == 0 and high == 0:
             low, high = -MULTI_TURN_LIMIT_STEPS, MULTI_TURN_LIMIT_STEPS
         return min(max(self.goal_steps, low), high)
@@ -180,7 +212,7 @@ class SimServo:
     @property
     def baud_rate(self) -> int | None:
         """The wire speed the servo listens at, bit/s (None for a code it does not know)."""
-        code = self.get(Register.BAUD_RATE)
+        code = self.table[_BAUD]
         return BAUD_RATE_BY_CODE[code] if code < len(BAUD_RATE_BY_CODE) else None
 
     def set_up_baud(self, baud_rate: int) -> None:
@@ -196,9 +228,7 @@ class SimServo:
     def status_error(self) -> StatusError:
         """Error bits of the next status packet: injected faults and a supply out of limits."""
         bits = self.error_bits
-        supply_dv = self.supply_v * 10
-        low, high = self.get(Register.MIN_VOLTAGE_LIMIT), self.get(Register.MAX_VOLTAGE_LIMIT)
-        if not low <= supply_dv <= high:
+        if not self.table[_MIN_VOLTAGE] <= self.supply_v * 10 <= self.table[_MAX_VOLTAGE]:
             bits |= StatusError.VOLTAGE
         return bits
 
@@ -216,23 +246,21 @@ class SimServo:
         now_ns = self._touch(now_ns)
         if address < FIRST_RAM_ADDRESS:
             self.eeprom_writes.append((Register.at(address) or address, bytes(data)))
-        torque_before = self.torque_enabled
+        table = self.table
+        torque_before = table[_TORQUE]
         written = range(address, min(address + len(data), TABLE_SIZE))
         for index in written:
             if index not in READ_ONLY:
-                self.table[index] = data[index - address]
-        torque = Register.TORQUE_ENABLE.address
-        if torque in written and self.table[torque] == TORQUE_CALIBRATE_2048:
+                table[index] = data[index - address]
+        if _TORQUE in written and table[_TORQUE] == TORQUE_CALIBRATE_2048:
             self._calibrate_to_2048(now_ns)
-            self.table[torque] = int(torque_before)
-        goal = Register.GOAL_POSITION.address
-        goal_written = goal in written or goal + 1 in written
-        in_position_mode = self.get(Register.OPERATING_MODE) == 0
-        if goal_written and torque not in written and in_position_mode:
-            self._set(Register.TORQUE_ENABLE, 1)
-        if address < FIRST_RAM_ADDRESS and self.get(Register.LOCK) == 0:
-            self._saved_eeprom = bytes(self.table[:FIRST_RAM_ADDRESS])
-        if any(index in STEERING for index in written):
+            table[_TORQUE] = 1 if torque_before else 0
+        goal_written = _GOAL in written or _GOAL + 1 in written
+        if goal_written and _TORQUE not in written and table[_MODE] == 0:
+            table[_TORQUE] = 1
+        if address < FIRST_RAM_ADDRESS and table[_LOCK] == 0:
+            self._saved_eeprom = bytes(table[:FIRST_RAM_ADDRESS])
+        if not STEERING.isdisjoint(written):
             self._replan(now_ns)
 
     def reg_write(self, address: int, data: bytes) -> None:
@@ -325,13 +353,13 @@ class SimServo:
 
     def _drive(self) -> Drive:
         top = self.model.speed_at(self.supply_v)
-        phase = self.get(Register.PHASE)
-        speed = self.get(Register.GOAL_SPEED) & 0x7FFF
+        phase = self.table[_PHASE]
+        speed = self._word(_SPEED) & 0x7FFF
         if speed:
             top = min(top, speed * (1 if phase & PHASE_SPEED_UNIT_STEP else 50))
         elif not phase & PHASE_SPEED_ZERO_IS_MAX:
             top = 0.0
-        accel = self.get(Register.ACCELERATION) * 100 or self.model.max_acceleration_steps_per_s2
+        accel = self.table[_ACCEL] * 100 or self._max_accel
         load = self.load_fraction
         direction = -1 if load > 0 else (1 if load < 0 else 0)
         against = top * max(0.0, 1.0 - abs(load))  # a DC motor's torque-speed line
@@ -342,7 +370,7 @@ class SimServo:
     def _replan(self, now_ns: int) -> None:
         state = self._move.state_at(now_ns)
         drive = self._drive()
-        if self.torque_enabled and self.get(Register.OPERATING_MODE) == 0:
+        if self.table[_TORQUE] and self.table[_MODE] == 0:
             goal = self.target_steps + self.offset_steps
             self._move = plan_move(now_ns, state, float(goal), drive)
         else:
@@ -358,28 +386,24 @@ class SimServo:
         self._set(Register.GOAL_POSITION, 2048)  # hold still: the goal follows the new frame
 
     def _refresh_feedback(self, now_ns: int) -> None:
-        state = self._move.state_at(now_ns)
-        present = round(state.horn_steps) - self.offset_steps
-        if not self.get(Register.PHASE) & PHASE_FULL_ANGLE_FEEDBACK:
+        table, move = self.table, self._move
+        present = round(move.state_at(now_ns).horn_steps) - self.offset_steps
+        if not table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK:
             present %= 4096
         present = max(-32767, min(32767, present))
-        self._set(Register.PRESENT_POSITION, encode_sign_magnitude(present, 15))
-        speed = max(-32767, min(32767, round(self._move.horn_speed_at(now_ns))))
-        self._set(Register.PRESENT_SPEED, encode_sign_magnitude(speed, 15))
-        moving = self.torque_enabled and now_ns < self._move.end_ns
-        self._set(Register.MOVING, int(moving))
-        errors = self.status_error
+        self._put_word(_PRESENT_POSITION, encode_sign_magnitude(present, 15))
+        speed = max(-32767, min(32767, round(move.horn_speed_at(now_ns))))
+        self._put_word(_PRESENT_SPEED, encode_sign_magnitude(speed, 15))
+        table[_MOVING] = 1 if table[_TORQUE] and now_ns < move.end_ns else 0
         # Faults show in the telemetry as they would on the bench.
-        if StatusError.OVERLOAD in self.error_bits:
+        injected = self.error_bits
+        if StatusError.OVERLOAD in injected:
             load = 1000
         else:
-            load = round(min(1.0, abs(self.load_fraction)) * 1000) if self.torque_enabled else 0
-        self._set(Register.PRESENT_LOAD, encode_sign_magnitude(load, 10))
-        if StatusError.VOLTAGE in self.error_bits:
-            voltage_dv = 45
-        else:
-            voltage_dv = round(self.supply_v * 10)
-        self._set(Register.PRESENT_VOLTAGE, max(0, min(255, voltage_dv)))
-        hot = StatusError.OVERHEAT in self.error_bits
-        self._set(Register.PRESENT_TEMPERATURE, 75 if hot else NOMINAL_TEMPERATURE_C)
-        self._set(Register.SERVO_STATUS, int(errors))
+            load = round(min(1.0, abs(self.load_fraction)) * 1000) if table[_TORQUE] else 0
+        self._put_word(_PRESENT_LOAD, encode_sign_magnitude(load, 10))
+        voltage_dv = 45 if StatusError.VOLTAGE in injected else round(self.supply_v * 10)
+        table[_PRESENT_VOLTAGE] = max(0, min(255, voltage_dv))
+        hot = StatusError.OVERHEAT in injected
+        table[_PRESENT_TEMPERATURE] = 75 if hot else NOMINAL_TEMPERATURE_C
+        table[_SERVO_STATUS] = int(self.status_error)
