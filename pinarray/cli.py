@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 
 from pinarray import __version__
 from pinarray.errors import PinArrayError
+from pinarray.stop import Stopped
 
 Handler = Callable[[argparse.Namespace], int]
 
@@ -102,6 +103,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
+    except Stopped as stopped:
+        print(f"pinarray: {stopped}", file=sys.stderr)
+        return stopped.exit_status
     except PinArrayError as error:
         for line in str(error).splitlines() or [type(error).__name__]:
             print(f"pinarray: {line}", file=sys.stderr)

@@ -7,6 +7,7 @@ simulated session can run faster than real time. All times are integer nanosecon
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Protocol
 
 
@@ -16,6 +17,10 @@ class Clock(Protocol):
     def now_ns(self) -> int: ...
 
     def sleep_until_ns(self, deadline_ns: int) -> None: ...
+
+    def doze_until_ns(self, deadline_ns: int) -> None:
+        """Wait without spinning: may wake a little late (for waits that are not deadlines)."""
+        ...
 
 
 class MonotonicClock:
@@ -28,10 +33,14 @@ class MonotonicClock:
     ----------
     spin_ns : int
         How long before a deadline to stop sleeping and start spinning, in nanoseconds.
+    sleep : callable, optional
+        Sleeps for a number of seconds (default `time.sleep`); may return early (the player
+        process wakes for messages from its parent).
     """
 
-    def __init__(self, spin_ns: int = 300_000):
+    def __init__(self, spin_ns: int = 300_000, sleep: Callable[[float], object] = time.sleep):
         self.spin_ns = spin_ns
+        self._sleep = sleep
 
     def now_ns(self) -> int:
         return time.monotonic_ns()
@@ -42,7 +51,12 @@ class MonotonicClock:
             if remaining_ns <= 0:
                 return
             if remaining_ns > self.spin_ns:
-                time.sleep((remaining_ns - self.spin_ns) / 1e9)
+                self._sleep((remaining_ns - self.spin_ns) / 1e9)
+
+    def doze_until_ns(self, deadline_ns: int) -> None:
+        remaining_ns = deadline_ns - time.monotonic_ns()
+        if remaining_ns > 0:
+            time.sleep(remaining_ns / 1e9)
 
 
 class ScaledClock:
@@ -67,6 +81,39 @@ class ScaledClock:
     def sleep_until_ns(self, deadline_ns: int) -> None:
         self._base.sleep_until_ns(self._start_ns + int(deadline_ns / self.scale))
 
+    def doze_until_ns(self, deadline_ns: int) -> None:
+        self._base.doze_until_ns(self._start_ns + int(deadline_ns / self.scale))
+
+
+class PacedClock:
+    """Simulated time that waits on the wall clock, ``pace`` times faster than real time.
+
+    Like `VirtualClock`, time moves only when something waits, so the host's own computing
+    costs no simulated time and a simulated stimulus is delivered exactly as scheduled; unlike
+    it, each wait also sleeps ``1/pace`` of its length, so a rehearsal runs at a watchable
+    speed (and can be interrupted). For scripted runs, where nobody answers in real time.
+    """
+
+    def __init__(self, pace: float, start_ns: int = 0, base: MonotonicClock | None = None):
+        if not pace > 0:
+            from pinarray.errors import PinArrayError
+
+            raise PinArrayError(f"time scale must be a positive number, found {pace}")
+        self.pace = pace
+        self._now_ns = start_ns
+        self._base = base or MonotonicClock()
+
+    def now_ns(self) -> int:
+        return self._now_ns
+
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        if deadline_ns > self._now_ns:
+            wall_ns = int((deadline_ns - self._now_ns) / self.pace)
+            self._base.doze_until_ns(self._base.now_ns() + wall_ns)
+            self._now_ns = deadline_ns
+
+    doze_until_ns = sleep_until_ns
+
 
 class VirtualClock:
     """Simulated time: waiting jumps straight to the deadline; nothing ever sleeps.
@@ -83,6 +130,8 @@ class VirtualClock:
     def sleep_until_ns(self, deadline_ns: int) -> None:
         if deadline_ns > self._now_ns:
             self._now_ns = deadline_ns
+
+    doze_until_ns = sleep_until_ns
 
     def advance(self, duration_ns: int) -> None:
         if duration_ns < 0:

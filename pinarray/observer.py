@@ -8,44 +8,73 @@ correct rate over the calibration pins equals the anchor's target, and interpola
 log-log between anchors (held constant beyond them). Corner pins have fewer near neighbours
 than edge pins, and edge pins fewer than centre pins, so the model localises corners best
 and the centre worst without being told to; a per-pin acuity factor scales ``sigma`` for
-single pins (the seed found pin 4 best localised).
+single pins (the seed found pin 4 best localised). Calibrate on the pins a protocol uses
+(`ObserverModel.for_protocol`): averaged over other pins the same spread gives other rates.
 
 Motion: on a wave trial the subject feels motion with probability ``motion_felt``; having
 felt it, names the right direction with ``direction_given_felt``, says "unsure" with
 ``unsure_given_felt``, and otherwise names the wrong one. On a no-wave trial motion is felt
 with ``no_wave_felt`` and the named direction is left or right with equal odds.
 
+Subjects differ. Each simulated subject draws three independent offsets from a normal
+distribution with standard deviation ``subject_sd_logit``: one shifts the logit of the share
+of the way from chance to perfect localisation (the same offset at every frequency, so a good
+subject is good everywhere), one the logit of ``motion_felt``, one the logit of the share of
+the way from 0 to ``1 - unsure_given_felt`` of ``direction_given_felt``. The population is
+calibrated so the *average subject's* rates are the targets: the model's anchors and motion
+probabilities are population means, not the rates of a subject with offset 0.
+
 The defaults reproduce the seed's reported figures in expectation (section 9.7.1): 62.5 %
 correct at 10 Hz, rising with frequency (the 3 and 5 Hz targets, 40 % and 50 %, are this
 model's assumptions: the seed shows them only in a figure), error A the most frequent error
-at every frequency, 77 % motion felt and 65 % of those naming the direction right.
+at every frequency, 77 % motion felt and 65 % of those naming the direction right. The seed
+reports no spread between its subjects; the default ``subject_sd_logit`` of 0.5 is an
+assumption that puts the middle 95 % of subjects between about 41 % and 82 % correct at
+10 Hz on the localisation protocol's 8 pins (`ObserverModel.subject_range`). Set it to 0 for
+identical subjects.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, fields, replace
-from functools import cache
+from functools import cache, lru_cache
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
 
+if TYPE_CHECKING:
+    from pinarray.protocol import Protocol
+
 MOTION_ANSWERS = ("none", "left", "right", "unsure")
 _OPPOSITE = {"left": "right", "right": "left"}
+DEFAULT_SUBJECT_SD_LOGIT = 0.5
+_MAX_SUBJECT_SD_LOGIT = 5.0
+_QUADRATURE_NODES = 40  # Gauss-Hermite nodes for averages over subjects
+_LOGIT_LIMIT = 30.0  # expit(30) = 1 - 1e-13: keeps a subject's rates strictly inside (0, 1)
+
+
+class SubjectOffsets(NamedTuple):
+    """One simulated subject's random effects, on the logit scale (0 = the median subject)."""
+
+    localisation_logit: float = 0.0
+    motion_felt_logit: float = 0.0
+    direction_logit: float = 0.0
 
 
 @dataclass(frozen=True)
 class ObserverModel:
-    """Parameters of a simulated subject; probabilities are fractions in [0, 1].
+    """Parameters of a simulated population of subjects; probabilities are fractions in [0, 1].
 
     Parameters
     ----------
     correct_by_frequency : tuple of (frequency_hz, fraction)
         Anchors: expected fraction of localisation trials answered with the stimulated pin,
-        averaged over ``calibration_pins``. Must rise with frequency.
+        averaged over ``calibration_pins`` and over subjects. Must rise with frequency.
     miss_rate : float
         Fraction of localisation trials on which nothing is felt (answer ``None``).
     pin_acuity : tuple of (pin, factor)
@@ -53,7 +82,10 @@ class ObserverModel:
     calibration_pins : tuple of int, optional
         Pins the anchors average over; all pins of ``grid`` when empty.
     motion_felt, direction_given_felt, unsure_given_felt, no_wave_felt : float
-        Motion-task probabilities, described in the module docstring.
+        Motion-task probabilities (population means), described in the module docstring.
+    subject_sd_logit : float
+        Standard deviation of the subject random effects, in logit units (module docstring);
+        0 makes every subject the same. Default 0.5.
     """
 
     correct_by_frequency: tuple[tuple[float, float], ...] = ((3.0, 0.40), (5.0, 0.50),
@@ -66,6 +98,7 @@ class ObserverModel:
     direction_given_felt: float = 0.65
     unsure_given_felt: float = 0.10
     no_wave_felt: float = 0.30
+    subject_sd_logit: float = DEFAULT_SUBJECT_SD_LOGIT
 
     def __post_init__(self) -> None:
         # Tuples all the way down keep the model hashable, so its calibration is cached.
@@ -77,6 +110,11 @@ class ObserverModel:
         for name in ("miss_rate", "motion_felt", "direction_given_felt", "unsure_given_felt",
                      "no_wave_felt"):
             _check_fraction(name, getattr(self, name))
+        if not 0 <= self.subject_sd_logit <= _MAX_SUBJECT_SD_LOGIT:
+            raise PinArrayError(
+                f"observer: subject_sd_logit must lie from 0 to {_MAX_SUBJECT_SD_LOGIT:g} "
+                f"(logit units), found {self.subject_sd_logit}"
+            )
         if self.direction_given_felt + self.unsure_given_felt > 1:
             raise PinArrayError(
                 "observer: direction_given_felt + unsure_given_felt must be at most 1, found "
@@ -90,11 +128,10 @@ class ObserverModel:
                 raise PinArrayError(
                     f"observer: anchor frequency must be > 0 Hz, found {frequency_hz}"
                 )
-            chance = (1 - self.miss_rate) / self.grid.pin_count
-            if not chance < fraction < 1 - self.miss_rate:
+            if not self.chance < fraction < self.ceiling:
                 raise PinArrayError(
                     f"observer: correct fraction at {frequency_hz:g} Hz must lie between "
-                    f"chance ({chance:.3f}) and 1 - miss_rate ({1 - self.miss_rate:.3f}), "
+                    f"chance ({self.chance:.3f}) and 1 - miss_rate ({self.ceiling:.3f}), "
                     f"found {fraction}"
                 )
         targets = [fraction for _, fraction in anchors]
@@ -116,6 +153,62 @@ class ObserverModel:
         """The pins the anchors average over."""
         return self.calibration_pins or tuple(self.grid.pins)
 
+    @property
+    def chance(self) -> float:
+        """Correct fraction of a subject who feels and names any grid pin at random."""
+        return (1 - self.miss_rate) / self.grid.pin_count
+
+    @property
+    def ceiling(self) -> float:
+        """Correct fraction of a subject who names every felt pin right."""
+        return 1 - self.miss_rate
+
+    def calibrated_on(self, pins: Iterable[int]) -> ObserverModel:
+        """This model with its anchors averaged over ``pins`` (all grid pins when empty)."""
+        return replace(self, calibration_pins=tuple(sorted(set(pins))))
+
+    def for_protocol(self, protocol: Protocol) -> ObserverModel:
+        """This model on the protocol's grid, calibrated on the pins its design stimulates."""
+        pins = {c.pin for c in protocol.design.conditions if c.pin is not None}
+        return replace(self, grid=protocol.device.grid).calibrated_on(pins)
+
+    # -- subjects ---------------------------------------------------------------------------
+
+    def draw_subject(self, rng: np.random.Generator) -> SubjectOffsets:
+        """One subject's offsets, drawn from ``rng`` (nothing is drawn when the SD is 0)."""
+        if self.subject_sd_logit == 0:
+            return SubjectOffsets()
+        return SubjectOffsets(*(float(u) for u in rng.normal(0.0, self.subject_sd_logit, 3)))
+
+    def individual(self, offsets: SubjectOffsets) -> ObserverModel:
+        """The model of one subject: its own anchors and motion rates, no further spread."""
+        if self.subject_sd_logit == 0 and offsets == SubjectOffsets():
+            return self  # every subject of a population without spread is the same one
+        centres = _population_centres(self)
+        anchors = tuple(
+            (f, self.chance + (self.ceiling - self.chance)
+             * _expit(centre + offsets.localisation_logit))
+            for (f, _), centre in zip(sorted(self.correct_by_frequency), centres.anchors,
+                                      strict=True)
+        )
+        top = 1 - self.unsure_given_felt
+        return replace(
+            self, correct_by_frequency=anchors, subject_sd_logit=0.0,
+            motion_felt=_shifted(self.motion_felt, 1.0, centres.felt, offsets.motion_felt_logit),
+            direction_given_felt=_shifted(self.direction_given_felt, top, centres.direction,
+                                          offsets.direction_logit),
+        )
+
+    def subject_range(self, frequency_hz: float, coverage: float = 0.95) -> tuple[float, float]:
+        """Correct fractions between which the middle ``coverage`` of subjects fall."""
+        z = _normal_quantile(0.5 + coverage / 2) * self.subject_sd_logit
+        return tuple(  # type: ignore[return-value]
+            self.individual(SubjectOffsets(u)).expected_localisation(frequency_hz)["correct"]
+            for u in (-z, z)
+        )
+
+    # -- one subject's spread ---------------------------------------------------------------
+
     def _acuity(self) -> np.ndarray:
         factors = np.ones(self.grid.pin_count)
         for pin, factor in self.pin_acuity:
@@ -127,41 +220,64 @@ class ObserverModel:
         weights = np.exp(-_distances(self.grid) / (sigma * self._acuity()[:, None]))
         return weights / weights.sum(axis=1, keepdims=True)
 
-    def _mean_correct(self, sigma: float) -> float:
+    def _mean_correct(self, sigmas: np.ndarray) -> np.ndarray:
+        """Correct fraction over the calibration pins for each spread in ``sigmas``."""
         rows = np.array(self.pins) - 1
-        return (1 - self.miss_rate) * float(np.diag(self._felt_matrix(sigma))[rows].mean())
+        scaled = _distances(self.grid)[rows] / self._acuity()[rows][:, None]
+        # The stimulated pin is at distance 0, so its weight is 1 and its share 1 / row sum.
+        sums = np.exp(-scaled[None] / sigmas[:, None, None]).sum(axis=2)
+        return self.ceiling * (1 / sums).mean(axis=1)
 
-    def _solve_sigma(self, fraction: float) -> float:
-        # The correct rate falls strictly as sigma grows, so bisection in log(sigma) finds it.
-        low, high = math.log(1e-3), math.log(1e3)
-        for _ in range(80):
+    def _solve_sigmas(self, fractions: Sequence[float]) -> np.ndarray:
+        # The correct rate falls strictly as sigma grows: a table over log(sigma) brackets
+        # each anchor's spread, and bisection inside the bracket pins it down (to ~1e-9).
+        log_sigmas, correct = _correct_table(self.grid, self.pin_acuity, self.pins)
+        targets = np.asarray(fractions, dtype=float) / self.ceiling
+        # `correct` falls along the table, so count the entries still above each target.
+        above = np.searchsorted(-correct, -targets, side="right").clip(1, len(correct) - 1)
+        low, high = log_sigmas[above - 1], log_sigmas[above]
+        for _ in range(24):
             middle = (low + high) / 2
-            if self._mean_correct(math.exp(middle)) > fraction:
-                low = middle
-            else:
-                high = middle
-        return math.exp((low + high) / 2)
+            up = self._mean_correct(np.exp(middle)) / self.ceiling > targets
+            low = np.where(up, middle, low)
+            high = np.where(up, high, middle)
+        return np.exp((low + high) / 2)
 
     def sigma(self, frequency_hz: float) -> float:
-        """Spatial spread at ``frequency_hz``, in grid pitches (before per-pin acuity)."""
-        log_f, log_sigma = _log_anchor_sigmas(self)
+        """Spatial spread at ``frequency_hz``, in grid pitches (before per-pin acuity).
+
+        For a population (``subject_sd_logit > 0``) this is the spread of the median subject.
+        """
+        median = self if self.subject_sd_logit == 0 else self.individual(SubjectOffsets())
+        log_f, log_sigma = _log_anchor_sigmas(median)
         return math.exp(float(np.interp(math.log(frequency_hz), log_f, log_sigma)))
 
+    def _own_report_probabilities(self, frequency_hz: float) -> np.ndarray:
+        felt = self.ceiling * self._felt_matrix(self.sigma(frequency_hz))
+        missed = np.full((self.grid.pin_count, 1), self.miss_rate)
+        return np.hstack([missed, felt])
+
+    # -- what the population answers ---------------------------------------------------------
+
     def report_probabilities(self, frequency_hz: float) -> np.ndarray:
-        """Exact answer probabilities: row ``s - 1`` for stimulated pin ``s``.
+        """Exact answer probabilities of a subject drawn at random: row ``s - 1`` for pin ``s``.
 
         Column 0 is "nothing felt"; column ``r`` is pin ``r``. Each row sums to 1.
         """
-        felt = (1 - self.miss_rate) * self._felt_matrix(self.sigma(frequency_hz))
-        missed = np.full((self.grid.pin_count, 1), self.miss_rate)
-        return np.hstack([missed, felt])
+        if self.subject_sd_logit == 0:
+            return self._own_report_probabilities(frequency_hz)
+        total = np.zeros((self.grid.pin_count, self.grid.pin_count + 1))
+        for weight, subject in _population(self):
+            total += weight * subject._own_report_probabilities(frequency_hz)
+        return total
 
     def expected_localisation(
         self, frequency_hz: float, pins: Sequence[int] | None = None
     ) -> dict[str, float]:
         """Expected fraction of each answer class ("correct", "A".."D", "none").
 
-        Averaged over ``pins`` stimulated equally often (the calibration pins by default).
+        Averaged over ``pins`` stimulated equally often (the calibration pins by default)
+        and over subjects.
         """
         probabilities = self.report_probabilities(frequency_hz).tolist()
         chosen = tuple(pins) if pins is not None else self.pins
@@ -178,7 +294,11 @@ class ObserverModel:
         return correct.reshape(self.grid.rows, self.grid.columns)
 
     def motion_probabilities(self, direction: str) -> dict[str, float]:
-        """Exact answer probabilities for a wave going ``direction`` ("left", "right", "none")."""
+        """Exact answer probabilities for a wave going ``direction`` ("left", "right", "none").
+
+        For a population these are the averages over subjects: felt and direction offsets
+        are independent, so the average of their product is the product of the averages.
+        """
         if direction == "none":
             felt = self.no_wave_felt
             named = (1 - self.unsure_given_felt) / 2
@@ -194,6 +314,78 @@ class ObserverModel:
                 _OPPOSITE[direction]: felt * wrong, "unsure": felt * self.unsure_given_felt}
 
 
+class _Centres(NamedTuple):
+    anchors: tuple[float, ...]  # logit centre of each anchor's share above chance
+    felt: float
+    direction: float
+
+
+def _expit(x: float) -> float:
+    x = min(max(x, -_LOGIT_LIMIT), _LOGIT_LIMIT)
+    return 1 / (1 + math.exp(-x))
+
+
+def _shifted(mean: float, top: float, centre: float, offset: float) -> float:
+    """A subject's rate on (0, top) whose population mean is ``mean``; ends stay put."""
+    if mean <= 0 or mean >= top:
+        return mean
+    return top * _expit(centre + offset)
+
+
+@cache
+def _hermite(nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and weights for the mean of f(Z), Z standard normal: sum(w * f(z))."""
+    x, w = np.polynomial.hermite.hermgauss(nodes)
+    return math.sqrt(2) * x, w / math.sqrt(math.pi)
+
+
+def _centre(share: float, sd: float) -> float:
+    """The logit centre m with E[expit(m + sd * Z)] = share, Z standard normal."""
+    if share <= 0 or share >= 1:
+        return 0.0  # unused: `_shifted` keeps a rate at 0 or at its top where it is
+    if sd == 0:
+        return math.log(share / (1 - share))
+    z, w = _hermite(_QUADRATURE_NODES)
+    low, high = -2 * _LOGIT_LIMIT, 2 * _LOGIT_LIMIT
+    for _ in range(100):  # the mean rises with m, so bisection finds it
+        middle = (low + high) / 2
+        mean = float(w @ (1 / (1 + np.exp(-np.clip(middle + sd * z, -700, 700)))))
+        low, high = (middle, high) if mean < share else (low, middle)
+    return (low + high) / 2
+
+
+@cache
+def _population_centres(model: ObserverModel) -> _Centres:
+    sd = model.subject_sd_logit
+    span = model.ceiling - model.chance
+    return _Centres(
+        anchors=tuple(_centre((c - model.chance) / span, sd)
+                      for _, c in sorted(model.correct_by_frequency)),
+        felt=_centre(model.motion_felt, sd),
+        direction=_centre(model.direction_given_felt / (1 - model.unsure_given_felt)
+                          if model.unsure_given_felt < 1 else 0.0, sd),
+    )
+
+
+@cache
+def _population(model: ObserverModel) -> tuple[tuple[float, ObserverModel], ...]:
+    """Quadrature weights and the subjects at their nodes, for averages over subjects."""
+    z, w = _hermite(_QUADRATURE_NODES)
+    sd = model.subject_sd_logit
+    return tuple((float(weight), model.individual(SubjectOffsets(float(sd * node))))
+                 for node, weight in zip(z, w, strict=True))
+
+
+@cache
+def _correct_table(grid: Grid, pin_acuity: tuple[tuple[int, float], ...],
+                   pins: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Felt-correct fraction over ``pins`` on a grid of log(sigma) from 1e-3 to 1e3 pitches."""
+    probe = ObserverModel(grid=grid, pin_acuity=pin_acuity, calibration_pins=pins,
+                          correct_by_frequency=((1.0, 0.5),), subject_sd_logit=0.0)
+    log_sigmas = np.linspace(math.log(1e-3), math.log(1e3), 513)
+    return log_sigmas, probe._mean_correct(np.exp(log_sigmas))
+
+
 @cache
 def _distances(grid: Grid) -> np.ndarray:
     """Centre-to-centre distances between all pins, in grid pitches; read-only."""
@@ -203,12 +395,22 @@ def _distances(grid: Grid) -> np.ndarray:
     return distances
 
 
-@cache
+@lru_cache(maxsize=4096)
 def _log_anchor_sigmas(model: ObserverModel) -> tuple[list[float], list[float]]:
-    # Models are frozen and hashable, so each one's bisections run once per process.
+    # Models are frozen and hashable, so each one's bisections run once per process (bounded:
+    # a power analysis makes thousands of simulated subjects, each a model of its own).
     anchors = sorted(model.correct_by_frequency)
-    return ([math.log(f) for f, _ in anchors],
-            [math.log(model._solve_sigma(c)) for _, c in anchors])
+    sigmas = model._solve_sigmas([c for _, c in anchors])
+    return [math.log(f) for f, _ in anchors], [math.log(s) for s in sigmas]
+
+
+def _normal_quantile(p: float) -> float:
+    """Standard normal quantile by bisection on erf (no scipy needed here)."""
+    low, high = -10.0, 10.0
+    for _ in range(100):
+        middle = (low + high) / 2
+        low, high = (middle, high) if 0.5 * math.erfc(-middle / math.sqrt(2)) < p else (low, middle)
+    return (low + high) / 2
 
 
 def _check_fraction(name: str, value: float) -> None:
@@ -217,27 +419,36 @@ def _check_fraction(name: str, value: float) -> None:
 
 
 class SimulatedObserver:
-    """Answers trials as `ObserverModel` says, drawing from its own seeded generator.
+    """One simulated subject: drawn from `ObserverModel`'s population, answering trials.
 
     Parameters
     ----------
     model : ObserverModel
-        The subject's parameters; the defaults match the seed's figures.
+        The population's parameters; the defaults match the seed's figures on average.
     seed : int, numpy.random.Generator or None
-        Same seed, same model and same trials give the same answers.
+        Same seed, same model and same trials give the same subject and the same answers.
+
+    Attributes
+    ----------
+    offsets : SubjectOffsets
+        This subject's random effects, drawn first from the generator.
+    subject : ObserverModel
+        This subject's own parameters (``model.individual(offsets)``).
     """
 
     def __init__(self, model: ObserverModel | None = None,
                  seed: int | np.random.Generator | None = None):
         self.model = model or ObserverModel()
         self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        self.offsets = self.model.draw_subject(self.rng)
+        self.subject = self.model.individual(self.offsets)
         self._cumulative: dict[float, np.ndarray] = {}
 
     def respond_localisation(self, stimulated_pin: int, frequency_hz: float) -> int | None:
         """The pin the subject names, or None when nothing was felt."""
-        self.model.grid.check_pin(stimulated_pin)
+        self.subject.grid.check_pin(stimulated_pin)
         if frequency_hz not in self._cumulative:
-            table = np.cumsum(self.model.report_probabilities(frequency_hz), axis=1)
+            table = np.cumsum(self.subject.report_probabilities(frequency_hz), axis=1)
             self._cumulative[frequency_hz] = table
         row = self._cumulative[frequency_hz][stimulated_pin - 1]
         # Clamp: rounding can leave the last cumulative entry a hair below the draw.
@@ -246,7 +457,7 @@ class SimulatedObserver:
 
     def respond_motion(self, direction: str) -> str:
         """'none', 'left', 'right' or 'unsure' for a wave going left, right or not at all."""
-        probabilities = self.model.motion_probabilities(direction)
+        probabilities = self.subject.motion_probabilities(direction)
         draw, total = self.rng.random(), 0.0
         for answer in MOTION_ANSWERS:
             total += probabilities[answer]
@@ -258,7 +469,7 @@ class SimulatedObserver:
 def parse_observer(spec: str) -> ObserverModel:
     """An `ObserverModel` from command-line text: ``default`` or ``name=value,...`` overrides.
 
-    Scalar parameters are set by name (``motion_felt=0.9,miss_rate=0.05``); an anchor by
+    Scalar parameters are set by name (``motion_felt=0.9,subject_sd_logit=0``); an anchor by
     ``correct_<f>hz=<fraction>`` (``correct_10hz=0.7``), replacing or adding that frequency.
     """
     model = ObserverModel()
@@ -266,7 +477,7 @@ def parse_observer(spec: str) -> ObserverModel:
         return model
     scalars = {f.name for f in fields(ObserverModel) if f.type == "float"}
     anchors = dict(model.correct_by_frequency)
-    changes: dict[str, float] = {}
+    changes: dict[str, Any] = {}
     for item in spec.split(","):
         name, _, text = item.partition("=")
         name = name.strip()
@@ -274,6 +485,8 @@ def parse_observer(spec: str) -> ObserverModel:
             value = float(text)
         except ValueError:
             raise PinArrayError(f"observer: {item!r}: expected name=number") from None
+        if not math.isfinite(value):
+            raise PinArrayError(f"observer: {item!r}: expected a finite number")
         if name.startswith("correct_") and name.endswith("hz"):
             try:
                 anchors[float(name[len("correct_"):-2])] = value

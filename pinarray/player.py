@@ -1,38 +1,48 @@
-"""Plays a trial's goal-position changes on a servo bus against absolute deadlines.
+"""Plays a trial's goal changes against absolute deadlines and verifies that they arrived.
 
-Frame ``k`` is sent at ``onset + time_ns[k]`` by ``clock.sleep_until_ns``; the loop never
-sleeps "period minus elapsed", so a late frame does not push every later one. Scheduled and
-actual send times of every frame are kept for the report.
+Before onset every frame's sync write is encoded (`prepare_trial`), so at each deadline the
+loop does one thing: hand a prebuilt packet to the port in one call. Frame ``k`` goes out at
+``onset + time_ns[k]`` (never "period minus elapsed", so a late frame does not push the later
+ones), with the garbage collector frozen and paused for the trial.
+
+A sync write gets no reply, so in the slack between frames, and only when the slack is longer
+than the bus's worst-case round trip, the player reads each changed goal back from its servo
+(`pinarray.delivery`): a goal the servo does not hold is written again, acknowledged, and
+counted as healed, with how late it arrived. The trial's `DeliveryRecord` says whether it was
+delivered as scheduled. Telemetry is read only after the trial's last frame.
 
 Safety: a schedule that would take any pin outside its calibrated limits is refused before
-anything is sent, and every way out of `play_trial` (normal end, exception, Ctrl-C, SIGTERM
-turned into `Terminated`, a lost port) first puts pins at rest and torque off where the bus
-still answers.
+anything is sent, and every way out of `play_prepared` (normal end, exception, a stop request,
+a lost port) first puts pins at rest and torque off where the bus still answers.
 """
 
 from __future__ import annotations
 
-import signal
+import gc
+from array import array
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from pinarray.bus.base import Bus, BusSetup, SafeStopReport, Telemetry
+from pinarray.bus.base import Bus, BusSetup, PortLost, SafeStopReport, Telemetry
 from pinarray.bus.registers import StatusError
 from pinarray.clock import Clock
+from pinarray.delivery import DEFAULT_TOLERANCE_NS, Change, DeliveryLedger, DeliveryRecord
 from pinarray.errors import BusError, Interrupted, PinArrayError
 from pinarray.schedule import TargetList
 
 # Time between "go" and the first frame, so frame 0 is not late by construction.
 DEFAULT_LEAD_NS = 20_000_000
-# Telemetry is read only when the next frame is at least this far away.
-TELEMETRY_SLACK_NS = 5_000_000
-
-
-class Terminated(Interrupted):
-    """The process was asked to stop (SIGTERM); raised inside playback so pins go to rest."""
+# Read-backs stop this long before the next frame is due, so they never delay it.
+GUARD_NS = 300_000
+# After the trial's end, read-backs may go on this long to confirm the last changes.
+SETTLE_NS = 200_000_000
+# A READ instruction packet and a WRITE of a 2-byte goal, in bytes.
+READ_REQUEST_BYTES = 8
+REWRITE_REQUEST_BYTES = 9
+GOAL_BYTES = 2
 
 
 class PlaybackAborted(PinArrayError):
@@ -41,6 +51,26 @@ class PlaybackAborted(PinArrayError):
     def __init__(self, message: str, safe_stop: SafeStopReport):
         super().__init__(message)
         self.safe_stop = safe_stop
+
+
+@dataclass(frozen=True)
+class PreparedFrame:
+    """One frame ready to send: its time from onset, its packet and the goals in it."""
+
+    time_ns: int
+    packet: bytes
+    goals: tuple[tuple[int, int], ...]  # (servo id, goal in steps)
+    first_change: int  # index of its first goal in `PreparedTrial.changes`
+
+
+@dataclass(frozen=True)
+class PreparedTrial:
+    """A trial encoded for the wire before onset: frames, their goal changes and the end."""
+
+    frames: tuple[PreparedFrame, ...]
+    changes: tuple[Change, ...]
+    end_ns: int
+    pin_of_servo: dict[int, int]
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,16 +82,18 @@ class PlaybackReport:
     onset_ns : int
         Clock time of the trial's time zero, in nanoseconds.
     scheduled_ns, sent_ns : numpy.ndarray
-        Per frame, when it was due and when it was handed to the port, both relative to
-        onset, in nanoseconds (int64).
+        Per frame, when it was due and when its write returned, both relative to onset, in
+        nanoseconds (int64): the sender's view; the bench measures the servo's.
     goals_written : int
-        Servo goals sent (a frame carries only the servos whose goal changed).
+        Servo goals sent by the frames (a frame carries only the servos whose goal changed).
     bytes_written, bytes_read : int
-        Bytes the host put on and took off the wire during the trial.
+        Bytes the host put on and took off the wire during the trial, read-backs included.
     retries : int
         Transient failures retried during the trial.
+    delivery : DeliveryRecord
+        Which goal changes were confirmed on their servo, healed or missing.
     telemetry : tuple of Telemetry
-        Readings taken during and right after the trial.
+        Readings taken right after the trial.
     safe_stop : SafeStopReport or None
         Result of resting and releasing the pins, when the trial ended with it.
     """
@@ -73,6 +105,7 @@ class PlaybackReport:
     bytes_written: int
     bytes_read: int
     retries: int
+    delivery: DeliveryRecord
     telemetry: tuple[Telemetry, ...] = ()
     safe_stop: SafeStopReport | None = None
     errors_ns: np.ndarray = field(init=False)
@@ -96,6 +129,16 @@ class PlaybackReport:
             arrays = [getattr(r, name) for r in reports]
             return np.concatenate(arrays) if arrays else np.zeros(0, dtype=np.int64)
 
+        records = [r.delivery for r in reports]
+        delivery = DeliveryRecord(
+            scheduled=sum(d.scheduled for d in records),
+            confirmed=sum(d.confirmed for d in records),
+            healed=sum(d.healed for d in records),
+            missing=sum(d.missing for d in records),
+            worst_lateness_ns=max((d.worst_lateness_ns for d in records), default=0),
+            tolerance_ns=records[0].tolerance_ns if records else DEFAULT_TOLERANCE_NS,
+            problem=next((d.problem for d in records if d.problem), ""),
+        )
         return cls(
             onset_ns=reports[0].onset_ns if reports else 0,
             scheduled_ns=joined("scheduled_ns"),
@@ -104,21 +147,23 @@ class PlaybackReport:
             bytes_written=sum(r.bytes_written for r in reports),
             bytes_read=sum(r.bytes_read for r in reports),
             retries=sum(r.retries for r in reports),
+            delivery=delivery,
             telemetry=tuple(t for r in reports for t in r.telemetry),
         )
 
     def deadline_error_ns(self, percentile: float) -> int:
-        """Lateness of the frames at ``percentile`` (0-100), in nanoseconds."""
+        """Lateness of the frames' writes at ``percentile`` (0-100), in nanoseconds."""
         if not len(self.errors_ns):
             return 0
         return int(np.percentile(self.errors_ns, percentile, method="higher"))
 
     def summary(self) -> str:
-        """One line: frames, bytes, deadline error p50/p99/max."""
+        """One line: frames, bytes, write lateness p50/p99/max, delivery."""
         p50, p99, worst = (self.deadline_error_ns(p) / 1e6 for p in (50, 99, 100))
         return (
-            f"{self.frames_sent} frames sent, {self.bytes_on_wire} bytes on the wire, "
-            f"deadline error p50 {p50:.3f} ms, p99 {p99:.3f} ms, max {worst:.3f} ms"
+            f"{self.frames_sent} frames, {self.bytes_on_wire} bytes on the wire, "
+            f"write lateness p50 {p50:.3f} ms, p99 {p99:.3f} ms, max {worst:.3f} ms; "
+            f"{self.delivery.summary()}"
         )
 
 
@@ -149,96 +194,219 @@ def check_limits(targets: TargetList, setup: BusSetup) -> None:
             )
 
 
-def play_trial(
+def prepare_trial(bus: Bus, targets: TargetList) -> PreparedTrial:
+    """Check a trial against the pins' limits and encode every frame's packet, before onset."""
+    setup = bus.setup
+    check_limits(targets, setup)
+    servo_of_pin = {s.pin: s.servo_id for s in setup.servos}
+    frames: list[PreparedFrame] = []
+    changes: list[Change] = []
+    for frame in targets.frames():
+        goals = tuple(
+            (servo_of_pin[int(pin)], int(position))
+            for pin, position in zip(frame.pins, frame.position_steps, strict=True)
+        )
+        frames.append(PreparedFrame(frame.time_ns, bus.goal_packet(dict(goals)), goals, len(changes)))
+        changes.extend(
+            Change(servo_id, int(pin), goal, frame.time_ns)
+            for (servo_id, goal), pin in zip(goals, frame.pins, strict=True)
+        )
+    return PreparedTrial(tuple(frames), tuple(changes), targets.end_ns,
+                         {s.servo_id: s.pin for s in setup.servos})
+
+
+@contextmanager
+def gc_paused() -> Iterator[None]:
+    """Collect now, then keep the garbage collector out of the trial (a pass can take ms)."""
+    enabled = gc.isenabled()
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+        if enabled:
+            gc.enable()
+
+
+class _Verifier:
+    """Reads changed goals back in the slack between frames and re-writes the lost ones."""
+
+    def __init__(self, bus: Bus, clock: Clock, trial: PreparedTrial, onset_ns: int,
+                 ledger: DeliveryLedger):
+        self.bus, self.clock, self.trial, self.onset_ns = bus, clock, trial, onset_ns
+        self.ledger = ledger
+        self.pending: dict[int, int] = {}  # servo id -> index of its unconfirmed change
+        self.sent_lateness_ns = [0] * len(trial.changes)
+        self.rewritten_at_ns: dict[int, int] = {}  # change index -> ns from onset
+        self.wire_free_ns = 0  # when the last frame written will have left, ns from onset
+
+    def sent(self, frame: PreparedFrame, sent_ns: int) -> None:
+        """A frame's write returned ``sent_ns`` after onset: its changes await confirmation."""
+        # Frames written back to back queue behind each other on the wire.
+        arrival_ns = max(sent_ns, self.wire_free_ns) + self.bus.wire_ns(len(frame.packet))
+        self.wire_free_ns = arrival_ns
+        for offset, (servo_id, _goal) in enumerate(frame.goals):
+            index = frame.first_change + offset
+            previous = self.pending.pop(servo_id, None)
+            if previous is not None:
+                self.ledger.lose(previous, "the servo's next change came before a read-back "
+                                           "could confirm it")
+            self.pending[servo_id] = index
+            self.sent_lateness_ns[index] = arrival_ns - frame.time_ns
+
+    def work_until(self, limit_ns: int) -> None:
+        """Confirm or heal pending changes while an exchange still fits before ``limit_ns``."""
+        bus, clock = self.bus, self.clock
+        while self.pending:
+            servo_id, index = next(iter(self.pending.items()))
+            if clock.now_ns() + bus.reply_time_ns(servo_id, READ_REQUEST_BYTES, GOAL_BYTES) > limit_ns:
+                return
+            reading = bus.read_goal(servo_id, limit_ns)
+            if reading is None:
+                self._later(servo_id)
+                continue
+            self._check(servo_id, reading.errors)
+            change = self.trial.changes[index]
+            if reading.goal_steps == change.goal_steps:
+                del self.pending[servo_id]
+                rewritten_ns = self.rewritten_at_ns.get(index)
+                if rewritten_ns is None:
+                    self.ledger.confirm(index, self.sent_lateness_ns[index], healed=False)
+                else:
+                    self.ledger.confirm(index, rewritten_ns - change.time_ns, healed=True)
+                continue
+            now_ns = clock.now_ns()
+            if now_ns + bus.reply_time_ns(servo_id, REWRITE_REQUEST_BYTES, 0) > limit_ns:
+                return
+            # The servo does not hold this goal: its sync write was lost. Say it again.
+            self.rewritten_at_ns[index] = (now_ns - self.onset_ns
+                                           + bus.wire_ns(REWRITE_REQUEST_BYTES))
+            errors = bus.rewrite_goal(servo_id, change.goal_steps, limit_ns)
+            if errors is None:
+                self._later(servo_id)  # no acknowledgement: read back again later
+                continue
+            self._check(servo_id, errors)
+            del self.pending[servo_id]
+            self.ledger.confirm(index, self.rewritten_at_ns[index] - change.time_ns, healed=True)
+
+    def _later(self, servo_id: int) -> None:
+        self.pending[servo_id] = self.pending.pop(servo_id)  # to the back of the queue
+
+    def _check(self, servo_id: int, errors: StatusError) -> None:
+        if errors:
+            pin = self.trial.pin_of_servo.get(servo_id)
+            raise BusError(f"servo fault: servo {servo_id} (pin {pin}) reports {errors.describe()}")
+
+
+def play_prepared(
     bus: Bus,
-    targets: TargetList,
+    trial: PreparedTrial,
     clock: Clock,
     *,
     lead_ns: int = DEFAULT_LEAD_NS,
-    telemetry_interval_ns: int | None = 1_000_000_000,
+    tolerance_ns: int = DEFAULT_TOLERANCE_NS,
+    guard_ns: int = GUARD_NS,
     release_at_end: bool = True,
 ) -> PlaybackReport:
-    """Play one trial's goal-position changes against absolute deadlines.
+    """Play a prepared trial against absolute deadlines, verifying every goal change.
 
     Parameters
     ----------
     bus : Bus
         A connected bus (torque on); `pinarray.bus.transport.open_bus`.
-    targets : TargetList
-        The trial's target changes, times relative to trial onset.
+    trial : PreparedTrial
+        From `prepare_trial`.
     clock : Clock
-        The clock the bus uses too (virtual, scaled or monotonic).
+        The clock the bus uses too, or one that wraps it and raises `Interrupted` when a
+        stop is requested (`pinarray.stop.StoppableClock`).
     lead_ns : int
         Delay from the call to the trial onset, in nanoseconds.
-    telemetry_interval_ns : int or None
-        How often to read one servo's telemetry when there is slack; None: never during
-        the trial. Any status error bit stops the trial.
+    tolerance_ns : int
+        How late a goal change may reach its servo and still count as delivered.
+    guard_ns : int
+        Read-backs end this long before the next frame is due.
     release_at_end : bool
         After a normal end, rest and release torque (True), or leave the pins holding rest
-        for the next trial (False; wrap the session in `pins_made_safe`).
+        for the next trial (False; the caller makes them safe at the end).
 
     Returns
     -------
     PlaybackReport
+        Including its `DeliveryRecord`; a trial not delivered as scheduled is reported, not
+        raised: the caller marks it invalid.
     """
     setup = bus.setup
-    check_limits(targets, setup)
-    servo_of_pin = {s.pin: s.servo_id for s in setup.servos}
-    frames = list(targets.frames())
-    scheduled = np.fromiter((f.time_ns for f in frames), dtype=np.int64, count=len(frames))
-    sent = np.zeros(len(frames), dtype=np.int64)
+    frames = trial.frames
+    count = len(frames)
+    scheduled = np.fromiter((f.time_ns for f in frames), dtype=np.int64, count=count)
+    sent = array("q", bytes(8 * count))
+    ledger = DeliveryLedger(trial.changes, tolerance_ns)
     before = bus.stats()
-    readings: list[Telemetry] = []
-    ids = setup.servo_ids
-    next_reading_ns = 0
     index = 0
-    onset_ns = clock.now_ns() + lead_ns
-    try:
-        for index, frame in enumerate(frames):
-            clock.sleep_until_ns(onset_ns + frame.time_ns)
-            goals = {
-                servo_of_pin[int(pin)]: int(position)
-                for pin, position in zip(frame.pins, frame.position_steps, strict=True)
-            }
-            bus.write_goals(goals)
-            sent[index] = clock.now_ns() - onset_ns
-            if telemetry_interval_ns is not None and ids:
-                upcoming_ns = frames[index + 1].time_ns if index + 1 < len(frames) else None
-                now_ns = clock.now_ns() - onset_ns
-                slack = upcoming_ns is None or upcoming_ns - now_ns >= TELEMETRY_SLACK_NS
-                if slack and now_ns >= next_reading_ns:
-                    servo_id = ids[len(readings) % len(ids)]
-                    readings.extend(_checked(bus.read_telemetry((servo_id,)), setup))
-                    next_reading_ns = now_ns + telemetry_interval_ns
-        index = len(frames)
-        clock.sleep_until_ns(onset_ns + targets.end_ns)
-        readings.extend(_checked(bus.read_telemetry(ids), setup))
-    except Interrupted:
-        bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
-        raise
-    except PinArrayError as error:
-        safe = bus.rest_and_release()
-        where = f"at frame {index + 1} of {len(frames)}" if index < len(frames) else "after the last frame"
-        raise PlaybackAborted(
-            f"playback stopped {where}: {error}; {describe(safe)}",
-            safe,
-        ) from error
-    except BaseException:
-        bus.rest_and_release()  # Ctrl-C and anything unexpected: pins first, then re-raise
-        raise
+    with gc_paused():
+        onset_ns = clock.now_ns() + lead_ns
+        verifier = _Verifier(bus, clock, trial, onset_ns, ledger)
+        try:
+            for index in range(count):
+                frame = frames[index]
+                deadline_ns = onset_ns + frame.time_ns
+                verifier.work_until(deadline_ns - guard_ns)
+                clock.sleep_until_ns(deadline_ns)
+                bus.send_goals(frame.packet, frame.goals)
+                sent[index] = clock.now_ns() - onset_ns
+                verifier.sent(frame, sent[index])
+            index = count
+            end_ns = onset_ns + trial.end_ns
+            verifier.work_until(end_ns)
+            clock.sleep_until_ns(end_ns)
+            verifier.work_until(end_ns + SETTLE_NS)
+            readings = _checked(_telemetry(bus, setup.servo_ids), setup)
+        except Interrupted:
+            bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
+            raise
+        except PinArrayError as error:
+            safe = bus.rest_and_release()
+            where = f"at frame {index + 1} of {count}" if index < count else "after the last frame"
+            raise PlaybackAborted(f"playback stopped {where}: {error}; {describe(safe)}",
+                                  safe) from error
+        except BaseException:
+            bus.rest_and_release()  # Ctrl-C and anything unexpected: pins first, then re-raise
+            raise
     safe_stop = bus.rest_and_release() if release_at_end else None
     after = bus.stats()
     return PlaybackReport(
         onset_ns=onset_ns,
         scheduled_ns=scheduled,
-        sent_ns=sent,
+        sent_ns=np.frombuffer(sent, dtype=np.int64).copy(),
         goals_written=after.goals_written - before.goals_written,
         bytes_written=after.bytes_written - before.bytes_written,
         bytes_read=after.bytes_read - before.bytes_read,
         retries=after.retries - before.retries,
-        telemetry=tuple(readings),
+        delivery=ledger.record(),
+        telemetry=readings,
         safe_stop=safe_stop,
     )
+
+
+def play_trial(bus: Bus, targets: TargetList, clock: Clock, **options) -> PlaybackReport:
+    """`prepare_trial` then `play_prepared` (same options), in this process."""
+    return play_prepared(bus, prepare_trial(bus, targets), clock, **options)
+
+
+def _telemetry(bus: Bus, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
+    """Each servo's state after the trial; one that does not answer now is skipped (the
+    delivery record already says what reached it, and the next trial's read-backs will tell)."""
+    readings: list[Telemetry] = []
+    for servo_id in servo_ids:
+        try:
+            readings.extend(bus.read_telemetry((servo_id,)))
+        except PortLost:
+            raise
+        except BusError:
+            continue
+    return tuple(readings)
 
 
 def _checked(readings: tuple[Telemetry, ...], setup: BusSetup) -> tuple[Telemetry, ...]:
@@ -270,24 +438,3 @@ def pins_made_safe(bus: Bus) -> Iterator[None]:
         yield
     finally:
         bus.rest_and_release()
-
-
-@contextmanager
-def sigterm_raises() -> Iterator[None]:
-    """Turn SIGTERM into `Terminated` inside the block, so playback stops through `finally`.
-
-    For composition roots (CLI, TUI) only; does nothing outside the main thread.
-    """
-
-    def handler(signum, frame):
-        raise Terminated("terminated by SIGTERM")
-
-    try:
-        previous = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)

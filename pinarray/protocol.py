@@ -76,6 +76,8 @@ class Device:
     pins: tuple[PinCalibration, ...]
     port: str = "sim://"
     scale_infeasible: bool = False  # scale strokes the servo cannot follow instead of refusing
+    # A trial counts as delivered when every goal change reached its servo within this.
+    delivery_tolerance_ns: int = 10_000_000
 
     def calibration(self, pin: int) -> PinCalibration:
         self.grid.check_pin(pin)

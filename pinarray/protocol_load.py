@@ -105,7 +105,8 @@ def _device(reader: Reader, node: Node | None) -> Device | None:
     keys = reader.attempt(
         lambda: reader.mapping(
             node,
-            {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility"},
+            {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility",
+             "delivery_tolerance_ms"},
             what="device section",
         ),
         None,
@@ -134,6 +135,15 @@ def _device(reader: Reader, node: Node | None) -> Device | None:
             )
             == "scale"
         )
+    tolerance_ns = Device.delivery_tolerance_ns
+    if "delivery_tolerance_ms" in keys:
+        tolerance_ms = reader.attempt(
+            lambda: reader.number(keys["delivery_tolerance_ms"], "the delivery tolerance", "ms",
+                                  maximum=10_000),
+            None,
+        )
+        if tolerance_ms is not None:
+            tolerance_ns = round(tolerance_ms * 1_000_000)
     base = (
         reader.attempt(lambda: _calibration_fields(reader, keys["calibration"], "calibration"), {})
         if "calibration" in keys
@@ -164,7 +174,7 @@ def _device(reader: Reader, node: Node | None) -> Device | None:
     device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get("servo_ids"))
     if device is None:
         return None
-    return Device(device.grid, device.servo, device.pins, port, scale)
+    return Device(device.grid, device.servo, device.pins, port, scale, tolerance_ns)
 
 
 def _grid(reader: Reader, node: Node) -> Grid:

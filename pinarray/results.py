@@ -32,7 +32,7 @@ from pinarray.manifest import (
     write_atomically,
     write_manifest,
 )
-from pinarray.signals import deferred_signals
+from pinarray.stop import deferred_signals
 
 NA = "n/a"  # BIDS spelling of "not applicable"
 TRIAL_STATUSES = ("ok", "redone", "aborted", "invalid")
@@ -72,6 +72,12 @@ class TrialRecord:
     direction_correct: bool | None = None
     practice: bool = False
     resumed: bool = False
+    goals_scheduled: int | None = None
+    goals_confirmed: int | None = None
+    goals_healed: int | None = None
+    goals_missing: int | None = None
+    delivery_lateness_s: float | None = None
+    status_reason: str | None = None
 
     def __post_init__(self) -> None:
         check_label("task", self.task)
@@ -88,9 +94,11 @@ class TrialRecord:
                 f"{where}: a motion response must be one of {MOTION_RESPONSES}, "
                 f"found {self.response!r}"
             )
-        if isinstance(self.response, str) and ("\n" in self.response or "\r" in self.response):
-            # One row per line is what lets a torn last line be told from a whole one.
-            raise ResultsError(f"{where}: a response cannot contain a line break")
+        for name in ("response", "status_reason"):
+            text = getattr(self, name)
+            if isinstance(text, str) and ("\n" in text or "\r" in text):
+                # One row per line is what lets a torn last line be told from a whole one.
+                raise ResultsError(f"{where}: a {name} cannot contain a line break")
 
     @property
     def is_localisation(self) -> bool:
@@ -143,10 +151,26 @@ BEH_COLUMNS: dict[str, tuple[str, str, str | dict[str, str] | None]] = {
                  {"true": "practice", "false": "main trial"}),
     "resumed": ("resumed", "Whether the trial ran after the session was resumed.",
                 {"true": "after a resume", "false": "in the first sitting"}),
+    "goals_scheduled": ("goals_scheduled", "Servo goal-position changes the trial's schedule "
+                        "holds; n/a when the stimulus never played.", None),
+    "goals_confirmed": ("goals_confirmed", "Goal changes read back from their servo as sent "
+                        "(sync writes get no reply, so each is verified by a read).", None),
+    "goals_healed": ("goals_healed", "Goal changes the servo did not hold when read back "
+                     "(lost on the wire), written again with an acknowledged write.", None),
+    "goals_missing": ("goals_missing", "Goal changes never confirmed on their servo; any "
+                      "makes the trial invalid.", None),
+    "delivery_lateness": ("delivery_lateness_s", "How late the latest confirmed or healed goal "
+                          "change reached its servo after its scheduled time (host write time "
+                          "plus wire time); above the protocol's delivery tolerance the trial "
+                          "is invalid.", "s"),
+    "status_reason": ("status_reason", "Why a trial is not ok: the bus fault, what was not "
+                      "delivered as scheduled, or who stopped it; n/a for ok rows.", None),
 }
 EVENT_COLUMNS = ("onset", "duration", "trial_type", "trial", "pin", "row", "direction",
                  "frequency_hz", "response", "status", "practice")
 _FIELD_TYPES = {f.name: f.type for f in fields(TrialRecord)}
+# The columns of the first release; later ones are appended after them.
+_FIRST_COLUMNS = tuple(BEH_COLUMNS)[: tuple(BEH_COLUMNS).index("resumed") + 1]
 
 
 def _is_int(text: object) -> bool:
@@ -270,21 +294,34 @@ def read_trials(path: Path | str) -> list[TrialRecord]:
         data = path.read_bytes()
     except FileNotFoundError:
         raise ResultsError(f"{path}: no such results file") from None
-    end, _ = split_torn_tail(data, len(BEH_COLUMNS))
+    columns = len(beh_header(path)) or len(BEH_COLUMNS)
+    end, _ = split_torn_tail(data, columns)
     rows = list(csv.reader(io.StringIO(data[:end].decode("utf-8")), delimiter="\t"))
     if not rows:
         return []
-    if rows[0] != list(BEH_COLUMNS):
-        raise ResultsError(f"{path}:1: expected the columns {list(BEH_COLUMNS)}, found {rows[0]}")
+    header = rows[0]
+    if header != list(BEH_COLUMNS)[: len(header)] or len(header) < len(_FIRST_COLUMNS):
+        raise ResultsError(f"{path}:1: expected the columns {list(BEH_COLUMNS)}, found {header}")
+    # Files written before the delivery columns existed end at `resumed`: read what they hold.
+    attrs = [BEH_COLUMNS[column][0] for column in header]
     records = []
     for number, cells in enumerate(rows[1:], start=2):
         where = f"{path}:{number}"
-        if len(cells) != len(BEH_COLUMNS):
-            raise ResultsError(f"{where}: expected {len(BEH_COLUMNS)} cells, found {len(cells)}")
-        values = {attr: _parse(attr, cell, where)
-                  for (attr, _, _), cell in zip(BEH_COLUMNS.values(), cells, strict=True)}
+        if len(cells) != len(header):
+            raise ResultsError(f"{where}: expected {len(header)} cells, found {len(cells)}")
+        values = {attr: _parse(attr, cell, where) for attr, cell in zip(attrs, cells, strict=True)}
         records.append(TrialRecord(**values))
     return records
+
+
+def beh_header(path: Path) -> list[str]:
+    """The column names of an existing ``beh.tsv`` (empty if it has no header yet)."""
+    try:
+        with open(path, encoding="utf-8", newline="") as handle:
+            first = handle.readline()
+    except FileNotFoundError:
+        return []
+    return next(csv.reader([first], delimiter="\t"), []) if first.strip() else []
 
 
 def _plan_key(entry: Mapping[str, Any]) -> tuple[int, bool]:
@@ -374,6 +411,12 @@ class RunWriter:
         if manifest.status not in UNFINISHED_STATUSES:
             raise ResultsError(f"{paths.manifest}: the run is {manifest.status}; "
                                f"only a {'/'.join(UNFINISHED_STATUSES)} run can be resumed")
+        header = beh_header(paths.beh_tsv)
+        if header and header != list(BEH_COLUMNS):
+            raise ResultsError(
+                f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
+                f"{', '.join(header)}; finish it with that version, or start a new run"
+            )
         repaired = repair_tail(paths.beh_tsv, len(BEH_COLUMNS))
         records = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
         repair_tail(paths.events_tsv, len(EVENT_COLUMNS))

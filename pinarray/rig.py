@@ -1,28 +1,40 @@
 """The stimulator a session drives: a connected servo bus (real or simulated) and its clock.
 
-One place decides hardware vs simulation and real vs virtual time for `play`, `batch` and the
-TUI. However a `Rig` is left (normal close, exception, Ctrl-C), pins go to rest and torque
-goes off where the bus still answers.
+One place decides hardware vs simulation, real vs virtual time, and where the deadline loop
+runs: on a serial device (real servos, or simulated ones behind a pseudo-terminal) it runs in
+a player process of its own at real-time priority (`pinarray.player_process`); on the
+in-process simulator, in virtual or scaled time, it runs here. However a `Rig` is left
+(normal close, exception, a stop request), pins go to rest and torque goes off where the bus
+still answers.
 """
 
 from __future__ import annotations
 
-from pinarray.clock import Clock, MonotonicClock, ScaledClock, VirtualClock
+from pinarray.bus.base import SafeStopReport, Telemetry, servo_setup_from_device
+from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
+from pinarray.delivery import Presentation
 from pinarray.errors import PinArrayError
+from pinarray.player import GUARD_NS, PlaybackReport, play_prepared, prepare_trial
 from pinarray.protocol import NS_PER_S, Protocol
+from pinarray.stop import StoppableClock, StopRequest
 
 SIM_DEFAULT = "sim://"
 
 
-def choose_clock(port: str | None, time_scale: float | None) -> Clock:
-    """Real servos run in real time; simulated ones in virtual time (scale 0/None) or scaled."""
+def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False) -> Clock:
+    """Real servos run in real time; simulated ones in virtual time (scale 0/None) or scaled.
+
+    ``paced``: a scaled simulation for a scripted run, in simulated time that only moves
+    while something waits (`PacedClock`), so the host's own delays cannot make a stimulus
+    late; without it (the UI, where a person answers), scaled wall-clock time.
+    """
     if port:
         if time_scale not in (None, 1.0):
             raise PinArrayError("real servos play in real time: --time-scale must be 1")
         return MonotonicClock()
     if not time_scale:
         return VirtualClock()
-    return ScaledClock(time_scale)
+    return PacedClock(time_scale) if paced else ScaledClock(time_scale)
 
 
 def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
@@ -43,50 +55,96 @@ class Rig:
     Parameters
     ----------
     protocol : Protocol
-        Its device section gives servo ids, rest positions, limits, speed and baud rate.
+        Its device section gives servo ids, rest positions, limits, speed, baud rate and the
+        delivery tolerance.
     port : str or None
         A serial device of real servos; None for the simulator.
     sim_url : str or None
         A ``sim://`` URL (faults etc.) when ``port`` is None.
     clock : Clock
-        Shared by the bus, the player and the session.
+        The bus's clock; `Rig.clock` wraps it so that waits end on a stop request.
+    stop : StopRequest, optional
+        Set by the composition root (signals, the UI's quit); playback and the session's
+        waits end at their next look at it.
+    isolate : bool or None
+        Play in a player process of its own (None: whenever the port is a device).
+    realtime : bool
+        Ask for real-time priority in the player process.
     """
 
-    def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock):
-        from pinarray.bus.base import servo_setup_from_device
+    def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
+                 stop: StopRequest | None = None, *, isolate: bool | None = None,
+                 realtime: bool = True):
         from pinarray.bus.transport import open_bus
 
         self.protocol = protocol
-        self.clock = clock
+        self.stop = stop or StopRequest()
+        self.bus_clock = clock
+        self.clock = StoppableClock(clock, self.stop)
         self.setup = servo_setup_from_device(protocol.device)
         self.url = port or sim_url_for(sim_url, self.setup.servo_ids)
+        # A sped-up simulation (--time-scale X) judges the host's own delays on the wall clock:
+        # 1 ms of Python is X ms of simulated time.
+        self.time_scale = max(1.0, float(getattr(clock, "scale", 1.0)))
+        self.tolerance_ns = round(protocol.device.delivery_tolerance_ns * self.time_scale)
         self.bus = open_bus(self.url, self.setup, clock, baud_rate=protocol.device.servo.baud_rate)
         self.warnings = list(self.bus.warnings)
-        self.reports: list = []
+        self.reports: list[PlaybackReport] = []
         self._released = False
+        self._fd = getattr(self.bus.link.wire, "fd", None)
+        self._isolate = self._fd is not None if isolate is None else isolate
+        self._realtime = realtime
+        self.player = None
         try:
             self.bus.move_to_rest()
+            if self._isolate:
+                self._start_player()
+                if self.player is not None and self.player.realtime_problem:
+                    self.warnings.append(self.player.realtime_problem)
         except BaseException:
             self.close()  # torque is on by now: nobody else holds this rig to release it
             raise
 
-    def present(self, schedule) -> int:
-        """Play one trial and return its onset (clock ns); pins then hold at rest."""
-        from pinarray.player import play_trial
+    @property
+    def isolated(self) -> bool:
+        """Whether trials play in a player process of their own."""
+        return self.player is not None
 
+    def _start_player(self) -> None:
+        from pinarray.player_process import PlayerProcess
+
+        if self._fd is None:
+            raise PinArrayError(f"{self.url}: a player process needs a serial device")
+        self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime)
+
+    def present(self, schedule) -> Presentation:
+        """Play one trial; the pins then hold at rest.
+
+        Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
+        scheduled is returned, not raised (the session marks the trial invalid).
+        """
         if self._released:
             # A fault released torque; the handshake turns it back on, checking every servo.
             self.bus.connect(self.setup)
             self._released = False
+        trial = prepare_trial(self.bus, schedule.targets)
         try:
-            report = play_trial(self.bus, schedule.targets, self.clock, release_at_end=False)
+            if self.player is not None:
+                if not self.player.alive:
+                    self.player.close()
+                    self._start_player()
+                report = self.player.play(trial, tolerance_ns=self.tolerance_ns)
+            else:
+                report = play_prepared(self.bus, trial, self.clock, tolerance_ns=self.tolerance_ns,
+                                       guard_ns=round(GUARD_NS * self.time_scale),
+                                       release_at_end=False)
         except PinArrayError:
             self._released = True
             raise
         self.reports.append(report)
-        return report.onset_ns
+        return Presentation(report.onset_ns, report.delivery)
 
-    def test_pin(self, pin: int, cycles: int = 3, frequency_hz: int = 2) -> None:
+    def test_pin(self, pin: int, cycles: int = 3, frequency_hz: int = 2) -> Presentation:
         """Wiggle one pin (its calibrated widths, the seed's pulse shape) to check the hardware."""
         from fractions import Fraction
 
@@ -97,14 +155,17 @@ class Rig:
         widths = sorted(w for w, _ in calibration.positions_by_width_ns)
         train = Train(Fraction(frequency_hz), cycles * NS_PER_S // frequency_hz,
                       up_width_ns=widths[-1], down_width_ns=widths[0])
-        self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
+        return self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
 
-    def telemetry(self):
+    def telemetry(self) -> tuple[Telemetry, ...]:
         return self.bus.read_telemetry(self.setup.servo_ids)
 
-    def close(self):
-        """Pins to rest, torque off, port closed. Returns the `SafeStopReport`."""
+    def close(self) -> SafeStopReport:
+        """Player process ended, pins to rest, torque off, port closed."""
         try:
+            if self.player is not None:
+                self.player.close()
+                self.player = None
             return self.bus.rest_and_release()
         finally:
             self.bus.close()

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from enum import StrEnum
 from typing import Protocol as Interface
 
+from pinarray.delivery import DeliveryRecord, Presentation
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
 from pinarray.plan import PlannedTrial, TrialPlan
@@ -46,8 +47,8 @@ class SessionError(PinArrayError):
 class Stimulator(Interface):
     """What presents a compiled trial: real or simulated servos, or nothing at all."""
 
-    def present(self, schedule: TrialSchedule) -> int:
-        """Play the trial; return the clock time (ns) of its stimulus onset."""
+    def present(self, schedule: TrialSchedule) -> Presentation:
+        """Play the trial; return its onset (clock ns) and whether it was delivered as scheduled."""
         ...
 
 
@@ -109,6 +110,7 @@ class Session:
         self._run_start_ns = clock.now_ns()
         self._onset_ns = 0
         self._duration_ns = 0
+        self._delivery: DeliveryRecord | None = None
         self._presenting = threading.Lock()
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
         self._next_allowed_ns = self._run_start_ns
@@ -177,17 +179,26 @@ class Session:
         schedule = self.current_schedule()
         self.clock.sleep_until_ns(self._next_allowed_ns)
         self._onset_ns = self.clock.now_ns()
+        self._delivery = None
         self._set(Phase.STIMULUS)
         try:
-            self._onset_ns = self.stimulator.present(schedule)
+            presentation = self.stimulator.present(schedule)
         except Interrupted:
             raise  # not a stimulus fault: the caller aborts the run
         except PinArrayError as error:
             self.fault = str(error)
-            self._write(status="invalid", duration_ns=self.clock.now_ns() - self._onset_ns)
+            self._write(status="invalid", duration_ns=self.clock.now_ns() - self._onset_ns,
+                        reason=self.fault)
             self._set(Phase.FAULT)
             return
+        self._onset_ns = presentation.onset_ns
+        self._delivery = presentation.delivery
         self._duration_ns = schedule.end_ns
+        if not presentation.delivery.delivered:
+            self.fault = f"the stimulus was not delivered as scheduled: {presentation.delivery.problem}"
+            self._write(status="invalid", reason=self.fault)
+            self._set(Phase.FAULT)
+            return
         self._set(Phase.RESPONSE)
 
     def retry(self) -> None:
@@ -235,11 +246,13 @@ class Session:
         """Stop the run for good (it can still be resumed later with --resume)."""
         if self.phase in (Phase.DONE, Phase.ABORTED):
             return
+        reason = reason or "aborted by the experimenter"
         if self.phase is Phase.STIMULUS:
-            self._write(status="aborted", duration_ns=self.clock.now_ns() - self._onset_ns)
+            self._delivery = None  # cut short: what was delivered is not a whole stimulus
+            self._write(status="aborted", duration_ns=self.clock.now_ns() - self._onset_ns, reason=reason)
         elif self.phase is Phase.RESPONSE or (self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE):
-            self._write(status="aborted")
-        self.writer.finish("aborted", reason or "aborted by the experimenter")
+            self._write(status="aborted", reason=reason)
+        self.writer.finish("aborted", reason)
         self._set(Phase.ABORTED)
 
     # -- rows ----------------------------------------------------------------------------------
@@ -260,7 +273,7 @@ class Session:
         return str(response)
 
     def _write(self, status: str, response: str | None = None, response_time_s: float | None = None,
-               duration_ns: int | None = None) -> TrialRecord:
+               duration_ns: int | None = None, reason: str | None = None) -> TrialRecord:
         planned = self.current
         assert planned is not None
         condition = planned.condition
@@ -279,6 +292,13 @@ class Session:
                     fields["direction_correct"] = response == direction
         if duration_ns is None:
             duration_ns = self._duration_ns
+        delivery = self._delivery
+        if delivery is not None:
+            fields |= {"goals_scheduled": delivery.scheduled, "goals_confirmed": delivery.confirmed,
+                       "goals_healed": delivery.healed, "goals_missing": delivery.missing,
+                       "delivery_lateness_s": delivery.worst_lateness_ns / NS_PER_S}
+        if reason is not None:
+            fields["status_reason"] = " ".join(reason.split())  # one line, whatever it says
         record = TrialRecord(
             trial=planned.trial, block=planned.block, task=self.task,
             onset_s=(self._onset_ns - self._run_start_ns) / NS_PER_S, duration_s=duration_ns / NS_PER_S,

@@ -39,6 +39,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
+    import sys
+
     from pinarray.manifest import check_label
     from pinarray.protocol_load import load_protocol
 
@@ -47,7 +49,11 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     protocols = [load_protocol(path) for path in args.files]  # every file checked before any runs
     responses = _read_responses(args.responses) if args.responses else None
     for protocol in protocols:
-        run_batch(protocol, args, subject, session, responses)
+        try:
+            run_batch(protocol, args, subject, session, responses)
+        except NotDelivered as failed:
+            print(f"pinarray: {failed}", file=sys.stderr)
+            return EXIT_NOT_DELIVERED
     return 0
 
 
@@ -73,16 +79,26 @@ def _read_responses(path: str) -> dict[int, str]:
         raise PinArrayError(f"{path}: cannot read the responses: {problem.strerror}") from None
 
 
+# How many times batch presents a trial whose stimulus failed before it gives up.
+MAX_ATTEMPTS = 3
+EXIT_NOT_DELIVERED = 3
+
+
+class NotDelivered(Exception):
+    """A trial failed `MAX_ATTEMPTS` times; the run is left aborted (resumable)."""
+
+
 def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None) -> None:
     import sys
 
     from pinarray.errors import PinArrayError
     from pinarray.observer import SimulatedObserver, parse_observer
     from pinarray.plan import make_plan
-    from pinarray.player import Terminated, sigterm_raises
+    from pinarray.player import describe
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
     from pinarray.session_setup import open_run
+    from pinarray.stop import Stopped, StopRequest, stop_on_signals
 
     task = task_label(protocol)
     if responses is not None:
@@ -94,12 +110,12 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
                 + (" ..." if len(missing) > 10 else "")
             )
-    clock = choose_clock(args.port, args.time_scale)
+    clock = choose_clock(args.port, args.time_scale, paced=True)
     observer = None
     if responses is None:
-        observer = SimulatedObserver(parse_observer(args.observer), seed=args.seed)
-    with sigterm_raises():
-        rig = Rig(protocol, args.port, args.sim, clock)
+        observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
+    with stop_on_signals(StopRequest()) as stop:
+        rig = Rig(protocol, args.port, args.sim, clock, stop)
         try:
             for warning in rig.warnings:
                 print(f"pinarray: warning: {warning}", file=sys.stderr)
@@ -115,16 +131,27 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
             if writer.repaired:
                 print(f"pinarray: warning: dropped a half-written last row from {writer.paths.beh_tsv}: "
                       f"{writer.repaired!r}", file=sys.stderr)
+            resume_hint = (f"resume with: pinarray batch {' '.join(args.files)} --subject {subject} "
+                           f"--session {session} --resume")
             with writer:
-                run = Session(protocol, plan, writer, rig, clock)
+                run = Session(protocol, plan, writer, rig, rig.clock)
                 progress = Progress(f"{task} sub-{subject} ses-{session}", run.total, run.done_count)
                 try:
                     run.begin()
+                    attempts = 0
                     while run.phase is Phase.READY:
                         run.present()
                         if run.phase is Phase.FAULT:
-                            run.abort(f"bus fault: {run.fault}")
-                            raise PinArrayError(f"trial {run.current.trial}: {run.fault}")
+                            attempts += 1
+                            print(f"\npinarray: trial {run.current.trial}, attempt {attempts} of "
+                                  f"{MAX_ATTEMPTS}: {run.fault}", file=sys.stderr)
+                            if attempts >= MAX_ATTEMPTS:
+                                run.abort(f"trial {run.current.trial} failed {attempts} times: {run.fault}")
+                                raise NotDelivered(f"trial {run.current.trial} failed {attempts} times; "
+                                                   f"the run is left resumable ({resume_hint})")
+                            run.retry()
+                            continue
+                        attempts = 0
                         condition = run.current.condition
                         if responses is not None:
                             answer = responses[run.current.trial]
@@ -134,16 +161,16 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                             answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
                         run.respond(answer, response_time_s=None)  # scripted: no real response time
                         progress.update(run.done_count)
-                except (Terminated, KeyboardInterrupt) as stop:
-                    run.abort(str(stop) or "interrupted (Ctrl-C)")
+                except (Stopped, KeyboardInterrupt) as stopped:
+                    run.abort(str(stopped) or "interrupted (Ctrl-C)")
+                    progress.close()
+                    print(f"pinarray: run {writer.paths.run} aborted, {resume_hint}", file=sys.stderr)
                     raise
                 progress.close()
             print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed {plan.seed}, run {writer.paths.run})")
         finally:
             safe = rig.close()
             if not safe.complete:
-                from pinarray.player import describe
-
                 print(f"pinarray: warning: {describe(safe)}", file=sys.stderr)
 
 

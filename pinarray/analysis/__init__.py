@@ -27,6 +27,8 @@ def summary_lines(records: Iterable[TrialRecord]) -> list[str]:
     for row in numbers.localisation:
         low, high = row.correct.interval_pct
         errors = ", ".join(f"{c} {row.error_pct(c):.0f} %" for c in "ABCD")
+        if row.none_felt:  # its own category, shown whenever it happened
+            errors += f", nothing felt {row.share('none').pct:.0f} %"
         lines.append(
             f"{row.frequency_hz:g} Hz: {row.correct.pct:.1f} % correct "
             f"({row.correct.successes}/{row.trials}, 95 % CI {low:.0f}-{high:.0f} %); {errors}"

@@ -1,48 +1,160 @@
-"""``pinarray analyse``: tables, figures and a summary page from results files."""
+"""``pinarray analyse`` (results in, tables, figures and a page out) and ``pinarray power``
+(how many subjects a protocol needs, from simulated subjects)."""
 
 import argparse
 
 
+def _whole(minimum: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"expected a number >= {minimum}, found {value}")
+        return value
+    return parse
+
+
+def _numbers(text: str) -> list[int]:
+    try:
+        values = [int(item) for item in text.split(",") if item.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated whole numbers, found {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError(f"expected at least one number, found {text!r}")
+    return values
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``analyse`` to the `pinarray` parser."""
+    """Add ``analyse`` and ``power`` to the `pinarray` parser."""
     parser = subparsers.add_parser(
         "analyse",
-        help="tables, figures and a one-page summary from results files",
-        description="Analyse beh.tsv results: correct localisation per frequency with 95 %% "
-        "intervals, error types A-D, confusion matrix, per-pin accuracy, apparent motion; "
-        "per subject and pooled. Writes CSV tables, PNG figures and summary.md.",
+        help="subject-level tables, figures and a one-page summary from results files",
+        description="Analyse beh.tsv results with subjects as the unit: per-subject "
+        "percentages, their across-subject mean with a t interval and a subject bootstrap, the "
+        "trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
+        "levels, a confusion matrix, per-pin accuracy, apparent motion, and a mixed-effects "
+        "logistic fit of the frequency effect when there are enough subjects. Runs whose "
+        "manifest is not 'completed', or with no counted trial, are listed and left out. "
+        "Writes CSV tables, PNG and PDF figures and summary.md.",
     )
     parser.add_argument("results", nargs="+", metavar="RESULTS",
                         help="beh.tsv files, or folders searched recursively for *_beh.tsv")
     parser.add_argument("--out", default="analysis", metavar="DIR",
                         help="folder for the tables, figures and summary (default: analysis)")
+    parser.add_argument("--include-incomplete", action="store_true",
+                        help="also count runs whose manifest says running, aborted or crashed")
+    parser.add_argument("--interval", choices=("t", "bootstrap"), default="t",
+                        help="across-subject interval drawn in figures (tables hold both; "
+                        "default: t)")
+    parser.add_argument("--bootstrap-seed", type=_whole(0), default=None, metavar="N",
+                        help="seed of the subject bootstrap (default: 20240501; recorded)")
+    parser.add_argument("--bootstrap-resamples", type=_whole(100), default=None, metavar="N",
+                        help="bootstrap resamples (default: 10000)")
+    parser.add_argument("--answer-pins", type=_numbers, default=None, metavar="LIST",
+                        help="pins a subject could name, e.g. 1,4,6,7 (default: every pin of "
+                        "the grid); sets the chance levels")
     parser.set_defaults(func=_cmd_analyse)
+
+    power = subparsers.add_parser(
+        "power",
+        help="how many subjects a protocol needs: power curves from simulated subjects",
+        description="Simulate whole studies of a protocol with the simulated observer "
+        "(between-subject spread included) for several numbers of subjects, analyse each as "
+        "`pinarray analyse` would (subjects as the unit), and report how often each effect "
+        "is found. Writes power.csv, power_curves.png/.pdf and prints the table.",
+    )
+    power.add_argument("protocol", metavar="PROTOCOL", help="a localisation or motion protocol")
+    power.add_argument("--observer", default="default", metavar="MODEL",
+                       help="the simulated population ('default' or name=value overrides, "
+                       "e.g. subject_sd_logit=1)")
+    power.add_argument("--subjects", type=_numbers, default=[4, 6, 8, 12, 16, 24], metavar="LIST",
+                       help="numbers of subjects to try (default: 4,6,8,12,16,24)")
+    power.add_argument("--studies", type=_whole(10), default=400, metavar="N",
+                       help="simulated studies per number of subjects (default: 400)")
+    power.add_argument("--seed", type=_whole(0), default=1, metavar="N",
+                       help="seed of the simulation (default: 1; recorded)")
+    power.add_argument("--out", default="power", metavar="DIR",
+                       help="folder for power.csv and the figure (default: power)")
+    power.set_defaults(func=_cmd_power)
 
 
 def _cmd_analyse(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from pinarray.analysis.load import load_results
-    from pinarray.analysis.report import write_report
-    from pinarray.analysis.stats import summarise_subjects
+    from pinarray.analysis.load import load_runs, select_runs
+    from pinarray.analysis.report import measure_text, run_lines, write_report
+    from pinarray.analysis.study import study
+    from pinarray.analysis.subjects import (
+        DEFAULT_BOOTSTRAP_RESAMPLES,
+        DEFAULT_BOOTSTRAP_SEED,
+        IntervalMethod,
+        IntervalSettings,
+    )
+    from pinarray.errors import ResultsError
 
-    trials = load_results(args.results)
-    summaries = summarise_subjects((t.subject, t.record) for t in trials)
-    sources = sorted({t.source for t in trials})
+    settings = IntervalSettings(
+        IntervalMethod(args.interval),
+        bootstrap_seed=DEFAULT_BOOTSTRAP_SEED if args.bootstrap_seed is None
+        else args.bootstrap_seed,
+        bootstrap_resamples=DEFAULT_BOOTSTRAP_RESAMPLES if args.bootstrap_resamples is None
+        else args.bootstrap_resamples,
+    )
+    runs = select_runs(load_runs(args.results), args.include_incomplete)
+    result = study(runs, settings, args.answer_pins)
     try:
-        page = write_report(summaries, sources, Path(args.out))
+        report = write_report(result, Path(args.out))
     except OSError as problem:
-        from pinarray.errors import ResultsError
-
         raise ResultsError(f"{problem.filename or args.out}: cannot write the report there: "
                            f"{problem.strerror}") from None
-    pooled = summaries[0]
-    print(f"{len(trials)} trial rows from {len(sources)} file(s), "
-          f"{len(pooled.subjects)} subject(s)")
-    for row in pooled.localisation:
-        print(f"  {row.frequency_hz:g} Hz: {row.correct.pct:.1f} % correct of {row.trials}")
-    if pooled.motion.felt.trials:
-        print(f"  motion felt {pooled.motion.felt.pct:.0f} %, direction right "
-              f"{pooled.motion.direction_right.pct:.0f} % of those")
-    print(f"summary: {page}")
+    print(f"counted {len(runs.included)} run(s): {len(result.subjects)} subject(s), "
+          f"{result.localisation_trials} localisation and {result.motion_trials} motion trials "
+          "(main trials with status ok)")
+    for line in run_lines(runs):
+        print(f"  {line}")
+    level = result.subject_level
+    method = settings.method
+    if level.localisation:
+        print(f"correct localisation, mean of per-subject % [{settings.describe()}]; "
+              "trial-pooled % [95 % Wilson]:")
+        for row in level.localisation:
+            m = row.share("correct")
+            low, high = m.pooled.interval_pct
+            chance = (f"; chance {100 * result.chance.correct:.2f} %" if result.chance else "")
+            print(f"  {row.frequency_hz:g} Hz: {measure_text(m, method)}; trial-pooled "
+                  f"{m.pooled.pct:.1f} % [{low:.1f}, {high:.1f}]{chance}")
+        print(f"frequency effect: {result.frequency_effect.describe()}")
+    if result.motion_trials:
+        motion = level.motion
+        print(f"motion, mean of per-subject % [{method} interval]: felt "
+              f"{measure_text(motion.felt, method)}; direction right of those felt "
+              f"{measure_text(motion.direction_right, method)} (chance 50 %); felt on no-wave "
+              f"trials {measure_text(motion.no_wave_felt, method)}")
+    print(f"summary: {report.summary}")
+    return 0
+
+
+def _cmd_power(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from pinarray.analysis.power import power_study, write_power
+    from pinarray.errors import ResultsError
+    from pinarray.observer import parse_observer
+    from pinarray.protocol_load import load_protocol
+
+    protocol = load_protocol(args.protocol)
+    model = parse_observer(args.observer).for_protocol(protocol)
+    print(f"{protocol.name}: {args.studies} simulated studies per number of subjects, "
+          f"subject SD {model.subject_sd_logit:g} logit, seed {args.seed}")
+    curves = power_study(protocol, model, sorted(set(args.subjects)), args.studies, args.seed)
+    try:
+        paths = write_power(curves, Path(args.out))
+    except OSError as problem:
+        raise ResultsError(f"{problem.filename or args.out}: cannot write there: "
+                           f"{problem.strerror}") from None
+    for line in curves.table_lines():
+        print(line)
+    print("written: " + ", ".join(str(p) for p in paths))
     return 0

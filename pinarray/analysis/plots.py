@@ -1,14 +1,18 @@
-"""PNG figures of a `Summary`, drawn headless (matplotlib's Agg backend, no display needed).
+"""Figures of a `Study`, drawn headless (matplotlib's Agg backend), each as PNG and PDF.
 
 The first three mirror the seed's figures: 9.13 (correct localisation by frequency), 9.15
-(error types by frequency) and 9.17 (motion felt, direction right). Bars carry 95 % Wilson
-intervals where the seed showed bare percentages, because a handful of subjects gives wide
-ones.
+(error types by frequency, here with "nothing felt" beside A-D) and 9.17 (motion felt,
+direction right). Bars are means of per-subject percentages with the across-subject interval
+the settings name; chance levels are drawn. Colours are the Okabe-Ito palette, which stays
+distinguishable with the common colour-vision deficiencies; colour maps are viridis. Each
+figure carries its caption (`pinarray.analysis.captions`) under the axes.
 """
 
 from __future__ import annotations
 
 import math
+import textwrap
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import matplotlib
@@ -18,123 +22,227 @@ matplotlib.use("Agg")  # before pyplot: a lab PC over SSH, or CI, has no display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pinarray.analysis.stats import ERROR_CLASSES, Proportion, Summary  # noqa: E402
-from pinarray.grid import DEFAULT_GRID, Grid  # noqa: E402
+from pinarray.analysis import captions  # noqa: E402
+from pinarray.analysis.chance import DIRECTION_CHANCE  # noqa: E402
+from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS  # noqa: E402
+from pinarray.analysis.study import Study  # noqa: E402
+from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod  # noqa: E402
 
 DPI = 150
+FORMATS = ("png", "pdf")  # raster for a quick look, vector for the paper
+# Okabe & Ito (2008), "Color universal design".
+OKABE_ITO = {"black": "#000000", "orange": "#E69F00", "sky": "#56B4E9", "green": "#009E73",
+             "yellow": "#F0E442", "blue": "#0072B2", "vermillion": "#D55E00",
+             "purple": "#CC79A7"}
+CATEGORY_COLOURS = {"correct": OKABE_ITO["blue"], "A": OKABE_ITO["orange"],
+                    "B": OKABE_ITO["sky"], "C": OKABE_ITO["green"], "D": OKABE_ITO["purple"],
+                    "none": OKABE_ITO["yellow"]}
+CHANCE_COLOUR = OKABE_ITO["vermillion"]
+_CAPTION_FONT = 7
 
 
-def _save(figure, path: Path) -> Path:
-    figure.tight_layout()
-    figure.savefig(path, dpi=DPI)
+def _save(figure, stem: Path, caption: str) -> list[Path]:
+    """Write ``stem``.png and .pdf with ``caption`` wrapped under the axes."""
+    width_in = figure.get_size_inches()[0]
+    lines = textwrap.wrap(caption, width=int(width_in * 17))
+    height_in = figure.get_size_inches()[1]
+    figure.set_size_inches(width_in, height_in + 0.13 * len(lines))
+    bottom = (0.13 * len(lines) + 0.1) / figure.get_size_inches()[1]
+    figure.tight_layout(rect=(0, bottom, 1, 1))
+    figure.text(0.01, 0.01, "\n".join(lines), fontsize=_CAPTION_FONT, ha="left", va="bottom")
+    paths = []
+    for ext in FORMATS:
+        path = stem.with_suffix(f".{ext}")
+        # No creation date in the PDF: the same results give the same bytes.
+        figure.savefig(path, dpi=DPI, metadata={"CreationDate": None} if ext == "pdf" else None)
+        paths.append(path)
     plt.close(figure)
-    return path
+    return paths
 
 
-def _error_bars(proportions: list[Proportion]) -> np.ndarray:
-    """Distances from each percentage down and up to its interval, as errorbar wants them."""
-    bars = np.zeros((2, len(proportions)))
-    for i, p in enumerate(proportions):
-        low, high = p.interval_pct
-        if not math.isnan(p.pct):
-            bars[:, i] = (p.pct - low, high - p.pct)
+def _bar_errors(measures: Sequence[AcrossSubjects], method: IntervalMethod) -> np.ndarray:
+    """Distances from each mean down and up to its interval, as errorbar wants them."""
+    bars = np.zeros((2, len(measures)))
+    for i, m in enumerate(measures):
+        low, high = m.interval_pct(method)
+        if not (math.isnan(low) or math.isnan(m.mean_pct)):
+            bars[:, i] = (m.mean_pct - low, high - m.mean_pct)
     return bars
 
 
-def _frequency_labels(summary: Summary) -> list[str]:
-    return [f"{row.frequency_hz:g} Hz" for row in summary.localisation]
+def _subject_dots(axes, xs: Sequence[float] | np.ndarray, measures: Sequence[AcrossSubjects],
+                  connect: bool) -> None:
+    """Each subject's own percentage as a small dot (and a line across x when ``connect``)."""
+    subjects = sorted({s for m in measures for s, _ in m.per_subject})
+    for n, subject in enumerate(subjects):
+        points = [(x, dict(m.per_subject)[subject].pct) for x, m in zip(xs, measures, strict=True)
+                  if subject in dict(m.per_subject)]
+        jitter = (n - (len(subjects) - 1) / 2) * 0.2 / max(len(subjects), 1)
+        px = [x + jitter for x, _ in points]
+        py = [y for _, y in points]
+        if connect:
+            axes.plot(px, py, color="0.6", linewidth=0.6, zorder=2)
+        axes.scatter(px, py, s=8, color="0.35", zorder=3, linewidths=0, clip_on=False)
 
 
-def plot_correct_by_frequency(summary: Summary, path: Path) -> Path:
-    """Fig. 9.13: percent correct localisation per frequency, with 95 % intervals."""
-    figure, axes = plt.subplots(figsize=(4.5, 3.5))
-    correct = [row.correct for row in summary.localisation]
+def _means(measures: Sequence[AcrossSubjects]) -> list[float]:
+    return [0.0 if math.isnan(m.mean_pct) else m.mean_pct for m in measures]
+
+
+def plot_correct_by_frequency(study: Study, stem: Path) -> list[Path]:
+    """Fig. 9.13: correct localisation per frequency, subjects as the unit, with chance."""
+    level = study.subject_level
+    method = level.settings.method
+    correct = [row.share("correct") for row in level.localisation]
     x = np.arange(len(correct))
-    axes.bar(x, [p.pct for p in correct], yerr=_error_bars(correct), capsize=4,
-             color="#4C72B0")
-    for xi, p in zip(x, correct, strict=True):
-        axes.annotate(f"{p.pct:.1f} %\nn={p.trials}", (xi, 2), ha="center", color="white",
-                      fontsize=8)
-    axes.set_xticks(x, _frequency_labels(summary))
+    figure, axes = plt.subplots(figsize=(5.0, 3.6))
+    axes.bar(x, _means(correct), yerr=_bar_errors(correct, method), capsize=4,
+             color=CATEGORY_COLOURS["correct"], alpha=0.85, zorder=1)
+    _subject_dots(axes, x, correct, connect=True)
+    for xi, m in zip(x, correct, strict=True):
+        axes.annotate(f"{m.mean_pct:.1f} %\n{m.subjects} subj.\n{m.trials} trials", (xi, 2),
+                      ha="center", va="bottom", color="white", fontsize=7, zorder=4)
+    if study.chance:
+        axes.axhline(100 * study.chance.correct, color=CHANCE_COLOUR, linestyle="--",
+                     linewidth=1.2, label=f"chance {100 * study.chance.correct:.2f} %")
+        axes.legend(fontsize=7, loc="upper left")
+    axes.set_xticks(x, [f"{row.frequency_hz:g} Hz" for row in level.localisation])
     axes.set_ylim(0, 100)
-    axes.set_ylabel("correct localisation (%)")
-    axes.set_title(f"Correct localisation ({summary.group})")
-    return _save(figure, path)
+    axes.set_ylabel("correct localisation (% of trials)")
+    axes.set_title("Correct localisation by frequency")
+    return _save(figure, stem, captions.correct_by_frequency(study))
 
 
-def plot_error_types(summary: Summary, path: Path) -> Path:
-    """Fig. 9.15: percent of trials answered with each error class A-D, per frequency."""
-    figure, axes = plt.subplots(figsize=(5.5, 3.5))
-    rows = summary.localisation
-    width = 0.8 / len(ERROR_CLASSES)
-    x = np.arange(len(rows))
-    for i, error_class in enumerate(ERROR_CLASSES):
-        axes.bar(x + (i - 1.5) * width, [row.error_pct(error_class) for row in rows], width,
-                 label=f"error {error_class}")
-    axes.set_xticks(x, _frequency_labels(summary))
-    axes.set_ylabel("trials (%)")
-    axes.set_title(f"Localisation errors by type ({summary.group})")
-    axes.legend(fontsize=8)
-    return _save(figure, path)
+def plot_error_types(study: Study, stem: Path) -> list[Path]:
+    """Fig. 9.15: each error class A-D and "nothing felt", % of trials per frequency."""
+    level = study.subject_level
+    method = level.settings.method
+    kinds = [c for c in CATEGORIES if c != "correct"]
+    width = 0.8 / len(kinds)
+    x = np.arange(len(level.localisation))
+    figure, axes = plt.subplots(figsize=(7.4, 3.8))
+    for i, kind in enumerate(kinds):
+        measures = [row.share(kind) for row in level.localisation]
+        offset = x + (i - (len(kinds) - 1) / 2) * width
+        axes.bar(offset, _means(measures), width, yerr=_bar_errors(measures, method), capsize=2,
+                 color=CATEGORY_COLOURS[kind], edgecolor="black", linewidth=0.4,
+                 label=CATEGORY_LABELS[kind], error_kw={"linewidth": 0.8})
+        if study.chance and kind in study.chance.fractions:
+            axes.scatter(offset, [100 * study.chance.fractions[kind]] * len(x), marker="_",
+                         s=120, color="black", zorder=5,
+                         label="chance" if i == 0 else None)
+    axes.set_xticks(x, [f"{row.frequency_hz:g} Hz" for row in level.localisation])
+    axes.set_ylim(0, None)
+    axes.set_ylabel("% of trials")
+    axes.set_title("Localisation errors by type, and nothing felt")
+    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return _save(figure, stem, captions.error_types(study))
 
 
-def plot_motion(summary: Summary, path: Path) -> Path:
-    """Fig. 9.17: percent of wave trials felt as motion, and of those the direction right."""
-    motion = summary.motion
-    bars = [motion.felt, motion.direction_right]
-    figure, axes = plt.subplots(figsize=(4.5, 3.5))
-    axes.bar([0, 1], [p.pct for p in bars], yerr=_error_bars(bars), capsize=4,
-             color=["#55A868", "#C44E52"])
-    for xi, p in enumerate(bars):
-        axes.annotate(f"{p.pct:.0f} %\n{p.successes}/{p.trials}", (xi, 2), ha="center",
-                      color="white", fontsize=8)
-    axes.set_xticks([0, 1], ["felt a moving dot", "direction right\n(of those felt)"])
-    axes.set_ylim(0, 100)
-    axes.set_ylabel("%")
-    axes.set_title(f"Apparent motion ({summary.group})")
-    return _save(figure, path)
-
-
-def plot_confusion(summary: Summary, path: Path) -> Path:
-    """Stimulated pin (rows) against reported pin (columns), as percent of each row."""
-    counts = summary.confusion
-    with np.errstate(invalid="ignore", divide="ignore"):
-        shares = 100 * counts / counts.sum(axis=1, keepdims=True)
-    figure, axes = plt.subplots(figsize=(5.5, 4.8))
-    image = axes.imshow(shares, cmap="viridis", vmin=0, vmax=100)
-    ticks = np.arange(counts.shape[0])
-    axes.set_xticks(ticks, [str(t + 1) for t in ticks], fontsize=7)
-    axes.set_yticks(ticks, [str(t + 1) for t in ticks], fontsize=7)
-    axes.set_xlabel("reported pin")
+def plot_confusion(study: Study, stem: Path) -> list[Path]:
+    """Stimulated pin (rows) against answer (columns, "nothing felt" last), % of each row."""
+    counts = study.pooled.confusion
+    stimulated = [i for i in range(counts.shape[0]) if counts[i].sum()]
+    rows = counts[stimulated]
+    shares = 100 * rows / rows.sum(axis=1, keepdims=True)
+    figure, axes = plt.subplots(figsize=(7.0, 1.6 + 0.32 * len(stimulated)))
+    image = axes.imshow(shares, cmap="viridis", vmin=0, vmax=100, aspect="auto")
+    for r in range(shares.shape[0]):
+        for c in range(shares.shape[1]):
+            if rows[r, c]:
+                axes.text(c, r, f"{shares[r, c]:.0f}", ha="center", va="center", fontsize=6,
+                          color="black" if shares[r, c] > 60 else "white")
+    pin_count = counts.shape[0]
+    axes.set_xticks(np.arange(pin_count + 1),
+                    [str(p) for p in range(1, pin_count + 1)] + ["nothing\nfelt"], fontsize=7)
+    axes.set_yticks(np.arange(len(stimulated)), [str(i + 1) for i in stimulated], fontsize=7)
+    axes.axvline(pin_count - 0.5, color="white", linewidth=1.5)
+    axes.set_xlabel("answer (pin named)")
     axes.set_ylabel("stimulated pin")
-    axes.set_title(f"Confusion matrix, % of each row ({summary.group})")
-    figure.colorbar(image, ax=axes, label="% of trials")
-    return _save(figure, path)
+    axes.set_title("Confusion matrix, % of each stimulated pin's trials (trial-pooled)")
+    figure.colorbar(image, ax=axes, label="% of trials", fraction=0.04)
+    return _save(figure, stem, captions.confusion_matrix(study))
 
 
-def plot_pin_map(summary: Summary, path: Path, grid: Grid = DEFAULT_GRID) -> Path:
-    """Percent correct per pin, drawn as the subject feels the grid (pin 1 bottom-left)."""
-    accuracy = summary.pin_accuracy_pct
-    figure, axes = plt.subplots(figsize=(4.2, 3.8))
-    image = axes.imshow(np.ma.masked_invalid(accuracy), origin="lower", cmap="magma",
-                        vmin=0, vmax=100)
+def plot_pin_map(study: Study, stem: Path) -> list[Path]:
+    """Correct % per pin as the subject feels the grid (pin 1 bottom-left), subjects as unit."""
+    grid = study.grid
+    pins = study.subject_level.pins
+    means = np.array([m.mean_pct for m in pins]).reshape(grid.rows, grid.columns)
+    figure, axes = plt.subplots(figsize=(4.6, 4.2))
+    image = axes.imshow(np.ma.masked_invalid(means), origin="lower", cmap="viridis", vmin=0,
+                        vmax=100)
+    axes.set_facecolor("0.85")
     for row in range(grid.rows):
         for column in range(grid.columns):
-            value = accuracy[row, column]
-            text = "-" if math.isnan(value) else f"{value:.0f} %"
-            axes.text(column, row, f"pin {grid.pin_at(row, column)}\n{text}", ha="center",
-                      va="center", fontsize=7, color="grey" if math.isnan(value) else "cyan")
+            pin = grid.pin_at(row, column)
+            m = pins[pin - 1]
+            text = (f"pin {pin}\n-" if not m.subjects
+                    else f"pin {pin}\n{m.mean_pct:.0f} %\n{m.subjects} subj.")
+            light = not m.subjects or m.mean_pct > 60
+            axes.text(column, row, text, ha="center", va="center", fontsize=7,
+                      color="black" if light else "white")
     axes.set_xticks([])
     axes.set_yticks([])
-    axes.set_title(f"Correct localisation per pin ({summary.group})")
-    figure.colorbar(image, ax=axes, label="% correct")
-    return _save(figure, path)
+    axes.set_title("Correct localisation per pin")
+    figure.colorbar(image, ax=axes, label="% correct (mean over subjects)")
+    return _save(figure, stem, captions.pin_accuracy(study))
 
 
-FIGURES = {
+def plot_motion(study: Study, stem: Path) -> list[Path]:
+    """Fig. 9.17: motion felt on wave trials, direction right of those, felt on no-wave."""
+    level = study.subject_level
+    motion = level.motion
+    measures = [motion.felt, motion.direction_right, motion.no_wave_felt]
+    x = np.arange(3)
+    figure, axes = plt.subplots(figsize=(5.0, 3.6))
+    axes.bar(x, _means(measures), yerr=_bar_errors(measures, level.settings.method), capsize=4,
+             color=[OKABE_ITO["green"], OKABE_ITO["blue"], OKABE_ITO["sky"]], alpha=0.9)
+    _subject_dots(axes, x, measures, connect=False)
+    for xi, m in zip(x, measures, strict=True):
+        axes.annotate(f"{m.mean_pct:.0f} %\n{m.subjects} subj.\n{m.trials} trials", (xi, 2),
+                      ha="center", va="bottom", color="white", fontsize=7)
+    axes.hlines(100 * DIRECTION_CHANCE, 0.55, 1.45, color=CHANCE_COLOUR, linestyle="--",
+                linewidth=1.2, label=f"chance {100 * DIRECTION_CHANCE:.0f} %")
+    axes.legend(fontsize=7, loc="upper right")
+    axes.set_xticks(x, ["felt a moving dot\n(wave trials)", "direction right\n(of those felt)",
+                        "felt motion\n(no-wave trials)"], fontsize=8)
+    axes.set_ylim(0, 100)
+    axes.set_ylabel("% of trials")
+    axes.set_title("Apparent motion")
+    return _save(figure, stem, captions.motion(study))
+
+
+def plot_power(curves, stem: Path, caption: str) -> list[Path]:
+    """Power against the number of subjects, one line per criterion, Monte-Carlo band shaded."""
+    from pinarray.analysis.power import TARGET_POWER
+
+    colours = [OKABE_ITO[c] for c in ("blue", "orange", "green", "purple", "vermillion", "sky")]
+    markers = ["o", "s", "^", "D", "v", "P"]
+    figure, axes = plt.subplots(figsize=(6.0, 4.0))
+    for i, criterion in enumerate(curves.criteria):
+        points = sorted((p for p in curves.points if p.criterion == criterion),
+                        key=lambda p: p.subjects)
+        n = [p.subjects for p in points]
+        bands = np.array([p.met.interval_pct for p in points])
+        colour = colours[i % len(colours)]
+        axes.fill_between(n, bands[:, 0], bands[:, 1], color=colour, alpha=0.15, linewidth=0)
+        axes.plot(n, [p.met.pct for p in points], marker=markers[i % len(markers)],
+                  color=colour, label=criterion, markersize=4)
+    axes.axhline(100 * TARGET_POWER, color="black", linestyle="--", linewidth=0.8)
+    axes.set_xticks(curves.subject_counts)
+    axes.set_xlabel("subjects")
+    axes.set_ylabel("power (% of simulated studies)")
+    axes.set_ylim(0, 100)
+    axes.set_title(f"How many subjects? ({curves.protocol})")
+    axes.legend(fontsize=7, loc="lower right")
+    return _save(figure, stem, caption)
+
+
+FIGURES: dict[str, Callable[[Study, Path], list[Path]]] = {
     "correct_by_frequency": plot_correct_by_frequency,
     "error_types": plot_error_types,
-    "motion": plot_motion,
     "confusion_matrix": plot_confusion,
     "pin_accuracy": plot_pin_map,
+    "motion": plot_motion,
 }

@@ -1,134 +1,214 @@
-"""Write an analysis folder: CSV tables, PNG figures, and a one-page ``summary.md`` linking them."""
+"""Write an analysis folder: CSV tables, figures (PNG and PDF), and ``summary.md`` linking them."""
 
 from __future__ import annotations
 
-import csv
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
-from pinarray.analysis.stats import ERROR_CLASSES, Proportion, Summary
-from pinarray.grid import DEFAULT_GRID, Grid
+from pinarray.analysis import captions
+from pinarray.analysis.chance import DIRECTION_CHANCE
+from pinarray.analysis.load import RunSelection
+from pinarray.analysis.mixed import FrequencyEffect
+from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS, Proportion
+from pinarray.analysis.study import Study
+from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod
+from pinarray.analysis.tables import number, write_tables
 
 
-def _pct(value: float) -> str:
-    return "n/a" if math.isnan(value) else f"{value:.1f}"
+@dataclass(frozen=True)
+class Report:
+    """What `write_report` wrote."""
+
+    summary: Path
+    tables: tuple[Path, ...]
+    figures: tuple[Path, ...]
 
 
-def _proportion_cells(p: Proportion) -> list[str]:
-    low, high = p.interval_pct
-    return [str(p.successes), _pct(p.pct), _pct(low), _pct(high)]
+def interval_text(interval: tuple[float, float]) -> str:
+    low, high = interval
+    return "n/a (one subject)" if math.isnan(low) else f"[{number(low)}, {number(high)}]"
 
 
-def _write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[object]]) -> Path:
-    with open(path, "w", encoding="utf-8", newline="") as out:
-        writer = csv.writer(out)
-        writer.writerow(header)
-        writer.writerows(rows)
-    return path
+def _pooled(p: Proportion) -> str:
+    return f"{number(p.pct)} % {interval_text(p.interval_pct)} ({p.successes}/{p.trials})"
 
 
-def write_tables(summaries: Sequence[Summary], out: Path, grid: Grid = DEFAULT_GRID) -> list[Path]:
-    """The CSV tables, every group (pooled first); the confusion matrix for the pooled group."""
-    pooled = summaries[0]
-    localisation = [
-        [s.group, f"{row.frequency_hz:g}", row.trials, *_proportion_cells(row.correct),
-         *(_pct(row.error_pct(c)) for c in ERROR_CLASSES),
-         _pct(100 * row.none_felt / row.trials if row.trials else math.nan)]
-        for s in summaries for row in s.localisation
-    ]
-    pins = [
-        [s.group, pin, *grid.cell(pin), int(s.pin_trials.flat[pin - 1]),
-         int(s.pin_correct.flat[pin - 1]), _pct(s.pin_accuracy_pct.flat[pin - 1])]
-        for s in summaries for pin in grid.pins
-    ]
-    motion = [
-        [s.group, s.motion.felt.trials, *_proportion_cells(s.motion.felt),
-         *_proportion_cells(s.motion.direction_right), s.motion.no_wave_felt.trials,
-         *_proportion_cells(s.motion.no_wave_felt)]
-        for s in summaries
-    ]
-    confusion = [[pin, *pooled.confusion[pin - 1]] for pin in grid.pins]
-    ci = ("pct", "ci_low_pct", "ci_high_pct")
-    return [
-        _write_csv(out / "localisation_by_frequency.csv",
-                   ["group", "frequency_hz", "trials", "correct", *(f"correct_{c}" for c in ci),
-                    *(f"error_{c}_pct" for c in ERROR_CLASSES), "none_felt_pct"], localisation),
-        _write_csv(out / "pin_accuracy.csv",
-                   ["group", "pin", "row", "column", "trials", "correct", "correct_pct"], pins),
-        _write_csv(out / "motion.csv",
-                   ["group", "wave_trials", "felt", *(f"felt_{c}" for c in ci),
-                    "direction_right", *(f"direction_right_{c}" for c in ci),
-                    "no_wave_trials", "no_wave_felt", *(f"no_wave_felt_{c}" for c in ci)],
-                   motion),
-        _write_csv(out / "confusion_matrix.csv",
-                   ["stimulated_pin", *(f"reported_{p}" for p in grid.pins)], confusion),
-    ]
+def measure_text(m: AcrossSubjects, method: IntervalMethod) -> str:
+    """``mean % [interval] (N subjects, n trials)``, the chosen interval."""
+    return (f"{number(m.mean_pct)} % {interval_text(m.interval_pct(method))} "
+            f"({m.subjects} subj., {m.trials} trials)")
 
 
-def write_figures(pooled: Summary, out: Path, grid: Grid = DEFAULT_GRID) -> list[Path]:
-    """PNG figures of the pooled group, only those for which there are trials."""
-    from pinarray.analysis import plots
-
-    drawn = []
-    if pooled.localisation:
-        drawn += [plots.plot_correct_by_frequency(pooled, out / "correct_by_frequency.png"),
-                  plots.plot_error_types(pooled, out / "error_types.png"),
-                  plots.plot_confusion(pooled, out / "confusion_matrix.png"),
-                  plots.plot_pin_map(pooled, out / "pin_accuracy.png", grid)]
-    if pooled.motion.felt.trials:
-        drawn.append(plots.plot_motion(pooled, out / "motion.png"))
-    return drawn
-
-
-def _interval(p: Proportion) -> str:
-    low, high = p.interval_pct
-    return f"{_pct(p.pct)} % [{_pct(low)}, {_pct(high)}] ({p.successes}/{p.trials})"
+def run_lines(runs: RunSelection) -> list[str]:
+    """The runs left out and the runs counted with a caveat, one line each."""
+    lines = []
+    for run in runs.excluded:
+        hint = "; --include-incomplete counts it" if run.counted else ""
+        lines.append(f"left out: {run.label}: {run.incomplete_reason} "
+                     f"({run.counted} counted trial(s)){hint}")
+    for run in runs.incomplete_included:
+        lines.append(f"counted on request: {run.label}: {run.incomplete_reason}")
+    for run in runs.without_manifest:
+        lines.append(f"counted without a manifest (completeness unknown): {run.label}")
+    for run in runs.included:
+        if run.duplicates:
+            lines.append(f"{run.label}: trial(s) {', '.join(map(str, run.duplicates))} finished "
+                         f"twice; the first ok row counts")
+    return lines
 
 
-def summary_markdown(summaries: Sequence[Summary], sources: Sequence[Path],
-                     tables: Sequence[Path], figures: Sequence[Path]) -> str:
-    """The one-page report: pooled numbers, per-subject correct rates, links to everything."""
-    pooled = summaries[0]
+def _methods(study: Study) -> list[str]:
+    settings = study.subject_level.settings
+    lines = ["## Methods", "",
+             "- **Unit: the subject.** For every measure each subject's own percentage is "
+             "computed; the table gives their mean across subjects with the "
+             f"{settings.describe(IntervalMethod.T)} and the "
+             f"{settings.describe(IntervalMethod.BOOTSTRAP)}. Figures draw the "
+             f"{settings.describe()}. t intervals are not cut at 0 or 100 %.",
+             "- **Trial-pooled** numbers (every trial of every subject counted together, 95 % "
+             "Wilson interval) are given beside them and labelled so: they treat trials as "
+             "independent, which they are not when subjects differ, so their intervals are "
+             "too narrow for claims about people.",
+             "- Localisation answers fall into correct, error A-D or **nothing felt**; every "
+             "percentage is of all trials, nothing felt included."]
+    if study.chance:
+        lines.append(f"- **Chance**: {study.chance.definition()}; the chance of each error class "
+                     "is the share of nameable pins in that class, averaged over the "
+                     "stimulated pins "
+                     f"({', '.join(map(str, study.chance.stimulated_pins))}).")
+    if study.motion_trials:
+        lines.append(f"- Motion chance: direction right {100 * DIRECTION_CHANCE:.0f} % (left or "
+                     "right named at random; 'unsure' counts as not right). Feeling motion has "
+                     "no chance level; the no-wave trials are its false-alarm baseline.")
+    if study.pooled.localisation:
+        lines.append("- **Frequency effect**: mixed-effects logistic regression, "
+                     "correct ~ log2(frequency) + (1 | subject), fitted by maximum likelihood "
+                     "(adaptive Gauss-Hermite quadrature); nothing felt counts as not correct.")
+    return lines + [""]
+
+
+def _localisation(study: Study) -> list[str]:
+    level = study.subject_level
+    method = level.settings.method
+    chance = study.chance
+    lines = ["## Localisation", "",
+             f"Correct localisation, mean of per-subject percentages with the "
+             f"{level.settings.describe()}:", "",
+             "| frequency | subjects | trials | correct (subject mean) | t interval | "
+             "bootstrap interval | trial-pooled [Wilson 95 %] | chance |",
+             "|---|---|---|---|---|---|---|---|"]
+    for row in level.localisation:
+        m = row.share("correct")
+        lines.append(f"| {row.frequency_hz:g} Hz | {m.subjects} | {m.trials} | "
+                     f"{number(m.mean_pct)} % | {interval_text(m.t_interval_pct)} | "
+                     f"{interval_text(m.bootstrap_interval_pct)} | {_pooled(m.pooled)} | "
+                     f"{number(100 * chance.correct, 2) if chance else 'n/a'} % |")
+    lines += ["", f"Every answer category, mean of per-subject percentages "
+              f"[{level.settings.describe()}]:",
+              "", "| frequency | " + " | ".join(CATEGORY_LABELS[c] for c in CATEGORIES) + " |",
+              "|---" * (len(CATEGORIES) + 1) + "|"]
+    for row in level.localisation:
+        lines.append(f"| {row.frequency_hz:g} Hz | " + " | ".join(
+            f"{number(row.share(c).mean_pct)} % {interval_text(row.share(c).interval_pct(method))}"
+            for c in CATEGORIES) + " |")
+    if chance:
+        lines.append("| chance | " + " | ".join(
+            f"{number(100 * chance.fractions[c], 2)} %" if c in chance.fractions else "-"
+            for c in CATEGORIES) + " |")
+    lines += ["", "Correct per subject (their own trials; each subject counts once in the means "
+              "above):", "",
+              "| subject | " + " | ".join(f"{r.frequency_hz:g} Hz" for r in level.localisation)
+              + " |", "|---" * (len(level.localisation) + 1) + "|"]
+    for summary in study.per_subject:
+        if summary.localisation:
+            by_frequency = {r.frequency_hz: r.correct for r in summary.localisation}
+            cells = [by_frequency.get(r.frequency_hz, Proportion(0, 0))
+                     for r in level.localisation]
+            lines.append(f"| {summary.subjects[0]} | " + " | ".join(
+                f"{number(p.pct)} % ({p.successes}/{p.trials})" if p.trials else "-"
+                for p in cells) + " |")
+    effect = study.frequency_effect
+    lines += ["", f"**Frequency effect** (mixed-effects logistic): {effect.describe()}."]
+    if isinstance(effect, FrequencyEffect):
+        lines.append("Model's correct rate for a typical subject (random effect 0): " + ", ".join(
+            f"{f:g} Hz {p:.1f} %" for f, p in zip(effect.frequencies_hz,
+                                                  effect.typical_subject_pct, strict=True)) + ".")
+    stimulated = [(pin, m) for pin, m in enumerate(level.pins, start=1) if m.subjects]
+    if stimulated:
+        top = max(m.mean_pct for _, m in stimulated)
+        best = [str(pin) for pin, m in stimulated if m.mean_pct == top]
+        lines.append(f"Best localised pin(s), mean of per-subject percentages over all "
+                     f"frequencies: {', '.join(best)} ({number(top)} %).")
+    return lines + [""]
+
+
+def _motion(study: Study) -> list[str]:
+    level = study.subject_level
+    motion = level.motion
+    rows = [("felt a moving dot (wave trials)", motion.felt, "-"),
+            ("direction right (of the wave trials felt)", motion.direction_right,
+             f"{100 * DIRECTION_CHANCE:.0f} %"),
+            ("felt motion on no-wave trials (false alarms)", motion.no_wave_felt, "-")]
+    lines = ["## Apparent motion", "",
+             "| measure | subjects | trials | subject mean | t interval | bootstrap interval | "
+             "trial-pooled [Wilson 95 %] | chance |", "|---|---|---|---|---|---|---|---|"]
+    for name, m, chance in rows:
+        lines.append(f"| {name} | {m.subjects} | {m.trials} | {number(m.mean_pct)} % | "
+                     f"{interval_text(m.t_interval_pct)} | "
+                     f"{interval_text(m.bootstrap_interval_pct)} | {_pooled(m.pooled)} | "
+                     f"{chance} |")
+    return lines + [""]
+
+
+def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Path]) -> str:
+    """The report page: runs, methods, subject-level tables, figures with captions, links."""
+    subjects = study.subjects
+    runs = study.runs
     lines = ["# Pin-array results", "",
-             f"{len(sources)} results file(s), {len(pooled.subjects)} subject(s): "
-             f"{', '.join(pooled.subjects) or 'none'}. Counted: main trials with status ok. "
-             "Percentages carry 95 % Wilson intervals.", ""]
-    if pooled.localisation:
-        lines += ["## Localisation (pooled)", "",
-                  "| frequency | trials | correct | A | B | C | D | nothing felt |",
-                  "|---|---|---|---|---|---|---|---|"]
-        for row in pooled.localisation:
-            none_pct = 100 * row.none_felt / row.trials
-            lines.append(f"| {row.frequency_hz:g} Hz | {row.trials} | {_interval(row.correct)} | "
-                         + " | ".join(f"{_pct(row.error_pct(c))} %" for c in ERROR_CLASSES)
-                         + f" | {_pct(none_pct)} % |")
-        lines += ["", "Error classes as % of all trials at that frequency: A adjacent on the "
-                  "same row/column, B diagonal neighbour, C same row/column not adjacent, "
-                  "D neither.", ""]
-        per_subject = [s for s in summaries[1:] if s.localisation]
-        if per_subject:
-            lines += ["Correct per subject: " + "; ".join(
-                f"{s.group} " + ", ".join(f"{r.frequency_hz:g} Hz {_pct(r.correct.pct)} %"
-                                          for r in s.localisation) for s in per_subject), ""]
-    motion = pooled.motion
-    if motion.felt.trials:
-        lines += ["## Apparent motion (pooled)", "",
-                  f"- felt a moving dot on wave trials: {_interval(motion.felt)}",
-                  f"- of those, named the direction right: {_interval(motion.direction_right)}",
-                  f"- felt motion on no-wave trials: {_interval(motion.no_wave_felt)}", ""]
-    if figures:
-        lines += ["## Figures", ""] + [f"![{p.stem}]({p.name})" for p in figures] + [""]
+             f"{len(runs.included)} run(s) counted, {len(subjects)} subject(s): "
+             f"{', '.join(subjects) or 'none'}; {study.localisation_trials} localisation and "
+             f"{study.motion_trials} motion trials. {captions.COUNTED} A trial finished twice "
+             "in one run counts once.", ""]
+    notes = run_lines(runs)
+    lines += ["## Runs", ""] + ([f"- {line}" for line in notes] if notes else
+                                ["- every run found is completed and counted"]) + [
+        "", "All runs and why each was counted or left out: [runs.csv](runs.csv).", ""]
+    lines += _methods(study)
+    if study.pooled.localisation:
+        lines += _localisation(study)
+    if study.motion_trials:
+        lines += _motion(study)
+    pngs = [p for p in figures if p.suffix == ".png"]
+    if pngs:
+        lines += ["## Figures", ""]
+        for n, png in enumerate(pngs, start=1):
+            caption = captions.CAPTIONS[png.stem](study)
+            lines += [f"![{png.stem}]({png.name})", "",
+                      f"*Figure {n}.* {caption} Vector: [{png.stem}.pdf]({png.stem}.pdf).", ""]
     lines += ["## Tables", ""] + [f"- [{p.name}]({p.name})" for p in tables] + [""]
     return "\n".join(lines)
 
 
-def write_report(summaries: Sequence[Summary], sources: Sequence[Path], out: Path,
-                 grid: Grid = DEFAULT_GRID) -> Path:
-    """Write tables, figures and ``summary.md`` into ``out``; return the summary's path."""
+def write_figures(study: Study, out: Path) -> list[Path]:
+    """Each figure for which there are trials, as PNG and PDF."""
+    from pinarray.analysis import plots
+
+    drawn: list[Path] = []
+    if study.pooled.localisation:
+        for name in ("correct_by_frequency", "error_types", "confusion_matrix", "pin_accuracy"):
+            drawn += plots.FIGURES[name](study, out / name)
+    if study.motion_trials:
+        drawn += plots.plot_motion(study, out / "motion")
+    return drawn
+
+
+def write_report(study: Study, out: Path) -> Report:
+    """Write tables, figures and ``summary.md`` into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    tables = write_tables(summaries, out, grid)
-    figures = write_figures(summaries[0], out, grid)
+    tables = write_tables(study, out)
+    figures = write_figures(study, out)
     path = out / "summary.md"
-    path.write_text(summary_markdown(summaries, sources, tables, figures), encoding="utf-8")
-    return path
+    path.write_text(summary_markdown(study, tables, figures), encoding="utf-8")
+    return Report(path, tuple(tables), tuple(figures))

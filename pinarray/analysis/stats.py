@@ -1,4 +1,8 @@
-"""The numbers a paper reports, computed from trial rows; pure functions, no files.
+"""Trial counts of one group of rows (a subject, or everyone pooled); pure functions, no files.
+
+These are the *trial-pooled* numbers: every trial of the group weighs the same, so intervals
+here (Wilson) treat trials as independent. Subject-level statistics, with subjects as the
+unit, are built from the per-subject counts in `pinarray.analysis.subjects`.
 
 Only rows that count are used: main trials (not practice) with status ``ok``. Localisation
 answers are classified again from ``pin`` and ``response`` with the grid (so a results file
@@ -10,7 +14,7 @@ when the answer names the wave's direction ("unsure" counts as felt, not right).
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +25,12 @@ from pinarray.results import TrialRecord
 
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 ERROR_CLASSES = ("A", "B", "C", "D")
+NOTHING_FELT = "none"
+# Every localisation answer falls in exactly one of these; "nothing felt" is a category of
+# its own in every table and figure, never dropped from a denominator.
+CATEGORIES = ("correct", *ERROR_CLASSES, NOTHING_FELT)
+CATEGORY_LABELS = {"correct": "correct", "A": "error A", "B": "error B", "C": "error C",
+                   "D": "error D", NOTHING_FELT: "nothing felt"}
 POOLED = "all"
 
 
@@ -73,9 +83,20 @@ class FrequencyRow:
     def trials(self) -> int:
         return self.correct.trials
 
+    def count(self, category: str) -> int:
+        """Trials answered in ``category`` (one of `CATEGORIES`)."""
+        if category == "correct":
+            return self.correct.successes
+        if category == NOTHING_FELT:
+            return self.none_felt
+        return self.error_counts[ERROR_CLASSES.index(category)]
+
+    def share(self, category: str) -> Proportion:
+        """Trials answered in ``category`` out of all trials at this frequency."""
+        return Proportion(self.count(category), self.trials)
+
     def error_pct(self, error_class: str) -> float:
-        count = self.error_counts[ERROR_CLASSES.index(error_class)]
-        return 100 * count / self.trials if self.trials else math.nan
+        return self.share(error_class).pct
 
 
 @dataclass(frozen=True)
@@ -94,7 +115,7 @@ class Summary:
     group: str
     subjects: tuple[str, ...]
     localisation: tuple[FrequencyRow, ...]
-    confusion: np.ndarray  # counts; [stimulated - 1, reported - 1]
+    confusion: np.ndarray  # counts; [stimulated - 1, reported - 1], last column nothing felt
     pin_correct: np.ndarray  # correct counts per pin, rows x columns, row 0 at the bottom
     pin_trials: np.ndarray  # trials per pin, same layout
     motion: MotionSummary
@@ -119,22 +140,27 @@ def _reported_pin(record: TrialRecord, grid: Grid) -> int | None:
         ) from None
 
 
+def _localisation_answers(
+    records: Iterable[TrialRecord], grid: Grid
+) -> Iterator[tuple[int, float | None, int | None]]:
+    """(stimulated pin, frequency_hz, pin named or None) of every counted localisation row."""
+    for record in records:
+        if record.counts and record.pin is not None:
+            yield grid.check_pin(record.pin), record.frequency_hz, _reported_pin(record, grid)
+
+
 def localisation_by_frequency(
     records: Iterable[TrialRecord], grid: Grid = DEFAULT_GRID
 ) -> tuple[FrequencyRow, ...]:
-    """Correct and A-D percentages per stimulation frequency, lowest frequency first."""
+    """Counts of every answer category per stimulation frequency, lowest frequency first."""
     tallies: dict[float, list[int]] = {}  # frequency -> [trials, correct, A, B, C, D, none]
-    for record in records:
-        if not (record.counts and record.is_localisation and record.frequency_hz is not None):
+    for pin, frequency_hz, reported in _localisation_answers(records, grid):
+        if frequency_hz is None:
             continue
-        tally = tallies.setdefault(record.frequency_hz, [0] * 7)
+        tally = tallies.setdefault(frequency_hz, [0] * 7)
         tally[0] += 1
-        reported = _reported_pin(record, grid)
-        if reported is None:
-            tally[6] += 1
-            continue
-        verdict = grid.classify(grid.check_pin(record.pin), reported).value
-        tally[1 if verdict == "correct" else 2 + ERROR_CLASSES.index(verdict)] += 1
+        verdict = NOTHING_FELT if reported is None else grid.classify(pin, reported).value
+        tally[1 + CATEGORIES.index(verdict)] += 1
     return tuple(
         FrequencyRow(frequency, Proportion(t[1], t[0]), (t[2], t[3], t[4], t[5]), t[6])
         for frequency, t in sorted(tallies.items())
@@ -142,13 +168,14 @@ def localisation_by_frequency(
 
 
 def confusion_matrix(records: Iterable[TrialRecord], grid: Grid = DEFAULT_GRID) -> np.ndarray:
-    """Counts of (stimulated pin, reported pin); "nothing felt" answers are left out."""
-    matrix = np.zeros((grid.pin_count, grid.pin_count), dtype=int)
-    for record in records:
-        if record.counts and record.is_localisation:
-            reported = _reported_pin(record, grid)
-            if reported is not None:
-                matrix[grid.check_pin(record.pin) - 1, reported - 1] += 1
+    """Counts of (stimulated pin, answer): columns 0..P-1 are pins 1..P, column P nothing felt.
+
+    Each row sums to the trials of its stimulated pin, so a row's shares are shares of every
+    trial, the same denominator as the pin map's.
+    """
+    matrix = np.zeros((grid.pin_count, grid.pin_count + 1), dtype=int)
+    for pin, _, reported in _localisation_answers(records, grid):
+        matrix[pin - 1, grid.pin_count if reported is None else reported - 1] += 1
     return matrix
 
 
@@ -158,11 +185,9 @@ def pin_counts(
     """(correct, trials) per stimulated pin, laid out rows x columns with row 0 at the bottom."""
     correct = np.zeros(grid.pin_count, dtype=int)
     trials = np.zeros(grid.pin_count, dtype=int)
-    for record in records:
-        if record.counts and record.is_localisation:
-            pin = grid.check_pin(record.pin)
-            trials[pin - 1] += 1
-            correct[pin - 1] += _reported_pin(record, grid) == pin
+    for pin, _, reported in _localisation_answers(records, grid):
+        trials[pin - 1] += 1
+        correct[pin - 1] += reported == pin
     shape = (grid.rows, grid.columns)
     return correct.reshape(shape), trials.reshape(shape)
 

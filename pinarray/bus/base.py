@@ -77,6 +77,14 @@ class Telemetry:
 
 
 @dataclass(frozen=True)
+class GoalReading:
+    """A servo's goal-position register as read back, with the error bits of its reply."""
+
+    goal_steps: int
+    errors: StatusError
+
+
+@dataclass(frozen=True)
 class BusStats:
     """Counters since the bus was opened."""
 
@@ -85,6 +93,8 @@ class BusStats:
     sync_writes: int
     goals_written: int
     retries: int
+    stale_bytes: int = 0  # late replies drained before a request
+    mismatched_replies: int = 0  # status packets whose id or length did not fit the request
 
 
 @dataclass(frozen=True)
@@ -106,11 +116,32 @@ class Bus(Protocol):
 
     setup: BusSetup
 
-    def write_goals(self, goals_steps: Mapping[int, int]) -> int: ...
+    def goal_packet(self, goals_steps: Mapping[int, int]) -> bytes:
+        """The bytes of one frame's goal write, checked against the pins' limits."""
+        ...
+
+    def send_goals(self, packet: bytes,
+                   goals_steps: Mapping[int, int] | tuple[tuple[int, int], ...]) -> None:
+        """Write a frame prepared by `goal_packet`, in one call, without waiting for a reply."""
+        ...
+
+    def read_goal(self, servo_id: int, deadline_ns: int) -> GoalReading | None:
+        """One servo's goal register read back (None: no reply by ``deadline_ns``)."""
+        ...
+
+    def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
+        """Write one goal again, acknowledged (None: no acknowledgement by ``deadline_ns``)."""
+        ...
+
+    def reply_time_ns(self, servo_id: int, request_bytes: int, reply_params: int) -> int:
+        """Longest one exchange with ``servo_id`` may take on this bus."""
+        ...
+
+    def wire_ns(self, byte_count: int) -> int:
+        """Time ``byte_count`` bytes take on the wire."""
+        ...
 
     def read_telemetry(self, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]: ...
-
-    def move_to_rest(self) -> None: ...
 
     def rest_and_release(self) -> SafeStopReport: ...
 

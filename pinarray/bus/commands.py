@@ -5,6 +5,9 @@ import argparse
 from pinarray.protocol import BAUD_RATES
 from pinarray.rig import SIM_DEFAULT
 
+# Exit status of `play` when a trial's stimulus was not delivered as scheduled.
+EXIT_NOT_DELIVERED = 3
+
 PLAY_EPILOG = """\
 Bus choice: --port PATH drives real servos (a device such as /dev/ttyUSB0 or a pyserial URL);
 --sim [URL] (the default) drives simulated ones, e.g. --sim 'sim://?drop=0.01&corrupt=0.01'
@@ -15,7 +18,13 @@ Time: with the simulator, --time-scale 0 (the default) runs in virtual time: not
 the report shows what the schedule and the wire allow. --time-scale X > 0 runs in real time
 sped up X times (1 = real time). Real servos always run at --time-scale 1.
 
-Ctrl-C or SIGTERM stop playback cleanly: pins go to rest and torque off before exit.
+Real servos (and simulated ones behind a pseudo-terminal) are played by a player process of
+its own at real-time priority when the OS grants it. Every goal change is read back from its
+servo and re-sent if lost; a trial not delivered as scheduled (device: delivery_tolerance_ms,
+default 10 ms) is reported and the exit status is 3.
+
+Ctrl-C, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1/2 and SIGPIPE stop playback cleanly: pins go to
+rest and torque off before exit (status 128 + the signal's number).
 """
 
 SERVE_EPILOG = """\
@@ -92,27 +101,45 @@ def add_bus_choice(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_play(args: argparse.Namespace) -> int:
+    import sys
+
     from pinarray.plan import make_plan
-    from pinarray.player import PlaybackReport, sigterm_raises
+    from pinarray.player import PlaybackReport, describe
     from pinarray.protocol_load import load_protocol
     from pinarray.rig import Rig, choose_clock
     from pinarray.schedule import compile_trial
+    from pinarray.stop import StopRequest, stop_on_signals
 
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, seed=args.seed)
     trials = (plan.trial(args.trial),) if args.trial is not None else plan.trials
-    clock = choose_clock(args.port, args.time_scale)
-    with sigterm_raises(), Rig(protocol, args.port, args.sim, clock) as rig:
-        for warning in rig.warnings:
-            print(f"pinarray: warning: {warning}")
-        print(f"{protocol.name}: {len(trials)} trial(s) on {rig.url} (seed {plan.seed})")
-        for planned in trials:
-            rig.present(compile_trial(protocol, planned))
-            kind = "practice" if planned.practice else f"block {planned.block}"
-            print(f"trial {planned.trial} ({kind}): {rig.reports[-1].summary()}", flush=True)
+    clock = choose_clock(args.port, args.time_scale, paced=True)
+    with stop_on_signals(StopRequest()) as stop:
+        rig = Rig(protocol, args.port, args.sim, clock, stop)
+        try:
+            for warning in rig.warnings:
+                print(f"pinarray: warning: {warning}", file=sys.stderr)
+            where = "a player process" if rig.isolated else "this process"
+            print(f"{protocol.name}: {len(trials)} trial(s) on {rig.url}, played by {where} "
+                  f"(seed {plan.seed})")
+            undelivered = []
+            for planned in trials:
+                presentation = rig.present(compile_trial(protocol, planned))
+                kind = "practice" if planned.practice else f"block {planned.block}"
+                print(f"trial {planned.trial} ({kind}): {rig.reports[-1].summary()}", flush=True)
+                if not presentation.delivery.delivered:
+                    undelivered.append(planned.trial)
+        except BaseException:
+            print(f"pinarray: pins after the stop: {describe(rig.close())}", file=sys.stderr)
+            raise
+        safe = rig.close()
     total = PlaybackReport.merged(rig.reports)
     print(f"played {len(rig.reports)} trial(s): {total.summary()}, {total.retries} retries; "
-          "pins at rest, torque off")
+          f"{describe(safe)}, torque off")
+    if undelivered:
+        print(f"pinarray: trial(s) {', '.join(map(str, undelivered))} NOT delivered as scheduled "
+              f"(see above)", file=sys.stderr)
+        return EXIT_NOT_DELIVERED
     return 0
 
 

@@ -1,28 +1,30 @@
-"""The Feetech STS driver: the only module that imports ``scservo_sdk``.
+"""The Feetech STS driver: what a connected array of STS servos can be asked to do.
 
-Every packet goes through the vendor SDK's own code. What this module adds is what the SDK
-leaves to its callers: a clock-driven port (so the simulator can run in virtual time), a
-connect handshake that reports every missing servo at once, sync writes of only the goals
-that changed, bounded retries of transient "no status packet" / corrupt replies, and a
-safe stop that puts every pin at rest and releases torque wherever the bus still answers.
+Packets are built by `pinarray.bus.packets` and exchanged by `pinarray.bus.link`, which
+drains stale input before every request and accepts only replies whose id, length and
+checksum fit it. This module adds what a lab needs on top: a connect handshake that reports
+every missing servo at once, goal writes that never leave a pin's calibrated limits, bounded
+and counted retries of transient failures, the read-back and re-send that verify a goal
+reached its servo, and a safe stop that puts every pin at rest and releases torque wherever
+the bus still answers.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from collections.abc import Mapping
+from dataclasses import dataclass
 
-import serial
-from scservo_sdk import (
-    COMM_RX_CORRUPT,
-    COMM_RX_TIMEOUT,
-    COMM_SUCCESS,
-    GroupSyncWrite,
-    PacketHandler,
-    PortHandler,
+from pinarray.bus import packets
+from pinarray.bus.base import (
+    BusSetup,
+    BusStats,
+    GoalReading,
+    PortLost,
+    SafeStopReport,
+    Telemetry,
 )
-
-from pinarray.bus.base import BusSetup, BusStats, PortLost, SafeStopReport, Telemetry
+from pinarray.bus.link import Expected, FdWire, Latency, Link, WireLost
+from pinarray.bus.packets import StatusPacket
 from pinarray.bus.registers import (
     Register,
     StatusError,
@@ -34,12 +36,8 @@ from pinarray.bus.registers import (
 )
 from pinarray.clock import Clock
 from pinarray.errors import BusError
-from pinarray.signals import deferred_signals
+from pinarray.stop import deferred_signals
 
-if TYPE_CHECKING:
-    from pinarray.bus.sim import SimBus
-
-TRANSIENT_RESULTS = (COMM_RX_TIMEOUT, COMM_RX_CORRUPT)
 REST_TOLERANCE_STEPS = 4
 # Present position .. moving flag, read in one instruction while waiting for pins to settle.
 MOTION_LENGTH = Register.MOVING.address + 1 - Register.PRESENT_POSITION.address
@@ -47,168 +45,127 @@ REST_POLL_NS = 10_000_000
 # Present position .. present temperature, read in one instruction.
 TELEMETRY_START = Register.PRESENT_POSITION
 TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.address
+NS_PER_US = 1_000
 
 
-class ClockedPortHandler(PortHandler):
-    """The SDK's PortHandler with a pluggable serial object, clock and latency budget.
+@dataclass(frozen=True)
+class Handover:
+    """A connected bus as another process takes it over through the port's descriptor."""
 
-    The SDK times packets with ``time.time()`` and assumes a 16 ms USB latency timer; here
-    the clock is injected (virtual time in tests) and the latency budget is what the
-    adapter really has, so a missing servo costs a few milliseconds, not 34.
-    """
+    port_name: str
+    baud_rate: int
+    setup: BusSetup
+    return_delay_ns: dict[int, int]
+    latency_timer_ms: int | None
+    worst_latency_ns: int
+    latency_samples: int
 
-    def __init__(
-        self,
-        port_name: str,
-        clock: Clock,
-        open_serial: Callable[[], object],
-        latency_ms: float,
-        baud_rate: int,
-    ):
-        super().__init__(port_name)
-        self.clock = clock
-        self.baudrate = baud_rate
-        self._open_serial = open_serial
-        self.latency_ms = latency_ms
-        self.bytes_written = 0
-        self.bytes_read = 0
-
-    def setupPort(self, cflag_baud):  # noqa: N802 - SDK method name
-        if self.is_open:
-            self.closePort()
-        self.ser = self._open_serial()
-        self.is_open = True
-        self.ser.reset_input_buffer()
-        self.tx_time_per_byte = (1000.0 / self.baudrate) * 10.0
-        return True
-
-    def writePort(self, packet):  # noqa: N802 - SDK method name
-        written = self.ser.write(packet)
-        self.bytes_written += written or 0
-        return written
-
-    def readPort(self, length):  # noqa: N802 - SDK method name
-        data = self.ser.read(length)
-        self.bytes_read += len(data)
-        return data
-
-    def getCurrentTime(self):  # noqa: N802 - SDK method name
-        return self.clock.now_ns() / 1_000_000.0
-
-    def setPacketTimeout(self, packet_length):  # noqa: N802 - SDK method name
-        self.packet_start_time = self.getCurrentTime()
-        self.packet_timeout = self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0
+    def attach(self, fd: int, clock: Clock) -> FeetechBus:
+        """The same servos, driven over ``fd`` in this process (no handshake: already done)."""
+        latency = Latency(self.latency_timer_ms)
+        for _ in range(self.latency_samples):
+            latency.record(self.worst_latency_ns)
+        link = Link(FdWire(fd, clock, self.port_name), clock, self.baud_rate, latency)
+        link.return_delay_ns.update(self.return_delay_ns)
+        bus = FeetechBus(link, clock)
+        bus.setup = self.setup
+        bus.assume_goals({s.servo_id: s.rest_steps for s in self.setup.servos})
+        return bus
 
 
 class FeetechBus:
-    """A connected STS bus, real or simulated, driven through ``scservo_sdk``.
+    """A connected STS bus, real or simulated.
 
     Use `pinarray.bus.transport.open_bus` to make one; it runs the handshake.
 
     Parameters
     ----------
-    port : ClockedPortHandler
-        Opened port.
+    link : Link
+        Timed, validated exchanges over the serial device or the simulator.
     clock : Clock
-        The same clock the port uses; waits for pins to settle use it.
+        The same clock the link uses; waits for pins to settle use it.
     retries : int
-        Extra attempts after a transient failure (no status packet, corrupt status packet).
+        Extra attempts after a transient failure (no fitting status packet in time).
     """
 
-    def __init__(self, port: ClockedPortHandler, clock: Clock, retries: int = 3):
-        self.port = port
+    def __init__(self, link: Link, clock: Clock, retries: int = 3):
+        self.link = link
         self.clock = clock
         self.retries = retries
-        self.packets = PacketHandler(0)
         self.setup = BusSetup(servos=())
         self.warnings: list[str] = []
-        self.sim: SimBus | None = None  # behind a simulated port; for tests and benchmarks
+        self.sim = None  # the `SimBus` behind a simulated port; for tests and benchmarks
         self._last_goals: dict[int, int] = {}
         self._sync_writes = 0
         self._goals_written = 0
         self._retries = 0
 
+    @property
+    def port_name(self) -> str:
+        return self.link.name
+
     # -- low level -----------------------------------------------------------------------
 
-    def _call(self, servo_id: int, register: Register, action: str, attempt: Callable):
-        """Run one SDK exchange with bounded retries; returns its data and error byte."""
-        last_result = COMM_SUCCESS
-        for index in range(self.retries + 1):
-            if index:
+    def _lost(self, action: str, error: OSError) -> PortLost:
+        return PortLost(f"servo port {self.port_name} lost while {action}: {error.strerror or error}")
+
+    def _transact(self, servo_id: int, action: str, packet: bytes, params_length: int,
+                  retries: int | None = None) -> StatusPacket:
+        """One request to one servo and its reply, retried a bounded number of times."""
+        attempts = (self.retries if retries is None else retries) + 1
+        expected = (Expected(servo_id, params_length),)
+        before = self.link.counters.mismatched_replies
+        for attempt in range(attempts):
+            if attempt:
                 self._retries += 1
-                self._discard_stale_input()
             try:
-                data, result, error = attempt()
-            except (serial.SerialException, OSError) as exc:
-                self.port.is_using = False  # the SDK leaves its busy flag set when I/O raises
-                raise PortLost(
-                    f"servo port {self.port.getPortName()} lost while {action} {register.name} "
-                    f"of servo {servo_id}: {exc}"
-                ) from None
-            if result == COMM_SUCCESS:
-                return data, StatusError(error)
-            last_result = result
-            if result not in TRANSIENT_RESULTS:
-                break
-        raise BusError(
-            f"servo {servo_id}: {action} {register.name} (address {register.address}) failed "
-            f"after {index + 1} attempt(s): {self.packets.getTxRxResult(last_result)}"
-        )
+                replies = self.link.exchange(packet, expected)
+            except WireLost as error:
+                raise self._lost(f"{action} of servo {servo_id}", error) from None
+            if servo_id in replies:
+                return replies[servo_id]
+        mismatched = self.link.counters.mismatched_replies - before
+        found = f"{mismatched} status packet(s) that did not fit" if mismatched else "no status packet"
+        raise BusError(f"servo {servo_id}: {action} failed after {attempts} attempt(s): "
+                       f"expected a status packet from servo {servo_id}, found {found}")
 
-    def _discard_stale_input(self) -> None:
-        # A late or half-received answer would otherwise be taken for the next one's.
-        self.port.is_using = False
-        try:
-            self.port.ser.reset_input_buffer()
-        except (serial.SerialException, OSError):
-            pass
-
-    def read(self, servo_id: int, register: Register, length: int | None = None):
+    def read(self, servo_id: int, register: Register, length: int | None = None,
+             retries: int | None = None) -> tuple[bytes, StatusError]:
         """Read ``length`` bytes (default: the register's size) from one servo."""
         size = length or register.size
-
-        def attempt():
-            return self.packets.readTxRx(self.port, servo_id, register.address, size)
-
-        data, error = self._call(servo_id, register, "reading", attempt)
-        return bytes(data), error
+        status = self._transact(
+            servo_id, f"reading {register.name} (address {register.address})",
+            packets.read(servo_id, register.address, size), size, retries,
+        )
+        return status.params, StatusError(status.error)
 
     def write(self, servo_id: int, register: Register, value: int) -> StatusError:
         """Write one register of one servo and wait for its acknowledgement."""
         if register.in_eeprom:
             raise BusError(
-                f"servo {servo_id}: refusing to write {register.name}, an EEPROM register; "
-                "EEPROM is only written on purpose, with the servo vendor's tool"
+                f"servo {servo_id}: refusing to write {register.name} (address "
+                f"{register.address}), an EEPROM register; EEPROM is only written on purpose"
             )
-        data = list(to_bytes(value, register.size))
-
-        def attempt():
-            result, error = self.packets.writeTxRx(
-                self.port, servo_id, register.address, register.size, data
-            )
-            return None, result, error
-
-        return self._call(servo_id, register, "writing", attempt)[1]
+        status = self._transact(
+            servo_id, f"writing {register.name} (address {register.address})",
+            packets.write(servo_id, register.address, to_bytes(value, register.size)), 0,
+        )
+        return StatusError(status.error)
 
     def ping(self, servo_id: int, retry: bool = True) -> int | None:
         """Model number of the servo at ``servo_id``, or None if nothing answers.
 
-        Uses the SDK's ping (a PING instruction, then a read of MODEL_NUMBER).
+        A PING instruction, then a read of MODEL_NUMBER, as the vendor SDK's ``ping`` does.
         """
-
-        def attempt():
-            return self.packets.ping(self.port, servo_id)
-
-        retries, self.retries = self.retries, self.retries if retry else 0
+        retries = None if retry else 0
         try:
-            model, _ = self._call(servo_id, Register.MODEL_NUMBER, "pinging for", attempt)
+            self._transact(servo_id, "pinging", packets.ping(servo_id), 0, retries)
+            data, _ = self.read(servo_id, Register.MODEL_NUMBER, retries=retries)
         except PortLost:
             raise
         except BusError:
             return None
-        finally:
-            self.retries = retries
-        return model
+        return from_bytes(data)
 
     # -- handshake -----------------------------------------------------------------------
 
@@ -236,12 +193,14 @@ class FeetechBus:
                 problems.append(f"expected model {setup.model_number}, but {found_text}")
             answered = sorted(set(found) - set(missing))
             raise BusError(
-                f"servo handshake on {self.port.getPortName()}: " + "; ".join(problems)
+                f"servo handshake on {self.port_name}: " + "; ".join(problems)
                 + f" (answered: {', '.join(map(str, answered)) or 'none'})"
             )
         enabled: list[int] = []
         try:
             for servo in setup.servos:
+                delay, _ = self.read(servo.servo_id, Register.RETURN_DELAY_TIME)
+                self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
                 # Hold where the horn is before torque comes on, so it cannot jerk a pin.
                 data, _ = self.read(servo.servo_id, Register.PRESENT_POSITION)
                 self.write(servo.servo_id, Register.GOAL_POSITION, from_bytes(data))
@@ -261,6 +220,27 @@ class FeetechBus:
 
     # -- playback ------------------------------------------------------------------------
 
+    def goal_packet(self, goals_steps: Mapping[int, int]) -> bytes:
+        """The sync write of these goals, after checking each against its pin's limits."""
+        for servo_id, position in goals_steps.items():
+            self._check_limits(servo_id, position)
+        return packets.sync_write(
+            Register.GOAL_POSITION.address, Register.GOAL_POSITION.size,
+            ((i, to_bytes(encode_position(p), 2)) for i, p in goals_steps.items()),
+        )
+
+    def send_goals(self, packet: bytes,
+                   goals_steps: Mapping[int, int] | tuple[tuple[int, int], ...]) -> None:
+        """Put a prepared sync write of ``goals_steps`` on the wire (no reply comes back)."""
+        try:
+            self.link.send(packet)
+        except WireLost as error:
+            ids = ", ".join(map(str, dict(goals_steps)))
+            raise self._lost(f"sync-writing GOAL_POSITION to servo(s) {ids}", error) from None
+        self._last_goals.update(goals_steps)
+        self._sync_writes += 1
+        self._goals_written += len(goals_steps)
+
     def write_goals(self, goals_steps: Mapping[int, int], force: bool = False) -> int:
         """Sync-write goal positions of the servos whose goal changed; returns how many.
 
@@ -274,34 +254,8 @@ class FeetechBus:
         changed = {
             i: p for i, p in goals_steps.items() if force or self._last_goals.get(i) != p
         }
-        if not changed:
-            return 0
-        for servo_id, position in changed.items():
-            self._check_limits(servo_id, position)
-        group = GroupSyncWrite(
-            self.port, self.packets, Register.GOAL_POSITION.address, Register.GOAL_POSITION.size
-        )
-        for servo_id, position in changed.items():
-            group.addParam(servo_id, list(to_bytes(encode_position(position), 2)))
-        try:
-            result = group.txPacket()
-        except (serial.SerialException, OSError) as exc:
-            self.port.is_using = False
-            ids = ", ".join(map(str, changed))
-            raise PortLost(
-                f"servo port {self.port.getPortName()} lost while sync-writing GOAL_POSITION "
-                f"to servo(s) {ids}: {exc}"
-            ) from None
-        if result != COMM_SUCCESS:
-            self.port.is_using = False
-            ids = ", ".join(map(str, changed))
-            raise BusError(
-                f"sync write of GOAL_POSITION to servo(s) {ids} failed: "
-                f"{self.packets.getTxRxResult(result)}"
-            )
-        self._last_goals.update(changed)
-        self._sync_writes += 1
-        self._goals_written += len(changed)
+        if changed:
+            self.send_goals(self.goal_packet(changed), changed)
         return len(changed)
 
     def _check_limits(self, servo_id: int, position: int) -> None:
@@ -316,6 +270,44 @@ class FeetechBus:
                 f"pin {servo.pin} (servo {servo_id}): GOAL_POSITION {position} steps is outside "
                 f"its calibrated limits {servo.min_steps}..{servo.max_steps}"
             )
+
+    def read_goal(self, servo_id: int, deadline_ns: int) -> GoalReading | None:
+        """Read back one servo's goal position, giving up at ``deadline_ns``; None: no reply.
+
+        One attempt: the player decides when to try again (in the next slack).
+        """
+        register = Register.GOAL_POSITION
+        try:
+            replies = self.link.exchange(
+                packets.read(servo_id, register.address, register.size),
+                (Expected(servo_id, register.size),), deadline_ns,
+            )
+        except WireLost as error:
+            raise self._lost(f"reading back GOAL_POSITION of servo {servo_id}", error) from None
+        status = replies.get(servo_id)
+        if status is None:
+            return None
+        return GoalReading(decode_position(from_bytes(status.params)), StatusError(status.error))
+
+    def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
+        """Write one goal again with an acknowledged WRITE; the error bits, or None: no ack."""
+        self._check_limits(servo_id, goal_steps)
+        register = Register.GOAL_POSITION
+        packet = packets.write(servo_id, register.address, to_bytes(encode_position(goal_steps), 2))
+        try:
+            replies = self.link.exchange(packet, (Expected(servo_id, 0),), deadline_ns)
+        except WireLost as error:
+            raise self._lost(f"re-writing GOAL_POSITION of servo {servo_id}", error) from None
+        status = replies.get(servo_id)
+        return None if status is None else StatusError(status.error)
+
+    def wire_ns(self, byte_count: int) -> int:
+        """Time ``byte_count`` bytes take on the bus at its baud rate."""
+        return self.link.wire_ns(byte_count)
+
+    def reply_time_ns(self, servo_id: int, request_bytes: int, reply_params: int) -> int:
+        """Longest one exchange with ``servo_id`` may take: wire, return delay, adapter latency."""
+        return self.link.reply_time_ns(request_bytes, (Expected(servo_id, reply_params),))
 
     def read_telemetry(self, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
         """Position, load, voltage, temperature and error bits, one read per servo."""
@@ -361,13 +353,15 @@ class FeetechBus:
                     del pending[servo_id]
             if not pending or self.clock.now_ns() >= deadline_ns:
                 break
+            # A sync write lost on the wire would leave a pin up: say it again while waiting.
+            self.write_goals(pending, force=True)
             self.clock.sleep_until_ns(self.clock.now_ns() + REST_POLL_NS)
         return tuple(sorted(arrived))
 
     def rest_and_release(self, timeout_ns: int = 2_000_000_000) -> SafeStopReport:
         """Pins to rest, then torque off, on every servo that still answers. Never raises.
 
-        Ctrl-C and SIGTERM are held back until it is done, so a second one cannot leave
+        The stop signals are held back until it is done, so a second one cannot leave
         servos holding torque.
         """
         with deferred_signals():
@@ -375,9 +369,6 @@ class FeetechBus:
 
     def _rest_and_release(self, timeout_ns: int) -> SafeStopReport:
         ids = self.setup.servo_ids
-        # An exchange cut short by an exception leaves the SDK's busy flag and maybe half a
-        # reply behind; without this, every safe-stop write would be refused as "port busy".
-        self._discard_stale_input()
         try:
             at_rest = self.move_to_rest(timeout_ns)
         except PortLost:
@@ -397,20 +388,34 @@ class FeetechBus:
         silent = tuple(i for i in ids if i not in released or i not in at_rest)
         return SafeStopReport(at_rest, tuple(released), silent)
 
+    # -- another process on the same port ----------------------------------------------
+
+    def handover(self) -> Handover:
+        """What a process given this port's descriptor needs to drive the same servos."""
+        latency = self.link.latency
+        return Handover(
+            port_name=self.port_name, baud_rate=self.link.baud_rate, setup=self.setup,
+            return_delay_ns=dict(self.link.return_delay_ns), latency_timer_ms=latency.timer_ms,
+            worst_latency_ns=latency.worst_seen_ns, latency_samples=latency.samples,
+        )
+
+    def assume_goals(self, goals_steps: Mapping[int, int]) -> None:
+        """Another process (the player's) left these goals on the servos."""
+        self._last_goals.update(goals_steps)
+
     # -- bookkeeping ---------------------------------------------------------------------
 
     def stats(self) -> BusStats:
+        counters = self.link.counters
         return BusStats(
-            bytes_written=self.port.bytes_written,
-            bytes_read=self.port.bytes_read,
+            bytes_written=counters.bytes_written,
+            bytes_read=counters.bytes_read,
             sync_writes=self._sync_writes,
             goals_written=self._goals_written,
             retries=self._retries,
+            stale_bytes=counters.stale_bytes,
+            mismatched_replies=counters.mismatched_replies,
         )
 
     def close(self) -> None:
-        try:
-            if self.port.is_open:
-                self.port.closePort()
-        except (serial.SerialException, OSError):
-            pass
+        self.link.close()

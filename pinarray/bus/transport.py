@@ -2,8 +2,8 @@
 
 ``url`` is either a serial device (``/dev/ttyUSB0``, ``COM3``, or any pyserial URL such as
 ``spy:///dev/ttyUSB0``) or a simulated bus ``sim://?ids=1-16&...`` (grammar in
-`pinarray.bus.faults`). Both end up as a `FeetechBus` talking through the real
-``scservo_sdk``; only the object under ``PortHandler.ser`` differs.
+`pinarray.bus.faults`). Both end up as a `FeetechBus` over a `Link`; only the `Wire` under
+it differs: the device's file descriptor, or the in-process simulator's pyserial look-alike.
 """
 
 from __future__ import annotations
@@ -14,12 +14,10 @@ from pathlib import Path
 
 from pinarray.bus.base import BusSetup
 from pinarray.bus.faults import is_sim_url, parse_sim_url
+from pinarray.bus.link import FdWire, Latency, Link, PolledWire
 from pinarray.clock import Clock, MonotonicClock, VirtualClock
 from pinarray.errors import BusError
 
-# The SDK's own assumption about a USB-serial adapter's latency timer, in milliseconds.
-DEFAULT_LATENCY_MS = 16.0
-SIM_LATENCY_MS = 1.0
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 
 
@@ -78,9 +76,10 @@ def open_bus(
         Connected bus; ``.sim`` holds the `SimBus` for a simulated one. Call
         ``rest_and_release()`` and ``close()`` when done.
     """
-    from pinarray.bus.feetech import ClockedPortHandler, FeetechBus
+    from pinarray.bus.feetech import FeetechBus
 
     warnings: list[str] = []
+    sim = None
     if is_sim_url(url):
         from pinarray.bus.sim import SimBus, SimSerial
 
@@ -88,30 +87,15 @@ def open_bus(
         clock = clock or VirtualClock()
         baud_rate = config.baud_rate or baud_rate
         sim = SimBus(config, clock)
-
-        def open_serial():
-            return SimSerial(sim, clock, baud_rate, port=url)
-
-        latency_ms = SIM_LATENCY_MS
+        wire = PolledWire(SimSerial(sim, clock, baud_rate, port=url), clock, url)
+        latency = Latency(timer_ms=0)
     else:
-        import serial
-
-        sim = None
         clock = clock or MonotonicClock()
-        timer_ms = latency_timer_ms(url)
-        latency_ms = float(timer_ms) if timer_ms is not None else DEFAULT_LATENCY_MS
+        wire = _open_device(url, baud_rate, clock)
+        latency = Latency(timer_ms=latency_timer_ms(url))
         if (message := latency_warning(url)) is not None:
             warnings.append(message)
-
-        def open_serial():
-            return serial.serial_for_url(url, baudrate=baud_rate, timeout=0)
-
-    port = ClockedPortHandler(url, clock, open_serial, latency_ms, baud_rate)
-    try:
-        port.openPort()
-    except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
-        raise BusError(f"cannot open servo port {url}: {exc}") from None
-    bus = FeetechBus(port, clock, retries=retries)
+    bus = FeetechBus(Link(wire, clock, baud_rate, latency), clock, retries=retries)
     bus.sim = sim
     bus.warnings.extend(warnings)
     if setup is not None:
@@ -121,3 +105,22 @@ def open_bus(
             bus.close()
             raise
     return bus
+
+
+def _open_device(url: str, baud_rate: int, clock: Clock):
+    """A wire over a serial device: its file descriptor when it has one, else polled."""
+    import serial
+
+    try:
+        port = serial.serial_for_url(url, baudrate=baud_rate, timeout=0)
+    except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
+        raise BusError(f"cannot open servo port {url}: {exc}") from None
+    try:
+        fd = port.fileno()
+    except (AttributeError, OSError, ValueError):
+        return PolledWire(port, clock, url)  # a pyserial URL handler with no descriptor
+    try:
+        port.reset_input_buffer()
+    except OSError:
+        pass
+    return FdWire(fd, clock, url, on_close=port.close)

@@ -16,6 +16,7 @@ from pinarray.clock import Clock
 from pinarray.player import describe
 from pinarray.rig import Rig, choose_clock
 from pinarray.session import Session
+from pinarray.stop import on_loop_signals
 from pinarray.tui.lab import QUIT_REASON, Lab, RigFactory
 
 
@@ -80,12 +81,16 @@ class PinArrayApp(App[str]):
 
         self.push_screen(StartScreen(self.options, self.list_ports))
         try:
-            loop = asyncio.get_running_loop()
-            # `kill`: same as q. Closing the terminal: see `_hang_up`.
-            loop.add_signal_handler(signal.SIGTERM, lambda: self.call_later(self.action_quit))
-            loop.add_signal_handler(signal.SIGHUP, self._hang_up)
+            # Any stop signal: same as q. Closing the terminal: see `_hang_up`.
+            on_loop_signals(asyncio.get_running_loop(), self.lab.stop, self._signalled)
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             pass  # not the main thread (tests) or no such signals (Windows)
+
+    def _signalled(self, signal_number: int) -> None:
+        if signal_number == signal.SIGHUP:
+            self._hang_up()
+        else:
+            self.call_later(self.action_quit)
 
     def _hang_up(self) -> None:
         """The terminal is gone: close the run and rest the pins, then leave at once.

@@ -18,13 +18,13 @@ from pinarray.protocol import Protocol
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, task_label
 from pinarray.session_setup import open_run
-from pinarray.tui.stopping import StoppableClock, Stopped
+from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 QUIT_REASON = "quit from the UI"
 # How long closing waits for a cut-short stimulus to rest its pins, in seconds.
 STOP_WAIT_S = 30.0
 
-RigFactory = Callable[[Protocol, "str | None", "str | None", Clock], Rig]
+RigFactory = Callable[[Protocol, "str | None", "str | None", Clock, StopRequest], Rig]
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,8 @@ class Lab:
     clock_factory : callable
         ``clock_factory(port)`` gives the clock of a new connection (virtual in tests).
     rig_factory : callable
-        ``rig_factory(protocol, port, sim_url, clock)``; `Rig` unless a test injects faults.
+        ``rig_factory(protocol, port, sim_url, clock, stop)``; `Rig` unless a test injects
+        faults.
     """
 
     def __init__(self, results_root: Path, clock_factory: Callable[[str | None], Clock],
@@ -66,6 +67,7 @@ class Lab:
         self.request: SessionRequest | None = None
         self.rig: Rig | None = None
         self.clock: StoppableClock | None = None
+        self.stop = StopRequest()
         self.session: Session | None = None
         self._idle = threading.Event()
         self._idle.set()
@@ -76,11 +78,11 @@ class Lab:
         """Open the bus and run the handshake (blocking: call it from a worker)."""
         self.release()
         self.request = request
+        self.stop.clear()
         base = self.clock_factory(request.port)
-        rig = self.rig_factory(request.protocol, request.port, request.sim_url, base)
-        self.clock = StoppableClock(base)
-        # The player waits on the stoppable clock; the bus keeps the plain one (see Stopped).
-        rig.clock = self.clock
+        rig = self.rig_factory(request.protocol, request.port, request.sim_url, base, self.stop)
+        # The player and the session wait on the rig's stoppable clock; the bus on the plain one.
+        self.clock = rig.clock
         self.rig = rig
         return rig
 
@@ -135,8 +137,7 @@ class Lab:
         Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
         if nothing was connected).
         """
-        if self.clock is not None:
-            self.clock.stop()
+        self.stop.request(reason)
         self._idle.wait(STOP_WAIT_S)
         session, self.session = self.session, None
         if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):

@@ -28,13 +28,26 @@ MOTION = [
 ]
 
 
-def _write(root, subject, task, records):
+def _write(root, subject, task, records, status="completed"):
     writer = RunWriter.start(root, subject, 1, task, [{"trial": r.trial} for r in records],
                              seed=0, protocol_sha256="", port="sim://")
     for record in records:
         writer.write_trial(record)
-    writer.finish()
+    writer.finish(status)
     return writer.paths
+
+
+def localisation_row(trial, pin, response, frequency_hz=10.0, **fields):
+    """A main localisation trial row, status ok unless ``fields`` say otherwise."""
+    return TrialRecord(trial=trial, block=1, task="localisation", onset_s=12.0 * trial,
+                       duration_s=10.0, response=response, pin=pin, frequency_hz=frequency_hz,
+                       **fields)
+
+
+@pytest.fixture
+def write_run():
+    """Write one run: ``write_run(root, subject, task, records, status="completed")``."""
+    return _write
 
 
 @pytest.fixture

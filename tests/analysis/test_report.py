@@ -7,9 +7,14 @@ import sys
 
 import pytest
 
+from pinarray import cli
+from pinarray.analysis import plots
 from pinarray.analysis.commands import register
 from pinarray.errors import ResultsError
 from pinarray.manifest import RunPaths
+from tests.analysis.conftest import localisation_row
+
+FIGURES = ("correct_by_frequency", "error_types", "motion", "confusion_matrix", "pin_accuracy")
 
 
 def analyse(*argv):
@@ -25,37 +30,133 @@ def read_csv(path):
         return list(csv.DictReader(handle))
 
 
-def test_analyse_writes_tables_figures_and_a_page_that_links_them(results_root, tmp_path, capsys):
+def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them(
+        results_root, tmp_path, capsys):
     out = tmp_path / "analysis"
     assert analyse(str(results_root), "--out", str(out)) == 0
-    assert "21 trial rows from 4 file(s), 2 subject(s)" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "counted 4 run(s): 2 subject(s), 11 localisation and 8 motion trials" in printed
     page = (out / "summary.md").read_text()
-    for name in ("correct_by_frequency.png", "error_types.png", "motion.png",
-                 "confusion_matrix.png", "pin_accuracy.png", "localisation_by_frequency.csv",
-                 "pin_accuracy.csv", "motion.csv", "confusion_matrix.csv"):
-        assert f"({name})" in page
-        assert (out / name).exists()
-    for png in out.glob("*.png"):
-        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "33.3 % [9.7, 70.0] (2/6)" in page
+    for name in FIGURES:
+        assert f"({name}.png)" in page and f"({name}.pdf)" in page
+        assert (out / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (out / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+    for name in ("localisation_subject_level.csv", "localisation_per_subject.csv",
+                 "pin_accuracy.csv", "confusion_matrix.csv", "frequency_effect.csv",
+                 "motion_subject_level.csv", "motion_per_subject.csv", "runs.csv"):
+        assert f"({name})" in page and (out / name).exists()
+
+
+def test_the_page_and_the_printout_give_subject_means_and_label_the_pooled_numbers(
+        results_root, tmp_path, capsys):
+    out = tmp_path / "analysis"
+    analyse(str(results_root), "--out", str(out))
+    printed = capsys.readouterr().out
+    # 3 Hz: subject A 25 %, subject B 50 %: mean 37.5 %; the 6 trials pooled: 2/6.
+    assert "3 Hz: 37.5 % [" in printed and "(2 subj., 6 trials); trial-pooled 33.3 % [9.7, 70.0]" \
+        in printed
+    page = (out / "summary.md").read_text()
+    assert "| 3 Hz | 2 | 6 | 37.5 % | [-121.3, 196.3] | [25.0, 50.0] | 33.3 % [9.7, 70.0] (2/6) " \
+           "| 6.25 % |" in page
+    assert "95 % subject bootstrap (percentile; 10000 resamples of subjects, seed 20240501)" \
+        in page
+    assert "Trial-pooled" in page and "not fitted: needs at least 6 subjects" in page
+
+
+def test_every_caption_states_n_the_unit_and_the_interval(results_root, tmp_path):
+    out = tmp_path / "analysis"
+    analyse(str(results_root), "--out", str(out), "--interval", "bootstrap",
+            "--bootstrap-seed", "9")
+    page = (out / "summary.md").read_text()
+    captions = [line for line in page.splitlines() if line.startswith("*Figure")]
+    assert len(captions) == len(FIGURES)
+    for caption in captions:
+        assert "N = " in caption and "unit: " in caption
+    for caption in captions:
+        if "trial-pooled" not in caption and "per pin" not in caption:
+            assert "subject bootstrap (percentile; 10000 resamples of subjects, seed 9)" \
+                in caption
 
 
 def test_the_tables_hold_the_hand_counted_numbers(results_root, tmp_path):
     out = tmp_path / "analysis"
     analyse(str(results_root), "--out", str(out))
-    by_frequency = {(r["group"], r["frequency_hz"]): r
-                    for r in read_csv(out / "localisation_by_frequency.csv")}
-    ten = by_frequency[("all", "10")]
-    assert (ten["trials"], ten["correct"], ten["correct_pct"], ten["error_A_pct"]) == \
-        ("5", "2", "40.0", "40.0")
-    assert by_frequency[("sub-B", "3")]["error_C_pct"] == "50.0"
-    motion = {r["group"]: r for r in read_csv(out / "motion.csv")}
-    assert (motion["all"]["felt"], motion["all"]["direction_right_pct"]) == ("5", "60.0")
-    confusion = read_csv(out / "confusion_matrix.csv")
-    assert confusion[3]["reported_4"] == "2" and confusion[3]["reported_8"] == "1"
-    pins = {(r["group"], r["pin"]): r for r in read_csv(out / "pin_accuracy.csv")}
-    assert pins[("all", "10")]["correct_pct"] == "20.0"
-    assert pins[("all", "2")]["correct_pct"] == "n/a"
+    means = {(r["frequency_hz"], r["category"]): r
+             for r in read_csv(out / "localisation_subject_level.csv")}
+    ten = means[("10", "correct")]
+    assert (ten["subjects"], ten["trials"], ten["subject_mean_pct"], ten["trial_pooled_pct"]) \
+        == ("2", "5", "25.0", "40.0")
+    assert (ten["bootstrap_seed"], ten["chance_pct"]) == ("20240501", "6.25")
+    assert means[("3", "none")]["subject_mean_pct"] == "12.5"  # nothing felt: its own row
+    assert means[("3", "none")]["chance_pct"] == "n/a"
+    per_subject = {(r["subject"], r["frequency_hz"]): r
+                   for r in read_csv(out / "localisation_per_subject.csv")}
+    assert per_subject[("B", "3")]["C_pct"] == "50.0"
+    assert per_subject[("A", "3")]["none"] == "1"
+    motion = {r["measure"]: r for r in read_csv(out / "motion_subject_level.csv")}
+    assert motion["direction_right_of_felt"]["subject_mean_pct"] == "66.7"
+    assert motion["direction_right_of_felt"]["chance_pct"] == "50.00"
+
+
+def test_nothing_felt_appears_in_the_confusion_matrix_and_rows_divide_by_all_trials(
+        results_root, tmp_path):
+    out = tmp_path / "analysis"
+    analyse(str(results_root), "--out", str(out))
+    rows = {r["stimulated_pin"]: r for r in read_csv(out / "confusion_matrix.csv")}
+    ten = rows["10"]
+    assert ten["nothing_felt"] == "1" and ten["trials"] == "5"
+    answered = sum(int(v) for k, v in ten.items() if k.startswith("answer_"))
+    assert answered + int(ten["nothing_felt"]) == int(ten["trials"])
+    assert set(rows) == {"1", "4", "10"}  # only stimulated pins get a row
+
+
+def test_pin_accuracy_numbers_pins_rows_and_columns_from_1(results_root, tmp_path):
+    out = tmp_path / "analysis"
+    analyse(str(results_root), "--out", str(out))
+    pins = {r["pin"]: r for r in read_csv(out / "pin_accuracy.csv")}
+    assert (pins["1"]["row"], pins["1"]["column"]) == ("1", "1")  # bottom-left
+    assert (pins["16"]["row"], pins["16"]["column"]) == ("4", "4")  # top-right
+    assert (pins["10"]["row"], pins["10"]["column"]) == ("3", "2")
+    assert pins["10"]["trial_pooled_pct"] == "20.0" and pins["2"]["subject_mean_pct"] == "n/a"
+
+
+def test_the_error_figure_draws_nothing_felt_and_the_chance_levels(results_root, tmp_path,
+                                                                   monkeypatch):
+    drawn = {}
+
+    def keep(figure, stem, caption):
+        drawn[stem.name] = figure
+        return []
+
+    monkeypatch.setattr(plots, "_save", keep)
+    analyse(str(results_root), "--out", str(tmp_path / "analysis"))
+    errors = drawn["error_types"].axes[0]
+    _, labels = errors.get_legend_handles_labels()
+    assert sorted(labels) == ["chance", "error A", "error B", "error C", "error D",
+                              "nothing felt"]
+    nothing_felt = errors.containers[-1]  # the last bars drawn: nothing felt, 3 and 10 Hz
+    assert [round(bar.get_height(), 1) for bar in nothing_felt] == [12.5, 0.0]
+    correct = drawn["correct_by_frequency"].axes[0]
+    assert [line.get_ydata()[0] for line in correct.lines if line.get_linestyle() == "--"] \
+        == [6.25]
+
+
+def test_an_aborted_run_is_listed_and_left_out_unless_asked_for(results_root, tmp_path,
+                                                                  write_run, capsys):
+    write_run(results_root, "C", "localisation", [localisation_row(1, 4, "4")],
+              status="aborted")
+    out = tmp_path / "analysis"
+    analyse(str(results_root), "--out", str(out))
+    printed = capsys.readouterr().out
+    assert ("left out: sub-C ses-1 task-localisation run-1: manifest says aborted "
+            "(1 counted trial(s)); --include-incomplete counts it") in printed
+    assert "2 subject(s)" in printed
+    runs = {r["subject"]: r for r in read_csv(out / "runs.csv") if r["task"] == "localisation"}
+    assert (runs["C"]["included"], runs["C"]["incomplete_reason"]) == \
+        ("no", "manifest says aborted")
+    analyse(str(results_root), "--out", str(out), "--include-incomplete")
+    printed = capsys.readouterr().out
+    assert "3 subject(s)" in printed and "counted on request: sub-C" in printed
 
 
 def test_a_single_file_can_be_analysed_and_a_torn_last_row_is_ignored(results_root, tmp_path):
@@ -64,8 +165,8 @@ def test_a_single_file_can_be_analysed_and_a_torn_last_row_is_ignored(results_ro
         handle.write("4\t1\tlocalisation\t4\tn/a")
     out = tmp_path / "one"
     assert analyse(str(beh), "--out", str(out)) == 0
-    rows = read_csv(out / "localisation_by_frequency.csv")
-    assert sum(int(r["trials"]) for r in rows if r["group"] == "all") == 3
+    rows = read_csv(out / "localisation_per_subject.csv")
+    assert sum(int(r["trials"]) for r in rows) == 3
     assert not (out / "motion.png").exists()
 
 
@@ -78,10 +179,20 @@ def test_a_missing_or_empty_results_path_is_a_results_error_naming_it(tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_bad_options_are_one_line_errors_with_status_2(results_root, tmp_path, capsys):
+    out = str(tmp_path / "o")
+    assert cli.main(["analyse", str(results_root), "--out", out, "--answer-pins", "1,17"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pin 17 is not on the 4x4 grid" in err
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["analyse", str(results_root), "--bootstrap-resamples", "5"])
+    assert exit_.value.code == 2 and "expected a number >= 100" in capsys.readouterr().err
+
+
 def test_registering_the_command_loads_neither_numpy_nor_matplotlib():
     probe = ("import sys, argparse, pinarray.analysis.commands as c;"
              "c.register(argparse.ArgumentParser().add_subparsers());"
-             "print(sorted(m for m in ('numpy', 'matplotlib') if m in sys.modules))")
+             "print(sorted(m for m in ('numpy', 'matplotlib', 'scipy') if m in sys.modules))")
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                             timeout=60)
     assert result.stdout.strip() == "[]", result.stderr

@@ -9,7 +9,12 @@ from numpy.testing import assert_allclose
 
 from pinarray.analysis import summary_lines
 from pinarray.analysis.load import load_results
-from pinarray.analysis.stats import localisation_by_frequency, summarise_subjects, wilson_interval
+from pinarray.analysis.stats import (
+    confusion_matrix,
+    localisation_by_frequency,
+    summarise_subjects,
+    wilson_interval,
+)
 from pinarray.results import TrialRecord
 
 
@@ -40,13 +45,21 @@ def test_error_types_are_percent_of_all_trials_at_that_frequency(results_root):
     assert_allclose([ten.error_pct(c) for c in "ABCD"], [40, 0, 0, 20])
 
 
-def test_the_confusion_matrix_holds_every_answered_trial_once(results_root):
+def test_the_confusion_matrix_holds_every_trial_once_nothing_felt_included(results_root):
     confusion = summaries_of(results_root)["all"].confusion
-    expected = np.zeros((16, 16), dtype=int)
+    expected = np.zeros((16, 17), dtype=int)
     for stimulated, reported in [(10, 10), (10, 9), (10, 5), (4, 4), (4, 4), (4, 8), (10, 16),
                                  (1, 3), (1, 1), (4, 3)]:
         expected[stimulated - 1, reported - 1] += 1
+    expected[10 - 1, 16] = 1  # subject A felt nothing once on pin 10: the last column
     assert (confusion == expected).all()
+
+
+def test_a_confusion_row_divides_by_every_trial_of_its_pin_as_the_pin_map_does(results_root):
+    pooled = summaries_of(results_root)["all"]
+    row = pooled.confusion[10 - 1]
+    assert row.sum() == pooled.pin_trials[2, 1] == 5  # pin 10: nothing felt counted too
+    assert_allclose(100 * row[10 - 1] / row.sum(), pooled.pin_accuracy_pct[2, 1])
 
 
 def test_pin_accuracy_is_laid_out_as_the_subject_feels_the_grid(results_root):
@@ -111,8 +124,10 @@ localisation_rows = st.lists(
 def test_correct_errors_and_nothing_felt_add_up_to_every_trial(records):
     rows = localisation_by_frequency(records)
     assert sum(row.trials for row in rows) == len(records)
+    confusion = confusion_matrix(records)
+    assert confusion.sum() == len(records)
+    assert confusion[:, 16].sum() == sum(row.count("none") for row in rows)
     for row in rows:
         assert row.correct.successes + sum(row.error_counts) + row.none_felt == row.trials
-        shares = [row.correct.pct, *(row.error_pct(c) for c in "ABCD"),
-                  100 * row.none_felt / row.trials]
+        shares = [row.share(c).pct for c in ("correct", "A", "B", "C", "D", "none")]
         assert math.isclose(sum(shares), 100.0)

@@ -1,31 +1,51 @@
-"""Cost of crash-safe rows and of analysis, and what a study of N simulated subjects shows.
+"""Cost of crash-safe rows and of the analysis, and how many subjects the seed's designs need.
 
-Timings are printed, never asserted. The study table answers "how many subjects do I need?"
-for the seed's localisation design (8 pins x 3 frequencies, one trial each per subject):
-how often the pooled correct rate comes out rising 3 < 5 < 10 Hz and error A on top.
+Timings are printed, never asserted: each beside a reference measured in the same run, with
+the ratio, min/median/max over repeats. The study tables answer "how many subjects do I
+need?" with simulated subjects who differ from one another (`pinarray.observer`), analysed
+with subjects as the unit (`pinarray.analysis.power`), as `pinarray power` prints them.
 """
 
+import csv
+import statistics
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-
-from pinarray.analysis.load import load_results
-from pinarray.analysis.stats import localisation_by_frequency, summarise_subjects
+from pinarray.analysis.load import load_runs, select_runs
+from pinarray.analysis.mixed import Cell, _Data, fit_frequency_effect
+from pinarray.analysis.power import power_study, protocol_design, simulate_subject
+from pinarray.analysis.study import study
 from pinarray.grid import classify
 from pinarray.observer import ObserverModel, SimulatedObserver
-from pinarray.results import RunWriter, TrialRecord
+from pinarray.protocol_load import load_protocol
+from pinarray.results import RunWriter, TrialRecord, trial_row
 
-PINS = (1, 4, 6, 7, 10, 11, 13, 16)
-FREQUENCIES_HZ = (3.0, 5.0, 10.0)
+PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
+REPEATS = 5
 
 
-def _localisation_rows(observer: SimulatedObserver) -> list[TrialRecord]:
+def _timed(action: Callable[[], object], repeats: int = REPEATS) -> list[float]:
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        action()
+        times.append(time.perf_counter() - started)
+    return times
+
+
+def _row(what: str, unit: str, scale: float, measured: list[float], reference: list[float],
+         reference_name: str) -> None:
+    cells = [scale * min(measured), scale * statistics.median(measured), scale * max(measured)]
+    ref = scale * statistics.median(reference)
+    print(f"{what:<34} {cells[0]:>9.3f} {cells[1]:>9.3f} {cells[2]:>9.3f} {unit:<7} "
+          f"{ref:>9.3f}  {cells[1] / ref:>7.1f}x  {reference_name}")
+
+
+def _localisation_rows(observer: SimulatedObserver, pins, frequencies) -> list[TrialRecord]:
     rows = []
-    for n, (pin, frequency) in enumerate(
-        ((p, f) for p in PINS for f in FREQUENCIES_HZ), start=1
-    ):
+    for n, (pin, frequency) in enumerate(((p, f) for p in pins for f in frequencies), start=1):
         answer = observer.respond_localisation(pin, frequency)
         rows.append(TrialRecord(
             trial=n, block=1, task="localisation", onset_s=12.0 * n, duration_s=10.0,
@@ -34,48 +54,88 @@ def _localisation_rows(observer: SimulatedObserver) -> list[TrialRecord]:
     return rows
 
 
-def _bench_writing(root: Path, rows: int) -> None:
-    observer = SimulatedObserver(seed=0)
-    records = (_localisation_rows(observer) * (rows // 24 + 1))[:rows]
-    writer = RunWriter.start(root, "bench", 1, "localisation", [{"trial": 1}], seed=0,
-                             protocol_sha256="", port="sim://")
-    started = time.perf_counter()
-    for record in records:
-        writer.write_trial(record)
-    elapsed = time.perf_counter() - started
-    writer.finish()
-    print(f"{'rows written (fsync each)':<34} {rows:>8} {1e3 * elapsed / rows:>10.3f} ms/row")
-    started = time.perf_counter()
-    loaded = load_results([root])
-    summarise_subjects((t.subject, t.record) for t in loaded)
-    elapsed = time.perf_counter() - started
-    print(f"{'rows loaded and summarised':<34} {len(loaded):>8} "
-          f"{1e6 * elapsed / len(loaded):>10.1f} us/row")
+def costs(root: Path) -> None:
+    protocol = load_protocol(PROTOCOLS / "localisation.yaml")
+    design = protocol_design(protocol)
+    model = ObserverModel().for_protocol(protocol)
+    print(f"{'what':<34} {'min':>9} {'median':>9} {'max':>9} {'unit':<7} {'reference':>9}  "
+          f"{'ratio':>8}  reference is")
+    rows = 400
+    records = (_localisation_rows(SimulatedObserver(model, seed=0), design.pins,
+                                  design.frequencies_hz) * (rows // 24 + 1))[:rows]
+    run = iter(range(1, 10_000))
+
+    def write_fsynced() -> None:
+        writer = RunWriter.start(root / "writes", f"w{next(run)}", 1, "localisation",
+                                 [{"trial": 1}], seed=0, protocol_sha256="", port="sim://")
+        for record in records:
+            writer.write_trial(record)
+        writer.finish()
+
+    def write_plain() -> None:
+        with open(root / "plain.tsv", "w", encoding="utf-8") as out:
+            for record in records:
+                out.write("\t".join(trial_row(record)) + "\n")
+
+    _row("row written (fsync each)", "ms/row", 1e3 / rows, _timed(write_fsynced),
+         _timed(write_plain), "plain write, no fsync")
+
+    # A study of 24 subjects' localisation runs, read and analysed as `analyse` does.
+    data = root / "study"
+    rng_seed = iter(range(1000))
+    for s in range(24):
+        observer = SimulatedObserver(model, seed=next(rng_seed))
+        writer = RunWriter.start(data, f"S{s}", 1, "localisation", [{"trial": 1}], seed=0,
+                                 protocol_sha256="", port="sim://")
+        for record in _localisation_rows(observer, design.pins, design.frequencies_hz):
+            writer.write_trial(record)
+        writer.finish()
+    files = sorted(data.rglob("*_beh.tsv"))
+    trials = 24 * len(design.localisation)
+
+    def analysed() -> None:
+        study(select_runs(load_runs([data])))
+
+    def parsed() -> None:
+        for path in files:
+            with open(path, newline="", encoding="utf-8") as handle:
+                list(csv.reader(handle, delimiter="\t"))
+
+    _row(f"load + analyse (24 subj., {trials} rows)", "ms", 1e3, _timed(analysed, 3),
+         _timed(parsed), "csv.reader of the same files")
+
+    cells = [Cell(f"S{s}", f, (s + int(f)) % 8, 8) for s in range(8) for f in (3.0, 5.0, 10.0)]
+    data_8 = _Data(cells, 25)
+    _row("mixed-effects fit (8 subjects)", "ms", 1e3, _timed(lambda: fit_frequency_effect(cells)),
+         _timed(lambda: [data_8.negative_log_likelihood(0.0, 0.5, -0.5) for _ in range(10)]),
+         "10 likelihood evaluations")
+
+    bare = SimulatedObserver(model, seed=1)
+
+    def bare_answers() -> None:
+        for pin, frequency in design.localisation * 50:
+            bare.respond_localisation(pin, frequency)
+
+    def fresh_subjects() -> None:
+        for k in range(50):
+            simulate_subject(design, SimulatedObserver(model, seed=k))
+
+    _row("simulated subject (24 trials)", "ms", 1e3 / 50, _timed(fresh_subjects),
+         _timed(bare_answers), "24 answers of one ready subject")
 
 
-def _study_table(repeats: int) -> None:
-    model = ObserverModel(calibration_pins=PINS)
-    expected = [model.expected_localisation(f)["correct"] for f in FREQUENCIES_HZ]
-    print("\nexpected correct at 3/5/10 Hz on the seed's 8 pins: "
-          + " / ".join(f"{100 * e:.1f} %" for e in expected))
-    print(f"{'subjects':>8} {'10 Hz mean':>10} {'10 Hz sd':>9} {'3<5<10':>8} {'A on top':>9}")
-    rng = np.random.default_rng(2024)
-    for subjects in (4, 8, 16, 32):
-        tens, rising, a_top = [], 0, 0
-        for _ in range(repeats):
-            rows = [r for _ in range(subjects)
-                    for r in _localisation_rows(SimulatedObserver(model, seed=rng))]
-            by_frequency = localisation_by_frequency(rows)
-            correct = [row.correct.pct for row in by_frequency]
-            tens.append(correct[-1])
-            rising += correct[0] < correct[1] < correct[2]
-            a_top += all(row.error_counts[0] > max(row.error_counts[1:]) for row in by_frequency)
-        print(f"{subjects:>8} {np.mean(tens):>9.1f}% {np.std(tens):>8.1f}% "
-              f"{100 * rising / repeats:>7.0f}% {100 * a_top / repeats:>8.0f}%")
+def study_tables(studies: int) -> None:
+    for name in ("localisation.yaml", "apparent_motion.yaml"):
+        protocol = load_protocol(PROTOCOLS / name)
+        model = ObserverModel().for_protocol(protocol)
+        curves = power_study(protocol, model, [4, 6, 8, 12, 16, 24, 32], studies, seed=2024)
+        print(f"\n{protocol.name}: {studies} simulated studies per number of subjects, "
+              f"subject SD {model.subject_sd_logit:g} logit, seed 2024")
+        for line in curves.table_lines():
+            print(line)
 
 
 def run() -> None:
-    print(f"{'what':<34} {'count':>8} {'cost':>13}")
     with tempfile.TemporaryDirectory() as folder:
-        _bench_writing(Path(folder), 2000)
-    _study_table(repeats=200)
+        costs(Path(folder))
+    study_tables(studies=200)

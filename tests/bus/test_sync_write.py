@@ -8,7 +8,7 @@ from .lab import sim_bus
 def test_sync_write_bytes_follow_the_reference_packet_format():
     bus = sim_bus()
     bus.write_goals({1: 2100, 2: 2000})
-    packet = bus.port.ser.writes[-1]
+    packet = bus.link.wire.port.writes[-1]
     # FF FF FE len 83 addr L (id lo hi) x 2 chk, len = params + 2
     body = bytes([0xFE, 4 + 2 * 3, 0x83, 42, 2, 1, 0x34, 0x08, 2, 0xD0, 0x07])
     assert packet == b"\xff\xff" + body + bytes([checksum(body)])
@@ -17,10 +17,10 @@ def test_sync_write_bytes_follow_the_reference_packet_format():
 def test_sync_write_carries_only_the_servos_whose_goal_changed():
     bus = sim_bus()
     bus.write_goals({i: 2048 for i in range(1, 17)})
-    sent_before = len(bus.port.ser.writes)
+    sent_before = len(bus.link.wire.port.writes)
     assert bus.write_goals({i: 2048 for i in range(1, 17)} | {4: 2100, 9: 2000}) == 2
-    packet = bus.port.ser.writes[-1]
-    assert len(bus.port.ser.writes) == sent_before + 1
+    packet = bus.link.wire.port.writes[-1]
+    assert len(bus.link.wire.port.writes) == sent_before + 1
     assert [packet[7], packet[10]] == [4, 9]  # the ids inside the one packet
     assert len(packet) == 8 + 2 * 3
 
@@ -36,7 +36,7 @@ def test_nothing_is_sent_when_no_goal_changed():
 def test_a_full_16_servo_frame_is_56_bytes_on_the_wire():
     bus = sim_bus()
     bus.write_goals({i: 2050 for i in range(1, 17)})
-    assert len(bus.port.ser.writes[-1]) == 56
+    assert len(bus.link.wire.port.writes[-1]) == 56
 
 
 def test_simulated_servos_move_to_the_sync_written_goal():

@@ -1,0 +1,248 @@
+"""Statistics with subjects as the unit: per-subject percentages and their across-subject mean.
+
+Each subject contributes one number per measure, their own percentage, however many trials
+they answered; the across-subject mean is the plain mean of those numbers. Its interval is
+
+- a **t interval**: mean +/- t(level, N - 1) * SD / sqrt(N), SD the sample standard deviation
+  of the per-subject percentages (not cut at 0 or 100 %); or
+- a **subject bootstrap**: subjects resampled with replacement ``resamples`` times from a
+  generator seeded with ``seed``, the percentile interval of the resampled means.
+
+Both need at least two subjects. A subject with no trial for a measure (e.g. "direction right
+of those felt" for a subject who never felt motion) is left out of that measure's mean, and
+the number of subjects is reported beside it. The trial-pooled proportion (every trial
+weighing the same, Wilson interval) is kept beside the subject-level numbers and labelled so.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+
+from pinarray.analysis.stats import CATEGORIES, Proportion, Summary
+from pinarray.errors import PinArrayError
+
+DEFAULT_BOOTSTRAP_SEED = 20240501
+DEFAULT_BOOTSTRAP_RESAMPLES = 10_000
+
+
+class IntervalMethod(StrEnum):
+    """How the across-subject interval is computed."""
+
+    T = "t"
+    BOOTSTRAP = "bootstrap"
+
+
+@dataclass(frozen=True)
+class IntervalSettings:
+    """Which across-subject interval figures show, its level, and the bootstrap's recipe.
+
+    Parameters
+    ----------
+    method : IntervalMethod
+        The interval drawn in figures and named first in the summary (tables hold both).
+    level : float
+        Coverage, a fraction in (0, 1); 0.95 by default.
+    bootstrap_seed : int
+        Seed of the generator the bootstrap resamples subjects with; recorded in every output.
+    bootstrap_resamples : int
+        Number of bootstrap resamples.
+    """
+
+    method: IntervalMethod = IntervalMethod.T
+    level: float = 0.95
+    bootstrap_seed: int = DEFAULT_BOOTSTRAP_SEED
+    bootstrap_resamples: int = DEFAULT_BOOTSTRAP_RESAMPLES
+
+    def __post_init__(self) -> None:
+        if not 0 < self.level < 1:
+            raise PinArrayError(f"interval level must lie between 0 and 1, found {self.level}")
+        if self.bootstrap_resamples < 100:
+            raise PinArrayError("bootstrap resamples must be at least 100, found "
+                                f"{self.bootstrap_resamples}")
+        if self.bootstrap_seed < 0:
+            raise PinArrayError(f"bootstrap seed must be >= 0, found {self.bootstrap_seed}")
+
+    @property
+    def level_pct(self) -> str:
+        return f"{100 * self.level:g} %"
+
+    def describe(self, method: IntervalMethod | None = None) -> str:
+        """One phrase naming the interval, for captions and table notes."""
+        match method or self.method:
+            case IntervalMethod.T:
+                return (f"{self.level_pct} t interval across subjects "
+                        "(mean ± t(N-1) · SD/√N)")
+            case IntervalMethod.BOOTSTRAP:
+                return (f"{self.level_pct} subject bootstrap (percentile; "
+                        f"{self.bootstrap_resamples} resamples of subjects, "
+                        f"seed {self.bootstrap_seed})")
+        raise AssertionError(method)
+
+
+DEFAULT_SETTINGS = IntervalSettings()
+
+
+def t_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float]:
+    """The t interval of the mean of ``values``; (nan, nan) for fewer than two values."""
+    from scipy.special import stdtrit  # the t quantile; scipy loads only when asked
+
+    data = np.asarray(values, dtype=float)
+    n = len(data)
+    if n < 2:
+        return math.nan, math.nan
+    half = float(stdtrit(n - 1, 0.5 + level / 2)) * float(data.std(ddof=1)) / math.sqrt(n)
+    mean = float(data.mean())
+    return mean - half, mean + half
+
+
+def bootstrap_interval(values: Sequence[float], seed: int = DEFAULT_BOOTSTRAP_SEED,
+                       resamples: int = DEFAULT_BOOTSTRAP_RESAMPLES,
+                       level: float = 0.95) -> tuple[float, float]:
+    """Percentile interval of the mean of ``values`` resampled with replacement.
+
+    The same values, seed and resamples always give the same interval; (nan, nan) for fewer
+    than two values.
+    """
+    data = np.asarray(values, dtype=float)
+    n = len(data)
+    if n < 2:
+        return math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    means = data[rng.integers(0, n, size=(resamples, n))].mean(axis=1)
+    low, high = np.quantile(means, [0.5 - level / 2, 0.5 + level / 2])
+    return float(low), float(high)
+
+
+@dataclass(frozen=True)
+class AcrossSubjects:
+    """One measure with subjects as the unit: each subject's proportion and their mean.
+
+    ``per_subject`` holds only subjects with at least one trial for the measure.
+    Percentages are in percent; intervals are (low, high), NaN when there are fewer than
+    two subjects.
+    """
+
+    per_subject: tuple[tuple[str, Proportion], ...]
+    t_interval_pct: tuple[float, float]
+    bootstrap_interval_pct: tuple[float, float]
+
+    @property
+    def subjects(self) -> int:
+        return len(self.per_subject)
+
+    @property
+    def trials(self) -> int:
+        return sum(p.trials for _, p in self.per_subject)
+
+    @property
+    def values_pct(self) -> list[float]:
+        return [p.pct for _, p in self.per_subject]
+
+    @property
+    def mean_pct(self) -> float:
+        return float(np.mean(self.values_pct)) if self.per_subject else math.nan
+
+    @property
+    def sd_pct(self) -> float:
+        return float(np.std(self.values_pct, ddof=1)) if self.subjects > 1 else math.nan
+
+    @property
+    def pooled(self) -> Proportion:
+        """The trial-pooled proportion (every trial weighing the same)."""
+        return Proportion(sum(p.successes for _, p in self.per_subject), self.trials)
+
+    def interval_pct(self, method: IntervalMethod) -> tuple[float, float]:
+        match method:
+            case IntervalMethod.T:
+                return self.t_interval_pct
+            case IntervalMethod.BOOTSTRAP:
+                return self.bootstrap_interval_pct
+        raise AssertionError(method)
+
+
+def across_subjects(per_subject: Iterable[tuple[str, Proportion]],
+                    settings: IntervalSettings = DEFAULT_SETTINGS) -> AcrossSubjects:
+    """The across-subject mean and both intervals of the given per-subject proportions."""
+    kept = tuple((subject, p) for subject, p in per_subject if p.trials)
+    values = [p.pct for _, p in kept]
+    return AcrossSubjects(
+        kept, t_interval(values, settings.level),
+        bootstrap_interval(values, settings.bootstrap_seed, settings.bootstrap_resamples,
+                           settings.level),
+    )
+
+
+@dataclass(frozen=True)
+class FrequencyMeasures:
+    """Localisation at one frequency: every answer category, subjects as the unit."""
+
+    frequency_hz: float
+    categories: tuple[AcrossSubjects, ...]  # in `CATEGORIES` order
+
+    def share(self, category: str) -> AcrossSubjects:
+        return self.categories[CATEGORIES.index(category)]
+
+
+@dataclass(frozen=True)
+class MotionMeasures:
+    """Apparent motion, subjects as the unit (see `pinarray.analysis.stats.MotionSummary`)."""
+
+    felt: AcrossSubjects
+    direction_right: AcrossSubjects
+    no_wave_felt: AcrossSubjects
+
+
+@dataclass(frozen=True)
+class SubjectLevel:
+    """Every measure with subjects as the unit, and the interval settings that made it."""
+
+    settings: IntervalSettings
+    localisation: tuple[FrequencyMeasures, ...]
+    pins: tuple[AcrossSubjects, ...]  # correct per stimulated pin, pins 1..P
+    motion: MotionMeasures
+
+    @property
+    def localisation_subjects(self) -> tuple[str, ...]:
+        names = {s for row in self.localisation for s, _ in row.share("correct").per_subject}
+        return tuple(sorted(names))
+
+    @property
+    def motion_subjects(self) -> tuple[str, ...]:
+        return tuple(sorted({s for s, _ in self.motion.felt.per_subject}
+                            | {s for s, _ in self.motion.no_wave_felt.per_subject}))
+
+
+def subject_level(per_subject: Sequence[Summary],
+                  settings: IntervalSettings = DEFAULT_SETTINGS) -> SubjectLevel:
+    """Subject-level measures from one `Summary` per subject (each with one subject name)."""
+    named = [(summary.subjects[0], summary) for summary in per_subject]
+    frequencies = sorted({row.frequency_hz for _, s in named for row in s.localisation})
+
+    def at(summary: Summary, frequency_hz: float, category: str) -> Proportion:
+        for row in summary.localisation:
+            if row.frequency_hz == frequency_hz:
+                return row.share(category)
+        return Proportion(0, 0)
+
+    localisation = tuple(
+        FrequencyMeasures(f, tuple(across_subjects(((name, at(s, f, c)) for name, s in named),
+                                                   settings) for c in CATEGORIES))
+        for f in frequencies
+    )
+    pin_count = named[0][1].pin_trials.size if named else 0
+    pins = tuple(
+        across_subjects(((name, Proportion(int(s.pin_correct.flat[i]), int(s.pin_trials.flat[i])))
+                         for name, s in named), settings)
+        for i in range(pin_count)
+    )
+    motion = MotionMeasures(
+        across_subjects(((name, s.motion.felt) for name, s in named), settings),
+        across_subjects(((name, s.motion.direction_right) for name, s in named), settings),
+        across_subjects(((name, s.motion.no_wave_felt) for name, s in named), settings),
+    )
+    return SubjectLevel(settings, localisation, pins, motion)

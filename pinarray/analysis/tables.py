@@ -1,0 +1,163 @@
+"""CSV tables of a `Study`: subject-level tables with both intervals and the trial-pooled one.
+
+Every table says its unit in its columns: ``subject_mean_pct`` and its ``t``/``bootstrap``
+intervals have subjects as the unit (the interval level and the bootstrap's seed and
+resample count are columns too, so a table read alone still says how it was made);
+``trial_pooled_*`` columns count every trial alike (Wilson interval). Pins, rows and
+columns are numbered from 1 (row 1 at the bottom, column 1 on the left), as the lab does.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+from pinarray.analysis.chance import DIRECTION_CHANCE
+from pinarray.analysis.load import RunSelection
+from pinarray.analysis.mixed import FitSkipped, FrequencyEffect
+from pinarray.analysis.stats import CATEGORIES, Proportion
+from pinarray.analysis.study import Study
+from pinarray.analysis.subjects import AcrossSubjects, IntervalSettings
+
+
+def number(value: float, digits: int = 1) -> str:
+    """A table cell: fixed decimals, or "n/a" for NaN (BIDS spelling)."""
+    return "n/a" if math.isnan(value) else f"{value:.{digits}f}"
+
+
+def _write(path: Path, header: Sequence[str], rows: Sequence[Sequence[object]]) -> Path:
+    with open(path, "w", encoding="utf-8", newline="") as out:
+        writer = csv.writer(out)
+        writer.writerow(header)
+        writer.writerows(rows)
+    return path
+
+
+def _level(settings: IntervalSettings) -> str:
+    return f"{100 * settings.level:g}"
+
+
+def measure_header(settings: IntervalSettings) -> list[str]:
+    lv = _level(settings)
+    return ["subjects", "trials", "subject_mean_pct", "subject_sd_pct", f"t{lv}_low_pct",
+            f"t{lv}_high_pct", f"bootstrap{lv}_low_pct", f"bootstrap{lv}_high_pct",
+            "bootstrap_seed", "bootstrap_resamples", "trial_pooled_pct",
+            "trial_pooled_wilson95_low_pct", "trial_pooled_wilson95_high_pct"]
+
+
+def measure_cells(m: AcrossSubjects, settings: IntervalSettings) -> list[object]:
+    pooled = m.pooled
+    return [m.subjects, m.trials, number(m.mean_pct), number(m.sd_pct),
+            *(number(v) for v in m.t_interval_pct), *(number(v) for v in m.bootstrap_interval_pct),
+            settings.bootstrap_seed, settings.bootstrap_resamples, number(pooled.pct),
+            *(number(v) for v in pooled.interval_pct)]
+
+
+def _pct(p: Proportion) -> str:
+    return number(p.pct)
+
+
+def localisation_tables(study: Study, out: Path) -> list[Path]:
+    level = study.subject_level
+    settings = level.settings
+    chance = study.chance.fractions if study.chance else {}
+    means = [[f"{row.frequency_hz:g}", category, *measure_cells(row.share(category), settings),
+              number(100 * chance[category], 2) if category in chance else "n/a"]
+             for row in level.localisation for category in CATEGORIES]
+    per_subject = [[s.subjects[0], f"{row.frequency_hz:g}", row.trials,
+                    *(row.count(c) for c in CATEGORIES), *(_pct(row.share(c)) for c in CATEGORIES)]
+                   for s in study.per_subject for row in s.localisation]
+    grid = study.grid
+    pins = []
+    for pin in grid.pins:
+        row, column = grid.cell(pin)
+        m = level.pins[pin - 1]
+        pins.append([pin, row + 1, column + 1, *measure_cells(m, settings)])
+    confusion = study.pooled.confusion
+    answers = [f"answer_{p}" for p in grid.pins] + ["nothing_felt"]
+    return [
+        _write(out / "localisation_subject_level.csv",
+               ["frequency_hz", "category", *measure_header(settings), "chance_pct"], means),
+        _write(out / "localisation_per_subject.csv",
+               ["subject", "frequency_hz", "trials", *CATEGORIES,
+                *(f"{c}_pct" for c in CATEGORIES)], per_subject),
+        _write(out / "pin_accuracy.csv", ["pin", "row", "column", *measure_header(settings)],
+               pins),
+        _write(out / "confusion_matrix.csv", ["stimulated_pin", *answers, "trials"],
+               [[pin, *confusion[pin - 1], int(confusion[pin - 1].sum())]
+                for pin in grid.pins if confusion[pin - 1].sum()]),
+    ]
+
+
+def motion_tables(study: Study, out: Path) -> list[Path]:
+    settings = study.subject_level.settings
+    motion = study.subject_level.motion
+    rows = [["felt_on_wave_trials", *measure_cells(motion.felt, settings), "n/a"],
+            ["direction_right_of_felt", *measure_cells(motion.direction_right, settings),
+             number(100 * DIRECTION_CHANCE, 2)],
+            ["felt_on_no_wave_trials", *measure_cells(motion.no_wave_felt, settings), "n/a"]]
+    per_subject = [[s.subjects[0], s.motion.felt.trials, s.motion.felt.successes,
+                    _pct(s.motion.felt), s.motion.direction_right.successes,
+                    _pct(s.motion.direction_right), s.motion.no_wave_felt.trials,
+                    s.motion.no_wave_felt.successes, _pct(s.motion.no_wave_felt)]
+                   for s in study.per_subject
+                   if s.motion.felt.trials or s.motion.no_wave_felt.trials]
+    return [
+        _write(out / "motion_subject_level.csv",
+               ["measure", *measure_header(settings), "chance_pct"], rows),
+        _write(out / "motion_per_subject.csv",
+               ["subject", "wave_trials", "felt", "felt_pct", "direction_right",
+                "direction_right_pct_of_felt", "no_wave_trials", "no_wave_felt",
+                "no_wave_felt_pct"], per_subject),
+    ]
+
+
+def frequency_effect_table(effect: FrequencyEffect | FitSkipped, out: Path) -> Path:
+    header = ["model", "status", "subjects", "trials", "odds_ratio_per_doubling",
+              "odds_ratio_wald95_low", "odds_ratio_wald95_high", "slope_logit_per_doubling",
+              "slope_se", "subject_sd_logit", "lrt_chi2", "lrt_p", "wald_p", "log_likelihood",
+              "typical_subject_pct_by_frequency", "note"]
+    model = "correct ~ log2(frequency) + (1 | subject), binomial logit, adaptive Gauss-Hermite ML"
+    match effect:
+        case FrequencyEffect():
+            low, high = effect.odds_ratio_interval
+            typical = "; ".join(f"{f:g} Hz {p:.1f}" for f, p in
+                                zip(effect.frequencies_hz, effect.typical_subject_pct, strict=True))
+            row = [model, "fitted" if effect.converged else "fitted, not converged",
+                   effect.subjects, effect.trials, number(effect.odds_ratio_per_doubling, 3),
+                   number(low, 3), number(high, 3), number(effect.slope_per_doubling, 4),
+                   number(effect.slope_se, 4), number(effect.subject_sd_logit, 4),
+                   number(effect.lrt_statistic, 3), f"{effect.lrt_p:.3g}", f"{effect.wald_p:.3g}",
+                   number(effect.log_likelihood, 3), typical, ""]
+        case FitSkipped():
+            row = [model, "not fitted", *["n/a"] * 13, effect.reason]
+    return _write(out / "frequency_effect.csv", header, [row])
+
+
+def runs_table(runs: RunSelection, out: Path) -> Path:
+    rows = []
+    for run, included in ([(r, True) for r in runs.included]
+                          + [(r, False) for r in runs.excluded]):
+        p = run.paths
+        rows.append([p.subject, p.session, p.task, p.run, run.source, run.status, run.counted,
+                     " ".join(map(str, run.duplicates)), "yes" if included else "no",
+                     run.incomplete_reason or ""])
+    rows.sort(key=lambda r: str(r[4]))
+    return _write(out / "runs.csv", ["subject", "session", "task", "run", "file",
+                                     "manifest_status", "counted_trials",
+                                     "trials_finished_twice", "included", "incomplete_reason"],
+                  rows)
+
+
+def write_tables(study: Study, out: Path) -> list[Path]:
+    """Every table for which there are trials, and the runs table always."""
+    tables = []
+    if study.pooled.localisation:
+        tables += localisation_tables(study, out)
+        tables.append(frequency_effect_table(study.frequency_effect, out))
+    if study.motion_trials:
+        tables += motion_tables(study, out)
+    tables.append(runs_table(study.runs, out))
+    return tables

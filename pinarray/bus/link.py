@@ -1,0 +1,342 @@
+"""Timed exchanges with the servos: bytes out, validated status packets back, within a deadline.
+
+A `Wire` moves bytes: `FdWire` over a serial device's file descriptor (a USB adapter or a
+pseudo-terminal; it waits with ``select``, never by spinning, so a servo emulator sharing the
+machine is not starved), and `PolledWire` over any object with pyserial's interface (the
+in-process simulator, pyserial URL handlers), which waits on the clock.
+
+`Link.exchange` is one request and its replies, done the way the issue of late and stale
+replies demands: input left over from earlier exchanges is drained first; a reply is accepted
+only when its id, its length and its checksum fit the request; anything else is counted as a
+stale or mismatched reply and skipped; and the wait ends at a deadline computed from the wire
+time at the baud rate, the servos' return delay and the adapter's latency. Nothing here
+retries: the caller decides (`pinarray.bus.feetech`).
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from pinarray.bus.packets import StatusPacket, StatusReader
+from pinarray.clock import Clock
+
+NS_PER_MS = 1_000_000
+# Bits on the wire per byte: start, 8 data, stop.
+BITS_PER_BYTE = 10
+# The longest return delay the register can hold (254 x 2 us), assumed until read.
+MAX_RETURN_DELAY_NS = 508_000
+# How often a polled wire looks for bytes while it waits, in clock nanoseconds.
+POLL_NS = 20_000
+
+
+class WireLost(OSError):
+    """The device under the wire went away (USB unplugged, pseudo-terminal closed)."""
+
+
+class Wire(Protocol):
+    """Bytes to and from the servos."""
+
+    name: str
+
+    def write(self, data: bytes) -> None:
+        """Hand all of ``data`` to the device in one call."""
+        ...
+
+    def read_some(self, deadline_ns: int) -> bytes:
+        """Wait until some bytes have arrived or the clock reaches ``deadline_ns``; return them."""
+        ...
+
+    def discard_input(self) -> int:
+        """Throw away whatever has arrived and not been read; return how many bytes."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class FdWire:
+    """A serial device by file descriptor, in real (monotonic) time.
+
+    Parameters
+    ----------
+    fd : int
+        An open, non-blocking descriptor of a tty configured for raw bytes (pyserial opens
+        devices that way); a player process gets it from its parent.
+    clock : Clock
+        A clock on ``time.monotonic_ns``'s time base.
+    name : str
+        The device, for messages.
+    on_close : callable, optional
+        Closes the object that owns ``fd`` (e.g. the pyserial port), instead of ``os.close``.
+    """
+
+    def __init__(self, fd: int, clock: Clock, name: str, on_close=None):
+        self.fd = fd
+        self.clock = clock
+        self.name = name
+        self._on_close = on_close
+
+    def write(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            try:
+                written = os.write(self.fd, view)
+            except BlockingIOError:
+                select.select([], [self.fd], [], 0.01)  # the output queue is full: let it drain
+                continue
+            except OSError as error:
+                raise WireLost(error.errno, f"write failed: {error.strerror}") from None
+            view = view[written:]
+
+    def read_some(self, deadline_ns: int) -> bytes:
+        while True:
+            remaining_ns = deadline_ns - self.clock.now_ns()
+            # select, not poll: its timeout has microseconds, and a player's read must not
+            # overrun the next frame's deadline by poll's rounding to milliseconds.
+            ready, _, _ = select.select([self.fd], [], [], max(0, remaining_ns) / 1e9)
+            if ready:
+                try:
+                    data = os.read(self.fd, 4096)
+                except BlockingIOError:
+                    continue
+                except OSError as error:
+                    if error.errno == errno.EIO:
+                        raise WireLost(error.errno, "read failed: Input/output error") from None
+                    raise WireLost(error.errno, f"read failed: {error.strerror}") from None
+                if not data:
+                    raise WireLost(errno.EIO, "read failed: the device closed")
+                return data
+            if remaining_ns <= 0:
+                return b""
+
+    def discard_input(self) -> int:
+        dropped = 0
+        while select.select([self.fd], [], [], 0)[0]:
+            try:
+                data = os.read(self.fd, 4096)
+            except BlockingIOError:
+                break
+            except OSError as error:
+                raise WireLost(error.errno, f"read failed: {error.strerror}") from None
+            if not data:
+                raise WireLost(errno.EIO, "read failed: the device closed")
+            dropped += len(data)
+        return dropped
+
+    def close(self) -> None:
+        try:
+            if self._on_close is not None:
+                self._on_close()
+            else:
+                os.close(self.fd)
+        except OSError:
+            pass
+
+
+class PolledWire:
+    """Any object with pyserial's ``write`` / ``in_waiting`` / ``read`` / ``close``.
+
+    The in-process simulator (`pinarray.bus.sim.SimSerial`) is one: its bytes arrive on the
+    clock, so waiting here moves virtual time instead of sleeping.
+    """
+
+    def __init__(self, port, clock: Clock, name: str):
+        self.port = port
+        self.clock = clock
+        self.name = name
+
+    def write(self, data: bytes) -> None:
+        try:
+            self.port.write(data)
+        except OSError as error:  # serial.SerialException is an OSError
+            raise WireLost(errno.EIO, str(error)) from None
+
+    def read_some(self, deadline_ns: int) -> bytes:
+        try:
+            while True:
+                waiting = self.port.in_waiting
+                if waiting:
+                    return bytes(self.port.read(waiting))
+                now_ns = self.clock.now_ns()
+                if now_ns >= deadline_ns:
+                    return b""
+                self.clock.sleep_until_ns(min(deadline_ns, now_ns + POLL_NS))
+        except OSError as error:
+            raise WireLost(errno.EIO, str(error)) from None
+
+    def discard_input(self) -> int:
+        try:
+            waiting = self.port.in_waiting
+            return len(self.port.read(waiting)) if waiting else 0
+        except OSError as error:
+            raise WireLost(errno.EIO, str(error)) from None
+
+    def close(self) -> None:
+        try:
+            self.port.close()
+        except OSError:
+            pass
+
+
+@dataclass(frozen=True)
+class Expected:
+    """A reply a request asks for: from which servo, carrying how many data bytes."""
+
+    servo_id: int
+    params_length: int = 0
+
+
+@dataclass
+class LinkCounters:
+    """What went over the link since it was opened."""
+
+    bytes_written: int = 0
+    bytes_read: int = 0
+    exchanges: int = 0
+    stale_bytes: int = 0  # drained before a request: late answers to earlier ones
+    mismatched_replies: int = 0  # well-formed status packets that did not fit the request
+    timeouts: int = 0
+
+
+class Latency:
+    """How long the adapter may hold a reply, learnt from the latency timer or measured.
+
+    A USB-serial adapter passes received bytes to the host when its latency timer runs out
+    (FTDI default 16 ms; 1 ms once lowered), plus one USB frame. A pseudo-terminal or an
+    adapter whose timer cannot be read starts at the vendor SDK's cautious 16 ms and, once a
+    few exchanges have been timed, allows three times the worst latency seen.
+
+    Parameters
+    ----------
+    timer_ms : int or None
+        The adapter's latency timer, if known.
+    floor_ns : int
+        Never allow less than this (scheduling noise on the host).
+    """
+
+    CAUTIOUS_NS = 2 * 16 * NS_PER_MS + 2 * NS_PER_MS  # what the SDK allows an unknown adapter
+    SAMPLES_BEFORE_TRUST = 3
+
+    def __init__(self, timer_ms: int | None = None, floor_ns: int = NS_PER_MS):
+        self.timer_ms = timer_ms
+        self.floor_ns = floor_ns
+        self.worst_seen_ns = 0
+        self.samples = 0
+
+    def record(self, latency_ns: int) -> None:
+        self.samples += 1
+        self.worst_seen_ns = max(self.worst_seen_ns, latency_ns)
+
+    @property
+    def allowance_ns(self) -> int:
+        """How long past the wire and return-delay time a reply may still arrive."""
+        if self.timer_ms is not None:
+            return max(self.floor_ns, (self.timer_ms + 1) * NS_PER_MS, 3 * self.worst_seen_ns)
+        if self.samples < self.SAMPLES_BEFORE_TRUST:
+            return max(self.CAUTIOUS_NS, 3 * self.worst_seen_ns)
+        return max(self.floor_ns, 3 * self.worst_seen_ns)
+
+
+class Link:
+    """Requests and validated replies over a `Wire`, against a clock.
+
+    Parameters
+    ----------
+    wire : Wire
+        Where the bytes go.
+    clock : Clock
+        The time base of deadlines (virtual for the in-process simulator).
+    baud_rate : int
+        Bits per second on the servo bus.
+    latency : Latency
+        The adapter's latency allowance.
+    """
+
+    def __init__(self, wire: Wire, clock: Clock, baud_rate: int, latency: Latency):
+        self.wire = wire
+        self.clock = clock
+        self.baud_rate = baud_rate
+        self.latency = latency
+        self.reader = StatusReader()
+        self.counters = LinkCounters()
+        self.return_delay_ns: dict[int, int] = {}
+
+    @property
+    def name(self) -> str:
+        return self.wire.name
+
+    def wire_ns(self, byte_count: int) -> int:
+        """Time ``byte_count`` bytes take on the bus at its baud rate."""
+        return byte_count * BITS_PER_BYTE * 1_000_000_000 // self.baud_rate
+
+    def reply_time_ns(self, request_bytes: int, replies: Sequence[Expected]) -> int:
+        """Longest a request and its replies may take before the replies count as lost."""
+        reply_bytes = sum(6 + r.params_length for r in replies)
+        delays = sum(self.return_delay_ns.get(r.servo_id, MAX_RETURN_DELAY_NS) for r in replies)
+        return self.wire_ns(request_bytes + reply_bytes) + delays + self.latency.allowance_ns
+
+    def send(self, packet: bytes) -> None:
+        """Put a packet that gets no reply (a sync write) on the wire."""
+        self.wire.write(packet)
+        self.counters.bytes_written += len(packet)
+
+    def drain(self) -> None:
+        """Drop input left from earlier exchanges: late replies must not answer this request."""
+        stale = self.wire.discard_input() + self.reader.clear()
+        self.counters.stale_bytes += stale
+
+    def exchange(
+        self, packet: bytes, expected: Sequence[Expected], deadline_ns: int | None = None
+    ) -> dict[int, StatusPacket]:
+        """Send ``packet`` and collect the replies it asks for, until they are in or time is up.
+
+        Parameters
+        ----------
+        packet : bytes
+            The request (a READ, WRITE, PING or SYNC_READ instruction packet).
+        expected : sequence of Expected
+            The replies that fit it: one per servo id, each with its data length.
+        deadline_ns : int, optional
+            Give up at this clock time even if the reply time allows longer (the player's
+            next frame); default: the request's reply time from now.
+
+        Returns
+        -------
+        dict of servo id to StatusPacket
+            The replies that arrived and fit; a missing id means no fitting reply in time.
+        """
+        self.drain()
+        self.reader.longest_params = max((e.params_length for e in expected), default=0)
+        start_ns = self.clock.now_ns()
+        limit_ns = start_ns + self.reply_time_ns(len(packet), expected)
+        if deadline_ns is not None:
+            limit_ns = min(limit_ns, deadline_ns)
+        self.wire.write(packet)
+        self.counters.bytes_written += len(packet)
+        self.counters.exchanges += 1
+        wanted = {e.servo_id: e.params_length for e in expected}
+        replies: dict[int, StatusPacket] = {}
+        while len(replies) < len(wanted):
+            data = self.wire.read_some(limit_ns)
+            if not data:
+                self.counters.timeouts += 1
+                break
+            self.counters.bytes_read += len(data)
+            for status in self.reader.feed(data):
+                length = wanted.get(status.servo_id)
+                if length is None or length != len(status.params) or status.servo_id in replies:
+                    self.counters.mismatched_replies += 1
+                    continue
+                replies[status.servo_id] = status
+        if replies and len(replies) == len(wanted):
+            used_ns = self.clock.now_ns() - start_ns
+            self.latency.record(max(0, used_ns - self.reply_time_ns(len(packet), expected)
+                                    + self.latency.allowance_ns))
+        return replies
+
+    def close(self) -> None:
+        self.wire.close()

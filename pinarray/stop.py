@@ -1,0 +1,198 @@
+"""One way to stop: a stop request that composition roots set and every wait looks at.
+
+The only module that handles signals. ``pinarray play``, ``batch``, ``sim-serve`` and the TUI
+wrap their work in `stop_on_signals`; SIGHUP (terminal or SSH session closed), SIGINT
+(Ctrl-C), SIGQUIT, SIGTERM, SIGUSR1/2 and SIGPIPE then set a `StopRequest` instead of killing
+the process. Whatever waits (the player between frames, the session between trials) waits on a
+`StoppableClock`, which raises `Stopped` at its next look at the request, so every way out runs
+through the same ``finally`` that puts the pins at rest and switches torque off.
+
+A second signal while a stop is already pending raises `Stopped` at once, wherever the main
+thread is: an escape hatch if something does not look at the request. The few steps that must
+not be cut in half (a pin's safe stop, a results row) run inside `deferred_signals`.
+"""
+
+from __future__ import annotations
+
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from pinarray.clock import Clock
+from pinarray.errors import Interrupted
+
+STOP_SIGNALS = tuple(
+    getattr(signal, name)
+    for name in ("SIGHUP", "SIGINT", "SIGQUIT", "SIGTERM", "SIGUSR1", "SIGUSR2", "SIGPIPE")
+    if hasattr(signal, name)
+)
+# Longest single wait between looks at the stop request, in clock nanoseconds.
+SLICE_NS = 20_000_000
+
+
+class Stopped(Interrupted):
+    """The run was asked to stop (a signal, quitting the UI): not a fault of the stimulus.
+
+    Attributes
+    ----------
+    signal_number : int or None
+        The signal that asked, or None when the request came from the program (e.g. the UI).
+    """
+
+    def __init__(self, message: str, signal_number: int | None = None):
+        super().__init__(message)
+        self.signal_number = signal_number
+
+    @property
+    def exit_status(self) -> int:
+        """The shell's convention for a process ended by a signal: 128 + its number."""
+        return 128 + self.signal_number if self.signal_number else 130
+
+
+class StopRequest:
+    """A flag any thread can set once, with the reason; waits look at it."""
+
+    def __init__(self) -> None:
+        self._event = threading.Event()
+        self.reason = ""
+        self.signal_number: int | None = None
+
+    def request(self, reason: str, signal_number: int | None = None) -> None:
+        if not self._event.is_set():
+            self.reason, self.signal_number = reason, signal_number
+            self._event.set()
+
+    def clear(self) -> None:
+        self._event.clear()
+        self.reason, self.signal_number = "", None
+
+    @property
+    def requested(self) -> bool:
+        return self._event.is_set()
+
+    def wait(self, timeout_s: float) -> bool:
+        """Block until a stop is requested or ``timeout_s`` passes; True if requested."""
+        return self._event.wait(timeout_s)
+
+    def raise_if_requested(self) -> None:
+        if self._event.is_set():
+            raise Stopped(self.reason or "stopped", self.signal_number)
+
+
+def signal_name(signal_number: int) -> str:
+    try:
+        return signal.Signals(signal_number).name
+    except ValueError:
+        return f"signal {signal_number}"
+
+
+@contextmanager
+def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
+    """Inside the block, every stop signal sets ``stop`` instead of ending the process.
+
+    Outside the main thread (where Python cannot install handlers) this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def handler(signum, frame):
+        if stop.requested:
+            raise Stopped(f"stopped by {signal_name(signum)} (again)", signum)
+        stop.request(f"stopped by {signal_name(signum)}", signum)
+
+    previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
+    try:
+        yield stop
+    finally:
+        for number, old in previous.items():
+            signal.signal(number, old)
+
+
+def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]) -> None:
+    """For an asyncio program (the TUI): every stop signal sets ``stop``, then calls ``then``.
+
+    Raises whatever ``loop.add_signal_handler`` raises where signals cannot be handled (not
+    the main thread, Windows).
+    """
+
+    def handle(signal_number: int) -> None:
+        stop.request(f"stopped by {signal_name(signal_number)}", signal_number)
+        then(signal_number)
+
+    for number in STOP_SIGNALS:
+        loop.add_signal_handler(number, handle, number)
+
+
+@contextmanager
+def raise_on_signals(what: str) -> Iterator[None]:
+    """Inside the block, every stop signal raises `Stopped` where the main thread is.
+
+    For a process whose only job is a loop that already unwinds safely on `Interrupted` (the
+    player process): it has nothing else that could look at a flag in time.
+    """
+
+    def handler(signum, frame):
+        raise Stopped(f"{what} stopped by {signal_name(signum)}", signum)
+
+    previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
+    try:
+        yield
+    finally:
+        for number, old in previous.items():
+            signal.signal(number, old)
+
+
+@contextmanager
+def deferred_signals() -> Iterator[None]:
+    """Inside the block the stop signals wait; outside any main thread this does nothing.
+
+    For the few steps that must finish once begun: a pin's safe stop (rest, then torque off)
+    and a results row (``beh.tsv``, then ``events.tsv``).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        # Python runs signal handlers in the main thread only: this thread is never interrupted.
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+class StoppableClock:
+    """Delegates to ``clock``; once ``stop`` is requested every wait raises `Stopped`.
+
+    Only the session's and the player's waits go through it, never the bus's own: a wait cut
+    short inside a packet exchange would leave the safe stop talking to a confused port.
+
+    Parameters
+    ----------
+    clock : Clock
+        The clock the bus also uses (same time base).
+    stop : StopRequest
+        Looked at before and during every wait, at least every `SLICE_NS`.
+    """
+
+    def __init__(self, clock: Clock, stop: StopRequest):
+        self.clock = clock
+        self.stop = stop
+
+    def now_ns(self) -> int:
+        return self.clock.now_ns()
+
+    def doze_until_ns(self, deadline_ns: int) -> None:
+        self.sleep_until_ns(deadline_ns)
+
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        while True:
+            self.stop.raise_if_requested()
+            now_ns = self.clock.now_ns()
+            if now_ns >= deadline_ns:
+                return
+            if deadline_ns - now_ns > SLICE_NS:
+                self.clock.doze_until_ns(now_ns + SLICE_NS)  # not the deadline yet: no spinning
+            else:
+                self.clock.sleep_until_ns(deadline_ns)

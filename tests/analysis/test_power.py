@@ -1,0 +1,116 @@
+"""`pinarray power`: how many subjects, from whole simulated studies analysed per subject."""
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+from scipy import stats as scipy_stats
+
+from pinarray import cli
+from pinarray.analysis.power import (
+    Design,
+    SubjectCounts,
+    analyse_study,
+    power_study,
+    protocol_design,
+    t_test_p,
+)
+from pinarray.grid import DEFAULT_GRID
+from pinarray.observer import ObserverModel
+from pinarray.protocol_load import load_protocol
+
+PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
+LOCALISATION = load_protocol(PROTOCOLS / "localisation.yaml")
+MOTION = load_protocol(PROTOCOLS / "apparent_motion.yaml")
+PINS = (1, 4)
+
+
+def subject(correct_by_frequency, a_errors=1, pin_correct=(3, 1)):
+    """A subject of 8 trials per frequency on pins 1 and 4: correct, A errors, the rest B."""
+    rows = [[c, a_errors, 8 - c - a_errors, 0, 0, 0] for c in correct_by_frequency]
+    pin_trials = np.zeros(16, dtype=int)
+    pin_hits = np.zeros(16, dtype=int)
+    pin_trials[[0, 3]] = 4 * len(correct_by_frequency)
+    pin_hits[[0, 3]] = pin_correct
+    return SubjectCounts(np.array(rows), pin_hits, pin_trials, 0, 0, 0, 0, 0)
+
+
+DESIGN = Design(tuple((p, f) for p in PINS for f in (3.0, 10.0)) * 4, (), DEFAULT_GRID)
+
+
+def test_the_protocols_main_trials_are_what_the_simulated_subjects_answer():
+    design = protocol_design(LOCALISATION)
+    assert len(design.localisation) == 24 and design.pins == (1, 4, 6, 7, 10, 11, 13, 16)
+    assert design.frequencies_hz == (3.0, 5.0, 10.0) and design.motion == ()
+    motion = protocol_design(MOTION)
+    assert sorted(set(motion.motion)) == ["left", "none", "right"] and len(motion.motion) == 12
+
+
+def test_a_study_where_every_subject_improves_finds_the_frequency_effect():
+    found = analyse_study(DESIGN, [subject((2, 5)), subject((3, 6)), subject((1, 5)),
+                                   subject((2, 7))], best_pin=1).found
+    assert found["frequency effect"] and found["rising means"]
+    assert found["error A on top"] is False  # B errors outnumber A here
+    assert found["pin 1 best"]
+
+
+def test_a_study_where_half_improve_and_half_get_worse_finds_no_frequency_effect():
+    found = analyse_study(DESIGN, [subject((2, 6)), subject((6, 2)), subject((3, 5)),
+                                   subject((5, 3))], best_pin=4).found
+    assert not found["frequency effect"] and not found["rising means"]
+    assert not found["pin 4 best"]
+
+
+def test_a_tie_for_the_best_pin_does_not_count_as_that_pin_best():
+    found = analyse_study(DESIGN, [subject((2, 5), pin_correct=(2, 2))] * 3, best_pin=4).found
+    assert not found["pin 4 best"]
+
+
+@given(st.lists(st.floats(-100, 100, allow_nan=False), min_size=2, max_size=25))
+def test_the_t_test_gives_scipys_p_value(values):
+    if np.std(values) > 1e-9:
+        assert_allclose(t_test_p(values), scipy_stats.ttest_1samp(values, 0.0).pvalue,
+                        rtol=1e-6, atol=1e-12)
+
+
+def test_power_grows_with_subjects_and_the_simulation_repeats_with_its_seed():
+    model = ObserverModel().for_protocol(LOCALISATION)
+    curves = power_study(LOCALISATION, model, [4, 16], studies=40, seed=3)
+    effect = {p.subjects: p.met.pct for p in curves.points if p.criterion == "frequency effect"}
+    assert effect[16] > effect[4]
+    again = power_study(LOCALISATION, model, [4, 16], studies=40, seed=3)
+    assert again.points == curves.points
+    ten = {p.subjects: p for p in curves.precision if p.measure == "correct at 10 Hz"}
+    assert ten[16].t_half_width_pct < ten[4].t_half_width_pct
+    assert abs(ten[16].mean_pct - 62.5) < 4 * ten[16].sd_pct / np.sqrt(40)
+
+
+def test_more_spread_between_subjects_makes_a_studys_estimate_vary_more():
+    narrow = power_study(LOCALISATION, ObserverModel(subject_sd_logit=0).for_protocol(
+        LOCALISATION), [8], studies=60, seed=4)
+    wide = power_study(LOCALISATION, ObserverModel(subject_sd_logit=2).for_protocol(
+        LOCALISATION), [8], studies=60, seed=4)
+    width = {c.model.subject_sd_logit: next(p.sd_pct for p in c.precision
+                                            if p.measure == "correct at 10 Hz")
+             for c in (narrow, wide)}
+    assert width[2.0] > 1.5 * width[0.0]
+
+
+def test_the_power_command_prints_the_table_and_writes_csv_and_figures(tmp_path, capsys):
+    out = tmp_path / "power"
+    status = cli.main(["power", str(PROTOCOLS / "apparent_motion.yaml"), "--subjects", "4,8",
+                       "--studies", "20", "--seed", "5", "--out", str(out)])
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "direction above chance" in printed and "motion felt more on waves" in printed
+    with open(out / "power.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert {(r["criterion"], r["subjects"]) for r in rows} == {
+        (c, n) for c in ("direction above chance", "motion felt more on waves")
+        for n in ("4", "8")}
+    assert all(r["seed"] == "5" and r["studies"] == "20" for r in rows)
+    assert (out / "power_curves.png").exists() and (out / "power_curves.pdf").exists()
+    assert (out / "precision.csv").exists()

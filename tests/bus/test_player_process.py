@@ -1,0 +1,140 @@
+"""The player in its own process, on servos behind a pseudo-terminal: every way out is safe."""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from pinarray.bus.faults import SimConfig
+from pinarray.bus.serve import PtyServer
+from pinarray.bus.transport import open_bus
+from pinarray.clock import MonotonicClock
+from pinarray.player import prepare_trial
+from pinarray.player_process import PlayerDied, PlayerProcess
+from pinarray.stop import Stopped, StopRequest
+
+from .lab import REST_STEPS, device_setup, pulse_train
+
+DEMO = Path(__file__).resolve().parents[2] / "protocols" / "demo.yaml"
+IDS = tuple(range(1, 5))
+
+
+@pytest.fixture
+def server():
+    server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+    yield server
+    server.stop()
+
+
+def wait_until_safe(server, ids, timeout_s=10.0):
+    """Every servo in ``ids`` at rest with torque off, as the lab checks after a stop."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        servos = [server.sim.servos[i] for i in ids]
+        for servo in servos:
+            servo.read(56, 2, time.monotonic_ns())  # bring the simulated horn up to now
+        unsafe = [s.servo_id for s in servos
+                  if s.torque_enabled or abs(s.position_steps - REST_STEPS) > 4]
+        if not unsafe:
+            return
+        assert time.monotonic() < deadline, f"servo(s) {unsafe} not at rest with torque off"
+        time.sleep(0.05)
+
+
+def connected(server, ids=IDS):
+    clock = MonotonicClock()
+    bus = open_bus(server.path, device_setup(ids), clock)
+    return bus, PlayerProcess(bus, bus.link.wire.fd, StopRequest())
+
+
+def test_a_trial_played_in_the_player_process_is_verified_and_ends_at_rest(server):
+    bus, player = connected(server)
+    try:
+        report = player.play(prepare_trial(bus, pulse_train(IDS, 10, 3)), tolerance_ns=10**7)
+    finally:
+        player.close()
+    assert report.frames_sent == 6
+    assert report.delivery.scheduled == 24 and report.delivery.delivered
+    assert report.delivery.confirmed + report.delivery.healed == 24
+    bus.rest_and_release()
+    bus.close()
+    wait_until_safe(server, IDS)
+
+
+def test_a_stop_request_ends_the_trial_in_the_player_process_with_pins_at_rest(server):
+    bus, player = connected(server)
+    threading.Timer(0.5, player.stop.request, args=("stopped by SIGTERM", 15)).start()
+    try:
+        with pytest.raises(Stopped, match="stopped by SIGTERM"):
+            player.play(prepare_trial(bus, pulse_train(IDS, 5, 20)), tolerance_ns=10**7)
+        assert player.alive  # ready for the next trial
+    finally:
+        player.close()
+    bus.close()
+    wait_until_safe(server, IDS)
+
+
+def test_a_player_process_killed_mid_trial_is_noticed_and_the_parent_rests_the_pins(server):
+    bus, player = connected(server)
+    threading.Timer(0.5, os.kill, args=(player.process.pid, signal.SIGKILL)).start()
+    started = time.monotonic()
+    with pytest.raises(PlayerDied, match="killed by signal 9") as died:
+        player.play(prepare_trial(bus, pulse_train(IDS, 5, 20)), tolerance_ns=10**7)
+    noticed_s = time.monotonic() - started
+    assert noticed_s < 4.0 * 2  # long before the 8 s trial would have ended
+    assert died.value.safe_stop.complete
+    player.close()
+    bus.close()
+    wait_until_safe(server, IDS)
+
+
+@pytest.mark.parametrize("sent", ["SIGTERM", "SIGHUP", "SIGQUIT", "SIGUSR1", "SIGINT"])
+def test_a_signal_sent_to_the_player_process_itself_rests_and_releases_the_pins(server, sent):
+    bus, player = connected(server)
+    threading.Timer(0.5, os.kill, args=(player.process.pid, getattr(signal, sent))).start()
+    with pytest.raises(PlayerDied):
+        player.play(prepare_trial(bus, pulse_train(IDS, 5, 20)), tolerance_ns=10**7)
+    assert player.process.returncode == 128 + getattr(signal, sent)  # it made the pins safe
+    player.close()
+    bus.close()
+    wait_until_safe(server, IDS)
+
+
+def play_demo(server, *extra):
+    return subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "play", str(DEMO), "--port", server.path, *extra],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+
+
+def wait_for_first_trial(process):
+    line = process.stdout.readline()
+    assert "played by a player process" in line, line + process.stderr.read()
+    time.sleep(0.8)  # well inside the first 2 s stimulus
+
+
+@pytest.mark.parametrize("sent", ["SIGHUP", "SIGQUIT", "SIGUSR1", "SIGUSR2", "SIGPIPE",
+                                  "SIGTERM", "SIGINT"])
+def test_every_signal_to_play_leaves_pins_at_rest_and_torque_off(server, sent):
+    process = play_demo(server)
+    wait_for_first_trial(process)
+    number = getattr(signal, sent)
+    process.send_signal(number)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 128 + number, stderr
+    assert f"stopped by {sent}" in stderr and "Traceback" not in stderr
+    wait_until_safe(server, range(1, 17))
+
+
+def test_a_killed_play_leaves_its_player_process_to_rest_the_pins(server):
+    process = play_demo(server)
+    wait_for_first_trial(process)
+    process.kill()  # SIGKILL: the parent cannot do anything; its player process must
+    process.wait(timeout=30)
+    wait_until_safe(server, range(1, 17))
