@@ -217,7 +217,8 @@ class PtyServer:
         end_ns = start_ns + round(len(data) * byte_ns)
         self._host_free_ns = end_ns
         offset_ns = self.sim.clock.now_ns() - time.monotonic_ns()  # sim clock - real clock
-        replies = self.sim.receive(data, end_ns + offset_ns, byte_ns, baud)
+        self.sim.byte_ns, self.sim.host_baud_rate = byte_ns, baud
+        replies = self.sim.receive(data, end_ns + offset_ns)
         if not replies:
             return
         line_free_ns = max(self._line_free_ns, end_ns) + offset_ns

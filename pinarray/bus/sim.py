@@ -131,6 +131,9 @@ class SimBus:
         self.packets_received = 0
         self.packets_rejected = 0
         self.packet_listener: Callable[[InstructionPacket], None] | None = None
+        # The wire the host talks on, set by the port in front of the bus (SimSerial, PtyServer).
+        self.byte_ns = 0.0
+        self.host_baud_rate: int | None = None
         self._follow_baud = follow_host_baud and config.baud_rate is None
         self._shadowed: list[SimServo] = []  # servos renumbered onto an id already taken
         self._random = random.Random(faults.seed)
@@ -148,7 +151,7 @@ class SimBus:
             servo.advance_to(now_ns)
 
     def receive(
-        self, data: bytes, at_ns: int, byte_ns: float = 0.0, baud_rate: int | None = None
+        self, data: bytes, at_ns: int, byte_ns: float | None = None, baud_rate: int | None = None
     ) -> list[StatusReply]:
         """Bytes from the host, the last of which arrived at ``at_ns``; returns the answers.
 
@@ -158,11 +161,15 @@ class SimBus:
             What the host sent (any split of packets).
         at_ns : int
             When the last byte of ``data`` arrived, in nanoseconds.
-        byte_ns : float
-            Wire time of one byte, so packets earlier in ``data`` get earlier arrival times.
+        byte_ns : float, optional
+            Wire time of one byte, so packets earlier in ``data`` get earlier arrival times;
+            default `byte_ns`, which the port in front of the bus keeps up to date.
         baud_rate : int, optional
-            The host's speed in bit/s; servos listening at another speed hear only noise.
+            The host's speed in bit/s (default `host_baud_rate`); servos listening at another
+            speed hear only noise. None: unknown, every servo hears.
         """
+        byte_ns = self.byte_ns if byte_ns is None else byte_ns
+        baud_rate = self.host_baud_rate if baud_rate is None else baud_rate
         self._buffer.extend(data)
         if self._follow_baud and baud_rate in BAUD_RATE_BY_CODE:
             self._follow_baud = False
@@ -400,7 +407,8 @@ class SimSerial:
         self._tx_done_ns = self._wire_free_ns = end_ns
         self.bytes_written += len(data)
         self.writes.append(data)
-        replies = self.bus.receive(data, end_ns, self._byte_ns, self._baud_rate)
+        self.bus.byte_ns, self.bus.host_baud_rate = self._byte_ns, self._baud_rate
+        replies = self.bus.receive(data, end_ns)
         if replies:
             arriving, self._wire_free_ns = schedule(replies, self._wire_free_ns, self._byte_ns)
             in_order = not self._incoming or self._incoming[-1][0] <= arriving[0].arrival_ns(0)

@@ -79,6 +79,10 @@ class RawBus:
         data = self.read(servo_id, address, length)
         return None if data is None else int.from_bytes(data, "little")
 
+    def present_steps(self, servo_id: int) -> int | None:
+        """The Present Position register (address 56), in steps."""
+        return self.read_int(servo_id, 56, 2)
+
     def write(self, servo_id: int, address: int, data: bytes) -> list[Status]:
         return self.send(servo_id, Instruction.WRITE, bytes([address]) + bytes(data))
 

@@ -111,9 +111,10 @@ def test_a_late_status_packet_is_retried_and_then_arrives_after_the_host_gave_up
     before = bus.sim.late_ns
     (reading,) = bus.read_telemetry((4,))
     assert reading.position_steps == 2048 and bus.stats().retries == 1
-    assert bus.port.ser.in_waiting == 0
+    port = bus.link.wire.port  # the in-process SimSerial
+    assert port.in_waiting == 0
     bus.clock.sleep_until_ns(bus.clock.now_ns() + before)
-    assert bus.port.ser.in_waiting > 0  # the stale answer now waits in the input buffer
+    assert port.in_waiting > 0  # the stale answer now waits in the input buffer
 
 
 def test_late_answers_come_late_by_late_ms_in_virtual_time():

@@ -5,6 +5,8 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import pytest
 import serial
@@ -45,14 +47,23 @@ def test_play_over_the_pseudo_terminal_ends_with_pins_at_rest():
     assert_safe(bus)
 
 
-def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
+@contextmanager
+def sim_serve(*args: str) -> Iterator[tuple[subprocess.Popen, str]]:
+    """``pinarray sim-serve ARGS`` in its own process: (process, pseudo-terminal path)."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "sim-serve", "--ids", "1-3"],
+        [sys.executable, "-m", "pinarray", "sim-serve", *args],
         stdout=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:
-        first_line = process.stdout.readline()
-        path = first_line.split(" on ")[1].split()[0]
+        yield process, process.stdout.readline().split(" on ")[1].split()[0]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait(timeout=10)
+
+
+def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
+    with sim_serve("--ids", "1-3") as (process, path):
         scan = subprocess.run(
             [sys.executable, "-m", "pinarray", "scan", "--port", path, "--ids", "1-4"],
             capture_output=True, text=True, timeout=60,
@@ -60,41 +71,22 @@ def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
         assert "3 servo(s) answered" in scan.stdout, scan.stdout + scan.stderr
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=10) == 0
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(timeout=10)
-
-
-def start_sim_serve(*args: str) -> tuple[subprocess.Popen, str]:
-    process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "sim-serve", *args],
-        stdout=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    first_line = process.stdout.readline()
-    return process, first_line.split(" on ")[1].split()[0]
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
 def test_sim_serve_stops_cleanly_on_sigterm_sigint_and_sighup(signum):
-    process, path = start_sim_serve("--ids", "1")
-    try:
+    with sim_serve("--ids", "1") as (process, path):
         with serial.Serial(path, 1_000_000, timeout=2) as port:
             port.write(packet(1, Instruction.PING))
             assert port.read(6) == bytes.fromhex("ffff010200fc")
         process.send_signal(signum)
         assert process.wait(timeout=10) == 0
         assert "sim-serve stopped" in process.stdout.read()
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(timeout=10)
 
 
 def test_sim_serve_logs_the_arrival_of_every_instruction_packet(tmp_path):
     log = tmp_path / "arrivals.tsv"
-    process, path = start_sim_serve("--ids", "1-2", "--arrivals", str(log))
-    try:
+    with sim_serve("--ids", "1-2", "--arrivals", str(log)) as (process, path):
         with serial.Serial(path, 1_000_000, timeout=2) as port:
             before_ns = time.monotonic_ns()
             port.write(packet(1, Instruction.PING))
@@ -106,10 +98,6 @@ def test_sim_serve_logs_the_arrival_of_every_instruction_packet(tmp_path):
             after_ns = time.monotonic_ns()
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=10) == 0
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(timeout=10)
     header, *rows = [line.split("\t") for line in log.read_text().splitlines()]
     assert header == ["arrival_ns", "servo_id", "instruction", "address", "data_hex", "delivered"]
     assert [row[1:] for row in rows] == [

@@ -133,7 +133,7 @@ def test_goals_outside_the_angle_limits_are_clamped(goal, reached):
     bus = RawBus("ids=1&backlash_deg=0")
     bus.write(1, *reg(Register.GOAL_POSITION, goal))
     bus.wait_ns(3_000_000_000)
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == reached
+    assert bus.present_steps(1) == reached
     assert bus.read_int(1, Register.GOAL_POSITION.address, 2) == goal  # kept as written
 
 
@@ -143,7 +143,7 @@ def test_calibrated_angle_limits_clamp_too():
     bus.write(1, *reg(Register.MAX_ANGLE_LIMIT, 2300))
     bus.write(1, *reg(Register.GOAL_POSITION, 2500))
     bus.wait_ns(1_000_000_000)
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == 2300
+    assert bus.present_steps(1) == 2300
 
 
 def test_a_goal_written_with_torque_off_turns_torque_on_and_moves_the_horn():
@@ -152,7 +152,7 @@ def test_a_goal_written_with_torque_off_turns_torque_on_and_moves_the_horn():
     bus.write(1, 41, bytes([0]) + to_bytes(2500, 2) + bytes(2) + to_bytes(0, 2))
     assert bus.read_int(1, Register.TORQUE_ENABLE.address, 1) == 1
     bus.wait_ns(1_000_000_000)
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == 2500
+    assert bus.present_steps(1) == 2500
 
 
 def test_torque_off_leaves_the_horn_where_it_is():
@@ -160,10 +160,10 @@ def test_torque_off_leaves_the_horn_where_it_is():
     bus.write(1, *reg(Register.GOAL_POSITION, 3000))
     bus.wait_ns(100_000_000)
     bus.write(1, *reg(Register.TORQUE_ENABLE, 0))
-    stopped = bus.read_int(1, Register.PRESENT_POSITION.address, 2)
+    stopped = bus.present_steps(1)
     bus.wait_ns(1_000_000_000)
     assert 2048 < stopped < 3000
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == stopped
+    assert bus.present_steps(1) == stopped
     assert bus.read_int(1, Register.MOVING.address, 1) == 0
 
 
@@ -171,7 +171,7 @@ def test_enabling_torque_before_any_goal_sends_the_horn_to_the_stale_goal_0():
     bus = RawBus("ids=1&backlash_deg=0")
     bus.write(1, *reg(Register.TORQUE_ENABLE, 1))
     bus.wait_ns(2_000_000_000)
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == 0
+    assert bus.present_steps(1) == 0
 
 
 def test_torque_128_makes_the_present_position_read_2048():
@@ -179,10 +179,10 @@ def test_torque_128_makes_the_present_position_read_2048():
     bus.write(1, *reg(Register.GOAL_POSITION, 3000))
     bus.wait_ns(1_000_000_000)
     bus.write(1, *reg(Register.TORQUE_ENABLE, 128))
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == 2048
+    assert bus.present_steps(1) == 2048
     assert bus.read_int(1, Register.TORQUE_ENABLE.address, 1) == 1
     bus.wait_ns(1_000_000_000)
-    assert bus.read_int(1, Register.PRESENT_POSITION.address, 2) == 2048  # it held still
+    assert bus.present_steps(1) == 2048  # it held still
 
 
 def test_a_supply_outside_the_voltage_limits_shows_in_every_status_packet():
