@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import serial
 
 from pinarray.bus.faults import SimConfig
-from pinarray.bus.models import servo_model
+from pinarray.bus.models import FACTORY_RETURN_DELAY_US, servo_model
 from pinarray.bus.registers import (
     BAUD_RATE_BY_CODE,
     BROADCAST_ID,
@@ -96,22 +96,8 @@ class SimBus:
     def __init__(self, config: SimConfig, clock: Clock, follow_host_baud: bool = True):
         self.config = config
         self.clock = clock
-        start_ns = clock.now_ns()
-        model = servo_model(config.model)
-        backlash = None if config.backlash_deg is None else (
-            config.backlash_deg * model.steps_per_turn / 360.0
-        )
         self.servos: dict[int, SimServo] = {
-            servo_id: SimServo(
-                servo_id,
-                start_ns,
-                return_delay_us=config.return_delay_us,
-                model=model,
-                baud_rate=config.baud_rate or 1_000_000,
-                supply_v=config.supply_v,
-                backlash_steps=backlash,
-                load_fraction=config.load_fraction,
-            )
+            servo_id: self._new_servo(servo_id, config.return_delay_us, config.baud_rate)
             for servo_id in config.answering_ids
         }
         for servo_id, bits in config.faults.error_bits:
@@ -135,6 +121,7 @@ class SimBus:
         self.byte_ns = 0.0
         self.host_baud_rate: int | None = None
         self._follow_baud = follow_host_baud and config.baud_rate is None
+        self._setup_baud_rate = config.baud_rate
         self._shadowed: list[SimServo] = []  # servos renumbered onto an id already taken
         self._random = random.Random(faults.seed)
         self._buffer = bytearray()
@@ -173,6 +160,7 @@ class SimBus:
         self._buffer.extend(data)
         if self._follow_baud and baud_rate in BAUD_RATE_BY_CODE:
             self._follow_baud = False
+            self._setup_baud_rate = baud_rate
             for servo in self.all_servos():
                 servo.set_up_baud(baud_rate)
         replies: list[StatusReply] = []
@@ -232,6 +220,36 @@ class SimBus:
     def all_servos(self) -> list[SimServo]:
         """Every servo on the bus, also those renumbered onto an id another one has."""
         return [*self.servos.values(), *self._shadowed]
+
+    def _new_servo(self, servo_id: int, return_delay_us: int, baud_rate: int | None) -> SimServo:
+        config = self.config
+        model = servo_model(config.model)
+        backlash = None if config.backlash_deg is None else (
+            config.backlash_deg * model.steps_per_turn / 360.0
+        )
+        return SimServo(
+            servo_id,
+            self.clock.now_ns(),
+            return_delay_us=return_delay_us,
+            model=model,
+            baud_rate=baud_rate or 1_000_000,
+            supply_v=config.supply_v,
+            backlash_steps=backlash,
+            load_fraction=config.load_fraction,
+        )
+
+    def plug_in(self, servo_id: int = 1) -> SimServo:
+        """A factory-fresh servo joins the bus (at id 1, as shipped); shares a taken id.
+
+        It listens at the speed the bus was set up with (the URL's ``baud``, or the host's
+        first speed in-process, else the factory's 1000000 bit/s).
+        """
+        servo = self._new_servo(servo_id, FACTORY_RETURN_DELAY_US, self._setup_baud_rate)
+        if servo_id in self.servos:
+            self._shadowed.append(servo)
+        else:
+            self.servos[servo_id] = servo
+        return servo
 
     def power_cycle(self) -> None:
         """Switch the servos' supply off and on: unsaved EEPROM values and RAM are lost."""

@@ -60,6 +60,15 @@ def test_an_id_written_while_locked_works_until_power_off_and_one_written_unlock
     assert sorted(bus.sim.servos) == [1, 12]
 
 
+def test_bring_up_one_fresh_servo_at_a_time_each_shipping_at_id_1():
+    bus = RawBus("ids=1")
+    for new_id in (2, 3):
+        bus.write(1, *reg(Register.ID, new_id))
+        bus.sim.plug_in()  # the next servo from the box
+    assert sorted(bus.sim.servos) == [1, 2, 3]
+    assert [bus.read_int(i, Register.MODEL_NUMBER.address, 2) for i in (1, 2, 3)] == [777] * 3
+
+
 def test_a_new_baud_rate_takes_effect_at_once():
     bus = RawBus("ids=1&baud=1000000")
     bus.write(1, *reg(Register.BAUD_RATE, 4))  # code 4 = 115200 bit/s
