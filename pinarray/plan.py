@@ -10,11 +10,16 @@ import json
 import secrets
 from collections import Counter
 from dataclasses import dataclass
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol import Condition, Design, Ordering, Protocol
+
+if TYPE_CHECKING:
+    import numpy as np
+
+# numpy is imported where a plan is drawn, not here: `pinarray validate` checks designs with
+# `ordering_problem` and must start without it.
 
 SEARCH_BUDGET_STEPS = 200_000
 
@@ -129,6 +134,8 @@ def constrained_shuffle(
     Depth-first search over random choices, pruned by a counting bound, with a step budget so
     a pathological case ends in an error rather than a hang.
     """
+    import numpy as np
+
     if not limits:
         order = list(items)
         rng.shuffle(order)
@@ -222,6 +229,8 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
         raise PinArrayError(f"a plan seed must be a whole number from 0 to 2^63-1, found {seed}")
     if seed is None:
         seed = design.seed if design.seed is not None else secrets.randbits(32)
+    import numpy as np
+
     rng = np.random.default_rng(seed)
     limits = design.constraints.limits()
     conditions = list(design.conditions)

@@ -28,6 +28,7 @@ import socket
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection
@@ -161,6 +162,8 @@ class PlayerProcess:
         self.stop = stop
         self.realtime_problem = ""
         self._played = 0
+        # One request at a time: the UI may ask for a test pin while a timing check runs.
+        self._one_at_a_time = threading.Lock()
         self._errors = tempfile.TemporaryFile()
         parent_end, child_end = socket.socketpair()
         passed = (child_end.fileno(),) + ((fd,) if fd is not None else ())
@@ -185,9 +188,10 @@ class PlayerProcess:
     def play(self, trial: PreparedTrial, *, lead_ns: int = DEFAULT_LEAD_NS,
              tolerance_ns: int) -> PlaybackReport:
         """Play one trial in the child; raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
-        self._played += 1
-        self.conn.send(Play(self._played, trial, lead_ns, tolerance_ns))
-        answer = self._answer(None, "playing a trial")
+        with self._one_at_a_time:
+            self._played += 1
+            self.conn.send(Play(self._played, trial, lead_ns, tolerance_ns))
+            answer = self._answer(None, "playing a trial")
         match answer:
             case Played(report=report):
                 if self.bus is not None:
@@ -201,8 +205,9 @@ class PlayerProcess:
 
     def measure_wake_ups(self, duration_ns: int, period_ns: int) -> tuple[int, ...]:
         """How late the child wakes for deadlines every ``period_ns``, for ``duration_ns``."""
-        self.conn.send(MeasureWakeUps(duration_ns, period_ns))
-        answer = self._answer(None, "measuring wake-ups")
+        with self._one_at_a_time:
+            self.conn.send(MeasureWakeUps(duration_ns, period_ns))
+            answer = self._answer(None, "measuring wake-ups")
         assert isinstance(answer, WakeUps), answer
         return answer.lateness_ns
 

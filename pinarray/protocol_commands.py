@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -14,14 +15,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("files", nargs="+", metavar="FILE")
     p.set_defaults(func=_validate)
 
-    p = subparsers.add_parser("compile", help="write every pulse of every trial as CSV")
+    p = subparsers.add_parser(
+        "compile", help="write every pulse of every trial as CSV or a numpy archive (.npz)"
+    )
     p.add_argument("file", metavar="FILE")
     p.add_argument("--seed", type=int, help="plan seed (default: the protocol's, else a new one)")
     p.add_argument(
-        "--out", required=True, help="CSV path (trial,pin,start_ns,width_ns); - for stdout"
+        "--out",
+        required=True,
+        help="trial,pin,start_ns,width_ns as CSV (- for stdout), or arrays in a .npz file",
     )
     p.add_argument(
-        "--targets", help="also write servo target changes (trial,pin,time_ns,position_steps)"
+        "--targets",
+        help="also write servo target changes (trial,pin,time_ns,position_steps), CSV or .npz",
     )
     p.set_defaults(func=_compile)
 
@@ -57,8 +63,8 @@ def _validate(args: argparse.Namespace) -> int:
 
 
 def _scaled_notes(protocol) -> list[str]:
+    from pinarray.drives import trial_drives
     from pinarray.feasibility import check_train
-    from pinarray.schedule import trial_drives
 
     if not protocol.device.scale_infeasible:
         return []
@@ -80,63 +86,116 @@ def _scaled_notes(protocol) -> list[str]:
     return notes
 
 
-def _open_out(path: str):
+PULSE_COLUMNS = ("trial", "pin", "start_ns", "width_ns")
+TARGET_COLUMNS = ("trial", "pin", "time_ns", "position_steps")
+
+
+def _open_out(path: str, binary: bool = False):
     from pinarray.errors import PinArrayError
 
     if path == "-":
         return sys.stdout
     try:
+        if binary:
+            return open(path, "wb")
         return open(path, "w", newline="", encoding="utf-8")
     except OSError as problem:
         raise PinArrayError(f"{path}: cannot write: {problem.strerror}") from None
 
 
-def _compile(args: argparse.Namespace) -> int:
-    import csv
+class _CsvTable:
+    """A CSV file with a header row, written a trial at a time."""
 
+    def __init__(self, path: str, columns: tuple[str, ...]) -> None:
+        import csv
+
+        self.stream = _open_out(path)
+        self.writer = csv.writer(self.stream, lineterminator="\n")
+        self.writer.writerow(columns)
+
+    def add(self, trial: int, *columns) -> None:
+        rows = zip([trial] * len(columns[0]), *(c.tolist() for c in columns), strict=True)
+        self.writer.writerows(rows)
+
+    def close(self, complete: bool) -> None:
+        if self.stream is not sys.stdout:
+            self.stream.close()
+
+
+class _NpzTable:
+    """A numpy archive of one array per column, written whole once every trial is compiled.
+
+    Times stay int64 ns; the file is opened at once so that an unwritable path fails before
+    the compile, and is removed again if the compile fails.
+    """
+
+    def __init__(self, path: str, columns: tuple[str, ...]) -> None:
+        self.path, self.columns = path, columns
+        self.stream = _open_out(path, binary=True)
+        self.parts: list[tuple[int, tuple]] = []
+
+    def add(self, trial: int, *columns) -> None:
+        self.parts.append((trial, columns))
+
+    def close(self, complete: bool) -> None:
+        import os
+
+        import numpy as np
+
+        from pinarray.errors import PinArrayError
+
+        try:
+            if complete:
+                arrays = {
+                    self.columns[0]: np.concatenate(
+                        [np.full(len(c[0]), t, np.int32) for t, c in self.parts]
+                        or [np.empty(0, np.int32)]
+                    )
+                }
+                for i, name in enumerate(self.columns[1:]):
+                    arrays[name] = np.concatenate([c[i] for _, c in self.parts])
+                savez: Callable[..., None] = np.savez  # its stubs type **arrays as its flags
+                savez(self.stream, **arrays)
+        except OSError as problem:
+            raise PinArrayError(f"{self.path}: cannot write: {problem.strerror}") from None
+        finally:
+            self.stream.close()
+            if not complete:
+                os.remove(self.path)
+
+
+def _table(path: str, columns: tuple[str, ...]) -> _CsvTable | _NpzTable:
+    """The output for ``path``: a numpy archive for a ``.npz`` name, else CSV (``-``: stdout)."""
+    if path.lower().endswith(".npz"):
+        return _NpzTable(path, columns)
+    return _CsvTable(path, columns)
+
+
+def _compile(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
     from pinarray.protocol_load import load_protocol
     from pinarray.schedule import compile_trial
 
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, args.seed)
-    out = _open_out(args.out)
-    targets_out = _open_out(args.targets) if args.targets else None
+    tables = [_table(args.out, PULSE_COLUMNS)]
     pulses = 0
+    complete = False
     try:
-        writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(["trial", "pin", "start_ns", "width_ns"])
-        target_writer = csv.writer(targets_out, lineterminator="\n") if targets_out else None
-        if target_writer:
-            target_writer.writerow(["trial", "pin", "time_ns", "position_steps"])
+        if args.targets:
+            tables.append(_table(args.targets, TARGET_COLUMNS))
         for planned in plan.trials:
             schedule = compile_trial(protocol, planned)
             p = schedule.pulses
-            writer.writerows(
-                zip(
-                    [planned.trial] * len(p),
-                    p.pin.tolist(),
-                    p.start_ns.tolist(),
-                    p.width_ns.tolist(),
-                    strict=True,
-                )
-            )
+            tables[0].add(planned.trial, p.pin, p.start_ns, p.width_ns)
             pulses += len(p)
-            if target_writer:
+            if args.targets:
                 t = schedule.targets
-                target_writer.writerows(
-                    zip(
-                        [planned.trial] * len(t),
-                        t.pin.tolist(),
-                        t.time_ns.tolist(),
-                        t.position_steps.tolist(),
-                        strict=True,
-                    )
-                )
+                tables[1].add(planned.trial, t.pin, t.time_ns, t.position_steps)
+        complete = True
     finally:
-        for stream in (out, targets_out):
-            if stream not in (None, sys.stdout):
-                stream.close()
+        for table in tables:
+            table.close(complete)
     print(
         f"{args.file}: {len(plan)} trials, {pulses} pulses, seed {plan.seed} -> {args.out}",
         file=sys.stderr,

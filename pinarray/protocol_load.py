@@ -9,6 +9,7 @@ import hashlib
 from fractions import Fraction
 from pathlib import Path
 
+from pinarray.drives import check_no_overlap
 from pinarray.errors import PinArrayError, ProtocolError, ProtocolErrors
 from pinarray.feasibility import Feasibility, check_train
 from pinarray.grid import Grid
@@ -29,7 +30,6 @@ from pinarray.protocol import (
     Wave,
     WaveKind,
 )
-from pinarray.schedule import check_no_overlap
 from pinarray.yaml_nodes import Invalid, Node, Reader
 
 MS = Fraction(1_000_000)  # ns per ms

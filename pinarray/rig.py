@@ -14,9 +14,18 @@ from pinarray.bus.base import SafeStopReport, Telemetry, servo_setup_from_device
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.delivery import Presentation
 from pinarray.errors import PinArrayError
-from pinarray.player import GUARD_NS, PlaybackReport, play_prepared, prepare_trial
+from pinarray.player import (
+    GOAL_BYTES,
+    GUARD_NS,
+    READ_REQUEST_BYTES,
+    PlaybackReport,
+    play_prepared,
+    prepare_trial,
+)
 from pinarray.protocol import NS_PER_S, Protocol
 from pinarray.stop import StoppableClock, StopRequest
+from pinarray.timing_check import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
+from pinarray.timing_check import Bus as TimingBus
 
 SIM_DEFAULT = "sim://"
 
@@ -156,6 +165,28 @@ class Rig:
         train = Train(Fraction(frequency_hz), cycles * NS_PER_S // frequency_hz,
                       up_width_ns=widths[-1], down_width_ns=widths[0])
         return self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
+
+    def check_timing(self, duration_ns: int = DEFAULT_DURATION_NS,
+                     period_ns: int = DEFAULT_PERIOD_NS) -> Verdict:
+        """Measure this machine's wake-ups in a player process and judge the protocol's timing.
+
+        On the in-process simulator a player process is started just for the measurement:
+        the question is whether this machine could play real servos in time.
+        """
+        from pinarray.player_process import PlayerProcess
+
+        player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
+        try:
+            wake_ups = WakeUps.of(player.measure_wake_ups(duration_ns, period_ns))
+            problem = player.realtime_problem
+        finally:
+            if player is not self.player:
+                player.close()
+        round_trip_ns = max((self.bus.reply_time_ns(i, READ_REQUEST_BYTES, GOAL_BYTES)
+                             for i in self.setup.servo_ids), default=0)
+        timer_ms = None if self.bus.sim is not None else self.bus.link.latency.timer_ms
+        bus = TimingBus(self.url, round_trip_ns, timer_ms)
+        return judge(wake_ups, problem, bus, self.tolerance_ns)
 
     def telemetry(self) -> tuple[Telemetry, ...]:
         return self.bus.read_telemetry(self.setup.servo_ids)

@@ -1,5 +1,7 @@
 """The schedule compiler: exact pulse trains, changed-only servo targets, waves, dense output."""
 
+import math
+import tracemalloc
 from fractions import Fraction
 
 import numpy as np
@@ -8,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError
+from pinarray.feasibility import check_train
 from pinarray.grid import Grid
 from pinarray.protocol import (
     NS_PER_S,
@@ -19,7 +22,7 @@ from pinarray.protocol import (
     Wave,
     WaveKind,
 )
-from pinarray.schedule import compile_drives, render_dense, train_pulses
+from pinarray.schedule import compile_drives, pulse_indices, render_dense, train_pulses
 
 UP, DOWN, REST = 2162, 2048, 2048
 
@@ -197,3 +200,209 @@ def test_dense_rendering_moves_each_edge_by_less_than_one_sample():
     errors_ns = rising * sample_ns - schedule.pulses.start_ns
     assert len(rising) == len(schedule.pulses)
     assert (errors_ns >= 0).all() and (errors_ns < sample_ns).all()
+
+
+# --- The compiler against a plain reference: one pulse at a time, exact fractions. ---
+
+WIDTHS_NS = (1_000_000, 1_500_000, 2_000_000)
+
+
+def varied_device(scale: bool = False) -> Device:
+    """Pins that differ a little, as real ones do; a 1 ms pulse holds a pin at its rest."""
+    grid = Grid(4, 4)
+    pins = tuple(
+        PinCalibration(
+            p,
+            p,
+            REST + p % 3,
+            1900,
+            2300,
+            ((1_000_000, REST + p % 3), (1_500_000, DOWN), (2_000_000, UP + p)),
+        )
+        for p in grid.pins
+    )
+    return Device(grid, ServoSettings(speed_steps_per_s=3000), pins, scale_infeasible=scale)
+
+
+def reference_schedule(drives, dev: Device):
+    """Every pulse and target change the lab would write down by hand, pulse by pulse.
+
+    Pulse k of a train starts at the exact rational time, rounded once; a pulse counts when
+    it starts at or after the drive's onset and ends within its signal. Each pin's targets are
+    the position of each pulse plus rest at each drive's end, in time order; where two fall
+    on one instant the drive that begins later wins; only changes from the previous position
+    (rest at first) are kept.
+    """
+    pulses, raw = [], {}
+    for drive in drives:
+        train, calibration = drive.train, dev.calibration(drive.pin)
+        up = calibration.position_for_width(train.up_width_ns)
+        down = calibration.position_for_width(train.down_width_ns)
+        if dev.scale_infeasible:
+            fraction = check_train(train, calibration, dev.servo).amplitude_fraction
+            up = down + int((up - down) * fraction)
+        k = -math.floor(train.phase * train.pulses_per_cycle)
+        while (start := exact_start_ns(k, train)) <= train.duration_ns:
+            is_up = k % train.pulses_per_cycle < train.up_pulses
+            width = train.up_width_ns if is_up else train.down_width_ns
+            if start >= 0 and start + width <= train.duration_ns:
+                pulses.append((drive.delay_ns + start, drive.pin, width))
+                raw.setdefault(drive.pin, []).append(
+                    (drive.delay_ns + start, drive.delay_ns, up if is_up else down)
+                )
+            k += 1
+        end_ns = drive.delay_ns + train.duration_ns
+        raw.setdefault(drive.pin, []).append((end_ns, drive.delay_ns, calibration.rest_steps))
+    targets = []
+    for pin, entries in raw.items():
+        entries.sort(key=lambda e: e[:2])  # time, then the drive that begins later last
+        position = dev.calibration(pin).rest_steps
+        for i, (time_ns, _, steps) in enumerate(entries):
+            if i + 1 < len(entries) and entries[i + 1][0] == time_ns:
+                continue  # a later drive's target at the same instant wins
+            if steps != position:
+                targets.append((time_ns, pin, steps))
+            position = steps
+    return sorted(pulses), sorted(targets)
+
+
+def as_lists(schedule):
+    p, t = schedule.pulses, schedule.targets
+    pulses = list(zip(p.start_ns.tolist(), p.pin.tolist(), p.width_ns.tolist(), strict=True))
+    targets = list(zip(t.time_ns.tolist(), t.pin.tolist(), t.position_steps.tolist(), strict=True))
+    return pulses, targets
+
+
+# Frequencies whose slot is whole, a half (20.48 Hz: 4 882 812.5 ns), a seventh, a third, or
+# has a denominator of 314 159 (3.14159 Hz) that needs more than 64 bits in one product.
+FREQUENCIES_HZ = [Fraction(f) for f in ("10", "7", "1/3", "5", "20.48", "3.14159", "40", "2.5")]
+
+
+@st.composite
+def trains(draw, frequency=None):
+    frequency = frequency or draw(st.sampled_from(FREQUENCIES_HZ))
+    per_cycle = draw(st.sampled_from([1, 2, 4, 5, 10]))
+    while NS_PER_S / (frequency * per_cycle) < max(WIDTHS_NS):
+        per_cycle //= 2 or 1  # keep every pulse inside its period
+        if per_cycle == 0:
+            per_cycle = 1
+            break
+    up_pulses = draw(st.integers(0, per_cycle))
+    up, down = draw(st.sampled_from(WIDTHS_NS)), draw(st.sampled_from(WIDTHS_NS))
+    # a phase of 0 or a whole number of slots puts a pulse at the drive's onset
+    phase = Fraction(draw(st.sampled_from([0, 0, 18, 36, 90, 180, 270, 359])), 360)
+    train = Train(frequency, NS_PER_S, per_cycle, up_pulses, up, down, phase)
+    if draw(st.booleans()):
+        return Train(*astuple_with(train, duration_ns=draw(st.integers(1, 3 * NS_PER_S // 2))))
+    # the signal ends exactly as some pulse does
+    k = draw(st.integers(0, 30)) - math.floor(phase * per_cycle)
+    width = up if k % per_cycle < up_pulses else down
+    return Train(*astuple_with(train, duration_ns=max(1, exact_start_ns(k, train) + width)))
+
+
+def astuple_with(train: Train, **changes):
+    fields = dict(vars(train), **changes)
+    return [fields[name] for name in Train.__dataclass_fields__]
+
+
+@st.composite
+def trials(draw):
+    """Drives on a few pins, several in a row on one pin, some back to back, some shared."""
+    shared = draw(trains())
+    drives = []
+    for pin in draw(st.lists(st.integers(1, 16), min_size=1, max_size=4, unique=True)):
+        at_ns = draw(st.sampled_from([0, 0, 7, 100_000_000]))
+        for _ in range(draw(st.integers(1, 3))):
+            train = shared if draw(st.booleans()) else draw(trains())
+            drives.append(PinDrive(pin, train, at_ns))
+            at_ns += train.duration_ns + draw(st.sampled_from([0, 0, 1, 3_000_000]))
+    return draw(st.permutations(drives)) if draw(st.booleans()) else drives
+
+
+def in_time_order(drives):
+    return sorted(drives, key=lambda d: d.delay_ns)
+
+
+@settings(max_examples=150, deadline=None)
+@given(drives=trials(), scale=st.booleans())
+def test_every_pulse_and_target_change_matches_the_pulse_by_pulse_reference(drives, scale):
+    dev = varied_device(scale)
+    assert as_lists(compile_drives(drives, dev)) == reference_schedule(in_time_order(drives), dev)
+
+
+@settings(max_examples=40, deadline=None)
+@given(train=trains(), pins=st.lists(st.integers(1, 16), min_size=2, max_size=16, unique=True))
+def test_one_train_on_many_pins_interleaves_them_by_start_then_pin(train, pins):
+    drives = [PinDrive(pin, train) for pin in pins]
+    dev = varied_device()
+    schedule = compile_drives(drives, dev)
+    assert as_lists(schedule) == reference_schedule(drives, dev)
+    assert len(schedule.pulses) == len(pins) * len(train_pulses(train)[0])
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    frequency=st.sampled_from(FREQUENCIES_HZ),
+    phase_deg=st.integers(0, 359),
+    picks=st.lists(st.floats(0, 1), min_size=1, max_size=20),
+)
+def test_any_pulse_of_a_day_long_train_lands_on_its_exact_rational_time(
+    frequency, phase_deg, picks
+):
+    train = seed_train(frequency, 24 * 3600, Fraction(phase_deg, 360))
+    starts, widths, is_up = train_pulses(train)
+    k = pulse_indices(train)
+    assert starts[0] >= 0 and starts[-1] + widths[-1] <= train.duration_ns
+    for pick in [0.0, 1.0, *picks]:
+        i = min(len(starts) - 1, int(pick * len(starts)))
+        assert int(starts[i]) == exact_start_ns(int(k[i]), train)
+        assert bool(is_up[i]) == (int(k[i]) % 10 < 5)
+
+
+def test_a_rightwards_wave_matches_the_reference_and_ends_every_pin_at_rest():
+    wave = Wave(WaveKind.RIGHTWARDS, 2, (5, 6, 7, 8), seed_train(Fraction(1, 3) * 10, 1), 10**8)
+    dev = varied_device()
+    schedule = compile_drives(wave.drives(), dev)
+    assert as_lists(schedule) == reference_schedule(wave.drives(), dev)
+    last = {pin: steps for _, pin, steps in as_lists(schedule)[1]}
+    assert last == {pin: dev.calibration(pin).rest_steps for pin in (5, 6, 7, 8)}
+
+
+def test_a_train_that_starts_as_the_previous_one_ends_takes_over_at_that_instant():
+    train = seed_train(5, Fraction(2, 5))
+    dev = varied_device()  # pin 7 rests at 2049, one step off its down position
+    drives = [PinDrive(7, train, 0), PinDrive(7, train, train.duration_ns)]
+    schedule = compile_drives(drives, dev)
+    at_handover = schedule.targets.time_ns == train.duration_ns
+    assert schedule.targets.position_steps[at_handover].tolist() == [UP + 7]
+    # listed the other way round, the trial is the same
+    assert as_lists(compile_drives(drives[::-1], dev)) == as_lists(schedule)
+
+
+def test_a_pulse_that_ends_exactly_as_the_signal_does_is_played():
+    # 10 Hz: pulse 99 is a down pulse from 990 ms to 991.5 ms
+    ends_with_it = Train(Fraction(10), 991_500_000)
+    assert train_pulses(ends_with_it)[0][-1] == 990_000_000
+    assert train_pulses(Train(Fraction(10), 991_499_999))[0][-1] == 980_000_000
+
+
+def test_pulses_wider_than_their_period_or_of_no_width_are_refused():
+    # 400 Hz x 10 pulses: a 0.25 ms period cannot hold a 2 ms pulse
+    with pytest.raises(PinArrayError, match="widths of at least 1 ns within the pulse period"):
+        compile_drives([PinDrive(1, seed_train(400, 1))], device())
+    with pytest.raises(PinArrayError, match="found a 0 ms pulse"):
+        train_pulses(Train(Fraction(10), NS_PER_S, down_width_ns=0))
+
+
+def test_an_hour_long_train_holds_little_more_than_its_own_pulses_in_memory():
+    # 1 h at 10 Hz: 360 000 pulses of 18 bytes (pin, start, width) and 72 000 targets of 14
+    # (up and down each cycle; the last down is the rest position already)
+    train = seed_train(10, 3600)
+    tracemalloc.start()
+    try:
+        schedule = compile_drives([PinDrive(1, train)], device())
+        peak_bytes = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert len(schedule.pulses) == 360_000 and len(schedule.targets) == 72_000
+    assert peak_bytes / len(schedule.pulses) < 24  # the outputs alone are 20.8 bytes a pulse

@@ -7,6 +7,12 @@ from pinarray.rig import SIM_DEFAULT
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
 EXIT_NOT_DELIVERED = 3
+# The smallest protocol: the default 4x4 device, for commands that need only a device.
+DEFAULT_DEVICE_TEXT = """\
+protocol: default-device
+stimuli: {buzz: {frequency_hz: 1, duration_s: 1}}
+design: {paradigm: localisation, stimulus: buzz, pins: [1], frequencies_hz: [1]}
+"""
 
 PLAY_EPILOG = """\
 Bus choice: --port PATH drives real servos (a device such as /dev/ttyUSB0 or a pyserial URL);
@@ -25,6 +31,14 @@ default 10 ms) is reported and the exit status is 3.
 
 Ctrl-C, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1/2 and SIGPIPE stop playback cleanly: pins go to
 rest and torque off before exit (status 128 + the signal's number).
+"""
+
+TIMING_EPILOG = """\
+Starts a player process as play, batch and the UI do (real-time priority when the OS grants
+it), measures how late it wakes for deadlines every millisecond, times a read-back of a goal
+on the bus, and says whether a goal lost on the wire and written again still reaches its
+servo within the protocol's delivery tolerance (device: delivery_tolerance_ms, default 10 ms),
+and what to change if not. Exit status 0 when it does, 3 when it does not.
 """
 
 SERVE_EPILOG = """\
@@ -64,6 +78,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, default=None, help="seed of the trial order")
     p.set_defaults(func=_cmd_play)
+
+    p = subparsers.add_parser(
+        "timing",
+        help="check whether this machine can deliver a protocol's stimuli in time",
+        epilog=TIMING_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("file", nargs="?", help="protocol YAML file (default: the built-in device)")
+    add_bus_choice(p)
+    p.add_argument("--seconds", type=float, default=2.0, metavar="S",
+                   help="how long to measure wake-ups (default 2)")
+    p.set_defaults(func=_cmd_timing)
 
     p = subparsers.add_parser(
         "scan",
@@ -141,6 +166,29 @@ def _cmd_play(args: argparse.Namespace) -> int:
               f"(see above)", file=sys.stderr)
         return EXIT_NOT_DELIVERED
     return 0
+
+
+def _cmd_timing(args: argparse.Namespace) -> int:
+    import sys
+
+    from pinarray.errors import PinArrayError
+    from pinarray.protocol_load import load_protocol, parse_protocol
+    from pinarray.rig import Rig, choose_clock
+    from pinarray.stop import StopRequest, stop_on_signals
+
+    if not 0.1 <= args.seconds <= 600:
+        raise PinArrayError(f"--seconds: expected 0.1 to 600, found {args.seconds:g}")
+    protocol = load_protocol(args.file) if args.file else parse_protocol(DEFAULT_DEVICE_TEXT, "<default>")
+    with stop_on_signals(StopRequest()) as stop:
+        rig = Rig(protocol, args.port, args.sim, choose_clock(args.port, None), stop)
+        try:
+            for warning in rig.warnings:
+                print(f"pinarray: warning: {warning}", file=sys.stderr)
+            verdict = rig.check_timing(round(args.seconds * 1e9))
+        finally:
+            rig.close()
+    print("\n".join(verdict.lines))
+    return 0 if verdict.deliverable else EXIT_NOT_DELIVERED
 
 
 def _cmd_scan(args: argparse.Namespace) -> int:

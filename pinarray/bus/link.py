@@ -81,7 +81,15 @@ class FdWire:
         self._on_close = on_close
 
     def write(self, data: bytes) -> None:
-        view = memoryview(data)
+        try:
+            written = os.write(self.fd, data)  # the usual case: one call, nothing allocated
+        except BlockingIOError:
+            written = 0
+        except OSError as error:
+            raise WireLost(error.errno, f"write failed: {error.strerror}") from None
+        if written == len(data):
+            return
+        view = memoryview(data)[written:]
         while view:
             try:
                 written = os.write(self.fd, view)

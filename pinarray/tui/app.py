@@ -31,6 +31,7 @@ class TuiOptions:
     sim_url: str | None = None
     time_scale: float = 1.0  # simulator only; 0 = virtual time
     seed: int | None = None
+    timing_check_ns: int = 2_000_000_000  # pre-flight's wake-up measurement; 0 = skip
 
 
 def serial_ports() -> list[tuple[str, str]]:

@@ -42,6 +42,7 @@ class PreflightScreen(Screen):
         yield Static(f"Pre-flight · {r.protocol.name} · sub-{r.subject} ses-{r.session} · "
                      f"{verb} · {bus}", id="title")
         yield Static("Connecting…", id="preflight-status")
+        yield Static("", id="timing")
         yield DataTable(id="servos", cursor_type="none", zebra_stripes=True)
         with Horizontal(id="test-row"):
             yield Input(placeholder="pin", id="test-pin", type="integer")
@@ -83,6 +84,28 @@ class PreflightScreen(Screen):
             return
         note = "; ".join(rig.warnings)
         self.app.call_from_thread(self._connected, readings, note)
+        self.app.call_from_thread(self._check_timing)
+
+    def _check_timing(self) -> None:
+        duration_ns = self.app.options.timing_check_ns  # type: ignore[attr-defined]
+        if duration_ns:
+            self._timing_line(f"Timing: measuring this machine for {duration_ns / 1e9:g} s…")
+            self._timing(duration_ns)
+
+    @work(thread=True, exclusive=True, group="timing")
+    def _timing(self, duration_ns: int) -> None:
+        try:
+            verdict = self.lab.connected().check_timing(duration_ns)
+        except (PinArrayError, AssertionError) as problem:  # not connected any more
+            self.app.call_from_thread(self._timing_line, f"Timing: not checked ({problem})", True)
+            return
+        self.app.call_from_thread(self._timing_line, "Timing: " + "\n".join(verdict.lines),
+                                  not verdict.deliverable)
+
+    def _timing_line(self, text: str, problem: bool = False) -> None:
+        line = self.query_one("#timing", Static)
+        line.update(text)
+        line.set_class(problem, "-problem")
 
     @work(thread=True, exclusive=True, group="hardware")
     def _test(self, pin: int) -> None:

@@ -136,7 +136,8 @@ class RunScreen(Screen):
                     else "Subject's answer: l / r / n (no motion) / u (unsure).")
             hint += "  d: redo the trial"
         elif phase is Phase.FAULT:
-            hint = f"BUS FAULT: {session.fault}\nt: retry the trial · a: abort the run"
+            hint = (f"STIMULUS FAILED (logged invalid): {session.fault}\n"
+                    "t: present the trial again · a: abort the run")
         phase_line = self.query_one("#phase", Static)
         phase_line.update(hint)
         phase_line.set_class(phase is Phase.FAULT, "-fault")

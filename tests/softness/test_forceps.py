@@ -107,3 +107,35 @@ def test_samples_that_are_not_a_contact_are_refused():
         fit_tissue([1e-3, -2e-3], [1.0, 2.0], radius_m=0.01)
     with pytest.raises(SoftnessError, match="poisson"):
         TissueModel(0.01, 1e5, poisson=0.6)
+
+
+@given(
+    e0=moduli_pa,
+    growth=st.one_of(log_uniform(1e-3, 1e3), st.floats(-0.74, -0.01)),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_a_long_batch_of_forces_inverts_sample_by_sample_with_zeros_exact(e0, growth, seed):
+    # more samples than one block of the solver, in a 2-D shape, with zeros among them
+    tissue = TissueModel(0.01, e0, growth * e0)
+    rng = np.random.default_rng(seed)
+    strain = 10.0 ** rng.uniform(-6, 0, (3, 7001))
+    strain[rng.random(strain.shape) < 0.01] = 0.0
+    force = tissue.force_for_strain_n(strain)
+    area = tissue.area_for_force_m2(force)
+    assert area.shape == force.shape
+    assert (area[force == 0] == 0).all()
+    assert_allclose(tissue.strain_for_area(area), strain, rtol=1e-12)
+    single = [float(tissue.area_for_force_m2(f)) for f in force.flat[::997]]
+    assert_allclose(area.flat[::997], single, rtol=1e-15)
+
+
+def test_the_largest_force_of_a_softening_tissue_reaches_its_largest_strain():
+    tissue = TissueModel(0.01, 1e5, -1e6)  # force stops rising at eps = 0.075
+    top_n = tissue.force_for_strain_n(tissue.max_strain)
+    forces = np.array([top_n, top_n * (1 - 1e-9), top_n / 2])
+    strain = tissue.strain_for_area(tissue.area_for_force_m2(forces))
+    # flat at the top: a relative force error of 1e-16 moves the strain by ~1e-8, and a force
+    # 1e-9 below the top sits ~sqrt(1e-9 / 6) below the largest strain
+    assert_allclose(strain[0], tissue.max_strain, rtol=1e-7)
+    assert 1e-5 < 1 - strain[1] / tissue.max_strain < 2e-5
+    assert_allclose(tissue.force_for_strain_n(strain), forces, rtol=1e-14)

@@ -14,10 +14,16 @@ MOTION = PROTOCOLS / "apparent_motion.yaml"
 SIZE = (120, 40)
 
 
-def make_app(results, protocol=LOCALISATION, seed=3, sim_url=None, rig_factory=Rig):
-    """The app on the simulated array in virtual time: a whole session runs instantly."""
+def make_app(results, protocol=LOCALISATION, seed=3, sim_url=None, rig_factory=Rig,
+             timing_check_ns=0):
+    """The app on the simulated array in virtual time: a whole session runs instantly.
+
+    The pre-flight's timing check (a real player process measuring real wake-ups) is off
+    unless a test asks for it.
+    """
     options = TuiOptions(protocol_path=protocol, protocols_dir=PROTOCOLS,
-                         results_root=Path(results), sim_url=sim_url, time_scale=0, seed=seed)
+                         results_root=Path(results), sim_url=sim_url, time_scale=0, seed=seed,
+                         timing_check_ns=timing_check_ns)
     return PinArrayApp(options, clock_factory=lambda port: VirtualClock(),
                        rig_factory=rig_factory, list_ports=lambda: [])
 

@@ -143,7 +143,8 @@ async def test_a_bus_fault_is_shown_in_words_and_retry_presents_the_trial_again(
         session = await begin(pilot)
         assert session.phase is Phase.FAULT
         shown = text(app, "#phase")
-        assert "BUS FAULT: servo 6 (pin 6): no status packet" in shown and "t: retry" in shown
+        assert "STIMULUS FAILED (logged invalid): servo 6 (pin 6): no status packet" in shown
+        assert "t: present the trial again" in shown
         await pilot.press("t")
         await present(pilot)
         assert session.phase is Phase.RESPONSE
@@ -210,8 +211,6 @@ async def test_a_failed_handshake_names_the_missing_servos_and_back_returns_to_s
 
 
 async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_pins(results):
-    import time
-
     from pinarray.clock import ScaledClock
 
     app = make_app(results)
@@ -225,12 +224,62 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
         pin = session.current.condition.pin
         assert [c.pin for c in app.screen.query("PinCell.-active")] == [pin]
         assert {c.pin for c in app.screen.query("PinCell.-lifted")} <= {pin}
-        started = time.monotonic()
         await pilot.press("q")
         await settle(pilot)
-    # The stimulus lasts 10 s; well under that proves it was cut short (no tight timing here).
-    assert time.monotonic() - started < 8
     assert app.lab.rig is None
     (cut,) = rows(results)
-    assert cut.status == "aborted" and 0 < cut.duration_s < 8  # stopped early, not a fault
+    # The stimulus lasts 10 s: a shorter duration means it was cut short, not waited out.
+    assert cut.status == "aborted" and 0 < cut.duration_s < 10  # stopped early, not a fault
+    assert cut.status_reason == "quit from the UI"
     assert manifest(results).abort_reason == "quit from the UI"
+
+
+class RigLosingEveryPacketOnce(Rig):
+    """The real simulated rig, except that during its first stimulus the wire loses everything."""
+
+    lossy = 1
+
+    def present(self, schedule):
+        if not self.lossy:
+            return super().present(schedule)
+        self.lossy -= 1
+        self.bus.sim.drop_rate = 1.0
+        try:
+            return super().present(schedule)
+        finally:
+            self.bus.sim.drop_rate = 0.0
+
+
+async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_presented_again(results):
+    app = make_app(results, rig_factory=RigLosingEveryPacketOnce)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        assert session.phase is Phase.FAULT
+        shown = text(app, "#phase")
+        assert "STIMULUS FAILED (logged invalid): the stimulus was not delivered as scheduled" in shown
+        assert "goal changes not confirmed on their servo" in shown
+        await pilot.press("t")
+        await present(pilot)
+        assert session.phase is Phase.RESPONSE
+        await pilot.press("2", "enter")
+        await settle(pilot)
+    failed, again = rows(results)
+    assert (failed.status, again.status, failed.trial) == ("invalid", "ok", again.trial)
+    assert failed.goals_missing == failed.goals_scheduled > 0 and failed.goals_confirmed == 0
+    assert "not delivered as scheduled" in failed.status_reason
+    assert again.goals_missing == 0 and again.goals_confirmed == again.goals_scheduled
+
+
+async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(results):
+    app = make_app(results, timing_check_ns=200_000_000)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        shown = text(app, "#timing")
+        assert shown.startswith("Timing: this machine: wake-up lateness p50")
+        assert "one read-back takes up to" in shown
+        assert ("OK: stimuli can be delivered as scheduled" in shown
+                or "NOT OK: stimuli may be reported not delivered" in shown)
+        await pilot.press("q")
+        await settle(pilot)

@@ -1,0 +1,45 @@
+"""Which pins a trial drives, and whether any pin is driven twice at once. Pure Python.
+
+Kept apart from `pinarray.schedule` (numpy) so that `pinarray validate`, which needs only
+these checks, starts without loading numpy.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+
+from pinarray.errors import PinArrayError
+from pinarray.protocol import Condition, PinDrive, Protocol
+
+
+def check_no_overlap(drives: Sequence[PinDrive]) -> None:
+    """Refuse drives that play two trains on one pin at the same time.
+
+    A train may start at the very nanosecond the previous one on its pin ends.
+    """
+    by_pin: dict[int, list[PinDrive]] = {}
+    for drive in drives:
+        by_pin.setdefault(drive.pin, []).append(drive)
+    for pin, pin_drives in by_pin.items():
+        pin_drives.sort(key=lambda d: d.delay_ns)
+        for before, after in itertools.pairwise(pin_drives):
+            if before.delay_ns + before.train.duration_ns > after.delay_ns:
+                raise PinArrayError(
+                    f"pin {pin} is driven twice at once: a train from {before.delay_ns / 1e6:g} ms "
+                    f"lasting {before.train.duration_ns / 1e6:g} ms overlaps one starting at "
+                    f"{after.delay_ns / 1e6:g} ms; lengthen the SOA or shorten the train"
+                )
+
+
+def trial_drives(protocol: Protocol, condition: Condition) -> tuple[PinDrive, ...]:
+    """The pin drives a design condition asks for."""
+    stimulus = protocol.stimulus(condition.stimulus)
+    if stimulus.wave is not None:
+        return stimulus.wave.drives()
+    assert stimulus.train is not None
+    train = stimulus.train
+    assert condition.pin is not None  # a train condition always names its pin
+    if condition.frequency_hz is not None:
+        train = train.with_frequency(condition.frequency_hz)
+    return (PinDrive(condition.pin, train, 0),)
