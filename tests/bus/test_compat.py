@@ -220,16 +220,15 @@ def test_lerobot_sync_reads_keep_answering_while_all_16_servos_move(sim_serve):
     for servo_id in ids:
         writer.addParam(servo_id, [0x00, 0x0C])  # 3072: a 90-degree turn for everyone
     assert writer.txPacket() == COMM_SUCCESS
-    readings, failures = [], 0
+    readings = []
     for _ in range(20):
-        reading = lerobot.sync_read(ids, Register.PRESENT_POSITION)
-        if reading is None:
-            failures += 1  # LeRobot would retry (num_retry); count how often it must
-            continue
-        readings.append(reading)
+        # As LeRobot's sync_read(..., num_retry=2): a stall of this shared machine may cost
+        # one attempt, a simulator that falls behind while servos move costs them all.
+        attempts = (lerobot.sync_read(ids, Register.PRESENT_POSITION) for _ in range(3))
+        readings.append(next((r for r in attempts if r is not None), None))
         time.sleep(0.01)
     lerobot.close()
-    assert failures <= 1 and len(readings) >= 19
+    assert None not in readings
     for reading in readings:
         assert sorted(reading) == ids and all(2048 <= p <= 3072 for p in reading.values())
     assert readings[0][1] < readings[-1][1]  # they were moving while being read
