@@ -11,6 +11,7 @@ still answers.
 from __future__ import annotations
 
 from pinarray.bus.base import SafeStopReport, Telemetry, servo_setup_from_device
+from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.delivery import Presentation
 from pinarray.errors import PinArrayError
@@ -26,8 +27,6 @@ from pinarray.protocol import NS_PER_S, Protocol
 from pinarray.stop import StoppableClock, StopRequest
 from pinarray.timing_check import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
 from pinarray.timing_check import Bus as TimingBus
-
-SIM_DEFAULT = "sim://"
 
 
 def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False) -> Clock:

@@ -2,8 +2,8 @@
 
 import argparse
 
+from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.protocol import BAUD_RATES
-from pinarray.rig import SIM_DEFAULT
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
 EXIT_NOT_DELIVERED = 3

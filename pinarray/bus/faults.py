@@ -42,6 +42,8 @@ from pinarray.bus.registers import BAUD_RATE_BY_CODE, MAX_SERVO_ID, StatusError
 from pinarray.errors import PinArrayError
 
 SIM_SCHEME = "sim"
+# The simulated array every command uses unless told otherwise.
+SIM_DEFAULT = f"{SIM_SCHEME}://"
 MAX_RETURN_DELAY_US = 508  # register 7 holds 0-254 in 2 us units
 MAX_LATE_MS = 60_000.0
 MAX_VANISH_AFTER = 10**12

@@ -13,10 +13,10 @@ from textual.containers import Grid, Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Input, Label, Select, Static
 
+from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.errors import PinArrayError
 from pinarray.manifest import RunPaths, SessionManifest, check_label
 from pinarray.protocol import Protocol
-from pinarray.rig import SIM_DEFAULT
 from pinarray.tui.lab import SessionRequest
 
 if TYPE_CHECKING:

@@ -126,7 +126,8 @@ def test_a_long_batch_of_forces_inverts_sample_by_sample_with_zeros_exact(e0, gr
     assert (area[force == 0] == 0).all()
     assert_allclose(tissue.strain_for_area(area), strain, rtol=1e-12)
     single = [float(tissue.area_for_force_m2(f)) for f in force.flat[::997]]
-    assert_allclose(area.flat[::997], single, rtol=1e-15)
+    # A few ulps: a sample's last Newton step may differ by rounding between block and scalar.
+    assert_allclose(area.flat[::997], single, rtol=1e-14)
 
 
 def test_the_largest_force_of_a_softening_tissue_reaches_its_largest_strain():
