@@ -66,8 +66,10 @@ _PRESENT_VOLTAGE = Register.PRESENT_VOLTAGE.address
 _PRESENT_TEMPERATURE = Register.PRESENT_TEMPERATURE.address
 _SERVO_STATUS = Register.SERVO_STATUS.address
 _MOVING = Register.MOVING.address
-# Addresses a write cannot change: version and model (0-4), and the feedback block (56-70).
-READ_ONLY = frozenset(range(0, 5)) | frozenset(range(56, 71))
+# The feedback block (present position .. present current), refreshed when read.
+FEEDBACK_START, FEEDBACK_END = 56, 71
+# Addresses a write cannot change: version and model (0-4), and the feedback block.
+READ_ONLY = frozenset(range(0, 5)) | frozenset(range(FEEDBACK_START, FEEDBACK_END))
 # Writes here change where or how the horn goes: limits (9-12), phase (18), offset and mode
 # (31-33), torque, acceleration, goal, time and speed (40-47).
 STEERING = frozenset((*range(9, 13), 18, *range(31, 34), *range(40, 48)))
@@ -237,7 +239,8 @@ class SimServo:
     def read(self, address: int, length: int, now_ns: int) -> bytes:
         """Answer a READ: ``length`` bytes of the table from ``address``."""
         self._touch(now_ns)
-        self._refresh_feedback(now_ns)
+        if address < FEEDBACK_END and address + length > FEEDBACK_START:
+            self._refresh_feedback(now_ns)  # only then does the horn's motion matter
         data = bytes(self.table[address : address + length])
         return data + bytes(length - len(data))
 
