@@ -45,12 +45,6 @@ from pinarray.bus.sim_servo import SimServo
 from pinarray.bus.sim_wire import StatusReply, byte_time_ns, schedule
 from pinarray.clock import Clock
 
-INST_PING = Instruction.PING
-INST_READ = Instruction.READ
-INST_WRITE = Instruction.WRITE
-INST_SYNC_READ = Instruction.SYNC_READ
-INST_SYNC_WRITE = Instruction.SYNC_WRITE
-
 # How long a read on an empty line waits before returning nothing; the SDK polls in a loop.
 POLL_NS = 500_000
 
