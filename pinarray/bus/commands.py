@@ -42,10 +42,22 @@ and what to change if not. Exit status 0 when it does, 3 when it does not.
 """
 
 SERVE_EPILOG = """\
-Fault keys (also usable in --sim URLs of play/scan): drop=P and corrupt=P (probabilities
-0-1), missing=IDS, extra=IDS, overload=IDS, overheat=IDS, voltage=IDS, vanish_after=N
-(instruction packets before the port disappears), return_delay_us=US, seed=S.
-Example: pinarray sim-serve --ids 1-16 --faults 'drop=0.01&overheat=5'
+URL keys (also usable in --sim URLs of play/scan), given to --faults in URL query style:
+  wire and servos: baud=RATE (an STS rate; default 1000000, the factory setting),
+    return_delay_us=US (0-508), model=sts3215|sts3215-12v|sts3250, supply_v=V,
+    backlash_deg=DEG, load=F (-1 to 1 of stall torque)
+  faults: drop=P, drop_writes=P (only WRITE/REG_WRITE/SYNC_WRITE lost), corrupt=P,
+    late=P with late_ms=MS (status packets that arrive MS ms late), missing=IDS, extra=IDS,
+    overload=IDS, overheat=IDS, voltage=IDS, angle=IDS, overcurrent=IDS,
+    vanish_after=N (instruction packets before the port disappears), seed=S
+Answers leave when the wire would deliver them: the instruction's bytes at the port's baud
+rate, then each servo's return delay and its answer's bytes. A client at another speed than
+the servos' baud-rate register gets no answer.
+--arrivals PATH writes, on stop, one TSV row per instruction packet: arrival_ns
+(time.monotonic_ns() when its last byte was read), servo_id, instruction, address, data_hex
+(the parameters after the address; for SYNC_WRITE the length, then id + data per servo),
+delivered (0 when a fault lost it).
+Example: pinarray sim-serve --ids 1-16 --faults 'drop_writes=0.1&late=0.05&seed=3'
 """
 
 
@@ -96,7 +108,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--ids", default="1-16", help="servo ids (default 1-16)")
-    p.add_argument("--faults", default="", metavar="QUERY", help="fault keys, URL query style")
+    p.add_argument("--faults", default="", metavar="QUERY",
+                   help="URL keys (faults, wire, physics), URL query style")
+    p.add_argument("--arrivals", metavar="PATH",
+                   help="on stop, write every instruction packet's arrival time as TSV")
     p.set_defaults(func=_cmd_sim_serve)
 
 
@@ -214,23 +229,40 @@ def _cmd_scan(args: argparse.Namespace) -> int:
 
 def _cmd_sim_serve(args: argparse.Namespace) -> int:
     import signal
+    from pathlib import Path
 
     from pinarray.bus.faults import parse_sim_url
     from pinarray.bus.serve import PtyServer
+    from pinarray.errors import PinArrayError
 
     query = f"ids={args.ids}" + (f"&{args.faults.lstrip('?&')}" if args.faults else "")
-    server = PtyServer(parse_sim_url(f"sim://?{query}"))
+    config = parse_sim_url(f"sim://?{query}")
+    arrivals = Path(args.arrivals) if args.arrivals else None
+    if arrivals is not None and not arrivals.parent.is_dir():
+        raise PinArrayError(f"--arrivals {arrivals}: no folder {arrivals.parent}")
+    server = PtyServer(config, record_arrivals=arrivals is not None)
 
     def stop(signum, frame):
-        raise KeyboardInterrupt
+        server.request_stop()
 
-    previous = signal.signal(signal.SIGTERM, stop)
-    print(f"simulated servos {args.ids} on {server.path}  (Ctrl-C or SIGTERM to stop)", flush=True)
+    stopping = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
+    previous = {signum: signal.signal(signum, stop) for signum in stopping}
+    _say(f"simulated servos {args.ids} on {server.path}  (Ctrl-C, SIGTERM or SIGHUP to stop)")
     try:
         server.serve_forever()
-    except KeyboardInterrupt:
-        pass
     finally:
-        signal.signal(signal.SIGTERM, previous)
-    print("sim-serve stopped", flush=True)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    if arrivals is not None:
+        rows = server.write_arrivals(arrivals)
+        _say(f"{rows} instruction packet(s) logged to {arrivals}")
+    _say("sim-serve stopped")
     return 0
+
+
+def _say(line: str) -> None:
+    """Print, unless the terminal is gone (SIGHUP closes it): stopping must still succeed."""
+    try:
+        print(line, flush=True)
+    except OSError:
+        pass

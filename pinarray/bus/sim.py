@@ -1,4 +1,4 @@
-"""A simulated STS servo bus, byte-faithful, that the real ``scservo_sdk`` talks to.
+"""A simulated STS servo bus, byte-faithful, that the real ``scservo_sdk`` (or any client) talks to.
 
 Two layers:
 
@@ -6,7 +6,7 @@ Two layers:
     The servos on the wire: it takes the bytes the host sends, finds instruction packets in
     them byte by byte, applies them to `SimServo` control tables and returns the status
     packets the servos would send, with checksums, error bits and injected faults. It knows
-    nothing about time except the instant a packet finished arriving.
+    nothing about time except the instant each packet finished arriving.
 `SimSerial`
     An object with pyserial's ``Serial`` interface (``write``, ``read``, ``in_waiting``,
     ``flush``, ...) that the driver sets as ``PortHandler.ser``. It charges wire time at the
@@ -15,37 +15,55 @@ Two layers:
     advances virtual time instead of sleeping.
 
 `pinarray.bus.serve` puts the same `SimBus` behind a pseudo-terminal instead.
+
+Who answers what (Feetech communication protocol manual V1.01): PING always answers, also at
+the broadcast id; READ and SYNC READ answer with data; WRITE, REG WRITE, ACTION and RESET
+answer only at status return level 1 and never at the broadcast id. The answer carries the
+id the instruction addressed, also when the instruction changed that id.
 """
 
 from __future__ import annotations
 
 import random
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import serial
 
 from pinarray.bus.faults import SimConfig
-from pinarray.bus.registers import BROADCAST_ID, StatusError, checksum
+from pinarray.bus.models import FACTORY_RETURN_DELAY_US, servo_model
+from pinarray.bus.registers import (
+    BAUD_RATE_BY_CODE,
+    BROADCAST_ID,
+    WRITE_INSTRUCTIONS,
+    Instruction,
+    StatusError,
+    checksum,
+)
 from pinarray.bus.sim_servo import SimServo
+from pinarray.bus.sim_wire import StatusReply, byte_time_ns, schedule
 from pinarray.clock import Clock
-
-INST_PING = 0x01
-INST_READ = 0x02
-INST_WRITE = 0x03
-INST_SYNC_READ = 0x82
-INST_SYNC_WRITE = 0x83
 
 # How long a read on an empty line waits before returning nothing; the SDK polls in a loop.
 POLL_NS = 500_000
 
+__all__ = ["InstructionPacket", "SimBus", "SimSerial", "StatusReply", "status_packet"]
+
 
 @dataclass(frozen=True)
-class StatusReply:
-    """A status packet a servo sends ``delay_ns`` after the instruction finished arriving."""
+class InstructionPacket:
+    """One well-formed instruction packet as it arrived at the servos.
 
-    delay_ns: int
-    packet: bytes
+    ``end_ns`` is when its last byte arrived; ``delivered`` is False when an injected fault
+    lost it on the wire.
+    """
+
+    end_ns: int
+    servo_id: int
+    instruction: int
+    params: bytes
+    delivered: bool
 
 
 def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
@@ -60,30 +78,46 @@ class SimBus:
     Parameters
     ----------
     config : SimConfig
-        Which ids answer, their return delay, and the faults to inject.
+        Which ids answer, their wire settings and physics, and the faults to inject.
     clock : Clock
-        Time source the servos' motion is integrated against.
+        Time source; the servos power on at its current time.
+    follow_host_baud : bool, optional
+        With no ``baud`` in the config, let the servos listen at the first speed the host
+        uses (one of the STS rates). Default: True in-process; the pseudo-terminal server
+        passes False, so its servos sit at the factory 1000000 bit/s.
     """
 
-    def __init__(self, config: SimConfig, clock: Clock):
+    def __init__(self, config: SimConfig, clock: Clock, follow_host_baud: bool = True):
         self.config = config
         self.clock = clock
-        start_ns = clock.now_ns()
         self.servos: dict[int, SimServo] = {
-            servo_id: SimServo(servo_id, start_ns, return_delay_us=config.return_delay_us)
+            servo_id: self._new_servo(servo_id, config.return_delay_us, config.baud_rate)
             for servo_id in config.answering_ids
         }
         for servo_id, bits in config.faults.error_bits:
             if servo_id in self.servos:
                 self.servos[servo_id].error_bits = StatusError(bits)
-        self.drop_rate = config.faults.drop_rate
-        self.corrupt_rate = config.faults.corrupt_rate
-        self.vanish_after_packets = config.faults.vanish_after_packets
+        faults = config.faults
+        self.drop_rate = faults.drop_rate
+        self.drop_write_rate = faults.drop_write_rate
+        self.corrupt_rate = faults.corrupt_rate
+        self.late_rate = faults.late_rate
+        self.late_ns = faults.late_ns
+        self.vanish_after_packets = faults.vanish_after_packets
         self.drop_next = 0
+        self.drop_writes_next = 0
         self.corrupt_next = 0
+        self.late_next = 0
         self.packets_received = 0
         self.packets_rejected = 0
-        self._random = random.Random(config.faults.seed)
+        self.packet_listener: Callable[[InstructionPacket], None] | None = None
+        # The wire the host talks on, set by the port in front of the bus (SimSerial, PtyServer).
+        self.byte_ns = 0.0
+        self.host_baud_rate: int | None = None
+        self._follow_baud = follow_host_baud and config.baud_rate is None
+        self._setup_baud_rate = config.baud_rate
+        self._shadowed: list[SimServo] = []  # servos renumbered onto an id already taken
+        self._random = random.Random(faults.seed)
         self._buffer = bytearray()
 
     @property
@@ -93,24 +127,64 @@ class SimBus:
         return limit is not None and self.packets_received >= limit
 
     def advance_all(self, now_ns: int) -> None:
-        """Bring every servo's motion up to ``now_ns`` (e.g. before reading trajectories)."""
+        """Note that time has reached ``now_ns`` for every servo (e.g. before sampling them)."""
         for servo in self.servos.values():
             servo.advance_to(now_ns)
 
-    def receive(self, data: bytes, at_ns: int) -> list[StatusReply]:
-        """Bytes from the host, the last of which arrived at ``at_ns``; returns the answers."""
+    def receive(
+        self, data: bytes, at_ns: int, byte_ns: float | None = None, baud_rate: int | None = None
+    ) -> list[StatusReply]:
+        """Bytes from the host, the last of which arrived at ``at_ns``; returns the answers.
+
+        Parameters
+        ----------
+        data : bytes
+            What the host sent (any split of packets).
+        at_ns : int
+            When the last byte of ``data`` arrived, in nanoseconds.
+        byte_ns : float, optional
+            Wire time of one byte, so packets earlier in ``data`` get earlier arrival times;
+            default `byte_ns`, which the port in front of the bus keeps up to date.
+        baud_rate : int, optional
+            The host's speed in bit/s (default `host_baud_rate`); servos listening at another
+            speed hear only noise. None: unknown, every servo hears.
+        """
+        byte_ns = self.byte_ns if byte_ns is None else byte_ns
+        baud_rate = self.host_baud_rate if baud_rate is None else baud_rate
         self._buffer.extend(data)
+        if self._follow_baud and baud_rate in BAUD_RATE_BY_CODE:
+            self._follow_baud = False
+            self._setup_baud_rate = baud_rate
+            for servo in self.all_servos():
+                servo.set_up_baud(baud_rate)
         replies: list[StatusReply] = []
         while (packet := self._next_packet()) is not None:
             servo_id, instruction, params = packet
+            end_ns = at_ns - round(len(self._buffer) * byte_ns)
             self.packets_received += 1
-            if self.drop_next > 0:
-                self.drop_next -= 1
-                continue
-            if self.drop_rate and self._random.random() < self.drop_rate:
-                continue
-            replies.extend(self._execute(servo_id, instruction, params, at_ns))
+            delivered = not self._lost(instruction)
+            if self.packet_listener is not None:
+                self.packet_listener(
+                    InstructionPacket(end_ns, servo_id, instruction, params, delivered)
+                )
+            if delivered:
+                replies.extend(self._execute(servo_id, instruction, params, end_ns, baud_rate))
+                self._renumber()
         return replies
+
+    def _lost(self, instruction: int) -> bool:
+        if self.drop_next > 0:
+            self.drop_next -= 1
+            return True
+        if self.drop_rate and self._random.random() < self.drop_rate:
+            return True
+        if instruction in WRITE_INSTRUCTIONS:
+            if self.drop_writes_next > 0:
+                self.drop_writes_next -= 1
+                return True
+            if self.drop_write_rate and self._random.random() < self.drop_write_rate:
+                return True
+        return False
 
     def _next_packet(self) -> tuple[int, int, bytes] | None:
         buffer = self._buffer
@@ -135,47 +209,159 @@ class SimBus:
                 continue
             return packet[2], packet[4], packet[5:-1]
 
-    def _execute(self, servo_id: int, instruction: int, params: bytes, at_ns: int):
-        if instruction == INST_SYNC_WRITE and servo_id == BROADCAST_ID and len(params) >= 2:
-            address, length = params[0], params[1]
-            body = params[2:]
-            for offset in range(0, len(body) - length, length + 1):
-                target = self.servos.get(body[offset])
-                if target is not None:
-                    target.write(address, body[offset + 1 : offset + 1 + length], at_ns)
+    # -- who is on the bus ---------------------------------------------------------------
+
+    def all_servos(self) -> list[SimServo]:
+        """Every servo on the bus, also those renumbered onto an id another one has."""
+        return [*self.servos.values(), *self._shadowed]
+
+    def _new_servo(self, servo_id: int, return_delay_us: int, baud_rate: int | None) -> SimServo:
+        config = self.config
+        model = servo_model(config.model)
+        backlash = None if config.backlash_deg is None else (
+            config.backlash_deg * model.steps_per_turn / 360.0
+        )
+        return SimServo(
+            servo_id,
+            self.clock.now_ns(),
+            return_delay_us=return_delay_us,
+            model=model,
+            baud_rate=baud_rate or 1_000_000,
+            supply_v=config.supply_v,
+            backlash_steps=backlash,
+            load_fraction=config.load_fraction,
+        )
+
+    def plug_in(self, servo_id: int = 1) -> SimServo:
+        """A factory-fresh servo joins the bus (at id 1, as shipped); shares a taken id.
+
+        It listens at the speed the bus was set up with (the URL's ``baud``, or the host's
+        first speed in-process, else the factory's 1000000 bit/s).
+        """
+        servo = self._new_servo(servo_id, FACTORY_RETURN_DELAY_US, self._setup_baud_rate)
+        if servo_id in self.servos:
+            self._shadowed.append(servo)
+        else:
+            self.servos[servo_id] = servo
+        return servo
+
+    def power_cycle(self) -> None:
+        """Switch the servos' supply off and on: unsaved EEPROM values and RAM are lost."""
+        now_ns = self.clock.now_ns()
+        for servo in self.all_servos():
+            servo.power_cycle(now_ns)
+        self._renumber()
+
+    def _at(self, servo_id: int, baud_rate: int | None) -> list[SimServo]:
+        """Every servo answering at ``servo_id`` that hears the host's speed."""
+        servo = self.servos.get(servo_id)
+        found = [servo] if servo is not None and servo.hears(baud_rate) else []
+        if self._shadowed:
+            found += [s for s in self._shadowed if s.servo_id == servo_id and s.hears(baud_rate)]
+        return found
+
+    def _renumber(self) -> None:
+        """Keep `servos` keyed by each servo's current ID register after an ID write."""
+        moved = [s for key, s in self.servos.items() if s.servo_id != key]
+        if not moved and not self._shadowed:
+            return
+        for key in [key for key, s in self.servos.items() if s.servo_id != key]:
+            del self.servos[key]
+        waiting, self._shadowed = [*moved, *self._shadowed], []
+        for servo in waiting:
+            if servo.servo_id in self.servos:
+                self._shadowed.append(servo)  # two servos now share an id: both answer
+            else:
+                self.servos[servo.servo_id] = servo
+
+    # -- instructions --------------------------------------------------------------------
+
+    def _execute(
+        self, servo_id: int, instruction: int, params: bytes, end_ns: int, baud: int | None
+    ) -> list[StatusReply]:
+        broadcast = servo_id == BROADCAST_ID
+        if instruction == Instruction.SYNC_WRITE:
+            if broadcast and len(params) >= 2:
+                self._sync_write(params, end_ns, baud)
             return []
-        if instruction == INST_SYNC_READ and servo_id == BROADCAST_ID and len(params) >= 2:
+        if instruction == Instruction.SYNC_READ:
+            if not broadcast or len(params) < 2:
+                return []
             address, length = params[0], params[1]
             return [
-                self._reply(self.servos[i], self.servos[i].read(address, length, at_ns))
-                for i in params[2:]
-                if i in self.servos
+                self._reply(servo, target, servo.read(address, length, end_ns), end_ns, True)
+                for target in params[2:]
+                for servo in self._at(target, baud)
             ]
-        servo = self.servos.get(servo_id)
-        if servo_id == BROADCAST_ID and instruction == INST_WRITE and len(params) >= 1:
-            for each in self.servos.values():
-                each.write(params[0], params[1:], at_ns)
-            return []
-        if servo is None:
-            return []
-        if instruction == INST_PING:
-            return [self._reply(servo)]
-        if instruction == INST_READ and len(params) == 2:
-            return [self._reply(servo, servo.read(params[0], params[1], at_ns))]
-        if instruction == INST_WRITE and len(params) >= 1:
-            servo.write(params[0], params[1:], at_ns)
-            return [self._reply(servo)]
-        return []
+        targets = (
+            [s for s in self.all_servos() if s.hears(baud)] if broadcast
+            else self._at(servo_id, baud)
+        )
+        replies = []
+        for servo in targets:
+            answer = self._apply(servo, instruction, params, end_ns)
+            if answer is None:
+                continue
+            if instruction == Instruction.PING:
+                # PING answers at the broadcast id too, with the servo's own id.
+                replies.append(self._reply(servo, servo.servo_id, b"", end_ns))
+            elif not broadcast and (
+                instruction == Instruction.READ or servo.status_return_level >= 1
+            ):
+                replies.append(self._reply(servo, servo_id, answer, end_ns))
+        return replies
 
-    def _reply(self, servo: SimServo, params: bytes = b"") -> StatusReply:
-        packet = bytearray(status_packet(servo.servo_id, int(servo.error_bits), params))
+    def _apply(
+        self, servo: SimServo, instruction: int, params: bytes, end_ns: int
+    ) -> bytes | None:
+        """Carry out one instruction on one servo; its answer's parameters, or None (ignored)."""
+        match instruction:
+            case Instruction.PING:
+                return b""
+            case Instruction.READ if len(params) == 2:
+                return servo.read(params[0], params[1], end_ns)
+            case Instruction.WRITE if len(params) >= 1:
+                servo.write(params[0], params[1:], end_ns)
+                return b""
+            case Instruction.REG_WRITE if len(params) >= 1:
+                servo.reg_write(params[0], params[1:])
+                return b""
+            case Instruction.ACTION:
+                servo.action(end_ns)
+                return b""
+            case Instruction.RESET:
+                servo.factory_reset(end_ns)
+                return b""
+            case Instruction.CLEAR_STATUS:
+                return b""  # nothing to clear in position mode; acknowledged
+            case Instruction.REBOOT:
+                servo.power_cycle(end_ns)
+                return None  # it is busy restarting: no answer
+        return None
+
+    def _sync_write(self, params: bytes, end_ns: int, baud: int | None) -> None:
+        address, length = params[0], params[1]
+        body = params[2:]
+        for offset in range(0, len(body) - length, length + 1):
+            for servo in self._at(body[offset], baud):
+                servo.write(address, body[offset + 1 : offset + 1 + length], end_ns)
+
+    def _reply(
+        self, servo: SimServo, reply_id: int, params: bytes, end_ns: int, chained: bool = False
+    ) -> StatusReply:
+        packet = bytearray(status_packet(reply_id, int(servo.status_error), params))
         corrupt = self.corrupt_next > 0 or (
             self.corrupt_rate and self._random.random() < self.corrupt_rate
         )
         if corrupt:
             self.corrupt_next = max(0, self.corrupt_next - 1)
             packet[-1] ^= 0x5A  # a flipped bit pattern the checksum cannot miss
-        return StatusReply(servo.return_delay_ns, bytes(packet))
+        late = self.late_next > 0 or (self.late_rate and self._random.random() < self.late_rate)
+        if late:
+            self.late_next = max(0, self.late_next - 1)
+        return StatusReply(
+            servo.return_delay_ns, bytes(packet), end_ns, chained, self.late_ns if late else 0
+        )
 
 
 class SimSerial:
@@ -188,7 +374,8 @@ class SimSerial:
     clock : Clock
         Time source; a `VirtualClock` makes every wait instantaneous and deterministic.
     baud_rate : int
-        Bits per second; each byte costs 10 bit times (start, 8 data, stop).
+        Bits per second; each byte costs 10 bit times (start, 8 data, stop). Changing
+        ``baudrate`` later (as pyserial allows) changes the wire speed.
     """
 
     def __init__(self, bus: SimBus, clock: Clock, baud_rate: int, port: str = "sim://"):
@@ -201,10 +388,21 @@ class SimSerial:
         self.bytes_written = 0
         self.bytes_read = 0
         self.writes: deque[bytes] = deque(maxlen=100_000)
-        self._byte_ns = 10 * 1_000_000_000 / baud_rate
         self._tx_done_ns = 0
         self._wire_free_ns = 0
-        self._incoming: deque[tuple[int, int]] = deque()  # (arrival_ns, byte)
+        self._order = 0
+        self._incoming: deque[tuple[int, int, int]] = deque()  # (arrival_ns, order, byte)
+
+    @property
+    def baudrate(self) -> int:
+        return self._baud_rate
+
+    @baudrate.setter
+    def baudrate(self, baud_rate: int) -> None:
+        if not baud_rate > 0:
+            raise ValueError(f"baud rate must be positive, found {baud_rate}")
+        self._baud_rate = baud_rate
+        self._byte_ns = byte_time_ns(baud_rate)
 
     def _check_alive(self, what: str) -> None:
         if not self.is_open:
@@ -221,17 +419,22 @@ class SimSerial:
         self._tx_done_ns = self._wire_free_ns = end_ns
         self.bytes_written += len(data)
         self.writes.append(data)
-        for reply in self.bus.receive(data, end_ns):
-            # Half duplex: each answer waits for the line to be free, then its return delay.
-            first_ns = self._wire_free_ns + reply.delay_ns
-            for index, byte in enumerate(reply.packet):
-                self._incoming.append((first_ns + round((index + 1) * self._byte_ns), byte))
-            self._wire_free_ns = first_ns + round(len(reply.packet) * self._byte_ns)
+        self.bus.byte_ns, self.bus.host_baud_rate = self._byte_ns, self._baud_rate
+        replies = self.bus.receive(data, end_ns)
+        if replies:
+            arriving, self._wire_free_ns = schedule(replies, self._wire_free_ns, self._byte_ns)
+            in_order = not self._incoming or self._incoming[-1][0] <= arriving[0].arrival_ns(0)
+            for sent in arriving:
+                for index, byte in enumerate(sent.data):
+                    self._order += 1
+                    self._incoming.append((sent.arrival_ns(index), self._order, byte))
+            if not in_order or any(reply.late_ns for reply in replies):
+                self._incoming = deque(sorted(self._incoming))
         return len(data)
 
     def _arrived(self, now_ns: int) -> int:
         count = 0
-        for arrival_ns, _ in self._incoming:
+        for arrival_ns, _, _ in self._incoming:
             if arrival_ns > now_ns:
                 break
             count += 1
@@ -246,14 +449,16 @@ class SimSerial:
         self._check_alive("read")
         now_ns = self.clock.now_ns()
         if size > 0 and self._arrived(now_ns) == 0:
+            # Nothing yet: wait for the bytes asked for, but at most one poll period, so a
+            # late answer stays late and the host's own timeout decides.
+            wait_until_ns = now_ns + POLL_NS
             if self._incoming:
                 wanted = min(size, len(self._incoming))
-                self.clock.sleep_until_ns(self._incoming[wanted - 1][0])
-            else:
-                self.clock.sleep_until_ns(now_ns + POLL_NS)
+                wait_until_ns = min(wait_until_ns, self._incoming[wanted - 1][0])
+            self.clock.sleep_until_ns(wait_until_ns)
             now_ns = self.clock.now_ns()
         count = min(size, self._arrived(now_ns))
-        data = bytes(self._incoming.popleft()[1] for _ in range(count))
+        data = bytes(self._incoming.popleft()[2] for _ in range(count))
         self.bytes_read += len(data)
         return data
 

@@ -4,7 +4,7 @@ import pytest
 
 from pinarray.bus.base import PortLost
 from pinarray.bus.registers import Register, StatusError
-from pinarray.errors import BusError
+from pinarray.errors import BusError, PinArrayError
 from pinarray.player import PlaybackAborted, play_trial
 
 from .lab import assert_safe, pulse_train, sim_bus
@@ -85,3 +85,87 @@ def test_a_missing_servo_mid_session_is_reported_as_not_confirmed_safe():
     report = bus.rest_and_release()
     assert report.silent_ids == (11,)
     assert 11 not in report.released_ids and len(report.released_ids) == 15
+
+
+def test_lost_writes_fail_loudly_while_reads_still_work():
+    bus = sim_bus("drop_writes=1", connect=False)
+    (reading,) = bus.read_telemetry((4,))
+    assert reading.voltage_v == 7.4
+    with pytest.raises(BusError, match=r"servo 4: writing TORQUE_ENABLE .*no status packet"):
+        bus.write(4, Register.TORQUE_ENABLE, 1)
+    assert not bus.sim.servos[4].torque_enabled
+
+
+def test_a_lost_sync_write_is_silent_and_the_next_one_arrives():
+    bus = sim_bus()
+    bus.sim.drop_writes_next = 1
+    bus.write_goals({5: 2200, 6: 2100})
+    assert [bus.sim.servos[i].goal_steps for i in (5, 6)] == [2048, 2048]
+    bus.write_goals({5: 2201, 6: 2101})
+    assert [bus.sim.servos[i].goal_steps for i in (5, 6)] == [2201, 2101]
+
+
+def test_a_late_status_packet_is_retried_and_then_arrives_after_the_host_gave_up():
+    bus = sim_bus()
+    bus.sim.late_next = 1
+    before = bus.sim.late_ns
+    (reading,) = bus.read_telemetry((4,))
+    assert reading.position_steps == 2048 and bus.stats().retries == 1
+    port = bus.link.wire.port  # the in-process SimSerial
+    assert port.in_waiting == 0
+    bus.clock.sleep_until_ns(bus.clock.now_ns() + before)
+    assert port.in_waiting > 0  # the stale answer now waits in the input buffer
+
+
+def test_late_answers_come_late_by_late_ms_in_virtual_time():
+    from .raw import RawBus, packet, parse_status
+
+    bus = RawBus("ids=1&late=1&late_ms=40")
+    bus.port.write(packet(1, 0x01))
+    bus.wait_ns(39_000_000)
+    assert bus.port.read(64) == b""
+    bus.wait_ns(2_000_000)
+    assert [s.servo_id for s in parse_status(bus.port.read(64))[0]] == [1]
+
+
+@pytest.mark.parametrize("query, key", [
+    ("return_delay_us=-2", "return_delay_us"),
+    ("return_delay_us=100000", "return_delay_us"),
+    ("baud=0", "baud"),
+    ("baud=-9600", "baud"),
+    ("baud=9600", "baud"),
+    ("drop=1.5", "drop"),
+    ("drop_writes=-0.1", "drop_writes"),
+    ("corrupt=nan", "corrupt"),
+    ("late=2", "late"),
+    ("late_ms=-1", "late_ms"),
+    ("late_ms=1e9", "late_ms"),
+    ("vanish_after=-1", "vanish_after"),
+    ("seed=-3", "seed"),
+    ("supply_v=0", "supply_v"),
+    ("backlash_deg=45", "backlash_deg"),
+    ("load=2", "load"),
+    ("model=sts9999", "model"),
+    ("drop=lots", "drop"),
+    ("seed=1.5", "seed"),
+])
+def test_a_sim_url_value_out_of_range_is_one_line_naming_the_key(query, key):
+    from pinarray.bus.faults import parse_sim_url
+
+    with pytest.raises(PinArrayError) as caught:
+        parse_sim_url(f"sim://?{query}")
+    message = str(caught.value)
+    assert f"key {key}:" in message and "\n" not in message and query.split("=")[1] in message
+
+
+def test_every_new_key_reads_into_the_config():
+    from pinarray.bus.faults import parse_sim_url
+
+    config = parse_sim_url(
+        "sim://?drop_writes=0.1&late=0.2&late_ms=30&model=sts3215-12v&supply_v=11.5"
+        "&backlash_deg=0.5&load=0.25&baud=500000&return_delay_us=0"
+    )
+    faults = config.faults
+    assert (faults.drop_write_rate, faults.late_rate, faults.late_ns) == (0.1, 0.2, 30_000_000)
+    assert (config.model, config.supply_v, config.backlash_deg) == ("sts3215-12v", 11.5, 0.5)
+    assert (config.load_fraction, config.baud_rate, config.return_delay_us) == (0.25, 500_000, 0)

@@ -4,16 +4,22 @@ import os
 import signal
 import subprocess
 import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
+import pytest
 import serial
 
-from pinarray.bus.faults import SimConfig
+from pinarray.bus.faults import SimConfig, parse_sim_url
+from pinarray.bus.registers import BROADCAST_ID, Instruction
 from pinarray.bus.serve import PtyServer
 from pinarray.bus.transport import open_bus
 from pinarray.clock import MonotonicClock
 from pinarray.player import play_trial
 
 from .lab import assert_safe, device_setup, pulse_train
+from .raw import packet
 
 
 def test_a_raw_pyserial_ping_gets_a_status_packet_back():
@@ -41,14 +47,23 @@ def test_play_over_the_pseudo_terminal_ends_with_pins_at_rest():
     assert_safe(bus)
 
 
-def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
+@contextmanager
+def sim_serve(*args: str) -> Iterator[tuple[subprocess.Popen, str]]:
+    """``pinarray sim-serve ARGS`` in its own process: (process, pseudo-terminal path)."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "sim-serve", "--ids", "1-3"],
+        [sys.executable, "-m", "pinarray", "sim-serve", *args],
         stdout=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:
-        first_line = process.stdout.readline()
-        path = first_line.split(" on ")[1].split()[0]
+        yield process, process.stdout.readline().split(" on ")[1].split()[0]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait(timeout=10)
+
+
+def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
+    with sim_serve("--ids", "1-3") as (process, path):
         scan = subprocess.run(
             [sys.executable, "-m", "pinarray", "scan", "--port", path, "--ids", "1-4"],
             capture_output=True, text=True, timeout=60,
@@ -56,7 +71,93 @@ def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
         assert "3 servo(s) answered" in scan.stdout, scan.stdout + scan.stderr
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=10) == 0
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
+def test_sim_serve_stops_cleanly_on_sigterm_sigint_and_sighup(signum):
+    with sim_serve("--ids", "1") as (process, path):
+        with serial.Serial(path, 1_000_000, timeout=2) as port:
+            port.write(packet(1, Instruction.PING))
+            assert port.read(6) == bytes.fromhex("ffff010200fc")
+        process.send_signal(signum)
+        assert process.wait(timeout=10) == 0
+        assert "sim-serve stopped" in process.stdout.read()
+
+
+def test_sim_serve_logs_the_arrival_of_every_instruction_packet(tmp_path):
+    log = tmp_path / "arrivals.tsv"
+    with sim_serve("--ids", "1-2", "--arrivals", str(log)) as (process, path):
+        with serial.Serial(path, 1_000_000, timeout=2) as port:
+            before_ns = time.monotonic_ns()
+            port.write(packet(1, Instruction.PING))
+            port.read(6)
+            goals = bytes([42, 2, 1, 0x34, 0x08, 2, 0xD0, 0x07])  # servo 1: 2100, 2: 2000
+            port.write(packet(BROADCAST_ID, Instruction.SYNC_WRITE, goals))
+            port.write(packet(2, Instruction.READ, bytes([56, 2])))
+            port.read(8)
+            after_ns = time.monotonic_ns()
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=10) == 0
+    header, *rows = [line.split("\t") for line in log.read_text().splitlines()]
+    assert header == ["arrival_ns", "servo_id", "instruction", "address", "data_hex", "delivered"]
+    assert [row[1:] for row in rows] == [
+        ["1", "PING", "", "", "1"],
+        ["254", "SYNC_WRITE", "42", "0201340802d007", "1"],
+        ["2", "READ", "56", "02", "1"],
+    ]
+    arrivals = [int(row[0]) for row in rows]
+    assert before_ns <= arrivals[0] <= arrivals[1] <= arrivals[2] <= after_ns
+
+
+def test_a_lost_write_is_logged_as_not_delivered():
+    server = PtyServer(parse_sim_url("sim://?ids=1&drop_writes=1"), record_arrivals=True).start()
+    try:
+        with serial.Serial(server.path, 1_000_000, timeout=0.2) as port:
+            port.write(packet(1, Instruction.WRITE, bytes([40, 1])))
+            assert port.read(6) == b""  # a lost write gets no answer
+            port.write(packet(1, Instruction.READ, bytes([40, 1])))
+            assert port.read(7) == bytes.fromhex("ffff01030000fb")  # torque still 0
     finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait(timeout=10)
+        server.stop()
+    assert [(a.instruction, a.delivered) for a in server.arrivals] == [(3, False), (2, True)]
+
+
+def test_answers_never_come_before_the_wire_and_return_delays_allow():
+    # 24-byte sync read, then 16 answers of 8 bytes, each after a 500 us return delay.
+    server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+    try:
+        with serial.Serial(server.path, 1_000_000, timeout=2) as port:
+            request = packet(BROADCAST_ID, Instruction.SYNC_READ, bytes([56, 2, *range(1, 17)]))
+            sent_ns = time.monotonic_ns()
+            port.write(request)
+            answers = port.read(16 * 8)
+            elapsed_ns = time.monotonic_ns() - sent_ns
+    finally:
+        server.stop()
+    assert len(answers) == 128
+    assert elapsed_ns >= (24 + 16 * 8) * 10_000 + 16 * 500_000
+
+
+def test_a_client_at_another_speed_than_the_servos_gets_no_answer():
+    server = PtyServer(SimConfig(ids=(1,))).start()
+    try:
+        with serial.Serial(server.path, 115_200, timeout=0.2) as port:
+            port.write(packet(1, Instruction.PING))
+            assert port.read(6) == b""
+            port.baudrate = 1_000_000
+            port.write(packet(1, Instruction.PING))
+            assert port.read(6) == bytes.fromhex("ffff010200fc")
+    finally:
+        server.stop()
+
+
+def test_a_late_answer_arrives_after_late_ms_on_the_pseudo_terminal():
+    server = PtyServer(parse_sim_url("sim://?ids=1&late=1&late_ms=300")).start()
+    try:
+        with serial.Serial(server.path, 1_000_000, timeout=0.05) as port:
+            port.write(packet(1, Instruction.PING))
+            assert port.read(6) == b""  # not within a host's usual timeout
+            port.timeout = 5
+            assert port.read(6) == bytes.fromhex("ffff010200fc")
+    finally:
+        server.stop()
