@@ -203,11 +203,13 @@ class FeetechBus:
                 self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
                 # Hold where the horn is before torque comes on, so it cannot jerk a pin.
                 data, _ = self.read(servo.servo_id, Register.PRESENT_POSITION)
+                # An STS servo switches torque on when it is given a goal: from here on this
+                # one must be released if anything fails.
+                enabled.append(servo.servo_id)
                 self.write(servo.servo_id, Register.GOAL_POSITION, from_bytes(data))
                 self.write(servo.servo_id, Register.ACCELERATION, setup.acceleration_register)
                 self.write(servo.servo_id, Register.GOAL_SPEED, setup.speed_steps_per_s)
                 self.write(servo.servo_id, Register.TORQUE_ENABLE, 1)
-                enabled.append(servo.servo_id)
                 self._last_goals[servo.servo_id] = decode_position(from_bytes(data))
         except BaseException:
             # A half-finished handshake must not leave some servos holding torque.

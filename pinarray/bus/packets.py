@@ -17,9 +17,8 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
-from enum import IntEnum
 
-from pinarray.bus.registers import BROADCAST_ID, checksum
+from pinarray.bus.registers import BROADCAST_ID, Instruction, checksum
 
 HEADER = b"\xff\xff"
 # The longest packet the servos' firmware (and the vendor SDK) handles, in bytes.
@@ -28,16 +27,6 @@ MAX_PACKET_BYTES = 250
 STATUS_OVERHEAD_BYTES = 6
 # FF FF id len instruction checksum, before the parameters.
 INSTRUCTION_OVERHEAD_BYTES = 6
-
-
-class Instruction(IntEnum):
-    PING = 0x01
-    READ = 0x02
-    WRITE = 0x03
-    REG_WRITE = 0x04
-    ACTION = 0x05
-    SYNC_READ = 0x82
-    SYNC_WRITE = 0x83
 
 
 def instruction_packet(servo_id: int, instruction: Instruction, params: bytes = b"") -> bytes:

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import serial
+from pinarray.protocol_load import load_protocol
 
 from pinarray.bus.base import servo_setup_from_device
 from pinarray.bus.models import STS3215_C001
@@ -31,7 +32,6 @@ from pinarray.bus.transport import open_bus
 from pinarray.clock import VirtualClock
 from pinarray.plan import make_plan
 from pinarray.player import play_trial
-from pinarray.protocol_load import load_protocol
 from pinarray.schedule import compile_trial
 
 LOCALISATION = Path(__file__).resolve().parents[2] / "protocols" / "localisation.yaml"
