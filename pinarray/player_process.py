@@ -62,7 +62,14 @@ REALTIME_HOWTO = ("grant it with `sudo setcap cap_sys_nice+ep \"$(readlink -f .v
 
 
 class PlayerDied(PlaybackAborted):
-    """The player process ended in the middle of its work; the parent made the pins safe."""
+    """The player process ended in the middle of its work; the parent made the pins safe.
+
+    ``noticed_ns`` is when the parent saw it gone (``time.monotonic_ns()``), before the safe stop.
+    """
+
+    def __init__(self, message: str, safe_stop: SafeStopReport, noticed_ns: int):
+        super().__init__(message, safe_stop)
+        self.noticed_ns = noticed_ns
 
 
 class _AskedToStop(Stopped):
@@ -232,6 +239,7 @@ class PlayerProcess:
                 self._died(doing)
 
     def _died(self, doing: str):
+        noticed_ns = time.monotonic_ns()
         try:
             status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
         except subprocess.TimeoutExpired:
@@ -243,7 +251,7 @@ class PlayerProcess:
         text = f"the player process ended while {doing} ({how}"
         text += f": {last_words[0]})" if last_words else ")"
         safe = self.bus.rest_and_release() if self.bus is not None else SafeStopReport((), (), ())
-        raise PlayerDied(f"{text}; {describe(safe)}", safe)
+        raise PlayerDied(f"{text}; {describe(safe)}", safe, noticed_ns)
 
     def close(self) -> None:
         """Ask the child to leave; make sure it has."""

@@ -49,7 +49,7 @@ class Bus:
     """What the check knows of the servo bus."""
 
     name: str
-    round_trip_ns: int  # longest one read of a goal may take, reply included
+    round_trip_ns: int  # what one read-back of a goal takes, reply included (as planned)
     latency_timer_ms: int | None  # a USB adapter's latency timer, when it has one
 
 
@@ -75,6 +75,7 @@ def judge(wake_ups: WakeUps, realtime_problem: str, bus: Bus, tolerance_ns: int)
     lines = [
         f"this machine: {wake_ups.describe()}, real-time priority {priority}",
         f"servo bus {bus.name}: one read-back takes up to {bus.round_trip_ns / NS_PER_MS:.1f} ms"
+        " (as measured)"
         + (f" (adapter latency timer {bus.latency_timer_ms} ms)"
            if bus.latency_timer_ms is not None else ""),
     ]

@@ -134,7 +134,7 @@ class Bus(Protocol):
         ...
 
     def reply_time_ns(self, servo_id: int, request_bytes: int, reply_params: int) -> int:
-        """Longest one exchange with ``servo_id`` may take on this bus."""
+        """What one exchange with ``servo_id`` should take on this bus (to plan read-backs)."""
         ...
 
     def wire_ns(self, byte_count: int) -> int:

@@ -58,13 +58,14 @@ class Handover:
     return_delay_ns: dict[int, int]
     latency_timer_ms: int | None
     worst_latency_ns: int
-    latency_samples: int
+    recent_latency_ns: tuple[int, ...]
 
     def attach(self, fd: int, clock: Clock) -> FeetechBus:
         """The same servos, driven over ``fd`` in this process (no handshake: already done)."""
         latency = Latency(self.latency_timer_ms)
-        for _ in range(self.latency_samples):
-            latency.record(self.worst_latency_ns)
+        latency.record(self.worst_latency_ns)
+        for latency_ns in self.recent_latency_ns:
+            latency.record(latency_ns)
         link = Link(FdWire(fd, clock, self.port_name), clock, self.baud_rate, latency)
         link.return_delay_ns.update(self.return_delay_ns)
         bus = FeetechBus(link, clock)
@@ -308,8 +309,10 @@ class FeetechBus:
         return self.link.wire_ns(byte_count)
 
     def reply_time_ns(self, servo_id: int, request_bytes: int, reply_params: int) -> int:
-        """Longest one exchange with ``servo_id`` may take: wire, return delay, adapter latency."""
-        return self.link.reply_time_ns(request_bytes, (Expected(servo_id, reply_params),))
+        """What one exchange with ``servo_id`` should take: wire, return delay, the adapter's
+        usual latency (`Latency.expected_ns`); for fitting a read-back between two frames."""
+        return self.link.reply_time_ns(request_bytes, (Expected(servo_id, reply_params),),
+                                       expected=True)
 
     def read_telemetry(self, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
         """Position, load, voltage, temperature and error bits, one read per servo."""
@@ -398,7 +401,7 @@ class FeetechBus:
         return Handover(
             port_name=self.port_name, baud_rate=self.link.baud_rate, setup=self.setup,
             return_delay_ns=dict(self.link.return_delay_ns), latency_timer_ms=latency.timer_ms,
-            worst_latency_ns=latency.worst_seen_ns, latency_samples=latency.samples,
+            worst_latency_ns=latency.worst_seen_ns, recent_latency_ns=tuple(latency.recent_ns),
         )
 
     def assume_goals(self, goals_steps: Mapping[int, int]) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import errno
 import os
 import select
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
@@ -216,7 +217,13 @@ class Latency:
     A USB-serial adapter passes received bytes to the host when its latency timer runs out
     (FTDI default 16 ms; 1 ms once lowered), plus one USB frame. A pseudo-terminal or an
     adapter whose timer cannot be read starts at the vendor SDK's cautious 16 ms and, once a
-    few exchanges have been timed, allows three times the worst latency seen.
+    few exchanges have been timed, goes by what was measured.
+
+    Two figures: `allowance_ns`, how long to wait before a reply counts as lost (three times
+    the worst latency ever seen: waiting too long costs little), and `expected_ns`, what a
+    read-back squeezed between two frames should plan for (twice the 90th percentile of the
+    recent ones: one slow reply at connect must not stop every later read-back, and a reply
+    that comes later than planned only ends that read-back at its deadline, to be tried again).
 
     Parameters
     ----------
@@ -228,25 +235,40 @@ class Latency:
 
     CAUTIOUS_NS = 2 * 16 * NS_PER_MS + 2 * NS_PER_MS  # what the SDK allows an unknown adapter
     SAMPLES_BEFORE_TRUST = 3
+    RECENT = 64
 
     def __init__(self, timer_ms: int | None = None, floor_ns: int = NS_PER_MS):
         self.timer_ms = timer_ms
         self.floor_ns = floor_ns
         self.worst_seen_ns = 0
         self.samples = 0
+        self.recent_ns: deque[int] = deque(maxlen=self.RECENT)
 
     def record(self, latency_ns: int) -> None:
         self.samples += 1
         self.worst_seen_ns = max(self.worst_seen_ns, latency_ns)
+        self.recent_ns.append(latency_ns)
+
+    def _known_ns(self) -> int:
+        if self.timer_ms is not None:
+            return max(self.floor_ns, (self.timer_ms + 1) * NS_PER_MS)
+        return self.floor_ns
 
     @property
     def allowance_ns(self) -> int:
         """How long past the wire and return-delay time a reply may still arrive."""
-        if self.timer_ms is not None:
-            return max(self.floor_ns, (self.timer_ms + 1) * NS_PER_MS, 3 * self.worst_seen_ns)
-        if self.samples < self.SAMPLES_BEFORE_TRUST:
+        if self.timer_ms is None and self.samples < self.SAMPLES_BEFORE_TRUST:
             return max(self.CAUTIOUS_NS, 3 * self.worst_seen_ns)
-        return max(self.floor_ns, 3 * self.worst_seen_ns)
+        return max(self._known_ns(), 3 * self.worst_seen_ns)
+
+    @property
+    def expected_ns(self) -> int:
+        """How long past the wire and return-delay time a read-back should plan to wait."""
+        if self.timer_ms is None and len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
+            return self.allowance_ns
+        ordered = sorted(self.recent_ns)
+        p90 = ordered[min(len(ordered) - 1, 9 * len(ordered) // 10)] if ordered else 0
+        return max(self._known_ns(), 2 * p90)
 
 
 class Link:
@@ -281,11 +303,17 @@ class Link:
         """Time ``byte_count`` bytes take on the bus at its baud rate."""
         return byte_count * BITS_PER_BYTE * 1_000_000_000 // self.baud_rate
 
-    def reply_time_ns(self, request_bytes: int, replies: Sequence[Expected]) -> int:
-        """Longest a request and its replies may take before the replies count as lost."""
+    def reply_time_ns(self, request_bytes: int, replies: Sequence[Expected],
+                      expected: bool = False) -> int:
+        """Longest a request and its replies may take before the replies count as lost.
+
+        ``expected``: what to plan for instead (`Latency.expected_ns`), e.g. before squeezing
+        a read-back between two frames.
+        """
         reply_bytes = sum(6 + r.params_length for r in replies)
         delays = sum(self.return_delay_ns.get(r.servo_id, MAX_RETURN_DELAY_NS) for r in replies)
-        return self.wire_ns(request_bytes + reply_bytes) + delays + self.latency.allowance_ns
+        latency = self.latency.expected_ns if expected else self.latency.allowance_ns
+        return self.wire_ns(request_bytes + reply_bytes) + delays + latency
 
     def send(self, packet: bytes) -> None:
         """Put a packet that gets no reply (a sync write) on the wire."""
