@@ -157,3 +157,12 @@ def test_a_vanished_device_is_a_lost_port_naming_what_was_being_done():
     bus.setup = BusSetup((ServoSetup(4, 4, 2048, 1900, 2300),))
     with pytest.raises(BusError, match="lost while reading TORQUE_ENABLE .* of servo 4"):
         bus.read(4, Register.TORQUE_ENABLE)
+
+
+def test_one_slow_reply_at_connect_does_not_stop_read_backs_from_being_planned():
+    latency = Latency(timer_ms=None)
+    latency.record(40 * MS)  # a simulator process still starting up
+    for _ in range(30):
+        latency.record(150_000)
+    assert latency.allowance_ns == 120 * MS  # waiting for a reply stays patient...
+    assert latency.expected_ns == 1 * MS  # ...but a read-back plans for the usual 0.15 ms
