@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from pinarray.bus.commands import add_bus_choice
+from pinarray.cli.bus import add_bus_choice
 
 BATCH_EPILOG = """\
 Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'

@@ -12,12 +12,11 @@ import sys
 from collections.abc import Sequence
 
 from pinarray import __version__, session_commands
-from pinarray.bus import commands as servo_commands
-from pinarray.cli import analysis, grid, protocols, softness, tui
+from pinarray.cli import analysis, bus, grid, protocols, softness, tui
 from pinarray.errors import PinArrayError
 from pinarray.stop import Stopped
 
-COMMANDS = (grid, protocols, servo_commands, session_commands, analysis, softness, tui)
+COMMANDS = (grid, protocols, bus, session_commands, analysis, softness, tui)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -17,7 +17,7 @@ look); real servos always run in real time.
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``tui`` to the `pinarray` parser."""
-    from pinarray.bus.commands import add_bus_choice
+    from pinarray.cli.bus import add_bus_choice
 
     p = subparsers.add_parser(
         "tui", help="run subjects from the experimenter's terminal UI",
