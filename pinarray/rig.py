@@ -10,11 +10,11 @@ still answers.
 
 from __future__ import annotations
 
-from pinarray.bus.base import SafeStopReport, Telemetry, servo_setup_from_device
+from pinarray.bus.base import BusSetup, SafeStopReport, ServoSetup, Telemetry
 from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.delivery import Presentation
-from pinarray.errors import PinArrayError
+from pinarray.errors import BusError, PinArrayError
 from pinarray.player import (
     GOAL_BYTES,
     GUARD_NS,
@@ -23,7 +23,7 @@ from pinarray.player import (
     play_prepared,
     prepare_trial,
 )
-from pinarray.protocol import NS_PER_S, Protocol
+from pinarray.protocol import NS_PER_S, Device, Protocol
 from pinarray.stop import StoppableClock, StopRequest
 from pinarray.timing_check import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
 from pinarray.timing_check import Bus as TimingBus
@@ -43,6 +43,24 @@ def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = Fa
     if not time_scale:
         return VirtualClock()
     return PacedClock(time_scale) if paced else ScaledClock(time_scale)
+
+
+def bus_setup(device: Device) -> BusSetup:
+    """What the bus handshake checks and sets, from a protocol's device section."""
+    from pinarray.bus.models import servo_model
+
+    servos = tuple(
+        ServoSetup(servo_id=c.servo_id, pin=c.pin, rest_steps=c.rest_steps,
+                   min_steps=c.min_steps, max_steps=c.max_steps)
+        for c in device.pins
+    )
+    try:
+        model = servo_model(device.servo.model)
+    except PinArrayError as error:
+        raise BusError(f"device: {error}") from None
+    return BusSetup(servos=servos, model_number=model.model_number,
+                    speed_steps_per_s=device.servo.speed_steps_per_s,
+                    acceleration_register=device.servo.acceleration_register)
 
 
 def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
@@ -89,7 +107,7 @@ class Rig:
         self.stop = stop or StopRequest()
         self.bus_clock = clock
         self.clock = StoppableClock(clock, self.stop)
-        self.setup = servo_setup_from_device(protocol.device)
+        self.setup = bus_setup(protocol.device)
         self.url = port or sim_url_for(sim_url, self.setup.servo_ids)
         # A sped-up simulation (--time-scale X) judges the host's own delays on the wall clock:
         # 1 ms of Python is X ms of simulated time.

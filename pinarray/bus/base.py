@@ -13,9 +13,6 @@ from typing import Protocol
 from pinarray.bus.registers import STS3215_MODEL_NUMBER, StatusError
 from pinarray.errors import BusError
 
-# Model-number register values by the name a protocol file uses.
-MODEL_NUMBERS = {"STS3215": STS3215_MODEL_NUMBER}
-
 
 class PortLost(BusError):
     """The serial port vanished mid-run (USB unplugged, adapter reset)."""
@@ -148,27 +145,3 @@ class Bus(Protocol):
     def stats(self) -> BusStats: ...
 
     def close(self) -> None: ...
-
-
-def servo_setup_from_device(device) -> BusSetup:
-    """Build a `BusSetup` from a protocol's ``Device`` (``pinarray.protocol.Device``)."""
-    servos = tuple(
-        ServoSetup(
-            servo_id=c.servo_id,
-            pin=c.pin,
-            rest_steps=c.rest_steps,
-            min_steps=c.min_steps,
-            max_steps=c.max_steps,
-        )
-        for c in device.pins
-    )
-    model_name = str(device.servo.model).upper()
-    if model_name not in MODEL_NUMBERS:
-        known = ", ".join(MODEL_NUMBERS)
-        raise BusError(f"servo model {device.servo.model!r} is not one this driver knows ({known})")
-    return BusSetup(
-        servos=servos,
-        model_number=MODEL_NUMBERS[model_name],
-        speed_steps_per_s=device.servo.speed_steps_per_s,
-        acceleration_register=device.servo.acceleration_register,
-    )

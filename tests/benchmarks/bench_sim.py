@@ -23,7 +23,6 @@ import numpy as np
 import serial
 from pinarray.protocol_load import load_protocol
 
-from pinarray.bus.base import servo_setup_from_device
 from pinarray.bus.models import STS3215_C001
 from pinarray.bus.registers import BROADCAST_ID, Instruction, Register, checksum, to_bytes
 from pinarray.bus.sim_motion import MotionState
@@ -32,6 +31,7 @@ from pinarray.bus.transport import open_bus
 from pinarray.clock import VirtualClock
 from pinarray.plan import make_plan
 from pinarray.player import play_trial
+from pinarray.rig import bus_setup
 from pinarray.schedule import compile_trial
 
 LOCALISATION = Path(__file__).resolve().parents[2] / "protocols" / "localisation.yaml"
@@ -134,7 +134,7 @@ def _timed(method, spent: list[int]):
 def _batch(servo_class, trials) -> tuple[float, float]:
     """Play ``trials`` as `pinarray batch` does; returns (servo CPU s, whole batch s)."""
     protocol = load_protocol(LOCALISATION)
-    setup = servo_setup_from_device(protocol.device)
+    setup = bus_setup(protocol.device)
     clock = VirtualClock()
     ids = ",".join(map(str, setup.servo_ids))
     bus = open_bus(f"sim://?ids={ids}", None, clock)
