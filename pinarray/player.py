@@ -257,39 +257,63 @@ class _Verifier:
             self.sent_lateness_ns[index] = arrival_ns - frame.time_ns
 
     def work_until(self, limit_ns: int) -> None:
-        """Confirm or heal pending changes while an exchange still fits before ``limit_ns``."""
+        """Confirm or heal pending changes while an exchange still fits before ``limit_ns``.
+
+        Each round reads back as many pending goals as fit (oldest first, one SYNC READ),
+        then writes again, acknowledged, each goal its servo does not hold.
+        """
         bus, clock = self.bus, self.clock
         while self.pending:
-            servo_id, index = next(iter(self.pending.items()))
-            if clock.now_ns() + bus.reply_time_ns(servo_id, READ_REQUEST_BYTES, GOAL_BYTES) > limit_ns:
+            ids = tuple(self.pending)
+            count = len(ids)
+            while count and clock.now_ns() + bus.read_goals_time_ns(ids[:count]) > limit_ns:
+                count -= 1
+            if not count:
                 return
-            reading = bus.read_goal(servo_id, limit_ns)
-            if reading is None:
-                self._later(servo_id)
-                continue
-            self._check(servo_id, reading.errors)
-            change = self.trial.changes[index]
-            if reading.goal_steps == change.goal_steps:
+            asked = ids[:count]
+            readings = bus.read_goals(asked, limit_ns)
+            lost: list[int] = []
+            for servo_id in asked:
+                reading = readings.get(servo_id)
+                if reading is None:
+                    self._later(servo_id)  # no reply: the others first, this one again later
+                    continue
+                self._check(servo_id, reading.errors)
+                index = self.pending[servo_id]
+                change = self.trial.changes[index]
+                if reading.goal_steps != change.goal_steps:
+                    lost.append(servo_id)
+                    continue
                 del self.pending[servo_id]
                 rewritten_ns = self.rewritten_at_ns.get(index)
                 if rewritten_ns is None:
                     self.ledger.confirm(index, self.sent_lateness_ns[index], healed=False)
                 else:
                     self.ledger.confirm(index, rewritten_ns - change.time_ns, healed=True)
-                continue
-            now_ns = clock.now_ns()
-            if now_ns + bus.reply_time_ns(servo_id, REWRITE_REQUEST_BYTES, 0) > limit_ns:
-                return
-            # The servo does not hold this goal: its sync write was lost. Say it again.
-            self.rewritten_at_ns[index] = (now_ns - self.onset_ns
-                                           + bus.wire_ns(REWRITE_REQUEST_BYTES))
-            errors = bus.rewrite_goal(servo_id, change.goal_steps, limit_ns)
-            if errors is None:
-                self._later(servo_id)  # no acknowledgement: read back again later
-                continue
-            self._check(servo_id, errors)
-            del self.pending[servo_id]
-            self.ledger.confirm(index, self.rewritten_at_ns[index] - change.time_ns, healed=True)
+            for servo_id in lost:
+                if not self._write_again(servo_id, limit_ns):
+                    return
+
+    def _write_again(self, servo_id: int, limit_ns: int) -> bool:
+        """The servo does not hold its goal (its sync write was lost): say it again.
+
+        False when there was no time for it before ``limit_ns``.
+        """
+        bus, clock = self.bus, self.clock
+        now_ns = clock.now_ns()
+        if now_ns + bus.reply_time_ns(servo_id, REWRITE_REQUEST_BYTES, 0) > limit_ns:
+            return False
+        index = self.pending[servo_id]
+        change = self.trial.changes[index]
+        self.rewritten_at_ns[index] = now_ns - self.onset_ns + bus.wire_ns(REWRITE_REQUEST_BYTES)
+        errors = bus.rewrite_goal(servo_id, change.goal_steps, limit_ns)
+        if errors is None:
+            self._later(servo_id)  # no acknowledgement: read back again later
+            return True
+        self._check(servo_id, errors)
+        del self.pending[servo_id]
+        self.ledger.confirm(index, self.rewritten_at_ns[index] - change.time_ns, healed=True)
+        return True
 
     def _later(self, servo_id: int) -> None:
         self.pending[servo_id] = self.pending.pop(servo_id)  # to the back of the queue
@@ -362,6 +386,9 @@ def play_prepared(
             verifier.work_until(end_ns)
             clock.sleep_until_ns(end_ns)
             verifier.work_until(end_ns + SETTLE_NS)
+            if verifier.pending:
+                # A change of the trial's end never confirmed may have left a pin up.
+                _rest(bus, tuple(verifier.pending))
             readings = _checked(_telemetry(bus, setup.servo_ids), setup)
         except Interrupted:
             bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
@@ -393,6 +420,15 @@ def play_prepared(
 def play_trial(bus: Bus, targets: TargetList, clock: Clock, **options) -> PlaybackReport:
     """`prepare_trial` then `play_prepared` (same options), in this process."""
     return play_prepared(bus, prepare_trial(bus, targets), clock, **options)
+
+
+def _rest(bus: Bus, unconfirmed: tuple[int, ...]) -> None:
+    """Every pin to rest, confirmed; a servo left unconfirmed that does not get there is a fault."""
+    at_rest = bus.move_to_rest()
+    stuck = [i for i in unconfirmed if i not in at_rest]
+    if stuck:
+        raise BusError(f"servo(s) {', '.join(map(str, stuck))} did not confirm their last goal "
+                       "of the trial nor return to rest")
 
 
 def _telemetry(bus: Bus, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:

@@ -44,7 +44,7 @@ from pinarray.player import (
     describe,
     play_prepared,
 )
-from pinarray.stop import Stopped, StopRequest, raise_on_signals
+from pinarray.stop import STOP_SIGNALS, Stopped, StopRequest, raise_on_signals, signal_name
 
 # SCHED_FIFO priority of the player: above every normal process, below the kernel's own
 # interrupt threads (50), so a stuck loop cannot lock the serial driver out.
@@ -53,7 +53,9 @@ REALTIME_PRIORITY = 20
 SPIN_NS = 200_000
 # How often the parent looks at the stop request and the child while a trial plays, in s.
 WATCH_S = 0.02
-START_TIMEOUT_S = 30.0
+START_TIMEOUT_NS = 30_000_000_000
+# Once told to stop, the player process has this long to rest the pins and answer.
+STOP_BUDGET_NS = 5_000_000_000
 # How long a player process whose socket closed may take to finish exiting, in s.
 EXIT_WAIT_S = 1.0
 PR_SET_TIMERSLACK = 29
@@ -112,6 +114,7 @@ class StopPlaying:
 
 @dataclass(frozen=True)
 class MeasureWakeUps:
+    number: int
     duration_ns: int
     period_ns: int
 
@@ -168,7 +171,11 @@ class PlayerProcess:
         self.fd = fd
         self.stop = stop
         self.realtime_problem = ""
-        self._played = 0
+        self._clock = MonotonicClock()
+        self._requests = 0
+        self._working = 0  # number of the request the child is working on, 0 when idle
+        self._stop_sent = False
+        self._closing = False
         # One request at a time: the UI may ask for a test pin while a timing check runs.
         self._one_at_a_time = threading.Lock()
         self._errors = tempfile.TemporaryFile()
@@ -184,8 +191,10 @@ class PlayerProcess:
         self.conn = Connection(parent_end.detach())
         handover = bus.handover() if bus is not None else None
         self.conn.send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns))
-        ready = self._answer(START_TIMEOUT_S, "starting")
-        assert isinstance(ready, Ready), ready
+        ready = self._answer("starting", START_TIMEOUT_NS)
+        if not isinstance(ready, Ready):
+            raise PlayerDied(f"the player process answered {ready!r} when starting",
+                             SafeStopReport((), (), ()), time.monotonic_ns())
         self.realtime_problem = ready.realtime_problem
 
     @property
@@ -195,48 +204,72 @@ class PlayerProcess:
     def play(self, trial: PreparedTrial, *, lead_ns: int = DEFAULT_LEAD_NS,
              tolerance_ns: int) -> PlaybackReport:
         """Play one trial in the child; raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
-        with self._one_at_a_time:
-            self._played += 1
-            self.conn.send(Play(self._played, trial, lead_ns, tolerance_ns))
-            answer = self._answer(None, "playing a trial")
+        answer = self._ask(lambda number: Play(number, trial, lead_ns, tolerance_ns),
+                           "playing a trial")
         match answer:
             case Played(report=report):
                 if self.bus is not None:
+                    # The player left every pin at rest (it forces rest when a change of the
+                    # trial's end was not confirmed); the next changed-only write starts there.
                     self.bus.assume_goals({s.servo_id: s.rest_steps for s in self.bus.setup.servos})
                 return report
-            case PlayStopped(reason=reason, signal_number=number):
-                raise Stopped(reason, number)
             case PlayFailed(message=message, safe_stop=safe):
                 raise PlaybackAborted(message, safe)
-        raise AssertionError(f"unexpected answer from the player process: {answer!r}")
+        raise PlayerDied(f"the player process answered {answer!r} to a trial",
+                         SafeStopReport((), (), ()), time.monotonic_ns())
 
     def measure_wake_ups(self, duration_ns: int, period_ns: int) -> tuple[int, ...]:
         """How late the child wakes for deadlines every ``period_ns``, for ``duration_ns``."""
-        with self._one_at_a_time:
-            self.conn.send(MeasureWakeUps(duration_ns, period_ns))
-            answer = self._answer(None, "measuring wake-ups")
-        assert isinstance(answer, WakeUps), answer
+        answer = self._ask(lambda number: MeasureWakeUps(number, duration_ns, period_ns),
+                           "measuring wake-ups")
+        if not isinstance(answer, WakeUps):
+            raise PlayerDied(f"the player process answered {answer!r} to a measurement",
+                             SafeStopReport((), (), ()), time.monotonic_ns())
         return answer.lateness_ns
 
-    def _answer(self, timeout_s: float | None, doing: str):
-        """The child's next message, passing a stop request on; a dead child is a `PlayerDied`."""
-        stop_sent = False
-        give_up = None if timeout_s is None else time.monotonic() + timeout_s
+    def _ask(self, request, doing: str):
+        """Send a numbered request and wait for its answer; a stop ends it with `Stopped`."""
+        with self._one_at_a_time:
+            self._requests += 1
+            self._working = self._requests
+            self._stop_sent = False
+            try:
+                self.conn.send(request(self._requests))
+                answer = self._answer(doing)
+            except OSError:
+                self._died(doing)
+            finally:
+                self._working = 0
+        if isinstance(answer, PlayStopped):
+            raise Stopped(answer.reason, answer.signal_number)
+        return answer
+
+    def _answer(self, doing: str, timeout_ns: int | None = None):
+        """The child's next message, passing a stop request on; a dead child is a `PlayerDied`.
+
+        Once a stop is passed on, the child has `STOP_BUDGET_NS` to answer; after that it is
+        killed and the parent makes the pins safe itself.
+        """
+        clock = self._clock
+        give_up_ns = None if timeout_ns is None else clock.now_ns() + timeout_ns
         while True:
             try:
                 if self.conn.poll(WATCH_S):
                     return self.conn.recv()
             except (EOFError, OSError):
                 self._died(doing)
-            if self.stop.requested and not stop_sent:
-                try:
-                    self.conn.send(StopPlaying(self._played, self.stop.reason,
-                                               self.stop.signal_number))
-                except OSError:
-                    self._died(doing)
-                stop_sent = True
-            if not self.alive or (give_up is not None and time.monotonic() > give_up):
+            if self.stop.requested and self._working and not self._stop_sent:
+                self._send_stop()
+                give_up_ns = clock.now_ns() + STOP_BUDGET_NS
+            if not self.alive or (give_up_ns is not None and clock.now_ns() > give_up_ns):
                 self._died(doing)
+
+    def _send_stop(self) -> None:
+        self._stop_sent = True
+        try:
+            self.conn.send(StopPlaying(self._working, self.stop.reason, self.stop.signal_number))
+        except OSError:
+            pass  # gone already: the watch loop notices
 
     def _died(self, doing: str):
         noticed_ns = time.monotonic_ns()
@@ -245,27 +278,41 @@ class PlayerProcess:
         except subprocess.TimeoutExpired:
             self.process.kill()
             status = self.process.wait()
+        safe = SafeStopReport((), (), ())
+        if self.bus is not None and not self._closing:
+            safe = self.bus.rest_and_release()
+        stop_signal = status - 128 if status > 128 else -status if status < 0 else None
+        if self.stop.requested or stop_signal in STOP_SIGNALS:
+            # Asked to stop, or stopped by a signal meant for both (pkill, systemd): a stop.
+            number = self.stop.signal_number or stop_signal
+            raise Stopped(self.stop.reason or f"stopped by {signal_name(number)}", number)
         self._errors.seek(0)
         last_words = self._errors.read().decode(errors="replace").strip().splitlines()[-1:]
         how = (f"killed by signal {-status}" if status < 0 else f"exit status {status}")
         text = f"the player process ended while {doing} ({how}"
         text += f": {last_words[0]})" if last_words else ")"
-        safe = self.bus.rest_and_release() if self.bus is not None else SafeStopReport((), (), ())
         raise PlayerDied(f"{text}; {describe(safe)}", safe, noticed_ns)
 
     def close(self) -> None:
-        """Ask the child to leave; make sure it has."""
+        """Stop what the child is doing, ask it to leave, make sure it has.
+
+        The caller makes the pins safe through its own port afterwards.
+        """
+        self._closing = True
         if self.alive:
             try:
+                if self._working:
+                    self._send_stop()
                 self.conn.send(Quit())
-                self.process.wait(timeout=2)
+                self.process.wait(timeout=STOP_BUDGET_NS / 1e9)
             except (OSError, subprocess.TimeoutExpired):
                 pass
         if self.alive:
             self.process.kill()
             self.process.wait()
-        self.conn.close()
-        self._errors.close()
+        with self._one_at_a_time:  # a request still waiting sees the socket closed
+            self.conn.close()
+            self._errors.close()
 
 
 # -- the child's side -------------------------------------------------------------------------
@@ -290,15 +337,16 @@ def make_realtime(priority: int) -> str:
 class ControlledClock(MonotonicClock):
     """Real time for the child: sleeps wake for a message from the parent, then spin.
 
-    A `StopPlaying` for the trial playing, or the parent's end of the socket closing, raises
-    `Stopped` at once: the player then rests the pins.
+    A `StopPlaying` for the request being worked on raises `Stopped` at once (the player then
+    rests the pins and answers); a `Quit`, or the parent's end of the socket closing, raises
+    `_ParentGone` (the child rests the pins and leaves).
     """
 
     def __init__(self, conn: Connection, spin_ns: int):
         super().__init__(spin_ns, sleep=self._wait_for_message)
         self.conn = conn
         self._fd = conn.fileno()
-        self.playing = 0  # number of the trial playing, 0 between trials
+        self.working = 0  # number of the request being worked on, 0 between requests
 
     def _wait_for_message(self, seconds: float) -> None:
         # select, not Connection.poll: the latter rounds its timeout up to whole ms.
@@ -306,27 +354,35 @@ class ControlledClock(MonotonicClock):
             self._message()
 
     def doze_until_ns(self, deadline_ns: int) -> None:
-        self.sleep_until_ns(deadline_ns)
+        """Sleep (no spin) until ``deadline_ns``, waking for messages."""
+        while (remaining_ns := deadline_ns - self.now_ns()) > 0:
+            self._wait_for_message(remaining_ns / 1e9)
 
     def _message(self) -> None:
         try:
             message = self.conn.recv()
         except (EOFError, OSError):
             raise _ParentGone("the process controlling the player ended") from None
-        if isinstance(message, StopPlaying) and message.number == self.playing:
+        if isinstance(message, Quit):
+            raise _ParentGone("the process controlling the player is closing it")
+        if isinstance(message, StopPlaying) and message.number == self.working:
             raise _AskedToStop(message.reason, message.signal_number)
+
+
+class ProtocolMismatch(Exception):
+    """The parent sent something this child does not understand (a different pinarray?)."""
 
 
 def _serve(conn: Connection, port_fd: int) -> int:
     hello = conn.recv()
-    assert isinstance(hello, Hello), hello
+    if not isinstance(hello, Hello):
+        raise ProtocolMismatch(f"expected a Hello, found {hello!r}")
     problem = make_realtime(hello.realtime_priority) if hello.realtime_priority else ""
     clock = ControlledClock(conn, hello.spin_ns)
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
     bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
     conn.send(Ready(problem))
-    released = False
     try:
         while True:
             try:
@@ -334,37 +390,43 @@ def _serve(conn: Connection, port_fd: int) -> int:
             except (EOFError, OSError):
                 return 0  # the parent is gone: `finally` makes the pins safe
             match message:
-                case Play(number=number, trial=trial, lead_ns=lead_ns, tolerance_ns=tolerance_ns):
-                    assert bus is not None
-                    clock.playing = number
-                    try:
-                        conn.send(_play(bus, trial, clock, lead_ns, tolerance_ns))
-                    finally:
-                        clock.playing = 0
-                case MeasureWakeUps(duration_ns=duration_ns, period_ns=period_ns):
-                    conn.send(WakeUps(_wake_ups(clock, duration_ns, period_ns)))
+                case Play(number=number) if bus is not None:
+                    conn.send(_working(clock, number, lambda m=message: _play(bus, m, clock)))
+                case MeasureWakeUps(number=number, duration_ns=duration_ns, period_ns=period_ns):
+                    conn.send(_working(clock, number,
+                                       lambda d=duration_ns, p=period_ns: _wake_ups(clock, d, p)))
                 case Quit():
-                    released = True  # the parent makes the pins safe through its own port
-                    return 0
-                # A stop request for a trial already over needs nothing.
+                    return 0  # `finally` rests the pins: the parent may not outlive this by much
+                case StopPlaying():
+                    pass  # for a request already answered: nothing to stop
+                case _:
+                    raise ProtocolMismatch(f"unexpected message {message!r}")
     finally:
-        if bus is not None and not released:
+        if bus is not None:
             bus.rest_and_release()
 
 
-def _play(bus: FeetechBus, trial: PreparedTrial, clock: ControlledClock, lead_ns: int,
-          tolerance_ns: int):
+def _working(clock: ControlledClock, number: int, work):
+    """Do one numbered request; a stop for it becomes a `PlayStopped` answer."""
+    clock.working = number
     try:
-        report = play_prepared(bus, trial, clock, lead_ns=lead_ns, tolerance_ns=tolerance_ns,
-                               release_at_end=False)
+        return work()
     except _AskedToStop as stopped:
         return PlayStopped(str(stopped), stopped.signal_number)
+    finally:
+        clock.working = 0
+
+
+def _play(bus: FeetechBus, play: Play, clock: ControlledClock):
+    try:
+        report = play_prepared(bus, play.trial, clock, lead_ns=play.lead_ns,
+                               tolerance_ns=play.tolerance_ns, release_at_end=False)
     except PlaybackAborted as aborted:
         return PlayFailed(str(aborted), aborted.safe_stop)
     return Played(report)
 
 
-def _wake_ups(clock: ControlledClock, duration_ns: int, period_ns: int) -> tuple[int, ...]:
+def _wake_ups(clock: ControlledClock, duration_ns: int, period_ns: int) -> WakeUps:
     count = max(1, duration_ns // period_ns)
     lateness = [0] * count
     start_ns = clock.now_ns() + period_ns
@@ -372,7 +434,7 @@ def _wake_ups(clock: ControlledClock, duration_ns: int, period_ns: int) -> tuple
         deadline_ns = start_ns + k * period_ns
         clock.sleep_until_ns(deadline_ns)
         lateness[k] = clock.now_ns() - deadline_ns
-    return tuple(lateness)
+    return WakeUps(tuple(lateness))
 
 
 def main(argv: list[str]) -> int:

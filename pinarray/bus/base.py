@@ -122,8 +122,16 @@ class Bus(Protocol):
         """Write a frame prepared by `goal_packet`, in one call, without waiting for a reply."""
         ...
 
-    def read_goal(self, servo_id: int, deadline_ns: int) -> GoalReading | None:
-        """One servo's goal register read back (None: no reply by ``deadline_ns``)."""
+    def read_goals(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, GoalReading]:
+        """Goal registers read back (a servo missing: no reply by ``deadline_ns``)."""
+        ...
+
+    def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_goals` of these servos should take on this bus."""
+        ...
+
+    def move_to_rest(self, timeout_ns: int = ...) -> tuple[int, ...]:
+        """Every pin to rest; the ids confirmed there."""
         ...
 
     def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:

@@ -21,11 +21,13 @@ from pinarray.bus.base import (
     GoalReading,
     PortLost,
     SafeStopReport,
+    ServoSetup,
     Telemetry,
 )
 from pinarray.bus.link import Expected, FdWire, Latency, Link, WireLost
 from pinarray.bus.packets import StatusPacket
 from pinarray.bus.registers import (
+    BROADCAST_ID,
     Register,
     StatusError,
     decode_load,
@@ -46,6 +48,10 @@ REST_POLL_NS = 10_000_000
 TELEMETRY_START = Register.PRESENT_POSITION
 TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.address
 NS_PER_US = 1_000
+# A READ instruction packet, in bytes.
+READ_REQUEST_BYTES = 8
+# Sync reads that get no answer at all, in a row, before read-backs use READs instead.
+SYNC_READ_TRIES = 3
 
 
 @dataclass(frozen=True)
@@ -97,6 +103,8 @@ class FeetechBus:
         self.warnings: list[str] = []
         self.sim = None  # the `SimBus` behind a simulated port; for tests and benchmarks
         self._last_goals: dict[int, int] = {}
+        self._sync_read_works = True
+        self._sync_reads_unanswered = 0
         self._sync_writes = 0
         self._goals_written = 0
         self._retries = 0
@@ -202,6 +210,7 @@ class FeetechBus:
             for servo in setup.servos:
                 delay, _ = self.read(servo.servo_id, Register.RETURN_DELAY_TIME)
                 self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
+                self._check_angle_limits(servo)
                 # Hold where the horn is before torque comes on, so it cannot jerk a pin.
                 data, _ = self.read(servo.servo_id, Register.PRESENT_POSITION)
                 # An STS servo switches torque on when it is given a goal: from here on this
@@ -220,6 +229,22 @@ class FeetechBus:
                 except BusError:
                     pass
             raise
+
+    def _check_angle_limits(self, servo: ServoSetup) -> None:
+        """Refuse a pin whose calibrated stroke the servo would clamp (its angle limits).
+
+        A clamped goal would still read back as written: the read-back could not tell.
+        """
+        span = Register.MAX_ANGLE_LIMIT.address + 2 - Register.MIN_ANGLE_LIMIT.address
+        data, _ = self.read(servo.servo_id, Register.MIN_ANGLE_LIMIT, span)
+        low, high = from_bytes(data[0:2]), from_bytes(data[-2:])
+        if not low <= servo.min_steps <= servo.max_steps <= high:
+            raise BusError(
+                f"pin {servo.pin} (servo {servo.servo_id}): its angle limits MIN_ANGLE_LIMIT "
+                f"{low} .. MAX_ANGLE_LIMIT {high} (EEPROM addresses 9, 11) would clamp the "
+                f"calibrated stroke {servo.min_steps}..{servo.max_steps}; widen them with the "
+                "vendor's tool or recalibrate the pin"
+            )
 
     # -- playback ------------------------------------------------------------------------
 
@@ -274,23 +299,39 @@ class FeetechBus:
                 f"its calibrated limits {servo.min_steps}..{servo.max_steps}"
             )
 
-    def read_goal(self, servo_id: int, deadline_ns: int) -> GoalReading | None:
-        """Read back one servo's goal position, giving up at ``deadline_ns``; None: no reply.
+    def read_goals(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, GoalReading]:
+        """Read back goal positions, giving up at ``deadline_ns``; a servo missing: no reply.
 
-        One attempt: the player decides when to try again (in the next slack).
+        One servo: a READ. Several: one SYNC READ, each servo answering in turn (a reply lost
+        costs only that servo's reading). One attempt: the player decides when to try again.
+        A bus whose servos never answer a SYNC READ (some emulators) falls back to READs.
         """
         register = Register.GOAL_POSITION
+        expected = tuple(Expected(i, register.size) for i in servo_ids)
+        if len(servo_ids) == 1 or not self._sync_read_works:
+            packet = packets.read(servo_ids[0], register.address, register.size)
+            expected = expected[:1]
+        else:
+            packet = packets.sync_read(register.address, register.size, servo_ids)
         try:
-            replies = self.link.exchange(
-                packets.read(servo_id, register.address, register.size),
-                (Expected(servo_id, register.size),), deadline_ns,
-            )
+            replies = self.link.exchange(packet, expected, deadline_ns)
         except WireLost as error:
-            raise self._lost(f"reading back GOAL_POSITION of servo {servo_id}", error) from None
-        status = replies.get(servo_id)
-        if status is None:
-            return None
-        return GoalReading(decode_position(from_bytes(status.params)), StatusError(status.error))
+            ids = ", ".join(str(e.servo_id) for e in expected)
+            raise self._lost(f"reading back GOAL_POSITION of servo(s) {ids}", error) from None
+        if len(expected) > 1:
+            self._sync_reads_unanswered = 0 if replies else self._sync_reads_unanswered + 1
+            if self._sync_reads_unanswered >= SYNC_READ_TRIES:
+                self._sync_read_works = False
+        return {i: GoalReading(decode_position(from_bytes(r.params)), StatusError(r.error))
+                for i, r in replies.items()}
+
+    def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_goals` of these servos should take (to fit it between two frames)."""
+        ids = servo_ids if len(servo_ids) > 1 and self._sync_read_works else servo_ids[:1]
+        request = (packets.INSTRUCTION_OVERHEAD_BYTES + 2 + len(ids) if len(ids) > 1
+                   else READ_REQUEST_BYTES)
+        return self.link.reply_time_ns(
+            request, tuple(Expected(i, Register.GOAL_POSITION.size) for i in ids), expected=True)
 
     def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
         """Write one goal again with an acknowledged WRITE; the error bits, or None: no ack."""
@@ -377,6 +418,7 @@ class FeetechBus:
         try:
             at_rest = self.move_to_rest(timeout_ns)
         except PortLost:
+            self._release_everyone()
             return SafeStopReport((), (), ids, port_lost=True)
         except BusError:
             at_rest = ()
@@ -386,12 +428,21 @@ class FeetechBus:
                 self.write(servo_id, Register.TORQUE_ENABLE, 0)
                 released.append(servo_id)
             except PortLost:
+                self._release_everyone()
                 silent = tuple(i for i in ids if i not in released)
                 return SafeStopReport(at_rest, tuple(released), silent, port_lost=True)
             except BusError:
                 continue
         silent = tuple(i for i in ids if i not in released or i not in at_rest)
         return SafeStopReport(at_rest, tuple(released), silent)
+
+    def _release_everyone(self) -> None:
+        """A last try when the port fails mid-stop: torque off for every servo, in one
+        broadcast write that needs no reply (it may still get through a flaky adapter)."""
+        try:
+            self.link.send(packets.write(BROADCAST_ID, Register.TORQUE_ENABLE.address, b"\x00"))
+        except (WireLost, OSError):
+            pass
 
     # -- another process on the same port ----------------------------------------------
 

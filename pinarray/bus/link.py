@@ -18,6 +18,7 @@ from __future__ import annotations
 import errno
 import os
 import select
+import termios
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -33,6 +34,12 @@ BITS_PER_BYTE = 10
 MAX_RETURN_DELAY_NS = 508_000
 # How often a polled wire looks for bytes while it waits, in clock nanoseconds.
 POLL_NS = 20_000
+# A device that takes no bytes for this long is treated as gone (a full queue nobody drains).
+WRITE_TIMEOUT_NS = 500_000_000
+READ_CHUNK = 4096
+# Draining stale input stops after this much, so a device that never stops talking cannot
+# hold up a request (a bus can carry 100 kB a second at 1 Mbps).
+MAX_DRAIN_BYTES = 65_536
 
 
 class WireLost(OSError):
@@ -75,10 +82,12 @@ class FdWire:
         Closes the object that owns ``fd`` (e.g. the pyserial port), instead of ``os.close``.
     """
 
-    def __init__(self, fd: int, clock: Clock, name: str, on_close=None):
+    def __init__(self, fd: int, clock: Clock, name: str, on_close=None,
+                 write_timeout_ns: int = WRITE_TIMEOUT_NS):
         self.fd = fd
         self.clock = clock
         self.name = name
+        self.write_timeout_ns = write_timeout_ns
         self._on_close = on_close
 
     def write(self, data: bytes) -> None:
@@ -90,16 +99,38 @@ class FdWire:
             raise WireLost(error.errno, f"write failed: {error.strerror}") from None
         if written == len(data):
             return
+        give_up_ns = self.clock.now_ns() + self.write_timeout_ns
         view = memoryview(data)[written:]
         while view:
+            remaining_ns = give_up_ns - self.clock.now_ns()
+            if remaining_ns <= 0:
+                raise WireLost(errno.ETIMEDOUT, f"write failed: the device took no data for "
+                                                f"{self.write_timeout_ns / 1e9:g} s")
+            select.select([], [self.fd], [], remaining_ns / 1e9)  # the output queue is full
             try:
                 written = os.write(self.fd, view)
             except BlockingIOError:
-                select.select([], [self.fd], [], 0.01)  # the output queue is full: let it drain
                 continue
             except OSError as error:
                 raise WireLost(error.errno, f"write failed: {error.strerror}") from None
             view = view[written:]
+
+    def _read(self) -> bytes:
+        """What is there to read now (maybe nothing); `WireLost` if the device is gone."""
+        try:
+            data = os.read(self.fd, READ_CHUNK)
+        except BlockingIOError:
+            return b""
+        except OSError as error:
+            raise WireLost(error.errno, f"read failed: {error.strerror}") from None
+        if not data:
+            # A tty with VMIN 0 (as pyserial sets it) reads nothing also when there is
+            # nothing: the device is gone only if it no longer answers termios.
+            try:
+                termios.tcgetattr(self.fd)
+            except (termios.error, OSError):
+                raise WireLost(errno.EIO, "read failed: the device is gone") from None
+        return data
 
     def read_some(self, deadline_ns: int) -> bytes:
         while True:
@@ -108,31 +139,20 @@ class FdWire:
             # overrun the next frame's deadline by poll's rounding to milliseconds.
             ready, _, _ = select.select([self.fd], [], [], max(0, remaining_ns) / 1e9)
             if ready:
-                try:
-                    data = os.read(self.fd, 4096)
-                except BlockingIOError:
-                    continue
-                except OSError as error:
-                    if error.errno == errno.EIO:
-                        raise WireLost(error.errno, "read failed: Input/output error") from None
-                    raise WireLost(error.errno, f"read failed: {error.strerror}") from None
-                if not data:
-                    raise WireLost(errno.EIO, "read failed: the device closed")
-                return data
+                data = self._read()
+                if data:
+                    return data
+                # readable but empty: do not spin on it
+                select.select([], [], [], min(max(0, remaining_ns), POLL_NS) / 1e9)
             if remaining_ns <= 0:
                 return b""
 
     def discard_input(self) -> int:
         dropped = 0
-        while select.select([self.fd], [], [], 0)[0]:
-            try:
-                data = os.read(self.fd, 4096)
-            except BlockingIOError:
-                break
-            except OSError as error:
-                raise WireLost(error.errno, f"read failed: {error.strerror}") from None
+        while dropped < MAX_DRAIN_BYTES and select.select([self.fd], [], [], 0)[0]:
+            data = self._read()
             if not data:
-                raise WireLost(errno.EIO, "read failed: the device closed")
+                break
             dropped += len(data)
         return dropped
 
