@@ -99,7 +99,7 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
 
     def handler(signum, frame):
         if stop.requested:
-            raise Stopped(f"stopped by {signal_name(signum)} (again)", signum)
+            _raise_unless_deferred(Stopped(f"stopped by {signal_name(signum)} (again)", signum))
         stop.request(f"stopped by {signal_name(signum)}", signum)
 
     previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
@@ -134,7 +134,7 @@ def raise_on_signals(what: str) -> Iterator[None]:
     """
 
     def handler(signum, frame):
-        raise Stopped(f"{what} stopped by {signal_name(signum)}", signum)
+        _raise_unless_deferred(Stopped(f"{what} stopped by {signal_name(signum)}", signum))
 
     previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
     try:
@@ -144,22 +144,46 @@ def raise_on_signals(what: str) -> Iterator[None]:
             signal.signal(number, old)
 
 
+class _Deferral:
+    """Nesting depth of `deferred_signals` in the main thread, and what waited meanwhile."""
+
+    depth = 0
+    pending: Stopped | None = None
+
+
+def _raise_unless_deferred(stopped: Stopped) -> None:
+    # Masking alone is not enough: once another thread exists (numpy starts one) the kernel
+    # hands the signal to that thread and Python still runs the handler in the main one.
+    if _Deferral.depth:
+        _Deferral.pending = _Deferral.pending or stopped
+        return
+    raise stopped
+
+
 @contextmanager
 def deferred_signals() -> Iterator[None]:
     """Inside the block the stop signals wait; outside any main thread this does nothing.
 
     For the few steps that must finish once begun: a pin's safe stop (rest, then torque off)
-    and a results row (``beh.tsv``, then ``events.tsv``).
+    and a results row (``beh.tsv``, then ``events.tsv``). A handler that would raise while
+    the block runs raises when the outermost block ends instead.
     """
     if threading.current_thread() is not threading.main_thread():
         # Python runs signal handlers in the main thread only: this thread is never interrupted.
         yield
         return
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    _Deferral.depth += 1
     try:
         yield
     finally:
+        _Deferral.depth -= 1
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+    # Reached only when the block ended normally (a signal the mask held back may still
+    # arrive, as the block ends, on top of an error in it).
+    if not _Deferral.depth and _Deferral.pending is not None:
+        stopped, _Deferral.pending = _Deferral.pending, None
+        raise stopped
 
 
 class StoppableClock:
