@@ -10,6 +10,9 @@ still answers.
 
 from __future__ import annotations
 
+import threading
+from typing import TYPE_CHECKING
+
 from pinarray.bus.base import BusSetup, SafeStopReport, ServoSetup, Telemetry
 from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
@@ -27,6 +30,9 @@ from pinarray.protocol import NS_PER_S, Device, Protocol
 from pinarray.stop import StoppableClock, StopRequest
 from pinarray.timing_check import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
 from pinarray.timing_check import Bus as TimingBus
+
+if TYPE_CHECKING:
+    from pinarray.player_process import PlayerProcess
 
 
 def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False) -> Clock:
@@ -116,11 +122,13 @@ class Rig:
         self.bus = open_bus(self.url, self.setup, clock, baud_rate=protocol.device.servo.baud_rate)
         self.warnings = list(self.bus.warnings)
         self.reports: list[PlaybackReport] = []
+        # One user of the port at a time: the UI may test a pin while a timing check runs.
+        self._port = threading.RLock()
         self._released = False
         self._fd = getattr(self.bus.link.wire, "fd", None)
         self._isolate = self._fd is not None if isolate is None else isolate
         self._realtime = realtime
-        self.player = None
+        self.player: PlayerProcess | None = None
         try:
             self.bus.move_to_rest()
             if self._isolate:
@@ -149,6 +157,10 @@ class Rig:
         Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
         scheduled is returned, not raised (the session marks the trial invalid).
         """
+        with self._port:
+            return self._present(schedule)
+
+    def _present(self, schedule) -> Presentation:
         if self._released:
             # A fault released torque; the handshake turns it back on, checking every servo.
             self.bus.connect(self.setup)
@@ -190,6 +202,10 @@ class Rig:
         On the in-process simulator a player process is started just for the measurement:
         the question is whether this machine could play real servos in time.
         """
+        with self._port:
+            return self._check_timing(duration_ns, period_ns)
+
+    def _check_timing(self, duration_ns: int, period_ns: int) -> Verdict:
         from pinarray.player_process import PlayerProcess
 
         player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
@@ -206,10 +222,18 @@ class Rig:
         return judge(wake_ups, problem, bus, self.tolerance_ns)
 
     def telemetry(self) -> tuple[Telemetry, ...]:
-        return self.bus.read_telemetry(self.setup.servo_ids)
+        with self._port:
+            return self.bus.read_telemetry(self.setup.servo_ids)
 
     def close(self) -> SafeStopReport:
-        """Player process ended, pins to rest, torque off, port closed."""
+        """Player process ended, pins to rest, torque off, port closed.
+
+        Waits for a stimulus in progress: request a stop first to cut it short.
+        """
+        with self._port:
+            return self._close()
+
+    def _close(self) -> SafeStopReport:
         try:
             if self.player is not None:
                 self.player.close()

@@ -12,6 +12,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 from pinarray.clock import Clock
 from pinarray.protocol import Protocol
@@ -24,6 +25,7 @@ QUIT_REASON = "quit from the UI"
 # How long closing waits for a cut-short stimulus to rest its pins, in seconds.
 STOP_WAIT_S = 30.0
 
+T = TypeVar("T")
 RigFactory = Callable[[Protocol, "str | None", "str | None", Clock, StopRequest], Rig]
 
 
@@ -69,14 +71,14 @@ class Lab:
         self.clock: StoppableClock | None = None
         self.stop = StopRequest()
         self.session: Session | None = None
-        self._idle = threading.Event()
-        self._idle.set()
+        self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
+        self._jobs_done = threading.Condition()
 
     # -- hardware ---------------------------------------------------------------------------
 
     def connect(self, request: SessionRequest) -> Rig:
         """Open the bus and run the handshake (blocking: call it from a worker)."""
-        self.release()
+        self.release("connecting again")
         self.request = request
         self.stop.clear()
         base = self.clock_factory(request.port)
@@ -98,8 +100,18 @@ class Lab:
         request.protocol.device.grid.check_pin(pin)
         self._busy(lambda: rig.test_pin(pin))
 
-    def release(self):
-        """Pins to rest, torque off, port closed; the `SafeStopReport`, or None if not connected."""
+    def check_timing(self, duration_ns: int):
+        """This machine's timing verdict (blocking: call it from a worker); see `Rig.check_timing`."""
+        rig = self.connected()
+        return self._busy(lambda: rig.check_timing(duration_ns))
+
+    def release(self, reason: str = "left the pre-flight"):
+        """Stop what the hardware is doing, then pins to rest, torque off, port closed.
+
+        Returns the `SafeStopReport`, or None if nothing was connected. Safe from any thread.
+        """
+        self.stop.request(reason)
+        self._wait_for_jobs()
         rig, self.rig = self.rig, None
         return rig.close() if rig is not None else None
 
@@ -122,14 +134,21 @@ class Lab:
         assert self.session is not None
         self._busy(self.session.present)
 
-    def _busy(self, job: Callable[[], None]) -> None:
-        self._idle.clear()
+    def _busy(self, job: Callable[[], T]) -> T | None:
+        with self._jobs_done:
+            self._jobs += 1
         try:
-            job()
+            return job()
         except Stopped:
-            pass  # cut short: `finish` aborts the run, logging a trial that was playing
+            return None  # cut short: `finish` aborts the run, logging a trial that was playing
         finally:
-            self._idle.set()
+            with self._jobs_done:
+                self._jobs -= 1
+                self._jobs_done.notify_all()
+
+    def _wait_for_jobs(self) -> None:
+        with self._jobs_done:
+            self._jobs_done.wait_for(lambda: self._jobs == 0, STOP_WAIT_S)
 
     def finish(self, reason: str = QUIT_REASON):
         """End the sitting: cut a stimulus short, mark an unfinished run aborted, pins to rest.
@@ -138,8 +157,8 @@ class Lab:
         if nothing was connected).
         """
         self.stop.request(reason)
-        self._idle.wait(STOP_WAIT_S)
+        self._wait_for_jobs()
         session, self.session = self.session, None
         if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):
             session.abort(reason)
-        return self.release()
+        return self.release(reason)

@@ -95,10 +95,12 @@ class PreflightScreen(Screen):
     @work(thread=True, exclusive=True, group="timing")
     def _timing(self, duration_ns: int) -> None:
         try:
-            verdict = self.lab.connected().check_timing(duration_ns)
+            verdict = self.lab.check_timing(duration_ns)
         except (PinArrayError, AssertionError) as problem:  # not connected any more
             self.app.call_from_thread(self._timing_line, f"Timing: not checked ({problem})", True)
             return
+        if verdict is None:
+            return  # stopped: the screen is being left
         self.app.call_from_thread(self._timing_line, "Timing: " + "\n".join(verdict.lines),
                                   not verdict.deliverable)
 
@@ -186,6 +188,11 @@ class PreflightScreen(Screen):
 
     @on(Button.Pressed, "#back")
     def action_back(self) -> None:
-        self.workers.cancel_group(self, "hardware")
-        self.lab.release()  # pins to rest, torque off, before anything else is chosen
-        self.app.pop_screen()
+        self._status("Leaving: pins to rest, torque off…")
+        self._leave()
+
+    @work(thread=True, exclusive=True, group="leave")
+    def _leave(self) -> None:
+        # Stops a test pin or a timing check first, then pins to rest, torque off.
+        self.lab.release()
+        self.app.call_from_thread(self.app.pop_screen)

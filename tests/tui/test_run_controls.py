@@ -234,30 +234,31 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
     assert manifest(results).abort_reason == "quit from the UI"
 
 
-class RigLosingEveryPacketOnce(Rig):
-    """The real simulated rig, except that during its first stimulus the wire loses everything."""
+class RigLateOnce(Rig):
+    """The real simulated rig, except that its first stimulus must arrive within 1 ns: the
+    wire time alone makes every goal change late, so it is not delivered as scheduled."""
 
-    lossy = 1
+    strict = 1
 
     def present(self, schedule):
-        if not self.lossy:
+        if not self.strict:
             return super().present(schedule)
-        self.lossy -= 1
-        self.bus.sim.drop_rate = 1.0
+        self.strict -= 1
+        tolerance_ns, self.tolerance_ns = self.tolerance_ns, 1
         try:
             return super().present(schedule)
         finally:
-            self.bus.sim.drop_rate = 0.0
+            self.tolerance_ns = tolerance_ns
 
 
 async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_presented_again(results):
-    app = make_app(results, rig_factory=RigLosingEveryPacketOnce)
+    app = make_app(results, rig_factory=RigLateOnce)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         assert session.phase is Phase.FAULT
         shown = text(app, "#phase")
         assert "STIMULUS FAILED (logged invalid): the stimulus was not delivered as scheduled" in shown
-        assert "goal changes not confirmed on their servo" in shown
+        assert "reached their servo later than the tolerance of 1e-06 ms" in shown
         await pilot.press("t")
         await present(pilot)
         assert session.phase is Phase.RESPONSE
@@ -265,8 +266,8 @@ async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_pres
         await settle(pilot)
     failed, again = rows(results)
     assert (failed.status, again.status, failed.trial) == ("invalid", "ok", again.trial)
-    assert failed.goals_missing == failed.goals_scheduled > 0 and failed.goals_confirmed == 0
-    assert "not delivered as scheduled" in failed.status_reason
+    assert failed.goals_missing == 0 and failed.goals_confirmed == failed.goals_scheduled > 0
+    assert failed.delivery_lateness_s > 1e-9 and "not delivered as scheduled" in failed.status_reason
     assert again.goals_missing == 0 and again.goals_confirmed == again.goals_scheduled
 
 
