@@ -57,11 +57,18 @@ class StopRequest:
         self._event = threading.Event()
         self.reason = ""
         self.signal_number: int | None = None
+        self._callbacks: list[Callable[[], object]] = []
 
     def request(self, reason: str, signal_number: int | None = None) -> None:
         if not self._event.is_set():
             self.reason, self.signal_number = reason, signal_number
             self._event.set()
+            for callback in self._callbacks:
+                callback()
+
+    def when_requested(self, callback: Callable[[], object]) -> None:
+        """Also call ``callback`` (quick, signal-safe: e.g. wake a select loop) on a request."""
+        self._callbacks.append(callback)
 
     def clear(self) -> None:
         self._event.clear()

@@ -23,6 +23,8 @@ from pinarray.bus.registers import BROADCAST_ID, Instruction, checksum
 HEADER = b"\xff\xff"
 # The longest packet the servos' firmware (and the vendor SDK) handles, in bytes.
 MAX_PACKET_BYTES = 250
+# The servos never set bit 7 of a status packet's error byte (the vendor SDK's test too).
+MAX_ERROR_BYTE = 0x7F
 # A status packet with no parameters: FF FF id len error checksum.
 STATUS_OVERHEAD_BYTES = 6
 # FF FF id len instruction checksum, before the parameters.
@@ -140,9 +142,10 @@ class StatusReader:
             servo_id, length = buffer[2], buffer[3]
             if servo_id == 0xFF or servo_id == BROADCAST_ID or length < 2 or (
                 length - 2 > self.longest_params
-            ):
-                # FF FF FF ...: the first FF was noise; a broadcast id or a length that cannot
-                # be: not a status packet. Move one byte on and hunt again.
+            ) or (len(buffer) > 4 and buffer[4] > MAX_ERROR_BYTE):
+                # FF FF FF ...: the first FF was noise; a broadcast id, a length or an error
+                # byte that cannot be (the vendor SDK rejects the same): not a status packet.
+                # Move one byte on and hunt again.
                 self.skipped_bytes += 1
                 del buffer[0]
                 continue

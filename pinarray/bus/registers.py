@@ -149,8 +149,11 @@ class StatusError(IntFlag):
     OVERLOAD = 32
 
     def describe(self) -> str:
-        """Lower-case names joined by '+', or 'none'."""
+        """Lower-case names joined by '+' (bits with no name as hex), or 'none'."""
         names = [flag.name.lower() for flag in StatusError if flag in self and flag.name]
+        unnamed = int(self) & ~sum(StatusError)
+        if unnamed:
+            names.append(f"unknown bits 0x{unnamed:02X}")
         return "+".join(names) if names else "none"
 
 

@@ -8,6 +8,8 @@ is imported at module level and each handler imports what it needs when it runs,
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -51,7 +53,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("pinarray: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
-        return 0
+        # The reader went away (``pinarray play ... | head``): end as if by SIGPIPE, quietly.
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except OSError:
+            pass
+        return 128 + signal.SIGPIPE
 
 
 if __name__ == "__main__":

@@ -3,6 +3,7 @@
 import argparse
 
 from pinarray.bus.faults import SIM_DEFAULT
+from pinarray.cli.output import say
 from pinarray.protocol import BAUD_RATES
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
@@ -126,7 +127,6 @@ def add_bus_choice(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_play(args: argparse.Namespace) -> int:
-    import sys
 
     from pinarray.plan import make_plan
     from pinarray.player import PlaybackReport, describe
@@ -143,33 +143,32 @@ def _cmd_play(args: argparse.Namespace) -> int:
         rig = Rig(protocol, args.port, args.sim, clock, stop)
         try:
             for warning in rig.warnings:
-                print(f"pinarray: warning: {warning}", file=sys.stderr)
+                say(f"pinarray: warning: {warning}", error=True)
             where = "a player process" if rig.isolated else "this process"
-            print(f"{protocol.name}: {len(trials)} trial(s) on {rig.url}, played by {where} "
-                  f"(seed {plan.seed})")
+            say(f"{protocol.name}: {len(trials)} trial(s) on {rig.url}, played by {where} "
+                f"(seed {plan.seed})")
             undelivered = []
             for planned in trials:
                 presentation = rig.present(compile_trial(protocol, planned))
                 kind = "practice" if planned.practice else f"block {planned.block}"
-                print(f"trial {planned.trial} ({kind}): {rig.reports[-1].summary()}", flush=True)
+                say(f"trial {planned.trial} ({kind}): {rig.reports[-1].summary()}")
                 if not presentation.delivery.delivered:
                     undelivered.append(planned.trial)
         except BaseException:
-            print(f"pinarray: pins after the stop: {describe(rig.close())}", file=sys.stderr)
+            say(f"pinarray: pins after the stop: {describe(rig.close())}", error=True)
             raise
         safe = rig.close()
     total = PlaybackReport.merged(rig.reports)
-    print(f"played {len(rig.reports)} trial(s): {total.summary()}, {total.retries} retries; "
-          f"{describe(safe)}, torque off")
+    say(f"played {len(rig.reports)} trial(s): {total.summary()}, {total.retries} retries; "
+        f"{describe(safe)}, torque off")
     if undelivered:
-        print(f"pinarray: trial(s) {', '.join(map(str, undelivered))} NOT delivered as scheduled "
-              f"(see above)", file=sys.stderr)
+        say(f"pinarray: trial(s) {', '.join(map(str, undelivered))} NOT delivered as scheduled "
+            "(see above)", error=True)
         return EXIT_NOT_DELIVERED
     return 0
 
 
 def _cmd_timing(args: argparse.Namespace) -> int:
-    import sys
 
     from pinarray.errors import PinArrayError
     from pinarray.protocol.load import load_protocol, parse_protocol
@@ -183,11 +182,11 @@ def _cmd_timing(args: argparse.Namespace) -> int:
         rig = Rig(protocol, args.port, args.sim, choose_clock(args.port, None), stop)
         try:
             for warning in rig.warnings:
-                print(f"pinarray: warning: {warning}", file=sys.stderr)
+                say(f"pinarray: warning: {warning}", error=True)
             verdict = rig.check_timing(round(args.seconds * 1e9))
         finally:
             rig.close()
-    print("\n".join(verdict.lines))
+    say("\n".join(verdict.lines))
     return 0 if verdict.deliverable else EXIT_NOT_DELIVERED
 
 
@@ -228,12 +227,12 @@ def _cmd_scan(args: argparse.Namespace) -> int:
 
 
 def _cmd_sim_serve(args: argparse.Namespace) -> int:
-    import signal
     from pathlib import Path
 
     from pinarray.bus.faults import parse_sim_url
     from pinarray.bus.serve import PtyServer
     from pinarray.errors import PinArrayError
+    from pinarray.stop import StopRequest, stop_on_signals
 
     query = f"ids={args.ids}" + (f"&{args.faults.lstrip('?&')}" if args.faults else "")
     config = parse_sim_url(f"sim://?{query}")
@@ -241,28 +240,14 @@ def _cmd_sim_serve(args: argparse.Namespace) -> int:
     if arrivals is not None and not arrivals.parent.is_dir():
         raise PinArrayError(f"--arrivals {arrivals}: no folder {arrivals.parent}")
     server = PtyServer(config, record_arrivals=arrivals is not None)
-
-    def stop(signum, frame):
-        server.request_stop()
-
-    stopping = (signal.SIGTERM, signal.SIGINT, signal.SIGHUP)
-    previous = {signum: signal.signal(signum, stop) for signum in stopping}
-    _say(f"simulated servos {args.ids} on {server.path}  (Ctrl-C, SIGTERM or SIGHUP to stop)")
-    try:
+    with stop_on_signals(StopRequest()) as stop:
+        stop.when_requested(server.request_stop)
+        say(f"simulated servos {args.ids} on {server.path}  (Ctrl-C, SIGTERM or SIGHUP to stop)")
         server.serve_forever()
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
     if arrivals is not None:
         rows = server.write_arrivals(arrivals)
-        _say(f"{rows} instruction packet(s) logged to {arrivals}")
-    _say("sim-serve stopped")
+        say(f"{rows} instruction packet(s) logged to {arrivals}")
+    say("sim-serve stopped")
     return 0
 
 
-def _say(line: str) -> None:
-    """Print, unless the terminal is gone (SIGHUP closes it): stopping must still succeed."""
-    try:
-        print(line, flush=True)
-    except OSError:
-        pass

@@ -87,7 +87,7 @@ def test_a_sync_read_is_the_sdks_group_sync_read(ids):
 
 
 status_packets = st.builds(
-    StatusPacket, servo_id=st.integers(0, 253), error=st.integers(0, 255),
+    StatusPacket, servo_id=st.integers(0, 253), error=st.integers(0, 0x7F),
     params=st.binary(max_size=12),
 )
 
@@ -126,3 +126,9 @@ def test_a_half_received_packet_waits_for_the_rest_and_can_be_dropped():
     assert reader.pending_bytes == 5
     assert reader.clear() == 5
     assert reader.feed(packet[5:]) == []  # the tail alone is noise, never a packet
+
+
+def test_an_error_byte_with_bit_7_set_is_noise_as_the_vendor_sdk_has_it():
+    reader = StatusReader()
+    good = status_packet(5, 0, b"\x00\x08")
+    assert reader.feed(status_packet(5, 0x80, b"\x00\x08") + good) == [StatusPacket(5, 0, b"\x00\x08")]

@@ -57,3 +57,11 @@ def test_checksum_is_the_inverted_low_byte_of_the_sum():
 def test_error_bits_read_as_words():
     assert (StatusError.OVERLOAD | StatusError.VOLTAGE).describe() == "voltage+overload"
     assert StatusError(0).describe() == "none"
+
+
+def test_error_bits_without_a_name_are_reported_not_hidden():
+    from pinarray.bus.registers import StatusError
+
+    assert StatusError(32).describe() == "overload"
+    assert StatusError(32 | 16).describe() == "overload+unknown bits 0x10"
+    assert StatusError(0).describe() == "none"
