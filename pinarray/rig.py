@@ -19,9 +19,8 @@ from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, Virtu
 from pinarray.delivery import Presentation
 from pinarray.errors import BusError, PinArrayError
 from pinarray.player import (
-    GOAL_BYTES,
     GUARD_NS,
-    READ_REQUEST_BYTES,
+    REWRITE_REQUEST_BYTES,
     PlaybackReport,
     play_prepared,
     prepare_trial,
@@ -215,11 +214,27 @@ class Rig:
         finally:
             if player is not self.player:
                 player.close()
-        round_trip_ns = max((self.bus.reply_time_ns(i, READ_REQUEST_BYTES, GOAL_BYTES)
-                             for i in self.setup.servo_ids), default=0)
+        busiest = self._busiest_frame()
+        ids = self.setup.servo_ids[:busiest] or self.setup.servo_ids[:1]
+        heal_ns = (self.bus.read_goals_time_ns(ids)
+                   + self.bus.reply_time_ns(ids[0], REWRITE_REQUEST_BYTES, 0))
         timer_ms = None if self.bus.sim is not None else self.bus.link.latency.timer_ms
-        bus = TimingBus(self.url, round_trip_ns, timer_ms)
+        bus = TimingBus(self.url, busiest, heal_ns, timer_ms)
         return judge(wake_ups, problem, bus, self.tolerance_ns)
+
+    def _busiest_frame(self) -> int:
+        """The most goal changes one frame of this protocol's trials sends."""
+        from pinarray.plan import make_plan
+        from pinarray.schedule import compile_trial
+
+        seen, busiest = set(), 1
+        for planned in make_plan(self.protocol, 0).trials:
+            if planned.condition in seen:
+                continue
+            seen.add(planned.condition)
+            targets = compile_trial(self.protocol, planned).targets
+            busiest = max([busiest, *(len(frame.pins) for frame in targets.frames())])
+        return busiest
 
     def telemetry(self) -> tuple[Telemetry, ...]:
         with self._port:

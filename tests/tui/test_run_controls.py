@@ -279,7 +279,7 @@ async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(r
         await settle(pilot)
         shown = text(app, "#timing")
         assert shown.startswith("Timing: this machine: wake-up lateness p50")
-        assert "one read-back takes up to" in shown
+        assert "writing one again usually takes" in shown
         assert ("OK: stimuli can be delivered as scheduled" in shown
                 or "NOT OK: stimuli may be reported not delivered" in shown)
         await pilot.press("q")
