@@ -12,7 +12,7 @@ Pure bookkeeping: no I/O.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
+from enum import StrEnum
 
 NS_PER_MS = 1_000_000
 # A goal change must reach its servo within this of its scheduled time unless the protocol
@@ -20,11 +20,11 @@ NS_PER_MS = 1_000_000
 DEFAULT_TOLERANCE_NS = 10 * NS_PER_MS
 
 
-class Fate(IntEnum):
-    PENDING = 0
-    CONFIRMED = 1
-    HEALED = 2
-    MISSING = 3
+class Fate(StrEnum):
+    PENDING = "pending"
+    CONFIRMED = "confirmed"
+    HEALED = "healed"
+    MISSING = "missing"
 
 
 @dataclass(frozen=True)

@@ -61,7 +61,7 @@ class Handover:
     port_name: str
     baud_rate: int
     setup: BusSetup
-    return_delay_ns: dict[int, int]
+    return_delay_ns: tuple[tuple[int, int], ...]  # (servo id, ns)
     latency_timer_ms: int | None
     worst_latency_ns: int
     recent_latency_ns: tuple[int, ...]
@@ -73,7 +73,7 @@ class Handover:
         for latency_ns in self.recent_latency_ns:
             latency.record(latency_ns)
         link = Link(FdWire(fd, clock, self.port_name), clock, self.baud_rate, latency)
-        link.return_delay_ns.update(self.return_delay_ns)
+        link.return_delay_ns.update(dict(self.return_delay_ns))
         bus = FeetechBus(link, clock)
         bus.setup = self.setup
         bus.assume_goals({s.servo_id: s.rest_steps for s in self.setup.servos})
@@ -451,7 +451,8 @@ class FeetechBus:
         latency = self.link.latency
         return Handover(
             port_name=self.port_name, baud_rate=self.link.baud_rate, setup=self.setup,
-            return_delay_ns=dict(self.link.return_delay_ns), latency_timer_ms=latency.timer_ms,
+            return_delay_ns=tuple(self.link.return_delay_ns.items()),
+            latency_timer_ms=latency.timer_ms,
             worst_latency_ns=latency.worst_seen_ns, recent_latency_ns=tuple(latency.recent_ns),
         )
 

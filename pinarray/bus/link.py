@@ -263,11 +263,14 @@ class Latency:
         self.worst_seen_ns = 0
         self.samples = 0
         self.recent_ns: deque[int] = deque(maxlen=self.RECENT)
+        self._p90_ns = 0
 
     def record(self, latency_ns: int) -> None:
         self.samples += 1
         self.worst_seen_ns = max(self.worst_seen_ns, latency_ns)
         self.recent_ns.append(latency_ns)
+        ordered = sorted(self.recent_ns)  # here, not in the slack before a read-back
+        self._p90_ns = ordered[min(len(ordered) - 1, 9 * len(ordered) // 10)]
 
     def _known_ns(self) -> int:
         if self.timer_ms is not None:
@@ -286,9 +289,7 @@ class Latency:
         """How long past the wire and return-delay time a read-back should plan to wait."""
         if self.timer_ms is None and len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
             return self.allowance_ns
-        ordered = sorted(self.recent_ns)
-        p90 = ordered[min(len(ordered) - 1, 9 * len(ordered) // 10)] if ordered else 0
-        return max(self._known_ns(), 2 * p90)
+        return max(self._known_ns(), 2 * self._p90_ns)
 
 
 class Link:
@@ -389,9 +390,11 @@ class Link:
                     continue
                 replies[status.servo_id] = status
         if replies and len(replies) == len(wanted):
+            # The adapter's part of the exchange: what it took beyond the wire and the servos'
+            # return delays.
             used_ns = self.clock.now_ns() - start_ns
-            self.latency.record(max(0, used_ns - self.reply_time_ns(len(packet), expected)
-                                    + self.latency.allowance_ns))
+            wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
+            self.latency.record(max(0, used_ns - wire_and_delays_ns))
         return replies
 
     def close(self) -> None:

@@ -22,7 +22,7 @@ import sys
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -147,6 +147,7 @@ class Sample:
     bytes_read: int = 0
     goal_bytes: int = 0
     not_delivered: int = 0
+    problems: list[str] = field(default_factory=list)
 
     def add(self, lateness: np.ndarray) -> None:
         self.lateness_ns.append(lateness)
@@ -162,24 +163,28 @@ def measure(rate_hz: int, realtime: bool, folder: Path, redraw=None) -> tuple[Sa
     targets = wave(rate_hz, SECONDS / CHUNKS)
     for _ in range(CHUNKS):
         receiver = Receiver(folder)
-        bus = open_bus(receiver.path, _setup(), MonotonicClock())
-        player = PlayerProcess(bus, bus.link.wire.fd, StopRequest(), realtime=realtime)
         try:
-            trial = prepare_trial(bus, targets)
-            reference_onset = run_reference(receiver.path, trial, realtime, folder)
-            report = (redraw or (lambda call: call()))(
-                lambda player=player, trial=trial: player.play(trial, tolerance_ns=TOLERANCE_NS))
+            bus = open_bus(receiver.path, _setup(), MonotonicClock())
+            player = PlayerProcess(bus, bus.link.wire.fd, StopRequest(), realtime=realtime)
+            try:
+                trial = prepare_trial(bus, targets)
+                reference_onset = run_reference(receiver.path, trial, realtime, folder)
+                report = (redraw or (lambda call: call()))(
+                    lambda player=player, trial=trial: player.play(trial, tolerance_ns=TOLERANCE_NS))
+            finally:
+                player.close()
+                bus.rest_and_release()
+                bus.close()
         finally:
-            player.close()
-            bus.rest_and_release()
-            bus.close()
-        arrivals = receiver.arrivals()
+            arrivals = receiver.arrivals()  # stops the receiver whatever happened
         reference.add(frame_lateness_ns(arrivals, reference_onset, trial))
         ours.add(frame_lateness_ns(arrivals, report.onset_ns, trial))
         ours.bytes_written += report.bytes_written
         ours.bytes_read += report.bytes_read
         ours.goal_bytes += sum(len(f.packet) for f in trial.frames)
-        ours.not_delivered += not report.delivery.delivered
+        if not report.delivery.delivered:
+            ours.not_delivered += 1
+            ours.problems.append(report.delivery.problem)
     return reference, ours
 
 
@@ -217,7 +222,14 @@ def receiver_side_lateness(folder: Path) -> dict:
             label = "real-time priority" if realtime else "normal priority"
             print(_table_row(label, rate, reference, ours), flush=True)
             results[(realtime, rate)] = (reference, ours)
+    _reasons(results.values())
     return results
+
+
+def _reasons(samples) -> None:
+    problems = [p for _, ours in samples for p in ours.problems]
+    for problem in problems[:5]:
+        print(f"  not delivered: {problem}")
 
 
 class Redrawing:
@@ -241,7 +253,8 @@ class Redrawing:
 
             def _redraw(self):
                 lifted = frozenset(random.sample(IDS, 4))
-                self.query_one(PinGrid).show(lifted=lifted, active=lifted)
+                for grid in self.query(PinGrid):  # none while the app tears down
+                    grid.show(lifted=lifted, active=lifted)
 
         async def drive():
             app = Busy()
@@ -256,12 +269,15 @@ def tui_redrawing(folder: Path, quiet: dict) -> None:
     print("\nthe same with the experimenter UI redrawing the pin grid in the parent process "
           "(real-time priority); change against the quiet run above")
     print(HEADER + "  player p99 change")
+    samples = []
     for rate in RATES:
         reference, ours = measure(rate, True, folder, redraw=Redrawing())
+        samples.append((reference, ours))
         _, quiet_ours = quiet[(True, rate)]
         change = (np.percentile(ours.pooled(), 99) / np.percentile(quiet_ours.pooled(), 99) - 1)
         print(_table_row("UI redrawing", rate, reference, ours) + f"  {change * 100:+6.1f} %",
               flush=True)
+    _reasons(samples)
 
 
 def verification_bytes(results: dict) -> None:
@@ -282,7 +298,11 @@ def noticing_a_dead_player(folder: Path, tries: int = 10) -> None:
     noticed = []
     for attempt in range(tries):
         receiver = Receiver(folder)
-        bus = open_bus(receiver.path, _setup(), MonotonicClock())
+        try:
+            bus = open_bus(receiver.path, _setup(), MonotonicClock())
+        except BaseException:
+            receiver.arrivals()
+            raise
         player = PlayerProcess(bus, bus.link.wire.fd, StopRequest())
         trial = prepare_trial(bus, wave(100, 10))
         killed_at = []
@@ -299,7 +319,7 @@ def noticing_a_dead_player(folder: Path, tries: int = 10) -> None:
         finally:
             player.close()
             bus.close()
-            receiver.arrivals()
+            receiver.arrivals()  # stops the receiver
     from pinarray.player_process import WATCH_S
 
     times = sorted(noticed)
