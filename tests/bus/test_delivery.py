@@ -137,3 +137,42 @@ def test_the_verdict_counts_every_change_once():
     record = ledger.record()
     assert (record.scheduled, record.confirmed, record.healed, record.missing) == (5, 1, 1, 3)
     assert record.worst_lateness_ns == 1 * MS
+
+
+def test_a_pin_whose_last_change_was_never_confirmed_is_sent_back_to_rest():
+    # The trial's final "down" of pin 3 is lost, and the bus says nothing for longer than the
+    # player's read-backs go on after the trial: the verdict is "not delivered", and the pin
+    # is sent to rest (and confirmed there) anyway.
+    bus = sim_bus()
+    schedule = pulse_train([3], 5, 2)
+    last_frame_ns = int(schedule.time_ns[-1])
+    receive = bus.sim.receive
+    deaf = {}
+
+    def deaf_after_the_last_frame(data, at_ns):
+        if data[4] == 0x83 and "from" not in deaf and at_ns - bus.clock.now_ns() < 10**6:
+            frames = deaf.setdefault("frames", 0) + 1
+            deaf["frames"] = frames
+            if frames == len(set(schedule.time_ns.tolist())):  # the last frame: lose it...
+                deaf["from"] = at_ns  # ...and everything for the next 700 ms
+        if "from" in deaf and at_ns < deaf["from"] + 700 * MS:
+            return []
+        return receive(data, at_ns)
+
+    bus.sim.receive = deaf_after_the_last_frame
+    report = play_trial(bus, schedule, bus.clock, release_at_end=False)
+    assert not report.delivery.delivered and report.delivery.missing >= 1
+    assert last_frame_ns > 0 and "from" in deaf
+    servo = bus.sim.servos[3]
+    bus.clock.sleep_until_ns(bus.clock.now_ns() + 300 * MS)
+    assert servo.goal_steps == REST_STEPS and servo.torque_enabled  # at rest, still holding
+
+
+def test_servos_that_never_answer_a_sync_read_are_read_back_one_by_one():
+    bus = sim_bus()
+    receive = bus.sim.receive
+    bus.sim.receive = lambda data, at_ns: [] if data[4] == 0x82 else receive(data, at_ns)
+    first = play_trial(bus, pulse_train([1, 2, 3], 5, 2), bus.clock, release_at_end=False)
+    second = play_trial(bus, pulse_train([1, 2, 3], 5, 2), bus.clock)
+    assert second.delivery.delivered and second.delivery.missing == 0
+    assert first.delivery.scheduled == second.delivery.scheduled

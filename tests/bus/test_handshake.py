@@ -47,3 +47,14 @@ def test_the_driver_refuses_to_write_eeprom():
 def test_a_sim_url_with_an_unknown_key_is_a_user_error():
     with pytest.raises(PinArrayError, match="unknown key"):
         sim_bus("dorp=0.1")
+
+
+def test_angle_limits_that_would_clamp_a_calibrated_stroke_are_refused_at_connect():
+    bus = sim_bus(connect=False)
+    bus.sim.servos[3].table[11:13] = (2070).to_bytes(2, "little")  # MAX_ANGLE_LIMIT
+    with pytest.raises(BusError) as caught:
+        bus.connect(device_setup())
+    message = str(caught.value)
+    assert "pin 3 (servo 3)" in message and "MAX_ANGLE_LIMIT 2070" in message
+    assert "calibrated stroke 1900..2300" in message
+    assert not any(s.torque_enabled for s in bus.sim.servos.values())

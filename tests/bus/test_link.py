@@ -166,3 +166,32 @@ def test_one_slow_reply_at_connect_does_not_stop_read_backs_from_being_planned()
         latency.record(150_000)
     assert latency.allowance_ns == 120 * MS  # waiting for a reply stays patient...
     assert latency.expected_ns == 1 * MS  # ...but a read-back plans for the usual 0.15 ms
+
+
+def test_a_device_that_goes_away_is_told_from_a_quiet_one():
+    import os
+
+    from pinarray.bus.link import FdWire
+
+    read_end, write_end = os.pipe()
+    os.set_blocking(read_end, False)
+    wire = FdWire(read_end, __import__("pinarray.clock").clock.MonotonicClock(), "a pipe")
+    assert wire.read_some(wire.clock.now_ns() + 1_000_000) == b""  # quiet: nothing yet
+    os.close(write_end)  # the other end is gone: reads return nothing, and it is no tty
+    with pytest.raises(WireLost, match="the device is gone"):
+        wire.read_some(wire.clock.now_ns() + 1_000_000)
+    wire.close()
+
+
+def test_a_port_lost_mid_stop_still_broadcasts_torque_off():
+    class ReadsFail(ScriptedWire):
+        def read_some(self, deadline_ns):
+            raise WireLost(5, "read failed: Input/output error")
+
+    clock = VirtualClock()
+    wire = ReadsFail(clock, lambda packet: [])
+    bus = FeetechBus(Link(wire, clock, 1_000_000, Latency(1)), clock)
+    bus.setup = BusSetup((ServoSetup(4, 4, 2048, 1900, 2300),))
+    report = bus.rest_and_release()
+    assert report.port_lost
+    assert wire.requests[-1] == packets.write(0xFE, Register.TORQUE_ENABLE.address, b"\x00")
