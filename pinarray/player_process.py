@@ -285,7 +285,8 @@ class PlayerProcess:
         if self.stop.requested or stop_signal in STOP_SIGNALS:
             # Asked to stop, or stopped by a signal meant for both (pkill, systemd): a stop.
             number = self.stop.signal_number or stop_signal
-            raise Stopped(self.stop.reason or f"stopped by {signal_name(number)}", number)
+            reason = self.stop.reason or (f"stopped by {signal_name(number)}" if number else "stopped")
+            raise Stopped(reason, number)
         self._errors.seek(0)
         last_words = self._errors.read().decode(errors="replace").strip().splitlines()[-1:]
         how = (f"killed by signal {-status}" if status < 0 else f"exit status {status}")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from pinarray.bus import packets
 from pinarray.bus.base import (
@@ -39,6 +40,9 @@ from pinarray.bus.registers import (
 from pinarray.clock import Clock
 from pinarray.errors import BusError
 from pinarray.stop import deferred_signals
+
+if TYPE_CHECKING:
+    from pinarray.bus.sim import SimBus
 
 REST_TOLERANCE_STEPS = 4
 # Present position .. moving flag, read in one instruction while waiting for pins to settle.
@@ -101,7 +105,7 @@ class FeetechBus:
         self.retries = retries
         self.setup = BusSetup(servos=())
         self.warnings: list[str] = []
-        self.sim = None  # the `SimBus` behind a simulated port; for tests and benchmarks
+        self.sim: SimBus | None = None  # behind a simulated port; for tests and benchmarks
         self._last_goals: dict[int, int] = {}
         self._sync_read_works = True
         self._sync_reads_unanswered = 0
