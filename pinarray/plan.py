@@ -13,13 +13,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Condition, Design, Ordering, Protocol
+from pinarray.protocol import Condition, Ordering, Protocol
 
 if TYPE_CHECKING:
     import numpy as np
 
-# numpy is imported where a plan is drawn, not here: `pinarray validate` checks designs with
-# `ordering_problem` and must start without it.
+# numpy is imported where a plan is drawn, not here: modules that only name `PlannedTrial`
+# or `TrialPlan` stay light.
 
 SEARCH_BUDGET_STEPS = 200_000
 
@@ -69,40 +69,6 @@ class TrialPlan:
 
 def _value(condition: Condition, attribute: str):
     return getattr(condition, attribute)
-
-
-def _max_count_problem(counts: Counter, limit: int, attribute: str, size: int) -> str | None:
-    value, count = counts.most_common(1)[0]
-    # `count` equal values need `count / limit` runs separated by at least one other trial.
-    if count > limit * (size - count + 1):
-        others = size - count
-        return (
-            f"impossible order constraint: {attribute} {value} appears {count} times among "
-            f"{size} trials, but with runs of at most {limit} the other {others} trials can "
-            f"separate at most {limit * (others + 1)}"
-        )
-    return None
-
-
-def ordering_problem(design: Design) -> str | None:
-    """Why the design's constraints cannot be met, or None. Checked at validation, never a hang."""
-    limits = design.constraints.limits()
-    if not limits:
-        return None
-    if design.ordering in (Ordering.SEQUENTIAL, Ordering.LATIN_SQUARE):
-        return (
-            f"order constraints ({', '.join(limits)}) need a random order; "
-            f"'{design.ordering.value}' fixes the order itself"
-        )
-    pool = list(design.conditions) * design.repetitions
-    if design.ordering is Ordering.FULL_RANDOM:
-        pool = pool * design.blocks
-    for attribute, limit in limits.items():
-        counts = Counter(_value(c, attribute) for c in pool)
-        problem = _max_count_problem(counts, limit, attribute, len(pool))
-        if problem:
-            return problem
-    return None
 
 
 def _feasible(
