@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import IO
+
 import numpy as np
 
 from pinarray.plan import PlannedTrial
@@ -55,15 +57,13 @@ def text_timeline(
 
 
 def draw_timeline(
-    protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, path: str
+    protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, stream: IO[bytes]
 ) -> None:
-    """The commanded position of each active pin over time, as a PNG."""
+    """The commanded position of each active pin over time, as PNG bytes written to ``stream``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from pinarray.errors import PinArrayError
 
     pins = schedule.active_pins
     fig, axes = plt.subplots(
@@ -81,8 +81,6 @@ def draw_timeline(
     fig.suptitle(describe_trial(planned))
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
-    except OSError as problem:
-        raise PinArrayError(f"{path}: cannot write the picture: {problem.strerror}") from None
+        fig.savefig(stream, format="png", dpi=110)
     finally:
         plt.close(fig)

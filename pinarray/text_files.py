@@ -85,25 +85,25 @@ def decode_text(data: bytes) -> str:
             break
     body = data[start:]
     if encoding == "utf-8" and b"\0" in body:
-        line, col = _position(body, body.index(b"\0"))
+        line, col = position_of(body, body.index(b"\0"))
         raise NotText(
             "expected UTF-8 text, found a NUL byte (a binary file, or UTF-16 without a "
             "byte-order mark? save it as UTF-8)", line, col)
     try:
         text = body.decode(encoding)
     except UnicodeDecodeError as problem:
-        line, col = _position(body, problem.start, encoding)
+        line, col = position_of(body, problem.start, encoding)
         raise NotText(
             f"expected {encoding.upper().removesuffix('-LE').removesuffix('-BE')} text, found "
             f"byte 0x{body[problem.start]:02x} (save the file as UTF-8)", line, col) from None
     if "\0" in text:
-        line, col = _position(text.encode("utf-8"), text.encode("utf-8").index(b"\0"))
+        line, col = position_of(text.encode("utf-8"), text.encode("utf-8").index(b"\0"))
         raise NotText("expected text, found a NUL character", line, col)
     # What universal newlines would give: CRLF and lone CR both end a line.
     return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
-def _position(data: bytes, offset: int, encoding: str = "utf-8") -> tuple[int, int]:
+def position_of(data: bytes, offset: int, encoding: str = "utf-8") -> tuple[int, int]:
     """1-based (line, column) of byte ``offset``, counting characters as an editor does."""
     prefix = data[:offset].decode(encoding, errors="replace")
     prefix = prefix.replace("\r\n", "\n").replace("\r", "\n")

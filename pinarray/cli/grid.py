@@ -4,25 +4,17 @@ from __future__ import annotations
 
 import argparse
 
+from pinarray.cli import common
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("grid", help="print the pin numbering and the localisation error classes")
-    p.add_argument("--rows", type=_grid_size, default=4)
-    p.add_argument("--columns", type=_grid_size, default=4)
-    p.add_argument("--pitch-mm", type=float, default=2.0)
+    p.add_argument("--rows", type=common.count(1, 64), default=4)
+    p.add_argument("--columns", type=common.count(1, 64), default=4)
+    p.add_argument("--pitch-mm", type=common.number(0, 100, above_minimum=True), default=2.0)
     p.add_argument("--pin", type=int, default=10, help="stimulated pin to classify around")
     p.add_argument("--table", action="store_true", help="also print the full class table")
     p.set_defaults(func=_cmd_grid)
-
-
-def _grid_size(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
-    if not 1 <= value <= 64:
-        raise argparse.ArgumentTypeError(f"expected a number from 1 to 64, found {value}")
-    return value
 
 
 def _cmd_grid(args: argparse.Namespace) -> int:

@@ -127,8 +127,7 @@ def read_design(
 
 def _check_size(reader: Reader, node: Node, design: Design, slots: Sequence[int]) -> None:
     """The plan fits `MAX_TRIALS` and its pulses `MAX_PULSES` (each trial was checked alone)."""
-    per_block = len(design.conditions) * design.repetitions
-    trials = per_block * design.blocks + design.practice_trials
+    trials = design.trial_count
     if trials > MAX_TRIALS:
         raise reader.error(
             node,
