@@ -52,14 +52,14 @@ class AnswersError(PinArrayError):
 
 def parse_answers(text: str, source: str) -> tuple[Answer, ...]:
     """The rows of a sheet's ``text`` (already decoded); `AnswersError` lists what is wrong."""
-    lines = text.split("\n")  # decoded text ends its lines with \n only
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")
     first = next((i for i, line in enumerate(lines) if line.strip()), None)
     if first is None:
         raise AnswersError(source, [(0, "expected a header row naming the columns trial and "
                                         "response, found an empty file")])
     header = lines[first]
     for delimiter in DELIMITERS:
-        names = [name.strip().lower() for name in _cells(header, delimiter)]
+        names = [name.strip().lower() for name in _cells(header, delimiter) or []]
         if "trial" in names and "response" in names:
             break
     else:
@@ -71,10 +71,15 @@ def parse_answers(text: str, source: str) -> tuple[Answer, ...]:
     problems: list[tuple[int, str]] = []
     first_line: dict[int, int] = {}
     for index in range(first + 1, len(lines)):
-        cells = [cell.strip() for cell in _cells(lines[index], delimiter)]
+        line = index + 1
+        row = _cells(lines[index], delimiter)
+        if row is None:
+            problems.append((line, f"expected cells separated by {delimiter!r}, found "
+                                   f"{_shown(lines[index])}"))
+            continue
+        cells = [cell.strip() for cell in row]
         if not any(cells):
             continue  # a blank row, as spreadsheets leave them
-        line = index + 1
         written = cells[trial_at] if trial_at < len(cells) else ""
         if not _WHOLE.fullmatch(written):
             problems.append((line, f"expected a trial number, found {_shown(written)}"))
@@ -140,7 +145,7 @@ def load_answers(path: str, protocols: Sequence[Protocol]) -> dict[int, str]:
     from pinarray.text_files import NotText, decode_text, read_bounded
 
     try:
-        text = decode_text(read_bounded(path, MAX_ANSWERS_BYTES, "answers"))
+        text = decode_text(read_bounded(path, MAX_ANSWERS_BYTES, "responses"))
     except NotText as problem:
         raise AnswersError(path, [(problem.line, problem.message)]) from None
     answers = parse_answers(text, path)
@@ -150,8 +155,12 @@ def load_answers(path: str, protocols: Sequence[Protocol]) -> dict[int, str]:
     return by_trial
 
 
-def _cells(line: str, delimiter: str) -> list[str]:
-    return next(csv.reader(io.StringIO(line), delimiter=delimiter), [])
+def _cells(line: str, delimiter: str) -> list[str] | None:
+    """The cells of one line, or None when the csv module cannot read it (a NUL, say)."""
+    try:
+        return next(csv.reader(io.StringIO(line), delimiter=delimiter), [])
+    except csv.Error:
+        return None
 
 
 def _shown(text: str) -> str:

@@ -13,11 +13,11 @@ from pinarray.schedule import TrialSchedule
 
 def describe_trial(planned: PlannedTrial) -> str:
     c = planned.condition
-    what = (
-        f"{c.direction.value} wave on row {c.row}"
-        if c.direction
-        else f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
-    )
+    if c.direction is not None:
+        what = f"{c.direction.value} wave on row {c.row}"
+    else:
+        assert c.frequency_hz is not None  # a localisation condition has its frequency
+        what = f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 

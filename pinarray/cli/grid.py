@@ -6,6 +6,9 @@ import argparse
 
 from pinarray.cli import common
 
+# The class table has a row and a column per pin: 32x32 pins print a million cells.
+MAX_TABLE_PINS = 1024
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("grid", help="print the pin numbering and the localisation error classes")
@@ -18,10 +21,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_grid(args: argparse.Namespace) -> int:
+    from pinarray.errors import PinArrayError
     from pinarray.grid import ERROR_CLASS_MEANING, Grid, render_class_map, render_layout
 
     grid = Grid(args.rows, args.columns, args.pitch_mm)
     grid.check_pin(args.pin)
+    if args.table and grid.pin_count > MAX_TABLE_PINS:
+        raise PinArrayError(
+            f"--table: expected a grid of at most {MAX_TABLE_PINS} pins (a table of "
+            f"{MAX_TABLE_PINS ** 2:,} cells), found {grid.pin_count}; use --pin for one pin's map"
+        )
     print(
         f"Pin grid {grid.rows}x{grid.columns}, {grid.pitch_mm:g} mm pitch, as the subject feels it:"
     )

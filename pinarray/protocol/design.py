@@ -104,8 +104,10 @@ def read_design(
     practice = reader.optional(
         keys, "practice_trials", lambda n: reader.integer(n, "practice trials", 0, 100), 0
     )
-    if read is None:
-        raise Invalid("conditions")  # their problems are already recorded
+    if read is None or not read[0]:
+        # Their problems are already recorded (a design lists at least one pin and frequency,
+        # or configuration, so none left means every one was wrong).
+        raise Invalid("conditions")
     conditions, slots = read
     design = Design(
         paradigm,
@@ -234,7 +236,7 @@ def _constraints(reader: Reader, node: Node) -> Constraints:
 def ordering_problem(design: Design) -> str | None:
     """Why the design's constraints cannot be met, or None. Counts only: never a hang."""
     limits = design.constraints.limits()
-    if not limits:
+    if not limits or not design.conditions:
         return None
     if design.ordering in (Ordering.SEQUENTIAL, Ordering.LATIN_SQUARE):
         return (

@@ -222,6 +222,10 @@ def _wave(
                 keys["pins"],
                 f"expected the row's pins left to right without repeats, found {list(pins)}",
             )
+    if len(pins) < 2:
+        raise reader.error(
+            keys["row"], f"expected a row of at least 2 pins for a wave, found {len(pins)}"
+        )
     if kind is WaveKind.NONE and len(pins) % 2 == 0:
         raise reader.error(
             keys.get("pins", keys["row"]),

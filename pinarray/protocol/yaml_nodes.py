@@ -347,7 +347,7 @@ def _compose(events: Iterator[yaml.Event]) -> Node | None:
     for event in events:
         if isinstance(event, yaml.DocumentStartEvent) and root is not None:
             raise yaml.composer.ComposerError(
-                "expected a single document", None, "found a second one", event.start_mark)
+                None, None, "expected a single document, found a second one", event.start_mark)
         if isinstance(event, yaml.AliasEvent):
             aliases += 1
             if aliases > MAX_ALIASES:
