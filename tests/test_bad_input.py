@@ -24,7 +24,8 @@ from pinarray.errors import PinArrayError
 from pinarray.plan import make_plan
 from pinarray.protocol.design import MAX_PULSES, MAX_PULSES_PER_TRIAL, MAX_TRIALS
 from pinarray.protocol.load import MAX_PROTOCOL_BYTES, parse_protocol, validate_file
-from pinarray.protocol.yaml_nodes import MAX_ALIASES, MAX_DEPTH, MAX_PROBLEMS
+from pinarray.protocol.yaml_nodes import MAX_PROBLEMS
+from pinarray.protocol.yaml_tree import MAX_ALIASES, MAX_DEPTH
 from pinarray.schedule import compile_trial
 from tests.strategies import alias_bomb, protocol_files
 from tests.test_protocol_load import MINIMAL, problems

@@ -33,6 +33,9 @@ from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 MAX_TRIALS = 20_000
 MAX_PULSES_PER_TRIAL = 1_000_000
 MAX_PULSES = 10_000_000
+# Ordering under constraints weighs every distinct condition at each trial placed: trials x
+# conditions is the work, about 0.2 us each here (a few seconds at most).
+MAX_SHUFFLE_WORK = 20_000_000
 CONDITION_ATTRIBUTES = ("pin", "frequency_hz", "stimulus", "direction")
 DESIGN_KEYS = {
     "paradigm",
@@ -242,6 +245,13 @@ def ordering_problem(design: Design) -> str | None:
         return (
             f"order constraints ({', '.join(limits)}) need a random order; "
             f"'{design.ordering.value}' fixes the order itself"
+        )
+    main_trials = len(design.conditions) * design.repetitions * design.blocks
+    if main_trials * len(design.conditions) > MAX_SHUFFLE_WORK:
+        return (
+            f"expected order constraints over at most {MAX_SHUFFLE_WORK:,} trials x conditions "
+            f"(the work of ordering them), found {main_trials:,} trials x "
+            f"{len(design.conditions):,} conditions; constrain fewer conditions or trials"
         )
     # Trials shuffled together: one block's, or every block's with full_random.
     copies = design.repetitions * (design.blocks if design.ordering is Ordering.FULL_RANDOM else 1)

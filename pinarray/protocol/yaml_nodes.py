@@ -1,15 +1,13 @@
 """Reading YAML with positions: every value comes with the file:line:col it was written at.
 
-`yaml.safe_load` forgets where things were; we build the node tree ourselves from the parser's
-events and convert scalars ourselves, so each problem is reported at the key or value that
-caused it, and all problems of a file are collected in one pass.
+`yaml.safe_load` forgets where things were; we keep the node tree (`yaml_tree`) and convert
+scalars ourselves, so each problem is reported at the key or value that caused it, and all
+problems of a file are collected in one pass.
 
-Every cost is bounded by the size of the text, whatever it holds: nesting is at most
-`MAX_DEPTH` deep (libyaml's own composer recurses in C and crashes the interpreter on a few
-thousand ``[``), at most `MAX_ALIASES` aliases are followed and an anchor cannot be used
-inside itself, numbers are at most `MAX_NUMBER_CHARS` characters with a decimal exponent
-within `MAX_EXPONENT` (``1e999999999`` would otherwise build a billion-digit integer before
-any range check), and at most `MAX_PROBLEMS` problems are listed.
+Every cost is bounded by the size of the text, whatever it holds: the tree is bounded in
+depth and aliases (`yaml_tree`), numbers are at most `MAX_NUMBER_CHARS` characters with a
+decimal exponent within `MAX_EXPONENT` (``1e999999999`` would otherwise build a
+billion-digit integer before any range check), and at most `MAX_PROBLEMS` problems are listed.
 """
 
 from __future__ import annotations
@@ -26,9 +24,8 @@ import yaml
 from yaml import MappingNode, Node, ScalarNode, SequenceNode
 
 from pinarray.errors import ProtocolError, ProtocolErrors
+from pinarray.protocol.yaml_tree import compose_tree
 
-MAX_DEPTH = 32
-MAX_ALIASES = 100
 MAX_NUMBER_CHARS = 40
 MAX_EXPONENT = 100
 MAX_PROBLEMS = 100
@@ -48,7 +45,6 @@ for _resolvers in yaml.resolver.Resolver.yaml_implicit_resolvers.values():
 _NOT_PRINTABLE = re.compile("[^\t\n\r\x20-\x7e\x85\xa0-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
 _RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)")
-_Parser = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml's parser when installed
 
 
 class Invalid(Exception):
@@ -124,7 +120,7 @@ class Reader:
             self._fail(f"expected text, found the control character U+{ord(bad[0]):04X}",
                        line, col)
         try:
-            root = _compose(yaml.parse(text, Loader=_Parser))
+            root = compose_tree(text)
         except yaml.MarkedYAMLError as problem:
             mark = problem.problem_mark or problem.context_mark
             what = " ".join(str(problem.problem or problem.context or "malformed YAML").split())
@@ -321,69 +317,6 @@ def _exact(text: str, value: Any) -> Fraction | None:
     if isinstance(value, float):
         return Fraction(repr(value))  # sexagesimal: the shortest decimal that reads back
     return None
-
-
-def _compose(events: Iterator[yaml.Event]) -> Node | None:
-    """The tree of one YAML document, built without recursion (depth-checked as it goes)."""
-    resolver = yaml.resolver.Resolver()
-    anchors: dict[str, Node] = {}
-    aliases = 0
-    root: Node | None = None
-    stack: list[tuple[Node, str | None, list]] = []  # (collection, its anchor, its pending key)
-
-    def place(node: Node) -> None:
-        nonlocal root
-        if not stack:
-            root = node
-            return
-        collection, _, pending = stack[-1]
-        if isinstance(collection, SequenceNode):
-            collection.value.append(node)
-        elif pending:
-            collection.value.append((pending.pop(), node))
-        else:
-            pending.append(node)
-
-    for event in events:
-        if isinstance(event, yaml.DocumentStartEvent) and root is not None:
-            raise yaml.composer.ComposerError(
-                None, None, "expected a single document, found a second one", event.start_mark)
-        if isinstance(event, yaml.AliasEvent):
-            aliases += 1
-            if aliases > MAX_ALIASES:
-                raise yaml.composer.ComposerError(
-                    None, None, f"more than {MAX_ALIASES} aliases", event.start_mark)
-            if event.anchor not in anchors:
-                raise yaml.composer.ComposerError(
-                    None, None, f"alias *{event.anchor} names no finished anchor",
-                    event.start_mark)
-            place(anchors[event.anchor])
-        elif isinstance(event, yaml.ScalarEvent):
-            tag = event.tag
-            if tag is None or tag == "!":
-                tag = resolver.resolve(ScalarNode, event.value, event.implicit)
-            node = ScalarNode(tag, event.value, event.start_mark, event.end_mark, event.style)
-            if event.anchor is not None:
-                anchors[event.anchor] = node
-            place(node)
-        elif isinstance(event, yaml.SequenceStartEvent | yaml.MappingStartEvent):
-            if len(stack) >= MAX_DEPTH:
-                raise yaml.composer.ComposerError(
-                    None, None, f"more than {MAX_DEPTH} levels of nesting", event.start_mark)
-            kind = SequenceNode if isinstance(event, yaml.SequenceStartEvent) else MappingNode
-            tag = event.tag
-            if tag is None or tag == "!":
-                tag = resolver.resolve(kind, None, event.implicit)
-            stack.append((kind(tag, [], event.start_mark, None, event.flow_style),
-                          event.anchor, []))
-        elif isinstance(event, yaml.SequenceEndEvent | yaml.MappingEndEvent):
-            collection, anchor, _ = stack.pop()
-            collection.end_mark = event.end_mark
-            # Registered once finished: an anchor used inside itself is an undefined alias.
-            if anchor is not None:
-                anchors[anchor] = collection
-            place(collection)
-    return root
 
 
 def _short_tag(tag: str) -> str:
