@@ -9,9 +9,15 @@ it refuses with a traceback (a negative ``--seed``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import os
+import stat
+import sys
 from collections.abc import Callable
 from typing import IO
+
+from pinarray.errors import PinArrayError
 
 MAX_SEED = 2**63 - 1  # what a plan and numpy's generators accept
 # A simulator slower than 1/100 of real time, or faster than 10 000 times, helps nobody;
@@ -127,14 +133,7 @@ class OutputFile:
     """
 
     def __init__(self, path: str, binary: bool = False) -> None:
-        import os
-        import secrets
-        import stat
-        import sys
-
-        from pinarray.errors import PinArrayError
-
-        self.path, self.temporary = path, None
+        self.path, self.final, self.temporary = path, path, None
         if path == "-" and not binary:
             self.stream: IO = sys.stdout
             return
@@ -148,9 +147,11 @@ class OutputFile:
             raise PinArrayError(f"{path}: cannot write: it is a folder, expected a file name")
         target = path
         if stat.S_ISREG(mode):
-            folder, name = os.path.split(path)
+            # Beside the file a symbolic link points to: the rename replaces that file.
+            self.final = os.path.realpath(path)
+            folder, name = os.path.split(self.final)
             target = self.temporary = os.path.join(
-                folder, f".{name}.{os.getpid()}-{secrets.token_hex(4)}.part")
+                folder, f".{name}.{os.getpid()}-{os.urandom(4).hex()}.part")
         try:
             # Created 0666 less the umask, as an ordinary file would be (not mkstemp's 0600).
             flags = os.O_WRONLY | (os.O_CREAT | os.O_EXCL if self.temporary else os.O_TRUNC)
@@ -163,8 +164,6 @@ class OutputFile:
 
     def flush(self) -> None:
         """Push everything written so far to the file (a full device fails here)."""
-        from pinarray.errors import PinArrayError
-
         try:
             self.stream.flush()
         except OSError as problem:
@@ -173,18 +172,13 @@ class OutputFile:
 
     def commit(self) -> None:
         """Finish the file: flush it and put it in place."""
-        import os
-        import sys
-
-        from pinarray.errors import PinArrayError
-
         try:
             if self.stream is sys.stdout:
                 self.stream.flush()
                 return
             self.stream.close()
             if self.temporary:
-                os.replace(self.temporary, self.path)
+                os.replace(self.temporary, self.final)
                 self.temporary = None
         except OSError as problem:
             self.discard()
@@ -192,10 +186,6 @@ class OutputFile:
 
     def discard(self) -> None:
         """Give the file up: nothing of it is left (a device keeps what it was sent)."""
-        import contextlib
-        import os
-        import sys
-
         if self.stream is not sys.stdout:
             with contextlib.suppress(OSError):  # already failing: the write's error is the one to say
                 self.stream.close()

@@ -18,7 +18,7 @@ import re
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from fractions import Fraction
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import yaml
 from yaml import MappingNode, Node, ScalarNode, SequenceNode
@@ -132,7 +132,7 @@ class Reader:
             self._fail("expected a protocol, found an empty file")
         return root
 
-    def _fail(self, message: str, line: int = 0, col: int = 0):
+    def _fail(self, message: str, line: int = 0, col: int = 0) -> NoReturn:
         raise ProtocolErrors([ProtocolError(message, self.source, line, col)])
 
     def mapping(
