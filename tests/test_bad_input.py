@@ -291,3 +291,23 @@ def test_broken_pins_are_no_repeated_pins():
     lines = problems(textwrap.dedent(MINIMAL).replace("pins: [1, 2]", "pins: [1, x, y]"))
     assert lines == ["p.yaml:9:13: expected a whole number for a pin number, found 'x'",
                      "p.yaml:9:16: expected a whole number for a pin number, found 'y'"]
+
+
+def test_a_design_whose_every_pin_is_wrong_is_no_index_error_in_the_ordering_check():
+    text = MINIMAL.replace("pins: [1, 2]", "pins: [{a: 1}, 17]").replace(
+        "frequencies_hz: [5]", "frequencies_hz: [5]\n  constraints: {no_repeat: [pin]}")
+    assert problems(text) == ["p.yaml:9:10: expected a single value, found a mapping",
+                              "p.yaml:9:18: expected a pin from 1 to 16 on the 4x4 grid, found 17"]
+
+
+def test_a_wave_on_a_row_of_one_pin_is_refused():
+    text = """\
+    protocol: m
+    device: {grid: {rows: 4, columns: 1}}
+    stimuli:
+      tap: {frequency_hz: 5, duration_s: 0.4}
+      still: {wave: none, row: 1, train: tap}
+    design: {paradigm: apparent_motion, configurations: [still]}
+    """
+    (line,) = problems(text)
+    assert line == "p.yaml:5:28: expected a row of at least 2 pins for a wave, found 1"
