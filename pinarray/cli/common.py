@@ -35,7 +35,7 @@ def _whole(text: str) -> int:
 
 def _real(text: str) -> float:
     try:
-        return float(text)
+        return float(text) + 0.0  # -0.0 becomes 0.0, which numpy's generators accept as a scale
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, found {_short(text)}") from None
 
