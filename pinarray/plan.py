@@ -13,13 +13,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Condition, Design, Ordering, Protocol
+from pinarray.protocol import Condition, Ordering, Protocol
+from pinarray.protocol.design import MAX_SHUFFLE_WORK
 
 if TYPE_CHECKING:
     import numpy as np
 
-# numpy is imported where a plan is drawn, not here: `pinarray validate` checks designs with
-# `ordering_problem` and must start without it.
+# numpy is imported where a plan is drawn, not here: modules that only name `PlannedTrial`
+# or `TrialPlan` stay light.
 
 SEARCH_BUDGET_STEPS = 200_000
 
@@ -71,52 +72,47 @@ def _value(condition: Condition, attribute: str):
     return getattr(condition, attribute)
 
 
-def _max_count_problem(counts: Counter, limit: int, attribute: str, size: int) -> str | None:
-    value, count = counts.most_common(1)[0]
-    # `count` equal values need `count / limit` runs separated by at least one other trial.
-    if count > limit * (size - count + 1):
-        others = size - count
-        return (
-            f"impossible order constraint: {attribute} {value} appears {count} times among "
-            f"{size} trials, but with runs of at most {limit} the other {others} trials can "
-            f"separate at most {limit * (others + 1)}"
-        )
-    return None
+class _Pool:
+    """The trials still to place, as counts of each distinct condition, with every constrained
+    attribute's value coded as an integer: a search step costs a few array operations, not a
+    pass over Python objects, whatever the number of conditions."""
+
+    def __init__(self, items: list[Condition], limits: dict[str, int]) -> None:
+        import numpy as np
+
+        counts = Counter(items)
+        self.conditions = list(counts)  # in order of first appearance, as Counter keeps them
+        self.remaining = np.array([counts[c] for c in self.conditions], dtype=np.int64)
+        # Candidates are offered in this fixed order (a condition's key is unique to it).
+        self.order = np.array(sorted(range(len(self.conditions)),
+                                     key=lambda i: repr(self.conditions[i].key)), dtype=np.int64)
+        # Codes numbered in order of first appearance, so the first of equally frequent values
+        # is the one a Counter would name first.
+        self.codes: dict[str, dict[object, int]] = {}
+        self.coded: dict[str, np.ndarray] = {}
+        for attribute in limits:
+            codes = self.codes[attribute] = {}
+            self.coded[attribute] = np.array(
+                [codes.setdefault(_value(c, attribute), len(codes)) for c in self.conditions],
+                dtype=np.int64,
+            )
+
+    def code(self, attribute: str, value: object) -> int:
+        return self.codes[attribute].get(value, -1)
 
 
-def ordering_problem(design: Design) -> str | None:
-    """Why the design's constraints cannot be met, or None. Checked at validation, never a hang."""
-    limits = design.constraints.limits()
-    if not limits:
-        return None
-    if design.ordering in (Ordering.SEQUENTIAL, Ordering.LATIN_SQUARE):
-        return (
-            f"order constraints ({', '.join(limits)}) need a random order; "
-            f"'{design.ordering.value}' fixes the order itself"
-        )
-    pool = list(design.conditions) * design.repetitions
-    if design.ordering is Ordering.FULL_RANDOM:
-        pool = pool * design.blocks
-    for attribute, limit in limits.items():
-        counts = Counter(_value(c, attribute) for c in pool)
-        problem = _max_count_problem(counts, limit, attribute, len(pool))
-        if problem:
-            return problem
-    return None
+def _feasible(pool: _Pool, limits: dict[str, int], runs: dict[str, tuple[int, int]]) -> bool:
+    """Whether the trials left can still be ordered: no value outnumbers what can separate it."""
+    import numpy as np
 
-
-def _feasible(
-    remaining: Counter, limits: dict[str, int], runs: dict[str, tuple[object, int]]
-) -> bool:
-    size = sum(remaining.values())
+    size = int(pool.remaining.sum())
     if not size:
         return True
     for attribute, limit in limits.items():
-        counts: Counter = Counter()
-        for condition, n in remaining.items():
-            counts[_value(condition, attribute)] += n
-        value, count = counts.most_common(1)[0]
-        last, run = runs.get(attribute, (None, 0))
+        counts = np.bincount(pool.coded[attribute], weights=pool.remaining)
+        value = int(np.argmax(counts))  # the first of the most frequent
+        count = int(counts[value])
+        last, run = runs.get(attribute, (-1, 0))
         head = limit - run if value == last else limit
         if count > head + limit * (size - count):
             return False
@@ -134,48 +130,51 @@ def constrained_shuffle(
     Depth-first search over random choices, pruned by a counting bound, with a step budget so
     a pathological case ends in an error rather than a hang.
     """
-    import numpy as np
 
     if not limits:
         order = list(items)
         rng.shuffle(order)
         return order
-    remaining = Counter(items)
-    runs = dict(runs or {})
+    pool = _Pool(items, limits)
+    remaining = pool.remaining
+    # A step weighs every distinct condition: with many of them, fewer steps make the budget
+    # (never fewer than twice the trials, which a search without dead ends takes).
+    budget = min(SEARCH_BUDGET_STEPS,
+                 max(2 * len(items), MAX_SHUFFLE_WORK // len(pool.conditions)))
+    start = {attribute: (pool.code(attribute, value), run)
+             for attribute, (value, run) in (runs or {}).items() if attribute in limits}
     # A stack of (candidates still to try at this depth, runs before the choice).
-    path: list[Condition] = []
-    stack: list[tuple[list[Condition], dict]] = []
+    path: list[int] = []
+    stack: list[tuple[list[int], dict[str, tuple[int, int]]]] = []
 
-    def candidates() -> list[Condition]:
-        keys = [c for c in remaining if remaining[c] > 0]
-        keys.sort(key=lambda c: repr(c.key))
-        weights = np.array([remaining[c] for c in keys], dtype=float)
+    def candidates() -> list[int]:
+        keys = pool.order[remaining[pool.order] > 0]
+        weights = remaining[keys].astype(float)
         order = rng.choice(len(keys), size=len(keys), replace=False, p=weights / weights.sum())
-        return [keys[i] for i in order]
+        return keys[order].tolist()
 
-    stack.append((candidates(), dict(runs)))
+    stack.append((candidates(), start))
     steps = 0
     while len(path) < len(items):
         steps += 1
-        if steps > SEARCH_BUDGET_STEPS:
+        if steps > budget:
             raise PinArrayError(
                 f"could not order {len(items)} trials under the constraints {limits} within "
-                f"{SEARCH_BUDGET_STEPS} search steps; relax no_repeat/max_run"
+                f"{budget} search steps; relax no_repeat/max_run"
             )
         options, runs_before = stack[-1]
         if not options:
             stack.pop()
             if not path:
                 raise PinArrayError(f"no order of the trials satisfies the constraints {limits}")
-            undone = path.pop()
-            remaining[undone] += 1
+            remaining[path.pop()] += 1
             continue
         choice = options.pop()
         new_runs = {}
         allowed = True
         for attribute, limit in limits.items():
-            value = _value(choice, attribute)
-            last, run = runs_before.get(attribute, (None, 0))
+            value = int(pool.coded[attribute][choice])
+            last, run = runs_before.get(attribute, (-1, 0))
             run = run + 1 if value == last else 1
             if run > limit:
                 allowed = False
@@ -184,12 +183,12 @@ def constrained_shuffle(
         if not allowed:
             continue
         remaining[choice] -= 1
-        if not _feasible(remaining, limits, new_runs):
+        if not _feasible(pool, limits, new_runs):
             remaining[choice] += 1
             continue
         path.append(choice)
         stack.append((candidates() if len(path) < len(items) else [], new_runs))
-    return path
+    return [pool.conditions[i] for i in path]
 
 
 def _runs_after(sequence: list[Condition], limits: dict[str, int]) -> dict[str, tuple[object, int]]:
@@ -207,6 +206,19 @@ def williams_square(n: int) -> list[list[int]]:
 
     For odd ``n`` the mirrored rows are appended, giving 2n rows.
     """
+    return [williams_row(n, r) for r in range(williams_rows(n))]
+
+
+def williams_rows(n: int) -> int:
+    """How many rows the Williams square of ``n`` conditions has."""
+    return 2 * n if n % 2 else n
+
+
+def williams_row(n: int, r: int) -> list[int]:
+    """Row ``r`` of the Williams square of ``n`` conditions, without building the square (a
+    plan of thousands of conditions needs a few rows of it, not millions of cells)."""
+    if r >= n:
+        return williams_row(n, r - n)[::-1]  # the mirrored half of an odd square
     first = [0]
     low, high = 1, n - 1
     for i in range(1, n):
@@ -216,10 +228,7 @@ def williams_square(n: int) -> list[list[int]]:
         else:
             first.append(high)
             high -= 1
-    rows = [[(x + r) % n for x in first] for r in range(n)]
-    if n % 2:
-        rows += [row[::-1] for row in rows]
-    return rows
+    return [(x + r) % n for x in first]
 
 
 def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
@@ -238,10 +247,10 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     if design.ordering is Ordering.SEQUENTIAL:
         blocks = [conditions * design.repetitions for _ in range(design.blocks)]
     elif design.ordering is Ordering.LATIN_SQUARE:
-        square = williams_square(len(conditions))
-        offset = int(rng.integers(len(square)))
+        rows = williams_rows(len(conditions))
+        offset = int(rng.integers(rows))
         for b in range(design.blocks):
-            row = square[(offset + b) % len(square)]
+            row = williams_row(len(conditions), (offset + b) % rows)
             blocks.append([conditions[i] for i in row] * design.repetitions)
     elif design.ordering is Ordering.FULL_RANDOM:
         pooled = constrained_shuffle(conditions * design.repetitions * design.blocks, limits, rng)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import IO
+
 import numpy as np
 
 from pinarray.plan import PlannedTrial
@@ -11,11 +13,11 @@ from pinarray.schedule import TrialSchedule
 
 def describe_trial(planned: PlannedTrial) -> str:
     c = planned.condition
-    what = (
-        f"{c.direction.value} wave on row {c.row}"
-        if c.direction
-        else f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
-    )
+    if c.direction is not None:
+        what = f"{c.direction.value} wave on row {c.row}"
+    else:
+        assert c.frequency_hz is not None  # a localisation condition has its frequency
+        what = f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 
@@ -55,15 +57,13 @@ def text_timeline(
 
 
 def draw_timeline(
-    protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, path: str
+    protocol: Protocol, planned: PlannedTrial, schedule: TrialSchedule, stream: IO[bytes]
 ) -> None:
-    """The commanded position of each active pin over time, as a PNG."""
+    """The commanded position of each active pin over time, as PNG bytes written to ``stream``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from pinarray.errors import PinArrayError
 
     pins = schedule.active_pins
     fig, axes = plt.subplots(
@@ -81,8 +81,6 @@ def draw_timeline(
     fig.suptitle(describe_trial(planned))
     fig.tight_layout()
     try:
-        fig.savefig(path, dpi=110)
-    except OSError as problem:
-        raise PinArrayError(f"{path}: cannot write the picture: {problem.strerror}") from None
+        fig.savefig(stream, format="png", dpi=110)
     finally:
         plt.close(fig)

@@ -18,6 +18,7 @@ A run that was killed resumes with --resume: exactly the remaining trials, in pl
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
+    from pinarray.cli import common  # here, not at the top: the cli package imports this module
     p = subparsers.add_parser(
         "batch", help="run sessions without a UI (scripted answers or a simulated observer)",
         epilog=BATCH_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -30,8 +31,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     answers = p.add_mutually_exclusive_group(required=True)
     answers.add_argument("--responses", metavar="CSV", help="answers by trial number")
     answers.add_argument("--observer", metavar="MODEL", help="a simulated subject ('default' or overrides)")
-    p.add_argument("--seed", type=int, help="plan seed (default: the protocol's, else a new one)")
-    p.add_argument("--time-scale", type=float, metavar="X",
+    p.add_argument("--seed", type=common.seed, help="plan seed (default: the protocol's, else a new one)")
+    p.add_argument("--time-scale", type=common.time_scale, metavar="X",
                    help="simulator only: 0 or absent = virtual time, X > 0 = real time sped up X times")
     p.add_argument("--results", default="results", metavar="DIR", help="results folder (default results/)")
     p.add_argument("--resume", action="store_true", help="continue the subject's unfinished run")
@@ -47,7 +48,11 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     subject = check_label("subject", args.subject)
     session = check_label("session", args.session)
     protocols = [load_protocol(path) for path in args.files]  # every file checked before any runs
-    responses = _read_responses(args.responses) if args.responses else None
+    responses = None
+    if args.responses:  # every answer checked against every protocol before any run starts
+        from pinarray.answers import load_answers
+
+        responses = load_answers(args.responses, protocols)
     for protocol in protocols:
         try:
             run_batch(protocol, args, subject, session, responses)
@@ -55,28 +60,6 @@ def _cmd_batch(args: argparse.Namespace) -> int:
             print(f"pinarray: {failed}", file=sys.stderr)
             return EXIT_NOT_DELIVERED
     return 0
-
-
-def _read_responses(path: str) -> dict[int, str]:
-    import csv
-
-    from pinarray.errors import PinArrayError
-
-    try:
-        with open(path, newline="", encoding="utf-8") as stream:
-            reader = csv.DictReader(stream)
-            if reader.fieldnames is None or not {"trial", "response"} <= set(reader.fieldnames):
-                raise PinArrayError(f"{path}:1: expected the columns trial,response, found {reader.fieldnames}")
-            answers: dict[int, str] = {}
-            for line, row in enumerate(reader, start=2):
-                try:
-                    trial = int(row["trial"])
-                except (TypeError, ValueError):
-                    raise PinArrayError(f"{path}:{line}: expected a trial number, found {row['trial']!r}") from None
-                answers[trial] = (row["response"] or "").strip()
-            return answers
-    except OSError as problem:
-        raise PinArrayError(f"{path}: cannot read the responses: {problem.strerror}") from None
 
 
 # How many times batch presents a trial whose stimulus failed before it gives up.

@@ -95,3 +95,35 @@ def test_a_compile_that_fails_removes_its_half_made_npz(tmp_path, capsys):
     assert main(argv) == 2
     assert "cannot write" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_full_device_is_one_line_and_status_2(capsys):
+    assert main(["compile", str(PROTOCOLS / "demo.yaml"), "--out", "/dev/full"]) == 2
+    assert capsys.readouterr().err == "pinarray: /dev/full: cannot write: No space left on device\n"
+
+
+def test_a_failed_compile_leaves_the_earlier_outputs_as_they_were(tmp_path, capsys):
+    pulses, targets = tmp_path / "p.csv", tmp_path / "t.npz"
+    pulses.write_text("yesterday's pulses\n")
+    argv = ["compile", str(PROTOCOLS / "demo.yaml"), "--out", str(pulses), "--targets"]
+    assert main([*argv, "/dev/full"]) == 2
+    assert main([*argv, str(tmp_path)]) == 2  # a folder
+    assert "it is a folder, expected a file name" in capsys.readouterr().err
+    assert pulses.read_text() == "yesterday's pulses\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv"]  # no temporary file left
+    assert main([*argv, str(targets)]) == 0
+    assert pulses.read_text().startswith("trial,pin,start_ns,width_ns\n") and targets.exists()
+
+
+def test_outputs_get_the_modes_of_ordinary_files(tmp_path):
+    out, ordinary = tmp_path / "p.csv", tmp_path / "ordinary"
+    ordinary.write_text("")
+    assert main(["compile", str(PROTOCOLS / "demo.yaml"), "--out", str(out)]) == 0
+    assert out.stat().st_mode == ordinary.stat().st_mode
+
+
+def test_preview_says_where_the_png_really_went(tmp_path, capsys):
+    name = tmp_path / "timeline"
+    assert main(["preview", str(PROTOCOLS / "demo.yaml"), "--png", str(name)]) == 0
+    assert capsys.readouterr().out.endswith(f"timeline drawn to {name}.png\n")
+    assert (tmp_path / "timeline.png").read_bytes()[:4] == b"\x89PNG" and not name.exists()

@@ -6,6 +6,13 @@ trial with status ok), is *incomplete*; incomplete runs are listed and left out 
 caller asks for them. A run with no manifest at all (a file handed over on its own) cannot
 be judged and is counted, with a note. Within a run a trial finished twice (two ``ok`` rows
 for one trial number, as two processes writing one run leave) counts once: the first row.
+
+Files are not trusted to be what their names say. A ``beh.tsv`` that is not a results table
+(binary, another encoding, a wrong header, a row that does not parse) is *damaged*: it is
+named with the line and the reason, and the analysis stops unless asked to go on without
+it. One that was cut short is not damaged but incomplete: a torn last row is left out and
+said, and a run whose manifest says ``completed`` while planned trials have no finished row
+is left out like any unfinished run, with the trials that are missing.
 """
 
 from __future__ import annotations
@@ -17,9 +24,35 @@ from pathlib import Path
 
 from pinarray.errors import ResultsError
 from pinarray.manifest import RunPaths, read_manifest
-from pinarray.results import TrialRecord, read_trials
+from pinarray.results import (
+    BEH_COLUMNS,
+    TrialRecord,
+    beh_header,
+    read_trials,
+    remaining_plan,
+    split_torn_tail,
+)
+from pinarray.text_files import NotText, position_of, read_bounded
 
 BEH_PATTERN = "*_beh.tsv"
+# 20 000 trials (a plan's most) of a few hundred bytes each, many times over.
+MAX_RESULTS_BYTES = 256 << 20
+
+
+class DamagedResults(ResultsError):
+    """Results files that are not results tables: one ``FILE[:LINE]: why`` line each."""
+
+    def __init__(self, damaged: Sequence[DamagedRun]):
+        self.damaged = tuple(damaged)
+        super().__init__("\n".join(d.reason for d in self.damaged))
+
+
+@dataclass(frozen=True)
+class DamagedRun:
+    """A ``beh.tsv`` that could not be read, and why (``FILE[:LINE[:COL]]: reason``)."""
+
+    source: Path
+    reason: str
 
 
 class ManifestState(StrEnum):
@@ -48,7 +81,9 @@ class LoadedRun:
 
     ``status`` is the manifest's own word (``completed``, ``aborted``...) or the
     `ManifestState` text when there is none to read; ``duplicates`` are the trial numbers
-    that had more than one ``ok`` row (only the first is kept in ``records``).
+    that had more than one ``ok`` row (only the first is kept in ``records``); ``torn`` is
+    the text of a last row cut short by an interrupted write (left out); ``unfinished`` the
+    planned trials with no finished row.
     """
 
     paths: RunPaths
@@ -57,6 +92,8 @@ class LoadedRun:
     status: str
     records: tuple[TrialRecord, ...]
     duplicates: tuple[int, ...] = ()
+    torn: str = ""
+    unfinished: tuple[int, ...] = ()
 
     @property
     def label(self) -> str:
@@ -75,6 +112,11 @@ class LoadedRun:
             return f"manifest says {self.status}"
         if self.state is ManifestState.UNREADABLE:
             return f"manifest unreadable ({self.status})"
+        if self.state is ManifestState.COMPLETED and self.unfinished:
+            shown = ", ".join(map(str, self.unfinished[:10]))
+            more = " ..." if len(self.unfinished) > 10 else ""
+            return (f"manifest says completed, but trial(s) {shown}{more} have no finished row "
+                    "(the file was cut short?)")
         if not self.counted:
             return "no counted trials"
         return None
@@ -143,24 +185,73 @@ def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], li
 
 
 def load_run(beh: Path) -> LoadedRun:
-    """One run: its whole rows (torn last row left out) and its manifest's verdict."""
-    paths = RunPaths.from_file(beh)
-    records, duplicates = first_ok_rows(read_trials(beh))
+    """One run: its whole rows (torn last row left out) and its manifest's verdict.
+
+    Raises `DamagedResults` for a file that is not a results table.
+    """
+    try:
+        paths = RunPaths.from_file(beh)
+        torn = _check_table(beh)
+        all_records = read_trials(beh)
+    except NotText as problem:
+        where = f":{problem.line}:{problem.col}" if problem.line else ""
+        raise DamagedResults([DamagedRun(beh, f"{beh}{where}: {problem.message}")]) from None
+    except (ResultsError, ValueError) as problem:  # ValueError: a csv.Error or a decode error
+        reason = " ".join(str(problem).split())
+        if not reason.startswith(str(beh)):
+            reason = f"{beh}: {reason}"
+        raise DamagedResults([DamagedRun(beh, reason)]) from None
+    records, duplicates = first_ok_rows(all_records)
+    unfinished: tuple[int, ...] = ()
     if not paths.manifest.exists():
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
     else:
         try:
-            status = read_manifest(paths.manifest).status
+            manifest = read_manifest(paths.manifest)
+            status = manifest.status
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
-        except ResultsError as problem:
-            state, status = ManifestState.UNREADABLE, str(problem)
-    return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates))
+            unfinished = tuple(int(e["trial"]) for e in remaining_plan(manifest.plan, records))
+        except (ResultsError, UnicodeDecodeError) as problem:
+            state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
+    return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
+                     unfinished)
+
+
+def _check_table(beh: Path) -> str:
+    """`NotText` unless ``beh`` is UTF-8 text of a readable size; the torn last row's text."""
+    data = read_bounded(beh, MAX_RESULTS_BYTES, "results")
+    body = data.rstrip(b"\0")  # zeros after a power cut belong to the torn tail
+    if b"\0" in body:
+        raise NotText("expected a tab-separated results table, found a NUL byte (a binary "
+                      "file?)", *position_of(body, body.index(b"\0")))
+    try:
+        body.decode("utf-8")
+    except UnicodeDecodeError as problem:
+        raise NotText(f"expected UTF-8 text, found byte 0x{body[problem.start]:02x}",
+                      *position_of(body, problem.start)) from None
+    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(BEH_COLUMNS))
+    return torn.decode("utf-8", errors="replace")
+
+
+def scan_runs(paths: Iterable[Path | str]) -> tuple[list[LoadedRun], list[DamagedRun]]:
+    """Every run under ``paths`` that can be read, and every results file that cannot."""
+    runs: list[LoadedRun] = []
+    damaged: list[DamagedRun] = []
+    for beh in find_beh_files(paths):
+        try:
+            runs.append(load_run(beh))
+        except DamagedResults as problem:
+            damaged.extend(problem.damaged)
+    return runs, damaged
 
 
 def load_runs(paths: Iterable[Path | str]) -> list[LoadedRun]:
-    """Every run under ``paths``, sorted by file."""
-    return [load_run(beh) for beh in find_beh_files(paths)]
+    """Every run under ``paths``, sorted by file; `DamagedResults` names every damaged file."""
+    runs, damaged = scan_runs(paths)
+    if damaged:
+        raise DamagedResults(damaged)
+    return runs
 
 
 def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> RunSelection:

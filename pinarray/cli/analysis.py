@@ -3,28 +3,13 @@
 
 import argparse
 
+from pinarray.cli import common
 
-def _whole(minimum: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"expected a number >= {minimum}, found {value}")
-        return value
-    return parse
-
-
-def _numbers(text: str) -> list[int]:
-    try:
-        values = [int(item) for item in text.split(",") if item.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected comma-separated whole numbers, found {text!r}") from None
-    if not values:
-        raise argparse.ArgumentTypeError(f"expected at least one number, found {text!r}")
-    return values
+# The bootstrap draws resamples x subjects indices at once: 100 000 x 100 subjects is 80 MB.
+MAX_RESAMPLES = 100_000
+# A power study simulates studies x subjects whole sessions for each number of subjects.
+MAX_STUDIES, MAX_SUBJECTS, MAX_SUBJECT_COUNTS = 10_000, 1000, 20
+MAX_PINS = 64 * 64  # the largest grid a protocol may describe
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -46,14 +31,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="folder for the tables, figures and summary (default: analysis)")
     parser.add_argument("--include-incomplete", action="store_true",
                         help="also count runs whose manifest says running, aborted or crashed")
+    parser.add_argument("--skip-damaged", action="store_true",
+                        help="go on without results files that cannot be read (each is named "
+                        "with the reason); by default they stop the analysis")
     parser.add_argument("--interval", choices=("t", "bootstrap"), default="t",
                         help="across-subject interval drawn in figures (tables hold both; "
                         "default: t)")
-    parser.add_argument("--bootstrap-seed", type=_whole(0), default=None, metavar="N",
+    parser.add_argument("--bootstrap-seed", type=common.seed, default=None, metavar="N",
                         help="seed of the subject bootstrap (default: 20240501; recorded)")
-    parser.add_argument("--bootstrap-resamples", type=_whole(100), default=None, metavar="N",
-                        help="bootstrap resamples (default: 10000)")
-    parser.add_argument("--answer-pins", type=_numbers, default=None, metavar="LIST",
+    parser.add_argument("--bootstrap-resamples", type=common.count(100, MAX_RESAMPLES), default=None,
+                        metavar="N", help="bootstrap resamples (default: 10000)")
+    parser.add_argument("--answer-pins", type=common.counts(1, MAX_PINS, MAX_PINS), default=None,
+                        metavar="LIST",
                         help="pins a subject could name, e.g. 1,4,6,7 (default: every pin of "
                         "the grid); sets the chance levels")
     parser.set_defaults(func=_cmd_analyse)
@@ -70,11 +59,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     power.add_argument("--observer", default="default", metavar="MODEL",
                        help="the simulated population ('default' or name=value overrides, "
                        "e.g. subject_sd_logit=1)")
-    power.add_argument("--subjects", type=_numbers, default=[4, 6, 8, 12, 16, 24], metavar="LIST",
+    power.add_argument("--subjects", type=common.counts(2, MAX_SUBJECTS, MAX_SUBJECT_COUNTS),
+                       default=[4, 6, 8, 12, 16, 24], metavar="LIST",
                        help="numbers of subjects to try (default: 4,6,8,12,16,24)")
-    power.add_argument("--studies", type=_whole(10), default=400, metavar="N",
+    power.add_argument("--studies", type=common.count(10, MAX_STUDIES), default=400, metavar="N",
                        help="simulated studies per number of subjects (default: 400)")
-    power.add_argument("--seed", type=_whole(0), default=1, metavar="N",
+    power.add_argument("--seed", type=common.seed, default=1, metavar="N",
                        help="seed of the simulation (default: 1; recorded)")
     power.add_argument("--out", default="power", metavar="DIR",
                        help="folder for power.csv and the figure (default: power)")
@@ -82,9 +72,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_analyse(args: argparse.Namespace) -> int:
+    import sys
     from pathlib import Path
 
-    from pinarray.analysis.load import load_runs, select_runs
+    from pinarray.analysis.load import scan_runs, select_runs
     from pinarray.analysis.report import measure_text, run_lines, write_report
     from pinarray.analysis.study import study
     from pinarray.analysis.subjects import (
@@ -102,7 +93,16 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         bootstrap_resamples=DEFAULT_BOOTSTRAP_RESAMPLES if args.bootstrap_resamples is None
         else args.bootstrap_resamples,
     )
-    runs = select_runs(load_runs(args.results), args.include_incomplete)
+    loaded, damaged = scan_runs(args.results)
+    reasons = [d.reason for d in damaged]
+    if damaged and not args.skip_damaged:
+        raise ResultsError("\n".join([*reasons, f"{len(damaged)} damaged results file(s); "
+                                      "--skip-damaged analyses the rest without them"]))
+    for reason in reasons:
+        print(f"pinarray: {reason} (skipped)", file=sys.stderr)
+    if not loaded:
+        raise ResultsError("no results left to analyse: every results file found is damaged")
+    runs = select_runs(loaded, args.include_incomplete)
     result = study(runs, settings, args.answer_pins)
     try:
         report = write_report(result, Path(args.out))
@@ -114,6 +114,10 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
           "(main trials with status ok)")
     for line in run_lines(runs):
         print(f"  {line}")
+    for run in loaded:
+        if run.torn:
+            print(f"  {run.source}: its last row was cut short by an interrupted write and is "
+                  f"left out ({len(run.torn)} characters)")
     level = result.subject_level
     method = settings.method
     if level.localisation:

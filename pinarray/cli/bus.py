@@ -64,6 +64,7 @@ Example: pinarray sim-serve --ids 1-16 --faults 'drop_writes=0.1&late=0.05&seed=
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``play``, ``scan`` and ``sim-serve`` to the `pinarray` parser."""
+    from pinarray.cli import common  # here, not at the top: the cli package imports this module
     p = subparsers.add_parser(
         "play",
         help="play a protocol's trials on real or simulated servos",
@@ -74,10 +75,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--trial", type=int, metavar="N", help="play only trial N of the plan")
     add_bus_choice(p)
     p.add_argument(
-        "--time-scale", type=float, default=None, metavar="X",
+        "--time-scale", type=common.time_scale, default=None, metavar="X",
         help="simulator only: 0 = virtual time (default), X > 0 = real time sped up X times",
     )
-    p.add_argument("--seed", type=int, default=None, help="seed of the trial order")
+    p.add_argument("--seed", type=common.seed, default=None, help="seed of the trial order")
     p.set_defaults(func=_cmd_play)
 
     p = subparsers.add_parser(

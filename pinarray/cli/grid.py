@@ -4,32 +4,33 @@ from __future__ import annotations
 
 import argparse
 
+from pinarray.cli import common
+
+# The class table has a row and a column per pin: 32x32 pins print a million cells.
+MAX_TABLE_PINS = 1024
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("grid", help="print the pin numbering and the localisation error classes")
-    p.add_argument("--rows", type=_grid_size, default=4)
-    p.add_argument("--columns", type=_grid_size, default=4)
-    p.add_argument("--pitch-mm", type=float, default=2.0)
+    p.add_argument("--rows", type=common.count(1, 64), default=4)
+    p.add_argument("--columns", type=common.count(1, 64), default=4)
+    p.add_argument("--pitch-mm", type=common.number(0, 100, above_minimum=True), default=2.0)
     p.add_argument("--pin", type=int, default=10, help="stimulated pin to classify around")
     p.add_argument("--table", action="store_true", help="also print the full class table")
     p.set_defaults(func=_cmd_grid)
 
 
-def _grid_size(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, found {text!r}") from None
-    if not 1 <= value <= 64:
-        raise argparse.ArgumentTypeError(f"expected a number from 1 to 64, found {value}")
-    return value
-
-
 def _cmd_grid(args: argparse.Namespace) -> int:
+    from pinarray.errors import PinArrayError
     from pinarray.grid import ERROR_CLASS_MEANING, Grid, render_class_map, render_layout
 
     grid = Grid(args.rows, args.columns, args.pitch_mm)
     grid.check_pin(args.pin)
+    if args.table and grid.pin_count > MAX_TABLE_PINS:
+        raise PinArrayError(
+            f"--table: expected a grid of at most {MAX_TABLE_PINS} pins (a table of "
+            f"{MAX_TABLE_PINS ** 2:,} cells), found {grid.pin_count}; use --pin for one pin's map"
+        )
     print(
         f"Pin grid {grid.rows}x{grid.columns}, {grid.pitch_mm:g} mm pitch, as the subject feels it:"
     )

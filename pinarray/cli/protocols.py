@@ -9,6 +9,12 @@ import argparse
 import sys
 from collections.abc import Callable
 
+from pinarray.cli import common
+
+# Plans hold at most 20 000 trials (`pinarray.protocol.design.MAX_TRIALS`); a number past
+# them is refused by the plan with the plan's own range.
+MAX_TRIAL_NUMBER = 1_000_000
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("validate", help="check protocol files; one line per problem")
@@ -19,7 +25,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "compile", help="write every pulse of every trial as CSV or a numpy archive (.npz)"
     )
     p.add_argument("file", metavar="FILE")
-    p.add_argument("--seed", type=int, help="plan seed (default: the protocol's, else a new one)")
+    p.add_argument("--seed", type=common.seed,
+                   help="plan seed (default: the protocol's, else a new one)")
     p.add_argument(
         "--out",
         required=True,
@@ -33,9 +40,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     p = subparsers.add_parser("preview", help="a timeline of one trial's pins")
     p.add_argument("file", metavar="FILE")
-    p.add_argument("--trial", type=int, default=1, help="trial number in the plan (default 1)")
-    p.add_argument("--seed", type=int)
-    p.add_argument("--width", type=int, default=72, help="columns of the text timeline")
+    p.add_argument("--trial", type=common.count(1, MAX_TRIAL_NUMBER), default=1,
+                   help="trial number in the plan (default 1)")
+    p.add_argument("--seed", type=common.seed)
+    p.add_argument("--width", type=common.count(20, 1000), default=72,
+                   help="columns of the text timeline (20 to 1000, default 72)")
     p.add_argument("--png", help="also draw the timeline to this PNG file")
     p.set_defaults(func=_preview)
 
@@ -90,78 +99,69 @@ PULSE_COLUMNS = ("trial", "pin", "start_ns", "width_ns")
 TARGET_COLUMNS = ("trial", "pin", "time_ns", "position_steps")
 
 
-def _open_out(path: str, binary: bool = False):
-    from pinarray.errors import PinArrayError
-
-    if path == "-":
-        return sys.stdout
-    try:
-        if binary:
-            return open(path, "wb")
-        return open(path, "w", newline="", encoding="utf-8")
-    except OSError as problem:
-        raise PinArrayError(f"{path}: cannot write: {problem.strerror}") from None
-
-
 class _CsvTable:
     """A CSV file with a header row, written a trial at a time."""
 
     def __init__(self, path: str, columns: tuple[str, ...]) -> None:
         import csv
 
-        self.stream = _open_out(path)
-        self.writer = csv.writer(self.stream, lineterminator="\n")
-        self.writer.writerow(columns)
+        self.output = common.OutputFile(path)
+        self.writer = csv.writer(self.output.stream, lineterminator="\n")
+        self._writing(self.writer.writerow, columns)
 
     def add(self, trial: int, *columns) -> None:
         rows = zip([trial] * len(columns[0]), *(c.tolist() for c in columns), strict=True)
-        self.writer.writerows(rows)
+        self._writing(self.writer.writerows, rows)
 
-    def close(self, complete: bool) -> None:
-        if self.stream is not sys.stdout:
-            self.stream.close()
+    def finish(self) -> None:
+        self.output.flush()
+
+    def _writing(self, write: Callable, rows) -> None:
+        try:
+            write(rows)
+        except OSError as problem:
+            _cannot_write(self.output, problem)
 
 
 class _NpzTable:
     """A numpy archive of one array per column, written whole once every trial is compiled.
 
     Times stay int64 ns; the file is opened at once so that an unwritable path fails before
-    the compile, and is removed again if the compile fails.
+    the compile.
     """
 
     def __init__(self, path: str, columns: tuple[str, ...]) -> None:
-        self.path, self.columns = path, columns
-        self.stream = _open_out(path, binary=True)
+        self.columns = columns
+        self.output = common.OutputFile(path, binary=True)
         self.parts: list[tuple[int, tuple]] = []
 
     def add(self, trial: int, *columns) -> None:
         self.parts.append((trial, columns))
 
-    def close(self, complete: bool) -> None:
-        import os
-
+    def finish(self) -> None:
         import numpy as np
 
-        from pinarray.errors import PinArrayError
-
+        arrays = {
+            self.columns[0]: np.concatenate(
+                [np.full(len(c[0]), t, np.int32) for t, c in self.parts]
+                or [np.empty(0, np.int32)]
+            )
+        }
+        for i, name in enumerate(self.columns[1:]):
+            arrays[name] = np.concatenate([c[i] for _, c in self.parts])
+        savez: Callable[..., None] = np.savez  # its stubs type **arrays as its flags
         try:
-            if complete:
-                arrays = {
-                    self.columns[0]: np.concatenate(
-                        [np.full(len(c[0]), t, np.int32) for t, c in self.parts]
-                        or [np.empty(0, np.int32)]
-                    )
-                }
-                for i, name in enumerate(self.columns[1:]):
-                    arrays[name] = np.concatenate([c[i] for _, c in self.parts])
-                savez: Callable[..., None] = np.savez  # its stubs type **arrays as its flags
-                savez(self.stream, **arrays)
+            savez(self.output.stream, **arrays)
         except OSError as problem:
-            raise PinArrayError(f"{self.path}: cannot write: {problem.strerror}") from None
-        finally:
-            self.stream.close()
-            if not complete:
-                os.remove(self.path)
+            _cannot_write(self.output, problem)
+        self.output.flush()
+
+
+def _cannot_write(output: common.OutputFile, problem: OSError):
+    from pinarray.errors import PinArrayError
+
+    output.discard()
+    raise PinArrayError(f"{output.path}: cannot write: {problem.strerror}") from None
 
 
 def _table(path: str, columns: tuple[str, ...]) -> _CsvTable | _NpzTable:
@@ -178,10 +178,10 @@ def _compile(args: argparse.Namespace) -> int:
 
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, args.seed)
-    tables = [_table(args.out, PULSE_COLUMNS)]
+    tables: list[_CsvTable | _NpzTable] = []
     pulses = 0
-    complete = False
     try:
+        tables.append(_table(args.out, PULSE_COLUMNS))
         if args.targets:
             tables.append(_table(args.targets, TARGET_COLUMNS))
         for planned in plan.trials:
@@ -192,10 +192,14 @@ def _compile(args: argparse.Namespace) -> int:
             if args.targets:
                 t = schedule.targets
                 tables[1].add(planned.trial, t.pin, t.time_ns, t.position_steps)
-        complete = True
+        for table in tables:
+            table.finish()
+        # Put in place only once every one is written: a failed one leaves none of them.
+        for table in tables:
+            table.output.commit()
     finally:
         for table in tables:
-            table.close(complete)
+            table.output.discard()  # nothing left of a file not finished
     print(
         f"{args.file}: {len(plan)} trials, {pulses} pulses, seed {plan.seed} -> {args.out}",
         file=sys.stderr,
@@ -213,10 +217,16 @@ def _preview(args: argparse.Namespace) -> int:
     plan = make_plan(protocol, args.seed)
     planned = plan.trial(args.trial)
     schedule = compile_trial(protocol, planned)
-    print(text_timeline(protocol, planned, schedule, max(20, args.width)))
+    print(text_timeline(protocol, planned, schedule, args.width))
     if args.png:
         from pinarray.preview import draw_timeline
 
-        draw_timeline(protocol, planned, schedule, args.png)
-        print(f"timeline drawn to {args.png}")
+        path = common.png_path(args.png)
+        output = common.OutputFile(path, binary=True)
+        try:
+            draw_timeline(protocol, planned, schedule, output.stream)
+        except OSError as problem:
+            _cannot_write(output, problem)
+        output.commit()
+        print(f"timeline drawn to {path}")
     return 0

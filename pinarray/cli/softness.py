@@ -7,6 +7,16 @@ each handler converts them to SI before calling the models.
 
 import argparse
 
+from pinarray.cli import common
+
+# No quantity here (mm, mm^2, kPa, N, ms, s) comes near 1e9 in a lab; past it the models'
+# floating-point results overflow. NaN is refused everywhere, +inf only where it means
+# something (a flat or rigid second body).
+MAX_MAGNITUDE = 1e9
+_real = common.number(-MAX_MAGNITUDE, MAX_MAGNITUDE)
+_real_or_inf = common.number(-MAX_MAGNITUDE, MAX_MAGNITUDE, infinite=True)
+_rows = common.count(2, 10_000)
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``softness`` and its subcommands to the `pinarray` parser."""
@@ -16,53 +26,53 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     sub = softness.add_subparsers(dest="softness_command", metavar="MODEL", required=True)
 
     p = _add(sub, "hertz", "contact area, approach and pressure of a Hertz contact")
-    p.add_argument("--radius-mm", type=float, default=10.0, help="radius of the body (mm)")
-    p.add_argument("--young-kpa", type=float, default=75.0, help="Young's modulus (kPa)")
-    p.add_argument("--poisson", type=float, default=0.5)
-    p.add_argument("--radius2-mm", type=float, default=float("inf"), help="default: flat")
-    p.add_argument("--young2-kpa", type=float, default=float("inf"), help="default: rigid")
-    p.add_argument("--poisson2", type=float, default=0.5)
-    p.add_argument("--max-force-n", type=float, default=10.0)
-    p.add_argument("--rows", type=int, default=11)
+    p.add_argument("--radius-mm", type=_real, default=10.0, help="radius of the body (mm)")
+    p.add_argument("--young-kpa", type=_real, default=75.0, help="Young's modulus (kPa)")
+    p.add_argument("--poisson", type=_real, default=0.5)
+    p.add_argument("--radius2-mm", type=_real_or_inf, default=float("inf"), help="default: flat")
+    p.add_argument("--young2-kpa", type=_real_or_inf, default=float("inf"), help="default: rigid")
+    p.add_argument("--poisson2", type=_real, default=0.5)
+    p.add_argument("--max-force-n", type=_real, default=10.0)
+    p.add_argument("--rows", type=_rows, default=11)
 
     p = _add(sub, "telescopic", "the stepped force of the telescopic display")
-    p.add_argument("--central-area-mm2", type=float, default=20.0)
-    p.add_argument("--area-ratio", type=float, default=1.5)
-    p.add_argument("--step-mm", type=float, default=1.0)
-    p.add_argument("--cylinders", type=int, default=6)
-    p.add_argument("--pressure-kpa", type=float, default=20.0)
-    p.add_argument("--match-young-kpa", type=float, help="also give pressures to mimic a tissue")
-    p.add_argument("--match-radius-mm", type=float, default=10.0)
+    p.add_argument("--central-area-mm2", type=_real, default=20.0)
+    p.add_argument("--area-ratio", type=_real, default=1.5)
+    p.add_argument("--step-mm", type=_real, default=1.0)
+    p.add_argument("--cylinders", type=common.count(1, 1000), default=6)
+    p.add_argument("--pressure-kpa", type=_real, default=20.0)
+    p.add_argument("--match-young-kpa", type=_real, help="also give pressures to mimic a tissue")
+    p.add_argument("--match-radius-mm", type=_real, default=10.0)
 
     p = _add(sub, "display", "force of the TF/CASR cone display, F = p A(z)")
-    p.add_argument("--pressure-kpa", type=float, nargs="+", default=[10.0, 20.0, 40.0])
-    p.add_argument("--rows", type=int, default=11)
-    p.add_argument("--force-n", type=float, help="solve for this force (needs one of the next)")
-    p.add_argument("--indentation-mm", type=float, help="with --force-n: pressure needed here")
+    p.add_argument("--pressure-kpa", type=_real, nargs="+", default=[10.0, 20.0, 40.0])
+    p.add_argument("--rows", type=_rows, default=11)
+    p.add_argument("--force-n", type=_real, help="solve for this force (needs one of the next)")
+    p.add_argument("--indentation-mm", type=_real, help="with --force-n: pressure needed here")
 
     p = _add(sub, "fit", "least-squares force/area or force/displacement fit")
     p.add_argument("--csv", help="header area_cm2,force_n (or _m2/_mm2) or displacement_cm,...")
-    p.add_argument("--noise-n", type=float, default=0.05, help="without --csv: noise on eq. 9.4")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--noise-n", type=_real, default=0.05, help="without --csv: noise on eq. 9.4")
+    p.add_argument("--seed", type=common.seed, default=1)
 
     p = _add(sub, "track", "combined CASR + DHD control on a force ramp (Figs. 9.9/9.10)")
-    p.add_argument("--alpha-n-per-cm4", type=float, default=1.4, help="default: eq. 9.4")
-    p.add_argument("--beta-cm-per-n", type=float, default=1 / 23, help="default: eq. 9.5")
-    p.add_argument("--peak-force-n", type=float, default=2.0)
-    p.add_argument("--duration-s", type=float, default=2.0)
-    p.add_argument("--time-step-ms", type=float, default=1.0)
-    p.add_argument("--valve-min-kpa", type=float, default=0.0)
-    p.add_argument("--valve-max-kpa", type=float, default=100.0)
-    p.add_argument("--valve-lag-ms", type=float, default=20.0)
-    p.add_argument("--dhd-lag-ms", type=float, default=10.0)
-    p.add_argument("--rows", type=int, default=11)
+    p.add_argument("--alpha-n-per-cm4", type=_real, default=1.4, help="default: eq. 9.4")
+    p.add_argument("--beta-cm-per-n", type=_real, default=1 / 23, help="default: eq. 9.5")
+    p.add_argument("--peak-force-n", type=_real, default=2.0)
+    p.add_argument("--duration-s", type=_real, default=2.0)
+    p.add_argument("--time-step-ms", type=_real, default=1.0)
+    p.add_argument("--valve-min-kpa", type=_real, default=0.0)
+    p.add_argument("--valve-max-kpa", type=_real, default=100.0)
+    p.add_argument("--valve-lag-ms", type=_real, default=20.0)
+    p.add_argument("--dhd-lag-ms", type=_real, default=10.0)
+    p.add_argument("--rows", type=_rows, default=11)
 
     p = _add(sub, "forceps", "forceps samples -> modulus -> force/area -> pressure")
     p.add_argument("--csv", help="header displacement_mm,force_n; default: synthetic tissue")
-    p.add_argument("--radius-mm", type=float, default=10.0, help="tissue curvature radius")
-    p.add_argument("--poisson", type=float, default=0.5)
+    p.add_argument("--radius-mm", type=_real, default=10.0, help="tissue curvature radius")
+    p.add_argument("--poisson", type=_real, default=0.5)
     p.add_argument("--constant-modulus", action="store_true", help="no strain dependence")
-    p.add_argument("--rows", type=int, default=11)
+    p.add_argument("--rows", type=_rows, default=11)
 
 
 def _add(sub, name: str, help_text: str) -> argparse.ArgumentParser:
@@ -79,7 +89,12 @@ def _later(name: str):
 
     def run(args: argparse.Namespace) -> int:
         from pinarray.cli import softness_handlers
+        from pinarray.errors import PinArrayError
 
-        return getattr(softness_handlers, name)(args)
+        try:
+            return getattr(softness_handlers, name)(args)
+        except OSError as problem:  # the plot (or its folder) could not be written
+            raise PinArrayError(f"{problem.filename or args.png or args.out}: cannot write: "
+                                f"{problem.strerror}") from None
 
     return run

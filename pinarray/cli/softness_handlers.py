@@ -7,8 +7,8 @@ handler so that the CLI starts without them.
 
 from typing import Any
 
-# A tracking run keeps every step in memory: 10 million steps is about a gigabyte.
-MAX_TRACK_STEPS = 10_000_000
+# A tracking run keeps every step in memory, about 100 bytes each: a million is 100 MB.
+MAX_TRACK_STEPS = 1_000_000
 
 
 def _table(headers: list[str], rows) -> None:
@@ -22,8 +22,10 @@ def _table(headers: list[str], rows) -> None:
 def _plot_path(args):
     from pathlib import Path
 
+    from pinarray.cli.common import png_path
+
     if args.png:
-        return Path(args.png)
+        return Path(png_path(args.png))
     return Path(args.out) / f"{args.plot_name}.png" if args.out else None
 
 

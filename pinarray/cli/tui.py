@@ -2,6 +2,8 @@
 
 import argparse
 
+from pinarray.cli import common
+
 TUI_EPILOG = """\
 Opens the start screen: choose the protocol (FILE, or one from protocols/), the subject,
 session and experimenter, the array (the simulator, or a serial port found on this machine)
@@ -27,9 +29,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_bus_choice(p)
     p.add_argument("--results", default="results", metavar="DIR",
                    help="results folder (default results/)")
-    p.add_argument("--time-scale", type=float, default=1.0, metavar="X",
+    p.add_argument("--time-scale", type=common.time_scale, default=1.0, metavar="X",
                    help="simulator only: real time sped up X times (default 1; 0 = virtual time)")
-    p.add_argument("--seed", type=int, help="plan seed shown on the start screen (default: new)")
+    p.add_argument("--seed", type=common.seed, help="plan seed shown on the start screen (default: new)")
     p.add_argument("--protocols", default="protocols", metavar="DIR",
                    help="folder the protocol list comes from (default protocols/)")
     p.set_defaults(func=_cmd_tui)

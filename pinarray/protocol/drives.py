@@ -10,7 +10,7 @@ import itertools
 from collections.abc import Sequence
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.model import Condition, PinDrive, Protocol
+from pinarray.protocol.model import Condition, PinDrive, Protocol, Train
 
 
 def check_no_overlap(drives: Sequence[PinDrive]) -> None:
@@ -43,3 +43,15 @@ def trial_drives(protocol: Protocol, condition: Condition) -> tuple[PinDrive, ..
     if condition.frequency_hz is not None:
         train = train.with_frequency(condition.frequency_hz)
     return (PinDrive(condition.pin, train, 0),)
+
+
+def pulse_slots(train: Train) -> int:
+    """How many pulse slots start within the train's signal: what compiling it allocates.
+
+    Counted as `pinarray.schedule` counts them (phase included); the pulses that also end
+    within the signal may be one or two fewer.
+    """
+    offset_slots = train.phase * train.pulses_per_cycle
+    first = -int(offset_slots)
+    last = int(train.duration_ns / train.slot_ns - offset_slots)
+    return max(0, last + 1 - first)

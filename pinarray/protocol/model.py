@@ -238,6 +238,11 @@ class Design:
     inter_trial_interval_ns: int
     practice_trials: int
 
+    @property
+    def trial_count(self) -> int:
+        """Trials in every plan of this design, practice included (numbered 1..this)."""
+        return len(self.conditions) * self.repetitions * self.blocks + self.practice_trials
+
 
 @dataclass(frozen=True)
 class Protocol:

@@ -1,29 +1,58 @@
 """Reading YAML with positions: every value comes with the file:line:col it was written at.
 
-`yaml.safe_load` forgets where things were; we compose the node tree instead and convert
+`yaml.safe_load` forgets where things were; we keep the node tree (`yaml_tree`) and convert
 scalars ourselves, so each problem is reported at the key or value that caused it, and all
 problems of a file are collected in one pass.
+
+Every cost is bounded by the size of the text, whatever it holds: the tree is bounded in
+depth and aliases (`yaml_tree`), numbers are at most `MAX_NUMBER_CHARS` characters with a
+decimal exponent within `MAX_EXPONENT` (``1e999999999`` would otherwise build a
+billion-digit integer before any range check), and at most `MAX_PROBLEMS` problems are listed.
 """
 
 from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from fractions import Fraction
-from typing import Any
+from typing import Any, NoReturn, TypeVar
 
 import yaml
+from yaml import MappingNode, Node, ScalarNode, SequenceNode
 
 from pinarray.errors import ProtocolError, ProtocolErrors
+from pinarray.protocol.yaml_tree import compose_tree
 
-_constructor = yaml.constructor.SafeConstructor()
+MAX_NUMBER_CHARS = 40
+MAX_EXPONENT = 100
+MAX_PROBLEMS = 100
 
-Node = yaml.Node
+T = TypeVar("T")
+
+_YAML = "tag:yaml.org,2002:"
+_PLAIN_TAGS = {f"{_YAML}{name}" for name in ("str", "int", "float", "bool", "null", "timestamp")}
+_NUMBER_TAGS = {f"{_YAML}int", f"{_YAML}float"}
+# The text each plain type accepts, as YAML 1.1 resolves it: an explicit ``!!bool maybe``
+# must match it too, or PyYAML's constructors fail with a KeyError or an AttributeError.
+_IMPLICIT: dict[str, list[re.Pattern]] = {}
+for _resolvers in yaml.resolver.Resolver.yaml_implicit_resolvers.values():
+    for _tag, _pattern in _resolvers:
+        _IMPLICIT.setdefault(_tag, []).append(_pattern)
+# Characters YAML allows in a stream (YAML 1.1, 5.1): anything else is refused where it is.
+_NOT_PRINTABLE = re.compile("[^\t\n\r\x20-\x7e\x85\xa0-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
+_DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
+_RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)")
 
 
 class Invalid(Exception):
     """Raised inside a reader after an error was recorded, to skip the rest of a section."""
+
+
+class _TooLarge(Exception):
+    """A number written beyond `MAX_NUMBER_CHARS` or `MAX_EXPONENT`."""
 
 
 class Reader:
@@ -32,8 +61,14 @@ class Reader:
     def __init__(self, source: str):
         self.source = source
         self.errors: list[ProtocolError] = []
+        self.unlisted = 0  # problems past MAX_PROBLEMS: counted, not listed
+        # One constructor per file: PyYAML's caches every object it built, keyed by node.
+        self._constructor = yaml.constructor.SafeConstructor()
 
     def error(self, node: Node | None, message: str) -> Invalid:
+        if len(self.errors) >= MAX_PROBLEMS:
+            self.unlisted += 1
+            return Invalid(message)
         line = node.start_mark.line + 1 if node is not None else 0
         col = node.start_mark.column + 1 if node is not None else 0
         self.errors.append(ProtocolError(message, self.source, line, col))
@@ -42,63 +77,90 @@ class Reader:
     def raise_if_errors(self) -> None:
         if self.errors:
             self.errors.sort(key=lambda e: (e.line, e.col))
+            if self.unlisted:
+                self.errors.append(ProtocolError(
+                    f"{self.unlisted} more problem(s) not listed; fix these first", self.source))
             raise ProtocolErrors(self.errors)
 
-    def attempt(self, read: Callable[[], Any], default: Any = None) -> Any:
+    def attempt(self, read: Callable[[], T], default: T) -> T:
         """Run a reader step; on a recorded error return ``default`` and carry on."""
         try:
             return read()
         except Invalid:
             return default
 
+    def optional(
+        self, keys: Mapping[str, Node], key: str, read: Callable[[Node], T], default: T
+    ) -> T:
+        """``read`` the value of ``key``; ``default`` when the key is absent or its value is wrong
+        (the problem is recorded, and reading goes on with the rest)."""
+        if key not in keys:
+            return default
+        try:
+            return read(keys[key])
+        except Invalid:
+            return default
+
+    @contextmanager
+    def section(self) -> Iterator[None]:
+        """Read every field of a section, then fail it as a whole if any field was wrong."""
+        before = len(self.errors) + self.unlisted
+        yield
+        if len(self.errors) + self.unlisted > before:
+            raise Invalid("section")
+
     # -- structure ---------------------------------------------------------------------------
 
     def compose(self, text: str) -> Node:
+        """The node tree of ``text``: one document, bounded in depth and aliases."""
+        bad = _NOT_PRINTABLE.search(text)
+        if bad:
+            line = text.count("\n", 0, bad.start()) + 1
+            col = bad.start() - (text.rfind("\n", 0, bad.start()) + 1) + 1
+            self._fail(f"expected text, found the control character U+{ord(bad[0]):04X}",
+                       line, col)
         try:
-            root = yaml.compose(text, Loader=yaml.SafeLoader)
+            root = compose_tree(text)
         except yaml.MarkedYAMLError as problem:
             mark = problem.problem_mark or problem.context_mark
-            what = problem.problem or problem.context or "malformed YAML"
-            error = ProtocolError(
-                f"malformed YAML: {what}",
-                self.source,
-                mark.line + 1 if mark else 0,
-                mark.column + 1 if mark else 0,
-            )
-            raise ProtocolErrors([error]) from None
+            what = " ".join(str(problem.problem or problem.context or "malformed YAML").split())
+            self._fail(f"malformed YAML: {what}", mark.line + 1 if mark else 0,
+                       mark.column + 1 if mark else 0)
         except yaml.YAMLError as problem:
-            raise ProtocolErrors(
-                [ProtocolError(f"malformed YAML: {problem}", self.source)]
-            ) from None
+            self._fail(f"malformed YAML: {' '.join(str(problem).split())}")
         if root is None:
-            raise ProtocolErrors(
-                [ProtocolError("expected a protocol, found an empty file", self.source)]
-            )
+            self._fail("expected a protocol, found an empty file")
         return root
 
+    def _fail(self, message: str, line: int = 0, col: int = 0) -> NoReturn:
+        raise ProtocolErrors([ProtocolError(message, self.source, line, col)])
+
     def mapping(
-        self, node: Node, allowed: set[str], required: set[str] = frozenset(), what: str = "section"
+        self,
+        node: Node,
+        allowed: set[str],
+        required: frozenset[str] | set[str] = frozenset(),
+        what: str = "section",
     ) -> dict[str, Node]:
         """Keys of a mapping with their value nodes; unknown keys get a did-you-mean hint."""
-        if not isinstance(node, yaml.MappingNode):
+        if not isinstance(node, MappingNode):
             raise self.error(node, f"expected a mapping for the {what}, found {describe(node)}")
         out: dict[str, Node] = {}
         suggested: set[str] = set()
         for key_node, value_node in node.value:
-            key = self.scalar_value(key_node)
-            key_text = str(key)
+            key_text = str(self.scalar_value(key_node))
             if key_text in out:
-                self.error(key_node, f"duplicate key {key_text!r} in the {what}")
+                self.error(key_node, f"duplicate key {shown(key_text)} in the {what}")
                 continue
             if key_text not in allowed:
-                hint = difflib.get_close_matches(key_text, sorted(allowed), n=1)
+                hint = _close_match(key_text, sorted(allowed))
                 suggested.update(hint)
                 suggestion = (
                     f"; did you mean {hint[0]!r}?"
                     if hint
                     else f"; expected one of {', '.join(sorted(allowed))}"
                 )
-                self.error(key_node, f"unknown key {key_text!r} in the {what}{suggestion}")
+                self.error(key_node, f"unknown key {shown(key_text)} in the {what}{suggestion}")
                 continue
             out[key_text] = value_node
         missing = sorted(required - out.keys())
@@ -111,21 +173,21 @@ class Reader:
 
     def items(self, node: Node, what: str) -> list[tuple[Node, Node]]:
         """(key node, value node) pairs of a mapping whose keys are data (names, pins)."""
-        if not isinstance(node, yaml.MappingNode):
+        if not isinstance(node, MappingNode):
             raise self.error(node, f"expected a mapping for {what}, found {describe(node)}")
         seen: set[str] = set()
         pairs = []
         for key_node, value_node in node.value:
             key_text = str(self.scalar_value(key_node))
             if key_text in seen:
-                self.error(key_node, f"duplicate key {key_text!r} in {what}")
+                self.error(key_node, f"duplicate key {shown(key_text)} in {what}")
                 continue
             seen.add(key_text)
             pairs.append((key_node, value_node))
         return pairs
 
     def sequence(self, node: Node, what: str, min_items: int = 1) -> list[Node]:
-        if not isinstance(node, yaml.SequenceNode):
+        if not isinstance(node, SequenceNode):
             raise self.error(node, f"expected a list for {what}, found {describe(node)}")
         if len(node.value) < min_items:
             raise self.error(
@@ -136,31 +198,36 @@ class Reader:
     # -- scalars -----------------------------------------------------------------------------
 
     def scalar_value(self, node: Node) -> Any:
-        if not isinstance(node, yaml.ScalarNode):
+        if not isinstance(node, ScalarNode):
             raise self.error(node, f"expected a single value, found {describe(node)}")
+        tag = node.tag
+        if tag not in _PLAIN_TAGS:
+            raise self.error(node, f"expected a plain value, found {shown(node.value)} tagged "
+                             f"{_short_tag(tag)} (only text, numbers, true/false and null are read)")
+        if tag in _NUMBER_TAGS and len(node.value) > MAX_NUMBER_CHARS:
+            raise self.error(node, f"expected a number of at most {MAX_NUMBER_CHARS} characters, "
+                             f"found {shown(node.value)}")
+        if tag != f"{_YAML}str" and not any(p.match(node.value) for p in _IMPLICIT[tag]):
+            raise self.error(node, f"expected a plain value, found {shown(node.value)}, which is "
+                             f"not a {_short_tag(tag)}")
         try:
-            return _constructor.construct_object(node)
-        except (yaml.YAMLError, ValueError, TypeError, OverflowError) as problem:
-            # e.g. "!!python/name:os.system" (refused by the safe loader) or a date 2024-13-45
-            what = getattr(problem, "problem", None) or str(problem)
-            raise self.error(node, f"expected a plain value, found {node.value!r} ({what})") from None
+            return self._constructor.construct_object(node)
+        except (yaml.YAMLError, ValueError, OverflowError) as problem:
+            # e.g. a date 2024-13-45, which matches the date pattern but is no date
+            what = " ".join(str(getattr(problem, "problem", None) or problem).split())
+            raise self.error(node, f"expected a plain value, found {shown(node.value)} ({what})"
+                             ) from None
 
     def string(self, node: Node, what: str, choices: tuple[str, ...] = ()) -> str:
         value = self.scalar_value(node)
         if not isinstance(value, str) or not value.strip():
             raise self.error(node, f"expected text for {what}, found {describe(node)}")
         if choices and value not in choices:
-            hint = difflib.get_close_matches(value, choices, n=1)
+            hint = _close_match(value, choices)
             extra = f"; did you mean {hint[0]!r}?" if hint else ""
             raise self.error(
-                node, f"expected {what} to be one of {', '.join(choices)}, found {value!r}{extra}"
+                node, f"expected {what} to be one of {', '.join(choices)}, found {shown(value)}{extra}"
             )
-        return value
-
-    def boolean(self, node: Node, what: str) -> bool:
-        value = self.scalar_value(node)
-        if not isinstance(value, bool):
-            raise self.error(node, f"expected true or false for {what}, found {describe(node)}")
         return value
 
     def number(
@@ -175,23 +242,18 @@ class Reader:
     ) -> Fraction:
         """An exact number: 0.1 means 1/10; "1/3" is accepted; NaN and infinities are not."""
         value = self.scalar_value(node)
-        exact: Fraction | None = None
-        if isinstance(value, bool):
-            exact = None
-        elif isinstance(value, int):
-            exact = Fraction(value)
-        elif isinstance(value, float):
-            if math.isfinite(value):
-                exact = Fraction(repr(value))  # the shortest decimal that reads back: "0.1" -> 1/10
-            else:
-                raise self.error(
-                    node, f"expected a finite number of {unit} for {what}, found {node.value}"
-                )
-        elif isinstance(value, str):
-            try:
-                exact = Fraction(value.strip())
-            except (ValueError, ZeroDivisionError):
-                exact = None
+        if isinstance(value, float) and not math.isfinite(value):
+            raise self.error(
+                node, f"expected a finite number of {unit} for {what}, found {node.value}"
+            )
+        try:
+            exact = _exact(node.value, value)
+        except _TooLarge:
+            raise self.error(
+                node,
+                f"expected a number of {unit} for {what} in at most {MAX_NUMBER_CHARS} "
+                f"characters with an exponent within ±{MAX_EXPONENT}, found {shown(node.value)}",
+            ) from None
         if exact is None:
             raise self.error(
                 node, f"expected a number of {unit} for {what}, found {describe(node)}"
@@ -222,11 +284,64 @@ class Reader:
         return value
 
 
+def _exact(text: str, value: Any) -> Fraction | None:
+    """The exact number ``text`` writes (``value`` is what YAML made of it), or None.
+
+    Decimals are read from their text, so ``0.1`` is 1/10 and ``1e-400`` is refused rather
+    than rounded to 0.0; a YAML integer (hex, octal, ``1_000``) or sexagesimal float
+    (``1:30.5``) is taken as YAML read it.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float | str):
+        return None
+    plain = text.strip().replace("_", "") if isinstance(value, int | float) else value.strip()
+    decimal = _DECIMAL.fullmatch(plain)
+    ratio = None if decimal else _RATIO.fullmatch(plain)
+    if (decimal and (decimal[2] or decimal[3])) or ratio:
+        if len(plain) > MAX_NUMBER_CHARS:
+            raise _TooLarge
+        if ratio:
+            sign, numerator, denominator = ratio[1], int(ratio[2]), int(ratio[3])
+            if not denominator:
+                return None
+            return Fraction(-numerator if sign == "-" else numerator, denominator)
+        assert decimal is not None
+        written = int(decimal[4] or 0)
+        if abs(written) > MAX_EXPONENT:
+            raise _TooLarge
+        fraction_digits = decimal[3] or ""
+        digits = int((decimal[2] or "") + fraction_digits or "0")
+        exact = Fraction(digits) * Fraction(10) ** (written - len(fraction_digits))
+        return -exact if decimal[1] == "-" else exact
+    if isinstance(value, int):
+        return Fraction(value)
+    if isinstance(value, float):
+        return Fraction(repr(value))  # sexagesimal: the shortest decimal that reads back
+    return None
+
+
+def _short_tag(tag: str) -> str:
+    return "!!" + tag.removeprefix(_YAML) if tag.startswith(_YAML) else tag
+
+
+def _close_match(text: str, choices) -> list[str]:
+    # difflib's cost grows with the text's length; a long unknown word is no misspelling.
+    return difflib.get_close_matches(text, choices, n=1) if len(text) <= 64 else []
+
+
+def shown(value: object, limit: int = 48) -> str:
+    """``repr(value)``, cut short for a message line."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    size = f" ({len(value)} characters)" if isinstance(value, str) else ""
+    return f"{text[:limit]}...{size}"
+
+
 def describe(node: Node) -> str:
-    if isinstance(node, yaml.MappingNode):
+    if isinstance(node, MappingNode):
         return "a mapping"
-    if isinstance(node, yaml.SequenceNode):
+    if isinstance(node, SequenceNode):
         return "a list"
     if node.tag.endswith(":null"):
         return "nothing"
-    return repr(node.value)
+    return shown(node.value)

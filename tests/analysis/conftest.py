@@ -29,7 +29,9 @@ MOTION = [
 
 
 def _write(root, subject, task, records, status="completed"):
-    writer = RunWriter.start(root, subject, 1, task, [{"trial": r.trial} for r in records],
+    # The plan holds the trials the rows finish: a completed run finished every planned trial.
+    plan = [{"trial": r.trial, "practice": r.practice} for r in records if r.status == "ok"]
+    writer = RunWriter.start(root, subject, 1, task, plan,
                              seed=0, protocol_sha256="", port="sim://")
     for record in records:
         writer.write_trial(record)

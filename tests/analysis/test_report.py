@@ -186,7 +186,7 @@ def test_bad_options_are_one_line_errors_with_status_2(results_root, tmp_path, c
     assert err.count("\n") == 1 and "pin 17 is not on the 4x4 grid" in err
     with pytest.raises(SystemExit) as exit_:
         cli.main(["analyse", str(results_root), "--bootstrap-resamples", "5"])
-    assert exit_.value.code == 2 and "expected a number >= 100" in capsys.readouterr().err
+    assert exit_.value.code == 2 and "expected a whole number from 100 to" in capsys.readouterr().err
 
 
 def test_registering_the_command_loads_neither_numpy_nor_matplotlib():

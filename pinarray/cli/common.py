@@ -1,0 +1,195 @@
+"""Options several commands share: argparse ``type=`` functions with the ranges that keep a run
+bounded, refused at parse time with what was expected (argparse then exits with status 2).
+
+A number on the command line can otherwise hang a run (``--time-scale 1e-300`` slows the
+simulator to a standstill), allocate gigabytes (``--width 10**9``), or reach numpy as a value
+it refuses with a traceback (a negative ``--seed``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import os
+import stat
+import sys
+from collections.abc import Callable
+from typing import IO
+
+from pinarray.errors import PinArrayError
+
+MAX_SEED = 2**63 - 1  # what a plan and numpy's generators accept
+# A simulator slower than 1/100 of real time, or faster than 10 000 times, helps nobody;
+# 0 means virtual time (nothing sleeps).
+MIN_TIME_SCALE, MAX_TIME_SCALE = 0.01, 10_000.0
+
+
+def _whole(text: str) -> int:
+    try:
+        return int(text.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a whole number, found {_short(text)}") from None
+
+
+def _real(text: str) -> float:
+    try:
+        return float(text) + 0.0  # -0.0 becomes 0.0, which numpy's generators accept as a scale
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, found {_short(text)}") from None
+
+
+def seed(text: str) -> int:
+    """A seed: a whole number from 0 to 2^63 - 1."""
+    value = _whole(text)
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(
+            f"expected a seed from 0 to 2^63-1, found {_short(text)}"
+        )
+    return value
+
+
+def time_scale(text: str) -> float:
+    """0 (virtual time) or a speed-up from `MIN_TIME_SCALE` to `MAX_TIME_SCALE` times real time."""
+    value = _real(text)
+    if value != 0 and not MIN_TIME_SCALE <= value <= MAX_TIME_SCALE:  # NaN fails both
+        raise argparse.ArgumentTypeError(
+            f"expected 0 (virtual time) or {MIN_TIME_SCALE:g} to {MAX_TIME_SCALE:g} times real "
+            f"time, found {_short(text)}"
+        )
+    return value
+
+
+def count(minimum: int, maximum: int) -> Callable[[str], int]:
+    """A whole number from ``minimum`` to ``maximum``."""
+
+    def parse(text: str) -> int:
+        value = _whole(text)
+        if not minimum <= value <= maximum:
+            raise argparse.ArgumentTypeError(
+                f"expected a whole number from {minimum:,} to {maximum:,}, found {_short(text)}"
+            )
+        return value
+
+    return parse
+
+
+def counts(minimum: int, maximum: int, most: int) -> Callable[[str], list[int]]:
+    """Comma-separated whole numbers from ``minimum`` to ``maximum``, at most ``most`` of them."""
+    one = count(minimum, maximum)
+
+    def parse(text: str) -> list[int]:
+        values = [one(item) for item in text.split(",") if item.strip()]
+        if not 1 <= len(values) <= most:
+            raise argparse.ArgumentTypeError(
+                f"expected 1 to {most} comma-separated numbers, found {len(values)} in "
+                f"{_short(text)}"
+            )
+        return values
+
+    return parse
+
+
+def number(
+    minimum: float, maximum: float, *, above_minimum: bool = False, infinite: bool = False
+) -> Callable[[str], float]:
+    """A finite number from ``minimum`` to ``maximum`` (excluding ``minimum`` when
+    ``above_minimum``); ``infinite`` also lets +inf through, where it means something."""
+
+    def parse(text: str) -> float:
+        value = _real(text)
+        if infinite and value == math.inf:
+            return value
+        low_ok = value > minimum if above_minimum else value >= minimum
+        if not (low_ok and value <= maximum):  # NaN fails too
+            relation = "above" if above_minimum else "from"
+            raise argparse.ArgumentTypeError(
+                f"expected a number {relation} {minimum:g} to {maximum:g}, found {_short(text)}"
+            )
+        return value
+
+    return parse
+
+
+def _short(text: str) -> str:
+    return repr(text) if len(text) <= 30 else f"{text[:30]!r}... ({len(text)} characters)"
+
+
+def png_path(text: str) -> str:
+    """Where a ``--png`` option writes: ``text`` if it ends in ``.png``, else ``text.png``, the
+    name matplotlib gives a picture saved without an extension; commands report this name."""
+    return text if text.lower().endswith(".png") else text + ".png"
+
+
+class OutputFile:
+    """A file a command writes whole or not at all.
+
+    A regular file is written under a temporary name beside it and renamed over it only
+    when `commit` is called, so a full disk or a failed run leaves any earlier file of that
+    name as it was and no half-written one. A device or FIFO (``/dev/null``, ``/dev/full``)
+    cannot be renamed over and is written directly; ``-`` is standard output. Every failure
+    is a `PinArrayError` naming the path.
+    """
+
+    def __init__(self, path: str, binary: bool = False) -> None:
+        self.path, self.final, self.temporary = path, path, None
+        if path == "-" and not binary:
+            self.stream: IO = sys.stdout
+            return
+        try:
+            mode = os.stat(path).st_mode
+        except FileNotFoundError:
+            mode = stat.S_IFREG
+        except OSError as problem:
+            raise PinArrayError(f"{path}: cannot write: {problem.strerror}") from None
+        if stat.S_ISDIR(mode):
+            raise PinArrayError(f"{path}: cannot write: it is a folder, expected a file name")
+        target = path
+        if stat.S_ISREG(mode):
+            # Beside the file a symbolic link points to: the rename replaces that file.
+            self.final = os.path.realpath(path)
+            folder, name = os.path.split(self.final)
+            target = self.temporary = os.path.join(
+                folder, f".{name}.{os.getpid()}-{os.urandom(4).hex()}.part")
+        try:
+            # Created 0666 less the umask, as an ordinary file would be (not mkstemp's 0600).
+            flags = os.O_WRONLY | (os.O_CREAT | os.O_EXCL if self.temporary else os.O_TRUNC)
+            fd = os.open(target, flags, 0o666)
+            self.stream = (
+                os.fdopen(fd, "wb") if binary else os.fdopen(fd, "w", newline="", encoding="utf-8")
+            )
+        except OSError as problem:
+            raise PinArrayError(f"{path}: cannot write: {problem.strerror}") from None
+
+    def flush(self) -> None:
+        """Push everything written so far to the file (a full device fails here)."""
+        try:
+            self.stream.flush()
+        except OSError as problem:
+            self.discard()
+            raise PinArrayError(f"{self.path}: cannot write: {problem.strerror}") from None
+
+    def commit(self) -> None:
+        """Finish the file: flush it and put it in place."""
+        try:
+            if self.stream is sys.stdout:
+                self.stream.flush()
+                return
+            self.stream.close()
+            if self.temporary:
+                os.replace(self.temporary, self.final)
+                self.temporary = None
+        except OSError as problem:
+            self.discard()
+            raise PinArrayError(f"{self.path}: cannot write: {problem.strerror}") from None
+
+    def discard(self) -> None:
+        """Give the file up: nothing of it is left (a device keeps what it was sent)."""
+        if self.stream is not sys.stdout:
+            with contextlib.suppress(OSError):  # already failing: the write's error is the one to say
+                self.stream.close()
+        if self.temporary:
+            with contextlib.suppress(FileNotFoundError):
+                os.remove(self.temporary)
+            self.temporary = None

@@ -1,0 +1,272 @@
+"""The ``design`` section: conditions, blocks and ordering, checked to be playable and bounded.
+
+A design is refused at validation when its plan could not be drawn (an impossible ordering
+constraint) or would not fit in a bounded time and memory: at most `MAX_TRIALS` trials, at
+most `MAX_PULSES_PER_TRIAL` pulse slots in one trial and `MAX_PULSES` in the whole plan (what
+`pinarray compile` writes and an ``.npz`` holds in memory). Pure Python: `pinarray validate`
+runs it without numpy.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Collection, Mapping, Sequence
+from fractions import Fraction
+from functools import partial
+from typing import NamedTuple
+
+from pinarray.protocol.device import read_pin
+from pinarray.protocol.drives import pulse_slots
+from pinarray.protocol.model import (
+    NS_PER_S,
+    Condition,
+    Constraints,
+    Design,
+    Device,
+    Ordering,
+    Paradigm,
+    Stimulus,
+)
+from pinarray.protocol.stimuli import MAX_FREQUENCY_HZ, check_train_on_pins, stimulus_named
+from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
+
+MAX_TRIALS = 20_000
+MAX_PULSES_PER_TRIAL = 1_000_000
+MAX_PULSES = 10_000_000
+# Ordering under constraints weighs every distinct condition at each trial placed: trials x
+# conditions is the work, about 0.2 us each here (a few seconds at most).
+MAX_SHUFFLE_WORK = 20_000_000
+CONDITION_ATTRIBUTES = ("pin", "frequency_hz", "stimulus", "direction")
+DESIGN_KEYS = {
+    "paradigm",
+    "stimulus",
+    "pins",
+    "frequencies_hz",
+    "configurations",
+    "repetitions",
+    "blocks",
+    "order",
+    "constraints",
+    "seed",
+    "inter_trial_interval_s",
+    "practice_trials",
+}
+
+# (conditions, pulse slots of each) of one block's worth, before repetitions
+_Conditions = tuple[tuple[Condition, ...], tuple[int, ...]]
+
+
+class _Section(NamedTuple):
+    """What reading the conditions needs: the design's node and keys, and what it refers to."""
+
+    node: Node
+    keys: dict[str, Node]
+    device: Device
+    by_name: Mapping[str, Stimulus]
+    declared: Collection[str]  # every stimulus name written, broken ones included
+
+
+def read_design(
+    reader: Reader,
+    node: Node,
+    device: Device,
+    stimuli: Sequence[Stimulus],
+    declared: Collection[str],
+) -> Design:
+    """The design, checked against the device and stimuli; ``declared`` names every stimulus
+    written in the file, broken ones included (their problems are already reported)."""
+    keys = reader.mapping(node, DESIGN_KEYS, {"paradigm"}, "design")
+    paradigm = Paradigm(
+        reader.string(keys["paradigm"], "the paradigm", tuple(p.value for p in Paradigm))
+    )
+    by_name = {s.name: s for s in stimuli}
+    read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
+    section = _Section(node, keys, device, by_name, declared)
+    read = reader.attempt(lambda: read_conditions(reader, section), None)
+    repetitions = reader.optional(
+        keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
+    )
+    blocks = reader.optional(keys, "blocks", lambda n: reader.integer(n, "blocks", 1, 1000), 1)
+    ordering = Ordering(reader.optional(
+        keys, "order", lambda n: reader.string(n, "the order", tuple(o.value for o in Ordering)),
+        Ordering.RANDOM.value,
+    ))
+    constraints = reader.optional(
+        keys, "constraints", lambda n: _constraints(reader, n), Constraints()
+    )
+    seed = reader.optional(
+        keys, "seed",
+        lambda n: None if n.tag.endswith(":null") else reader.integer(n, "the seed", 0, 2**63 - 1),
+        None,
+    )
+    iti = reader.optional(
+        keys, "inter_trial_interval_s",
+        lambda n: reader.number(n, "the inter-trial interval", "s", allow_zero=True, maximum=3600),
+        Fraction(2),
+    )
+    practice = reader.optional(
+        keys, "practice_trials", lambda n: reader.integer(n, "practice trials", 0, 100), 0
+    )
+    if read is None or not read[0]:
+        # Their problems are already recorded (a design lists at least one pin and frequency,
+        # or configuration, so none left means every one was wrong).
+        raise Invalid("conditions")
+    conditions, slots = read
+    design = Design(
+        paradigm,
+        conditions,
+        repetitions,
+        blocks,
+        ordering,
+        constraints,
+        seed,
+        round(iti * NS_PER_S),
+        practice,
+    )
+    _check_size(reader, node, design, slots)
+    problem = ordering_problem(design)
+    if problem:
+        raise reader.error(keys.get("constraints", node), problem)
+    return design
+
+
+def _check_size(reader: Reader, node: Node, design: Design, slots: Sequence[int]) -> None:
+    """The plan fits `MAX_TRIALS` and its pulses `MAX_PULSES` (each trial was checked alone)."""
+    trials = design.trial_count
+    if trials > MAX_TRIALS:
+        raise reader.error(
+            node,
+            f"expected a design of at most {MAX_TRIALS:,} trials, found {trials:,} "
+            f"({len(design.conditions)} conditions x {design.repetitions} repetitions x "
+            f"{design.blocks} blocks + {design.practice_trials} practice)",
+        )
+    pulses = sum(slots) * design.repetitions * design.blocks
+    pulses += design.practice_trials * max(slots, default=0)
+    if pulses > MAX_PULSES:
+        raise reader.error(
+            node,
+            f"expected a design of at most {MAX_PULSES:,} pulses in all, found up to "
+            f"{pulses:,} in its {trials:,} trials; shorten the signals or run fewer trials",
+        )
+
+
+def _localisation(reader: Reader, section: _Section) -> _Conditions:
+    node, keys, device, by_name, declared = section
+    for key in ("stimulus", "pins", "frequencies_hz"):
+        if key not in keys:
+            raise reader.error(node, f"a localisation design needs a {key!r} key, found none")
+    pin_nodes = reader.sequence(keys["pins"], "the pins")
+    pins = [
+        pin for n in pin_nodes
+        if (pin := reader.attempt(partial(read_pin, reader, n, device.grid), None)) is not None
+    ]
+    if len(set(pins)) != len(pins):
+        raise reader.error(keys["pins"], f"expected each pin once, found {pins}")
+    stimulus = stimulus_named(reader, keys["stimulus"], by_name, declared, wave=False)
+    assert stimulus.train is not None  # a pulse train's stimulus holds its train
+    frequency_nodes = reader.sequence(keys["frequencies_hz"], "the frequencies")
+    if len(pin_nodes) * len(frequency_nodes) > MAX_TRIALS:
+        raise reader.error(
+            keys["frequencies_hz"],
+            f"expected at most {MAX_TRIALS:,} conditions (pins x frequencies), found "
+            f"{len(pin_nodes)} x {len(frequency_nodes)}",
+        )
+    conditions: list[Condition] = []
+    slots: list[int] = []
+    for frequency_node in frequency_nodes:
+        frequency = reader.number(frequency_node, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ)
+        train = stimulus.train.with_frequency(frequency)
+        _check_pulses(reader, frequency_node, pulse_slots(train))
+        check_train_on_pins(reader, frequency_node, train, pins, device)
+        conditions.extend(Condition(stimulus.name, pin, frequency) for pin in pins)
+        slots.extend(pulse_slots(train) for _ in pins)
+    return tuple(conditions), tuple(slots)
+
+
+def _motion(reader: Reader, section: _Section) -> _Conditions:
+    node, keys, _, by_name, declared = section
+    if "configurations" not in keys:
+        raise reader.error(
+            node,
+            "an apparent_motion design needs a 'configurations' key (wave stimuli), found none",
+        )
+    items = reader.sequence(keys["configurations"], "the configurations")
+    if len(items) > MAX_TRIALS:
+        raise reader.error(
+            keys["configurations"],
+            f"expected at most {MAX_TRIALS:,} configurations, found {len(items):,}",
+        )
+    conditions: list[Condition] = []
+    slots: list[int] = []
+    for item in items:
+        stimulus = stimulus_named(reader, item, by_name, declared, wave=True)
+        wave = stimulus.wave
+        assert wave is not None  # a wave stimulus holds its wave
+        count = sum(pulse_slots(drive.train) for drive in wave.drives())
+        _check_pulses(reader, item, count)
+        conditions.append(Condition(stimulus.name, direction=wave.kind, row=wave.row))
+        slots.append(count)
+    return tuple(conditions), tuple(slots)
+
+
+def _check_pulses(reader: Reader, node: Node, count: int) -> None:
+    if count > MAX_PULSES_PER_TRIAL:
+        raise reader.error(
+            node,
+            f"expected at most {MAX_PULSES_PER_TRIAL:,} pulses in one trial, found {count:,} "
+            "(frequency x pulses per cycle x signal length, for each pin); shorten the signal",
+        )
+
+
+def _constraints(reader: Reader, node: Node) -> Constraints:
+    keys = reader.mapping(node, {"no_repeat", "max_run"}, what="constraints")
+    no_repeat: tuple[str, ...] = ()
+    if "no_repeat" in keys:
+        no_repeat = tuple(
+            reader.string(n, "an attribute that may not repeat", CONDITION_ATTRIBUTES)
+            for n in reader.sequence(keys["no_repeat"], "no_repeat")
+        )
+    max_run: list[tuple[str, int]] = []
+    if "max_run" in keys:
+        for key_node, value_node in reader.items(keys["max_run"], "max_run"):
+            attribute = reader.string(key_node, "an attribute", CONDITION_ATTRIBUTES)
+            max_run.append(
+                (attribute, reader.integer(value_node, f"the longest run of equal {attribute}", 1))
+            )
+    return Constraints(no_repeat, tuple(max_run))
+
+
+def ordering_problem(design: Design) -> str | None:
+    """Why the design's constraints cannot be met, or None. Counts only: never a hang."""
+    limits = design.constraints.limits()
+    if not limits or not design.conditions:
+        return None
+    if design.ordering in (Ordering.SEQUENTIAL, Ordering.LATIN_SQUARE):
+        return (
+            f"order constraints ({', '.join(limits)}) need a random order; "
+            f"'{design.ordering.value}' fixes the order itself"
+        )
+    main_trials = len(design.conditions) * design.repetitions * design.blocks
+    if main_trials * len(design.conditions) > MAX_SHUFFLE_WORK:
+        return (
+            f"expected order constraints over at most {MAX_SHUFFLE_WORK:,} trials x conditions "
+            f"(the work of ordering them), found {main_trials:,} trials x "
+            f"{len(design.conditions):,} conditions; constrain fewer conditions or trials"
+        )
+    # Trials shuffled together: one block's, or every block's with full_random.
+    copies = design.repetitions * (design.blocks if design.ordering is Ordering.FULL_RANDOM else 1)
+    size = len(design.conditions) * copies
+    for attribute, limit in limits.items():
+        counts: Counter = Counter()
+        for condition in design.conditions:
+            counts[getattr(condition, attribute)] += copies
+        value, count = counts.most_common(1)[0]
+        # `count` equal values need `count / limit` runs separated by at least one other trial.
+        if count > limit * (size - count + 1):
+            others = size - count
+            return (
+                f"impossible order constraint: {attribute} {value} appears {count} times among "
+                f"{size} trials, but with runs of at most {limit} the other {others} trials can "
+                f"separate at most {limit * (others + 1)}"
+            )
+    return None

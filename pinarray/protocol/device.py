@@ -1,0 +1,264 @@
+"""The ``device`` section: grid, servo settings and one calibration per pin, each problem located."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from fractions import Fraction
+from functools import partial
+
+from pinarray.grid import Grid
+from pinarray.protocol.model import BAUD_RATES, Device, PinCalibration, ServoSettings
+from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
+
+MS = Fraction(1_000_000)  # ns per ms
+# The seed's calibration: a 1.5 ms pulse holds the rest position, 2 ms lifts the pin.
+DEFAULT_POSITIONS = ((1_500_000, 2048), (2_000_000, 2162))
+# A servo maps a handful of pulse widths to positions; the map is copied to every pin.
+MAX_POSITIONS = 64
+DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility",
+               "delivery_tolerance_ms"}
+
+
+@dataclass(frozen=True)
+class _Given:
+    """Calibration fields as one section writes them (the shared one, or a pin's own); None
+    where the section does not say, so that a pin's own values override the shared ones."""
+
+    rest: tuple[int, Node] | None = None
+    positions: tuple[tuple[int, int, Node | None], ...] | None = None
+    limits: tuple[tuple[int, int], Node] | None = None
+    lever_mm: float | None = None
+
+    def over(self, base: _Given) -> _Given:
+        return replace(base, **{f.name: getattr(self, f.name) for f in fields(self)
+                                if getattr(self, f.name) is not None})
+
+
+def read_device(reader: Reader, node: Node | None) -> Device | None:
+    """The device a protocol describes (defaults when ``node`` is None); None if it is broken
+    in a way that makes checking stimuli against it meaningless (grid, servo, calibration)."""
+    if node is None:
+        return _pin_calibrations(reader, Grid(), ServoSettings(), _Given())
+    keys = reader.attempt(lambda: reader.mapping(node, DEVICE_KEYS, what="device section"), None)
+    if keys is None:
+        return None
+    try:
+        with reader.section():
+            grid = reader.optional(keys, "grid", lambda n: _grid(reader, n), Grid())
+            servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
+    except Invalid:
+        return None
+    port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"), "sim://")
+    scale = reader.optional(
+        keys, "feasibility", lambda n: reader.string(n, "feasibility", ("reject", "scale")),
+        "reject",
+    ) == "scale"
+    tolerance_ns = reader.optional(
+        keys, "delivery_tolerance_ms",
+        lambda n: round(reader.number(n, "the delivery tolerance", "ms", maximum=10_000) * MS),
+        Device.delivery_tolerance_ns,
+    )
+    base = reader.optional(
+        keys, "calibration", lambda n: _calibration(reader, n, "calibration"), _Given()
+    )
+    none: list[tuple[Node, Node]] = []
+    overrides: dict[int, _Given] = {}
+    for key_node, value_node in reader.optional(
+        keys, "pins", lambda n: reader.items(n, "the per-pin calibration"), none
+    ):
+        pin = reader.attempt(partial(read_pin, reader, key_node, grid), None)
+        given = reader.attempt(partial(_calibration, reader, value_node, "pin calibration"), None)
+        if pin is not None and given is not None:
+            overrides[pin] = given
+    ids: dict[int, tuple[int, Node]] = {}
+    for key_node, value_node in reader.optional(
+        keys, "servo_ids", lambda n: reader.items(n, "servo_ids"), none
+    ):
+        pin = reader.attempt(partial(read_pin, reader, key_node, grid), None)
+        servo_id = reader.attempt(partial(reader.integer, value_node, "a servo id", 0, 253), None)
+        if pin is not None and servo_id is not None:
+            ids[pin] = (servo_id, value_node)
+    device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get("servo_ids"))
+    if device is None:
+        return None
+    return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns)
+
+
+def read_pin(reader: Reader, node: Node, grid: Grid) -> int:
+    """A pin number of ``grid``, 1-based as the lab counts."""
+    pin = reader.integer(node, "a pin number")
+    if not 1 <= pin <= grid.pin_count:
+        raise reader.error(
+            node,
+            f"expected a pin from 1 to {grid.pin_count} on the {grid.rows}x{grid.columns} grid, found {pin}",
+        )
+    return pin
+
+
+def read_width_ns(reader: Reader, node: Node) -> int:
+    """A servo pulse width written in ms, as whole nanoseconds."""
+    width = reader.number(node, "a pulse width", "ms", maximum=100)
+    width_ns = width * MS
+    if width_ns.denominator != 1:
+        raise reader.error(
+            node, f"expected a pulse width in whole nanoseconds, found {float(width)} ms"
+        )
+    return int(width_ns)
+
+
+def _grid(reader: Reader, node: Node) -> Grid:
+    keys = reader.mapping(node, {"rows", "columns", "pitch_mm"}, what="grid")
+    with reader.section():
+        rows = reader.optional(keys, "rows", lambda n: reader.integer(n, "rows", 1, 64), 4)
+        columns = reader.optional(
+            keys, "columns", lambda n: reader.integer(n, "columns", 1, 64), 4
+        )
+        pitch = reader.optional(
+            keys, "pitch_mm",
+            lambda n: float(reader.number(n, "the pitch", "mm", maximum=100)), 2.0,
+        )
+    return Grid(rows, columns, pitch)
+
+
+def _servo(reader: Reader, node: Node) -> ServoSettings:
+    keys = reader.mapping(
+        node,
+        {"model", "baud_rate", "speed_steps_per_s", "acceleration", "steps_per_turn"},
+        what="servo section",
+    )
+    d = ServoSettings()
+    with reader.section():
+        model = reader.optional(
+            keys, "model", lambda n: reader.string(n, "the servo model", ("STS3215",)), d.model
+        )
+        baud = reader.optional(keys, "baud_rate", lambda n: _baud_rate(reader, n), d.baud_rate)
+        speed = reader.optional(
+            keys, "speed_steps_per_s",
+            lambda n: reader.integer(n, "the servo speed (steps/s)", 1, 10_000),
+            d.speed_steps_per_s,
+        )
+        accel = reader.optional(
+            keys, "acceleration",
+            lambda n: reader.integer(
+                n, "the acceleration register (100 step/s^2 units, 0 = maximum)", 0, 254
+            ),
+            d.acceleration_register,
+        )
+        steps = reader.optional(
+            keys, "steps_per_turn", lambda n: reader.integer(n, "steps per turn", 1, 1 << 16),
+            d.steps_per_turn,
+        )
+    return ServoSettings(model, baud, speed, accel, steps)
+
+
+def _baud_rate(reader: Reader, node: Node) -> int:
+    baud = reader.integer(node, "the baud rate")
+    if baud not in BAUD_RATES:
+        raise reader.error(
+            node,
+            f"expected a baud rate the servos support ({', '.join(map(str, BAUD_RATES))}), found {baud}",
+        )
+    return baud
+
+
+def _calibration(reader: Reader, node: Node, what: str) -> _Given:
+    keys = reader.mapping(node, {"rest_steps", "positions", "limits_steps", "lever_mm"}, what=what)
+    with reader.section():
+        rest = reader.optional(
+            keys, "rest_steps",
+            lambda n: (reader.integer(n, "the rest position (steps)", 0, 4095), n), None,
+        )
+        positions = reader.optional(keys, "positions", lambda n: _positions(reader, n), None)
+        limits = reader.optional(keys, "limits_steps", lambda n: _limits(reader, n), None)
+        lever_mm = reader.optional(
+            keys, "lever_mm",
+            lambda n: float(reader.number(n, "the lever length", "mm", maximum=1000)), None,
+        )
+    return _Given(rest, positions, limits, lever_mm)
+
+
+def _positions(reader: Reader, node: Node) -> tuple[tuple[int, int, Node | None], ...]:
+    pairs = reader.items(node, "positions (pulse width in ms: steps)")
+    if len(pairs) > MAX_POSITIONS:
+        raise reader.error(
+            node, f"expected at most {MAX_POSITIONS} calibrated positions, found {len(pairs)}"
+        )
+    positions = []
+    for width_node, position_node in pairs:
+        width_ns = reader.attempt(partial(read_width_ns, reader, width_node), None)
+        position = reader.attempt(
+            partial(reader.integer, position_node, "a position (steps)", 0, 4095), None
+        )
+        if width_ns is not None and position is not None:
+            positions.append((width_ns, position, position_node))
+    return tuple(positions)
+
+
+def _limits(reader: Reader, node: Node) -> tuple[tuple[int, int], Node]:
+    items = reader.sequence(node, "the limits [min, max] in steps", 2)
+    if len(items) != 2:
+        raise reader.error(
+            node, f"expected two limits [min, max] in steps, found {len(items)} values"
+        )
+    low, high = (reader.integer(n, "a limit (steps)", 0, 4095) for n in items)
+    if low >= high:
+        raise reader.error(
+            node, f"expected limits [min, max] with min < max, found [{low}, {high}]"
+        )
+    return (low, high), node
+
+
+def _pin_calibrations(
+    reader: Reader,
+    grid: Grid,
+    servo: ServoSettings,
+    base: _Given,
+    overrides: dict[int, _Given] | None = None,
+    ids: dict[int, tuple[int, Node]] | None = None,
+    ids_node: Node | None = None,
+) -> Device | None:
+    """One calibration per pin: the shared one, overridden per pin; every position in limits."""
+    overrides = overrides or {}
+    ids = ids or {}
+    pins = []
+    ok = True
+    for pin in grid.pins:
+        given = overrides[pin].over(base) if pin in overrides else base
+        positions = given.positions or tuple((w, p, None) for w, p in DEFAULT_POSITIONS)
+        rest, rest_node = given.rest or (positions[0][1], None)
+        # Without explicit limits a pin may go exactly where it is calibrated to go, no further.
+        span = [p for _, p, _ in positions] + [rest]
+        (low, high), limits_node = given.limits or ((min(span), max(span)), None)
+        checks = [(position, node, "position") for _, position, node in positions] + [
+            (rest, rest_node, "rest position")
+        ]
+        for position, node, what in checks:
+            if not low <= position <= high:
+                reader.error(
+                    node or limits_node,
+                    f"pin {pin}: {what} {position} steps is outside its limits [{low}, {high}]",
+                )
+                ok = False
+        servo_id = ids.get(pin, (pin, None))[0]
+        pins.append(
+            PinCalibration(
+                pin,
+                servo_id,
+                rest,
+                low,
+                high,
+                tuple((w, p) for w, p, _ in positions),
+                6.0 if given.lever_mm is None else given.lever_mm,
+            )
+        )
+    seen: dict[int, int] = {}
+    for calibration in pins:
+        if calibration.servo_id in seen:
+            node = ids[calibration.pin][1] if calibration.pin in ids else ids_node
+            reader.error(
+                node,
+                f"servo id {calibration.servo_id} drives both pin {seen[calibration.servo_id]} and pin {calibration.pin}",
+            )
+            ok = False
+        seen[calibration.servo_id] = calibration.pin
+    return Device(grid, servo, tuple(pins)) if ok else None

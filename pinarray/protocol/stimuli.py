@@ -1,0 +1,253 @@
+"""The ``stimuli`` section: pulse trains and waves, each checked against the device it plays on."""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Mapping
+from fractions import Fraction
+from functools import partial
+
+from pinarray.errors import PinArrayError
+from pinarray.grid import Grid
+from pinarray.protocol.device import MS, read_pin, read_width_ns
+from pinarray.protocol.drives import check_no_overlap
+from pinarray.protocol.feasibility import check_train
+from pinarray.protocol.model import NS_PER_S, Device, Stimulus, Train, Wave, WaveKind
+from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, shown
+
+MAX_DURATION_S = 48 * 3600
+MAX_FREQUENCY_HZ = 1000
+TRAIN_KEYS = {
+    "frequency_hz",
+    "duration_s",
+    "pulses_per_cycle",
+    "duty_cycle",
+    "pulse_width_ms",
+    "phase_deg",
+}
+WAVE_KEYS = {"wave", "row", "pins", "train", "soa_ms"}
+
+
+def read_stimuli(
+    reader: Reader, node: Node, device: Device | None
+) -> tuple[tuple[Stimulus, ...], dict[str, Node]]:
+    """The stimuli, and the node each name was declared at (broken ones included)."""
+    stimuli: list[Stimulus] = []
+    nodes: dict[str, Node] = {}
+    none: list[tuple[Node, Node]] = []
+    pairs = reader.attempt(lambda: reader.items(node, "the stimuli"), none)
+    trains: dict[str, Stimulus] = {}
+    waves = []
+    for key_node, value_node in pairs:
+        name = reader.attempt(partial(reader.string, key_node, "a stimulus name"), None)
+        if name is None:
+            continue
+        nodes[name] = value_node
+        if is_wave(value_node):
+            waves.append((name, value_node))
+            continue
+        train = reader.attempt(partial(_train, reader, value_node), None)
+        if train is not None:
+            trains[name] = Stimulus(name, train=train)
+            stimuli.append(trains[name])
+    declared_trains = {name for name, n in nodes.items() if not is_wave(n)}
+    for name, value_node in waves:
+        wave = reader.attempt(
+            partial(_wave, reader, value_node, device, trains, declared_trains), None
+        )
+        if wave is not None:
+            stimuli.append(Stimulus(name, wave=wave))
+    if not pairs and not reader.errors:
+        reader.error(node, "expected at least one stimulus, found none")
+    return tuple(stimuli), nodes
+
+
+def is_wave(node: Node) -> bool:
+    """A stimulus is a wave when its mapping has a ``wave`` key (trains have none)."""
+    return isinstance(node.value, list) and any(
+        isinstance(pair, tuple) and getattr(pair[0], "value", None) == "wave" for pair in node.value
+    )
+
+
+def stimulus_named(
+    reader: Reader,
+    node: Node,
+    by_name: Mapping[str, Stimulus],
+    declared: Collection[str],
+    wave: bool,
+) -> Stimulus:
+    """The pulse train (or wave) named at ``node``; ``declared`` names those that are broken."""
+    what = "wave stimulus" if wave else "pulse train"
+    name = reader.string(node, f"the name of a {what}")
+    stimulus = by_name.get(name)
+    if stimulus is None and name in declared:
+        raise Invalid(name)  # declared but broken: its own problem is already reported
+    if stimulus is None or (stimulus.wave is None) == wave:
+        known = ", ".join(s.name for s in by_name.values() if (s.wave is None) != wave) or "none"
+        raise reader.error(node, f"expected the name of a {what} ({known}), found {shown(name)}")
+    return stimulus
+
+
+def _train(reader: Reader, node: Node) -> Train:
+    keys = reader.mapping(node, TRAIN_KEYS, {"frequency_hz", "duration_s"}, "pulse train")
+    with reader.section():
+        frequency = reader.optional(
+            keys, "frequency_hz",
+            lambda n: reader.number(n, "the frequency", "Hz", maximum=MAX_FREQUENCY_HZ),
+            Fraction(1),
+        )
+        duration = reader.optional(
+            keys, "duration_s",
+            lambda n: reader.number(n, "the signal length", "s", maximum=MAX_DURATION_S),
+            Fraction(1),
+        )
+        per_cycle = reader.optional(
+            keys, "pulses_per_cycle", lambda n: reader.integer(n, "pulses per cycle", 2, 1000), 10
+        )
+        duty = reader.optional(
+            keys, "duty_cycle",
+            lambda n: reader.number(n, "the duty cycle", "(fraction)", maximum=1),
+            Fraction(1, 2),
+        )
+        up_ns, down_ns = reader.optional(
+            keys, "pulse_width_ms", lambda n: _widths(reader, n), (2_000_000, 1_500_000)
+        )
+        phase_deg = reader.optional(
+            keys, "phase_deg",
+            lambda n: reader.number(
+                n, "the phase", "deg", minimum=0, allow_zero=True, maximum=36000
+            ),
+            Fraction(0),
+        )
+    up_pulses = duty * per_cycle
+    where = keys.get("duty_cycle", node)
+    if up_pulses.denominator != 1:
+        raise reader.error(
+            where,
+            f"expected a duty cycle that is a whole number of the {per_cycle} pulses per cycle, found {float(duty):g} ({float(up_pulses):g} pulses)",
+        )
+    if not 0 < up_pulses < per_cycle:
+        raise reader.error(
+            where,
+            f"expected a duty cycle strictly between 0 and 1 (the pin must go up and come down), found {float(duty):g}",
+        )
+    duration_ns = duration * NS_PER_S
+    if duration_ns.denominator != 1:
+        raise reader.error(
+            keys["duration_s"],
+            f"expected a signal length in whole nanoseconds, found {float(duration)} s",
+        )
+    train = Train(
+        frequency,
+        int(duration_ns),
+        per_cycle,
+        int(up_pulses),
+        up_ns,
+        down_ns,
+        (phase_deg / 360) % 1,
+    )
+    check_widths_fit(reader, keys.get("pulse_width_ms", keys["frequency_hz"]), train)
+    if duration_ns < train.slot_ns:
+        raise reader.error(
+            keys["duration_s"],
+            f"expected a signal length of at least one pulse period ({float(train.slot_ns) / 1e6:g} ms), found {float(duration) * 1e3:g} ms",
+        )
+    return train
+
+
+def _widths(reader: Reader, node: Node) -> tuple[int, int]:
+    widths = reader.mapping(node, {"up", "down"}, {"up", "down"}, "pulse widths")
+    with reader.section():
+        up_ns, down_ns = (reader.attempt(partial(read_width_ns, reader, widths[k]), 0)
+                          for k in ("up", "down"))
+    return up_ns, down_ns
+
+
+def check_widths_fit(reader: Reader, node: Node, train: Train) -> None:
+    """Both pulse widths fit the train's pulse period (a servo pulse cannot outlast its slot)."""
+    slot_ns = train.slot_ns
+    for label, width in (("up", train.up_width_ns), ("down", train.down_width_ns)):
+        if width > slot_ns:
+            raise reader.error(
+                node,
+                f"expected pulse widths within the pulse period: the {label} pulse of "
+                f"{width / 1e6:g} ms does not fit the {float(slot_ns) / 1e6:g} ms period of "
+                f"{train.pulses_per_cycle} pulses per cycle at {float(train.frequency_hz):g} Hz",
+            )
+
+
+def check_train_on_pins(
+    reader: Reader, node: Node, train: Train, pins: Collection[int], device: Device
+) -> None:
+    """``train`` fits its period and every pin of ``pins`` can follow it (or scales it)."""
+    check_widths_fit(reader, node, train)
+    for pin in pins:
+        calibration = device.calibration(pin)
+        try:
+            result = check_train(train, calibration, device.servo)
+        except PinArrayError as problem:
+            raise reader.error(node, str(problem)) from None
+        if not result.feasible and not device.scale_infeasible:
+            raise reader.error(
+                node,
+                result.describe(device.servo, calibration.lever_mm)
+                + "; lower the frequency or the stroke, or set device: feasibility: scale",
+            )
+
+
+def _wave(
+    reader: Reader,
+    node: Node,
+    device: Device | None,
+    trains: Mapping[str, Stimulus],
+    declared_trains: Collection[str],
+) -> Wave:
+    keys = reader.mapping(node, WAVE_KEYS, {"wave", "row", "train"}, "wave")
+    kind = WaveKind(reader.string(keys["wave"], "the wave", tuple(k.value for k in WaveKind)))
+    grid = device.grid if device else Grid()
+    row = reader.integer(keys["row"], "the row (1 = bottom)", 1, grid.rows)
+    row_pins = grid.row_pins(row - 1)
+    pins = row_pins
+    if "pins" in keys:
+        pins = tuple(
+            read_pin(reader, n, grid) for n in reader.sequence(keys["pins"], "the wave's pins", 2)
+        )
+        strangers = [p for p in pins if p not in row_pins]
+        if strangers:
+            raise reader.error(
+                keys["pins"],
+                f"expected pins of row {row} ({', '.join(map(str, row_pins))}), found {', '.join(map(str, strangers))}",
+            )
+        if list(pins) != sorted(set(pins)):
+            raise reader.error(
+                keys["pins"],
+                f"expected the row's pins left to right without repeats, found {list(pins)}",
+            )
+    if len(pins) < 2:
+        raise reader.error(
+            keys["row"], f"expected a row of at least 2 pins for a wave, found {len(pins)}"
+        )
+    if kind is WaveKind.NONE and len(pins) % 2 == 0:
+        raise reader.error(
+            keys.get("pins", keys["row"]),
+            f"a no-wave alternates a central pin with its two lateral ones: expected an odd number of pins, found {len(pins)}; list them with 'pins:'",
+        )
+    train = stimulus_named(reader, keys["train"], trains, declared_trains, wave=False).train
+    assert train is not None  # a pulse train's stimulus holds its train
+    with reader.section():
+        soa = reader.optional(
+            keys, "soa_ms",
+            lambda n: MS * reader.number(
+                n, "the SOA", "ms", maximum=60_000, minimum=0, allow_zero=True
+            ),
+            # Tactile Brush (Israr & Poupyrev): SOA = 0.32 x duration + 47.3 ms.
+            Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS,
+        )
+    wave = Wave(kind, row, pins, train, round(soa))
+    if device is not None:
+        # What a localisation train gets checked for, each pin of the wave gets too.
+        check_train_on_pins(reader, keys["train"], train, pins, device)
+    try:
+        check_no_overlap(wave.drives())
+    except PinArrayError as problem:
+        raise reader.error(keys.get("soa_ms", node), str(problem)) from None
+    return wave

@@ -1,0 +1,155 @@
+"""Numbers on the command line, as a hurried user or a fuzzer types them: every command ends in
+exit status 0 or 2, errors are one line, and nothing hangs or allocates gigabytes, because
+each option refuses what would (`pinarray.cli.common`).
+
+The options are found in the parser itself, so a new numeric option is fuzzed too. Commands
+that run quickly run for real; those that drive servos, run sessions or analyse results are
+parsed only here (their handlers have tests of their own).
+"""
+
+import argparse
+import contextlib
+import io
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from pinarray.cli import build_parser, common, main
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+DEMO = str(PROTOCOLS / "demo.yaml")
+MOTION = str(PROTOCOLS / "apparent_motion.yaml")
+# Options naming files, folders, ports or URLs, and flags: not numbers.
+NOT_NUMBERS = {"--out", "--png", "--csv", "--targets", "--results", "--sim", "--port", "--faults",
+               "--protocols", "--subject", "--session", "--experimenter", "--observer",
+               "--responses", "--interval", "--help", "--version"}
+
+
+def subcommands(parser: argparse.ArgumentParser, prefix=()):
+    """(command words, its parser) for every command and softness model."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield (*prefix, name), sub
+                yield from subcommands(sub, (*prefix, name))
+
+
+def numeric_options(parser: argparse.ArgumentParser) -> list[str]:
+    return sorted(option for action in parser._actions if action.nargs != 0
+                  for option in action.option_strings[:1] if option not in NOT_NUMBERS)
+
+
+PARSER = build_parser()
+COMMANDS = {words: numeric_options(sub) for words, sub in subcommands(PARSER)}
+# Run for real: (command words, the arguments they need besides the fuzzed options).
+RUN = {
+    ("grid",): [],
+    ("preview",): [MOTION],
+    ("compile",): [DEMO, "--out", "-"],
+    ("validate",): [DEMO],
+    **{("softness", model): [] for model in
+       ("hertz", "telescopic", "display", "fit", "track", "forceps")},
+}
+PARSE_ONLY = {
+    ("play",): [DEMO], ("timing",): [], ("scan",): [], ("sim-serve",): [],
+    ("batch",): [DEMO, "--subject", "s1", "--observer", "default"],
+    ("analyse",): ["results"], ("power",): [DEMO], ("tui",): [],
+}
+
+numbers = st.one_of(
+    st.integers(-3, 64).map(str),  # in range for most options: the handlers run
+    st.floats(0.001, 100).map(lambda x: f"{x:.4g}"),
+    st.sampled_from(["nan", "-nan", "inf", "-inf", "1e-300", "-1e-300", "1e300", "-1", "0", "-0",
+                     "1", "2", "0.5", "1e9", "-1e9", "99999999999999999999", "9" * 5000, "",
+                     " 3 ", "0x10", "1_000", "1,2", "3,", ",", "1e", "abc", "2**63", "1/3",
+                     str(2**63 - 1), str(2**63), str(-(2**63))]),
+    st.integers(-(10**12), 10**12).map(str),
+    st.floats(allow_nan=True, allow_infinity=True).map(repr),
+    st.lists(st.integers(-5, 10**5), min_size=1, max_size=4).map(lambda v: ",".join(map(str, v))),
+)
+
+
+def run(argv: list[str]) -> tuple[int, str]:
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        try:
+            status = main(argv)
+        except SystemExit as stop:
+            status = stop.code
+    return status, err.getvalue()
+
+
+def test_every_command_is_either_run_or_parsed_here():
+    assert set(RUN) | set(PARSE_ONLY) | {("softness",)} == set(COMMANDS)
+
+
+@settings(max_examples=200, deadline=None, database=None,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_any_numbers_for_the_options_of_a_command_that_runs_end_in_0_or_2(data):
+    words = data.draw(st.sampled_from(sorted(RUN)))
+    options = data.draw(st.lists(st.sampled_from(COMMANDS[words]), min_size=1, max_size=3,
+                                 unique=True)) if COMMANDS[words] else []
+    argv = [*words, *RUN[words]]
+    for option in options:
+        argv += [f"{option}={data.draw(numbers)}"]
+    status, err = run(argv)
+    assert status in (0, 2), (argv, err)
+    assert "Traceback" not in err
+    if status == 2:
+        last = err.splitlines()[-1]
+        assert last.startswith("pinarray"), (argv, err)  # "pinarray: ..." or argparse's error
+
+
+@settings(max_examples=150, deadline=None, database=None)
+@given(data=st.data())
+def test_options_of_commands_that_drive_servos_or_sessions_refuse_what_would_not_end(data):
+    words = data.draw(st.sampled_from(sorted(PARSE_ONLY)))
+    option = data.draw(st.sampled_from(COMMANDS[words]))
+    value = data.draw(numbers)
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            args = PARSER.parse_args([*words, *PARSE_ONLY[words], f"{option}={value}"])
+    except SystemExit as stop:
+        assert stop.code == 2
+        return
+    parsed = getattr(args, option.lstrip("-").replace("-", "_"))
+    if option == "--time-scale":
+        assert parsed == 0 or common.MIN_TIME_SCALE <= parsed <= common.MAX_TIME_SCALE
+    elif option == "--seed":
+        assert 0 <= parsed <= common.MAX_SEED
+
+
+@pytest.mark.parametrize("value", ["inf", "nan", "1e-300", "-1", "1e300"])
+def test_a_time_scale_that_would_never_end_or_mean_nothing_is_refused(value):
+    for words, needed in (("play", [DEMO]), ("batch", [DEMO, "--subject", "s", "--observer", "x"]),
+                          ("tui", [])):
+        status, err = run([words, *needed, f"--time-scale={value}"])
+        assert status == 2 and "expected 0 (virtual time) or 0.01 to 10000 times real time" in err
+
+
+def test_a_negative_seed_is_refused_by_every_command_that_takes_one():
+    takers = [words for words, options in COMMANDS.items() if "--seed" in options]
+    assert len(takers) >= 6
+    for words in takers:
+        needed = RUN.get(words) or PARSE_ONLY.get(words) or []
+        status, err = run([*words, *needed, "--seed=-1"])
+        assert status == 2 and "expected a seed from 0 to 2^63-1, found '-1'" in err, words
+
+
+def test_sizes_that_would_allocate_gigabytes_are_refused():
+    for argv in (["preview", MOTION, "--width", "1000000000"],
+                 ["softness", "hertz", "--rows", "100000000"],
+                 ["softness", "track", "--time-step-ms", "1e-9"],
+                 ["analyse", "results", "--bootstrap-resamples", "1000000000"],
+                 ["power", DEMO, "--studies", "100000000"],
+                 ["grid", "--rows", "64", "--columns", "64", "--table"]):
+        status, err = run(argv)
+        assert status == 2 and len(err.strip().splitlines()[-1]) < 300, argv
+
+
+def test_no_help_text_shows_a_doubled_percent_sign():
+    for words, sub in subcommands(PARSER):
+        assert "%%" not in sub.format_help(), words
