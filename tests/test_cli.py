@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 from pinarray import __version__
 from pinarray.cli import main
@@ -35,3 +36,15 @@ def test_a_users_mistake_is_one_line_on_stderr_with_status_2():
     lines = result.stderr.strip().splitlines()
     assert lines == ["pinarray: pin 17 is not on the 4x4 grid: expected a pin from 1 to 16"]
     assert "Traceback" not in result.stderr
+
+
+def test_preview_prints_the_seed_of_the_plan_it_drew_so_the_same_plan_can_be_seen_again(capsys):
+    import re
+
+    localisation = str(Path(__file__).resolve().parent.parent / "protocols" / "localisation.yaml")
+    assert main(["preview", localisation, "--trial", "5"]) == 0
+    first = capsys.readouterr().out
+    seed = re.search(r"--seed (\d+) shows the same plan", first).group(1)
+    assert main(["preview", localisation, "--trial", "5", "--seed", seed]) == 0
+    again = capsys.readouterr().out
+    assert again.splitlines()[:-1] == first.splitlines()[:-1]

@@ -42,7 +42,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("file", metavar="FILE")
     p.add_argument("--trial", type=common.count(1, MAX_TRIAL_NUMBER), default=1,
                    help="trial number in the plan (default 1)")
-    p.add_argument("--seed", type=common.seed)
+    p.add_argument("--seed", type=common.seed,
+                   help="plan seed (default: the protocol's, else a new one, printed)")
     p.add_argument("--width", type=common.count(20, 1000), default=72,
                    help="columns of the text timeline (20 to 1000, default 72)")
     p.add_argument("--png", help="also draw the timeline to this PNG file")
@@ -218,6 +219,11 @@ def _preview(args: argparse.Namespace) -> int:
     planned = plan.trial(args.trial)
     schedule = compile_trial(protocol, planned)
     print(text_timeline(protocol, planned, schedule, args.width))
+    if args.seed is None and protocol.design.seed is None:
+        print(f"(plan seed {plan.seed}, drawn for this preview: --seed {plan.seed} shows the "
+              "same plan again)")
+    else:
+        print(f"(plan seed {plan.seed})")
     if args.png:
         from pinarray.preview import draw_timeline
 
