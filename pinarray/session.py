@@ -21,9 +21,9 @@ from typing import Protocol as Interface
 from pinarray.delivery import DeliveryRecord, Presentation
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
+from pinarray.journal.records import MOTION_RESPONSES, RunWriter, TrialRecord
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol import NS_PER_S, Paradigm, Protocol, WaveKind
-from pinarray.results import MOTION_RESPONSES, RunWriter, TrialRecord
 from pinarray.schedule import TrialSchedule, compile_trial
 
 DIRECTION_LABEL = {WaveKind.RIGHTWARDS: "right", WaveKind.LEFTWARDS: "left", WaveKind.NONE: "none"}

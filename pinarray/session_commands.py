@@ -41,7 +41,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _cmd_batch(args: argparse.Namespace) -> int:
     import sys
 
-    from pinarray.manifest import check_label
+    from pinarray.journal.manifest import check_label
     from pinarray.protocol_load import load_protocol
 
     subject = check_label("subject", args.subject)
@@ -92,12 +92,12 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     import sys
 
     from pinarray.errors import PinArrayError
+    from pinarray.journal.runs import open_run
     from pinarray.observer import SimulatedObserver, parse_observer
     from pinarray.plan import make_plan
     from pinarray.player import describe
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
-    from pinarray.session_setup import open_run
     from pinarray.stop import Stopped, StopRequest, stop_on_signals
 
     task = task_label(protocol)

@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError, ResultsError
-from pinarray.manifest import (
+from pinarray.journal.manifest import (
     LabelError,
     RunPaths,
     find_unfinished,
@@ -21,7 +21,7 @@ from pinarray.manifest import (
     set_status,
     write_manifest,
 )
-from pinarray.results import (
+from pinarray.journal.records import (
     BEH_COLUMNS,
     EVENT_COLUMNS,
     RunWriter,
@@ -245,8 +245,8 @@ def test_any_motion_row_reads_back_exactly_as_written(
 CHILD = textwrap.dedent("""
     import sys
     from pathlib import Path
-    from pinarray.manifest import RunPaths
-    from pinarray.results import RunWriter, TrialRecord
+    from pinarray.journal.manifest import RunPaths
+    from pinarray.journal.records import RunWriter, TrialRecord
 
     root, mode = Path(sys.argv[1]), sys.argv[2]
     if mode == "start":

@@ -16,10 +16,10 @@ from pinarray.clock import VirtualClock
 from pinarray.delivery import DEFAULT_TOLERANCE_NS, DeliveryRecord, Presentation
 from pinarray.errors import BusError
 from pinarray.grid import classify
-from pinarray.manifest import read_manifest
+from pinarray.journal.manifest import read_manifest
+from pinarray.journal.records import RunWriter, read_trials
 from pinarray.plan import make_plan
 from pinarray.protocol_load import load_protocol
-from pinarray.results import RunWriter, read_trials
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, SessionError, plan_records, task_label
 

@@ -16,8 +16,8 @@ from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
-from pinarray.manifest import RunPaths, read_manifest
-from pinarray.results import TrialRecord, read_trials
+from pinarray.journal.manifest import RunPaths, read_manifest
+from pinarray.journal.records import TrialRecord, read_trials
 
 BEH_PATTERN = "*_beh.tsv"
 

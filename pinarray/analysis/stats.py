@@ -21,7 +21,7 @@ import numpy as np
 
 from pinarray.errors import ResultsError
 from pinarray.grid import DEFAULT_GRID, Grid
-from pinarray.results import TrialRecord
+from pinarray.journal.records import TrialRecord
 
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 ERROR_CLASSES = ("A", "B", "C", "D")

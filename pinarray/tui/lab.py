@@ -14,10 +14,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pinarray.clock import Clock
+from pinarray.journal.runs import open_run
 from pinarray.protocol import Protocol
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, task_label
-from pinarray.session_setup import open_run
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 QUIT_REASON = "quit from the UI"

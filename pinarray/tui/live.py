@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pinarray.results import TrialRecord
+from pinarray.journal.records import TrialRecord
 from pinarray.schedule import TargetList
 
 

@@ -14,7 +14,7 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer, Input, Label, Select, Static
 
 from pinarray.errors import PinArrayError
-from pinarray.manifest import RunPaths, SessionManifest, check_label
+from pinarray.journal.manifest import RunPaths, SessionManifest, check_label
 from pinarray.protocol import Protocol
 from pinarray.rig import SIM_DEFAULT
 from pinarray.tui.lab import SessionRequest
@@ -126,9 +126,9 @@ class StartScreen(Screen):
     @on(Input.Changed, "#subject, #session")
     @on(Select.Changed, "#protocol")
     def _look_for_unfinished(self) -> None:
-        from pinarray.results import read_trials, remaining_plan
+        from pinarray.journal.records import read_trials, remaining_plan
+        from pinarray.journal.runs import unfinished_run
         from pinarray.session import task_label
-        from pinarray.session_setup import unfinished_run
 
         info = self.query_one("#resume-info", Static)
         self._unfinished = None

@@ -2,7 +2,7 @@
 
 import pytest
 
-from pinarray.results import RunWriter, TrialRecord
+from pinarray.journal.records import RunWriter, TrialRecord
 
 # (subject, frequency_hz, stimulated pin, response, status, practice)
 LOCALISATION = [

@@ -15,7 +15,7 @@ from pinarray.analysis.stats import (
     summarise_subjects,
     wilson_interval,
 )
-from pinarray.results import TrialRecord
+from pinarray.journal.records import TrialRecord
 
 
 def summaries_of(root):

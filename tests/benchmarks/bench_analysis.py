@@ -18,9 +18,9 @@ from pinarray.analysis.mixed import Cell, _Data, fit_frequency_effect
 from pinarray.analysis.power import power_study, protocol_design, simulate_subject
 from pinarray.analysis.study import study
 from pinarray.grid import classify
+from pinarray.journal.records import RunWriter, TrialRecord, trial_row
 from pinarray.observer import ObserverModel, SimulatedObserver
 from pinarray.protocol_load import load_protocol
-from pinarray.results import RunWriter, TrialRecord, trial_row
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 REPEATS = 5

@@ -1,8 +1,8 @@
 """The run screen's computed parts: which pins are up at a moment, and the running counts."""
 
+from pinarray.journal.records import TrialRecord
 from pinarray.plan import make_plan
 from pinarray.protocol_load import load_protocol
-from pinarray.results import TrialRecord
 from pinarray.schedule import compile_trial
 from pinarray.tui.live import LiftTimeline, LiveCounts
 from tests.tui.conftest import LOCALISATION

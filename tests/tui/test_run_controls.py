@@ -1,8 +1,8 @@
 """Pause, redo, abort (and resume), quit, bus faults and mistakes, driven through the UI."""
 
 from pinarray.errors import BusError
-from pinarray.manifest import read_manifest
-from pinarray.results import read_trials
+from pinarray.journal.manifest import read_manifest
+from pinarray.journal.records import read_trials
 from pinarray.rig import Rig
 from pinarray.session import Phase
 from pinarray.tui.confirm import Confirm

@@ -1,8 +1,8 @@
 """Whole sessions driven through the UI by keys and clicks, checked in the results files."""
 
 from pinarray.grid import classify
-from pinarray.manifest import read_manifest
-from pinarray.results import read_trials
+from pinarray.journal.manifest import read_manifest
+from pinarray.journal.records import read_trials
 from pinarray.session import DIRECTION_LABEL, Phase
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.run_screen import RunScreen

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from pinarray.errors import ResultsError
-from pinarray.manifest import (
+from pinarray.journal.manifest import (
     UNFINISHED_STATUSES,
     RunPaths,
     SessionManifest,
@@ -390,7 +390,7 @@ class RunWriter:
     ) -> RunWriter:
         """Start the next free run: write the manifest (status running) and the sidecars.
 
-        ``provenance`` is the keywords of `pinarray.manifest.new_manifest`: ``seed``,
+        ``provenance`` is the keywords of `pinarray.journal.manifest.new_manifest`: ``seed``,
         ``protocol_sha256``, ``port``, and optionally ``servo_models`` and ``experimenter``.
         """
         try:

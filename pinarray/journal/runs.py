@@ -9,10 +9,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from pinarray.errors import PinArrayError
-from pinarray.manifest import RunPaths, SessionManifest, find_unfinished
+from pinarray.journal.manifest import RunPaths, SessionManifest, find_unfinished
+from pinarray.journal.records import RunWriter
 from pinarray.plan import TrialPlan, make_plan
 from pinarray.protocol import Protocol
-from pinarray.results import RunWriter
 from pinarray.session import plan_records
 
 
