@@ -1,6 +1,7 @@
 """Find and read runs: the analysis reads result files (rows and manifests) and nothing else.
 
-A run is one ``beh.tsv`` with the manifest beside it. Which runs count is decided here, once:
+A run is one ``beh.tsv`` with its manifest (in ``sourcedata/``, or beside it for runs written
+before the manifests moved there). Which runs count is decided here, once:
 a run whose manifest does not say ``completed``, or that holds no counted trial (a main
 trial with status ok), is *incomplete*; incomplete runs are listed and left out unless the
 caller asks for them. A run with no manifest at all (a file handed over on its own) cannot
@@ -16,8 +17,9 @@ from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
-from pinarray.journal.manifest import RunPaths, read_manifest
-from pinarray.journal.records import TrialRecord, read_trials
+from pinarray.journal.manifest import read_manifest
+from pinarray.journal.paths import RunPaths
+from pinarray.journal.records import TrialRecord, TrialStatus, read_trials
 
 BEH_PATTERN = "*_beh.tsv"
 
@@ -133,7 +135,7 @@ def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], li
     kept, twice = [], []
     for record in records:
         key = (record.trial, record.practice)
-        if record.status == "ok":
+        if record.status is TrialStatus.OK:
             if key in seen:
                 twice.append(record.trial)
                 continue
@@ -146,11 +148,12 @@ def load_run(beh: Path) -> LoadedRun:
     """One run: its whole rows (torn last row left out) and its manifest's verdict."""
     paths = RunPaths.from_file(beh)
     records, duplicates = first_ok_rows(read_trials(beh))
-    if not paths.manifest.exists():
+    manifest = paths.manifest_on_disk()
+    if manifest is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
     else:
         try:
-            status = read_manifest(paths.manifest).status
+            status = read_manifest(manifest).status
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
         except ResultsError as problem:

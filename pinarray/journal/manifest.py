@@ -1,311 +1,331 @@
-"""Who, what and where a run is: labels, the BIDS file layout, and the session manifest.
+"""A run's manifest: its plan, provenance, sittings, time zero and status, as one JSON file.
 
-A run lives under a results root (``results/`` by default) as BIDS lays out behaviour::
-
-    sub-<subject>/ses-<session>/beh/sub-<subject>_ses-<session>_task-<task>_run-<k>_beh.tsv
-                                   ..._beh.json       column descriptions (sidecar)
-                                   ..._events.tsv     stimulus timing for imaging analyses
-                                   ..._events.json
-                                   ..._manifest.json  plan, seed, provenance, status
-
-The manifest is written before trial 1 and replaced atomically (temporary file in the same
-folder, fsync, ``os.replace``) whenever its status changes, so a reader always finds either
-the old or the new version, never half of one.
+Written before trial 1 and replaced atomically whenever it changes (a sitting starts, the
+run's time zero is fixed, the status changes), so a reader always finds a whole version. The
+values crossing modules are frozen: `PlanEntry` (one trial of the plan), `Provenance` (what
+the run was made from), `TaskInfo` (what the sidecars say about the task); JSON only at the
+file boundary. Manifests written before the time base and the sum-typed plan (a ``pid`` and
+``resumed_at`` list instead of sittings) are still read.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import platform
-import re
-import socket
-import tempfile
-from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field, replace
-from datetime import datetime
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from enum import StrEnum
+from fractions import Fraction
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 from pinarray import __version__
 from pinarray.errors import ResultsError
-
-DEFAULT_RESULTS_ROOT = Path("results")
-STATUSES = ("running", "completed", "aborted", "crashed")
-# An aborted run (the experimenter stopped, or quit the UI) resumes like a crashed one.
-UNFINISHED_STATUSES = ("running", "crashed", "aborted")
-_LABEL = re.compile(r"[A-Za-z0-9]+")
-_RUN_FILE = re.compile(
-    r"sub-(?P<sub>[A-Za-z0-9]+)_ses-(?P<ses>[A-Za-z0-9]+)_task-(?P<task>[A-Za-z0-9]+)"
-    r"_run-(?P<run>[0-9]+)_(?P<suffix>[a-z]+)\.(?P<ext>tsv|json)$"
+from pinarray.journal.files import now_iso, write_atomically
+from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
+from pinarray.journal.records import Direction, TrialRecord, finished_trials
+from pinarray.journal.timebase import (
+    ClockKind,
+    Sitting,
+    TimeScale,
+    TimeZero,
+    ns_from_seconds,
+    seconds_text,
 )
+from pinarray.protocol import Paradigm, WaveKind
 
 
-class LabelError(ResultsError):
-    """A subject, session or task label that BIDS (and a safe file path) cannot hold."""
+class RunStatus(StrEnum):
+    RUNNING = "running"  # being written, or killed outright (nothing was left to say so)
+    COMPLETED = "completed"
+    ABORTED = "aborted"  # stopped by the experimenter, a signal, or failed deliveries
+    CRASHED = "crashed"  # an error inside the writer's block
+
+    @property
+    def unfinished(self) -> bool:
+        """Whether the run can be resumed: everything but completed."""
+        return self is not RunStatus.COMPLETED
 
 
-def check_label(kind: str, label: object) -> str:
-    """Return ``label`` as text if it is alphanumeric (BIDS), else raise `LabelError`.
+DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
+                     WaveKind.NONE: Direction.NONE}
 
-    Parameters
-    ----------
-    kind : str
-        What the label names ("subject", "session", "task"), for the message.
-    label : object
-        The label; integers are accepted for sessions (``1`` -> ``"1"``).
-    """
-    text = str(label) if isinstance(label, int) and not isinstance(label, bool) else label
-    if not isinstance(text, str) or not _LABEL.fullmatch(text):
-        raise LabelError(
-            f"{kind} label {label!r} is not allowed: expected letters and digits only "
-            f"(BIDS labels; no spaces, dots, slashes, dashes or underscores)"
-        )
-    return text
+
+@dataclass(frozen=True, kw_only=True)
+class _Entry:
+    trial: int  # 1..N in plan order, the number every output uses
+    block: int = 1  # 0 for practice
+    practice: bool = False
+    stimulus: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LocalisationEntry(_Entry):
+    pin: int
+    frequency_hz: Fraction
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionEntry(_Entry):
+    row: int
+    wave: WaveKind
+
+    @property
+    def direction(self) -> Direction:
+        return DIRECTION_OF_WAVE[self.wave]
+
+
+PlanEntry: TypeAlias = LocalisationEntry | MotionEntry
+
+
+def entry_key(entry: PlanEntry) -> tuple[int, bool]:
+    """(trial, practice), as `TrialRecord.key` names the same trial."""
+    return entry.trial, entry.practice
+
+
+def entry_to_json(entry: PlanEntry) -> dict[str, Any]:
+    """The JSON a plan entry is stored as (the shape `pinarray compile` writes too)."""
+    data: dict[str, Any] = {"trial": entry.trial, "block": entry.block,
+                            "practice": entry.practice, "stimulus": entry.stimulus,
+                            "pin": None, "frequency_hz": None, "direction": None, "row": None}
+    match entry:
+        case LocalisationEntry():
+            data |= {"pin": entry.pin, "frequency_hz": str(entry.frequency_hz)}
+        case MotionEntry():
+            data |= {"direction": entry.wave.value, "row": entry.row}
+    return data
+
+
+def entry_from_json(data: object, where: str) -> PlanEntry:
+    if not isinstance(data, Mapping):
+        raise ResultsError(f"{where}: expected a trial plan entry, found {data!r}")
+    trial = data.get("trial")
+    if isinstance(trial, bool) or not isinstance(trial, int):
+        raise ResultsError(f"{where}: a trial plan entry needs an integer 'trial', found {data!r}")
+    common = {"trial": trial, "block": int(data.get("block", 1)),
+              "practice": bool(data.get("practice", False)),
+              "stimulus": str(data.get("stimulus") or "")}
+    try:
+        if data.get("pin") is not None:
+            return LocalisationEntry(**common, pin=int(data["pin"]),
+                                     frequency_hz=Fraction(str(data["frequency_hz"])))
+        if data.get("direction") is not None:
+            return MotionEntry(**common, row=int(data["row"]), wave=WaveKind(data["direction"]))
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        pass
+    raise ResultsError(f"{where}: trial {trial} of the plan names neither a pin and a frequency "
+                       f"nor a wave direction and a row: {dict(data)!r}")
+
+
+def remaining_plan(plan: Iterable[PlanEntry], records: Iterable[TrialRecord]) -> list[PlanEntry]:
+    """The plan entries not yet finished (no ``ok`` row), in plan order."""
+    done = finished_trials(records)
+    return [entry for entry in plan if entry_key(entry) not in done]
 
 
 @dataclass(frozen=True)
-class RunPaths:
-    """The files of one run under a results root; labels are checked on construction."""
+class Provenance:
+    """What a run was made from: the plan's seed, the protocol, the bus, who ran it."""
 
-    root: Path
-    subject: str
-    session: str
-    task: str
-    run: int
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "root", Path(self.root))
-        object.__setattr__(self, "subject", check_label("subject", self.subject))
-        object.__setattr__(self, "session", check_label("session", self.session))
-        object.__setattr__(self, "task", check_label("task", self.task))
-        if isinstance(self.run, bool) or not isinstance(self.run, int) or self.run < 1:
-            raise ResultsError(f"run number must be a whole number >= 1, found {self.run!r}")
-
-    @property
-    def beh_dir(self) -> Path:
-        return self.root / f"sub-{self.subject}" / f"ses-{self.session}" / "beh"
-
-    @property
-    def stem(self) -> str:
-        return f"sub-{self.subject}_ses-{self.session}_task-{self.task}_run-{self.run}"
-
-    def file(self, suffix: str, ext: str) -> Path:
-        return self.beh_dir / f"{self.stem}_{suffix}.{ext}"
-
-    @property
-    def beh_tsv(self) -> Path:
-        return self.file("beh", "tsv")
-
-    @property
-    def events_tsv(self) -> Path:
-        return self.file("events", "tsv")
-
-    @property
-    def manifest(self) -> Path:
-        return self.file("manifest", "json")
-
-    @classmethod
-    def from_file(cls, path: Path | str) -> RunPaths:
-        """The run a BIDS file name belongs to, with the results root three folders up."""
-        path = Path(path)
-        match = _RUN_FILE.fullmatch(path.name)
-        if not match:
-            raise ResultsError(
-                f"{path}: not a pinarray run file; expected "
-                "sub-<id>_ses-<n>_task-<task>_run-<k>_<beh|events|manifest>.<tsv|json>"
-            )
-        return cls(path.parent.parent.parent.parent, match["sub"], match["ses"],
-                   match["task"], int(match["run"]))
-
-
-def runs_of(root: Path | str, subject: str, session: str | int, task: str) -> list[RunPaths]:
-    """Existing runs of one subject, session and task, by run number."""
-    probe = RunPaths(Path(root), subject, str(session), task, 1)
-    prefix = f"sub-{probe.subject}_ses-{probe.session}_task-{probe.task}_run-"
-    found = {
-        RunPaths.from_file(p).run
-        for p in probe.beh_dir.glob(prefix + "*")
-        if _RUN_FILE.fullmatch(p.name)
-    }
-    return [replace(probe, run=k) for k in sorted(found)]
-
-
-def next_run(root: Path | str, subject: str, session: str | int, task: str) -> RunPaths:
-    """The first run number after every existing one (never reuses a number)."""
-    existing = runs_of(root, subject, session, task)
-    probe = RunPaths(Path(root), subject, str(session), task, 1)
-    return replace(probe, run=existing[-1].run + 1) if existing else probe
-
-
-@dataclass(frozen=True)
-class SessionManifest:
-    """Everything needed to re-run or audit a run; plain JSON-safe values only.
-
-    ``plan`` is the full trial plan in presentation order, one mapping per trial, each with
-    an integer ``"trial"`` key. ``started_at`` and ``updated_at`` are ISO 8601 with offset.
-    """
-
-    subject: str
-    session: str
-    task: str
-    run: int
-    plan: tuple[Mapping[str, Any], ...]
     seed: int | None
     protocol_sha256: str
     port: str
+    protocol_file: str = ""
     servo_models: tuple[str, ...] = ()
     experimenter: str = ""
-    software_version: str = __version__
-    machine: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TaskInfo:
+    """What the sidecars say about the task and the device (BIDS TaskName, Instructions...)."""
+
+    name: str
+    paradigm: Paradigm
+    description: str = ""
+    instructions: str = ""
+    grid_rows: int = 4
+    grid_columns: int = 4
+    pitch_mm: float = 2.0
+
+    @property
+    def pins(self) -> range:
+        return range(1, self.grid_rows * self.grid_columns + 1)
+
+
+@dataclass(frozen=True)
+class RunManifest:
+    """Everything needed to re-run or audit a run. Wall-clock times are ISO 8601 with offset."""
+
+    subject: str
+    session: str
+    task: str
+    run: int
+    plan: tuple[PlanEntry, ...]
+    provenance: Provenance
+    task_info: TaskInfo
     started_at: str = ""
     updated_at: str = ""
-    status: str = "running"
+    status: RunStatus = RunStatus.RUNNING
     abort_reason: str = ""
-    pid: int = 0
-    resumed_at: tuple[str, ...] = ()
+    sittings: tuple[Sitting, ...] = ()
+    time_zero: TimeZero | None = None
+    software_version: str = __version__
+    machine: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.status not in STATUSES:
-            raise ResultsError(f"manifest status must be one of {STATUSES}, found {self.status!r}")
-        numbers = []
-        for index, entry in enumerate(self.plan):
-            trial = entry.get("trial") if isinstance(entry, Mapping) else None
-            if isinstance(trial, bool) or not isinstance(trial, int):
-                raise ResultsError(
-                    f"trial plan entry {index} needs an integer 'trial' key, found {entry!r}"
-                )
-            numbers.append(trial)
-        if len(set(numbers)) != len(numbers):
+        try:
+            object.__setattr__(self, "status", RunStatus(self.status))
+        except ValueError:
+            raise ResultsError(f"manifest status must be one of {', '.join(RunStatus)}, "
+                               f"found {self.status!r}") from None
+        keys = [entry_key(e) for e in self.plan]
+        if len(set(keys)) != len(keys):
             raise ResultsError("trial plan numbers a trial twice: each 'trial' must be unique")
 
+    @property
+    def seed(self) -> int | None:
+        return self.provenance.seed
+
+    @property
+    def protocol_sha256(self) -> str:
+        return self.provenance.protocol_sha256
+
     def to_json(self) -> dict[str, Any]:
-        data = asdict(self)
-        data["plan"] = [dict(e) for e in self.plan]
-        data["servo_models"] = list(self.servo_models)
-        data["resumed_at"] = list(self.resumed_at)
-        data["machine"] = dict(self.machine)
-        return data
+        p, t = self.provenance, self.task_info
+        return {
+            "subject": self.subject, "session": self.session, "task": self.task, "run": self.run,
+            "status": self.status.value, "abort_reason": self.abort_reason,
+            "started_at": self.started_at, "updated_at": self.updated_at,
+            "seed": p.seed, "protocol_sha256": p.protocol_sha256, "protocol_file": p.protocol_file,
+            "port": p.port, "servo_models": list(p.servo_models), "experimenter": p.experimenter,
+            "software_version": self.software_version, "machine": dict(self.machine),
+            "task_info": {"name": t.name, "paradigm": t.paradigm.value,
+                          "description": t.description, "instructions": t.instructions,
+                          "grid_rows": t.grid_rows, "grid_columns": t.grid_columns,
+                          "pitch_mm": t.pitch_mm},
+            "time_zero": None if self.time_zero is None else {
+                "event": self.time_zero.event, "at": self.time_zero.at},
+            "sittings": [_sitting_to_json(s) for s in self.sittings],
+            "plan": [entry_to_json(e) for e in self.plan],
+        }
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any], where: str = "<manifest>") -> SessionManifest:
+    def from_json(cls, data: object, where: str = "<manifest>") -> RunManifest:
+        if not isinstance(data, Mapping):
+            raise ResultsError(f"{where}: not a pinarray run manifest (expected a JSON object)")
         try:
-            return cls(**{
-                **data,
-                "plan": tuple(data["plan"]),
-                "servo_models": tuple(data.get("servo_models", ())),
-                "resumed_at": tuple(data.get("resumed_at", ())),
-            })
-        except (TypeError, KeyError) as error:
-            raise ResultsError(f"{where}: not a pinarray session manifest ({error})") from None
+            plan = tuple(entry_from_json(e, f"{where}: plan entry {i + 1}")
+                         for i, e in enumerate(data["plan"]))
+            provenance = Provenance(
+                seed=data["seed"], protocol_sha256=str(data["protocol_sha256"]),
+                port=str(data["port"]), protocol_file=str(data.get("protocol_file", "")),
+                servo_models=tuple(map(str, data.get("servo_models", ()))),
+                experimenter=str(data.get("experimenter", "")))
+            zero = data.get("time_zero")
+            return cls(
+                subject=str(data["subject"]), session=str(data["session"]),
+                task=str(data["task"]), run=int(data["run"]), plan=plan, provenance=provenance,
+                task_info=_task_info(data.get("task_info"), str(data["task"]), plan),
+                started_at=str(data.get("started_at", "")),
+                updated_at=str(data.get("updated_at", "")), status=data["status"],
+                abort_reason=str(data.get("abort_reason", "")),
+                sittings=_sittings(data),
+                time_zero=None if zero is None else TimeZero(str(zero["event"]), str(zero["at"])),
+                software_version=str(data.get("software_version", "")),
+                machine={str(k): str(v) for k, v in dict(data.get("machine", {})).items()},
+            )
+        except (TypeError, KeyError, ValueError) as error:
+            raise ResultsError(f"{where}: not a pinarray run manifest ({error!r})") from None
 
 
-def now_iso() -> str:
-    """Local wall-clock time with its UTC offset, to the second, e.g. 2024-05-01T14:03:07+02:00."""
-    return datetime.now().astimezone().isoformat(timespec="seconds")
+def _sitting_to_json(sitting: Sitting) -> dict[str, Any]:
+    return {"number": sitting.number, "started_at": sitting.started_at,
+            "clock": sitting.clock.kind.value, "time_scale": sitting.clock.factor,
+            "start_s": None if sitting.start_ns is None else float(seconds_text(sitting.start_ns)),
+            "pid": sitting.pid, "host": sitting.host,
+            "software_version": sitting.software_version}
 
 
-def this_machine() -> dict[str, str]:
-    """Platform and host name, recorded so results can be traced to the computer that ran them."""
-    return {
-        "hostname": socket.gethostname(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-    }
+def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
+    if "sittings" in data:
+        return tuple(
+            Sitting(number=int(s["number"]), started_at=str(s["started_at"]),
+                    clock=TimeScale(ClockKind(s["clock"]), s.get("time_scale")),
+                    start_ns=None if s.get("start_s") is None else ns_from_seconds(str(s["start_s"])),
+                    pid=int(s.get("pid", 0)), host=str(s.get("host", "")),
+                    software_version=str(s.get("software_version", "")))
+            for s in data["sittings"])
+    # Written before sittings were recorded: a start time and a pid, then one time per resume.
+    unknown = TimeScale(ClockKind.UNKNOWN, None)
+    host = str(dict(data.get("machine", {})).get("hostname", ""))
+    starts = [str(data.get("started_at", "")), *map(str, data.get("resumed_at", ()))]
+    return tuple(Sitting(number, at, unknown, None, int(data.get("pid", 0)) if number == 1 else 0,
+                         host) for number, at in enumerate(starts, start=1))
 
 
-def new_manifest(
-    paths: RunPaths,
-    plan: Sequence[Mapping[str, Any]],
-    *,
-    seed: int | None,
-    protocol_sha256: str,
-    port: str,
-    servo_models: Sequence[str] = (),
-    experimenter: str = "",
-) -> SessionManifest:
-    """A ``running`` manifest for a run starting now on this machine, in this process."""
-    started = now_iso()
-    return SessionManifest(
-        subject=paths.subject, session=paths.session, task=paths.task, run=paths.run,
-        plan=tuple(dict(e) for e in plan), seed=seed, protocol_sha256=protocol_sha256,
-        port=port, servo_models=tuple(str(m) for m in servo_models), experimenter=experimenter,
-        machine=this_machine(), started_at=started, updated_at=started, pid=os.getpid(),
-    )
+def _task_info(data: Any, task: str, plan: Sequence[PlanEntry]) -> TaskInfo:
+    if data is None:  # an older manifest: what the plan and the labels say
+        motion = bool(plan) and isinstance(plan[0], MotionEntry)
+        return TaskInfo(task, Paradigm.APPARENT_MOTION if motion else Paradigm.LOCALISATION)
+    return TaskInfo(name=str(data["name"]), paradigm=Paradigm(data["paradigm"]),
+                    description=str(data.get("description", "")),
+                    instructions=str(data.get("instructions", "")),
+                    grid_rows=int(data.get("grid_rows", 4)),
+                    grid_columns=int(data.get("grid_columns", 4)),
+                    pitch_mm=float(data.get("pitch_mm", 2.0)))
 
 
-def write_atomically(path: Path, text: str) -> None:
-    """Replace ``path`` with ``text`` so that a crash leaves either the old or the new file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    # The temporary file must be in the same folder: os.replace is atomic only within one
-    # file system.
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as out:
-            out.write(text)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    fsync_folder(path.parent)
-
-
-def fsync_folder(folder: Path) -> None:
-    """Make a new or renamed file's name durable by syncing its folder entry (POSIX)."""
-    # Windows cannot open folders; there the rename is already as durable as it gets.
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def write_manifest(path: Path, manifest: SessionManifest) -> None:
+def write_manifest(path: Path, manifest: RunManifest) -> None:
     """Write ``manifest`` to ``path`` atomically, as indented JSON."""
     write_atomically(path, json.dumps(manifest.to_json(), indent=2, ensure_ascii=False) + "\n")
 
 
-def read_manifest(path: Path | str) -> SessionManifest:
+def read_manifest(path: Path | str) -> RunManifest:
     """Read a manifest written by `write_manifest`; a clear `ResultsError` if it is not one."""
     path = Path(path)
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise ResultsError(f"{path}: no session manifest here") from None
+        raise ResultsError(f"{path}: no run manifest here") from None
     except json.JSONDecodeError as error:
         raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
-    return SessionManifest.from_json(data, str(path))
+    return RunManifest.from_json(data, str(path))
 
 
-def set_status(path: Path | str, status: str, reason: str = "") -> SessionManifest:
+def updated(manifest: RunManifest, **changes: Any) -> RunManifest:
+    """``manifest`` with ``changes``, stamped now."""
+    return replace(manifest, **changes, updated_at=now_iso())
+
+
+def set_status(path: Path | str, status: RunStatus, reason: str = "") -> RunManifest:
     """Atomically set a manifest's status (and abort reason), stamping ``updated_at``."""
     path = Path(path)
-    manifest = replace(read_manifest(path), status=status, abort_reason=reason,
-                       updated_at=now_iso())
+    manifest = updated(read_manifest(path), status=RunStatus(status), abort_reason=reason)
     write_manifest(path, manifest)
     return manifest
 
 
 def find_unfinished(
     root: Path | str, subject: str, session: str | int | None = None, task: str | None = None
-) -> list[tuple[RunPaths, SessionManifest]]:
+) -> list[tuple[RunPaths, RunManifest]]:
     """Runs of ``subject`` whose manifest says running, crashed or aborted, oldest run first.
 
     A run killed outright (SIGKILL, power cut) still says ``running``: nothing was left alive
-    to change it, which is why ``running`` counts as unfinished too.
+    to change it, which is why ``running`` counts as unfinished too. Whether another process is
+    writing it right now is the run's lock's to say (`pinarray.journal.lock.lock_holder`).
     """
     subject = check_label("subject", subject)
     ses = "*" if session is None else check_label("session", session)
     tsk = "*" if task is None else check_label("task", task)
-    pattern = f"sub-{subject}/ses-{ses}/beh/sub-{subject}_ses-{ses}_task-{tsk}_run-*_manifest.json"
-    found = []
-    for path in sorted(Path(root).glob(pattern)):
-        manifest = read_manifest(path)
-        if manifest.status in UNFINISHED_STATUSES:
-            found.append((RunPaths.from_file(path), manifest))
-    return sorted(found, key=lambda item: (item[0].session, item[0].task, item[0].run))
+    name = f"sub-{subject}_ses-{ses}_task-{tsk}_run-*_manifest.json"
+    found: dict[RunPaths, RunManifest] = {}
+    seen: set[RunPaths] = set()
+    for base in (Path(root) / SOURCEDATA, Path(root)):  # where manifests live, then older runs'
+        for path in sorted(base.glob(f"sub-{subject}/ses-{ses}/beh/{name}")):
+            paths = RunPaths.from_file(path)
+            if paths in seen:
+                continue
+            seen.add(paths)
+            manifest = read_manifest(path)
+            if manifest.status.unfinished:
+                found[paths] = manifest
+    return sorted(found.items(), key=lambda item: (item[0].session, item[0].task, item[0].run))
