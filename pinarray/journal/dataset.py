@@ -16,8 +16,10 @@ so a sped-up rehearsal says so in the data's own sidecar, not only in its manife
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
+import os
 import platform
 from pathlib import Path
 from typing import Any
@@ -152,6 +154,8 @@ def _participants(tsv: Path, subject: str) -> None:
 def ensure_dataset(root: Path | str, subject: str) -> None:
     """Create or complete the dataset's root files, with ``subject`` listed as a participant."""
     root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(root))
     root.mkdir(parents=True, exist_ok=True)
     with held(root / SOURCEDATA / "dataset.lock"):
         _description(root / "dataset_description.json")
