@@ -8,6 +8,11 @@ Each trial row is written (and fsync'd) by the `RunWriter` the moment the trial 
 engine can be killed at any point and resumed with exactly the remaining trials. The engine
 is driven by a caller: `pinarray batch` loops over it, the TUI calls it from a worker. It
 waits only through its `Clock` (the inter-trial interval) and the `Stimulator` (the stimulus).
+
+Times are integer nanoseconds on the run's time base (`pinarray.journal.timebase`): from the
+run's time zero, which is the first trial's stimulus onset unless the session is told another
+(``time_zero_ns``, a time on its clock); a resumed sitting continues where the writer says its
+clock joins the run.
 """
 
 from __future__ import annotations
@@ -21,12 +26,23 @@ from typing import Protocol as Interface
 from pinarray.delivery import DeliveryRecord, Presentation
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
+from pinarray.journal.manifest import DIRECTION_OF_WAVE, RunStatus
+from pinarray.journal.records import (
+    NOTHING_FELT,
+    DeliveryCounts,
+    LocalisationRecord,
+    MotionAnswer,
+    MotionRecord,
+    TrialRecord,
+    TrialStatus,
+)
+from pinarray.journal.timebase import FIRST_TRIAL_ONSET
+from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import NS_PER_S, Paradigm, Protocol, WaveKind
-from pinarray.results import MOTION_RESPONSES, RunWriter, TrialRecord
+from pinarray.protocol import Paradigm, Protocol
 from pinarray.schedule import TrialSchedule, compile_trial
 
-DIRECTION_LABEL = {WaveKind.RIGHTWARDS: "right", WaveKind.LEFTWARDS: "left", WaveKind.NONE: "none"}
+DIRECTION_LABEL = DIRECTION_OF_WAVE  # a wave's kind as the subject names its direction
 
 
 class Phase(StrEnum):
@@ -71,10 +87,6 @@ def task_label(protocol: Protocol) -> str:
     return label
 
 
-def plan_records(plan: TrialPlan) -> list[dict]:
-    return [t.record() for t in plan.trials]
-
-
 class Session:
     """One run of a protocol for one subject.
 
@@ -90,10 +102,16 @@ class Session:
         Measures onsets and response times and waits out the inter-trial interval.
     on_change
         Called with the session after every state change (the UI refreshes from it).
+    time_zero_ns
+        The run's time zero on ``clock`` (e.g. the first counted scanner volume); None: the
+        first trial's stimulus onset. Only a run whose zero is not fixed yet can be told one.
+    time_zero_event
+        What ``time_zero_ns`` is, in words, for the manifest and the sidecars.
     """
 
     def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
-                 clock, on_change: Callable[[Session], None] | None = None):
+                 clock, on_change: Callable[[Session], None] | None = None,
+                 time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session"):
         self.protocol = protocol
         self.plan = plan
         self.writer = writer
@@ -102,18 +120,26 @@ class Session:
         self.on_change = on_change or (lambda session: None)
         self.grid: Grid = protocol.device.grid
         self.task = task_label(protocol)
-        remaining = {int(entry["trial"]) for entry in writer.remaining()}
-        self.queue: list[PlannedTrial] = [t for t in plan.trials if t.trial in remaining]
+        remaining = {(entry.trial, entry.practice) for entry in writer.remaining()}
+        self.queue: list[PlannedTrial] = [t for t in plan.trials if (t.trial, t.practice) in remaining]
         self.current: PlannedTrial | None = None
         self.phase = Phase.INSTRUCTIONS
         self._paused_from: Phase | None = None
-        self._run_start_ns = clock.now_ns()
+        self._sitting_start_ns = clock.now_ns()
+        joined = writer.sitting_start_ns
+        # The run's time zero on this sitting's clock; None until the first onset fixes it.
+        self._zero_ns: int | None = None if joined is None else self._sitting_start_ns - joined
+        if time_zero_ns is not None:
+            if self._zero_ns is not None:
+                raise SessionError(f"{writer.paths.label}: the run's time zero is already fixed; "
+                                   "a resumed run keeps it")
+            self._fix_zero(time_zero_ns, time_zero_event)
         self._onset_ns = 0
         self._duration_ns = 0
         self._delivery: DeliveryRecord | None = None
         self._presenting = threading.Lock()
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
-        self._next_allowed_ns = self._run_start_ns
+        self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""
         self.last: TrialOutcome | None = None
 
@@ -153,7 +179,7 @@ class Session:
             self._set(Phase.READY)
         else:
             self.current = None
-            self.writer.finish("completed")
+            self.writer.finish(RunStatus.COMPLETED)
             self._set(Phase.DONE)
 
     def present(self) -> None:
@@ -187,7 +213,7 @@ class Session:
             raise  # not a stimulus fault: the caller aborts the run
         except PinArrayError as error:
             self.fault = str(error)
-            self._write(status="invalid", duration_ns=self.clock.now_ns() - self._onset_ns,
+            self._write(TrialStatus.INVALID, duration_ns=self.clock.now_ns() - self._onset_ns,
                         reason=self.fault)
             self._set(Phase.FAULT)
             return
@@ -196,7 +222,7 @@ class Session:
         self._duration_ns = schedule.end_ns
         if not presentation.delivery.delivered:
             self.fault = f"the stimulus was not delivered as scheduled: {presentation.delivery.problem}"
-            self._write(status="invalid", reason=self.fault)
+            self._write(TrialStatus.INVALID, reason=self.fault)
             self._set(Phase.FAULT)
             return
         self._set(Phase.RESPONSE)
@@ -207,19 +233,20 @@ class Session:
         self.fault = ""
         self._set(Phase.READY)
 
-    def respond(self, response: str | int | None, response_time_s: float | None | object = MEASURED) -> TrialOutcome:
+    def respond(self, response: str | int | None, response_time_ns: int | None | object = MEASURED) -> TrialOutcome:
         """Record the subject's answer to the current trial and move on.
 
         Localisation takes a pin number (or None / "none" for "nothing felt"); apparent
-        motion takes none / left / right / unsure. ``response_time_s`` defaults to the time
+        motion takes none / left / right / unsure. ``response_time_ns`` defaults to the time
         since stimulus onset on the session's clock; None records it as not applicable
         (scripted answers have no response time).
         """
         self._require(Phase.RESPONSE)
         text = self._check_response(response)
-        if response_time_s is MEASURED:
-            response_time_s = (self.clock.now_ns() - self._onset_ns) / NS_PER_S
-        record = self._write(status="ok", response=text, response_time_s=response_time_s)
+        if response_time_ns is MEASURED:
+            response_time_ns = self.clock.now_ns() - self._onset_ns
+        assert response_time_ns is None or isinstance(response_time_ns, int)
+        record = self._write(TrialStatus.OK, response=text, response_time_ns=response_time_ns)
         self._next_allowed_ns = self.clock.now_ns() + self.protocol.design.inter_trial_interval_ns
         self.last = TrialOutcome(record, len(self.queue))
         self._advance()
@@ -228,7 +255,7 @@ class Session:
     def redo(self) -> None:
         """Present the current trial again; its first presentation is logged as redone."""
         self._require(Phase.RESPONSE)
-        self._write(status="redone")
+        self._write(TrialStatus.REDONE)
         self._set(Phase.READY)
 
     def pause(self) -> None:
@@ -249,18 +276,18 @@ class Session:
         reason = reason or "aborted by the experimenter"
         if self.phase is Phase.STIMULUS:
             self._delivery = None  # cut short: what was delivered is not a whole stimulus
-            self._write(status="aborted", duration_ns=self.clock.now_ns() - self._onset_ns, reason=reason)
+            self._write(TrialStatus.ABORTED, duration_ns=self.clock.now_ns() - self._onset_ns, reason=reason)
         elif self.phase is Phase.RESPONSE or (self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE):
-            self._write(status="aborted", reason=reason)
-        self.writer.finish("aborted", reason)
+            self._write(TrialStatus.ABORTED, reason=reason)
+        self.writer.finish(RunStatus.ABORTED, reason)
         self._set(Phase.ABORTED)
 
     # -- rows ----------------------------------------------------------------------------------
 
     def _check_response(self, response: str | int | None) -> str:
         if self.protocol.design.paradigm is Paradigm.LOCALISATION:
-            if response is None or response == "none":
-                return "none"
+            if response is None or response == NOTHING_FELT:
+                return NOTHING_FELT
             try:
                 pin = int(response)
             except (TypeError, ValueError):
@@ -268,41 +295,44 @@ class Session:
             if not 1 <= pin <= self.grid.pin_count:
                 raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
             return str(pin)
-        if response not in MOTION_RESPONSES:
-            raise SessionError(f"expected one of {', '.join(MOTION_RESPONSES)}, found {response!r}")
+        if response not in set(MotionAnswer):
+            raise SessionError(f"expected one of {', '.join(MotionAnswer)}, found {response!r}")
         return str(response)
 
-    def _write(self, status: str, response: str | None = None, response_time_s: float | None = None,
+    def _fix_zero(self, zero_ns: int, event: str) -> None:
+        self._zero_ns = zero_ns
+        self.writer.set_time_zero(self._sitting_start_ns - zero_ns, self.clock.now_ns() - zero_ns, event)
+
+    def _write(self, status: TrialStatus, response: str | None = None, response_time_ns: int | None = None,
                duration_ns: int | None = None, reason: str | None = None) -> TrialRecord:
         planned = self.current
         assert planned is not None
-        condition = planned.condition
-        fields: dict = {}
-        if condition.pin is not None:
-            fields = {"pin": condition.pin, "frequency_hz": float(condition.frequency_hz)}
-            if response is not None:
-                fields["error_class"] = "none" if response == "none" else self.grid.classify(condition.pin, int(response)).value
-        else:
-            direction = DIRECTION_LABEL[condition.direction]
-            fields = {"row": condition.row, "direction": direction}
-            if response is not None:
-                felt = response != "none"
-                fields["perceived_motion"] = felt
-                if felt and direction != "none":
-                    fields["direction_correct"] = response == direction
-        if duration_ns is None:
-            duration_ns = self._duration_ns
+        if self._zero_ns is None:
+            self._fix_zero(self._onset_ns, FIRST_TRIAL_ONSET)
+        assert self._zero_ns is not None
         delivery = self._delivery
-        if delivery is not None:
-            fields |= {"goals_scheduled": delivery.scheduled, "goals_confirmed": delivery.confirmed,
-                       "goals_healed": delivery.healed, "goals_missing": delivery.missing,
-                       "delivery_lateness_s": delivery.worst_lateness_ns / NS_PER_S}
-        if reason is not None:
-            fields["status_reason"] = " ".join(reason.split())  # one line, whatever it says
-        record = TrialRecord(
-            trial=planned.trial, block=planned.block, task=self.task,
-            onset_s=(self._onset_ns - self._run_start_ns) / NS_PER_S, duration_s=duration_ns / NS_PER_S,
-            status=status, response=response, response_time_s=response_time_s,
-            practice=planned.practice, **fields,
-        )
+        common = {
+            "trial": planned.trial, "block": planned.block, "task": self.task, "status": status,
+            "onset_ns": self._onset_ns - self._zero_ns,
+            "duration_ns": self._duration_ns if duration_ns is None else duration_ns,
+            "response_time_ns": response_time_ns, "practice": planned.practice,
+            "delivery": None if delivery is None else DeliveryCounts(
+                delivery.scheduled, delivery.confirmed, delivery.healed, delivery.missing,
+                delivery.worst_lateness_ns),
+            "status_reason": None if reason is None else " ".join(reason.split()),  # one line
+        }
+        condition = planned.condition
+        record: TrialRecord
+        if condition.pin is not None:
+            assert condition.frequency_hz is not None
+            named = None if response in (None, NOTHING_FELT) else int(str(response))
+            record = LocalisationRecord(
+                **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
+                response=response,
+                error_class=None if named is None else self.grid.classify(condition.pin, named))
+        else:
+            assert condition.direction is not None and condition.row is not None
+            record = MotionRecord(**common, row=condition.row,
+                                  direction=DIRECTION_LABEL[condition.direction],
+                                  response=None if response is None else MotionAnswer(response))
         return self.writer.write_trial(record)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from pinarray.cli.bus import add_bus_choice
+from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
 
 BATCH_EPILOG = """\
 Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'
@@ -12,8 +13,11 @@ for localisation, none/left/right/unsure for apparent motion) or from --observer
 simulated subject: 'default' reproduces the seed's figures, or override parameters such as
 'correct_10hz=0.7,motion_felt=0.9'.
 
-Results go to DIR/sub-ID/ses-N/beh/ (BIDS layout); every trial is on disk the moment it ends.
-A run that was killed resumes with --resume: exactly the remaining trials, in plan order.
+Results go to DIR/sub-ID/ses-N/beh/ (a BIDS dataset); every trial is on disk the moment it
+ends. A run that was killed or aborted resumes with --resume: exactly the remaining trials, in
+plan order, on the run's own time base. --resume with no unfinished run for any FILE is an
+error (exit 2); a file without one starts a new run. A run open in another process is refused
+(exit 2): a run has one writer at a time.
 """
 
 
@@ -34,16 +38,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=common.seed, help="plan seed (default: the protocol's, else a new one)")
     p.add_argument("--time-scale", type=common.time_scale, metavar="X",
                    help="simulator only: 0 or absent = virtual time, X > 0 = real time sped up X times")
-    p.add_argument("--results", default="results", metavar="DIR", help="results folder (default results/)")
-    p.add_argument("--resume", action="store_true", help="continue the subject's unfinished run")
+    p.add_argument("--results", default=str(DEFAULT_RESULTS_ROOT), metavar="DIR",
+                   help="results folder (default results/)")
+    p.add_argument("--resume", action="store_true", help="continue the subject's unfinished runs")
     p.set_defaults(func=_cmd_batch)
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
     import sys
 
-    from pinarray.manifest import check_label
-    from pinarray.protocol.load import load_protocol
+    from pinarray.journal.paths import check_label
+    from pinarray.protocol.load import load_protocol, protocol_warnings
 
     subject = check_label("subject", args.subject)
     session = check_label("session", args.session)
@@ -54,12 +59,40 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
         responses = load_answers(args.responses, protocols)
     for protocol in protocols:
+        for warning in protocol_warnings(protocol):
+            print(f"pinarray: warning: {protocol.source}: {warning}", file=sys.stderr)
+    resumable = _resumable(protocols, args.results, subject, session) if args.resume else set()
+    for index, protocol in enumerate(protocols):
         try:
-            run_batch(protocol, args, subject, session, responses)
+            run_batch(protocol, args, subject, session, responses, resume=index in resumable,
+                      files_left=args.files[index:])
         except NotDelivered as failed:
             print(f"pinarray: {failed}", file=sys.stderr)
             return EXIT_NOT_DELIVERED
     return 0
+
+
+def _resumable(protocols, root: str, subject: str, session: str) -> set[int]:
+    """Which protocols have an unfinished run to resume; every one checked before any runs.
+
+    Refused (exit 2) when none has one, or when one is open in another process.
+    """
+    from pinarray.journal.lock import RunLocked, locked_message
+    from pinarray.journal.runs import NothingToResume, unfinished_run
+    from pinarray.session import task_label
+
+    found = set()
+    for index, protocol in enumerate(protocols):
+        unfinished = unfinished_run(root, subject, session, task_label(protocol))
+        if unfinished is not None and unfinished.holder is not None:
+            raise RunLocked(locked_message(unfinished.paths.label, unfinished.holder))
+        if unfinished is not None:
+            found.add(index)
+    if not found:
+        tasks = ", ".join(sorted({task_label(p) for p in protocols}))
+        raise NothingToResume(f"--resume: no unfinished run of {tasks} for subject {subject}, "
+                              f"session {session} in {root}; run without --resume to start a new one")
+    return found
 
 
 # How many times batch presents a trial whose stimulus failed before it gives up.
@@ -71,16 +104,17 @@ class NotDelivered(Exception):
     """A trial failed `MAX_ATTEMPTS` times; the run is left aborted (resumable)."""
 
 
-def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None) -> None:
+def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None, *,
+              resume: bool, files_left: list[str]) -> None:
     import sys
 
     from pinarray.errors import PinArrayError
+    from pinarray.journal.runs import open_run
     from pinarray.observer import SimulatedObserver, parse_observer
     from pinarray.plan import make_plan
     from pinarray.player import describe
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
-    from pinarray.session_setup import open_run
     from pinarray.stop import Stopped, StopRequest, stop_on_signals
 
     task = task_label(protocol)
@@ -102,19 +136,21 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
         try:
             for warning in rig.warnings:
                 print(f"pinarray: warning: {warning}", file=sys.stderr)
-            writer, plan = open_run(protocol, args.results, subject, session, task, resume=args.resume,
-                                    seed=args.seed, port_url=rig.url, experimenter=args.experimenter)
-            if args.resume and not writer.resumed:
-                # Killed before its manifest was written, or never started: nothing to lose.
+            if args.resume and not resume:
                 print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; "
                       "starting a new run", file=sys.stderr)
+            writer, plan = open_run(protocol, args.results, subject, session, task, resume=resume,
+                                    seed=args.seed, port_url=rig.url, clock=clock,
+                                    experimenter=args.experimenter)
+            if writer.stale_lock:
+                print(f"pinarray: warning: {writer.stale_lock}", file=sys.stderr)
             if writer.resumed and args.seed is not None and args.seed != plan.seed:
                 print(f"pinarray: warning: resuming run {writer.paths.run} with its own seed {plan.seed}; "
                       f"--seed {args.seed} is ignored", file=sys.stderr)
             if writer.repaired:
                 print(f"pinarray: warning: dropped a half-written last row from {writer.paths.beh_tsv}: "
                       f"{writer.repaired!r}", file=sys.stderr)
-            resume_hint = (f"resume with: pinarray batch {' '.join(args.files)} --subject {subject} "
+            resume_hint = (f"resume with: pinarray batch {' '.join(files_left)} --subject {subject} "
                            f"--session {session} --resume")
             with writer:
                 run = Session(protocol, plan, writer, rig, rig.clock)
@@ -142,7 +178,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                             answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
                         else:
                             answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
-                        run.respond(answer, response_time_s=None)  # scripted: no real response time
+                        run.respond(answer, response_time_ns=None)  # scripted: no real response time
                         progress.update(run.done_count)
                 except (Stopped, KeyboardInterrupt) as stopped:
                     run.abort(str(stopped) or "interrupted (Ctrl-C)")

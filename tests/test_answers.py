@@ -11,9 +11,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pinarray.answers import AnswersError, check_answers, load_answers, parse_answers
+from pinarray.journal.records import read_trials
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
-from pinarray.results import read_trials
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 MOTION = PROTOCOLS / "apparent_motion.yaml"  # 13 trials, one of them practice

@@ -13,38 +13,40 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError, ResultsError
-from pinarray.manifest import (
-    LabelError,
-    RunPaths,
+from pinarray.journal.manifest import (
+    RunStatus,
     find_unfinished,
     read_manifest,
+    remaining_plan,
     set_status,
     write_manifest,
 )
-from pinarray.results import (
-    BEH_COLUMNS,
-    EVENT_COLUMNS,
-    RunWriter,
-    TrialRecord,
+from pinarray.journal.paths import LabelError, RunPaths
+from pinarray.journal.records import (
+    BEH_NAMES,
+    EVENT_NAMES,
+    LocalisationRecord,
+    MotionRecord,
     read_trials,
-    remaining_plan,
     split_torn_tail,
 )
+from pinarray.journal.writer import RunWriter
+from tests.runs import localisation_plan, start_run
 
-PLAN = [{"trial": n, "pin": p, "frequency_hz": f}
-        for n, (p, f) in enumerate([(4, 10), (7, 3), (10, 5), (1, 10), (16, 3)], start=1)]
+S = 1_000_000_000  # ns per s
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PLAN = localisation_plan((4, 10), (7, 3), (10, 5), (1, 10), (16, 3))
 
 
 def start(root, subject="S01", session=1, task="localisation", plan=PLAN):
-    return RunWriter.start(root, subject, session, task, plan, seed=42,
-                           protocol_sha256="0" * 64, port="sim://", servo_models=["STS3215"],
-                           experimenter="AB")
+    return start_run(root, subject, task, plan, session=session)
 
 
 def localisation(trial, status="ok", response="4", **more):
-    return TrialRecord(trial=trial, block=1, task="localisation", onset_s=12.5 * trial,
-                       duration_s=10.0, status=status, response=response, response_time_s=1.5,
-                       pin=4, frequency_hz=10.0, error_class="correct", **more)
+    return LocalisationRecord(trial=trial, block=1, task="localisation", onset_ns=12_500_000_000 * trial,
+                              duration_ns=10 * S, status=status, response=response,
+                              response_time_ns=1_500_000_000, pin=4, frequency_hz=10.0,
+                              error_class="correct" if response == "4" else None, **more)
 
 
 @pytest.mark.parametrize("label", ["../x", "a b", "a/b", "", "sub_1", "x-1", "é1", None])
@@ -66,27 +68,30 @@ def test_a_run_is_laid_out_as_bids_and_the_next_run_gets_the_next_number(tmp_pat
     second.close()
     assert second.paths.run == 2
     assert RunPaths.from_file(second.paths.manifest) == second.paths
+    assert second.paths.manifest == (tmp_path / "sourcedata" / "sub-S01" / "ses-1" / "beh"
+                                      / "sub-S01_ses-1_task-localisation_run-2_manifest.json")
 
 
 def test_the_sidecar_describes_every_column_with_units_or_levels(tmp_path):
     writer = start(tmp_path)
     writer.close()
-    sidecar = json.loads(writer.paths.file("beh", "json").read_text())
-    assert list(sidecar) == list(BEH_COLUMNS)
-    assert all(entry["Description"] for entry in sidecar.values())
+    sidecar = json.loads(writer.paths.beh_json.read_text())
+    columns = {k: v for k, v in sidecar.items() if k in BEH_NAMES}
+    assert list(columns) == list(BEH_NAMES)
+    assert all(entry["Description"] for entry in columns.values())
     assert sidecar["onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
     assert set(sidecar["status"]["Levels"]) == {"ok", "redone", "aborted", "invalid"}
-    events = json.loads(writer.paths.file("events", "json").read_text())
-    assert list(events) == list(EVENT_COLUMNS)
+    events = json.loads(writer.paths.events_json.read_text())
+    assert [k for k in events if k in (*EVENT_NAMES, "trial_type")] == list(EVENT_NAMES)
 
 
 def test_the_manifest_holds_the_plan_and_the_provenance_before_trial_one(tmp_path):
     writer = start(tmp_path)
     manifest = read_manifest(writer.paths.manifest)
     writer.close()
-    assert [dict(e) for e in manifest.plan] == PLAN
-    assert manifest.status == "running" and manifest.seed == 42
-    assert manifest.servo_models == ("STS3215",) and manifest.port == "sim://"
+    assert manifest.plan == PLAN
+    assert manifest.status is RunStatus.RUNNING and manifest.seed == 42
+    assert manifest.provenance.servo_models == ("STS3215",) and manifest.provenance.port == "sim://"
     assert manifest.machine["hostname"] and manifest.software_version
     assert manifest.started_at[-6] in "+-"  # an explicit UTC offset, e.g. +02:00
 
@@ -121,7 +126,7 @@ def test_a_torn_last_line_is_left_out_and_resume_drops_it_keeping_every_earlier_
     assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1, 2, 3]
     resumed = RunWriter.resume(writer.paths)
     assert resumed.repaired.startswith("4\t1\tlocalisation")
-    assert [dict(e)["trial"] for e in resumed.remaining()] == [4, 5]
+    assert [e.trial for e in resumed.remaining()] == [4, 5]
     resumed.write_trial(localisation(4))
     resumed.close()
     text = writer.paths.beh_tsv.read_text()
@@ -130,15 +135,15 @@ def test_a_torn_last_line_is_left_out_and_resume_drops_it_keeping_every_earlier_
 
 
 def test_split_torn_tail_only_ever_cuts_the_last_row():
-    header = "\t".join(BEH_COLUMNS).encode() + b"\n"
-    row = b"\t".join([b"1"] * len(BEH_COLUMNS)) + b"\n"
+    header = "\t".join(BEH_NAMES).encode() + b"\n"
+    row = b"\t".join([b"1"] * len(BEH_NAMES)) + b"\n"
     whole = header + row + row
-    assert split_torn_tail(whole, len(BEH_COLUMNS)) == (len(whole), b"")
-    assert split_torn_tail(whole + b"1\t2", len(BEH_COLUMNS)) == (len(whole), b"1\t2")
-    assert split_torn_tail(whole + b"\0\0\0", len(BEH_COLUMNS))[0] == len(whole)
+    assert split_torn_tail(whole, len(BEH_NAMES)) == (len(whole), b"")
+    assert split_torn_tail(whole + b"1\t2", len(BEH_NAMES)) == (len(whole), b"1\t2")
+    assert split_torn_tail(whole + b"\0\0\0", len(BEH_NAMES))[0] == len(whole)
     short = b"1\t2\n"
-    assert split_torn_tail(whole + short, len(BEH_COLUMNS)) == (len(whole), short)
-    assert split_torn_tail(header[:5], len(BEH_COLUMNS)) == (0, header[:5])
+    assert split_torn_tail(whole + short, len(BEH_NAMES)) == (len(whole), short)
+    assert split_torn_tail(header[:5], len(BEH_NAMES)) == (0, header[:5])
 
 
 def test_resume_rebuilds_the_events_row_a_crash_left_out(tmp_path):
@@ -163,20 +168,22 @@ def test_resume_runs_exactly_the_unfinished_trials_in_plan_order_and_marks_them(
     writer.close()
     resumed = RunWriter.resume(writer.paths)
     # trial 3's stimulus failed (invalid) and trial 4 was cut short: both are presented again
-    assert [dict(e)["trial"] for e in resumed.remaining()] == [3, 4, 5]
+    assert [e.trial for e in resumed.remaining()] == [3, 4, 5]
     written = resumed.write_trial(localisation(4))
     resumed.finish()
     assert written.resumed
     rows = read_trials(writer.paths.beh_tsv)
     assert [r.resumed for r in rows] == [False] * 5 + [True]
     manifest = read_manifest(writer.paths.manifest)
-    assert manifest.status == "completed" and len(manifest.resumed_at) == 1
+    assert manifest.status is RunStatus.COMPLETED and len(manifest.sittings) == 2
 
 
 def test_practice_trials_do_not_finish_main_trials_with_the_same_number():
-    plan = [{"trial": 1, "practice": True}, {"trial": 1}, {"trial": 2}]
+    from dataclasses import replace
+
+    plan = (replace(PLAN[0], practice=True, block=0), *PLAN[:2])
     left = remaining_plan(plan, [localisation(1, practice=True)])
-    assert left == [{"trial": 1}, {"trial": 2}]
+    assert left == list(PLAN[:2])
 
 
 def test_a_failed_manifest_update_leaves_the_old_one_whole(tmp_path, monkeypatch):
@@ -189,9 +196,9 @@ def test_a_failed_manifest_update_leaves_the_old_one_whole(tmp_path, monkeypatch
 
     monkeypatch.setattr(os, "replace", refuse)
     with pytest.raises(OSError):
-        set_status(writer.paths.manifest, "aborted", "fire alarm")
+        set_status(writer.paths.manifest, RunStatus.ABORTED, "fire alarm")
     assert writer.paths.manifest.read_bytes() == before
-    assert [p.name for p in writer.paths.beh_dir.iterdir() if p.name.startswith(".")] == []
+    assert [p.name for p in writer.paths.source_dir.iterdir() if p.name.startswith(".")] == []
 
 
 def test_a_crash_inside_the_writer_marks_the_manifest_crashed_and_it_can_be_found(tmp_path):
@@ -212,7 +219,7 @@ def test_a_hand_edited_manifest_with_a_repeated_trial_is_refused(tmp_path):
     writer.close()
     manifest = read_manifest(writer.paths.manifest)
     data = manifest.to_json()
-    data["plan"].append({"trial": 1})
+    data["plan"].append(data["plan"][0])
     writer.paths.manifest.write_text(json.dumps(data))
     with pytest.raises(ResultsError, match="twice"):
         read_manifest(writer.paths.manifest)
@@ -221,21 +228,18 @@ def test_a_hand_edited_manifest_with_a_repeated_trial_is_refused(tmp_path):
 
 
 responses = st.one_of(st.none(), st.sampled_from(["none", "left", "right", "unsure"]))
-seconds = st.floats(0, 1e5, allow_nan=False, allow_infinity=False)
+nanoseconds = st.integers(0, 10**14)
 
 
-@given(
-    onset=seconds, duration=seconds, response_time=st.one_of(st.none(), seconds),
-    response=responses, felt=st.one_of(st.none(), st.booleans()),
-    direction=st.sampled_from(["left", "right", "none"]), row=st.integers(0, 3),
-)
+@given(onset=nanoseconds, duration=nanoseconds, response_time=st.one_of(st.none(), nanoseconds),
+       response=responses, direction=st.sampled_from(["left", "right", "none"]),
+       row=st.integers(1, 4), reason=st.one_of(st.none(), st.text("ab \t,\"'", min_size=1)))
 def test_any_motion_row_reads_back_exactly_as_written(
-    tmp_path_factory, onset, duration, response_time, response, felt, direction, row
+    tmp_path_factory, onset, duration, response_time, response, direction, row, reason
 ):
-    record = TrialRecord(trial=3, block=2, task="motion", onset_s=onset, duration_s=duration,
-                         response=response, response_time_s=response_time, row=row,
-                         direction=direction, perceived_motion=felt,
-                         direction_correct=None if felt is None else not felt)
+    record = MotionRecord(trial=3, block=2, task="motion", onset_ns=onset, duration_ns=duration,
+                          response=response, response_time_ns=response_time, row=row,
+                          direction=direction, status_reason=reason)
     writer = start(tmp_path_factory.mktemp("r"), task="motion")
     writer.write_trial(record)
     writer.close()
@@ -245,28 +249,28 @@ def test_any_motion_row_reads_back_exactly_as_written(
 CHILD = textwrap.dedent("""
     import sys
     from pathlib import Path
-    from pinarray.manifest import RunPaths
-    from pinarray.results import RunWriter, TrialRecord
+    from pinarray.journal.paths import RunPaths
+    from pinarray.journal.records import LocalisationRecord
+    from pinarray.journal.writer import RunWriter
+    from tests.runs import VIRTUAL, localisation_plan, start_run
 
     root, mode = Path(sys.argv[1]), sys.argv[2]
     if mode == "start":
-        plan = [{"trial": n} for n in range(1, 3001)]
-        writer = RunWriter.start(root, "S01", 1, "localisation", plan, seed=1,
-                                 protocol_sha256="", port="sim://")
+        plan = localisation_plan(*((n % 16 + 1, 5) for n in range(1, 3001)))
+        writer = start_run(root, "S01", "localisation", plan)
     else:
-        writer = RunWriter.resume(RunPaths(root, "S01", "1", "localisation", 1))
+        writer = RunWriter.resume(RunPaths(root, "S01", "1", "localisation", 1), VIRTUAL)
     for entry in writer.remaining():
-        n = entry["trial"]
-        writer.write_trial(TrialRecord(trial=n, block=1, task="localisation", onset_s=n,
-                                       duration_s=10.0, response=str(n % 16 + 1),
-                                       pin=n % 16 + 1, frequency_hz=5.0,
-                                       error_class="correct"))
+        n = entry.trial
+        writer.write_trial(LocalisationRecord(
+            trial=n, block=1, task="localisation", onset_ns=n * 10**9, duration_ns=10**10,
+            response=str(entry.pin), pin=entry.pin, frequency_hz=5.0, error_class="correct"))
     writer.finish()
 """)
 
 
 def _run_and_kill(root, mode, rows_before_kill):
-    child = subprocess.Popen([sys.executable, "-c", CHILD, str(root), mode])
+    child = subprocess.Popen([sys.executable, "-c", CHILD, str(root), mode], cwd=REPO)
     beh = RunPaths(root, "S01", "1", "localisation", 1).beh_tsv
     while child.poll() is None:
         if beh.exists() and beh.stat().st_size > rows_before_kill * 60:
@@ -282,12 +286,12 @@ def test_a_run_sigkilled_while_writing_resumes_with_no_row_lost_or_repeated(tmp_
     for mode, rows in (("start", 400), ("resume", 1200), ("resume", 2200)):
         kills += _run_and_kill(tmp_path, mode, rows) == -signal.SIGKILL
     finisher = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path), "resume"],
-                              timeout=120)
+                              timeout=120, cwd=REPO)
     assert finisher.returncode == 0
     assert kills >= 1  # the test is only meaningful if a kill landed mid-run
     paths = RunPaths(tmp_path, "S01", "1", "localisation", 1)
     rows = read_trials(paths.beh_tsv)
     assert [r.trial for r in rows] == list(range(1, 3001))
     assert paths.events_tsv.read_text().count("\n") == 3001
-    assert read_manifest(paths.manifest).status == "completed"
+    assert read_manifest(paths.manifest).status is RunStatus.COMPLETED
     assert any(r.resumed for r in rows)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from pinarray.analysis.stats import Summary
-    from pinarray.results import TrialRecord
+    from pinarray.journal.records import TrialRecord
 
 
 def summary(records: Iterable[TrialRecord]) -> Summary:

@@ -1,6 +1,7 @@
 """Find and read runs: the analysis reads result files (rows and manifests) and nothing else.
 
-A run is one ``beh.tsv`` with the manifest beside it. Which runs count is decided here, once:
+A run is one ``beh.tsv`` with its manifest (in ``sourcedata/``, or beside it for runs written
+before the manifests moved there). Which runs count is decided here, once:
 a run whose manifest does not say ``completed``, or that holds no counted trial (a main
 trial with status ok), is *incomplete*; incomplete runs are listed and left out unless the
 caller asks for them. A run with no manifest at all (a file handed over on its own) cannot
@@ -23,13 +24,14 @@ from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
-from pinarray.manifest import RunPaths, read_manifest
-from pinarray.results import (
-    BEH_COLUMNS,
+from pinarray.journal.manifest import read_manifest, remaining_plan
+from pinarray.journal.paths import RunPaths
+from pinarray.journal.records import (
+    BEH_NAMES,
     TrialRecord,
+    TrialStatus,
     beh_header,
     read_trials,
-    remaining_plan,
     split_torn_tail,
 )
 from pinarray.text_files import NotText, position_of, read_bounded
@@ -175,7 +177,7 @@ def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], li
     kept, twice = [], []
     for record in records:
         key = (record.trial, record.practice)
-        if record.status == "ok":
+        if record.status is TrialStatus.OK:
             if key in seen:
                 twice.append(record.trial)
                 continue
@@ -203,15 +205,16 @@ def load_run(beh: Path) -> LoadedRun:
         raise DamagedResults([DamagedRun(beh, reason)]) from None
     records, duplicates = first_ok_rows(all_records)
     unfinished: tuple[int, ...] = ()
-    if not paths.manifest.exists():
+    manifest_path = paths.manifest_on_disk()
+    if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
     else:
         try:
-            manifest = read_manifest(paths.manifest)
+            manifest = read_manifest(manifest_path)
             status = manifest.status
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
-            unfinished = tuple(int(e["trial"]) for e in remaining_plan(manifest.plan, records))
+            unfinished = tuple(e.trial for e in remaining_plan(manifest.plan, records))
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
     return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
@@ -230,7 +233,7 @@ def _check_table(beh: Path) -> str:
     except UnicodeDecodeError as problem:
         raise NotText(f"expected UTF-8 text, found byte 0x{body[problem.start]:02x}",
                       *position_of(body, problem.start)) from None
-    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(BEH_COLUMNS))
+    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(BEH_NAMES))
     return torn.decode("utf-8", errors="replace")
 
 

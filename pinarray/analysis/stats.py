@@ -21,7 +21,7 @@ import numpy as np
 
 from pinarray.errors import ResultsError
 from pinarray.grid import DEFAULT_GRID, Grid
-from pinarray.results import TrialRecord
+from pinarray.journal.records import LocalisationRecord, MotionRecord, TrialRecord
 
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 ERROR_CLASSES = ("A", "B", "C", "D")
@@ -128,7 +128,7 @@ class Summary:
                             np.nan)
 
 
-def _reported_pin(record: TrialRecord, grid: Grid) -> int | None:
+def _reported_pin(record: LocalisationRecord, grid: Grid) -> int | None:
     if record.response in (None, "none"):
         return None
     try:
@@ -145,7 +145,7 @@ def _localisation_answers(
 ) -> Iterator[tuple[int, float | None, int | None]]:
     """(stimulated pin, frequency_hz, pin named or None) of every counted localisation row."""
     for record in records:
-        if record.counts and record.pin is not None:
+        if record.counts and isinstance(record, LocalisationRecord):
             yield grid.check_pin(record.pin), record.frequency_hz, _reported_pin(record, grid)
 
 
@@ -196,7 +196,7 @@ def motion_summary(records: Iterable[TrialRecord]) -> MotionSummary:
     """Felt-motion and direction proportions over the motion trials that count."""
     wave = felt = right = no_wave = no_wave_felt = 0
     for record in records:
-        if not (record.counts and record.is_motion):
+        if not (record.counts and isinstance(record, MotionRecord)):
             continue
         answered_motion = record.response not in (None, "none")
         if record.direction == "none":

@@ -51,7 +51,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _validate(args: argparse.Namespace) -> int:
-    from pinarray.protocol.load import validate_file
+    from pinarray.protocol.load import protocol_warnings, validate_file
 
     status = 0
     for path in args.files:
@@ -69,6 +69,8 @@ def _validate(args: argparse.Namespace) -> int:
             )
             for note in _scaled_notes(protocol):
                 print(f"{path}: note: {note}")
+            for warning in protocol_warnings(protocol):
+                print(f"{path}: warning: {warning}", file=sys.stderr)
     return status
 
 

@@ -73,6 +73,13 @@ def parse_protocol(text: str, source: str = "<protocol>") -> Protocol:
     )
 
 
+def protocol_warnings(protocol: Protocol) -> list[str]:
+    """What a valid protocol may still get wrong, one line each (e.g. a duration cue)."""
+    from pinarray.protocol.cues import duration_cues
+
+    return duration_cues(protocol)
+
+
 def validate_file(path: str | Path) -> tuple[Protocol | None, list[str]]:
     """(protocol, problem lines) for the CLI: problems are ``file:line:col: message`` lines."""
     try:

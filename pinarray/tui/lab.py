@@ -15,10 +15,10 @@ from pathlib import Path
 from typing import TypeVar
 
 from pinarray.clock import Clock
+from pinarray.journal.runs import open_run
 from pinarray.protocol import Protocol
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, task_label
-from pinarray.session_setup import open_run
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 QUIT_REASON = "quit from the UI"
@@ -118,13 +118,17 @@ class Lab:
     # -- the run ----------------------------------------------------------------------------
 
     def open_session(self, on_change: Callable[[Session], None] | None = None) -> Session:
-        """Start (or resume) the request's run on the connected rig."""
+        """Start (or resume) the request's run on the connected rig.
+
+        A run open in another process is refused (`pinarray.journal.lock.RunLocked`), as is a
+        resume with nothing to resume; the run's lock is held until the session ends.
+        """
         request = self.request
         assert request is not None and self.rig is not None and self.clock is not None
         writer, plan = open_run(
             request.protocol, self.results_root, request.subject, request.session, request.task,
             resume=request.resume, seed=request.seed, port_url=self.rig.url,
-            experimenter=request.experimenter,
+            clock=self.rig.bus_clock, experimenter=request.experimenter,
         )
         self.session = Session(request.protocol, plan, writer, self.rig, self.clock, on_change)
         return self.session

@@ -11,7 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pinarray.results import TrialRecord
+from pinarray.journal.records import (
+    Direction,
+    LocalisationRecord,
+    MotionRecord,
+    TrialRecord,
+    TrialStatus,
+)
 from pinarray.schedule import TargetList
 
 
@@ -69,8 +75,8 @@ class LiveCounts:
     @classmethod
     def of(cls, records: list[TrialRecord]) -> LiveCounts:
         counted = [r for r in records if r.counts]
-        classes = Counter(r.error_class for r in counted if r.is_localisation)
-        waves = [r for r in counted if r.is_motion and r.direction != "none"]
+        classes = Counter(r.category for r in counted if isinstance(r, LocalisationRecord))
+        waves = [r for r in counted if isinstance(r, MotionRecord) and r.direction is not Direction.NONE]
         named = [r for r in waves if r.direction_correct is not None]
         return cls(
             counted=len(counted),
@@ -80,7 +86,7 @@ class LiveCounts:
             wave_trials=len(waves),
             direction_right=sum(1 for r in named if r.direction_correct),
             direction_named=len(named),
-            practice_done=sum(1 for r in records if r.practice and r.status == "ok"),
+            practice_done=sum(1 for r in records if r.practice and r.status is TrialStatus.OK),
         )
 
     def lines(self, localisation: bool) -> list[str]:

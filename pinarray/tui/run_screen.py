@@ -12,6 +12,7 @@ from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, ProgressBar, Static
 
+from pinarray.journal.records import LocalisationRecord
 from pinarray.player import DEFAULT_LEAD_NS
 from pinarray.protocol import Paradigm
 from pinarray.session import DIRECTION_LABEL, Phase, Session, SessionError
@@ -176,10 +177,10 @@ class RunScreen(Screen):
         if self.session.last is None:
             return ""
         record = self.session.last.record
-        if record.is_localisation:
-            answer = "nothing felt" if record.response == "none" else f"pin {record.response}"
+        if isinstance(record, LocalisationRecord):
+            answer = "nothing felt" if record.nothing_felt else f"pin {record.response}"
             return (f"last: trial {record.trial}, pin {record.pin} → {answer} "
-                    f"({record.error_class})")
+                    f"({record.category})")
         return f"last: trial {record.trial}, {record.direction} wave → {record.response}"
 
     def _tick(self) -> None:

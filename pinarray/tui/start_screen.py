@@ -15,11 +15,12 @@ from textual.widgets import Button, Footer, Input, Label, Select, Static
 
 from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.errors import PinArrayError
-from pinarray.manifest import RunPaths, SessionManifest, check_label
+from pinarray.journal.paths import check_label
 from pinarray.protocol import Protocol
 from pinarray.tui.lab import SessionRequest
 
 if TYPE_CHECKING:
+    from pinarray.journal.runs import Unfinished
     from pinarray.tui.app import PinArrayApp
 
 SIM = "sim"
@@ -48,7 +49,7 @@ class StartScreen(Screen):
         self.options = options
         self.files = protocol_files(options)
         self.ports = list_ports()
-        self._unfinished: tuple[RunPaths, SessionManifest] | None = None
+        self._unfinished: Unfinished | None = None
 
     def _new_seed(self) -> str:
         # Shown and recorded before the run starts, so a session can be replayed exactly.
@@ -126,9 +127,8 @@ class StartScreen(Screen):
     @on(Input.Changed, "#subject, #session")
     @on(Select.Changed, "#protocol")
     def _look_for_unfinished(self) -> None:
-        from pinarray.results import read_trials, remaining_plan
+        from pinarray.journal.runs import unfinished_run
         from pinarray.session import task_label
-        from pinarray.session_setup import unfinished_run
 
         info = self.query_one("#resume-info", Static)
         self._unfinished = None
@@ -140,20 +140,13 @@ class StartScreen(Screen):
                                    task_label(protocol))
         except PinArrayError:
             found = None  # the form is not complete yet; Start will say what is wrong
-        self.query_one("#resume", Button).disabled = found is None
-        self.query_one("#resume", Button).variant = "default" if found is None else "primary"
-        self.query_one("#start", Button).variant = "primary" if found is None else "default"
-        if found is None:
-            info.update("")
-            return
-        paths, manifest = found
-        rows = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
-        left = len(remaining_plan(manifest.plan, rows))
-        why = f" ({manifest.abort_reason})" if manifest.abort_reason else ""
-        info.update(f"Unfinished run {paths.run}: {manifest.status}{why}, "
-                    f"{len(manifest.plan) - left} of {len(manifest.plan)} trials done, "
-                    f"seed {manifest.seed}. Resume continues it.")
-        self._unfinished = found
+        # A run open in another process (its lock is held) cannot be resumed from here.
+        resumable = found is not None and found.holder is None
+        self.query_one("#resume", Button).disabled = not resumable
+        self.query_one("#resume", Button).variant = "primary" if resumable else "default"
+        self.query_one("#start", Button).variant = "default" if resumable else "primary"
+        info.update("" if found is None else found.describe())
+        self._unfinished = found if resumable else None
 
     # -- buttons -----------------------------------------------------------------------------
 

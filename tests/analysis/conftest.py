@@ -2,8 +2,10 @@
 
 import pytest
 
-from pinarray.results import RunWriter, TrialRecord
+from pinarray.journal.records import LocalisationRecord, MotionRecord
+from tests.runs import plan_of, start_run
 
+S = 1_000_000_000  # ns per s
 # (subject, frequency_hz, stimulated pin, response, status, practice)
 LOCALISATION = [
     ("A", 3.0, 10, "10", "ok", False),    # correct
@@ -30,9 +32,7 @@ MOTION = [
 
 def _write(root, subject, task, records, status="completed"):
     # The plan holds the trials the rows finish: a completed run finished every planned trial.
-    plan = [{"trial": r.trial, "practice": r.practice} for r in records if r.status == "ok"]
-    writer = RunWriter.start(root, subject, 1, task, plan,
-                             seed=0, protocol_sha256="", port="sim://")
+    writer = start_run(root, subject, task, plan_of([r for r in records if r.status == "ok"]))
     for record in records:
         writer.write_trial(record)
     writer.finish(status)
@@ -41,9 +41,9 @@ def _write(root, subject, task, records, status="completed"):
 
 def localisation_row(trial, pin, response, frequency_hz=10.0, **fields):
     """A main localisation trial row, status ok unless ``fields`` say otherwise."""
-    return TrialRecord(trial=trial, block=1, task="localisation", onset_s=12.0 * trial,
-                       duration_s=10.0, response=response, pin=pin, frequency_hz=frequency_hz,
-                       **fields)
+    return LocalisationRecord(trial=trial, block=1, task="localisation", onset_ns=12 * S * trial,
+                              duration_ns=10 * S, response=response, pin=pin,
+                              frequency_hz=frequency_hz, **fields)
 
 
 @pytest.fixture
@@ -57,15 +57,15 @@ def results_root(tmp_path):
     root = tmp_path / "results"
     for subject in ("A", "B"):
         localisation = [
-            TrialRecord(trial=n, block=1, task="localisation", onset_s=12.0 * n,
-                        duration_s=10.0, status=status, response=response, pin=pin,
-                        frequency_hz=frequency, practice=practice)
+            LocalisationRecord(trial=n, block=1, task="localisation", onset_ns=12 * S * n,
+                               duration_ns=10 * S, status=status, response=response, pin=pin,
+                               frequency_hz=frequency, practice=practice)
             for n, (_, frequency, pin, response, status, practice) in enumerate(
                 (row for row in LOCALISATION if row[0] == subject), start=1)
         ]
         motion = [
-            TrialRecord(trial=n, block=1, task="motion", onset_s=4.0 * n, duration_s=3.0,
-                        response=response, row=1, direction=direction)
+            MotionRecord(trial=n, block=1, task="motion", onset_ns=4 * S * n, duration_ns=3 * S,
+                         response=response, row=1, direction=direction)
             for n, (_, direction, response) in enumerate(
                 (row for row in MOTION if row[0] == subject), start=1)
         ]

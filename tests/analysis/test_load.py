@@ -1,8 +1,8 @@
 """Which runs count: incomplete runs are listed and left out, a trial finished twice counts once."""
 
 from pinarray.analysis.load import ManifestState, load_runs, select_runs
-from pinarray.manifest import RunPaths
-from pinarray.results import trial_row
+from pinarray.journal.manifest import RunPaths
+from pinarray.journal.records import trial_row
 from tests.analysis.conftest import localisation_row
 
 

@@ -11,7 +11,7 @@ from pinarray import cli
 from pinarray.analysis import plots
 from pinarray.cli.analysis import register
 from pinarray.errors import ResultsError
-from pinarray.manifest import RunPaths
+from pinarray.journal.manifest import RunPaths
 from tests.analysis.conftest import localisation_row
 
 FIGURES = ("correct_by_frequency", "error_types", "motion", "confusion_matrix", "pin_accuracy")

@@ -15,7 +15,7 @@ from pinarray.analysis.stats import (
     summarise_subjects,
     wilson_interval,
 )
-from pinarray.results import TrialRecord
+from pinarray.journal.records import LocalisationRecord
 
 
 def summaries_of(root):
@@ -111,8 +111,8 @@ def test_a_wilson_interval_holds_the_observed_share_and_mirrors(k, extra):
 
 localisation_rows = st.lists(
     st.builds(
-        lambda n, pin, f, answer: TrialRecord(
-            trial=n, block=1, task="localisation", onset_s=0.0, duration_s=1.0,
+        lambda n, pin, f, answer: LocalisationRecord(
+            trial=n, block=1, task="localisation", onset_ns=0, duration_ns=10**9,
             response="none" if answer == 0 else str(answer), pin=pin, frequency_hz=f),
         st.integers(1, 999), st.integers(1, 16), st.sampled_from([3.0, 5.0, 10.0]),
         st.integers(0, 16)),

@@ -11,6 +11,7 @@ import statistics
 import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from pinarray.analysis.load import load_runs, select_runs
@@ -18,9 +19,10 @@ from pinarray.analysis.mixed import Cell, _Data, fit_frequency_effect
 from pinarray.analysis.power import power_study, protocol_design, simulate_subject
 from pinarray.analysis.study import study
 from pinarray.grid import classify
+from pinarray.journal.records import LocalisationRecord, trial_row
 from pinarray.observer import ObserverModel, SimulatedObserver
 from pinarray.protocol.load import load_protocol
-from pinarray.results import RunWriter, TrialRecord, trial_row
+from tests.runs import plan_of, start_run
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 REPEATS = 5
@@ -43,12 +45,12 @@ def _row(what: str, unit: str, scale: float, measured: list[float], reference: l
           f"{ref:>9.3f}  {cells[1] / ref:>7.1f}x  {reference_name}")
 
 
-def _localisation_rows(observer: SimulatedObserver, pins, frequencies) -> list[TrialRecord]:
+def _localisation_rows(observer: SimulatedObserver, pins, frequencies) -> list[LocalisationRecord]:
     rows = []
     for n, (pin, frequency) in enumerate(((p, f) for p in pins for f in frequencies), start=1):
         answer = observer.respond_localisation(pin, frequency)
-        rows.append(TrialRecord(
-            trial=n, block=1, task="localisation", onset_s=12.0 * n, duration_s=10.0,
+        rows.append(LocalisationRecord(
+            trial=n, block=1, task="localisation", onset_ns=12 * n * 10**9, duration_ns=10**10,
             response=str(answer) if answer else "none", pin=pin, frequency_hz=frequency,
             error_class=classify(pin, answer) if answer else "none"))
     return rows
@@ -61,13 +63,14 @@ def costs(root: Path) -> None:
     print(f"{'what':<34} {'min':>9} {'median':>9} {'max':>9} {'unit':<7} {'reference':>9}  "
           f"{'ratio':>8}  reference is")
     rows = 400
-    records = (_localisation_rows(SimulatedObserver(model, seed=0), design.pins,
-                                  design.frequencies_hz) * (rows // 24 + 1))[:rows]
+    once = _localisation_rows(SimulatedObserver(model, seed=0), design.pins, design.frequencies_hz)
+    # Numbered 1..rows: a run holds one ok row per trial.
+    records = [replace(r, trial=n) for n, r in enumerate((once * (rows // len(once) + 1))[:rows],
+                                                          start=1)]
     run = iter(range(1, 10_000))
 
     def write_fsynced() -> None:
-        writer = RunWriter.start(root / "writes", f"w{next(run)}", 1, "localisation",
-                                 [{"trial": 1}], seed=0, protocol_sha256="", port="sim://")
+        writer = start_run(root / "writes", f"w{next(run)}", "localisation", plan_of(records))
         for record in records:
             writer.write_trial(record)
         writer.finish()
@@ -85,9 +88,9 @@ def costs(root: Path) -> None:
     rng_seed = iter(range(1000))
     for s in range(24):
         observer = SimulatedObserver(model, seed=next(rng_seed))
-        writer = RunWriter.start(data, f"S{s}", 1, "localisation", [{"trial": 1}], seed=0,
-                                 protocol_sha256="", port="sim://")
-        for record in _localisation_rows(observer, design.pins, design.frequencies_hz):
+        rows = _localisation_rows(observer, design.pins, design.frequencies_hz)
+        writer = start_run(data, f"S{s}", "localisation", plan_of(rows))
+        for record in rows:
             writer.write_trial(record)
         writer.finish()
     files = sorted(data.rglob("*_beh.tsv"))

@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 import serial
-from pinarray.protocol_load import load_protocol
 
 from pinarray.bus.models import STS3215_C001
 from pinarray.bus.registers import BROADCAST_ID, Instruction, Register, checksum, to_bytes
@@ -31,6 +30,7 @@ from pinarray.bus.transport import open_bus
 from pinarray.clock import VirtualClock
 from pinarray.plan import make_plan
 from pinarray.player import play_trial
+from pinarray.protocol.load import load_protocol
 from pinarray.rig import bus_setup
 from pinarray.schedule import compile_trial
 

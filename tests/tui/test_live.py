@@ -1,8 +1,8 @@
 """The run screen's computed parts: which pins are up at a moment, and the running counts."""
 
+from pinarray.journal.records import LocalisationRecord
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
-from pinarray.results import TrialRecord
 from pinarray.schedule import compile_trial
 from pinarray.tui.live import LiftTimeline, LiveCounts
 from tests.tui.conftest import LOCALISATION
@@ -21,9 +21,11 @@ def test_a_5_hz_pin_is_up_for_the_first_100_ms_of_each_200_ms_cycle_and_down_aft
 
 
 def record(trial, error_class, practice=False, status="ok"):
-    return TrialRecord(trial=trial, block=0 if practice else 1, task="t", onset_s=0, duration_s=1,
-                       status=status, response="none" if error_class == "none" else "1",
-                       pin=1, frequency_hz=5.0, error_class=error_class, practice=practice)
+    return LocalisationRecord(trial=trial, block=0 if practice else 1, task="t", onset_ns=0,
+                              duration_ns=10**9, status=status,
+                              response="none" if error_class == "none" else "1", pin=1,
+                              frequency_hz=5.0, practice=practice,
+                              error_class=None if error_class == "none" else error_class)
 
 
 def test_counts_leave_out_practice_and_redone_trials():

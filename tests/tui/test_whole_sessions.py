@@ -1,8 +1,8 @@
 """Whole sessions driven through the UI by keys and clicks, checked in the results files."""
 
 from pinarray.grid import classify
-from pinarray.manifest import read_manifest
-from pinarray.results import read_trials
+from pinarray.journal.manifest import read_manifest
+from pinarray.journal.records import read_trials
 from pinarray.session import DIRECTION_LABEL, Phase
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.run_screen import RunScreen
@@ -44,8 +44,8 @@ async def test_a_whole_localisation_session_by_typing_and_clicking(results):
     assert [r.trial for r in rows] == list(range(1, 27))
     for row in rows:
         assert row.status == "ok" and row.response == answers[row.trial]
-        expected = "none" if row.response == "none" else classify(row.pin, int(row.response))
-        assert row.error_class == expected
+        expected = "none" if row.response == "none" else str(classify(row.pin, int(row.response)))
+        assert row.category == expected  # the error class, or nothing felt
     assert [r.practice for r in rows[:3]] == [True, True, False]
     (manifest,) = results.rglob("*_manifest.json")
     assert read_manifest(manifest).status == "completed" and read_manifest(manifest).seed == 3

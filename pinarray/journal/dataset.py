@@ -1,0 +1,277 @@
+"""The results folder as a BIDS dataset: root files from the first run, sidecars for every run.
+
+At the dataset root: ``dataset_description.json`` (BIDS's required file, naming pinarray and
+its version in ``GeneratedBy``), ``README.md``, ``participants.tsv`` and ``participants.json``.
+They are created when missing and otherwise kept as the lab edited them: a subject's row is
+added to ``participants.tsv`` (never removed; columns the lab added are kept, the new row
+n/a there) and this pinarray's version is added to ``GeneratedBy``. Each change replaces the
+file atomically under a lock, so two sessions starting at once cannot lose each other's rows.
+
+Each run's ``_beh.json`` and ``_events.json`` sidecars describe every column (Levels for every
+categorical one, Units for every measured one), the task (TaskName, TaskDescription,
+Instructions), the device, and the run's time base: what its zero is and each sitting's clock,
+so a sped-up rehearsal says so in the data's own sidecar, not only in its manifest.
+"""
+
+from __future__ import annotations
+
+import csv
+import errno
+import io
+import json
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+from pinarray import __version__
+from pinarray.errors import ResultsError
+from pinarray.journal.files import write_atomically
+from pinarray.journal.lock import held
+from pinarray.journal.manifest import LocalisationEntry, MotionEntry, PlanEntry, RunManifest
+from pinarray.journal.paths import SOURCEDATA, RunPaths
+from pinarray.journal.records import (
+    BEH_COLUMNS,
+    COLUMN,
+    EVENT_NAMES,
+    MOTION_ANSWER_MEANING,
+    NOTHING_FELT,
+    TRIAL_TYPE,
+    Column,
+    condition_label,
+)
+from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind
+from pinarray.protocol import Paradigm
+
+BIDS_VERSION = "1.10.0"
+NAME = "pinarray results"
+PARTICIPANT_ID = "participant_id"
+DATASET_README = """\
+# pinarray results
+
+Behavioural data from a 4x4 servo pin-array tactile stimulator, written by pinarray
+(localisation: "which pin moved?"; apparent motion: "did a dot move, and which way?").
+This folder is a BIDS dataset (https://bids.neuroimaging.io): check it with the official
+validator (`bids-validator-deno results/`).
+
+## Layout
+
+    dataset_description.json, participants.tsv, participants.json, README.md
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-<task>_run-<k>_beh.tsv      one row per trial
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-<task>_run-<k>_beh.json     what each column means
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-<task>_run-<k>_events.tsv   onsets for imaging analyses
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-<task>_run-<k>_events.json
+    sourcedata/sub-<id>/ses-<n>/beh/<same stem>_manifest.json              plan, seed, protocol hash,
+                                                                           sittings, status
+    sourcedata/sub-<id>/ses-<n>/beh/<same stem>.lock                       while a process writes the run
+
+Each trial's row is on disk (fsync'd) the moment the trial ends. A trial presented again
+(redone, aborted, or its stimulus not delivered) keeps its earlier rows; only a row with
+status `ok` counts, and each trial has at most one.
+
+## Time
+
+`onset` is in seconds from the run's time zero (the stimulus onset of its first trial unless
+the sidecar says otherwise), on one time base for the whole run: a run interrupted and resumed
+later continues where it stood (in real time the pause counts; in simulated time it continues
+from the end of the last trial on file). Each sitting's wall-clock start (with its UTC offset),
+its clock (real, or simulated and how fast) and where it joins the run's time are in the
+run's manifest and its sidecars' `TimeBase`. A simulated rehearsal says `"Simulated": true`.
+
+## Provenance
+
+The manifests in `sourcedata/` hold the full trial plan, the plan's seed, the protocol file's
+SHA-256, the software version, the machine, the serial port and servo models, and the run's
+status (running, completed, aborted, crashed) with the reason it ended.
+"""
+_PARTICIPANTS_JSON = {
+    PARTICIPANT_ID: {"Description": "Subject label, as given when the session was started "
+                                    "(letters and digits)."},
+}
+INSTRUCTIONS = {
+    Paradigm.LOCALISATION: "Rest your fingertip on the pins. After each stimulus, name the pin "
+                           "that moved by its number (1 = bottom-left as you feel it), or say "
+                           "'none' if you felt nothing.",
+    Paradigm.APPARENT_MOTION: "Rest your fingertip on the pins. After each stimulus, say whether "
+                              "you felt a dot moving and, if so, which way: left, right, or "
+                              "unsure; say 'none' if you felt no movement.",
+}
+
+
+# -- dataset-level files -------------------------------------------------------------------------
+
+
+def generated_by() -> dict[str, str]:
+    return {"Name": "pinarray", "Version": __version__,
+            "Description": "Drives a 4x4 servo pin-array tactile stimulator and writes each "
+                           "trial as it ends."}
+
+
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
+
+
+def _dump(data: Any) -> str:
+    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+def _description(path: Path) -> None:
+    if not path.exists():
+        write_atomically(path, _dump({"Name": NAME, "BIDSVersion": BIDS_VERSION,
+                                      "DatasetType": "raw", "GeneratedBy": [generated_by()]}))
+        return
+    data = _read_json(path)
+    if not isinstance(data, dict):
+        raise ResultsError(f"{path}:1:1: expected a JSON object, found {type(data).__name__}")
+    mine = generated_by()
+    already = data.get("GeneratedBy") or []
+    if not any(isinstance(g, dict) and (g.get("Name"), g.get("Version")) == (mine["Name"],
+               mine["Version"]) for g in already):
+        write_atomically(path, _dump({**data, "GeneratedBy": [*already, mine]}))
+
+
+def _participants(tsv: Path, subject: str) -> None:
+    participant = f"sub-{subject}"
+    rows: list[list[str]] = []
+    if tsv.exists():
+        rows = list(csv.reader(io.StringIO(tsv.read_text(encoding="utf-8")), delimiter="\t"))
+    if not rows:
+        rows = [[PARTICIPANT_ID]]
+    if rows[0][:1] != [PARTICIPANT_ID]:
+        raise ResultsError(f"{tsv}:1:1: expected the first column {PARTICIPANT_ID}, "
+                           f"found {rows[0][:1]}")
+    if any(row[:1] == [participant] for row in rows[1:]):
+        return
+    rows.append([participant] + ["n/a"] * (len(rows[0]) - 1))
+    out = io.StringIO()
+    csv.writer(out, delimiter="\t", lineterminator="\n").writerows(rows)
+    write_atomically(tsv, out.getvalue())
+
+
+def ensure_dataset(root: Path | str, subject: str) -> None:
+    """Create or complete the dataset's root files, with ``subject`` listed as a participant."""
+    root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(root))
+    root.mkdir(parents=True, exist_ok=True)
+    with held(root / SOURCEDATA / "dataset.lock"):
+        _description(root / "dataset_description.json")
+        if not any(root.glob("README*")):
+            write_atomically(root / "README.md", DATASET_README)
+        _participants(root / "participants.tsv", subject)
+        if not (root / "participants.json").exists():
+            write_atomically(root / "participants.json", _dump(_PARTICIPANTS_JSON))
+
+
+# -- per-run sidecars ----------------------------------------------------------------------------
+
+
+def _entry(column: Column) -> dict[str, Any]:
+    entry: dict[str, Any] = {"Description": column.description}
+    if column.levels is not None:
+        entry["Levels"] = {str(level): meaning for level, meaning in column.levels.items()}
+    if column.units is not None:
+        entry["Units"] = column.units
+    return entry
+
+
+def _trial_types(task: str, plan: tuple[PlanEntry, ...]) -> dict[str, str]:
+    levels: dict[str, str] = {}
+    for entry in plan:
+        match entry:
+            case LocalisationEntry():
+                label = condition_label(task, frequency_hz=float(entry.frequency_hz))
+                levels.setdefault(label, f"one pin moves at {float(entry.frequency_hz):g} Hz")
+            case MotionEntry():
+                label = condition_label(task, direction=entry.direction)
+                levels.setdefault(label, f"apparent motion: {entry.direction.value} "
+                                         f"({_direction_meaning(entry)})")
+    return dict(sorted(levels.items()))
+
+
+def _direction_meaning(entry: MotionEntry) -> str:
+    return str(COLUMN["direction"].levels[entry.direction])  # type: ignore[index]
+
+
+def _run_levels(manifest: RunManifest) -> dict[str, dict[str, str]]:
+    info = manifest.task_info
+    pins = {str(p): f"row {(p - 1) // info.grid_columns + 1}, column "
+                    f"{(p - 1) % info.grid_columns + 1} (row 1 at the bottom)" for p in info.pins}
+    if info.paradigm is Paradigm.LOCALISATION:
+        response = {p: f"named pin {p}" for p in pins} | {NOTHING_FELT: "nothing felt"}
+    else:
+        response = {str(a): meaning for a, meaning in MOTION_ANSWER_MEANING.items()}
+    return {"task": {manifest.task: info.name + (f": {info.description}" if info.description else "")},
+            "pin": pins, "response": response,
+            "row": {str(r): f"row {r} (1 = bottom)" for r in range(1, info.grid_rows + 1)}}
+
+
+def _time_base(manifest: RunManifest) -> dict[str, Any]:
+    zero = manifest.time_zero
+    return {
+        "Zero": zero.event if zero else FIRST_TRIAL_ONSET,
+        # Simulated servos, or time that is not the wall clock's: not data from a real sitting.
+        "Simulated": manifest.provenance.port.startswith("sim://") or any(
+            s.clock.kind.simulated or s.clock.kind is ClockKind.SCALED for s in manifest.sittings),
+        "Sittings": [{"Sitting": s.number, "StartedAt": s.started_at,
+                      "Clock": s.clock.kind.value, "TimeScale": s.clock.factor,
+                      "Description": s.clock.describe()} for s in manifest.sittings],
+        "Description": "onset is in seconds from the run's time zero on one time base for all "
+                       "sittings; a resumed sitting joins it where the wall clock says in real "
+                       "time (the pause counts) and at the end of the last trial on file in "
+                       "simulated time. The manifest in sourcedata/ has where each sitting "
+                       "starts on this time base.",
+    }
+
+
+def _common(manifest: RunManifest) -> dict[str, Any]:
+    info, provenance = manifest.task_info, manifest.provenance
+    return {
+        "TaskName": info.name,
+        "TaskDescription": info.description or info.name,
+        "Instructions": info.instructions or INSTRUCTIONS[info.paradigm],
+        "StimulusPresentation": {"OperatingSystem": platform.platform(),
+                                 "SoftwareName": "pinarray",
+                                 "SoftwareVersion": manifest.software_version or __version__},
+        "Device": {
+            "Description": f"{info.grid_rows}x{info.grid_columns} pin array, one 1 mm pin per "
+                           "servo, moved up and down under the fingertip",
+            "PitchMm": info.pitch_mm,
+            "ServoModels": sorted(set(provenance.servo_models)),
+            "Port": provenance.port,
+            "SimulatedServos": provenance.port.startswith("sim://"),
+        },
+        "TimeBase": _time_base(manifest),
+    }
+
+
+def beh_sidecar(manifest: RunManifest) -> dict[str, Any]:
+    """The BIDS JSON sidecar of a run's ``beh.tsv``."""
+    levels = _run_levels(manifest)
+    columns = {}
+    for column in BEH_COLUMNS:
+        entry = _entry(column)
+        if column.name in levels:
+            entry["Levels"] = levels[column.name]
+        columns[column.name] = entry
+    onset = columns["onset"]
+    onset["Description"] += f" Zero: {_time_base(manifest)['Zero']}."
+    return _common(manifest) | columns
+
+
+def events_sidecar(manifest: RunManifest) -> dict[str, Any]:
+    """The BIDS JSON sidecar of a run's ``events.tsv``."""
+    beh = beh_sidecar(manifest)
+    columns = {name: beh[name] for name in EVENT_NAMES if name in beh}
+    columns["trial_type"] = _entry(TRIAL_TYPE) | {
+        "Levels": _trial_types(manifest.task, manifest.plan)}
+    return _common(manifest) | {name: columns[name] for name in EVENT_NAMES}
+
+
+def write_sidecars(paths: RunPaths, manifest: RunManifest) -> None:
+    """(Re)write a run's two sidecars atomically."""
+    write_atomically(paths.beh_json, _dump(beh_sidecar(manifest)))
+    write_atomically(paths.events_json, _dump(events_sidecar(manifest)))

@@ -1,0 +1,191 @@
+"""One writer per run: a lock file that names its holder (pid and host) while a run is open.
+
+The claim itself is the operating system's: an exclusive ``flock`` on the lock file, which the
+kernel drops the moment its process ends, however it ends (SIGKILL, power cut of the process,
+a crash). The file's text only says who holds it, so a refusal can name the other process,
+and a lock left behind by a process that died is recognised as *stale*: its file is still
+there but nobody holds it. A stale lock written on this computer is taken over, and the caller
+told whose it was; one written on another computer (a results folder on a network drive) is
+refused, since this computer cannot see that process: the message says which file to delete
+if it is known to have ended.
+
+POSIX only (``fcntl``); elsewhere the file names its holder but nothing enforces it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+from pinarray.errors import ResultsError
+from pinarray.journal.files import now_iso, this_host
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None  # type: ignore[assignment]
+
+
+class RunLocked(ResultsError):
+    """The run is open in another process (or locked by one this computer cannot see)."""
+
+
+@dataclass(frozen=True)
+class LockHolder:
+    """Who wrote a lock file: process id, computer, since when, and what it was doing."""
+
+    pid: int
+    host: str
+    since: str
+    command: str = ""
+
+    def describe(self) -> str:
+        where = "this computer" if self.host == this_host() else f"host {self.host}"
+        return f"pid {self.pid} on {where}, since {self.since}"
+
+    def to_json(self) -> str:
+        return json.dumps({"pid": self.pid, "host": self.host, "since": self.since,
+                           "command": self.command}) + "\n"
+
+    @classmethod
+    def from_text(cls, text: str) -> LockHolder | None:
+        try:
+            data = json.loads(text)
+            return cls(int(data["pid"]), str(data["host"]), str(data["since"]),
+                       str(data.get("command", "")))
+        except (ValueError, KeyError, TypeError):
+            return None  # empty (its holder had not written it yet) or not ours
+
+
+def _read_holder(fd: int) -> LockHolder | None:
+    os.lseek(fd, 0, os.SEEK_SET)
+    return LockHolder.from_text(os.read(fd, 4096).decode("utf-8", errors="replace"))
+
+
+def _try_flock(fd: int) -> bool:
+    if fcntl is None:
+        return True
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        return os.stat(path).st_ino == os.fstat(fd).st_ino
+    except FileNotFoundError:
+        return False
+
+
+class RunLock:
+    """An exclusive claim on one run, held from `acquire` until `release` (or the process ends).
+
+    Attributes
+    ----------
+    path : Path
+        The lock file.
+    stale : LockHolder or None
+        The holder named in a lock file left behind by a process that ended without
+        releasing it (killed, crashed), taken over by this one; None if the lock was free.
+    """
+
+    def __init__(self, path: Path, fd: int, stale: LockHolder | None):
+        self.path = path
+        self._fd: int | None = fd
+        self.stale = stale
+
+    @classmethod
+    def acquire(cls, path: Path, what: str, command: str = "") -> RunLock:
+        """Claim ``path`` for this process, or raise `RunLocked` naming its holder.
+
+        Parameters
+        ----------
+        path : Path
+            The lock file (created, with its folder, if missing).
+        what : str
+            What the lock protects, for the message (e.g. ``sub-01 ses-1 ... run-2``).
+        command : str
+            What this process is doing, written for the next one to read.
+        """
+        path.parent.mkdir(parents=True, exist_ok=True)
+        while True:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            if not _try_flock(fd):
+                holder = _read_holder(fd)
+                os.close(fd)
+                raise RunLocked(locked_message(what, holder))
+            if _same_file(fd, path):
+                break
+            os.close(fd)  # its holder released (and removed) it while we waited: try afresh
+        previous = _read_holder(fd)
+        if previous is not None and previous.host != this_host():
+            os.close(fd)
+            raise RunLocked(
+                f"{what} is locked by {previous.describe()}, which this computer cannot see; "
+                f"if that process has ended, delete {path} and try again"
+            )
+        os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)
+        os.write(fd, LockHolder(os.getpid(), this_host(), now_iso(), command).to_json().encode())
+        os.fsync(fd)
+        return cls(path, fd, previous)
+
+    @property
+    def held(self) -> bool:
+        return self._fd is not None
+
+    def release(self) -> None:
+        """Give the run up: remove the lock file, then let go of the claim. Idempotent."""
+        if self._fd is None:
+            return
+        fd, self._fd = self._fd, None
+        # Removed while still held, so nobody can take over a file that is about to vanish;
+        # a process that opened it before the removal sees the name gone and starts afresh.
+        self.path.unlink(missing_ok=True)
+        os.close(fd)
+
+
+def lock_holder(path: Path) -> LockHolder | None:
+    """Who holds the lock at ``path`` right now, or None when nobody does (free or stale)."""
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except FileNotFoundError:
+        return None
+    try:
+        if _try_flock(fd):
+            return None  # nobody holds it; closing the descriptor lets go again
+        return _read_holder(fd) or LockHolder(0, "", "unknown")
+    finally:
+        os.close(fd)
+
+
+def locked_message(what: str, holder: LockHolder | None) -> str:
+    """A refusal in words: ``what`` is open in another process, and which one."""
+    who = holder.describe() if holder else "a process that has not yet named itself"
+    return (f"{what} is open in another process ({who}); a run has one writer at a time: "
+            "wait for that one to end, or end it, then try again")
+
+
+def stale_message(stale: LockHolder, what: str) -> str:
+    """A taken-over lock in words, for the log."""
+    return (f"took over the lock of {what} left by {stale.describe()}: that process is no "
+            "longer running (killed or crashed), so its run is resumed here")
+
+
+@contextmanager
+def held(path: Path) -> Iterator[None]:
+    """Hold an exclusive lock on ``path`` for a short read-modify-write (waits for it)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        if fcntl is not None:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)

@@ -1,0 +1,331 @@
+"""A run's manifest: its plan, provenance, sittings, time zero and status, as one JSON file.
+
+Written before trial 1 and replaced atomically whenever it changes (a sitting starts, the
+run's time zero is fixed, the status changes), so a reader always finds a whole version. The
+values crossing modules are frozen: `PlanEntry` (one trial of the plan), `Provenance` (what
+the run was made from), `TaskInfo` (what the sidecars say about the task); JSON only at the
+file boundary. Manifests written before the time base and the sum-typed plan (a ``pid`` and
+``resumed_at`` list instead of sittings) are still read.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from enum import StrEnum
+from fractions import Fraction
+from pathlib import Path
+from typing import Any, TypeAlias
+
+from pinarray import __version__
+from pinarray.errors import ResultsError
+from pinarray.journal.files import now_iso, write_atomically
+from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
+from pinarray.journal.records import Direction, TrialRecord, finished_trials
+from pinarray.journal.timebase import (
+    ClockKind,
+    Sitting,
+    TimeScale,
+    TimeZero,
+    ns_from_seconds,
+    seconds_text,
+)
+from pinarray.protocol import Paradigm, WaveKind
+
+
+class RunStatus(StrEnum):
+    RUNNING = "running"  # being written, or killed outright (nothing was left to say so)
+    COMPLETED = "completed"
+    ABORTED = "aborted"  # stopped by the experimenter, a signal, or failed deliveries
+    CRASHED = "crashed"  # an error inside the writer's block
+
+    @property
+    def unfinished(self) -> bool:
+        """Whether the run can be resumed: everything but completed."""
+        return self is not RunStatus.COMPLETED
+
+
+DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
+                     WaveKind.NONE: Direction.NONE}
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Entry:
+    trial: int  # 1..N in plan order, the number every output uses
+    block: int = 1  # 0 for practice
+    practice: bool = False
+    stimulus: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LocalisationEntry(_Entry):
+    pin: int
+    frequency_hz: Fraction
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionEntry(_Entry):
+    row: int
+    wave: WaveKind
+
+    @property
+    def direction(self) -> Direction:
+        return DIRECTION_OF_WAVE[self.wave]
+
+
+PlanEntry: TypeAlias = LocalisationEntry | MotionEntry
+
+
+def entry_key(entry: PlanEntry) -> tuple[int, bool]:
+    """(trial, practice), as `TrialRecord.key` names the same trial."""
+    return entry.trial, entry.practice
+
+
+def entry_to_json(entry: PlanEntry) -> dict[str, Any]:
+    """The JSON a plan entry is stored as (the shape `pinarray compile` writes too)."""
+    data: dict[str, Any] = {"trial": entry.trial, "block": entry.block,
+                            "practice": entry.practice, "stimulus": entry.stimulus,
+                            "pin": None, "frequency_hz": None, "direction": None, "row": None}
+    match entry:
+        case LocalisationEntry():
+            data |= {"pin": entry.pin, "frequency_hz": str(entry.frequency_hz)}
+        case MotionEntry():
+            data |= {"direction": entry.wave.value, "row": entry.row}
+    return data
+
+
+def entry_from_json(data: object, where: str) -> PlanEntry:
+    if not isinstance(data, Mapping):
+        raise ResultsError(f"{where}: expected a trial plan entry, found {data!r}")
+    trial = data.get("trial")
+    if isinstance(trial, bool) or not isinstance(trial, int):
+        raise ResultsError(f"{where}: a trial plan entry needs an integer 'trial', found {data!r}")
+    common = {"trial": trial, "block": int(data.get("block", 1)),
+              "practice": bool(data.get("practice", False)),
+              "stimulus": str(data.get("stimulus") or "")}
+    try:
+        if data.get("pin") is not None:
+            return LocalisationEntry(**common, pin=int(data["pin"]),
+                                     frequency_hz=Fraction(str(data["frequency_hz"])))
+        if data.get("direction") is not None:
+            return MotionEntry(**common, row=int(data["row"]), wave=WaveKind(data["direction"]))
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        pass
+    raise ResultsError(f"{where}: trial {trial} of the plan names neither a pin and a frequency "
+                       f"nor a wave direction and a row: {dict(data)!r}")
+
+
+def remaining_plan(plan: Iterable[PlanEntry], records: Iterable[TrialRecord]) -> list[PlanEntry]:
+    """The plan entries not yet finished (no ``ok`` row), in plan order."""
+    done = finished_trials(records)
+    return [entry for entry in plan if entry_key(entry) not in done]
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """What a run was made from: the plan's seed, the protocol, the bus, who ran it."""
+
+    seed: int | None
+    protocol_sha256: str
+    port: str
+    protocol_file: str = ""
+    servo_models: tuple[str, ...] = ()
+    experimenter: str = ""
+
+
+@dataclass(frozen=True)
+class TaskInfo:
+    """What the sidecars say about the task and the device (BIDS TaskName, Instructions...)."""
+
+    name: str
+    paradigm: Paradigm
+    description: str = ""
+    instructions: str = ""
+    grid_rows: int = 4
+    grid_columns: int = 4
+    pitch_mm: float = 2.0
+
+    @property
+    def pins(self) -> range:
+        return range(1, self.grid_rows * self.grid_columns + 1)
+
+
+@dataclass(frozen=True)
+class RunManifest:
+    """Everything needed to re-run or audit a run. Wall-clock times are ISO 8601 with offset."""
+
+    subject: str
+    session: str
+    task: str
+    run: int
+    plan: tuple[PlanEntry, ...]
+    provenance: Provenance
+    task_info: TaskInfo
+    started_at: str = ""
+    updated_at: str = ""
+    status: RunStatus = RunStatus.RUNNING
+    abort_reason: str = ""
+    sittings: tuple[Sitting, ...] = ()
+    time_zero: TimeZero | None = None
+    software_version: str = __version__
+    machine: Mapping[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        try:
+            object.__setattr__(self, "status", RunStatus(self.status))
+        except ValueError:
+            raise ResultsError(f"manifest status must be one of {', '.join(RunStatus)}, "
+                               f"found {self.status!r}") from None
+        keys = [entry_key(e) for e in self.plan]
+        if len(set(keys)) != len(keys):
+            raise ResultsError("trial plan numbers a trial twice: each 'trial' must be unique")
+
+    @property
+    def seed(self) -> int | None:
+        return self.provenance.seed
+
+    @property
+    def protocol_sha256(self) -> str:
+        return self.provenance.protocol_sha256
+
+    def to_json(self) -> dict[str, Any]:
+        p, t = self.provenance, self.task_info
+        return {
+            "subject": self.subject, "session": self.session, "task": self.task, "run": self.run,
+            "status": self.status.value, "abort_reason": self.abort_reason,
+            "started_at": self.started_at, "updated_at": self.updated_at,
+            "seed": p.seed, "protocol_sha256": p.protocol_sha256, "protocol_file": p.protocol_file,
+            "port": p.port, "servo_models": list(p.servo_models), "experimenter": p.experimenter,
+            "software_version": self.software_version, "machine": dict(self.machine),
+            "task_info": {"name": t.name, "paradigm": t.paradigm.value,
+                          "description": t.description, "instructions": t.instructions,
+                          "grid_rows": t.grid_rows, "grid_columns": t.grid_columns,
+                          "pitch_mm": t.pitch_mm},
+            "time_zero": None if self.time_zero is None else {
+                "event": self.time_zero.event, "at": self.time_zero.at},
+            "sittings": [_sitting_to_json(s) for s in self.sittings],
+            "plan": [entry_to_json(e) for e in self.plan],
+        }
+
+    @classmethod
+    def from_json(cls, data: object, where: str = "<manifest>") -> RunManifest:
+        if not isinstance(data, Mapping):
+            raise ResultsError(f"{where}: not a pinarray run manifest (expected a JSON object)")
+        try:
+            plan = tuple(entry_from_json(e, f"{where}: plan entry {i + 1}")
+                         for i, e in enumerate(data["plan"]))
+            provenance = Provenance(
+                seed=data["seed"], protocol_sha256=str(data["protocol_sha256"]),
+                port=str(data["port"]), protocol_file=str(data.get("protocol_file", "")),
+                servo_models=tuple(map(str, data.get("servo_models", ()))),
+                experimenter=str(data.get("experimenter", "")))
+            zero = data.get("time_zero")
+            return cls(
+                subject=str(data["subject"]), session=str(data["session"]),
+                task=str(data["task"]), run=int(data["run"]), plan=plan, provenance=provenance,
+                task_info=_task_info(data.get("task_info"), str(data["task"]), plan),
+                started_at=str(data.get("started_at", "")),
+                updated_at=str(data.get("updated_at", "")), status=data["status"],
+                abort_reason=str(data.get("abort_reason", "")),
+                sittings=_sittings(data),
+                time_zero=None if zero is None else TimeZero(str(zero["event"]), str(zero["at"])),
+                software_version=str(data.get("software_version", "")),
+                machine={str(k): str(v) for k, v in dict(data.get("machine", {})).items()},
+            )
+        except (TypeError, KeyError, ValueError) as error:
+            raise ResultsError(f"{where}: not a pinarray run manifest ({error!r})") from None
+
+
+def _sitting_to_json(sitting: Sitting) -> dict[str, Any]:
+    return {"number": sitting.number, "started_at": sitting.started_at,
+            "clock": sitting.clock.kind.value, "time_scale": sitting.clock.factor,
+            "start_s": None if sitting.start_ns is None else float(seconds_text(sitting.start_ns)),
+            "pid": sitting.pid, "host": sitting.host,
+            "software_version": sitting.software_version}
+
+
+def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
+    if "sittings" in data:
+        return tuple(
+            Sitting(number=int(s["number"]), started_at=str(s["started_at"]),
+                    clock=TimeScale(ClockKind(s["clock"]), s.get("time_scale")),
+                    start_ns=None if s.get("start_s") is None else ns_from_seconds(str(s["start_s"])),
+                    pid=int(s.get("pid", 0)), host=str(s.get("host", "")),
+                    software_version=str(s.get("software_version", "")))
+            for s in data["sittings"])
+    # Written before sittings were recorded: a start time and a pid, then one time per resume.
+    unknown = TimeScale(ClockKind.UNKNOWN, None)
+    host = str(dict(data.get("machine", {})).get("hostname", ""))
+    starts = [str(data.get("started_at", "")), *map(str, data.get("resumed_at", ()))]
+    return tuple(Sitting(number, at, unknown, None, int(data.get("pid", 0)) if number == 1 else 0,
+                         host) for number, at in enumerate(starts, start=1))
+
+
+def _task_info(data: Any, task: str, plan: Sequence[PlanEntry]) -> TaskInfo:
+    if data is None:  # an older manifest: what the plan and the labels say
+        motion = bool(plan) and isinstance(plan[0], MotionEntry)
+        return TaskInfo(task, Paradigm.APPARENT_MOTION if motion else Paradigm.LOCALISATION)
+    return TaskInfo(name=str(data["name"]), paradigm=Paradigm(data["paradigm"]),
+                    description=str(data.get("description", "")),
+                    instructions=str(data.get("instructions", "")),
+                    grid_rows=int(data.get("grid_rows", 4)),
+                    grid_columns=int(data.get("grid_columns", 4)),
+                    pitch_mm=float(data.get("pitch_mm", 2.0)))
+
+
+def write_manifest(path: Path, manifest: RunManifest) -> None:
+    """Write ``manifest`` to ``path`` atomically, as indented JSON."""
+    write_atomically(path, json.dumps(manifest.to_json(), indent=2, ensure_ascii=False) + "\n")
+
+
+def read_manifest(path: Path | str) -> RunManifest:
+    """Read a manifest written by `write_manifest`; a clear `ResultsError` if it is not one."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ResultsError(f"{path}: no run manifest here") from None
+    except json.JSONDecodeError as error:
+        raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
+    return RunManifest.from_json(data, str(path))
+
+
+def updated(manifest: RunManifest, **changes: Any) -> RunManifest:
+    """``manifest`` with ``changes``, stamped now."""
+    return replace(manifest, **changes, updated_at=now_iso())
+
+
+def set_status(path: Path | str, status: RunStatus, reason: str = "") -> RunManifest:
+    """Atomically set a manifest's status (and abort reason), stamping ``updated_at``."""
+    path = Path(path)
+    manifest = updated(read_manifest(path), status=RunStatus(status), abort_reason=reason)
+    write_manifest(path, manifest)
+    return manifest
+
+
+def find_unfinished(
+    root: Path | str, subject: str, session: str | int | None = None, task: str | None = None
+) -> list[tuple[RunPaths, RunManifest]]:
+    """Runs of ``subject`` whose manifest says running, crashed or aborted, oldest run first.
+
+    A run killed outright (SIGKILL, power cut) still says ``running``: nothing was left alive
+    to change it, which is why ``running`` counts as unfinished too. Whether another process is
+    writing it right now is the run's lock's to say (`pinarray.journal.lock.lock_holder`).
+    """
+    subject = check_label("subject", subject)
+    ses = "*" if session is None else check_label("session", session)
+    tsk = "*" if task is None else check_label("task", task)
+    name = f"sub-{subject}_ses-{ses}_task-{tsk}_run-*_manifest.json"
+    found: dict[RunPaths, RunManifest] = {}
+    seen: set[RunPaths] = set()
+    for base in (Path(root) / SOURCEDATA, Path(root)):  # where manifests live, then older runs'
+        for path in sorted(base.glob(f"sub-{subject}/ses-{ses}/beh/{name}")):
+            paths = RunPaths.from_file(path)
+            if paths in seen:
+                continue
+            seen.add(paths)
+            manifest = read_manifest(path)
+            if manifest.status.unfinished:
+                found[paths] = manifest
+    return sorted(found.items(), key=lambda item: (item[0].session, item[0].task, item[0].run))

@@ -1,0 +1,511 @@
+"""Trial records as the lab reads them: one row per finished (or abandoned) trial, and the reader.
+
+A row is a `LocalisationRecord` (a pin moved; the subject named a pin, or nothing felt) or a
+`MotionRecord` (a wave along a row, or the no-wave control; the subject said which way, if
+any). `BEH_COLUMNS` is the ``beh.tsv`` schema, each column with its cell type; times are whole
+nanoseconds in a record and decimal seconds in a file. The writer is `pinarray.journal.writer`;
+this module only formats and parses, so the analysis reads results without any writer code.
+
+A process killed while writing leaves at most one torn last line (`split_torn_tail`); the
+reader leaves it out.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from enum import Enum, StrEnum
+from pathlib import Path
+from typing import Any, NamedTuple, TypeAlias
+
+from pinarray.errors import ResultsError
+from pinarray.grid import ErrorClass
+from pinarray.journal.paths import check_label
+from pinarray.journal.timebase import ns_from_seconds, seconds_text
+
+NA = "n/a"  # BIDS spelling of "not applicable"
+NOTHING_FELT = "none"  # a localisation answer: no pin felt
+
+
+class TrialStatus(StrEnum):
+    """What became of a trial. Only ``ok`` finishes it; the others are presented again."""
+
+    OK = "ok"
+    REDONE = "redone"
+    ABORTED = "aborted"
+    INVALID = "invalid"
+
+
+class Direction(StrEnum):
+    """Which way an apparent-motion wave travels, as the subject would name it."""
+
+    LEFT = "left"
+    RIGHT = "right"
+    NONE = "none"  # the no-wave control: the central pin alternates with the lateral ones
+
+
+class MotionAnswer(StrEnum):
+    """The subject's answer to an apparent-motion trial."""
+
+    NONE = "none"  # felt no moving dot
+    LEFT = "left"
+    RIGHT = "right"
+    UNSURE = "unsure"  # felt a moving dot, could not tell which way
+
+
+@dataclass(frozen=True)
+class DeliveryCounts:
+    """What reached the servos in one trial (see `pinarray.delivery.DeliveryRecord`)."""
+
+    scheduled: int
+    confirmed: int
+    healed: int
+    missing: int
+    lateness_ns: int
+
+
+def _coerce(record: object, name: str, kind: type[Enum], where: str) -> None:
+    value = getattr(record, name)
+    if value is None or isinstance(value, kind):
+        return
+    try:
+        object.__setattr__(record, name, kind(value))
+    except ValueError:
+        allowed = ", ".join(str(member.value) for member in kind)
+        raise ResultsError(f"{where}: {name} must be one of {allowed}, found {value!r}") from None
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Trial:
+    """What every trial row holds. Times in whole nanoseconds; ``onset_ns`` on the run's time base."""
+
+    trial: int
+    block: int
+    task: str
+    onset_ns: int
+    duration_ns: int
+    status: TrialStatus = TrialStatus.OK
+    response_time_ns: int | None = None
+    practice: bool = False
+    resumed: bool = False
+    delivery: DeliveryCounts | None = None  # None: the stimulus never played (or older files)
+    status_reason: str | None = None
+
+    def __post_init__(self) -> None:
+        check_label("task", self.task)
+        if isinstance(self.trial, bool) or not isinstance(self.trial, int) or self.trial < 0:
+            raise ResultsError(f"trial number must be a whole number >= 0, found {self.trial!r}")
+        where = f"trial {self.trial}"
+        _coerce(self, "status", TrialStatus, where)
+        for name in ("onset_ns", "duration_ns", "response_time_ns"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
+                raise ResultsError(f"{where}: {name} must be whole nanoseconds, found {value!r}")
+        for name in ("response", "status_reason"):
+            text = getattr(self, name, None)
+            if isinstance(text, str) and ("\n" in text or "\r" in text):
+                # One row per line is what lets a torn last line be told from a whole one.
+                raise ResultsError(f"{where}: a {name} cannot contain a line break")
+
+    @property
+    def counts(self) -> bool:
+        """Whether analysis counts this row: a main (not practice) trial with status ok."""
+        return self.status is TrialStatus.OK and not self.practice
+
+    @property
+    def key(self) -> tuple[int, bool]:
+        """(trial, practice): what identifies a trial of the plan."""
+        return self.trial, self.practice
+
+    @property
+    def end_ns(self) -> int:
+        """When the trial was over on the run's time base: the stimulus, or the answer if later."""
+        return self.onset_ns + max(self.duration_ns, self.response_time_ns or 0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class LocalisationRecord(_Trial):
+    """A localisation trial: ``pin`` moved at ``frequency_hz``; the subject named a pin or none.
+
+    ``response`` is the pin named, as text, or "none" (nothing felt); None when the trial got
+    no answer (redone, aborted, invalid). ``error_class`` classifies the pin named.
+    """
+
+    pin: int
+    frequency_hz: float
+    response: str | None = None
+    error_class: ErrorClass | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"trial {self.trial}"
+        _coerce(self, "error_class", ErrorClass, where)
+        text = self.response
+        if text is not None and text != NOTHING_FELT and not (text.isdigit() and int(text) >= 1):
+            raise ResultsError(f"{where}: a localisation response must be a pin number or "
+                               f"'{NOTHING_FELT}', found {text!r}")
+        if self.error_class is not None and self.reported_pin is None:
+            raise ResultsError(f"{where}: error class {self.error_class} needs a pin named, "
+                               f"found the response {text!r}")
+
+    @property
+    def reported_pin(self) -> int | None:
+        return int(self.response) if self.response and self.response.isdigit() else None
+
+    @property
+    def nothing_felt(self) -> bool:
+        return self.response == NOTHING_FELT
+
+    @property
+    def category(self) -> str | None:
+        """The ``error_class`` cell: correct, A-D, or "none" (nothing felt); None if no answer."""
+        if self.nothing_felt:
+            return NOTHING_FELT
+        return None if self.error_class is None else self.error_class.value
+
+
+@dataclass(frozen=True, kw_only=True)
+class MotionRecord(_Trial):
+    """An apparent-motion trial: a wave along ``row`` going ``direction`` (or no wave)."""
+
+    row: int
+    direction: Direction
+    response: MotionAnswer | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"trial {self.trial}"
+        _coerce(self, "direction", Direction, where)
+        _coerce(self, "response", MotionAnswer, where)
+
+    @property
+    def perceived_motion(self) -> bool | None:
+        """Whether a moving dot was felt; None when the trial got no answer."""
+        return None if self.response is None else self.response is not MotionAnswer.NONE
+
+    @property
+    def direction_correct(self) -> bool | None:
+        """Whether the direction named is the wave's; None without a felt wave to name."""
+        if not self.perceived_motion or self.direction is Direction.NONE:
+            return None
+        return self.response.value == self.direction.value if self.response else None
+
+
+TrialRecord: TypeAlias = LocalisationRecord | MotionRecord
+
+
+# -- the columns ---------------------------------------------------------------------------------
+
+
+class Cell(Enum):
+    """How a column's cells are written and read."""
+
+    INTEGER = "integer"
+    SECONDS = "seconds"  # whole nanoseconds inside, exact decimal seconds in the file
+    NUMBER = "number"
+    BOOLEAN = "boolean"
+    TEXT = "text"
+
+
+class Column(NamedTuple):
+    name: str
+    cell: Cell
+    description: str
+    units: str | None = None
+    levels: Mapping[str, str] | None = None  # fixed levels; run-specific ones come from the sidecar
+
+
+_BOOLEAN = {"true": True, "false": False}
+TRIAL_STATUS_MEANING = {
+    TrialStatus.OK: "completed and counted",
+    TrialStatus.REDONE: "repeated at the experimenter's request; a later row holds the repeat",
+    TrialStatus.ABORTED: "cut short; presented again on resume",
+    TrialStatus.INVALID: "the stimulus failed (e.g. a bus fault, or not delivered as "
+                         "scheduled); presented again",
+}
+DIRECTION_MEANING = {
+    Direction.LEFT: "wave travels leftwards",
+    Direction.RIGHT: "wave travels rightwards",
+    Direction.NONE: "no wave: the central pin alternates with the lateral ones",
+}
+CATEGORY_MEANING = {
+    "correct": "the stimulated pin", "A": "adjacent, same row or column",
+    "B": "diagonal neighbour", "C": "same row or column, not adjacent",
+    "D": "neither on the same row or column nor close", NOTHING_FELT: "nothing felt",
+}
+MOTION_ANSWER_MEANING = {
+    MotionAnswer.NONE: "felt no moving dot", MotionAnswer.LEFT: "a dot moving leftwards",
+    MotionAnswer.RIGHT: "a dot moving rightwards",
+    MotionAnswer.UNSURE: "a moving dot, direction not named",
+}
+
+BEH_COLUMNS: tuple[Column, ...] = (
+    Column("trial", Cell.INTEGER, "Trial number in the run's plan, 1..N in presentation order. "
+           "Practice trials come first and are numbered like the rest (1..P, marked in the "
+           "practice column); a trial presented again keeps its number."),
+    Column("block", Cell.INTEGER, "Block number: 0 for practice, then 1..blocks."),
+    Column("task", Cell.TEXT, "Task label: which experiment this row belongs to."),
+    Column("pin", Cell.INTEGER, "Stimulated pin, numbered as the subject sees it (1 = bottom-left, "
+           "rising along the bottom row, then row by row upwards); n/a for motion trials."),
+    Column("row", Cell.INTEGER, "Grid row the apparent-motion wave runs along (1 = bottom row); "
+           "n/a for localisation trials."),
+    Column("direction", Cell.TEXT, "Direction of the stimulated wave; n/a for localisation trials.",
+           levels=DIRECTION_MEANING),
+    Column("frequency_hz", Cell.NUMBER, "Stimulation frequency of the moving pin.", units="Hz"),
+    Column("response", Cell.TEXT, "The subject's answer; n/a when the trial got none (redone, "
+           "aborted, invalid)."),
+    Column("error_class", Cell.TEXT, "Localisation answer relative to the stimulated pin.",
+           levels=CATEGORY_MEANING),
+    Column("perceived_motion", Cell.BOOLEAN, "Whether the subject felt a moving dot.",
+           levels={"true": "felt motion", "false": "felt no motion"}),
+    Column("direction_correct", Cell.BOOLEAN, "Whether the named direction matches the wave's; "
+           "n/a when no motion was felt or there was no wave.",
+           levels={"true": "named the wave's direction", "false": "did not"}),
+    Column("onset", Cell.SECONDS, "Stimulus onset on the run's time base: seconds from the run's "
+           "time zero, continuing across sittings (see TimeBase).", units="s"),
+    Column("duration", Cell.SECONDS, "Stimulus duration (for a trial cut short, the time it ran).",
+           units="s"),
+    Column("response_time", Cell.SECONDS, "Time from stimulus onset to the response; n/a for "
+           "scripted answers.", units="s"),
+    Column("status", Cell.TEXT, "What became of the trial.", levels=TRIAL_STATUS_MEANING),
+    Column("practice", Cell.BOOLEAN, "Whether this was a practice trial (not analysed).",
+           levels={"true": "practice", "false": "main trial"}),
+    Column("resumed", Cell.BOOLEAN, "Whether the trial ran in a sitting after the first (the run "
+           "was resumed).", levels={"true": "after a resume", "false": "in the first sitting"}),
+    Column("goals_scheduled", Cell.INTEGER, "Servo goal-position changes the trial's schedule "
+           "holds; n/a when the stimulus never played."),
+    Column("goals_confirmed", Cell.INTEGER, "Goal changes read back from their servo as sent "
+           "(sync writes get no reply, so each is verified by a read)."),
+    Column("goals_healed", Cell.INTEGER, "Goal changes the servo did not hold when read back "
+           "(lost on the wire), written again with an acknowledged write."),
+    Column("goals_missing", Cell.INTEGER, "Goal changes never confirmed on their servo; any makes "
+           "the trial invalid."),
+    Column("delivery_lateness", Cell.SECONDS, "How late the latest confirmed or healed goal change "
+           "reached its servo after its scheduled time (host write time plus wire time); above "
+           "the protocol's delivery tolerance the trial is invalid.", units="s"),
+    Column("status_reason", Cell.TEXT, "Why a trial is not ok: the bus fault, what was not "
+           "delivered as scheduled, or who stopped it; n/a for ok rows."),
+)
+BEH_NAMES = tuple(c.name for c in BEH_COLUMNS)
+COLUMN = {c.name: c for c in BEH_COLUMNS}
+EVENT_NAMES = ("onset", "duration", "trial_type", "trial", "pin", "row", "direction",
+               "frequency_hz", "response", "status", "practice")
+TRIAL_TYPE = Column("trial_type", Cell.TEXT, "Condition: the task and the frequency "
+                    "(localisation) or the wave's direction (motion), e.g. localisation_10hz.")
+# The columns of the first release; later ones were appended after them.
+_FIRST_NAMES = BEH_NAMES[: BEH_NAMES.index("resumed") + 1]
+
+
+def number_text(value: float) -> str:
+    """A number as a cell: whole numbers as integers ("10", not "10.0"), others exactly."""
+    return str(int(value)) if value.is_integer() and abs(value) < 1e15 else repr(value)
+
+
+_FORMAT: dict[Cell, Callable[[Any], str]] = {
+    Cell.INTEGER: str,
+    Cell.SECONDS: seconds_text,
+    Cell.NUMBER: lambda value: number_text(float(value)),
+    Cell.BOOLEAN: lambda value: "true" if value else "false",
+    Cell.TEXT: str,
+}
+
+
+def _boolean(text: str) -> bool:
+    return _BOOLEAN[text]
+
+
+_PARSE: dict[Cell, Callable[[str], Any]] = {
+    Cell.INTEGER: int,
+    Cell.SECONDS: ns_from_seconds,
+    Cell.NUMBER: float,
+    Cell.BOOLEAN: _boolean,
+    Cell.TEXT: str,
+}
+
+
+def _values(record: TrialRecord) -> dict[str, Any]:
+    """The record's cells as Python values (None for n/a), by column name."""
+    values: dict[str, Any] = {
+        "trial": record.trial, "block": record.block, "task": record.task,
+        "onset": record.onset_ns, "duration": record.duration_ns,
+        "response_time": record.response_time_ns, "status": record.status,
+        "practice": record.practice, "resumed": record.resumed,
+        "status_reason": record.status_reason,
+    }
+    match record:
+        case LocalisationRecord():
+            values |= {"pin": record.pin, "frequency_hz": record.frequency_hz,
+                       "response": record.response, "error_class": record.category}
+        case MotionRecord():
+            values |= {"row": record.row, "direction": record.direction,
+                       "response": record.response, "perceived_motion": record.perceived_motion,
+                       "direction_correct": record.direction_correct}
+    if record.delivery is not None:
+        d = record.delivery
+        values |= {"goals_scheduled": d.scheduled, "goals_confirmed": d.confirmed,
+                   "goals_healed": d.healed, "goals_missing": d.missing,
+                   "delivery_lateness": d.lateness_ns}
+    return values
+
+
+def _cells(values: Mapping[str, Any], names: Sequence[str]) -> list[str]:
+    def cell(name: str) -> str:
+        value = values.get(name)
+        return NA if value is None else _FORMAT[COLUMN.get(name, TRIAL_TYPE).cell](value)
+
+    return [cell(name) for name in names]
+
+
+def trial_type(record: TrialRecord) -> str:
+    """The events.tsv condition label, e.g. ``localisation_10hz`` or ``apparentmotion_left``."""
+    match record:
+        case LocalisationRecord():
+            return condition_label(record.task, frequency_hz=record.frequency_hz)
+        case MotionRecord():
+            return condition_label(record.task, direction=record.direction)
+
+
+def condition_label(task: str, *, frequency_hz: float | None = None,
+                    direction: Direction | None = None) -> str:
+    """``<task>_<frequency>hz`` or ``<task>_<direction>``: one trial_type level."""
+    if direction is not None:
+        return f"{task}_{direction.value}"
+    assert frequency_hz is not None
+    return f"{task}_{number_text(float(frequency_hz))}hz"
+
+
+def trial_row(record: TrialRecord) -> list[str]:
+    """The ``beh.tsv`` cells of ``record``, in column order."""
+    return _cells(_values(record), BEH_NAMES)
+
+
+def event_row(record: TrialRecord) -> list[str]:
+    """The ``events.tsv`` cells of ``record``, in `EVENT_NAMES` order."""
+    return _cells(_values(record) | {"trial_type": trial_type(record)}, EVENT_NAMES)
+
+
+def tsv_line(cells: Sequence[str]) -> str:
+    out = io.StringIO()
+    csv.writer(out, delimiter="\t", lineterminator="\n").writerow(cells)
+    return out.getvalue()
+
+
+# -- reading -------------------------------------------------------------------------------------
+
+
+def split_torn_tail(data: bytes, columns: int) -> tuple[int, bytes]:
+    """Where the whole rows of a TSV end, and the torn bytes after them.
+
+    A row is whole when it ends in a newline and has ``columns`` cells. Only the last row can
+    be torn (rows are written one at a time, each fsync'd); zero bytes that a file system may
+    leave after a power cut are torn too.
+    """
+    end = len(data.rstrip(b"\0"))
+    end = data.rfind(b"\n", 0, end) + 1  # 0 when there is no whole line at all
+    if end:
+        start = data.rfind(b"\n", 0, end - 1) + 1
+        last = data[start:end].decode("utf-8", errors="replace")
+        if start and len(next(csv.reader([last], delimiter="\t"))) != columns:
+            end = start
+    return end, data[end:]
+
+
+def beh_header(path: Path) -> list[str]:
+    """The column names of an existing ``beh.tsv`` (empty if it has no header yet)."""
+    try:
+        with open(path, encoding="utf-8", newline="") as handle:
+            first = handle.readline()
+    except FileNotFoundError:
+        return []
+    return next(csv.reader([first], delimiter="\t"), []) if first.strip() else []
+
+
+def _parse(name: str, text: str, where: str) -> Any:
+    if text == NA:
+        return None
+    try:
+        return _PARSE[COLUMN[name].cell](text)
+    except (ValueError, KeyError):
+        raise ResultsError(f"{where}: column {name!r} cannot hold {text!r}") from None
+
+
+def _required(values: Mapping[str, Any], name: str, where: str) -> Any:
+    if values.get(name) is None:
+        raise ResultsError(f"{where}: column {name!r} cannot be n/a")
+    return values[name]
+
+
+def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
+    delivery = None
+    goals = [values.get(name) for name in ("goals_scheduled", "goals_confirmed", "goals_healed",
+                                            "goals_missing", "delivery_lateness")]
+    if all(value is not None for value in goals):
+        delivery = DeliveryCounts(*goals)
+    common: dict[str, Any] = {
+        "trial": _required(values, "trial", where), "block": _required(values, "block", where),
+        "task": _required(values, "task", where), "onset_ns": _required(values, "onset", where),
+        "duration_ns": _required(values, "duration", where),
+        "status": _required(values, "status", where),
+        "response_time_ns": values.get("response_time"),
+        "practice": bool(values.get("practice")), "resumed": bool(values.get("resumed")),
+        "delivery": delivery, "status_reason": values.get("status_reason"),
+    }
+    try:
+        if values.get("pin") is not None:
+            error_class = values.get("error_class")
+            return LocalisationRecord(
+                **common, pin=values["pin"], frequency_hz=_required(values, "frequency_hz", where),
+                response=values.get("response"),
+                error_class=None if error_class in (None, NOTHING_FELT) else error_class)
+        if values.get("direction") is not None:
+            return MotionRecord(**common, row=_required(values, "row", where),
+                                direction=values["direction"], response=values.get("response"))
+    except ResultsError as problem:
+        raise ResultsError(f"{where}: {problem}") from None
+    raise ResultsError(f"{where}: a row needs a pin (localisation) or a direction (motion)")
+
+
+def read_trials(path: Path | str) -> list[TrialRecord]:
+    """The whole rows of a ``beh.tsv`` (a torn last row is left out, not an error).
+
+    Row ``i`` of the list is line ``i + 2`` of the file (line 1 is the header).
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise ResultsError(f"{path}: no such results file") from None
+    columns = len(beh_header(path)) or len(BEH_NAMES)
+    end, _ = split_torn_tail(data, columns)
+    rows = list(csv.reader(io.StringIO(data[:end].decode("utf-8")), delimiter="\t"))
+    if not rows:
+        return []
+    header = rows[0]
+    if tuple(header) != BEH_NAMES[: len(header)] or len(header) < len(_FIRST_NAMES):
+        raise ResultsError(f"{path}:1: expected the columns {list(BEH_NAMES)}, found {header}")
+    # Files written before the delivery columns existed end at `resumed`: read what they hold.
+    records = []
+    for number, cells in enumerate(rows[1:], start=2):
+        where = f"{path}:{number}"
+        if len(cells) != len(header):
+            raise ResultsError(f"{where}: expected {len(header)} cells, found {len(cells)}")
+        values = {name: _parse(name, cell, where) for name, cell in zip(header, cells, strict=True)}
+        records.append(_record(values, where))
+    return records
+
+
+def finished_trials(records: Iterable[TrialRecord]) -> frozenset[tuple[int, bool]]:
+    """(trial, practice) of every trial whose row finishes it (status ok)."""
+    return frozenset(r.key for r in records if r.status is TrialStatus.OK)
+
+
+def finished_twice(records: Sequence[TrialRecord]) -> dict[tuple[int, bool], list[int]]:
+    """Trials with more than one ``ok`` row, and the file lines of those rows (header = line 1)."""
+    lines: dict[tuple[int, bool], list[int]] = {}
+    for index, record in enumerate(records):
+        if record.status is TrialStatus.OK:
+            lines.setdefault(record.key, []).append(index + 2)
+    return {key: found for key, found in lines.items() if len(found) > 1}
+

@@ -1,0 +1,159 @@
+"""Opening a run for a session: a new run, or the subject's unfinished one resumed.
+
+Shared by `pinarray batch` and the TUI so both check a resumed run the same way: the run must
+not be open in another process (its lock), the protocol file must be the one the run started
+with, and its plan must be the saved one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
+from pinarray.errors import PinArrayError
+from pinarray.journal.dataset import INSTRUCTIONS
+from pinarray.journal.lock import LockHolder, lock_holder
+from pinarray.journal.manifest import (
+    LocalisationEntry,
+    MotionEntry,
+    PlanEntry,
+    Provenance,
+    RunManifest,
+    TaskInfo,
+    find_unfinished,
+    remaining_plan,
+)
+from pinarray.journal.paths import RunPaths
+from pinarray.journal.records import read_trials
+from pinarray.journal.timebase import REAL_TIME, ClockKind, TimeScale
+from pinarray.journal.writer import RunWriter
+from pinarray.plan import PlannedTrial, TrialPlan, make_plan
+from pinarray.protocol import Protocol
+
+
+def plan_entry(planned: PlannedTrial) -> PlanEntry:
+    """The journal's record of one planned trial."""
+    c = planned.condition
+    common = {"trial": planned.trial, "block": planned.block, "practice": planned.practice,
+              "stimulus": c.stimulus}
+    if c.pin is not None and c.frequency_hz is not None:
+        return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
+    assert c.direction is not None and c.row is not None, "a condition is a pin or a wave"
+    return MotionEntry(**common, row=c.row, wave=c.direction)
+
+
+def plan_entries(plan: TrialPlan) -> tuple[PlanEntry, ...]:
+    return tuple(plan_entry(t) for t in plan.trials)
+
+
+def task_info(protocol: Protocol) -> TaskInfo:
+    """What the sidecars say about the protocol's task and device."""
+    grid = protocol.device.grid
+    paradigm = protocol.design.paradigm
+    return TaskInfo(name=protocol.name, paradigm=paradigm, description=protocol.description,
+                    instructions=INSTRUCTIONS[paradigm], grid_rows=grid.rows,
+                    grid_columns=grid.columns, pitch_mm=grid.pitch_mm)
+
+
+def time_scale_of(clock: Clock) -> TimeScale:
+    """What a session's clock measures, for the run's time base (unknown clocks: real time)."""
+    match clock:
+        case VirtualClock():
+            return TimeScale(ClockKind.VIRTUAL, None)
+        case PacedClock():
+            return TimeScale(ClockKind.PACED, clock.pace)
+        case ScaledClock():
+            return TimeScale(ClockKind.SCALED, clock.scale)
+        case MonotonicClock():
+            return REAL_TIME
+    return REAL_TIME
+
+
+@dataclass(frozen=True)
+class Unfinished:
+    """A subject's unfinished run: where, its manifest, its rows done, and who has it open."""
+
+    paths: RunPaths
+    manifest: RunManifest
+    done: int  # trials of its plan finished
+    holder: LockHolder | None  # the process writing it now, or None when it can be resumed
+
+    def describe(self) -> str:
+        """One line for the start screen."""
+        m = self.manifest
+        if self.holder is not None:
+            return (f"Run {self.paths.run} is open in another process ({self.holder.describe()}); "
+                    "it can be resumed once that one ends.")
+        why = f" ({m.abort_reason})" if m.abort_reason else ""
+        return (f"Unfinished run {self.paths.run}: {m.status}{why}, {self.done} of "
+                f"{len(m.plan)} trials done, seed {m.seed}. Resume continues it.")
+
+
+def unfinished_run(root: Path | str, subject: str, session: str, task: str) -> Unfinished | None:
+    """The subject's latest unfinished run of ``task`` in ``session``, or None."""
+    found = find_unfinished(root, subject, session, task)
+    if not found:
+        return None
+    paths, manifest = found[-1]
+    rows = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
+    done = len(manifest.plan) - len(remaining_plan(manifest.plan, rows))
+    return Unfinished(paths, manifest, done, lock_holder(paths.lock))
+
+
+class NothingToResume(PinArrayError):
+    """``resume`` was asked for and the subject has no unfinished run of the task."""
+
+
+def open_run(
+    protocol: Protocol, root: Path | str, subject: str, session: str, task: str, *,
+    resume: bool, seed: int | None, port_url: str, clock: Clock, experimenter: str = "",
+) -> tuple[RunWriter, TrialPlan]:
+    """(writer, plan) for the subject's unfinished run (``resume``) or a new one.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        The loaded protocol; a resumed run must have started with the same file (SHA-256).
+    root, subject, session, task
+        Where results go and the BIDS labels (already checked).
+    resume : bool
+        Continue the latest unfinished run; `NothingToResume` if there is none. A run open in
+        another process is refused (`pinarray.journal.lock.RunLocked`).
+    seed : int or None
+        Plan seed of a new run (None: the protocol's, else a fresh one); a resumed run keeps
+        the seed in its manifest.
+    port_url : str
+        The bus the run uses, for the manifest.
+    clock : Clock
+        The sitting's clock (its kind and speed go into the run's time base).
+    experimenter : str
+        Who runs it, for the manifest.
+    """
+    scale = time_scale_of(clock)
+    if resume:
+        found = find_unfinished(root, subject, session, task)
+        if not found:
+            raise NothingToResume(f"no unfinished {task} run for subject {subject}, session "
+                                  f"{session} in {root}; start a new run instead (without resume)")
+        paths, manifest = found[-1]
+        if manifest.protocol_sha256 != protocol.sha256:
+            raise PinArrayError(
+                f"{protocol.source} changed since run {paths.run} started (SHA-256 differs); "
+                "resume with the protocol file it started with"
+            )
+        plan = make_plan(protocol, manifest.seed)
+        if manifest.plan != plan_entries(plan):
+            raise PinArrayError(f"{paths.manifest}: the saved plan does not match the protocol's "
+                                f"plan for seed {manifest.seed}")
+        return RunWriter.resume(paths, scale), plan
+    plan = make_plan(protocol, seed)
+    provenance = Provenance(
+        seed=plan.seed, protocol_sha256=protocol.sha256, port=port_url,
+        protocol_file=protocol.source,
+        servo_models=(protocol.device.servo.model,) * protocol.device.grid.pin_count,
+        experimenter=experimenter,
+    )
+    writer = RunWriter.start(root, subject, session, task, plan_entries(plan), provenance,
+                             task_info(protocol), scale)
+    return writer, plan

@@ -1,0 +1,362 @@
+"""Writing one run: the manifest before trial 1, then each trial row, fsync'd, the moment it ends.
+
+``beh.tsv`` is the record of what happened; ``events.tsv`` is derived from it one row per
+trial (so it can always be rebuilt from ``beh.tsv`` after a crash). Every earlier row was on
+disk before the trial after it began; a process killed while writing leaves at most one torn
+last row, which a resume drops.
+
+A run has one writer at a time: `RunWriter.start` and `RunWriter.resume` take the run's lock
+(`pinarray.journal.lock`) before reading or writing anything, and `close` gives it back. A
+second process is refused with a one-line `RunLocked` naming the first.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+
+from pinarray import __version__
+from pinarray.errors import ResultsError
+from pinarray.journal.dataset import ensure_dataset, write_sidecars
+from pinarray.journal.files import fsync_folder, iso, this_host, this_machine, wall_now
+from pinarray.journal.lock import RunLock, RunLocked, stale_message
+from pinarray.journal.manifest import (
+    PlanEntry,
+    Provenance,
+    RunManifest,
+    RunStatus,
+    TaskInfo,
+    read_manifest,
+    remaining_plan,
+    updated,
+    write_manifest,
+)
+from pinarray.journal.paths import RunPaths, has_files, runs_of
+from pinarray.journal.records import (
+    BEH_NAMES,
+    EVENT_NAMES,
+    TrialRecord,
+    TrialStatus,
+    beh_header,
+    event_row,
+    finished_trials,
+    finished_twice,
+    read_trials,
+    split_torn_tail,
+    trial_row,
+    tsv_line,
+)
+from pinarray.journal.timebase import (
+    FIRST_TRIAL_ONSET,
+    REAL_TIME,
+    Sitting,
+    TimeScale,
+    TimeZero,
+    resumed_start_ns,
+    zero_wall_time,
+)
+from pinarray.stop import deferred_signals
+
+Wall = Callable[[], datetime]
+
+
+def repair_tail(path: Path, columns: int) -> str:
+    """Drop a torn last row of the TSV at ``path`` in place; return the dropped text."""
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        return ""
+    end, torn = split_torn_tail(data, columns)
+    if torn:
+        with open(path, "r+b") as handle:
+            handle.truncate(end)
+            handle.flush()
+            os.fsync(handle.fileno())
+    return torn.decode("utf-8", errors="replace")
+
+
+class _AppendOnlyTsv:
+    """A TSV opened for appending whose every row is on disk when `append` returns."""
+
+    def __init__(self, path: Path, header: Sequence[str]):
+        created = not path.exists()
+        self._file = open(path, "a", encoding="utf-8", newline="")  # noqa: SIM115
+        if self._file.tell() == 0:
+            self.append(header)
+        if created:
+            fsync_folder(path.parent)
+
+    def append(self, cells: Sequence[str]) -> None:
+        self._file.write(tsv_line(cells))
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def _command() -> str:
+    return " ".join(["pinarray", *sys.argv[1:]])[:300]
+
+
+def _claim_next_run(root: Path, subject: str, session: str, task: str) -> tuple[RunPaths, RunLock]:
+    """The first run number after every existing run, locked (never reuses a number)."""
+    written = [p.run for p in runs_of(root, subject, session, task) if has_files(p)]
+    run = max(written, default=0) + 1
+    while True:
+        paths = RunPaths(root, subject, session, task, run)
+        try:
+            lock = RunLock.acquire(paths.lock, paths.label, _command())
+        except RunLocked:
+            run += 1  # another process is starting this number right now
+            continue
+        if not has_files(paths):
+            return paths, lock
+        lock.release()  # it finished this number while we looked: take the next
+        run += 1
+
+
+class RunWriter:
+    """Writes one run; holds its lock until `close` (or `finish`).
+
+    Make one with `RunWriter.start` (a new run) or `RunWriter.resume` (an unfinished one);
+    use it as a context manager so a crash inside the block marks the manifest ``crashed``.
+
+    Attributes
+    ----------
+    resumed : bool
+        Whether this sitting continues an earlier one (its rows are marked ``resumed``).
+    repaired : str
+        Text of a torn last row dropped on resume, for the log ("" if none).
+    stale_lock : str
+        A lock left by a process that died, taken over, in words ("" if none).
+    """
+
+    def __init__(self, paths: RunPaths, manifest: RunManifest, records: list[TrialRecord],
+                 lock: RunLock, *, resumed: bool, repaired: str = "", wall: Wall = wall_now):
+        self.paths = paths
+        self.manifest = manifest
+        self.records = records
+        self.resumed = resumed
+        self.repaired = repaired
+        self.stale_lock = stale_message(lock.stale, paths.label) if lock.stale else ""
+        self._lock = lock
+        self._wall = wall
+        self._finished = set(finished_trials(records))
+        self._beh = _AppendOnlyTsv(paths.beh_tsv, BEH_NAMES)
+        self._events = _AppendOnlyTsv(paths.events_tsv, EVENT_NAMES)
+
+    @classmethod
+    def start(
+        cls,
+        root: Path | str,
+        subject: str,
+        session: str | int,
+        task: str,
+        plan: Sequence[PlanEntry],
+        provenance: Provenance,
+        task_info: TaskInfo,
+        clock: TimeScale = REAL_TIME,
+        *,
+        wall: Wall = wall_now,
+    ) -> RunWriter:
+        """Start the next free run: root files, manifest (status running), sidecars.
+
+        Parameters
+        ----------
+        root, subject, session, task
+            The results folder and the run's BIDS labels.
+        plan
+            Every trial of the run, in presentation order.
+        provenance, task_info
+            What the manifest and the sidecars record.
+        clock
+            This sitting's clock (real time unless simulated).
+        wall
+            The wall clock (tests pass their own).
+        """
+        root = Path(root)
+        lock = None
+        try:
+            probe = RunPaths(root, subject, str(session), task, 1)  # checks the labels first
+            ensure_dataset(root, probe.subject)
+            paths, lock = _claim_next_run(root, probe.subject, probe.session, probe.task)
+            now = wall()
+            sitting = Sitting(1, iso(now), clock, None, os.getpid(), this_host(), __version__)
+            manifest = RunManifest(
+                subject=paths.subject, session=paths.session, task=paths.task, run=paths.run,
+                plan=tuple(plan), provenance=provenance, task_info=task_info,
+                started_at=iso(now), updated_at=iso(now), sittings=(sitting,),
+                machine=this_machine(),
+            )
+            write_manifest(paths.manifest, manifest)
+            write_sidecars(paths, manifest)
+            return cls(paths, manifest, [], lock, resumed=False, wall=wall)
+        except OSError as problem:
+            if lock is not None:
+                lock.release()
+            where = problem.filename or root
+            raise ResultsError(f"{where}: cannot write results there: {problem.strerror}") from None
+        except BaseException:
+            if lock is not None:
+                lock.release()
+            raise
+
+    @classmethod
+    def resume(cls, paths: RunPaths, clock: TimeScale = REAL_TIME, *,
+               wall: Wall = wall_now) -> RunWriter:
+        """Reopen an unfinished run: lock it, drop a torn row, rebuild events, start a sitting.
+
+        Refused (`RunLocked`) while another process writes it; refused (`ResultsError`) when
+        its rows finish a trial twice, which only a second writer or a hand edit leaves.
+        """
+        lock = RunLock.acquire(paths.lock, paths.label, _command())
+        try:
+            return cls._resume_locked(paths, lock, clock, wall)
+        except BaseException:
+            lock.release()
+            raise
+
+    @classmethod
+    def _resume_locked(cls, paths: RunPaths, lock: RunLock, clock: TimeScale,
+                       wall: Wall) -> RunWriter:
+        source = paths.manifest_on_disk()
+        if source is None:
+            raise ResultsError(f"{paths.manifest}: no run manifest here")
+        manifest = read_manifest(source)
+        if not manifest.status.unfinished:
+            raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
+                               "crashed or aborted run can be resumed")
+        header = beh_header(paths.beh_tsv)
+        if header and tuple(header) != BEH_NAMES:
+            raise ResultsError(
+                f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
+                f"{', '.join(header)}; finish it with that version, or start a new run"
+            )
+        records = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
+        for (trial, practice), lines in finished_twice(records).items():
+            kind = "practice trial" if practice else "trial"
+            raise ResultsError(
+                f"{paths.beh_tsv}:{lines[1]}: {kind} {trial} is logged ok twice (lines "
+                f"{', '.join(map(str, lines))}); a trial counts once: delete the row that should "
+                "not count, then resume"
+            )
+        repaired = repair_tail(paths.beh_tsv, len(BEH_NAMES))
+        repair_tail(paths.events_tsv, len(EVENT_NAMES))
+        ensure_dataset(paths.root, paths.subject)
+        now = wall()
+        zero_at = (datetime.fromisoformat(manifest.time_zero.at)
+                   if manifest.time_zero is not None else None)
+        start_ns = resumed_start_ns(max((r.end_ns for r in records), default=None), zero_at,
+                                    now, clock)
+        sitting = Sitting(len(manifest.sittings) + 1, iso(now), clock, start_ns, os.getpid(),
+                          this_host(), __version__)
+        manifest = updated(manifest, status=RunStatus.RUNNING, abort_reason="",
+                           sittings=(*manifest.sittings, sitting))
+        write_manifest(paths.manifest, manifest)
+        if source != paths.manifest:
+            source.unlink()  # an older run's manifest, now moved to sourcedata/
+        write_sidecars(paths, manifest)
+        writer = cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall)
+        writer._rebuild_missing_events()
+        return writer
+
+    def _rebuild_missing_events(self) -> None:
+        # beh.tsv is fsync'd before events.tsv, so a crash between the two leaves events one
+        # row short; its rows are a function of the trial rows, so the gap is rebuilt.
+        with open(self.paths.events_tsv, encoding="utf-8") as handle:
+            have = max(0, sum(1 for _ in handle) - 1)
+        for record in self.records[have:]:
+            self._events.append(event_row(record))
+
+    # -- the run's time base -----------------------------------------------------------------
+
+    @property
+    def sitting(self) -> Sitting:
+        """This process's sitting (the manifest's last)."""
+        return self.manifest.sittings[-1]
+
+    @property
+    def sitting_start_ns(self) -> int | None:
+        """This sitting's start on the run's time base (ns), or None until the run's zero is fixed."""
+        return self.sitting.start_ns
+
+    def set_time_zero(self, sitting_start_ns: int, zero_ago_ns: int,
+                      event: str = FIRST_TRIAL_ONSET) -> None:
+        """Fix the run's time zero (once): record it and where this sitting started against it.
+
+        Parameters
+        ----------
+        sitting_start_ns : int
+            This sitting's start on the run's time base (ns; <= 0 when the zero came after it).
+        zero_ago_ns : int
+            How long ago, on this sitting's clock, the zero was (ns), to date it on the wall clock.
+        event : str
+            What the zero is, in words.
+        """
+        if self.sitting_start_ns is not None:
+            raise ResultsError(f"{self.paths.label}: the run's time zero is already fixed")
+        at = zero_wall_time(self._wall(), zero_ago_ns, self.sitting.clock)
+        sittings = (*self.manifest.sittings[:-1], replace(self.sitting, start_ns=sitting_start_ns))
+        self.manifest = updated(self.manifest, sittings=sittings,
+                                time_zero=TimeZero(event, iso(at, "microseconds")))
+        write_manifest(self.paths.manifest, self.manifest)
+
+    # -- rows --------------------------------------------------------------------------------
+
+    @property
+    def plan(self) -> tuple[PlanEntry, ...]:
+        return self.manifest.plan
+
+    def remaining(self) -> list[PlanEntry]:
+        """Plan entries still to run, in plan order."""
+        return remaining_plan(self.manifest.plan, self.records)
+
+    def write_trial(self, record: TrialRecord) -> TrialRecord:
+        """Append ``record`` to beh.tsv and events.tsv, each fsync'd, and return it as written.
+
+        On a resumed run the row is marked ``resumed``. A second ``ok`` row for a trial is
+        refused: a trial counts once.
+        """
+        if not self._lock.held:
+            raise ResultsError(f"{self.paths.label}: the run is closed; it has no writer now")
+        if record.status is TrialStatus.OK and record.key in self._finished:
+            raise ResultsError(f"{self.paths.beh_tsv}: trial {record.trial} is already logged ok; "
+                               "a trial counts once")
+        if self.resumed and not record.resumed:
+            record = replace(record, resumed=True)
+        with deferred_signals():  # a Ctrl-C must not fall between the two files
+            self._beh.append(trial_row(record))
+            self._events.append(event_row(record))
+            self.records.append(record)
+            if record.status is TrialStatus.OK:
+                self._finished.add(record.key)
+        return record
+
+    def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
+        """Set the manifest's final status (completed / aborted / crashed), close, unlock."""
+        self.manifest = updated(self.manifest, status=RunStatus(status), abort_reason=reason)
+        write_manifest(self.paths.manifest, self.manifest)
+        self.close()
+
+    def close(self) -> None:
+        """Close the files and give up the run's lock."""
+        self._beh.close()
+        self._events.close()
+        self._lock.release()
+
+    def __enter__(self) -> RunWriter:
+        return self
+
+    def __exit__(self, kind, error, traceback) -> None:
+        if kind is None or self.manifest.status is not RunStatus.RUNNING:
+            # Nothing went wrong, or the caller already recorded how the run ended.
+            self.close()
+        elif issubclass(kind, KeyboardInterrupt):
+            self.finish(RunStatus.ABORTED, "interrupted (Ctrl-C)")
+        else:
+            self.finish(RunStatus.CRASHED, f"{kind.__name__}: {error}")

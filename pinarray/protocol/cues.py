@@ -1,0 +1,46 @@
+"""Cues a stimulus should not give away: how long it lasts, when that differs between answers.
+
+If the conditions a subject must tell apart last different times, duration alone can give
+the answer (the seed's no-wave motion stimulus lasts 0.90 s, its waves 0.75 s). Validation
+warns about it without refusing the protocol: the lab may have reasons. Pure; no numpy.
+"""
+
+from __future__ import annotations
+
+from pinarray.protocol.drives import trial_drives
+from pinarray.protocol.model import Condition, Protocol
+
+NS_PER_S = 1_000_000_000
+
+
+def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:
+    """How long a condition's stimulus lasts: from onset until its last train ends, in ns."""
+    return max((d.delay_ns + d.train.duration_ns for d in trial_drives(protocol, condition)),
+               default=0)
+
+
+def _answer(condition: Condition) -> object:
+    """What a correct answer names: the pin (localisation) or the wave's direction (motion)."""
+    return condition.pin if condition.direction is None else condition.direction
+
+
+def duration_cues(protocol: Protocol) -> list[str]:
+    """Warnings (one line each, without the file name) when durations differ between answers.
+
+    Conditions with the same correct answer may differ (a pin at several frequencies); those
+    with different answers must not, or the duration tells them apart.
+    """
+    durations: dict[object, set[int]] = {}
+    names: dict[int, list[str]] = {}
+    for condition in protocol.design.conditions:
+        duration_ns = stimulus_duration_ns(protocol, condition)
+        durations.setdefault(_answer(condition), set()).add(duration_ns)
+        label = condition.stimulus if condition.pin is None else f"pin {condition.pin}"
+        if label not in names.setdefault(duration_ns, []):
+            names[duration_ns].append(label)
+    if len({frozenset(d) for d in durations.values()}) <= 1:
+        return []
+    listing = "; ".join(f"{', '.join(labels)} {duration_ns / NS_PER_S:.3f} s"
+                        for duration_ns, labels in sorted(names.items(), reverse=True))
+    return [f"the stimuli a subject must tell apart last different times ({listing}): duration "
+            "alone could give the answer away; make them last equally long"]
