@@ -13,12 +13,12 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from pinarray import __version__, session_commands
-from pinarray.cli import analysis, bus, grid, protocols, softness, tui
+from pinarray import __version__
+from pinarray.cli import analysis, batch, bus, grid, protocols, softness, tui
 from pinarray.errors import PinArrayError
 from pinarray.stop import Stopped
 
-COMMANDS = (grid, protocols, bus, session_commands, analysis, softness, tui)
+COMMANDS = (grid, protocols, bus, batch, analysis, softness, tui)
 
 
 def build_parser() -> argparse.ArgumentParser:
