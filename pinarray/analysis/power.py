@@ -65,8 +65,8 @@ class Design:
 
 def protocol_design(protocol: Protocol) -> Design:
     """The protocol's main trials (one plan; order does not matter to the observer)."""
+    from pinarray.journal.manifest import DIRECTION_OF_WAVE
     from pinarray.plan import make_plan
-    from pinarray.session import DIRECTION_LABEL
 
     localisation, motion = [], []
     for trial in make_plan(protocol, 0).trials:
@@ -76,7 +76,7 @@ def protocol_design(protocol: Protocol) -> Design:
         if condition.pin is not None and condition.frequency_hz is not None:
             localisation.append((condition.pin, float(condition.frequency_hz)))
         elif condition.direction is not None:
-            motion.append(DIRECTION_LABEL[condition.direction])
+            motion.append(DIRECTION_OF_WAVE[condition.direction])
     return Design(tuple(localisation), tuple(motion), protocol.device.grid)
 
 
