@@ -1,8 +1,13 @@
 """The session engine: one subject's run through a plan, as a state machine. No UI code.
 
     instructions -> [ready -> stimulus -> response] x N -> done
-                     pause/resume from ready or response; redo from response;
+                     pause/resume from ready, stimulus or response; redo from response;
                      abort (with a reason) from anywhere before done
+
+A pause asked for while a trial is being presented (the inter-trial interval or the stimulus)
+takes effect when `present` returns: the caller cuts the stimulus short through its stop
+request, the trial is logged as cut short, and after resume the same trial is ready again.
+Without a stop the stimulus plays to its end and the run holds at the answer.
 
 Each trial row is written (and fsync'd) by the `RunWriter` the moment the trial ends, so the
 engine can be killed at any point and resumed with exactly the remaining trials. The engine
@@ -21,6 +26,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import NamedTuple
 from typing import Protocol as Interface
 
 from pinarray.delivery import DeliveryRecord, Presentation
@@ -43,6 +49,7 @@ from pinarray.protocol import Paradigm, Protocol
 from pinarray.schedule import TrialSchedule, compile_trial
 
 DIRECTION_LABEL = DIRECTION_OF_WAVE  # a wave's kind as the subject names its direction
+PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
 
 
 class Phase(StrEnum):
@@ -69,6 +76,17 @@ class Stimulator(Interface):
 
 
 MEASURED = object()  # respond(): take the response time from the session's clock
+
+
+class TrialNumber(NamedTuple):
+    """Where a trial stands for the experimenter: practice and counted trials numbered apart."""
+
+    practice: bool
+    number: int  # 1-based among the plan's trials of the same kind
+    of: int  # how many trials of that kind the plan has
+
+    def __str__(self) -> str:
+        return f"{'practice' if self.practice else 'trial'} {self.number} of {self.of}"
 
 
 @dataclass(frozen=True)
@@ -125,6 +143,10 @@ class Session:
         self.current: PlannedTrial | None = None
         self.phase = Phase.INSTRUCTIONS
         self._paused_from: Phase | None = None
+        # The UI pauses from its own thread while a worker presents: transitions take turns.
+        self._state = threading.RLock()
+        self._in_present = False
+        self._pausing = False
         self._sitting_start_ns = clock.now_ns()
         joined = writer.sitting_start_ns
         # The run's time zero on this sitting's clock; None until the first onset fixes it.
@@ -137,7 +159,6 @@ class Session:
         self._onset_ns = 0
         self._duration_ns = 0
         self._delivery: DeliveryRecord | None = None
-        self._presenting = threading.Lock()
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
         self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""
@@ -156,6 +177,24 @@ class Session:
     @property
     def records(self) -> list[TrialRecord]:
         return self.writer.records
+
+    @property
+    def pausing(self) -> bool:
+        """A pause was asked for while a trial is being presented and waits for it to end."""
+        return self._pausing
+
+    def number_of(self, planned: PlannedTrial) -> TrialNumber:
+        """``planned``'s place among the plan's practice or counted trials."""
+        same = [t for t in self.plan.trials if t.practice == planned.practice]
+        return TrialNumber(planned.practice, same.index(planned) + 1, len(same))
+
+    def done_of(self, practice: bool) -> int:
+        """Practice (or counted) trials of the plan finished, in this sitting or an earlier one."""
+        open_ = {(t.trial, t.practice) for t in self.queue}
+        if self.current is not None:
+            open_.add((self.current.trial, self.current.practice))
+        return sum(1 for t in self.plan.trials
+                   if t.practice == practice and (t.trial, t.practice) not in open_)
 
     def _set(self, phase: Phase) -> None:
         self.phase = phase
@@ -184,15 +223,18 @@ class Session:
 
     def present(self) -> None:
         """Wait out the inter-trial interval, then play the current trial's stimulus."""
-        self._require(Phase.READY)
-        if not self._presenting.acquire(blocking=False):
-            # The phase stays READY through the inter-trial wait: a second call must not
-            # present the same trial again from another thread.
-            raise SessionError("a trial is already being presented")
+        with self._state:
+            self._require(Phase.READY)
+            if self._in_present:
+                # The phase stays READY through the inter-trial wait: a second call must not
+                # present the same trial again from another thread.
+                raise SessionError("a trial is already being presented")
+            self._in_present = True
         try:
             self._present()
         finally:
-            self._presenting.release()
+            with self._state:
+                self._in_present = self._pausing = False
 
     def current_schedule(self) -> TrialSchedule:
         """The current trial compiled, once per trial (the UI shows it while it plays)."""
@@ -203,29 +245,61 @@ class Session:
 
     def _present(self) -> None:
         schedule = self.current_schedule()
-        self.clock.sleep_until_ns(self._next_allowed_ns)
-        self._onset_ns = self.clock.now_ns()
-        self._delivery = None
-        self._set(Phase.STIMULUS)
+        try:
+            self.clock.sleep_until_ns(self._next_allowed_ns)
+        except Interrupted:
+            with self._state:
+                if not self._pausing:
+                    raise  # not a pause: the caller aborts the run
+                self._settle(Phase.READY)  # nothing was presented yet
+                return
+        with self._state:
+            if self._pausing:
+                self._settle(Phase.READY)
+                return
+            self._onset_ns = self.clock.now_ns()
+            self._delivery = None
+            self._set(Phase.STIMULUS)
         try:
             presentation = self.stimulator.present(schedule)
         except Interrupted:
-            raise  # not a stimulus fault: the caller aborts the run
+            with self._state:
+                if not self._pausing:
+                    raise  # not a stimulus fault: the caller aborts the run
+                self._write(TrialStatus.ABORTED, duration_ns=self.clock.now_ns() - self._onset_ns,
+                            reason=PAUSE_CUT_SHORT)
+                self._settle(Phase.READY)  # presented again after resume
+                return
         except PinArrayError as error:
-            self.fault = str(error)
-            self._write(TrialStatus.INVALID, duration_ns=self.clock.now_ns() - self._onset_ns,
-                        reason=self.fault)
-            self._set(Phase.FAULT)
-            return
-        self._onset_ns = presentation.onset_ns
-        self._delivery = presentation.delivery
-        self._duration_ns = schedule.end_ns
-        if not presentation.delivery.delivered:
-            self.fault = f"the stimulus was not delivered as scheduled: {presentation.delivery.problem}"
-            self._write(TrialStatus.INVALID, reason=self.fault)
-            self._set(Phase.FAULT)
-            return
-        self._set(Phase.RESPONSE)
+            with self._state:
+                self.fault = str(error)
+                self._write(TrialStatus.INVALID, duration_ns=self.clock.now_ns() - self._onset_ns,
+                            reason=self.fault)
+                self._settle(Phase.FAULT)
+                return
+        with self._state:
+            self._onset_ns = presentation.onset_ns
+            self._delivery = presentation.delivery
+            self._duration_ns = schedule.end_ns
+            if not presentation.delivery.delivered:
+                self.fault = f"the stimulus was not delivered as scheduled: {presentation.delivery.problem}"
+                self._write(TrialStatus.INVALID, reason=self.fault)
+                self._settle(Phase.FAULT)
+                return
+            self._settle(Phase.RESPONSE)
+
+    def _settle(self, phase: Phase) -> None:
+        """End a presentation at ``phase``; a pause asked for meanwhile holds the run there.
+
+        Called with the state lock held, so a `pause` sees either a presentation in progress
+        or its end, never the moment between.
+        """
+        self._in_present = False
+        pausing, self._pausing = self._pausing, False
+        if pausing and phase is not Phase.FAULT:  # a fault already holds the run
+            self._paused_from = phase
+            phase = Phase.PAUSED
+        self._set(phase)
 
     def retry(self) -> None:
         """After a fault: present the same trial again (its failed row stays, marked invalid)."""
@@ -259,28 +333,38 @@ class Session:
         self._set(Phase.READY)
 
     def pause(self) -> None:
-        self._require(Phase.READY, Phase.RESPONSE)
-        self._paused_from = self.phase
-        self._set(Phase.PAUSED)
+        """Hold the run. While a trial is being presented the pause waits for `present` to
+        return (see the module's docstring); `pausing` says so meanwhile."""
+        with self._state:
+            self._require(Phase.READY, Phase.STIMULUS, Phase.RESPONSE)
+            if self._pausing:
+                return
+            if self._in_present:
+                self._pausing = True
+                return
+            self._paused_from = self.phase
+            self._set(Phase.PAUSED)
 
     def resume(self) -> None:
-        self._require(Phase.PAUSED)
-        assert self._paused_from is not None
-        self._set(self._paused_from)
-        self._paused_from = None
+        with self._state:
+            self._require(Phase.PAUSED)
+            assert self._paused_from is not None
+            self._set(self._paused_from)
+            self._paused_from = None
 
-    def abort(self, reason: str) -> None:
-        """Stop the run for good (it can still be resumed later with --resume)."""
-        if self.phase in (Phase.DONE, Phase.ABORTED):
-            return
-        reason = reason or "aborted by the experimenter"
-        if self.phase is Phase.STIMULUS:
-            self._delivery = None  # cut short: what was delivered is not a whole stimulus
-            self._write(TrialStatus.ABORTED, duration_ns=self.clock.now_ns() - self._onset_ns, reason=reason)
-        elif self.phase is Phase.RESPONSE or (self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE):
-            self._write(TrialStatus.ABORTED, reason=reason)
-        self.writer.finish(RunStatus.ABORTED, reason)
-        self._set(Phase.ABORTED)
+    def abort(self, reason: str, status: RunStatus = RunStatus.ABORTED) -> None:
+        """Stop the run for good (it can still be resumed later); ``status``: aborted or crashed."""
+        with self._state:
+            if self.phase in (Phase.DONE, Phase.ABORTED):
+                return
+            reason = reason or "aborted by the experimenter"
+            if self.phase is Phase.STIMULUS:
+                self._delivery = None  # cut short: what was delivered is not a whole stimulus
+                self._write(TrialStatus.ABORTED, duration_ns=self.clock.now_ns() - self._onset_ns, reason=reason)
+            elif self.phase is Phase.RESPONSE or (self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE):
+                self._write(TrialStatus.ABORTED, reason=reason)
+            self.writer.finish(status, reason)
+            self._set(Phase.ABORTED)
 
     # -- rows ----------------------------------------------------------------------------------
 

@@ -7,6 +7,7 @@ import random
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -16,14 +17,15 @@ from pinarray.clock import VirtualClock
 from pinarray.delivery import DEFAULT_TOLERANCE_NS, DeliveryRecord, Presentation
 from pinarray.errors import BusError
 from pinarray.grid import classify
-from pinarray.journal.manifest import Provenance, read_manifest
+from pinarray.journal.manifest import Provenance, RunStatus, read_manifest
 from pinarray.journal.records import read_trials
 from pinarray.journal.runs import plan_entries, task_info
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
 from pinarray.rig import Rig
-from pinarray.session import Phase, Session, SessionError, task_label
+from pinarray.session import PAUSE_CUT_SHORT, Phase, Session, SessionError, task_label
+from pinarray.stop import StoppableClock, StopRequest
 from tests.runs import VIRTUAL
 
 S = 1_000_000_000  # ns per s
@@ -131,6 +133,132 @@ def test_pause_holds_the_session_until_resumed(tmp_path):
         session.resume()
         session.respond("none")
     assert rows_on_disk(session)[0].category == "none"
+
+
+class HeldStimulus:
+    """A stimulator whose first stimulus plays until a stop is requested, as a long one would
+    (the player looks at the stop request between frames); later ones end at once."""
+
+    def __init__(self, stop):
+        self.stop = stop
+        self.playing = threading.Event()
+        self.calls = 0
+
+    def present(self, schedule):
+        self.calls += 1
+        if self.calls == 1:
+            self.playing.set()
+            self.stop.wait(10)
+            self.stop.raise_if_requested()
+        return nothing_to_deliver(0)
+
+
+def test_a_pause_during_a_stimulus_cuts_it_short_logs_it_and_presents_it_again_after_resume(tmp_path):
+    stop = StopRequest()
+    session, _ = open_session(tmp_path, LOCALISATION, stimulator=HeldStimulus(stop))
+    session.begin()
+    first = session.current
+    worker = threading.Thread(target=session.present)
+    worker.start()
+    assert session.stimulator.playing.wait(10) and session.phase is Phase.STIMULUS
+    session.pause()
+    assert session.pausing and session.phase is Phase.STIMULUS  # until the stimulus stops
+    stop.request("paused")
+    worker.join(10)
+    assert session.phase is Phase.PAUSED and not session.pausing
+    (cut,) = rows_on_disk(session)
+    assert (cut.trial, cut.status, cut.status_reason) == (first.trial, "aborted", PAUSE_CUT_SHORT)
+    stop.clear()
+    session.resume()
+    assert session.phase is Phase.READY and session.current == first
+    session.present()
+    session.respond(first.condition.pin)
+    assert [(r.trial, r.status) for r in rows_on_disk(session)] == [(first.trial, "aborted"),
+                                                                    (first.trial, "ok")]
+
+
+def test_a_pause_without_a_stop_lets_the_stimulus_end_and_holds_the_run_at_the_answer(tmp_path):
+    class PausedWhilePlaying:
+        def present(self, schedule):
+            session.pause()  # from another thread in the UI; the effect is the same
+            assert session.pausing and session.phase is Phase.STIMULUS
+            return nothing_to_deliver(0)
+
+    session, _ = open_session(tmp_path, LOCALISATION, stimulator=PausedWhilePlaying())
+    session.begin()
+    session.present()
+    assert session.phase is Phase.PAUSED and rows_on_disk(session) == []
+    session.resume()
+    assert session.phase is Phase.RESPONSE
+    session.respond("none")
+    assert [r.status for r in rows_on_disk(session)] == ["ok"]
+
+
+def test_a_pause_during_the_inter_trial_interval_presents_nothing_until_resumed(tmp_path):
+    stop = StopRequest()
+
+    class HeldInterval(VirtualClock):
+        """Waits between looks at the stop request until one is made, as a real 3 s would."""
+
+        def __init__(self):
+            super().__init__()
+            self.waiting = threading.Event()
+
+        def doze_until_ns(self, deadline_ns):
+            self.waiting.set()
+            stop.wait(10)
+
+    calls = []
+
+    def present(schedule):
+        calls.append(schedule)
+        return nothing_to_deliver(0)
+
+    stimulator = type("Counting", (), {"present": staticmethod(present)})()
+    session, _ = open_session(tmp_path, LOCALISATION, stimulator=stimulator)
+    session.clock = StoppableClock(HeldInterval(), stop)
+    session.begin()
+    session.present()  # the first trial has no interval before it
+    session.respond("none")
+    second = session.current
+    worker = threading.Thread(target=session.present)
+    worker.start()
+    assert session.clock.clock.waiting.wait(10) and session.phase is Phase.READY
+    session.pause()
+    assert session.pausing
+    stop.request("paused")
+    worker.join(10)
+    assert session.phase is Phase.PAUSED and len(calls) == 1
+    assert [r.status for r in rows_on_disk(session)] == ["ok"]  # nothing was presented to log
+    stop.clear()
+    session.resume()
+    assert session.phase is Phase.READY and session.current == second
+
+
+def test_practice_and_counted_trials_are_numbered_apart(tmp_path):
+    session, _ = open_session(tmp_path, LOCALISATION, stimulator=type(
+        "Nothing", (), {"present": staticmethod(lambda schedule: nothing_to_deliver(0))})())
+    session.begin()
+    seen = []
+    while session.phase is Phase.READY:
+        seen.append(str(session.number_of(session.current)))
+        session.present()
+        session.respond("none")
+        if len(seen) == 3:
+            assert (session.done_of(practice=True), session.done_of(practice=False)) == (2, 1)
+    assert seen[:3] == ["practice 1 of 2", "practice 2 of 2", "trial 1 of 24"]
+    assert seen[-1] == "trial 24 of 24" and len(seen) == 26
+
+
+def test_a_crash_marks_the_run_crashed_and_the_trial_cut_short(tmp_path):
+    session, rig = open_session(tmp_path, LOCALISATION)
+    with rig:
+        session.begin()
+        session.present()
+        session.abort("RuntimeError: a bug", RunStatus.CRASHED)
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert (manifest.status, manifest.abort_reason) == ("crashed", "RuntimeError: a bug")
+    assert [r.status for r in rows_on_disk(session)] == ["aborted"]
 
 
 def test_a_bad_answer_is_refused_and_nothing_is_written(tmp_path):
@@ -291,8 +419,6 @@ def test_sigterm_during_a_batch_aborts_the_run_and_marks_the_trial_cut_short(tmp
 
 
 def test_a_second_present_during_the_interval_is_refused_not_played_twice(tmp_path):
-    import threading
-
     class IntervalClock(VirtualClock):
         """Holds the first inter-trial wait until released, as a real interval would."""
 
