@@ -115,8 +115,9 @@ def test_options_of_commands_that_drive_servos_or_sessions_refuse_what_would_not
     except SystemExit as stop:
         assert stop.code == 2
         return
-    parsed = getattr(args, option.lstrip("-").replace("-", "_"))
-    if option == "--time-scale":
+    dest = "time_scale" if option == "--speed" else option.lstrip("-").replace("-", "_")
+    parsed = getattr(args, dest)
+    if option == "--speed":
         assert parsed == 0 or common.MIN_TIME_SCALE <= parsed <= common.MAX_TIME_SCALE
     elif option == "--seed":
         assert 0 <= parsed <= common.MAX_SEED
@@ -126,8 +127,9 @@ def test_options_of_commands_that_drive_servos_or_sessions_refuse_what_would_not
 def test_a_time_scale_that_would_never_end_or_mean_nothing_is_refused(value):
     for words, needed in (("play", [DEMO]), ("batch", [DEMO, "--subject", "s", "--observer", "x"]),
                           ("tui", [])):
-        status, err = run([words, *needed, f"--time-scale={value}"])
-        assert status == 2 and "expected 0 (virtual time) or 0.01 to 10000 times real time" in err
+        for option in ("--speed", "--time-scale"):  # the new name and the old one
+            status, err = run([words, *needed, f"{option}={value}"])
+            assert status == 2 and "expected 0 (virtual time) or 0.01 to 10000 times real time" in err
 
 
 def test_a_negative_seed_is_refused_by_every_command_that_takes_one():

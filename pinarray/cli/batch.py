@@ -36,8 +36,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     answers.add_argument("--responses", metavar="CSV", help="answers by trial number")
     answers.add_argument("--observer", metavar="MODEL", help="a simulated subject ('default' or overrides)")
     p.add_argument("--seed", type=common.seed, help="plan seed (default: the protocol's, else a new one)")
-    p.add_argument("--time-scale", type=common.time_scale, metavar="X",
-                   help="simulator only: 0 or absent = virtual time, X > 0 = real time sped up X times")
+    common.add_speed(p, default=None,
+                     help="simulator only: X times real time (0 or absent: virtual time)")
     p.add_argument("--results", default=str(DEFAULT_RESULTS_ROOT), metavar="DIR",
                    help="results folder (default results/)")
     p.add_argument("--resume", action="store_true", help="continue the subject's unfinished runs")

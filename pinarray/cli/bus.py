@@ -21,9 +21,10 @@ Bus choice: --port PATH drives real servos (a device such as /dev/ttyUSB0 or a p
 (see `pinarray sim-serve --help` for the URL keys); the simulated ids default to the
 protocol's servo ids.
 
-Time: with the simulator, --time-scale 0 (the default) runs in virtual time: nothing sleeps,
-the report shows what the schedule and the wire allow. --time-scale X > 0 runs in real time
-sped up X times (1 = real time). Real servos always run at --time-scale 1.
+Time: with the simulator, --speed 0 (the default) runs in virtual time: nothing sleeps, the
+report shows what the schedule and the wire allow. --speed X > 0 runs at X times real time
+(1 = real time, 20 = twenty times faster, 0.5 = half speed). Real servos always run at
+--speed 1. (--time-scale is the old name of --speed.)
 
 Real servos (and simulated ones behind a pseudo-terminal) are played by a player process of
 its own at real-time priority when the OS grants it. Every goal change is read back from its
@@ -74,10 +75,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("file", help="protocol YAML file")
     p.add_argument("--trial", type=int, metavar="N", help="play only trial N of the plan")
     add_bus_choice(p)
-    p.add_argument(
-        "--time-scale", type=common.time_scale, default=None, metavar="X",
-        help="simulator only: 0 = virtual time (default), X > 0 = real time sped up X times",
-    )
+    common.add_speed(p, default=None,
+                     help="simulator only: X times real time (default 0: virtual time, "
+                          "nothing waits; 1 = real time, 20 = twenty times faster)")
     p.add_argument("--seed", type=common.seed, default=None, help="seed of the trial order")
     p.set_defaults(func=_cmd_play)
 

@@ -61,6 +61,16 @@ def time_scale(text: str) -> float:
     return value
 
 
+def add_speed(parser: argparse.ArgumentParser, default: float | None, help: str) -> None:
+    """``--speed X``: the simulator at X times real time (0: virtual time, nothing waits).
+
+    ``--time-scale`` is its old name, kept working: read as "scale time by 0.001" it was
+    taken to mean "faster", while it meant "1000 times slower".
+    """
+    parser.add_argument("--speed", "--time-scale", dest="time_scale", type=time_scale,
+                        default=default, metavar="X", help=help)
+
+
 def count(minimum: int, maximum: int) -> Callable[[str], int]:
     """A whole number from ``minimum`` to ``maximum``."""
 

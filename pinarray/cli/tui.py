@@ -1,6 +1,12 @@
 """`pinarray tui`: the experimenter's terminal UI (Textual loads only when it runs)."""
 
+from __future__ import annotations
+
 import argparse
+import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 from pinarray.cli import common
 
@@ -8,12 +14,19 @@ TUI_EPILOG = """\
 Opens the start screen: choose the protocol (FILE, or one from protocols/), the subject,
 session and experimenter, the array (the simulator, or a serial port found on this machine)
 and the plan seed; an unfinished run of the same subject, session and protocol can be
-resumed. Pre-flight then connects and shows every servo; the run screen presents trials and
-takes answers; the end screen shows the summary and where the files went.
+resumed (--subject and --session fill the form in). Pre-flight then connects and shows
+every servo; the run screen presents trials and takes answers; the end screen shows the
+summary and where the files went.
 
 q or Ctrl-C quit at any moment: a stimulus is cut short, pins go to rest with torque off,
-and the run is left resumable. --time-scale speeds the simulator up (e.g. 20 for a quick
-look); real servos always run in real time.
+and the run is left resumable. The last line printed says what happened and the command
+that continues an unfinished run. --speed runs the simulator faster than real time (e.g. 20
+for a quick look); real servos always run in real time.
+
+Exit status: 0 every run opened was completed (or none was); 1 an error the UI could not
+handle (the run is marked crashed, resumable; the line names the file with the details);
+2 bad input on the command line; 4 quit with a run left unfinished (resumable);
+128 + N stopped by signal N (Ctrl-C counts as SIGINT: 130).
 """
 
 
@@ -29,11 +42,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_bus_choice(p)
     p.add_argument("--results", default="results", metavar="DIR",
                    help="results folder (default results/)")
-    p.add_argument("--time-scale", type=common.time_scale, default=1.0, metavar="X",
-                   help="simulator only: real time sped up X times (default 1; 0 = virtual time)")
+    common.add_speed(p, default=1.0,
+                     help="simulator only: X times real time (default 1; 20 = twenty times "
+                          "faster, 0.5 = half speed, 0 = no waiting at all)")
     p.add_argument("--seed", type=common.seed, help="plan seed shown on the start screen (default: new)")
     p.add_argument("--protocols", default="protocols", metavar="DIR",
                    help="folder the protocol list comes from (default protocols/)")
+    p.add_argument("--subject", default="", metavar="ID",
+                   help="fill in the subject (with --session: offers that run's Resume)")
+    p.add_argument("--session", default="1", metavar="N", help="fill in the session (default 1)")
     p.set_defaults(func=_cmd_tui)
 
 
@@ -46,22 +63,54 @@ def _cmd_tui(args: argparse.Namespace) -> int:
 
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
-    choose_clock(args.port, args.time_scale)  # refuses --time-scale with real servos, up front
+    choose_clock(args.port, args.time_scale)  # refuses --speed with real servos, up front
     options = TuiOptions(
         protocol_path=Path(args.file) if args.file else None,
         protocols_dir=Path(args.protocols), results_root=Path(args.results),
         port=args.port, sim_url=args.sim, time_scale=args.time_scale, seed=args.seed,
+        subject=args.subject, session=args.session,
     )
     app = PinArrayApp(options)
-    try:
-        pins_left = app.run()
-    finally:
-        # However the app stopped (even a crash), the run is closed and the pins rest.
-        safe = app.lab.finish()
-    if safe is not None:
-        from pinarray.player import describe
+    with on_the_terminal():
+        app.run()
+    # However the app stopped (even an error Textual reported itself), the run is closed
+    # and the pins rest before the line is said.
+    status, line = app.outcome()
+    print(line, file=sys.stdout if status in (0, 4) else sys.stderr)
+    return status
 
-        pins_left = describe(safe)
-    if pins_left:
-        print(f"pinarray: pins: {pins_left}")
-    return 0
+
+@contextmanager
+def on_the_terminal() -> Iterator[None]:
+    """While the UI runs, standard output and error are the terminal.
+
+    Textual draws on standard error and measures the terminal through standard output; with
+    either going to a pipe or a file (``make run | tee log``) it would draw into the file or
+    stay at 80x24 whatever the window. The terminal is the controlling one (``/dev/tty``);
+    the line said on exit goes where output went.
+    """
+    redirected = [fd for fd in (1, 2) if not os.isatty(fd)]
+    if not redirected:
+        yield
+        return
+    from pinarray.errors import PinArrayError
+
+    try:
+        terminal = os.open("/dev/tty", os.O_RDWR)
+    except OSError:
+        raise PinArrayError("pinarray tui needs a terminal, and this process has none "
+                            "(for sessions without one: pinarray batch)") from None
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in redirected}
+    try:
+        for fd in redirected:
+            os.dup2(terminal, fd)
+        yield
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        for fd, original in saved.items():
+            os.dup2(original, fd)
+            os.close(original)
+        os.close(terminal)

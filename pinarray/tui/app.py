@@ -1,23 +1,45 @@
-"""The experimenter's app: start -> pre-flight -> run -> end, over one `Lab`."""
+"""The experimenter's app: start -> pre-flight -> run -> end, over one `Lab`.
+
+However the app is left (q, Ctrl-C, a signal, an error nothing handled) the run in progress
+is closed, the pins go to rest with torque off, and `outcome` gives the one line and the exit
+status the command prints and returns (`pinarray.tui.outcome`).
+"""
 
 from __future__ import annotations
 
 import asyncio
 import os
 import signal
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
 from textual.app import App
 from textual.binding import Binding
+from textual.message_pump import active_message_pump
+from textual.worker import WorkerFailed
 
+from pinarray import __version__
 from pinarray.clock import Clock
+from pinarray.errors import PinArrayError
+from pinarray.journal.manifest import RunStatus
 from pinarray.player import describe
 from pinarray.rig import Rig, choose_clock
 from pinarray.session import Session
-from pinarray.stop import on_loop_signals
+from pinarray.stop import on_loop_signals, signal_name
 from pinarray.tui.lab import QUIT_REASON, Lab, RigFactory
+from pinarray.tui.outcome import (
+    Crashed,
+    Ending,
+    Quit,
+    RunOutcome,
+    Signalled,
+    exit_status,
+    farewell,
+    resume_command,
+)
 
 
 @dataclass(frozen=True)
@@ -29,9 +51,11 @@ class TuiOptions:
     results_root: Path = Path("results")
     port: str | None = None  # real servos; None: the simulator
     sim_url: str | None = None
-    time_scale: float = 1.0  # simulator only; 0 = virtual time
+    time_scale: float = 1.0  # simulator only: times real time; 0 = virtual time
     seed: int | None = None
     timing_check_ns: int = 2_000_000_000  # pre-flight's wake-up measurement; 0 = skip
+    subject: str = ""  # the start screen's fields filled in (e.g. to resume a run)
+    session: str = "1"
 
 
 def serial_ports() -> list[tuple[str, str]]:
@@ -41,8 +65,8 @@ def serial_ports() -> list[tuple[str, str]]:
     return [(port.device, port.description) for port in comports()]
 
 
-class PinArrayApp(App[str]):
-    """Runs subjects through protocols on the pin array; returns how the pins were left.
+class PinArrayApp(App[None]):
+    """Runs subjects through protocols on the pin array.
 
     Parameters
     ----------
@@ -58,10 +82,15 @@ class PinArrayApp(App[str]):
 
     CSS_PATH = "pinarray.tcss"
     TITLE = "pinarray"
+    # The command palette would be a second way to do things the footer does not show.
+    ENABLE_COMMAND_PALETTE = False
+    # Screens get -short below 32 rows (the 80x24 terminal): the pin grid draws smaller.
+    VERTICAL_BREAKPOINTS = [(0, "-short"), (32, "-tall")]
     BINDINGS = [
         Binding("q", "quit", "quit"),
-        # Ctrl-C must leave the run resumable and the pins at rest, like q.
-        Binding("ctrl+c", "quit", "quit", priority=True),
+        # In the UI Ctrl-C is a key, not a signal: it leaves the run resumable and the pins at
+        # rest like q, and the exit status says SIGINT as the other commands' would.
+        Binding("ctrl+c", "interrupt", "quit", priority=True, show=False),
     ]
 
     def __init__(self, options: TuiOptions = TuiOptions(),
@@ -75,7 +104,9 @@ class PinArrayApp(App[str]):
                        clock_factory or (lambda port: choose_clock(port, None if port else scale)),
                        rig_factory)
         self.list_ports = list_ports
-        self.pins_left = ""
+        self.ending: Ending = Quit()
+        self._closing = False
+        self._crash_closed = False  # after an error: the run is marked and the pins rest
 
     def on_mount(self) -> None:
         from pinarray.tui.start_screen import StartScreen
@@ -87,11 +118,19 @@ class PinArrayApp(App[str]):
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             pass  # not the main thread (tests) or no such signals (Windows)
 
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action in ("quit", "interrupt") and isinstance(self.ending, Crashed):
+            return self._crash_closed  # after an error: once the pins are safe
+        return True
+
+    # -- leaving ------------------------------------------------------------------------------
+
     def _signalled(self, signal_number: int) -> None:
         if signal_number == signal.SIGHUP:
             self._hang_up()
         else:
-            self.call_later(self.action_quit)
+            self.call_later(self._close, f"stopped by {signal_name(signal_number)}",
+                            Signalled(signal_number))
 
     def _hang_up(self) -> None:
         """The terminal is gone: close the run and rest the pins, then leave at once.
@@ -100,7 +139,7 @@ class PinArrayApp(App[str]):
         then waits forever (seen closing a tmux window mid-run). Rows and the manifest are
         already fsync'd by the time `Lab.finish` returns, so nothing is lost by not unwinding.
         """
-        self.lab.finish()
+        self.lab.finish(f"stopped by {signal_name(signal.SIGHUP)}")
         os._exit(128 + signal.SIGHUP)
 
     def finish_run(self, session: Session, reason: str) -> None:
@@ -115,7 +154,99 @@ class PinArrayApp(App[str]):
 
     async def action_quit(self) -> None:
         """Cut a stimulus short, mark the run aborted (resumable), pins to rest, exit."""
-        worker = self.run_worker(self.lab.finish, thread=True, group="close", name="quit")
-        safe = await worker.wait()
-        self.pins_left = describe(safe) if safe is not None else ""
-        self.exit(self.pins_left)
+        await self._close(QUIT_REASON, Quit())
+
+    async def action_interrupt(self) -> None:
+        await self._close("interrupted (Ctrl-C)", Signalled(signal.SIGINT))
+
+    async def _close(self, reason: str, ending: Ending) -> None:
+        if isinstance(self.ending, Crashed):
+            if self._crash_closed:  # from the error screen, once the pins are safe
+                self.exit(return_code=1)
+            return
+        if self._closing:
+            return  # a second q (or a signal) while closing: already on the way out
+        self._closing = True
+        self.ending = ending
+        worker = self.run_worker(lambda: self.lab.finish(reason), thread=True, group="close",
+                                 name="quit")
+        await worker.wait()
+        self.exit()
+
+    def outcome(self) -> tuple[int, str]:
+        """The exit status and the one line that says what happened and how to continue.
+
+        Call once the app has stopped (it closes whatever is still open first).
+        """
+        self.lab.finish(QUIT_REASON)
+        runs = []
+        for request, session in self.lab.runs:
+            manifest = session.writer.manifest
+            command = resume_command(request.protocol.source, request.subject, request.session,
+                                     self.options.results_root, request.port, request.sim_url)
+            counted = (session.done_of(practice=False),
+                       sum(1 for t in session.plan.trials if not t.practice))
+            practice = (session.done_of(practice=True), session.total - counted[1])
+            label = f"run {session.writer.paths.run} of sub-{request.subject} ses-{request.session} task-{request.task}"
+            runs.append(RunOutcome(label, RunStatus(manifest.status), manifest.abort_reason or "",
+                                   counted, practice, command))
+        safe = self.lab.last_safe
+        pins = describe(safe) if safe is not None else ""
+        return exit_status(self.ending, runs), farewell(self.ending, runs, pins)
+
+    # -- errors nothing handled ---------------------------------------------------------------
+
+    def _handle_exception(self, error: Exception) -> None:
+        # Textual has no public hook for this (Textualize/textual#2818, #5325): every error
+        # no handler, timer or worker caught ends here, and Textual would print a traceback
+        # on exit. Here it becomes a crashed (resumable) run, pins at rest, the error screen.
+        if isinstance(self.ending, Crashed):
+            self.exit()  # a second error while closing after the first: leave as we are
+            return
+        cause = error.error if isinstance(error, WorkerFailed) else error
+        self.ending = crash = Crashed(
+            str(cause) if isinstance(cause, PinArrayError) else f"{type(cause).__name__}: {cause}",
+            _write_crash_log(self.options.results_root, cause),
+            not isinstance(cause, PinArrayError))
+        if active_message_pump.get(None) is self or not self.is_running:
+            # The app's own loop is ending with this error: close here, then leave.
+            self._close_after_crash(crash)
+            self.exit(return_code=1)
+            return
+        from pinarray.tui.error_screen import ErrorScreen
+
+        self._closing = True
+        screen = ErrorScreen(crash)
+        self.push_screen(screen)
+
+        def close() -> None:
+            pins = self._close_after_crash(crash)
+            self._crash_closed = True
+            self.call_from_thread(screen.closed, pins)
+
+        self.run_worker(close, thread=True, group="close", name="crash", exit_on_error=False)
+
+    def _close_after_crash(self, crash: Crashed) -> str:
+        """Mark the run crashed and rest the pins; what became of them, in words."""
+        try:
+            self.lab.finish(f"crashed: {crash.what}", RunStatus.CRASHED)
+            note = ""
+        except Exception as problem:  # noqa: BLE001 - the pins went to rest all the same
+            note = f" (the run could not be marked crashed: {problem})"
+        safe = self.lab.last_safe
+        return (describe(safe) if safe is not None else "not connected") + note
+
+
+def _write_crash_log(results_root: Path, error: BaseException) -> Path | None:
+    """The error's traceback and this pinarray's version, for a bug report; None if unwritable."""
+    now = datetime.now(UTC)
+    folder = Path(results_root) / "sourcedata"
+    path = folder / f"crash-{now:%Y%m%dT%H%M%S}Z-{os.getpid()}.log"
+    text = (f"pinarray {__version__} crashed at {now.isoformat()}\n\n"
+            + "".join(traceback.format_exception(error)))
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        path.write_text(text, encoding="utf-8")
+    except OSError:
+        return None
+    return path

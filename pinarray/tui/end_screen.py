@@ -15,6 +15,7 @@ from pinarray.analysis import summary_lines
 from pinarray.player import describe
 from pinarray.session import Phase, Session
 from pinarray.tui.lab import Lab
+from pinarray.tui.notice import KeyNotices, Notice
 
 
 def shown_path(path: Path) -> str:
@@ -25,7 +26,7 @@ def shown_path(path: Path) -> str:
         return str(path)
 
 
-class EndScreen(Screen):
+class EndScreen(KeyNotices, Screen):
     """How the run ended, its numbers, its files, and how the pins were left.
 
     Parameters
@@ -51,11 +52,16 @@ class EndScreen(Screen):
     def compose(self) -> ComposeResult:
         session, paths = self.session, self.session.writer.paths
         manifest = session.writer.manifest
+        counted = sum(1 for t in session.plan.trials if not t.practice)
+        practice = session.total - counted
         if session.phase is Phase.DONE:
-            headline = f"Run {paths.run} complete: {session.total} trials."
+            extra = f" and {practice} practice" if practice else ""
+            headline = f"Run {paths.run} complete: {counted} trials{extra}."
         else:
+            extra = (f" (practice {session.done_of(practice=True)} of {practice})"
+                     if practice else "")
             headline = (f"Run {paths.run} aborted ({manifest.abort_reason}) after "
-                        f"{session.done_count} of {session.total} trials. "
+                        f"{session.done_of(practice=False)} of {counted} trials{extra}. "
                         "Resume it from the start screen: same subject, session and protocol.")
         pins = describe(self.safe_stop) if self.safe_stop is not None else "not connected"
         outcome = "-done" if session.phase is Phase.DONE else "-aborted"
@@ -73,11 +79,13 @@ class EndScreen(Screen):
             with Horizontal(id="end-buttons"):
                 yield Button("New session (n)", id="new", variant="primary")
                 yield Button("Quit (q)", id="quit")
+            yield Notice()
         yield Footer()
 
     @on(Button.Pressed, "#new")
     def action_new(self) -> None:
-        self.app.pop_screen()  # the start screen is underneath
+        if self.is_current:  # n twice: the second is not for the start screen's form
+            self.app.pop_screen()  # the start screen is underneath
 
     @on(Button.Pressed, "#quit")
     async def _quit(self) -> None:

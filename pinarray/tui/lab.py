@@ -14,7 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
+from pinarray.bus.base import SafeStopReport
 from pinarray.clock import Clock
+from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
 from pinarray.protocol import Protocol
 from pinarray.rig import Rig
@@ -22,6 +24,7 @@ from pinarray.session import Phase, Session, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 QUIT_REASON = "quit from the UI"
+PAUSE_REASON = "paused by the experimenter"
 # How long closing waits for a cut-short stimulus to rest its pins, in seconds.
 STOP_WAIT_S = 30.0
 
@@ -71,8 +74,13 @@ class Lab:
         self.clock: StoppableClock | None = None
         self.stop = StopRequest()
         self.session: Session | None = None
+        # Every run opened in this sitting and what asked for it, for the line said on exit.
+        self.runs: list[tuple[SessionRequest, Session]] = []
+        self.last_safe: SafeStopReport | None = None  # how the last release left the pins
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
+        # Set while the rig is being closed: a pause must not clear the stop a close relies on.
+        self._closing = False
 
     # -- hardware ---------------------------------------------------------------------------
 
@@ -80,7 +88,9 @@ class Lab:
         """Open the bus and run the handshake (blocking: call it from a worker)."""
         self.release("connecting again")
         self.request = request
-        self.stop.clear()
+        with self._jobs_done:
+            self._closing = False
+            self.stop.clear()
         base = self.clock_factory(request.port)
         rig = self.rig_factory(request.protocol, request.port, request.sim_url, base, self.stop)
         # The player and the session wait on the rig's stoppable clock; the bus on the plain one.
@@ -110,10 +120,15 @@ class Lab:
 
         Returns the `SafeStopReport`, or None if nothing was connected. Safe from any thread.
         """
+        with self._jobs_done:
+            self._closing = True
         self.stop.request(reason)
         self._wait_for_jobs()
         rig, self.rig = self.rig, None
-        return rig.close() if rig is not None else None
+        if rig is None:
+            return None
+        self.last_safe = rig.close()
+        return self.last_safe
 
     # -- the run ----------------------------------------------------------------------------
 
@@ -131,12 +146,26 @@ class Lab:
             clock=self.rig.bus_clock, experimenter=request.experimenter,
         )
         self.session = Session(request.protocol, plan, writer, self.rig, self.clock, on_change)
+        self.runs.append((request, self.session))
         return self.session
 
     def present(self) -> None:
         """Present the current trial (blocking: call it from a worker)."""
         assert self.session is not None
         self._busy(self.session.present)
+
+    def cut_short(self, reason: str = PAUSE_REASON) -> None:
+        """Stop what the hardware is doing (pins to rest), then let it be used again.
+
+        For a pause (blocking: call it from a worker): the stimulus in progress ends at the
+        player's next look at the stop request, and the session logs it as cut short. A stop
+        that a close asked for meanwhile stays.
+        """
+        self.stop.request(reason)
+        self._wait_for_jobs()
+        with self._jobs_done:
+            if not self._closing and self.stop.reason == reason:
+                self.stop.clear()
 
     def _busy(self, job: Callable[[], T]) -> T | None:
         with self._jobs_done:
@@ -154,15 +183,21 @@ class Lab:
         with self._jobs_done:
             self._jobs_done.wait_for(lambda: self._jobs == 0, STOP_WAIT_S)
 
-    def finish(self, reason: str = QUIT_REASON):
-        """End the sitting: cut a stimulus short, mark an unfinished run aborted, pins to rest.
+    def finish(self, reason: str = QUIT_REASON, status: RunStatus = RunStatus.ABORTED):
+        """End the sitting: cut a stimulus short, mark an unfinished run ``status`` (aborted,
+        or crashed), pins to rest.
 
         Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
-        if nothing was connected).
+        if nothing was connected). The pins go to rest even if marking the run fails.
         """
+        with self._jobs_done:
+            self._closing = True
         self.stop.request(reason)
         self._wait_for_jobs()
         session, self.session = self.session, None
-        if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):
-            session.abort(reason)
-        return self.release(reason)
+        try:
+            if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):
+                session.abort(reason, status)
+        finally:
+            safe = self.release(reason)
+        return safe

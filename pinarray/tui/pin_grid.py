@@ -15,13 +15,29 @@ from pinarray.grid import Grid
 class PinCell(Static):
     """One pin; its classes say whether it is used, moving, or the chosen answer."""
 
+    DEFAULT_CSS = """
+    PinCell {
+        width: 100%;
+        height: 100%;
+        content-align: center middle;
+        border: round $primary;
+        text-style: bold;
+        &.-unused { color: $text-disabled; border: round $panel; }
+        &.-active { border: heavy $warning; }
+        &.-lifted { background: $warning; color: $background; }
+        &.-chosen { background: $accent; color: $background; }
+    }
+    """
+
     def __init__(self, pin: int):
         super().__init__(str(pin), id=f"pin-{pin}", classes="pin")
         self.pin = pin
 
     @on(Click)
     def _clicked(self) -> None:
-        self.post_message(PinGrid.Selected(self.pin))
+        grid = self.parent
+        assert isinstance(grid, PinGrid)
+        self.post_message(PinGrid.Selected(grid, self.pin))
 
 
 class PinGrid(GridLayout):
@@ -35,12 +51,25 @@ class PinGrid(GridLayout):
         Pins the protocol can move; the others are drawn dimmed.
     """
 
-    class Selected(Message):
-        """The experimenter clicked a pin."""
+    DEFAULT_CSS = """
+    PinGrid {
+        grid-gutter: 0 1;
+        width: 39;
+        height: 16;
+    }
+    """
 
-        def __init__(self, pin: int):
+    class Selected(Message):
+        """The experimenter clicked ``pin`` on ``grid`` (``@on(..., "#id")`` matches on it)."""
+
+        def __init__(self, grid: PinGrid, pin: int):
             super().__init__()
+            self.grid = grid
             self.pin = pin
+
+        @property
+        def control(self) -> PinGrid:
+            return self.grid
 
     def __init__(self, grid: Grid, used=(), **kwargs):
         super().__init__(**kwargs)

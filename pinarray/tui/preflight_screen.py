@@ -11,12 +11,13 @@ from textual.widgets import Button, DataTable, Footer, Input, Static
 
 from pinarray.errors import PinArrayError
 from pinarray.tui.lab import Lab, SessionRequest
+from pinarray.tui.notice import KeyNotices, Notice
 
 COLUMNS = ("servo", "pin", "answers", "model", "position (steps)", "voltage (V)",
            "temperature (°C)", "errors")
 
 
-class PreflightScreen(Screen):
+class PreflightScreen(KeyNotices, Screen):
     """Checks the hardware before the participant arrives.
 
     Parameters
@@ -27,13 +28,17 @@ class PreflightScreen(Screen):
         What the start screen chose.
     """
 
-    BINDINGS = [Binding("escape", "back", "back"), Binding("b", "begin", "begin run")]
+    # b and Escape whatever has focus: the pin field takes only digits anyway.
+    BINDINGS = [Binding("escape", "back", "back", priority=True),
+                Binding("b", "begin", "begin run", priority=True)]
 
     def __init__(self, lab: Lab, request: SessionRequest):
         super().__init__()
         self.lab = lab
         self.request = request
         self.connected = False
+        self._leaving = False
+        self._good = ""  # the last status that was not a complaint
 
     def compose(self) -> ComposeResult:
         r = self.request
@@ -52,7 +57,20 @@ class PreflightScreen(Screen):
             yield Button("Begin run (b)", id="begin", variant="primary", disabled=True)
             yield Button("Connect again", id="reconnect", disabled=True)
             yield Button("Back (Esc)", id="back")
+        yield Notice()
         yield Footer()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        if action == "begin":
+            return self.connected and not self._leaving
+        if action == "back":
+            return not self._leaving
+        return True
+
+    def refusal(self, actions: tuple[str, ...]) -> str:
+        if self._leaving:
+            return "leaving: pins to rest, torque off…"
+        return "not connected: the run can begin once the array answers"
 
     def on_mount(self) -> None:
         table = self.query_one(DataTable)
@@ -64,6 +82,8 @@ class PreflightScreen(Screen):
         status = self.query_one("#preflight-status", Static)
         status.update(text)
         status.set_class(problem, "-problem")
+        if not problem:
+            self._good = text
 
     def _ready(self, connected: bool) -> None:
         self.connected = connected
@@ -153,6 +173,11 @@ class PreflightScreen(Screen):
 
     # -- buttons -----------------------------------------------------------------------------
 
+    @on(Input.Changed, "#test-pin")
+    def _pin_edited(self) -> None:
+        if self.query_one("#preflight-status", Static).has_class("-problem") and self.connected:
+            self._status(self._good)  # the complaint about the last entry is out of date
+
     @on(Button.Pressed, "#test")
     @on(Input.Submitted, "#test-pin")
     def _test_pressed(self) -> None:
@@ -177,17 +202,23 @@ class PreflightScreen(Screen):
     def action_begin(self) -> None:
         from pinarray.tui.run_screen import RunScreen
 
-        if not self.connected:
+        if not self.connected or self._leaving:
             return
+        self._leaving = True  # b twice: one run
         try:
             session = self.lab.open_session()
         except PinArrayError as problem:
+            self._leaving = False
             self._status(f"Cannot open the run: {problem}", True)
             return
         self.app.switch_screen(RunScreen(self.lab, session))
 
     @on(Button.Pressed, "#back")
     def action_back(self) -> None:
+        if self._leaving:
+            return
+        self._leaving = True
+        self.refresh_bindings()
         self._status("Leaving: pins to rest, torque off…")
         self._leave()
 

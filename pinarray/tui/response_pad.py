@@ -15,6 +15,9 @@ MOTION_KEYS = {"l": "left", "left": "left", "r": "right", "right": "right",
                "n": "none", "u": "unsure"}
 MOTION_BUTTONS = (("left", "← left (l)"), ("right", "right (r) →"),
                   ("none", "no motion (n)"), ("unsure", "unsure (u)"))
+# Keys that answer on one paradigm or the other: typed while no answer is expected they are
+# refused with a notice by the run screen, not taken for something else.
+ANSWER_KEYS = frozenset({*MOTION_KEYS, *"0123456789", "backspace"})
 
 
 class ResponsePad(Widget, can_focus=True):
@@ -32,21 +35,45 @@ class ResponsePad(Widget, can_focus=True):
         Most digits a pin number can have follow from it.
     """
 
-    class Answered(Message):
+    DEFAULT_CSS = """
+    ResponsePad {
+        height: auto;
+        border: round $panel;
+        padding: 0 1;
+        &.-accepting { border: round $accent; }
+        &:focus.-accepting { border: heavy $accent; }
+        #entry { text-style: bold; }
+        #motion-buttons { height: auto; }
+        #motion-buttons Button { margin-right: 1; }
+    }
+    """
+
+    class PadMessage(Message):
+        """Something from the pad; ``pad`` sent it (``@on(..., "#id")`` matches on it)."""
+
+        def __init__(self, pad: ResponsePad):
+            super().__init__()
+            self.pad = pad
+
+        @property
+        def control(self) -> ResponsePad:
+            return self.pad
+
+    class Answered(PadMessage):
         """An answer was entered: a pin number as text, ``none``, or a motion answer."""
 
-        def __init__(self, answer: str):
-            super().__init__()
+        def __init__(self, pad: ResponsePad, answer: str):
+            super().__init__(pad)
             self.answer = answer
 
-    class Proceed(Message):
-        """Enter with nothing typed: the experimenter wants the next step."""
+    class Proceed(PadMessage):
+        """Enter with no answer to confirm: the experimenter wants the next step."""
 
-    class Typed(Message):
+    class Typed(PadMessage):
         """The entry changed (so the grid can show the pin being typed)."""
 
-        def __init__(self, entry: str):
-            super().__init__()
+        def __init__(self, pad: ResponsePad, entry: str):
+            super().__init__(pad)
             self.entry = entry
 
     entry: reactive[str] = reactive("")
@@ -72,7 +99,7 @@ class ResponsePad(Widget, can_focus=True):
 
     def watch_entry(self) -> None:
         self._draw()
-        self.post_message(self.Typed(self.entry))
+        self.post_message(self.Typed(self, self.entry))
 
     def watch_accepting(self) -> None:
         self.set_class(self.accepting, "-accepting")
@@ -100,14 +127,14 @@ class ResponsePad(Widget, can_focus=True):
         self.entry = ""
 
     def _answer(self, answer: str) -> None:
-        self.post_message(self.Answered(answer))
+        self.post_message(self.Answered(self, answer))
 
     def on_key(self, event: events.Key) -> None:
         key = event.key
         if key == "enter":
             event.stop()
             if not self.accepting or not self.entry:
-                self.post_message(self.Proceed())
+                self.post_message(self.Proceed(self))
             else:
                 self._answer(self.entry)
             return

@@ -1,4 +1,9 @@
-"""The run: present trials, take answers, pause, redo, retry after a fault, abort."""
+"""The run: present trials, take answers, pause, redo, retry after a fault, abort.
+
+Keys are the experimenter's, typed with a participant waiting: each one is acted on or
+answered on the notice line (`KeyNotices`), a repeated key does what it did once, and the
+footer lists only what is possible now (`check_action`).
+"""
 
 from __future__ import annotations
 
@@ -11,16 +16,18 @@ from textual.containers import Horizontal, Vertical
 from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Footer, ProgressBar, Static
+from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import LocalisationRecord
 from pinarray.player import DEFAULT_LEAD_NS
 from pinarray.protocol import Paradigm
-from pinarray.session import DIRECTION_LABEL, Phase, Session, SessionError
+from pinarray.session import DIRECTION_LABEL, PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.lab import Lab
 from pinarray.tui.live import LiftTimeline, LiveCounts
+from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
-from pinarray.tui.response_pad import ResponsePad
+from pinarray.tui.response_pad import ANSWER_KEYS, ResponsePad
 
 if TYPE_CHECKING:
     from pinarray.tui.app import PinArrayApp
@@ -28,18 +35,10 @@ if TYPE_CHECKING:
 # Redraws of the moving pins per second while a stimulus plays.
 GRID_FPS = 20
 ABORT_REASON = "aborted by the experimenter"
-
-PHASE_HINT = {
-    Phase.INSTRUCTIONS: "Give the subject the instructions, then Space to begin.",
-    Phase.READY: "Space (or Enter) presents the next trial.",
-    Phase.STIMULUS: "Stimulus playing…",
-    Phase.PAUSED: "PAUSED · p resumes.",
-    Phase.DONE: "Run complete.",
-    Phase.ABORTED: "Run aborted.",
-}
+PRESENT, CUT_SHORT = "present", "cut short"  # worker names
 
 
-class RunScreen(Screen):
+class RunScreen(KeyNotices, Screen):
     """One run of a session, driven by the experimenter.
 
     Parameters
@@ -51,11 +50,13 @@ class RunScreen(Screen):
     """
 
     BINDINGS = [
+        Binding("space", "begin", "begin"),
         Binding("space", "present", "present"),
-        Binding("p", "pause", "pause/resume"),
+        Binding("p", "pause", "pause"),
+        Binding("p", "resume", "resume"),
         Binding("d", "redo", "redo trial"),
-        Binding("t", "retry", "retry"),
-        Binding("a", "abort", "abort"),
+        Binding("t", "retry", "present again"),
+        Binding("a", "abort", "abort run"),
     ]
 
     class Changed(Message):
@@ -71,9 +72,12 @@ class RunScreen(Screen):
         self.lab = lab
         self.session = session
         self.localisation = session.protocol.design.paradigm is Paradigm.LOCALISATION
+        self._by_trial = {t.trial: t for t in session.plan.trials}
         self._timeline: LiftTimeline | None = None
         self._active: frozenset[int] = frozenset()
         self._onset_ns = 0
+        self._presenting = False  # a present worker runs (the interval, then the stimulus)
+        self._cutting = False  # a pause is cutting the stimulus short
         self._ending = False
 
     def compose(self) -> ComposeResult:
@@ -92,7 +96,7 @@ class RunScreen(Screen):
                 yield ProgressBar(total=self.session.total, show_eta=False, id="progress")
                 yield Static(id="phase")
                 yield ResponsePad(self.localisation, self.session.grid.pin_count, id="pad")
-                yield Static(id="problem")
+                yield Notice()
                 yield Static(id="counts")
                 yield Static(id="last")
         yield Footer()
@@ -111,44 +115,143 @@ class RunScreen(Screen):
         self.query_one(ResponsePad).focus()
         self._draw()
 
+    # -- what is possible now -----------------------------------------------------------------
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        phase, busy = self.session.phase, self._ending
+        match action:
+            case "begin":
+                return phase is Phase.INSTRUCTIONS and not busy
+            case "present":
+                return phase is Phase.READY and not (busy or self._presenting)
+            case "pause":
+                return (phase in (Phase.READY, Phase.STIMULUS, Phase.RESPONSE)
+                        and not (busy or self.session.pausing))
+            case "resume":
+                return phase is Phase.PAUSED and not (busy or self._cutting)
+            case "redo":
+                return phase is Phase.RESPONSE and not busy
+            case "retry":
+                return phase is Phase.FAULT and not busy
+            case "abort":
+                return phase not in (Phase.DONE, Phase.ABORTED) and not busy
+        return True
+
+    def refusal(self, actions: tuple[str, ...]) -> str:
+        """Why the key's action is not possible now, and what is."""
+        phase, current = self.session.phase, self.session.current
+        trial = str(self.session.number_of(current)) if current is not None else "the trial"
+        if self._ending:
+            return "the run is closing: pins to rest…"
+        if self.session.pausing or self._cutting:
+            return "pausing: the stimulus is being cut short, pins to rest…"
+        if phase is Phase.PAUSED:
+            return "paused: p resumes first"
+        if phase is Phase.FAULT:
+            return "the stimulus failed: t presents it again, a aborts the run"
+        if "begin" in actions or "present" in actions:
+            if phase is Phase.STIMULUS:
+                return f"{trial} is playing"
+            if phase is Phase.READY:
+                return f"{trial} starts after the inter-trial interval"
+            return f"waiting for the answer to {trial} (d presents it again)"
+        if "pause" in actions:
+            return "nothing to pause yet: Space begins"
+        if "redo" in actions:
+            return "d presents a trial again once it has played and awaits its answer"
+        if "retry" in actions:
+            return "nothing failed: t presents again a trial whose stimulus failed"
+        return ""
+
+    def unbound(self, key: str) -> str:
+        phase = self.session.phase
+        if phase is Phase.RESPONSE:
+            return ("not an answer: a pin number + Enter, 0 or n for nothing felt"
+                    if self.localisation else
+                    "not an answer: l (left), r (right), n (no motion) or u (unsure)")
+        if key not in ANSWER_KEYS and key != "enter":
+            return ""
+        if phase is Phase.STIMULUS:
+            return "the stimulus is still playing: answer once it ends"
+        if phase is Phase.PAUSED:
+            return "paused: p resumes, then the answer"
+        return "no trial is waiting for an answer"
+
     # -- drawing ------------------------------------------------------------------------------
 
     def _draw(self) -> None:
         session = self.session
         phase, current = session.phase, session.current
         trial = self.query_one("#trial", Static)
+        counted = f"{session.done_of(practice=False)} of {len(self._kind(False))} done"
         if current is None:
-            trial.update(f"{session.done_count} of {session.total} trials done")
-        elif current.practice:
-            trial.update(f"PRACTICE trial {current.trial} of {session.total} · not counted")
+            trial.update(f"{counted}")
         else:
-            trial.update(f"Trial {current.trial} of {session.total} · block {current.block}")
+            number = session.number_of(current)
+            where = " · not counted" if current.practice else self._block(current.block)
+            trial.update(f"{str(number).capitalize()}{where} · #{current.trial} in the plan"
+                         f"\n{counted}")
         trial.set_class(current is not None and current.practice, "-practice")
         self.query_one(ProgressBar).update(total=session.total, progress=session.done_count)
         self.query_one("#stimulus", Static).update(self._describe_stimulus())
-        hint = PHASE_HINT.get(phase, "")
-        if phase is Phase.INSTRUCTIONS:
-            if session.writer.resumed:
-                hint = (f"Resumed: {session.done_count} of {session.total} trials were done; the "
-                        f"other {len(session.queue)} follow in plan order.\n{hint}")
-            hint = f"{session.protocol.description}\n{hint}"
-        elif phase is Phase.RESPONSE:
-            hint = ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
-                    else "Subject's answer: l / r / n (no motion) / u (unsure).")
-            hint += "  d: redo the trial"
-        elif phase is Phase.FAULT:
-            hint = (f"STIMULUS FAILED (logged invalid): {session.fault}\n"
-                    "t: present the trial again · a: abort the run")
         phase_line = self.query_one("#phase", Static)
-        phase_line.update(hint)
+        phase_line.update(self._hint())
         phase_line.set_class(phase is Phase.FAULT, "-fault")
-        phase_line.set_class(phase is Phase.PAUSED, "-paused")
+        phase_line.set_class(phase is Phase.PAUSED or session.pausing, "-paused")
         pad = self.query_one(ResponsePad)
         pad.accepting = phase is Phase.RESPONSE
         counts = LiveCounts.of(session.records).lines(self.localisation)
         self.query_one("#counts", Static).update("\n".join(counts))
         self.query_one("#last", Static).update(self._describe_last())
         self._draw_grid(frozenset())
+        self.refresh_bindings()
+
+    def _hint(self) -> str:
+        session, phase = self.session, self.session.phase
+        if session.pausing or self._cutting:
+            return "PAUSING · cutting the stimulus short, pins to rest…"
+        match phase:
+            case Phase.INSTRUCTIONS:
+                hint = f"{session.protocol.description}\nGive the instructions, then Space to begin."
+                if session.writer.resumed:
+                    hint = (f"Resumed: {session.done_count} of {session.total} trials were done; "
+                            f"the other {len(session.queue)} follow in plan order.\n{hint}")
+                return hint
+            case Phase.READY if self._presenting:
+                return "Starting after the inter-trial interval…"
+            case Phase.READY:
+                return "Space (or Enter) presents the trial."
+            case Phase.STIMULUS:
+                return "Stimulus playing…"
+            case Phase.RESPONSE:
+                return ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
+                        else "Subject's answer: l / r / n (no motion) / u (unsure).")
+            case Phase.PAUSED:
+                return "PAUSED · p resumes."
+            case Phase.FAULT:
+                return (f"STIMULUS FAILED (logged invalid): {session.fault}\n"
+                        "t: present the trial again · a: abort the run")
+            case Phase.DONE:
+                return "Run complete."
+        return "Run aborted."
+
+    def _cut_short_note(self) -> str:
+        """After a pause: whether it cut the trial short (then presented again after p)."""
+        session, records = self.session, self.session.records
+        cut = (session.phase is Phase.PAUSED and records and session.current is not None
+               and records[-1].trial == session.current.trial
+               and records[-1].status_reason == PAUSE_CUT_SHORT)
+        if not cut:
+            return ""
+        assert session.current is not None
+        return (f"{str(session.number_of(session.current)).capitalize()} was cut short (logged); "
+                "pins at rest. It is presented again after p.")
+
+    def _kind(self, practice: bool) -> list:
+        return [t for t in self.session.plan.trials if t.practice == practice]
+
+    def _block(self, block: int) -> str:
+        return f" · block {block}" if self.session.protocol.design.blocks > 1 else ""
 
     def _draw_grid(self, lifted: frozenset[int]) -> None:
         chosen = None
@@ -177,11 +280,12 @@ class RunScreen(Screen):
         if self.session.last is None:
             return ""
         record = self.session.last.record
+        planned = self._by_trial.get(record.trial)
+        name = str(self.session.number_of(planned)) if planned else f"trial #{record.trial}"
         if isinstance(record, LocalisationRecord):
             answer = "nothing felt" if record.nothing_felt else f"pin {record.response}"
-            return (f"last: trial {record.trial}, pin {record.pin} → {answer} "
-                    f"({record.category})")
-        return f"last: trial {record.trial}, {record.direction} wave → {record.response}"
+            return f"last: {name}, pin {record.pin} → {answer} ({record.category})"
+        return f"last: {name}, {record.direction} wave → {record.response}"
 
     def _tick(self) -> None:
         if self._timeline is not None:
@@ -197,59 +301,96 @@ class RunScreen(Screen):
             self._ticker.resume()
         else:
             self._ticker.pause()
+        if not self._cutting:
+            self.notice.clear()  # what it said was about the phase that just ended
         self._draw()
         if message.phase is Phase.STIMULUS:
             self._tick()
         if message.phase is Phase.DONE:
             self._end("")
+        if self.is_current:
+            self.query_one(ResponsePad).focus()  # answers go to the pad whatever was clicked
+
+    @on(Worker.StateChanged)
+    def _worker_changed(self, event: Worker.StateChanged) -> None:
+        if event.state not in (WorkerState.SUCCESS, WorkerState.ERROR, WorkerState.CANCELLED):
+            return
+        if event.worker.name == PRESENT:
+            self._presenting = False
+            refused = event.worker.result if event.state is WorkerState.SUCCESS else None
+            if refused:
+                self.notice.say(refused)
+        elif event.worker.name == CUT_SHORT:
+            self._cutting = False
+            self.notice.say(self._cut_short_note())
+        else:
+            return
+        self._draw()
 
     # -- actions ------------------------------------------------------------------------------
 
+    def action_begin(self) -> None:
+        self._try(self.session.begin)
+
     def action_present(self) -> None:
         session = self.session
-        if session.phase is Phase.INSTRUCTIONS:
-            session.begin()
-            return
-        if session.phase is not Phase.READY:
-            # Space pressed twice, or during the stimulus: harmless, so said only where useful.
-            advice = {Phase.PAUSED: "p resumes first",
-                      Phase.FAULT: "t retries the trial, a aborts the run"}.get(session.phase)
-            if advice:
-                self.query_one("#problem", Static).update(advice)
-            return
-        self.query_one("#problem", Static).update("")
+        self.notice.clear()
         schedule = session.current_schedule()
         device = session.protocol.device
         rest = {pin: device.calibration(pin).rest_steps for pin in schedule.active_pins}
         self._timeline = LiftTimeline.from_targets(schedule.targets, rest)
         self._active = frozenset(schedule.active_pins)
         self.query_one(ResponsePad).clear()
-        self.run_worker(self.lab.present, thread=True, group="stimulus", name="present")
+        self._presenting = True
+        self.run_worker(self._present, thread=True, group="stimulus", name=PRESENT)
+        self._draw()
+
+    def _present(self) -> str:
+        """In a worker thread: present the trial; '' or why the session would not."""
+        try:
+            self.lab.present()
+        except SessionError as refused:
+            # Paused before this worker reached the session: the pause says it all.
+            return "" if self.session.phase is Phase.PAUSED else str(refused)
+        return ""
 
     def _try(self, action) -> None:
         """Run a session action; one it cannot take now is explained, never raised."""
-        problem = self.query_one("#problem", Static)
         try:
             action()
         except SessionError as error:
-            problem.update(str(error))
+            self.notice.say(str(error))
             return
-        problem.update("")
+        self.notice.clear()
 
     def action_pause(self) -> None:
-        paused = self.session.phase is Phase.PAUSED
-        self._try(self.session.resume if paused else self.session.pause)
+        self._try(self.session.pause)
+        if self.session.pausing:
+            # The session holds once the stimulus (or the interval before it) ends; the stop
+            # request makes that now, the pins going to rest.
+            self._cutting = True
+            self.run_worker(self.lab.cut_short, thread=True, group="pause", name=CUT_SHORT)
+            self._draw()
+
+    def action_resume(self) -> None:
+        self._try(self.session.resume)
 
     def action_redo(self) -> None:
-        self._try(self.session.redo)
+        current = self.session.current
+        assert current is not None
+        number = self.session.number_of(current)
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self._try(self.session.redo)
+
+        self.app.push_screen(Confirm(f"Present {number} again?\nThis presentation is kept in "
+                                     "the results, marked redone."), confirmed)
 
     def action_retry(self) -> None:
         self._try(self.session.retry)
 
     def action_abort(self) -> None:
-        if self._ending:
-            return
-
         def confirmed(yes: bool | None) -> None:
             if yes:
                 self._end(ABORT_REASON)
@@ -257,29 +398,41 @@ class RunScreen(Screen):
         self.app.push_screen(Confirm("Abort this run?\nRows logged so far stay; the run can be "
                                      "resumed later from the start screen."), confirmed)
 
-    @on(ResponsePad.Proceed)
+    @on(ResponsePad.Proceed, "#pad")
     def _proceed(self) -> None:
-        if self.session.phase in (Phase.INSTRUCTIONS, Phase.READY):
-            self.action_present()
+        # Enter with nothing to confirm does what Space does, or says why not.
+        for action, act in (("begin", self.action_begin), ("present", self.action_present)):
+            if self.check_action(action, ()):
+                act()
+                return
+        if self.session.phase is Phase.RESPONSE:
+            self.notice.say("type the answer first" + (", or click a pin" if self.localisation
+                                                        else ""))
+        else:
+            self.notice.say(self.refusal(("present",)))
 
-    @on(ResponsePad.Typed)
+    @on(ResponsePad.Typed, "#pad")
     def _typed(self) -> None:
+        if self.notice.has_class("-error"):
+            self.notice.clear()  # the entry being corrected: the complaint about it goes
         self._draw_grid(frozenset())
 
-    @on(PinGrid.Selected)
+    @on(PinGrid.Selected, "#pins")
     def _pin_clicked(self, message: PinGrid.Selected) -> None:
+        if self.session.phase is not Phase.RESPONSE:
+            self.notice.say(self.unbound("0"))
+            return
         self.query_one(ResponsePad).choose(message.pin)
 
-    @on(ResponsePad.Answered)
+    @on(ResponsePad.Answered, "#pad")
     def _answered(self, message: ResponsePad.Answered) -> None:
-        problem = self.query_one("#problem", Static)
         answer = "none" if message.answer in ("0", "none") else message.answer
         try:
             self.session.respond(answer)
         except SessionError as error:
-            problem.update(str(error))  # e.g. pin 17: the entry stays for correcting
+            self.notice.say(str(error), error=True)  # e.g. pin 17: the entry stays for correcting
             return
-        problem.update("")
+        self.notice.clear()
         self.query_one(ResponsePad).clear()
 
     def _end(self, reason: str) -> None:
@@ -289,6 +442,7 @@ class RunScreen(Screen):
         self._ending = True
         self._ticker.pause()
         self.query_one("#phase", Static).update("Closing the run; pins to rest…")
+        self.refresh_bindings()
         cast("PinArrayApp", self.app).finish_run(self.session, reason)
 
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, cast
 
 from textual import on
 from textual.app import ComposeResult
-from textual.containers import Grid, Horizontal, Vertical
+from textual.containers import Grid, Horizontal, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Input, Label, Select, Static
 
@@ -18,6 +18,7 @@ from pinarray.errors import PinArrayError
 from pinarray.journal.paths import check_label
 from pinarray.protocol import Protocol
 from pinarray.tui.lab import SessionRequest
+from pinarray.tui.notice import KeyNotices, Notice
 
 if TYPE_CHECKING:
     from pinarray.journal.runs import Unfinished
@@ -33,8 +34,11 @@ def protocol_files(options) -> list[Path]:
     return first + [p for p in found if not first or p.resolve() != first[0].resolve()]
 
 
-class StartScreen(Screen):
+class StartScreen(KeyNotices, Screen):
     """Collects a `SessionRequest` and opens the pre-flight screen with it.
+
+    Fits an 80x24 terminal (one-line fields); below that the form scrolls, the buttons and
+    the unfinished-run notice just under the fields.
 
     Parameters
     ----------
@@ -50,6 +54,7 @@ class StartScreen(Screen):
         self.files = protocol_files(options)
         self.ports = list_ports()
         self._unfinished: Unfinished | None = None
+        self._back = False  # shown again after a pre-flight or a run
 
     def _new_seed(self) -> str:
         # Shown and recorded before the run starts, so a session can be replayed exactly.
@@ -64,37 +69,49 @@ class StartScreen(Screen):
         if self.options.port and self.options.port not in {d for d, _ in self.ports}:
             buses.append((self.options.port, self.options.port))
         yield Static("pinarray · start a session", id="title")
-        with Vertical(id="start-form"):
+        with VerticalScroll(id="start-form"):
             with Grid(id="fields"):
                 yield Label("Protocol")
                 yield Select([(p.name, str(p)) for p in self.files], id="protocol",
-                             allow_blank=True,
+                             allow_blank=True, compact=True,
                              value=str(self.files[0]) if self.files else Select.BLANK)
                 yield Label("Subject")
-                yield Input(placeholder="letters and digits, e.g. 01", id="subject")
+                yield Input(self.options.subject, placeholder="letters and digits, e.g. 01",
+                            id="subject", compact=True)
                 yield Label("Session")
-                yield Input("1", id="session")
+                yield Input(self.options.session, id="session", compact=True)
                 yield Label("Experimenter")
-                yield Input(placeholder="your initials (optional)", id="experimenter")
+                yield Input(placeholder="your initials (optional)", id="experimenter",
+                            compact=True)
                 yield Label("Array")
-                yield Select(buses, id="bus", allow_blank=False, value=self.options.port or SIM)
+                yield Select(buses, id="bus", allow_blank=False, value=self.options.port or SIM,
+                             compact=True)
                 yield Label("Seed")
-                yield Input(self._new_seed(), id="seed", type="integer")
+                yield Input(self._new_seed(), id="seed", type="integer", compact=True)
             yield Static(id="resume-info")
             yield Static(id="start-error")
             with Horizontal(id="start-buttons"):
                 yield Button("Start new run", id="start", variant="primary")
                 yield Button("Resume", id="resume", disabled=True)
                 yield Button("Quit", id="quit")
+            yield Notice()
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one("#subject", Input).focus()
         self._look_for_unfinished()
+        if self._unfinished is not None:
+            self.query_one("#resume", Button).focus()  # opened to resume it (--subject ...)
+        else:
+            self.query_one("#subject", Input).focus()
 
     def on_screen_resume(self) -> None:
         self.query_one("#seed", Input).value = self._new_seed()  # the next subject's own order
         self._look_for_unfinished()  # back from a run: it may have become resumable
+        if self._back:
+            # Not a field: keys still arriving from the screen left must not type into one.
+            button = "#resume" if self._unfinished is not None else "#start"
+            self.query_one(button, Button).focus()
+        self._back = True  # the first resume is the screen's first showing
 
     # -- reading the form --------------------------------------------------------------------
 
@@ -123,6 +140,11 @@ class StartScreen(Screen):
         port = None if bus == SIM else str(bus)
         return SessionRequest(protocol, subject, session, self._value("experimenter"),
                               port, self.options.sim_url if port is None else None, seed, resume)
+
+    @on(Input.Changed)
+    @on(Select.Changed)
+    def _edited(self) -> None:
+        self.query_one("#start-error", Static).update("")  # what it said may be fixed now
 
     @on(Input.Changed, "#subject, #session")
     @on(Select.Changed, "#protocol")

@@ -61,12 +61,18 @@ async def test_pause_holds_the_run_until_p_again(results):
     assert [r.status for r in rows(results)] == ["ok"]
 
 
-async def test_redo_logs_the_first_presentation_and_presents_the_trial_again(results):
+async def test_redo_asks_first_logs_the_first_presentation_and_presents_the_trial_again(results):
     app = make_app(results)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         first = session.current.trial
         await pilot.press("d")
+        assert isinstance(app.screen, Confirm)
+        assert "Present practice 1 of 2 again?" in text(app, "#question")
+        await pilot.press("n")  # a slip of the finger: nothing happens
+        assert isinstance(app.screen, RunScreen) and session.phase is Phase.RESPONSE
+        assert session.records == []
+        await pilot.press("d", "y")
         assert session.phase is Phase.READY and session.current.trial == first
         await present(pilot)
         await pilot.press("1", "enter")
