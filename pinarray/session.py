@@ -68,6 +68,14 @@ class Stimulator(Interface):
         ...
 
 
+class OnsetGate(Interface):
+    """What may hold a trial back after its inter-trial interval, e.g. until a scanner volume."""
+
+    def wait_for_onset(self, ready_ns: int) -> None:
+        """Return when a trial ready since ``ready_ns`` (session clock ns) may start."""
+        ...
+
+
 MEASURED = object()  # respond(): take the response time from the session's clock
 
 
@@ -107,17 +115,22 @@ class Session:
         first trial's stimulus onset. Only a run whose zero is not fixed yet can be told one.
     time_zero_event
         What ``time_zero_ns`` is, in words, for the manifest and the sidecars.
+    gate
+        Holds each trial, once its interval is over, until it may start (onsets locked to
+        scanner volumes); None: trials start when their interval ends.
     """
 
     def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
                  clock, on_change: Callable[[Session], None] | None = None,
-                 time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session"):
+                 time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session",
+                 gate: OnsetGate | None = None):
         self.protocol = protocol
         self.plan = plan
         self.writer = writer
         self.stimulator = stimulator
         self.clock = clock
         self.on_change = on_change or (lambda session: None)
+        self.gate = gate
         self.grid: Grid = protocol.device.grid
         self.task = task_label(protocol)
         remaining = {(entry.trial, entry.practice) for entry in writer.remaining()}
@@ -204,6 +217,8 @@ class Session:
     def _present(self) -> None:
         schedule = self.current_schedule()
         self.clock.sleep_until_ns(self._next_allowed_ns)
+        if self.gate is not None:
+            self.gate.wait_for_onset(self.clock.now_ns())
         self._onset_ns = self.clock.now_ns()
         self._delivery = None
         self._set(Phase.STIMULUS)

@@ -40,7 +40,7 @@ from pinarray.journal.records import (
     Column,
     condition_label,
 )
-from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind
+from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, seconds_text
 from pinarray.protocol import Paradigm
 
 BIDS_VERSION = "1.10.0"
@@ -219,12 +219,29 @@ def _time_base(manifest: RunManifest) -> dict[str, Any]:
         "Sittings": [{"Sitting": s.number, "StartedAt": s.started_at,
                       "Clock": s.clock.kind.value, "TimeScale": s.clock.factor,
                       "Description": s.clock.describe()} for s in manifest.sittings],
+        **({} if manifest.scanner is None else {"Scanner": _scanner(manifest)}),
         "Description": "onset is in seconds from the run's time zero on one time base for all "
                        "sittings; a resumed sitting joins it where the wall clock says in real "
                        "time (the pause counts) and at the end of the last trial on file in "
                        "simulated time. The manifest in sourcedata/ has where each sitting "
                        "starts on this time base.",
     }
+
+
+def _scanner(manifest: RunManifest) -> dict[str, Any]:
+    """A run timed from scanner volumes: its trigger, and where every volume is logged."""
+    record = manifest.scanner
+    assert record is not None
+    seconds = {None: None} | {ns: float(seconds_text(ns)) for ns in (record.repetition_time_ns,
+                                                                      record.tolerance_ns)}
+    return {
+        "Trigger": record.trigger, "DummyVolumes": record.dummy_volumes,
+        "RepetitionTime": seconds[record.repetition_time_ns],
+        "LockToVolumes": record.lock_to_volumes, "Tolerance": seconds[record.tolerance_ns],
+        "VolumeLog": record.volume_log,
+        "Description": "Time zero is the first counted scanner volume; every volume the trigger "
+                       "delivered (and every one it missed) is in volume_log, with its arrival "
+                       "on the same time base as onset."}
 
 
 def _common(manifest: RunManifest) -> dict[str, Any]:

@@ -31,6 +31,7 @@ from pinarray.journal.timebase import (
     ns_from_seconds,
     seconds_text,
 )
+from pinarray.journal.volumes import ScannerRecord
 from pinarray.protocol import Paradigm, WaveKind
 
 
@@ -169,6 +170,7 @@ class RunManifest:
     sittings: tuple[Sitting, ...] = ()
     time_zero: TimeZero | None = None
     software_version: str = __version__
+    scanner: ScannerRecord | None = None  # a run timed from scanner volumes
     machine: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -205,6 +207,7 @@ class RunManifest:
             "time_zero": None if self.time_zero is None else {
                 "event": self.time_zero.event, "at": self.time_zero.at},
             "sittings": [_sitting_to_json(s) for s in self.sittings],
+            **({} if self.scanner is None else {"scanner": self.scanner.to_json()}),
             "plan": [entry_to_json(e) for e in self.plan],
         }
 
@@ -232,6 +235,8 @@ class RunManifest:
                 time_zero=None if zero is None else TimeZero(str(zero["event"]), str(zero["at"])),
                 software_version=str(data.get("software_version", "")),
                 machine={str(k): str(v) for k, v in dict(data.get("machine", {})).items()},
+                scanner=(ScannerRecord.from_json(data["scanner"]) if data.get("scanner")
+                         else None),
             )
         except (TypeError, KeyError, ValueError) as error:
             raise ResultsError(f"{where}: not a pinarray run manifest ({error!r})") from None

@@ -27,6 +27,7 @@ from pinarray.journal.manifest import (
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import read_trials
 from pinarray.journal.timebase import REAL_TIME, ClockKind, TimeScale
+from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
 from pinarray.protocol import Protocol
@@ -108,6 +109,7 @@ class NothingToResume(PinArrayError):
 def open_run(
     protocol: Protocol, root: Path | str, subject: str, session: str, task: str, *,
     resume: bool, seed: int | None, port_url: str, clock: Clock, experimenter: str = "",
+    scanner: ScannerRecord | None = None,
 ) -> tuple[RunWriter, TrialPlan]:
     """(writer, plan) for the subject's unfinished run (``resume``) or a new one.
 
@@ -129,6 +131,8 @@ def open_run(
         The sitting's clock (its kind and speed go into the run's time base).
     experimenter : str
         Who runs it, for the manifest.
+    scanner : ScannerRecord or None
+        A new run timed from scanner volumes: its trigger settings, for the manifest.
     """
     scale = time_scale_of(clock)
     if resume:
@@ -155,5 +159,5 @@ def open_run(
         experimenter=experimenter,
     )
     writer = RunWriter.start(root, subject, session, task, plan_entries(plan), provenance,
-                             task_info(protocol), scale)
+                             task_info(protocol), scale, scanner=scanner)
     return writer, plan

@@ -12,6 +12,7 @@ second process is refused with a one-line `RunLocked` naming the first.
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -22,7 +23,14 @@ from pathlib import Path
 from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.dataset import ensure_dataset, write_sidecars
-from pinarray.journal.files import fsync_folder, iso, this_host, this_machine, wall_now
+from pinarray.journal.files import (
+    fsync_folder,
+    iso,
+    this_host,
+    this_machine,
+    wall_now,
+    write_atomically,
+)
 from pinarray.journal.lock import RunLock, RunLocked, stale_message
 from pinarray.journal.manifest import (
     PlanEntry,
@@ -59,6 +67,14 @@ from pinarray.journal.timebase import (
     resumed_start_ns,
     zero_wall_time,
 )
+from pinarray.journal.volumes import (
+    VOLUME_NAMES,
+    ScannerRecord,
+    VolumeRow,
+    volume_cells,
+    volume_log_path,
+    volume_sidecar,
+)
 from pinarray.stop import deferred_signals
 
 Wall = Callable[[], datetime]
@@ -91,7 +107,11 @@ class _AppendOnlyTsv:
             fsync_folder(path.parent)
 
     def append(self, cells: Sequence[str]) -> None:
-        self._file.write(tsv_line(cells))
+        self.extend([cells])
+
+    def extend(self, rows: Sequence[Sequence[str]]) -> None:
+        """Append ``rows``, then flush and fsync once."""
+        self._file.write("".join(tsv_line(cells) for cells in rows))
         self._file.flush()
         os.fsync(self._file.fileno())
 
@@ -149,6 +169,8 @@ class RunWriter:
         self._finished = set(finished_trials(records))
         self._beh = _AppendOnlyTsv(paths.beh_tsv, BEH_NAMES)
         self._events = _AppendOnlyTsv(paths.events_tsv, EVENT_NAMES)
+        self._volumes: _AppendOnlyTsv | None = None
+        self._pending_volumes: Callable[[], Sequence[VolumeRow]] = tuple
 
     @classmethod
     def start(
@@ -163,6 +185,7 @@ class RunWriter:
         clock: TimeScale = REAL_TIME,
         *,
         wall: Wall = wall_now,
+        scanner: ScannerRecord | None = None,
     ) -> RunWriter:
         """Start the next free run: root files, manifest (status running), sidecars.
 
@@ -178,6 +201,8 @@ class RunWriter:
             This sitting's clock (real time unless simulated).
         wall
             The wall clock (tests pass their own).
+        scanner
+            For a run timed from scanner volumes: the trigger and its log, for the manifest.
         """
         root = Path(root)
         lock = None
@@ -187,11 +212,14 @@ class RunWriter:
             paths, lock = _claim_next_run(root, probe.subject, probe.session, probe.task)
             now = wall()
             sitting = Sitting(1, iso(now), clock, None, os.getpid(), this_host(), __version__)
+            if scanner is not None:  # its log is named after the run just claimed
+                log = volume_log_path(paths).relative_to(root).as_posix()
+                scanner = replace(scanner, volume_log=log)
             manifest = RunManifest(
                 subject=paths.subject, session=paths.session, task=paths.task, run=paths.run,
                 plan=tuple(plan), provenance=provenance, task_info=task_info,
                 started_at=iso(now), updated_at=iso(now), sittings=(sitting,),
-                machine=this_machine(),
+                machine=this_machine(), scanner=scanner,
             )
             write_manifest(paths.manifest, manifest)
             write_sidecars(paths, manifest)
@@ -305,6 +333,32 @@ class RunWriter:
         self.manifest = updated(self.manifest, sittings=sittings,
                                 time_zero=TimeZero(event, iso(at, "microseconds")))
         write_manifest(self.paths.manifest, self.manifest)
+        if event != FIRST_TRIAL_ONSET:
+            write_sidecars(self.paths, self.manifest)  # they said the first trial's onset
+
+    # -- scanner volumes ---------------------------------------------------------------------
+
+    def log_volumes(self, pending: Callable[[], Sequence[VolumeRow]]) -> None:
+        """Keep the run's volume log (`pinarray.journal.volumes`): after each trial row, and
+        when the run closes, the rows ``pending()`` returns are appended and fsync'd.
+
+        The run's manifest must name the log (``scanner``, given to `start`).
+        """
+        record = self.manifest.scanner
+        if record is None:
+            raise ResultsError(f"{self.paths.label}: a volume log needs the run's scanner "
+                               "settings in its manifest")
+        path = volume_log_path(self.paths)
+        write_atomically(path.with_suffix(".json"),
+                         json.dumps(volume_sidecar(record), indent=2, ensure_ascii=False) + "\n")
+        self._volumes = _AppendOnlyTsv(path, VOLUME_NAMES)
+        self._pending_volumes = pending
+
+    def _flush_volumes(self) -> None:
+        if self._volumes is not None:
+            rows = self._pending_volumes()
+            if rows:
+                self._volumes.extend([volume_cells(row) for row in rows])
 
     # -- rows --------------------------------------------------------------------------------
 
@@ -335,6 +389,7 @@ class RunWriter:
             self.records.append(record)
             if record.status is TrialStatus.OK:
                 self._finished.add(record.key)
+        self._flush_volumes()
         return record
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
@@ -345,9 +400,15 @@ class RunWriter:
 
     def close(self) -> None:
         """Close the files and give up the run's lock."""
-        self._beh.close()
-        self._events.close()
-        self._lock.release()
+        try:
+            self._flush_volumes()
+        finally:
+            if self._volumes is not None:
+                self._volumes.close()
+                self._volumes = None
+            self._beh.close()
+            self._events.close()
+            self._lock.release()
 
     def __enter__(self) -> RunWriter:
         return self

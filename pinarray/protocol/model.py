@@ -10,9 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 from fractions import Fraction
+from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
+
+if TYPE_CHECKING:
+    from pinarray.protocol.sync import ScannerSync
 
 NS_PER_S = 1_000_000_000
 # Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
@@ -253,6 +257,7 @@ class Protocol:
     design: Design
     source: str = "<protocol>"
     sha256: str = ""
+    sync: ScannerSync | None = None  # the scanner section, if the protocol has one
 
     def stimulus(self, name: str) -> Stimulus:
         for stimulus in self.stimuli:
