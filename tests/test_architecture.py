@@ -37,6 +37,8 @@ ALLOWED = {
     "journal": FOUNDATION | {"protocol", "plan", "text_files"},
     "session": FOUNDATION | {"protocol", "plan", "schedule", "journal"},
     "analysis": FOUNDATION | {"protocol", "plan", "observer", "journal", "text_files"},
+    # Scanner triggers, volume logs and LSL markers around a session: above it, below the roots.
+    "sync": FOUNDATION | {"protocol", "plan", "schedule", "journal", "session"},
 }
 # The composition roots may import anything; nothing imports them (the CLI starts the UI).
 ROOTS = {"cli", "tui", "__main__"}

@@ -90,7 +90,7 @@ def _scanner_settings(args: argparse.Namespace, protocol):
     from pinarray.cli import common
     from pinarray.protocol.sync import KeyTrigger, SerialTrigger, SyncError
 
-    sync = common.sync_settings(args, protocol)
+    sync = common.sync_overrides(args).over(protocol.sync)
     if sync is not None and isinstance(sync.trigger, KeyTrigger):
         raise SyncError(f"{protocol.source}: a key trigger needs the experimenter UI (pinarray "
                         "tui); batch has no keyboard: use serial:PATH or emulate:TR")

@@ -232,14 +232,13 @@ def add_sync_options(parser: argparse.ArgumentParser, *, key: bool) -> None:
                        help=f"volume triggers: {kinds}; CHAR defaults to 5")
     group.add_argument("--dummy-volumes", type=count(0, MAX_DUMMY_VOLUMES), metavar="N",
                        help="volumes logged but not counted before time zero (default 0)")
-    group.add_argument("--tr", type=seconds_ns(0.1, 60), metavar="S", dest="repetition_time_ns",
+    group.add_argument("--tr", type=seconds_ns(0.1, 60), metavar="S",
                        help="the scanner's TR in seconds, to flag irregular and missed volumes "
                             "(default: the median interval seen)")
     group.add_argument("--lock-to-volumes", type=count(0, MAX_LOCK_VOLUMES), metavar="N",
                        help="start each trial on a counted volume numbered a multiple of N "
                             "(0 = on the protocol's timing, the default)")
     group.add_argument("--trigger-timeout", type=seconds_ns(1, 3600), metavar="S",
-                       dest="wait_timeout_ns",
                        help="give up when no volume comes for S seconds before time zero "
                             "(default 300)")
     group.add_argument("--lsl", nargs="?", const=DEFAULT_STREAM_NAME, metavar="NAME",
@@ -247,11 +246,9 @@ def add_sync_options(parser: argparse.ArgumentParser, *, key: bool) -> None:
                             f"type Markers named NAME (default {DEFAULT_STREAM_NAME})")
 
 
-def sync_settings(args: argparse.Namespace, protocol):
-    """The protocol's sync: section with the command line's options on top, or None."""
-    from pinarray.protocol.sync import with_overrides
+def sync_overrides(args: argparse.Namespace):
+    """The scanner options given on the command line (`SyncOverrides`)."""
+    from pinarray.protocol.sync import SyncOverrides
 
-    return with_overrides(
-        protocol.sync, trigger=args.trigger, dummy_volumes=args.dummy_volumes,
-        repetition_time_ns=args.repetition_time_ns, lock_to_volumes=args.lock_to_volumes,
-        wait_timeout_ns=args.wait_timeout_ns)
+    return SyncOverrides(args.trigger, args.dummy_volumes, args.tr, args.lock_to_volumes,
+                         args.trigger_timeout)

@@ -14,6 +14,10 @@ takes answers; the end screen shows the summary and where the files went.
 q or Ctrl-C quit at any moment: a stimulus is cut short, pins go to rest with torque off,
 and the run is left resumable. --time-scale speeds the simulator up (e.g. 20 for a quick
 look); real servos always run in real time.
+
+In the scanner (--trigger, or the protocol's sync: section) Begin run waits for the first
+counted volume ("waiting for scanner", volumes seen; Esc stops waiting) and times the run from
+it; a key trigger is a key pressed on that screen. --lsl sends LSL markers.
 """
 
 
@@ -34,6 +38,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=common.seed, help="plan seed shown on the start screen (default: new)")
     p.add_argument("--protocols", default="protocols", metavar="DIR",
                    help="folder the protocol list comes from (default protocols/)")
+    common.add_sync_options(p, key=True)
     p.set_defaults(func=_cmd_tui)
 
 
@@ -47,10 +52,21 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
     choose_clock(args.port, args.time_scale)  # refuses --time-scale with real servos, up front
+    from pinarray.protocol.sync import EmulatedTrigger
+
+    sync = common.sync_overrides(args)  # put over the chosen protocol's sync: at Begin run
+    wall = [name for name, given in (("--lsl", args.lsl is not None),
+                                     ("--trigger", sync.trigger is not None
+                                      and not isinstance(sync.trigger, EmulatedTrigger)))
+            if given]
+    if wall and not args.port and args.time_scale != 1:
+        raise PinArrayError(f"{' and '.join(wall)}: stamped on this machine's clock, which a "
+                            "sped-up simulation is not: use --time-scale 1")
     options = TuiOptions(
         protocol_path=Path(args.file) if args.file else None,
         protocols_dir=Path(args.protocols), results_root=Path(args.results),
         port=args.port, sim_url=args.sim, time_scale=args.time_scale, seed=args.seed,
+        sync=sync, lsl=args.lsl,
     )
     app = PinArrayApp(options)
     try:

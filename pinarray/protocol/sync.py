@@ -215,37 +215,44 @@ def _located(reader: Reader, node: Node, read):
         raise reader.error(node, str(problem)) from None
 
 
-def with_overrides(base: ScannerSync | None, *, trigger: Trigger | None = None,
-                   dummy_volumes: int | None = None, repetition_time_ns: int | None = None,
-                   lock_to_volumes: int | None = None,
-                   wait_timeout_ns: int | None = None) -> ScannerSync | None:
-    """The protocol's ``sync`` section with the command line's choices on top (they win).
+# The command line's name for each setting it can override.
+OPTION_NAMES = {"dummy_volumes": "--dummy-volumes", "repetition_time_ns": "--tr",
+                "lock_to_volumes": "--lock-to-volumes", "wait_timeout_ns": "--trigger-timeout"}
 
-    None when neither names a trigger; `SyncError` when scanner options come without one.
-    """
-    if trigger is None and base is None:
-        given = [name for name, value in (("--dummy-volumes", dummy_volumes),
-                                          ("--tr", repetition_time_ns),
-                                          ("--lock-to-volumes", lock_to_volumes),
-                                          ("--trigger-timeout", wait_timeout_ns))
-                 if value is not None]
-        if given:
-            raise SyncError(f"{', '.join(given)} need(s) a scanner trigger: give --trigger "
-                            "serial:PATH, key or emulate:TR, or a sync: section in the protocol")
-        return None
-    if base is None:
-        assert trigger is not None
-        base = ScannerSync(trigger)
-    sync = base
-    if trigger is not None:
-        if isinstance(trigger, SerialTrigger) and isinstance(sync.trigger, SerialTrigger):
-            trigger = replace(trigger, baud_rate=sync.trigger.baud_rate)
-        tr_ns = sync.repetition_time_ns
-        if isinstance(trigger, EmulatedTrigger):
-            tr_ns = None  # the emulated trigger brings its own TR
-        sync = replace(sync, trigger=trigger, repetition_time_ns=tr_ns)
-    changes = {name: value for name, value in (
-        ("dummy_volumes", dummy_volumes), ("repetition_time_ns", repetition_time_ns),
-        ("lock_to_volumes", lock_to_volumes), ("wait_timeout_ns", wait_timeout_ns))
-        if value is not None}
-    return _check(replace(sync, **changes))
+
+@dataclass(frozen=True)
+class SyncOverrides:
+    """The command line's scanner choices; None where it leaves the protocol's."""
+
+    trigger: Trigger | None = None
+    dummy_volumes: int | None = None
+    repetition_time_ns: int | None = None
+    lock_to_volumes: int | None = None
+    wait_timeout_ns: int | None = None
+
+    def over(self, base: ScannerSync | None) -> ScannerSync | None:
+        """The protocol's ``sync`` section (``base``) with these choices on top (they win).
+
+        None when neither names a trigger; `SyncError` when scanner options come without one.
+        """
+        trigger = self.trigger
+        changes = {name: value for name, value in (
+            ("dummy_volumes", self.dummy_volumes), ("repetition_time_ns", self.repetition_time_ns),
+            ("lock_to_volumes", self.lock_to_volumes), ("wait_timeout_ns", self.wait_timeout_ns))
+            if value is not None}
+        if base is None:
+            if trigger is None:
+                if changes:
+                    options = ", ".join(OPTION_NAMES[name] for name in changes)
+                    raise SyncError(f"{options}: a scanner trigger is needed too: give --trigger "
+                                    "serial:PATH, key or emulate:TR, or a sync: section in the "
+                                    "protocol")
+                return None
+            base = ScannerSync(trigger)
+        if trigger is not None:
+            if isinstance(trigger, SerialTrigger) and isinstance(base.trigger, SerialTrigger):
+                trigger = replace(trigger, baud_rate=base.trigger.baud_rate)
+            # An emulated trigger brings its own TR; the protocol's is the real scanner's.
+            tr_ns = None if isinstance(trigger, EmulatedTrigger) else base.repetition_time_ns
+            base = replace(base, trigger=trigger, repetition_time_ns=tr_ns)
+        return _check(replace(base, **changes))

@@ -14,6 +14,7 @@ from textual.binding import Binding
 
 from pinarray.clock import Clock
 from pinarray.player import describe
+from pinarray.protocol.sync import SyncOverrides
 from pinarray.rig import Rig, choose_clock
 from pinarray.session import Session
 from pinarray.stop import on_loop_signals
@@ -32,6 +33,8 @@ class TuiOptions:
     time_scale: float = 1.0  # simulator only; 0 = virtual time
     seed: int | None = None
     timing_check_ns: int = 2_000_000_000  # pre-flight's wake-up measurement; 0 = skip
+    sync: SyncOverrides = SyncOverrides()  # scanner options over the protocol's sync: section
+    lsl: str | None = None  # LSL marker stream name; None: no outlet
 
 
 def serial_ports() -> list[tuple[str, str]]:
@@ -73,7 +76,7 @@ class PinArrayApp(App[str]):
         scale = options.time_scale
         self.lab = Lab(options.results_root,
                        clock_factory or (lambda port: choose_clock(port, None if port else scale)),
-                       rig_factory)
+                       rig_factory, lsl_name=options.lsl)
         self.list_ports = list_ports
         self.pins_left = ""
 

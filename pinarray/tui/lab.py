@@ -17,9 +17,13 @@ from typing import TypeVar
 from pinarray.clock import Clock
 from pinarray.journal.runs import open_run
 from pinarray.protocol import Protocol
+from pinarray.protocol.sync import ScannerSync
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
+from pinarray.sync.lsl import MarkerOutlet
+from pinarray.sync.run import start_session
+from pinarray.sync.scanner import Scanner
 
 QUIT_REASON = "quit from the UI"
 # How long closing waits for a cut-short stimulus to rest its pins, in seconds.
@@ -59,10 +63,13 @@ class Lab:
     rig_factory : callable
         ``rig_factory(protocol, port, sim_url, clock, stop)``; `Rig` unless a test injects
         faults.
+    lsl_name : str or None
+        Send LSL markers on a stream of this name (opened at the first connection, kept
+        until the sitting ends); None: no outlet.
     """
 
     def __init__(self, results_root: Path, clock_factory: Callable[[str | None], Clock],
-                 rig_factory: RigFactory = Rig):
+                 rig_factory: RigFactory = Rig, lsl_name: str | None = None):
         self.results_root = Path(results_root)
         self.clock_factory = clock_factory
         self.rig_factory = rig_factory
@@ -71,6 +78,9 @@ class Lab:
         self.clock: StoppableClock | None = None
         self.stop = StopRequest()
         self.session: Session | None = None
+        self.lsl_name = lsl_name
+        self.outlet: MarkerOutlet | None = None
+        self.scanner: Scanner | None = None
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
 
@@ -82,11 +92,57 @@ class Lab:
         self.request = request
         self.stop.clear()
         base = self.clock_factory(request.port)
+        if self.lsl_name is not None:
+            self._open_outlet(self.lsl_name, base)
         rig = self.rig_factory(request.protocol, request.port, request.sim_url, base, self.stop)
         # The player and the session wait on the rig's stoppable clock; the bus on the plain one.
         self.clock = rig.clock
         self.rig = rig
         return rig
+
+    def _open_outlet(self, name: str, clock: Clock) -> None:
+        from pinarray.sync.lsl import LslError
+        from pinarray.sync.triggers import follows_wall_clock
+
+        if not follows_wall_clock(clock):
+            raise LslError("LSL markers are stamped on this machine's clock, and a simulated "
+                           "one is not it: start the UI with --time-scale 1")
+        if self.outlet is None:
+            self.outlet = MarkerOutlet(name, clock)
+        else:
+            self.outlet.use_clock(clock)
+
+    # -- the scanner ------------------------------------------------------------------------
+
+    def wait_for_scanner(self, sync: ScannerSync) -> Scanner | None:
+        """Open the trigger and wait for the first counted volume (blocking: from a worker).
+
+        Returns the scanner, or None when the wait was stopped (`abort_wait`, quitting);
+        raises `pinarray.sync.triggers.TriggerError` for a device that cannot be opened or a
+        scanner that sends nothing in time. No run is opened either way.
+        """
+        assert self.clock is not None, "not connected"
+        self.scanner = Scanner(sync, self.clock, self.stop)
+        try:
+            zero_ns = self._busy(self.scanner.wait_for_time_zero)
+        except BaseException:
+            self.close_scanner()
+            raise
+        if zero_ns is None:
+            self.close_scanner()
+            return None
+        return self.scanner
+
+    def abort_wait(self) -> None:
+        """Stop waiting for the scanner; the rig stays connected."""
+        self.stop.request("stopped waiting for the scanner")
+        self._wait_for_jobs()
+        self.stop.clear()
+
+    def close_scanner(self) -> None:
+        scanner, self.scanner = self.scanner, None
+        if scanner is not None:
+            scanner.close()
 
     def connected(self) -> Rig:
         """The connected rig (only asked for once `connect` has succeeded)."""
@@ -112,6 +168,7 @@ class Lab:
         """
         self.stop.request(reason)
         self._wait_for_jobs()
+        self.close_scanner()
         rig, self.rig = self.rig, None
         return rig.close() if rig is not None else None
 
@@ -121,16 +178,20 @@ class Lab:
         """Start (or resume) the request's run on the connected rig.
 
         A run open in another process is refused (`pinarray.journal.lock.RunLocked`), as is a
-        resume with nothing to resume; the run's lock is held until the session ends.
+        resume with nothing to resume; the run's lock is held until the session ends. After
+        `wait_for_scanner` the run is timed from the scanner's first counted volume.
         """
         request = self.request
         assert request is not None and self.rig is not None and self.clock is not None
+        scanner = self.scanner
         writer, plan = open_run(
             request.protocol, self.results_root, request.subject, request.session, request.task,
             resume=request.resume, seed=request.seed, port_url=self.rig.url,
             clock=self.rig.bus_clock, experimenter=request.experimenter,
+            scanner=None if scanner is None else scanner.record(),
         )
-        self.session = Session(request.protocol, plan, writer, self.rig, self.clock, on_change)
+        self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
+                                     scanner=scanner, outlet=self.outlet, on_change=on_change)
         return self.session
 
     def present(self) -> None:
@@ -165,4 +226,8 @@ class Lab:
         session, self.session = self.session, None
         if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):
             session.abort(reason)
-        return self.release(reason)
+        safe = self.release(reason)
+        outlet, self.outlet = self.outlet, None
+        if outlet is not None:
+            outlet.close()
+        return safe

@@ -10,6 +10,7 @@ from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Input, Static
 
 from pinarray.errors import PinArrayError
+from pinarray.session import Session
 from pinarray.tui.lab import Lab, SessionRequest
 
 COLUMNS = ("servo", "pin", "answers", "model", "position (steps)", "voltage (V)",
@@ -176,15 +177,28 @@ class PreflightScreen(Screen):
     @on(Button.Pressed, "#begin")
     def action_begin(self) -> None:
         from pinarray.tui.run_screen import RunScreen
+        from pinarray.tui.scanner_screen import ScannerScreen, scanner_settings
 
         if not self.connected:
             return
         try:
+            sync = scanner_settings(self.request, self.app.options.sync)  # type: ignore[attr-defined]
+            if sync is not None:  # the run opens at the scanner's first counted volume
+                self.app.push_screen(ScannerScreen(self.lab, sync), self._scanner_done)
+                return
             session = self.lab.open_session()
         except PinArrayError as problem:
             self._status(f"Cannot open the run: {problem}", True)
             return
         self.app.switch_screen(RunScreen(self.lab, session))
+
+    def _scanner_done(self, session: Session | None) -> None:
+        from pinarray.tui.run_screen import RunScreen
+
+        if session is None:
+            self._status("Stopped waiting for the scanner; no run was started.")
+        else:
+            self.app.switch_screen(RunScreen(self.lab, session))
 
     @on(Button.Pressed, "#back")
     def action_back(self) -> None:
