@@ -31,7 +31,8 @@ from pinarray.bus.base import BusSetup, ServoSetup
 from pinarray.bus.transport import open_bus
 from pinarray.clock import MonotonicClock, VirtualClock
 from pinarray.player import DEFAULT_LEAD_NS, play_trial, prepare_trial
-from pinarray.player_process import REALTIME_PRIORITY, SPIN_NS, PlayerDied, PlayerProcess
+from pinarray.player_child import REALTIME_PRIORITY
+from pinarray.player_process import SPIN_NS, PlayerDied, PlayerProcess
 from pinarray.schedule import TargetList
 from pinarray.stop import StopRequest
 
