@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 from pinarray.bus.base import SafeStopReport
 from pinarray.bus.feetech import Handover
-from pinarray.player import PlaybackReport, PreparedTrial
+from pinarray.delivery import PreparedTrial
+from pinarray.player import PlaybackReport
 
 
 @dataclass(frozen=True)
