@@ -31,7 +31,7 @@ ALLOWED = {
     "answers": {"errors", "protocol", "plan", "text_files"},
     "readback": FOUNDATION | {"bus"},
     "player": FOUNDATION | {"bus", "schedule", "readback"},
-    "player_messages": {"bus", "player"},
+    "player_messages": {"bus", "player", "delivery"},
     "player_child": FOUNDATION | {"bus", "player", "player_messages"},
     "player_process": FOUNDATION | {"bus", "player", "player_messages", "player_child"},
     "timing_check": set(),
