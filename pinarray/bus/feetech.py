@@ -7,6 +7,10 @@ every missing servo at once, goal writes that never leave a pin's calibrated lim
 and counted retries of transient failures, the read-back and re-send that verify a goal
 reached its servo, and a safe stop that puts every pin at rest and releases torque wherever
 the bus still answers.
+
+Past 400 lines on purpose: one driver class whose handshake, goal writes, read-backs and
+safe stop share its retries, its link and its record of goals; split, each part would reach
+into the others' state.
 """
 
 from __future__ import annotations

@@ -20,6 +20,9 @@ Who answers what (Feetech communication protocol manual V1.01): PING always answ
 the broadcast id; READ and SYNC READ answer with data; WRITE, REG WRITE, ACTION and RESET
 answer only at status return level 1 and never at the broadcast id. The answer carries the
 id the instruction addressed, also when the instruction changed that id.
+
+Past 400 lines on purpose: the simulated wire (packet framing, faults, replies) and its
+pyserial face are one device as a client sees it.
 """
 
 from __future__ import annotations
