@@ -129,11 +129,6 @@ class SimBus:
         limit = self.vanish_after_packets
         return limit is not None and self.packets_received >= limit
 
-    def advance_all(self, now_ns: int) -> None:
-        """Note that time has reached ``now_ns`` for every servo (e.g. before sampling them)."""
-        for servo in self.servos.values():
-            servo.advance_to(now_ns)
-
     def receive(
         self, data: bytes, at_ns: int, byte_ns: float | None = None, baud_rate: int | None = None
     ) -> list[StatusReply]:
