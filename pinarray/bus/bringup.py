@@ -221,6 +221,17 @@ def set_id(bus: FeetechBus, old_id: int, new_id: int) -> Renumbered:
             f"set-id: servo id {new_id} is already taken (a servo of model {taken} answers "
             f"there); refusing to give servo {old_id} the same id. Choose a free id, or "
             f"renumber servo {new_id} first")
+    try:
+        # Two servos on one id answer a PING in the same bytes, which reads as one answer;
+        # their positions differ, and answers that differ garble each other.
+        bus.read(old_id, Register.PRESENT_POSITION)
+    except PortLost:
+        raise
+    except BusError:
+        raise BusError(
+            f"set-id: a servo answers a PING at id {old_id}, but reading its PRESENT_POSITION "
+            f"(address 56) fails: probably several servos share id {old_id} and their answers "
+            "garble each other; connect one new servo at a time") from None
     level, _ = bus.read(old_id, Register.STATUS_RETURN_LEVEL)
     if level[0] == 0:
         raise BusError(

@@ -256,7 +256,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
         name = (f"{servo.model_number} (STS3215)" if servo.model_number == STS3215_MODEL_NUMBER
                 else str(servo.model_number))
         t = servo.telemetry
-        say(f"{servo.servo_id:>3}  {name:<14} {'%d.%d' % servo.firmware:>8} "
+        say(f"{servo.servo_id:>3}  {name:<14} {'{}.{}'.format(*servo.firmware):>8} "
             f"{servo.return_delay_us:>9} us {t.position_steps:>8} {t.voltage_v:>7.1f}V "
             f"{t.temperature_c:>4}°C  {t.errors.describe()}")
     for servo in result.unreadable:
@@ -313,16 +313,14 @@ def _cmd_set_id(args: argparse.Namespace) -> int:
     with stop_on_signals(StopRequest()) as stop:
         bus = _open(url, args.baud or 1_000_000)
         try:
-            say(f"servo {args.old}: torque off, LOCK (address 55) = 0, ID (EEPROM address 5) "
-                f"= {args.new}, LOCK = 1")
             done = bringup.set_id(bus, args.old, args.new)
         finally:
             bus.close()
         stop.raise_if_requested()
     note = "" if done.acknowledged else " (the ID write was not acknowledged at the old id)"
-    say(f"servo {done.old_id} is now servo {done.new_id} (model {done.model_number}): it "
-        f"answers at id {done.new_id}, nothing answers at id {done.old_id}; saved in its "
-        f"EEPROM, LOCK back at 1{note}")
+    say(f"servo {done.old_id} is now servo {done.new_id} (model {done.model_number}): torque "
+        f"off, LOCK (address 55) = 0, ID (EEPROM address 5) = {done.new_id}, LOCK = 1; it "
+        f"answers at id {done.new_id} and nothing answers at id {done.old_id}{note}")
     return 0
 
 
@@ -487,10 +485,10 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             say(f"Commands: {JOG_HELP}.")
             rest_found = _jog_until_ok(jog, "rest", args.step, stop, None)
             if rest_found is not None:
-                rest_steps = rest_found
                 up_found = _jog_until_ok(jog, "up", args.step, stop, rest_found)
                 if up_found is not None:
                     found = (rest_found, up_found)
+                    rest_steps = rest_found
         finally:
             safe = jog.release(rest_steps)
             bus.close()
