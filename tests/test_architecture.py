@@ -29,6 +29,7 @@ ALLOWED = {
     "observer": {"errors", "grid", "protocol", "plan"},
     "preview": {"errors", "protocol", "plan", "schedule"},
     "answers": {"errors", "protocol", "plan", "text_files"},
+    "calibration_file": {"errors", "protocol", "text_files"},
     "player": FOUNDATION | {"bus", "schedule"},
     "player_process": FOUNDATION | {"bus", "player"},
     "timing_check": set(),
