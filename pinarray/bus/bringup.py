@@ -49,6 +49,10 @@ NS_PER_S = 1_000_000_000
 Progress = Callable[[int, int, tuple[int, ...]], object]
 
 
+class GoalOutOfRange(BusError):
+    """A jog goal beyond the servo's angle limits: nothing was sent."""
+
+
 class ScanMethod(StrEnum):
     """How a scan found its servos."""
 
@@ -131,8 +135,8 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     if ids is None:
         answer = bus.broadcast_ping()
         if answer.clean and answer.servo_ids:
-            found = _details(bus, {i: bus.ping(i) for i in sorted(set(answer.servo_ids))})
-            return ScanResult(ScanMethod.BROADCAST, *found)
+            found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
+            return ScanResult(ScanMethod.BROADCAST, found, unreadable)
         reason = ("answers to a broadcast ping collided: several servos answer"
                   if answer.garbled_bytes else "nothing answered a broadcast ping")
         ids = range(MAX_SERVO_ID + 1)
@@ -484,7 +488,7 @@ class Jog:
         assert self.goal_steps is not None, "start() first"
         low, high = self.bounds
         if not low <= goal_steps <= high:
-            raise BusError(
+            raise GoalOutOfRange(
                 f"{self.name}: GOAL_POSITION {goal_steps} steps is outside the servo's angle "
                 f"limits {low}..{high} (MIN/MAX_ANGLE_LIMIT, EEPROM addresses 9, 11)")
         travel = abs(goal_steps - self.goal_steps)

@@ -11,8 +11,13 @@ import argparse
 import os
 import sys
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from pinarray.cli.output import say
+
+if TYPE_CHECKING:
+    from pinarray.calibration_file import NewCalibration
+    from pinarray.protocol import Device
 
 SERVOS_EPILOG = """\
 The first hour with new servos (each ships answering at id 1, at 1000000 bit/s):
@@ -259,8 +264,9 @@ def cmd_scan(args: argparse.Namespace) -> int:
         say(f"{servo.servo_id:>3}  {name:<14} {'{}.{}'.format(*servo.firmware):>8} "
             f"{servo.return_delay_us:>9} us {t.position_steps:>8} {t.voltage_v:>7.1f}V "
             f"{t.temperature_c:>4}°C  {t.errors.describe()}")
-    for servo in result.unreadable:
-        say(f"{servo.servo_id:>3}  answers a PING, but reading it failed: {servo.problem}")
+    for unreadable in result.unreadable:
+        say(f"{unreadable.servo_id:>3}  answers a PING, but reading it failed: "
+            f"{unreadable.problem}")
     count = len(result.servo_ids)
     if result.method is bringup.ScanMethod.BROADCAST:
         say(f"{count} servo(s) answered a broadcast ping on {url}")
@@ -459,7 +465,7 @@ def parse_jog(line: str, step: int) -> _By | _To | _Word:
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from pinarray.bus.bringup import Jog
     from pinarray.calibration_file import plan_calibration, rewrite_calibration
-    from pinarray.errors import PinArrayError
+    from pinarray.errors import PinArrayError, ProtocolError
     from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
     from pinarray.rig import bus_setup, sim_url_for
     from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
@@ -467,57 +473,86 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     protocol = load_protocol(args.protocol)
     data = _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
     device = protocol.device
-    device.grid.check_pin(args.pin)
+    calibration = device.calibration(args.pin)
+    old_up = calibration.positions_by_width_ns[-1][1]
+
+    def edited(rest_steps: int, up_steps: int) -> tuple[NewCalibration, bytes]:
+        new = plan_calibration(data, protocol, args.pin, rest_steps, up_steps)
+        return new, rewrite_calibration(data, protocol, new)
+
+    try:
+        edited(calibration.rest_steps, old_up)  # a file that cannot be edited: say so first
+    except ProtocolError:
+        raise
+    except PinArrayError:
+        pass  # e.g. rest = up today: the new values decide
     setup = bus_setup(device)
     servo = next(s for s in setup.servos if s.pin == args.pin)
     url = args.port or sim_url_for(args.sim, setup.servo_ids)
+    result: tuple[NewCalibration, bytes] | None = None
     with stop_on_signals(StopRequest()) as stop:
         bus = _open(url, args.baud or device.servo.baud_rate)
         jog = Jog(bus, servo, setup.model_number, device.servo.speed_steps_per_s,
                   clock=StoppableClock(bus.clock, stop))
         rest_steps = servo.rest_steps
-        found: tuple[int, int] | None = None
         try:
             reading = jog.start()
             say(f"{jog.name}: holding it at {reading.present_steps} steps (calibrated rest "
-                f"{servo.rest_steps}, up {device.calibration(args.pin).positions_by_width_ns[-1][1]}"
-                f"; the servo allows {jog.bounds[0]}..{jog.bounds[1]}).")
+                f"{servo.rest_steps}, up {old_up}; the servo allows {jog.bounds[0]}.."
+                f"{jog.bounds[1]}).")
             say(f"Commands: {JOG_HELP}.")
-            rest_found = _jog_until_ok(jog, "rest", args.step, stop, None)
-            if rest_found is not None:
-                up_found = _jog_until_ok(jog, "up", args.step, stop, rest_found)
-                if up_found is not None:
-                    found = (rest_found, up_found)
-                    rest_steps = rest_found
+            found_rest = _jog_until_ok(jog, "rest", args.step, stop, lambda steps: None)
+            if found_rest is not None:
+                attempts: dict[int, tuple[NewCalibration, bytes]] = {}
+
+                def check(up_steps: int) -> str | None:
+                    if up_steps == found_rest:
+                        return f"up must differ from rest ({found_rest} steps): jog further"
+                    try:
+                        attempts[up_steps] = edited(found_rest, up_steps)
+                    except PinArrayError as problem:
+                        return f"{problem}; jog elsewhere, or q"
+                    return None
+
+                found_up = _jog_until_ok(jog, "up", args.step, stop, check)
+                if found_up is not None:
+                    result = attempts[found_up]
+                    rest_steps = found_rest
         finally:
             safe = jog.release(rest_steps)
             bus.close()
             where = f"at rest ({rest_steps} steps)" if safe.at_rest_ids else "NOT confirmed at rest"
             torque = "torque off" if safe.released_ids else "torque NOT confirmed off"
             say(f"{jog.name}: {where}, {torque}")
-    if found is None:
+    if result is None:
         say(f"{args.protocol}: nothing written")
         return 0
-    new = plan_calibration(data, protocol, args.pin, *found)
-    edited = rewrite_calibration(data, protocol, new)
-    if _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256) != data:
-        raise PinArrayError(f"{args.protocol}: changed on disk while pin {args.pin} was being "
-                            f"calibrated: not written (rest {found[0]}, up {found[1]} steps)")
-    _replace_file(args.protocol, edited)
+    new, text = result
+    # Whoever saved the file meanwhile keeps their version: refuse rather than overwrite it.
+    _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
+    _replace_file(args.protocol, text)
+    say(f"{args.protocol}: {_describe(new, device, args.pin)}")
+    return 0
+
+
+def _describe(new: NewCalibration, device: Device, pin: int) -> str:
+    """What was written, and the stroke it gives, in words."""
+    import math
+
     positions = ", ".join(f"{w / 1e6:g} ms: {p}" for w, p in new.positions)
     limits = (f", limits_steps [{new.limits_steps[0]}, {new.limits_steps[1]}] (widened)"
               if new.limits_widened else "")
     stroke = abs(new.up_steps - new.rest_steps)
-    lever = device.calibration(args.pin).lever_mm
+    lever = device.calibration(pin).lever_mm
     degrees = stroke * 360 / device.servo.steps_per_turn
-    say(f"{args.protocol}: device: pins: {args.pin}: rest_steps {new.rest_steps}, positions "
-        f"{{{positions}}}{limits}; stroke {stroke} steps ({degrees:.1f} deg, about "
-        f"{lever * degrees * 3.141592653589793 / 180:.2f} mm on its {lever:g} mm lever)")
-    return 0
+    return (f"device: pins: {pin}: rest_steps {new.rest_steps}, positions {{{positions}}}"
+            f"{limits}; stroke {stroke} steps ({degrees:.1f} deg, about "
+            f"{lever * math.radians(degrees):.2f} mm on its {lever:g} mm lever)")
 
 
-def _jog_until_ok(jog, what: str, step: int, stop, rest_steps: int | None) -> int | None:
-    """Jog until ``ok`` (the goal there) or ``q`` (None); the prompt says what is sought."""
+def _jog_until_ok(jog, what: str, step: int, stop, check) -> int | None:
+    """Jog until ``ok`` where ``check(goal)`` finds no problem (the goal), or ``q`` (None)."""
+    from pinarray.bus.bringup import GoalOutOfRange
     from pinarray.errors import BusError
     from pinarray.stop import raise_on_signals
 
@@ -542,11 +577,12 @@ def _jog_until_ok(jog, what: str, step: int, stop, rest_steps: int | None) -> in
                 case _To(steps=steps):
                     reading = jog.move_to(steps)
                 case _Word() if command == "ok":
-                    if jog.goal_steps == rest_steps:
-                        say(f"  up must differ from rest ({rest_steps} steps): jog further")
-                        continue
-                    say(f"  {what} = {jog.goal_steps} steps")
-                    return jog.goal_steps
+                    refused = check(jog.goal_steps)
+                    if refused is None:
+                        say(f"  {what} = {jog.goal_steps} steps")
+                        return jog.goal_steps
+                    say(f"  {refused}")
+                    continue
                 case _Word() if command == "quit":
                     return None
                 case _Word() if command == "help":
@@ -554,9 +590,7 @@ def _jog_until_ok(jog, what: str, step: int, stop, rest_steps: int | None) -> in
                     continue
                 case _:
                     reading = jog.read()
-        except BusError as problem:
-            if "outside" not in str(problem):
-                raise
+        except GoalOutOfRange as problem:
             say(f"  {problem}")
             continue
         arrived = "" if reading.arrived else " (still on its way: watch it, or type again)"
