@@ -12,6 +12,9 @@ mark and the encoding stay as they were.
 
 The edited text is then read as a protocol again and must give exactly the intended
 calibration for the pin and nothing else changed; only then are its bytes returned.
+
+A little over 400 lines, in three parts (the new numbers, where to edit, the check) kept in
+one file because each relies on the others' rules.
 """
 
 from __future__ import annotations

@@ -6,7 +6,12 @@ checksum fit it. This module adds what a lab needs on top: a connect handshake t
 every missing servo at once, goal writes that never leave a pin's calibrated limits, bounded
 and counted retries of transient failures, the read-back and re-send that verify a goal
 reached its servo, and a safe stop that puts every pin at rest and releases torque wherever
-the bus still answers.
+the bus still answers. For bring-up (`pinarray.bus.bringup`) it also pings at the broadcast id,
+pings within a bounded time, and writes EEPROM, but only through the methods named for it
+(`write_eeprom`, `unlock_eeprom`, `lock_eeprom`): `write` refuses EEPROM registers.
+
+Longer than 400 lines because it is one class: everything that may be said to the servos is
+said here, so that no other module can write EEPROM or move a pin outside its limits.
 """
 
 from __future__ import annotations

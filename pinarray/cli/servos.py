@@ -8,16 +8,10 @@ nothing holding torque however it ends.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from pinarray.cli.output import say
-
-if TYPE_CHECKING:
-    from pinarray.calibration_file import NewCalibration
-    from pinarray.protocol import Device
 
 SERVOS_EPILOG = """\
 The first hour with new servos (each ships answering at id 1, at 1000000 bit/s):
@@ -62,25 +56,9 @@ keeps it across power cycles (LOCK 0, write, LOCK 1), after a confirmation: type
 --yes.
 """
 
-CALIBRATE_EPILOG = """\
-Holds the pin's servo where its horn is (torque on, at most 600 steps/s) and asks, on lines:
-  +  / -       one step (--step, default 10 steps) up / down the servo's count
-  +N / -N      N steps        =N   go to N steps        (empty line: where it is now)
-  ok           this is the position (first rest, then up)
-  q            stop without writing anything
-Goals stay within the servo's own angle limits (EEPROM 9/11). Then the protocol file's
-device: pins: N: entry gets rest_steps and positions (the narrowest pulse width at rest, the
-widest up, any in between where they were relative to those); limits_steps too, widened, if
-the file gives limits that the new positions leave. Only those values change: comments, key
-order and line ends stay. The result is read back as a protocol (every stimulus must still be
-feasible) before the file is replaced, in one step. On any exit the pin goes to rest and its
-torque off.
-"""
-
-
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``servos`` and its subcommands to the `pinarray` parser."""
-    from pinarray.cli import common
+    from pinarray.cli import calibrate, common
 
     group = subparsers.add_parser(
         "servos", help="bring-up: find, renumber, tune and calibrate new servos",
@@ -99,7 +77,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("old", type=common.count(0, 252), metavar="OLD", help="its id now")
     p.add_argument("new", type=common.count(0, 252), metavar="NEW", help="the id to give it")
-    _bus_options(p)
+    bus_options(p)
     p.set_defaults(func=_cmd_set_id)
 
     p = commands.add_parser("return-delay", help="lower the servos' return delay (until "
@@ -113,16 +91,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--yes", action="store_true", help="confirm --save without asking")
     p.set_defaults(func=_cmd_return_delay)
 
-    p = commands.add_parser("calibrate", help="jog one pin to rest and up, then write its "
-                            "calibration into the protocol", epilog=CALIBRATE_EPILOG,
-                            formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("protocol", metavar="PROTOCOL", help="protocol YAML file to update")
-    p.add_argument("--pin", type=common.count(1, 4096), required=True, metavar="N",
-                   help="the pin to calibrate")
-    p.add_argument("--step", type=common.count(1, 500), default=10, metavar="STEPS",
-                   help="steps per + or - (default 10)")
-    _bus_options(p, baud_default="the protocol's")
-    p.set_defaults(func=_cmd_calibrate)
+    calibrate.register(commands)
 
     p = commands.add_parser("torque-off", help="switch torque off on every servo of a device, "
                             "saying which answered")
@@ -144,11 +113,11 @@ def add_scan_options(parser: argparse.ArgumentParser) -> None:
                              "else 0-252)")
     parser.add_argument("--timeout-ms", type=common.count(1, 1000), metavar="MS",
                         help="longest wait for each id's answer in a sweep")
-    _bus_options(parser)
+    bus_options(parser)
     parser.set_defaults(func=cmd_scan)
 
 
-def _bus_options(parser: argparse.ArgumentParser, baud_default: str = "1000000") -> None:
+def bus_options(parser: argparse.ArgumentParser, baud_default: str = "1000000") -> None:
     from pinarray.cli.bus import add_bus_choice
     from pinarray.protocol import BAUD_RATES
 
@@ -162,7 +131,7 @@ def _which_servos(parser: argparse.ArgumentParser) -> None:
                         help="protocol YAML whose device names the servos (default: the "
                              "built-in 4x4 device, servos 1-16)")
     parser.add_argument("--ids", metavar="IDS", help="only these servo ids, e.g. 1-4,9")
-    _bus_options(parser, baud_default="the protocol's")
+    bus_options(parser, baud_default="the protocol's")
 
 
 # -- helpers ---------------------------------------------------------------------------------
@@ -200,7 +169,7 @@ def _target(args: argparse.Namespace) -> Target:
     return Target(protocol, ids, url, args.baud or protocol.device.servo.baud_rate)
 
 
-def _open(url: str, baud_rate: int):
+def open_bare(url: str, baud_rate: int):
     from pinarray.bus.transport import open_bus
 
     bus = open_bus(url, baud_rate=baud_rate)
@@ -245,7 +214,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
     ids = parse_ids(args.ids) if args.ids else None
     url = args.port or args.sim or SIM_DEFAULT
     with stop_on_signals(StopRequest()) as stop:
-        bus = _open(url, args.baud or 1_000_000)
+        bus = open_bare(url, args.baud or 1_000_000)
         try:
             timeout_ns = (args.timeout_ms * 1_000_000 if args.timeout_ms
                           else bringup.sweep_timeout_ns(bus))
@@ -317,7 +286,7 @@ def _cmd_set_id(args: argparse.Namespace) -> int:
 
     url = args.port or args.sim or SIM_DEFAULT
     with stop_on_signals(StopRequest()) as stop:
-        bus = _open(url, args.baud or 1_000_000)
+        bus = open_bare(url, args.baud or 1_000_000)
         try:
             done = bringup.set_id(bus, args.old, args.new)
         finally:
@@ -347,7 +316,7 @@ def _cmd_return_delay(args: argparse.Namespace) -> int:
         if not _confirmed(question):
             raise PinArrayError("return-delay --save not confirmed: nothing written")
     with stop_on_signals(StopRequest()) as stop:
-        bus = _open(target.url, target.baud_rate)
+        bus = open_bare(target.url, target.baud_rate)
         try:
             changes, failures = bringup.set_return_delay(bus, target.servo_ids, args.us,
                                                          args.save)
@@ -383,7 +352,7 @@ def _cmd_torque_off(args: argparse.Namespace) -> int:
 
     target = _target(args)
     with stop_on_signals(StopRequest()):
-        bus = _open(target.url, target.baud_rate)
+        bus = open_bare(target.url, target.baud_rate)
         try:
             with deferred_signals():
                 released, failures = bringup.torque_off(bus, target.servo_ids)
@@ -406,7 +375,7 @@ def _cmd_rest(args: argparse.Namespace) -> int:
     setup = type(full)(tuple(s for s in full.servos if s.servo_id in target.servo_ids),
                        full.model_number, full.speed_steps_per_s, full.acceleration_register)
     with stop_on_signals(StopRequest()):
-        bus = _open(target.url, target.baud_rate)
+        bus = open_bare(target.url, target.baud_rate)
         try:
             safe = bringup.rest(bus, setup)
         finally:
@@ -419,215 +388,3 @@ def _cmd_rest(args: argparse.Namespace) -> int:
         raise BusError(f"rest: servo id(s) {', '.join(map(str, safe.silent_ids))} not "
                        "confirmed at rest with torque off (GOAL_POSITION 42, TORQUE_ENABLE 40)")
     return 0
-
-
-# -- calibrate -------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _By:
-    steps: int
-
-
-@dataclass(frozen=True)
-class _To:
-    steps: int
-
-
-class _Word(str):
-    """A command word: ``ok``, ``quit``, ``show``, ``help``."""
-
-
-JOG_HELP = ("+ / - one step, +N / -N N steps, =N go to N steps, empty line: where it is, "
-            "ok: this is it, q: stop without writing")
-
-
-def parse_jog(line: str, step: int) -> _By | _To | _Word:
-    """One line typed while jogging; `ValueError` with what was expected otherwise."""
-    text = line.strip().lower()
-    if text in ("", "?", "help", "h"):
-        return _Word("show" if not text else "help")
-    if text in ("ok", "y", "yes"):
-        return _Word("ok")
-    if text in ("q", "quit", "exit"):
-        return _Word("quit")
-    if text in ("+", "-"):
-        return _By(step if text == "+" else -step)
-    sign, number = text[0], text[1:].strip()
-    if sign in "+-=" and number.isdigit() and len(number) <= 5:
-        value = int(number)
-        if sign == "=":
-            return _To(value)
-        return _By(value if sign == "+" else -value)
-    raise ValueError(f"expected +, -, +N, -N, =N, ok or q, found {line.strip()[:40]!r}")
-
-
-def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from pinarray.bus.bringup import Jog
-    from pinarray.calibration_file import plan_calibration, rewrite_calibration
-    from pinarray.errors import PinArrayError, ProtocolError
-    from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
-    from pinarray.rig import bus_setup, sim_url_for
-    from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
-
-    protocol = load_protocol(args.protocol)
-    data = _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
-    device = protocol.device
-    calibration = device.calibration(args.pin)
-    old_up = calibration.positions_by_width_ns[-1][1]
-
-    def edited(rest_steps: int, up_steps: int) -> tuple[NewCalibration, bytes]:
-        new = plan_calibration(data, protocol, args.pin, rest_steps, up_steps)
-        return new, rewrite_calibration(data, protocol, new)
-
-    try:
-        edited(calibration.rest_steps, old_up)  # a file that cannot be edited: say so first
-    except ProtocolError:
-        raise
-    except PinArrayError:
-        pass  # e.g. rest = up today: the new values decide
-    setup = bus_setup(device)
-    servo = next(s for s in setup.servos if s.pin == args.pin)
-    url = args.port or sim_url_for(args.sim, setup.servo_ids)
-    result: tuple[NewCalibration, bytes] | None = None
-    with stop_on_signals(StopRequest()) as stop:
-        bus = _open(url, args.baud or device.servo.baud_rate)
-        jog = Jog(bus, servo, setup.model_number, device.servo.speed_steps_per_s,
-                  clock=StoppableClock(bus.clock, stop))
-        rest_steps = servo.rest_steps
-        try:
-            reading = jog.start()
-            say(f"{jog.name}: holding it at {reading.present_steps} steps (calibrated rest "
-                f"{servo.rest_steps}, up {old_up}; the servo allows {jog.bounds[0]}.."
-                f"{jog.bounds[1]}).")
-            say(f"Commands: {JOG_HELP}.")
-            found_rest = _jog_until_ok(jog, "rest", args.step, stop, lambda steps: None)
-            if found_rest is not None:
-                attempts: dict[int, tuple[NewCalibration, bytes]] = {}
-
-                def check(up_steps: int) -> str | None:
-                    if up_steps == found_rest:
-                        return f"up must differ from rest ({found_rest} steps): jog further"
-                    try:
-                        attempts[up_steps] = edited(found_rest, up_steps)
-                    except PinArrayError as problem:
-                        return f"{problem}; jog elsewhere, or q"
-                    return None
-
-                found_up = _jog_until_ok(jog, "up", args.step, stop, check)
-                if found_up is not None:
-                    result = attempts[found_up]
-                    rest_steps = found_rest
-        finally:
-            safe = jog.release(rest_steps)
-            bus.close()
-            where = f"at rest ({rest_steps} steps)" if safe.at_rest_ids else "NOT confirmed at rest"
-            torque = "torque off" if safe.released_ids else "torque NOT confirmed off"
-            say(f"{jog.name}: {where}, {torque}")
-    if result is None:
-        say(f"{args.protocol}: nothing written")
-        return 0
-    new, text = result
-    # Whoever saved the file meanwhile keeps their version: refuse rather than overwrite it.
-    _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
-    _replace_file(args.protocol, text)
-    say(f"{args.protocol}: {_describe(new, device, args.pin)}")
-    return 0
-
-
-def _describe(new: NewCalibration, device: Device, pin: int) -> str:
-    """What was written, and the stroke it gives, in words."""
-    import math
-
-    positions = ", ".join(f"{w / 1e6:g} ms: {p}" for w, p in new.positions)
-    limits = (f", limits_steps [{new.limits_steps[0]}, {new.limits_steps[1]}] (widened)"
-              if new.limits_widened else "")
-    stroke = abs(new.up_steps - new.rest_steps)
-    lever = device.calibration(pin).lever_mm
-    degrees = stroke * 360 / device.servo.steps_per_turn
-    return (f"device: pins: {pin}: rest_steps {new.rest_steps}, positions {{{positions}}}"
-            f"{limits}; stroke {stroke} steps ({degrees:.1f} deg, about "
-            f"{lever * math.radians(degrees):.2f} mm on its {lever:g} mm lever)")
-
-
-def _jog_until_ok(jog, what: str, step: int, stop, check) -> int | None:
-    """Jog until ``ok`` where ``check(goal)`` finds no problem (the goal), or ``q`` (None)."""
-    from pinarray.bus.bringup import GoalOutOfRange
-    from pinarray.errors import BusError
-    from pinarray.stop import raise_on_signals
-
-    say(f"Jog {jog.name} to {what.upper()}, then type ok.")
-    while True:
-        stop.raise_if_requested()
-        try:
-            with raise_on_signals("calibration"):
-                line = input(f"{what}> ")
-        except EOFError:
-            raise BusError(f"{jog.name}: input ended before the {what} position was chosen; "
-                           "nothing written") from None
-        try:
-            command = parse_jog(line, step)
-        except ValueError as problem:
-            say(f"  {problem}")
-            continue
-        try:
-            match command:
-                case _By(steps=steps):
-                    reading = jog.move_by(steps)
-                case _To(steps=steps):
-                    reading = jog.move_to(steps)
-                case _Word() if command == "ok":
-                    refused = check(jog.goal_steps)
-                    if refused is None:
-                        say(f"  {what} = {jog.goal_steps} steps")
-                        return jog.goal_steps
-                    say(f"  {refused}")
-                    continue
-                case _Word() if command == "quit":
-                    return None
-                case _Word() if command == "help":
-                    say(f"  {JOG_HELP}")
-                    continue
-                case _:
-                    reading = jog.read()
-        except GoalOutOfRange as problem:
-            say(f"  {problem}")
-            continue
-        arrived = "" if reading.arrived else " (still on its way: watch it, or type again)"
-        errors = "" if not reading.errors else f", error bits: {reading.errors.describe()}"
-        say(f"  goal {reading.goal_steps}, at {reading.present_steps} steps{arrived}{errors}")
-
-
-def _protocol_bytes(path: str, limit: int, sha256: str) -> bytes:
-    """The file's bytes, which must be the text that was loaded (its SHA-256)."""
-    import hashlib
-
-    from pinarray.errors import PinArrayError
-    from pinarray.text_files import NotText, decode_text, read_bounded
-
-    try:
-        data = read_bounded(path, limit, "protocol")
-        text = decode_text(data)
-    except NotText as problem:
-        raise PinArrayError(f"{path}: {problem.message}") from None
-    if hashlib.sha256(text.encode("utf-8")).hexdigest() != sha256:
-        raise PinArrayError(f"{path}: changed on disk since it was read; run the command again")
-    return data
-
-
-def _replace_file(path: str, data: bytes) -> None:
-    """Put ``data`` in place of the file in one step (a failure leaves the file as it was)."""
-    from pinarray.cli.common import OutputFile
-
-    out = OutputFile(path, binary=True)
-    try:
-        out.stream.write(data)
-        if out.temporary:
-            mode = os.stat(out.final).st_mode & 0o7777
-            os.chmod(out.temporary, mode)  # keep the file's permissions
-        out.commit()
-    except OSError as problem:
-        out.discard()
-        from pinarray.errors import PinArrayError
-
-        raise PinArrayError(f"{path}: cannot write: {problem.strerror}") from None

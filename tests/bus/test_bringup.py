@@ -3,6 +3,7 @@
 import pytest
 
 from pinarray.bus import bringup
+from pinarray.bus import jog as jog_module
 from pinarray.bus.base import BusSetup, ServoSetup
 from pinarray.bus.link import Latency
 from pinarray.bus.registers import Register, to_bytes
@@ -214,7 +215,7 @@ def test_rest_sends_every_answering_pin_to_rest_then_releases_it():
 
 def jog_bus(query: str = "ids=6&backlash_deg=0"):
     bus = bare_bus(query)
-    jog = bringup.Jog(bus, ServoSetup(6, 6, 2048, 2000, 2200), 777, speed_steps_per_s=3000)
+    jog = jog_module.Jog(bus, ServoSetup(6, 6, 2048, 2000, 2200), 777, speed_steps_per_s=3000)
     return bus, jog
 
 
@@ -226,7 +227,7 @@ def test_jogging_holds_the_horn_where_it_is_then_moves_it_by_steps():
     servo.write(Register.TORQUE_ENABLE.address, b"\x00", bus.clock.now_ns())  # limp at 2100
     start = jog.start()
     assert (start.goal_steps, start.present_steps, start.arrived) == (2100, 2100, True)
-    assert servo.torque_enabled and servo.get(Register.GOAL_SPEED) == bringup.JOG_SPEED_STEPS_PER_S
+    assert servo.torque_enabled and servo.get(Register.GOAL_SPEED) == jog_module.JOG_SPEED_STEPS_PER_S
     assert jog.move_by(-30).present_steps == 2070
     reading = jog.move_to(2150)
     assert (reading.goal_steps, reading.present_steps, reading.arrived) == (2150, 2150, True)
@@ -246,7 +247,7 @@ def test_jogging_stays_within_the_servos_angle_limits():
 def test_a_jog_wait_ends_on_a_stop_request():
     bus, _ = jog_bus()
     stop = StopRequest()
-    jog = bringup.Jog(bus, ServoSetup(6, 6, 2048, 2000, 2200), 777, 100,
+    jog = jog_module.Jog(bus, ServoSetup(6, 6, 2048, 2000, 2200), 777, 100,
                       clock=StoppableClock(bus.clock, stop))
     jog.start()
     stop.request("stopped by SIGINT", 2)
