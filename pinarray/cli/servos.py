@@ -351,13 +351,14 @@ def _cmd_torque_off(args: argparse.Namespace) -> int:
     from pinarray.stop import StopRequest, deferred_signals, stop_on_signals
 
     target = _target(args)
-    with stop_on_signals(StopRequest()):
+    with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
             with deferred_signals():
                 released, failures = bringup.torque_off(bus, target.servo_ids)
         finally:
             bus.close()
+        stop.raise_if_requested()
     say(f"torque off on servo(s) {_ranges(released)}" if released
         else "torque off: no servo acknowledged")
     _failures(failures, "torque-off (TORQUE_ENABLE, address 40)")
@@ -374,12 +375,13 @@ def _cmd_rest(args: argparse.Namespace) -> int:
     full = bus_setup(target.protocol.device)  # type: ignore[attr-defined]
     setup = type(full)(tuple(s for s in full.servos if s.servo_id in target.servo_ids),
                        full.model_number, full.speed_steps_per_s, full.acceleration_register)
-    with stop_on_signals(StopRequest()):
+    with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
             safe = bringup.rest(bus, setup)
         finally:
             bus.close()
+        stop.raise_if_requested()
     say(f"at rest: servo(s) {_ranges(safe.at_rest_ids)}; torque off: servo(s) "
         f"{_ranges(safe.released_ids)}")
     if safe.port_lost:

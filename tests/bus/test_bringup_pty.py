@@ -5,6 +5,7 @@ adapter; `pinarray servos ...` runs as a lab would run it, and what it did is ch
 the vendor's SDK examples and LeRobot's ``FeetechMotorsBus`` see the bus (`test_compat`).
 """
 
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -89,3 +90,20 @@ def test_calibrating_a_real_time_pin_leaves_it_at_rest_with_torque_off(sim_serve
     position, _, _ = handler.read2ByteTxRx(port, 6, Register.PRESENT_POSITION.address)
     port.closePort()
     assert (result, torque) == (COMM_SUCCESS, 0) and abs(position - 2028) <= 4
+
+
+@pytest.mark.parametrize("sim_serve", ["1,2"], indirect=True)
+def test_ctrl_c_during_a_sweep_ends_it_at_once(sim_serve):  # noqa: F811
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "servos", "scan", "--port", sim_serve],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = process.stderr.readline()  # the sweep's first progress line
+        assert first.startswith("sweeping: id 31 of 252, found so far: 1-2"), first
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 130 and out == ""
+    assert err.splitlines()[-1] == "pinarray: stopped by SIGINT", err
