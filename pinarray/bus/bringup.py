@@ -1,11 +1,11 @@
-"""Bring-up of new servos: find them, renumber them, lower their return delay, jog one pin.
+"""Bring-up of new servos: find them, renumber them, lower their return delay, let go.
 
 A lab's first hour with new STS servos: each ships answering at id 1, so they are connected
 and renumbered one at a time; their return delay (factory 500 us) is lowered so that every
 read-back is quicker; and each pin's rest and "up" positions are found by moving its horn in
-small steps (`pinarray.bus.jog`). Every function here takes a `FeetechBus` opened without the playback handshake
-(which would switch torque on everywhere) and returns values; the commands (`pinarray
-servos ...`) print them.
+small steps (`pinarray.bus.jog`). Every function here takes a `FeetechBus` opened without
+the playback handshake (which would switch torque on everywhere) and returns values; the
+commands (`pinarray servos ...`) print them.
 
 EEPROM is written only by `set_id` and by `set_return_delay`, each through the driver's
 explicitly named EEPROM methods. On an STS servo a value written to EEPROM is in force at
