@@ -29,6 +29,7 @@ ALLOWED = {
     "observer": {"errors", "grid", "protocol", "plan"},
     "preview": {"errors", "protocol", "plan", "schedule"},
     "answers": {"errors", "protocol", "plan", "text_files"},
+    "calibration_file": {"errors", "protocol", "text_files"},
     "readback": FOUNDATION | {"bus"},
     "player": FOUNDATION | {"bus", "schedule", "readback"},
     "player_messages": {"bus", "player", "delivery"},

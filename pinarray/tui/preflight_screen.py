@@ -51,6 +51,7 @@ class PreflightScreen(Screen):
         with Horizontal(id="preflight-buttons"):
             yield Button("Begin run (b)", id="begin", variant="primary", disabled=True)
             yield Button("Connect again", id="reconnect", disabled=True)
+            yield Button("Rest + torque off", id="release", disabled=True)
             yield Button("Back (Esc)", id="back")
         yield Footer()
 
@@ -70,6 +71,7 @@ class PreflightScreen(Screen):
         self.query_one("#begin", Button).disabled = not connected
         self.query_one("#test", Button).disabled = not connected
         self.query_one("#reconnect", Button).disabled = connected
+        self.query_one("#release", Button).disabled = not connected
         self.refresh_bindings()
 
     # -- hardware work, in threads -----------------------------------------------------------
@@ -172,6 +174,25 @@ class PreflightScreen(Screen):
     def _reconnect(self) -> None:
         self._status("Connecting…")
         self._connect()
+
+    @on(Button.Pressed, "#release")
+    def _release_pressed(self) -> None:
+        if not self.connected:
+            return
+        self._ready(False)
+        self._status("Pins to rest, torque off…")
+        self._release()
+
+    @work(thread=True, exclusive=True, group="hardware")
+    def _release(self) -> None:
+        from pinarray.player import describe
+
+        # Lets go of the array (as `pinarray servos rest` does), e.g. to adjust a horn by hand.
+        safe = self.lab.release("rest and torque off from the pre-flight")
+        text = "nothing was connected" if safe is None else describe(safe)
+        self.app.call_from_thread(
+            self._status, f"Released: {text}, port closed. Connect again to go on.",
+            safe is None or not safe.complete)
 
     @on(Button.Pressed, "#begin")
     def action_begin(self) -> None:
