@@ -79,7 +79,7 @@ def test_the_sidecar_describes_every_column_with_units_or_levels(tmp_path):
     columns = {k: v for k, v in sidecar.items() if k in BEH_NAMES}
     assert list(columns) == list(BEH_NAMES)
     assert all(entry["Description"] for entry in columns.values())
-    assert sidecar["onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
+    assert sidecar["stimulus_onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
     assert set(sidecar["status"]["Levels"]) == {"ok", "redone", "aborted", "invalid"}
     events = json.loads(writer.paths.events_json.read_text())
     assert [k for k in events if k in (*EVENT_NAMES, "trial_type")] == list(EVENT_NAMES)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.errors import PinArrayError
@@ -35,7 +36,7 @@ from pinarray.protocol import Protocol
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
     """The journal's record of one planned trial."""
     c = planned.condition
-    common = {"trial": planned.trial, "block": planned.block, "practice": planned.practice,
+    common: dict[str, Any] = {"trial": planned.trial, "block": planned.block, "practice": planned.practice,
               "stimulus": c.stimulus}
     if c.pin is not None and c.frequency_hz is not None:
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
@@ -83,7 +84,7 @@ class Unfinished:
         """One line for the start screen."""
         m = self.manifest
         if self.holder is not None:
-            return (f"Run {self.paths.run} is open in another process ({self.holder.describe()}); "
+            return (f"Run {self.paths.run} is open in another process, {self.holder.describe()}; "
                     "it can be resumed once that one ends.")
         why = f" ({m.abort_reason})" if m.abort_reason else ""
         return (f"Unfinished run {self.paths.run}: {m.status}{why}, {self.done} of "

@@ -22,7 +22,14 @@ from pathlib import Path
 from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.dataset import ensure_dataset, write_sidecars
-from pinarray.journal.files import fsync_folder, iso, this_host, this_machine, wall_now
+from pinarray.journal.files import (
+    fsync_folder,
+    iso,
+    this_host,
+    this_machine,
+    wall_now,
+    write_atomically,
+)
 from pinarray.journal.lock import RunLock, RunLocked, stale_message
 from pinarray.journal.manifest import (
     PlanEntry,
@@ -47,6 +54,7 @@ from pinarray.journal.records import (
     finished_twice,
     read_trials,
     split_torn_tail,
+    todays_names,
     trial_row,
     tsv_line,
 )
@@ -77,6 +85,28 @@ def repair_tail(path: Path, columns: int) -> str:
             handle.flush()
             os.fsync(handle.fileno())
     return torn.decode("utf-8", errors="replace")
+
+
+def _rename_columns(path: Path) -> None:
+    """Give a ``beh.tsv`` from an earlier pinarray today's column names; its rows stay as they are."""
+    rows = path.read_text(encoding="utf-8").split("\n", 1)[1]
+    write_atomically(path, tsv_line(BEH_NAMES) + rows)
+
+
+def _rebuild_events(path: Path, records: Sequence[TrialRecord]) -> None:
+    """Make ``events.tsv`` hold one row per trial row on file, rewriting it if it does not.
+
+    Its rows are a function of beh.tsv's, which is fsync'd first: a crash between the two
+    leaves events one row short (or a torn row), and a row deleted by hand from beh.tsv (a
+    trial logged ok twice) leaves one too many. Either way it is rebuilt from the trial rows.
+    """
+    text = tsv_line(EVENT_NAMES) + "".join(tsv_line(event_row(r)) for r in records)
+    try:
+        same = path.read_text(encoding="utf-8") == text
+    except (FileNotFoundError, UnicodeDecodeError):
+        same = False
+    if not same:
+        write_atomically(path, text)
 
 
 class _AppendOnlyTsv:
@@ -143,7 +173,9 @@ class RunWriter:
         self.records = records
         self.resumed = resumed
         self.repaired = repaired
-        self.stale_lock = stale_message(lock.stale, paths.label) if lock.stale else ""
+        # A new run may take a number whose lock a killed process left before writing anything:
+        # nothing of that run is resumed, so there is nothing to report.
+        self.stale_lock = stale_message(lock.stale, paths.label) if lock.stale and resumed else ""
         self._lock = lock
         self._wall = wall
         self._finished = set(finished_trials(records))
@@ -232,7 +264,7 @@ class RunWriter:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
         header = beh_header(paths.beh_tsv)
-        if header and tuple(header) != BEH_NAMES:
+        if header and todays_names(header) != BEH_NAMES:
             raise ResultsError(
                 f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
                 f"{', '.join(header)}; finish it with that version, or start a new run"
@@ -246,7 +278,9 @@ class RunWriter:
                 "not count, then resume"
             )
         repaired = repair_tail(paths.beh_tsv, len(BEH_NAMES))
-        repair_tail(paths.events_tsv, len(EVENT_NAMES))
+        if header and tuple(header) != BEH_NAMES:
+            _rename_columns(paths.beh_tsv)
+        _rebuild_events(paths.events_tsv, records)
         ensure_dataset(paths.root, paths.subject)
         now = wall()
         zero_at = (datetime.fromisoformat(manifest.time_zero.at)
@@ -261,17 +295,7 @@ class RunWriter:
         if source != paths.manifest:
             source.unlink()  # an older run's manifest, now moved to sourcedata/
         write_sidecars(paths, manifest)
-        writer = cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall)
-        writer._rebuild_missing_events()
-        return writer
-
-    def _rebuild_missing_events(self) -> None:
-        # beh.tsv is fsync'd before events.tsv, so a crash between the two leaves events one
-        # row short; its rows are a function of the trial rows, so the gap is rebuilt.
-        with open(self.paths.events_tsv, encoding="utf-8") as handle:
-            have = max(0, sum(1 for _ in handle) - 1)
-        for record in self.records[have:]:
-            self._events.append(event_row(record))
+        return cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall)
 
     # -- the run's time base -----------------------------------------------------------------
 
@@ -305,6 +329,7 @@ class RunWriter:
         self.manifest = updated(self.manifest, sittings=sittings,
                                 time_zero=TimeZero(event, iso(at, "microseconds")))
         write_manifest(self.paths.manifest, self.manifest)
+        write_sidecars(self.paths, self.manifest)  # they say what the zero is, and when
 
     # -- rows --------------------------------------------------------------------------------
 
