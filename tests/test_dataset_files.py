@@ -45,7 +45,8 @@ def test_a_lab_edits_root_files_and_pinarray_keeps_them(tmp_path, monkeypatch):
     edited = json.loads(path.read_text()) | {"Name": "Fingertip localisation", "Authors": ["A. B."],
                                               "License": "CC0"}
     path.write_text(json.dumps(edited))
-    (tmp_path / "participants.tsv").write_text("participant_id\tage\nsub-01\t34\n")
+    # saved from a spreadsheet: a byte-order mark first
+    (tmp_path / "participants.tsv").write_text("\ufeffparticipant_id\tage\nsub-01\t34\n")
     (tmp_path / "README.md").write_text("Our study.\n")
     monkeypatch.setattr(dataset, "__version__", "9.9.9")  # a newer pinarray writes next
     start_run(tmp_path, "02", "localisation", localisation_plan((4, 10))).close()

@@ -150,7 +150,8 @@ def _participants(tsv: Path, subject: str) -> None:
     participant = f"sub-{subject}"
     rows: list[list[str]] = []
     if tsv.exists():
-        rows = list(csv.reader(io.StringIO(tsv.read_text(encoding="utf-8")), delimiter="\t"))
+        # utf-8-sig: a spreadsheet may have saved it with a byte-order mark; it is written without.
+        rows = list(csv.reader(io.StringIO(tsv.read_text(encoding="utf-8-sig")), delimiter="\t"))
     if not rows:
         rows = [[PARTICIPANT_ID]]
     if rows[0][:1] != [PARTICIPANT_ID]:

@@ -19,7 +19,7 @@ Pure functions and values; the caller reads the clocks.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 from decimal import Decimal, InvalidOperation
 from enum import StrEnum
 
@@ -143,8 +143,6 @@ def wall_ns(at: datetime) -> int:
 
 def zero_wall_time(now: datetime, zero_ago_ns: int, clock: TimeScale) -> datetime:
     """The wall-clock time of a zero ``zero_ago_ns`` ago on ``clock`` (now if clock is simulated)."""
-    from datetime import timedelta
-
     if clock.kind.follows_wall_clock and clock.factor:
         return now - timedelta(microseconds=zero_ago_ns / clock.factor / 1000)
     return now
