@@ -11,10 +11,10 @@ from datetime import datetime, timedelta, timezone
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pinarray.clock import VirtualClock
+from pinarray.clock import MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.records import LocalisationRecord, read_trials
-from pinarray.journal.runs import open_run
+from pinarray.journal.runs import open_run, time_scale_of
 from pinarray.journal.timebase import (
     REAL_TIME,
     ClockKind,
@@ -126,7 +126,7 @@ def test_each_sitting_is_in_the_manifest_and_described_in_the_sidecars(tmp_path)
             "2024-05-01T14:03:07+02:00", "real", 1.0, -0.02)
         assert (second["StartedAt"], second["Clock"], second["TimeScale"],
                 second["RunTimeAtStart"]) == ("2024-05-01T14:08:07+02:00", "paced", 20.0, 10.0)
-        assert "20 times faster" in second["Description"] and "at 10 s" in second["Description"]
+        assert "paced at 20x real time" in second["Description"] and "at 10 s" in second["Description"]
         assert time_base["Simulated"] is True  # a paced sitting is a rehearsal, not data
 
 
@@ -152,7 +152,7 @@ def test_a_sped_up_rehearsal_is_marked_as_such_in_the_manifest_and_the_sidecar(t
     time_base = json.loads(sidecar.read_text())["TimeBase"]
     assert time_base["Simulated"] is True
     assert time_base["Sittings"][0]["TimeScale"] == 50.0
-    assert "rehearsal paced 50 times faster than real time" in time_base["Sittings"][0]["Description"]
+    assert "rehearsal paced at 50x real time" in time_base["Sittings"][0]["Description"]
 
 
 def test_a_zero_given_to_the_session_is_what_the_sidecars_say(tmp_path):
@@ -165,6 +165,14 @@ def test_a_zero_given_to_the_session_is_what_the_sidecars_say(tmp_path):
     assert beh["TimeBase"]["Zero"] == events["TimeBase"]["Zero"] == "the first counted scanner volume"
     assert beh["stimulus_onset"]["Description"].endswith("Zero: the first counted scanner volume.")
     assert events["onset"]["Description"].endswith("Zero: the first counted scanner volume.")
+
+
+def test_each_kind_of_session_clock_is_recorded_as_what_it_measures():
+    assert time_scale_of(MonotonicClock()) == REAL_TIME  # real servos
+    assert time_scale_of(ScaledClock(1.0)) == REAL_TIME  # the UI's simulated array, 1x
+    assert time_scale_of(ScaledClock(10.0)) == TimeScale(ClockKind.SCALED, 10.0)
+    assert time_scale_of(PacedClock(50.0)) == TimeScale(ClockKind.PACED, 50.0)  # batch --time-scale
+    assert time_scale_of(VirtualClock()) == VIRTUAL  # batch without --time-scale, the tests
 
 
 nanoseconds = st.integers(0, 10**15)

@@ -64,8 +64,10 @@ def time_scale_of(clock: Clock) -> TimeScale:
             return TimeScale(ClockKind.VIRTUAL, None)
         case PacedClock():
             return TimeScale(ClockKind.PACED, clock.pace)
-        case ScaledClock():
+        case ScaledClock() if clock.scale != 1:
             return TimeScale(ClockKind.SCALED, clock.scale)
+        case ScaledClock():
+            return REAL_TIME  # scaled by 1: the wall clock's own time
         case MonotonicClock():
             return REAL_TIME
     return REAL_TIME

@@ -62,10 +62,10 @@ class TimeScale:
             case ClockKind.REAL:
                 return "real time"
             case ClockKind.SCALED:
-                return f"simulated: real time sped up {self.factor:g} times"
+                return f"simulated: wall-clock time at {self.factor:g}x real time"
             case ClockKind.PACED:
-                return (f"simulated: a scripted rehearsal paced {self.factor:g} times faster than "
-                        "real time (the computer's own delays not counted)")
+                return (f"simulated: a scripted rehearsal paced at {self.factor:g}x real time (the "
+                        "computer's own delays not counted)")
             case ClockKind.VIRTUAL:
                 return "simulated: virtual time, no relation to the wall clock"
         return "clock not recorded"
