@@ -12,6 +12,7 @@ second process is refused with a one-line `RunLocked` naming the first.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -70,6 +71,14 @@ from pinarray.journal.timebase import (
 from pinarray.stop import deferred_signals
 
 Wall = Callable[[], datetime]
+
+
+def unwritable(problem: OSError, where: Path, *, mid_run: bool = False) -> ResultsError:
+    """A file that could not be written, in one line: which, and what the system said."""
+    after = ("; every row written before is on disk, and the run resumes once the results "
+             "can be written" if mid_run else "")
+    return ResultsError(f"{problem.filename or where}: cannot write results there: "
+                        f"{problem.strerror or problem}{after}")
 
 
 def repair_tail(path: Path, columns: int) -> str:
@@ -231,8 +240,7 @@ class RunWriter:
         except OSError as problem:
             if lock is not None:
                 lock.release()
-            where = problem.filename or root
-            raise ResultsError(f"{where}: cannot write results there: {problem.strerror}") from None
+            raise unwritable(problem, root) from None
         except BaseException:
             if lock is not None:
                 lock.release()
@@ -246,9 +254,15 @@ class RunWriter:
         Refused (`RunLocked`) while another process writes it; refused (`ResultsError`) when
         its rows finish a trial twice, which only a second writer or a hand edit leaves.
         """
-        lock = RunLock.acquire(paths.lock, paths.label, _command())
+        try:
+            lock = RunLock.acquire(paths.lock, paths.label, _command())
+        except OSError as problem:
+            raise unwritable(problem, paths.lock) from None
         try:
             return cls._resume_locked(paths, lock, clock, wall)
+        except OSError as problem:
+            lock.release()
+            raise unwritable(problem, paths.root) from None
         except BaseException:
             lock.release()
             raise
@@ -328,8 +342,11 @@ class RunWriter:
         sittings = (*self.manifest.sittings[:-1], replace(self.sitting, start_ns=sitting_start_ns))
         self.manifest = updated(self.manifest, sittings=sittings,
                                 time_zero=TimeZero(event, iso(at, "microseconds")))
-        write_manifest(self.paths.manifest, self.manifest)
-        write_sidecars(self.paths, self.manifest)  # they say what the zero is, and when
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+            write_sidecars(self.paths, self.manifest)  # they say what the zero is, and when
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
 
     # -- rows --------------------------------------------------------------------------------
 
@@ -354,25 +371,37 @@ class RunWriter:
                                "a trial counts once")
         if self.resumed and not record.resumed:
             record = replace(record, resumed=True)
-        with deferred_signals():  # a Ctrl-C must not fall between the two files
-            self._beh.append(trial_row(record))
-            self._events.append(event_row(record))
-            self.records.append(record)
-            if record.status is TrialStatus.OK:
-                self._finished.add(record.key)
+        try:
+            with deferred_signals():  # a Ctrl-C must not fall between the two files
+                self._beh.append(trial_row(record))
+                self._events.append(event_row(record))
+        except OSError as problem:
+            raise unwritable(problem, self.paths.beh_tsv, mid_run=True) from None
+        self.records.append(record)
+        if record.status is TrialStatus.OK:
+            self._finished.add(record.key)
         return record
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
         """Set the manifest's final status (completed / aborted / crashed), close, unlock."""
         self.manifest = updated(self.manifest, status=RunStatus(status), abort_reason=reason)
-        write_manifest(self.paths.manifest, self.manifest)
-        self.close()
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
+        finally:
+            self.close()
 
     def close(self) -> None:
-        """Close the files and give up the run's lock."""
-        self._beh.close()
-        self._events.close()
-        self._lock.release()
+        """Close the files and give up the run's lock (whatever closing the files says)."""
+        try:
+            for tsv in (self._beh, self._events):
+                # Every row was fsync'd as it was written; closing can only fail on one whose
+                # write already failed and was reported.
+                with contextlib.suppress(OSError):
+                    tsv.close()
+        finally:
+            self._lock.release()
 
     def __enter__(self) -> RunWriter:
         return self
@@ -381,7 +410,12 @@ class RunWriter:
         if kind is None or self.manifest.status is not RunStatus.RUNNING:
             # Nothing went wrong, or the caller already recorded how the run ended.
             self.close()
-        elif issubclass(kind, KeyboardInterrupt):
-            self.finish(RunStatus.ABORTED, "interrupted (Ctrl-C)")
         else:
-            self.finish(RunStatus.CRASHED, f"{kind.__name__}: {error}")
+            status, reason = ((RunStatus.ABORTED, "interrupted (Ctrl-C)")
+                              if issubclass(kind, KeyboardInterrupt)
+                              else (RunStatus.CRASHED, f"{kind.__name__}: {error}"))
+            # If the manifest cannot be written either (the disk that failed the block), it
+            # keeps saying running, which resume treats as unfinished: the block's own error
+            # is the one to report.
+            with contextlib.suppress(ResultsError):
+                self.finish(status, reason)
