@@ -227,7 +227,8 @@ def _sitting(sitting: Sitting) -> dict[str, Any]:
     if sitting.start_ns is None:  # no trial ran yet, or an earlier pinarray wrote the run
         start, joins = None, "at a time not recorded"
     else:
-        start, joins = float(seconds_text(sitting.start_ns)), f"at {seconds_text(sitting.start_ns)} s"
+        text = seconds_text(sitting.start_ns)
+        start, joins = float(text), f"at {text} s"
     return {"Sitting": sitting.number, "StartedAt": sitting.started_at,
             "Clock": sitting.clock.kind.value, "TimeScale": sitting.clock.factor,
             "RunTimeAtStart": start,

@@ -196,7 +196,8 @@ def stale_message(stale: LockHolder, what: str) -> str:
         gone = f"pid {stale.pid} is now another program; the writer ended without releasing it"
     else:
         gone = "that process is no longer running (killed or crashed)"
-    return f"took over the lock of {what} left by {stale.describe()}: {gone}; its run is resumed here"
+    return (f"took over the lock of {what} left by {stale.describe()}: {gone}; its run is "
+            "resumed here")
 
 
 @contextmanager

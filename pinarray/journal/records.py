@@ -471,7 +471,8 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
         delivery = DeliveryCounts(*goals)
     common: dict[str, Any] = {
         "trial": _required(values, "trial", where), "block": _required(values, "block", where),
-        "task": _required(values, "task", where), "onset_ns": _required(values, "stimulus_onset", where),
+        "task": _required(values, "task", where),
+        "onset_ns": _required(values, "stimulus_onset", where),
         "duration_ns": _required(values, "stimulus_duration", where),
         "status": _required(values, "status", where),
         "response_time_ns": values.get("response_time"),

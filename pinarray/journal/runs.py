@@ -36,8 +36,8 @@ from pinarray.protocol import Protocol
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
     """The journal's record of one planned trial."""
     c = planned.condition
-    common: dict[str, Any] = {"trial": planned.trial, "block": planned.block, "practice": planned.practice,
-              "stimulus": c.stimulus}
+    common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
+                              "practice": planned.practice, "stimulus": c.stimulus}
     if c.pin is not None and c.frequency_hz is not None:
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
     assert c.direction is not None and c.row is not None, "a condition is a pin or a wave"

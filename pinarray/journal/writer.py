@@ -97,7 +97,7 @@ def repair_tail(path: Path, columns: int) -> str:
 
 
 def _rename_columns(path: Path) -> None:
-    """Give a ``beh.tsv`` from an earlier pinarray today's column names; its rows stay as they are."""
+    """Give an earlier pinarray's ``beh.tsv`` today's column names; its rows stay as they are."""
     rows = path.read_text(encoding="utf-8").split("\n", 1)[1]
     write_atomically(path, tsv_line(BEH_NAMES) + rows)
 
@@ -375,11 +375,11 @@ class RunWriter:
             with deferred_signals():  # a Ctrl-C must not fall between the two files
                 self._beh.append(trial_row(record))
                 self._events.append(event_row(record))
+                self.records.append(record)
+                if record.status is TrialStatus.OK:
+                    self._finished.add(record.key)
         except OSError as problem:
             raise unwritable(problem, self.paths.beh_tsv, mid_run=True) from None
-        self.records.append(record)
-        if record.status is TrialStatus.OK:
-            self._finished.add(record.key)
         return record
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
