@@ -32,6 +32,9 @@ reports no spread between its subjects; the default ``subject_sd_logit`` of 0.5 
 assumption that puts the middle 95 % of subjects between about 41 % and 82 % correct at
 10 Hz on the localisation protocol's 8 pins (`ObserverModel.subject_range`). Set it to 0 for
 identical subjects.
+
+Past 400 lines on purpose: the model of one simulated subject and the arithmetic that
+calibrates a population of them on the seed's figures belong together; apart, neither reads.
 """
 
 from __future__ import annotations

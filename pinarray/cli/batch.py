@@ -246,12 +246,16 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                             run.retry()
                             continue
                         attempts = 0
+                        assert run.current is not None  # READY -> RESPONSE keeps the trial
                         condition = run.current.condition
+                        answer: str | int | None  # None: nothing felt
                         if responses is not None:
                             answer = responses[run.current.trial]
-                        elif condition.pin is not None:
+                        elif condition.pin is not None and condition.frequency_hz is not None:
+                            assert observer is not None
                             answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
                         else:
+                            assert observer is not None and condition.direction is not None
                             answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
                         run.respond(answer, response_time_ns=None)  # scripted: no real response time
                         progress.update(run.done_count)

@@ -102,9 +102,9 @@ def entry_from_json(data: object, where: str) -> PlanEntry:
     trial = data.get("trial")
     if isinstance(trial, bool) or not isinstance(trial, int):
         raise ResultsError(f"{where}: a trial plan entry needs an integer 'trial', found {data!r}")
-    common = {"trial": trial, "block": int(data.get("block", 1)),
-              "practice": bool(data.get("practice", False)),
-              "stimulus": str(data.get("stimulus") or "")}
+    common: dict[str, Any] = {"trial": trial, "block": int(data.get("block", 1)),
+                              "practice": bool(data.get("practice", False)),
+                              "stimulus": str(data.get("stimulus") or "")}
     try:
         if data.get("pin") is not None:
             return LocalisationEntry(**common, pin=int(data["pin"]),

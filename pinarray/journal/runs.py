@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.errors import PinArrayError
@@ -36,8 +37,8 @@ from pinarray.protocol import Protocol
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
     """The journal's record of one planned trial."""
     c = planned.condition
-    common = {"trial": planned.trial, "block": planned.block, "practice": planned.practice,
-              "stimulus": c.stimulus}
+    common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
+                              "practice": planned.practice, "stimulus": c.stimulus}
     if c.pin is not None and c.frequency_hz is not None:
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
     assert c.direction is not None and c.row is not None, "a condition is a pin or a wave"
@@ -64,8 +65,10 @@ def time_scale_of(clock: Clock) -> TimeScale:
             return TimeScale(ClockKind.VIRTUAL, None)
         case PacedClock():
             return TimeScale(ClockKind.PACED, clock.pace)
-        case ScaledClock():
+        case ScaledClock() if clock.scale != 1:
             return TimeScale(ClockKind.SCALED, clock.scale)
+        case ScaledClock():
+            return REAL_TIME  # scaled by 1: the wall clock's own time
         case MonotonicClock():
             return REAL_TIME
     return REAL_TIME
@@ -84,7 +87,7 @@ class Unfinished:
         """One line for the start screen."""
         m = self.manifest
         if self.holder is not None:
-            return (f"Run {self.paths.run} is open in another process ({self.holder.describe()}); "
+            return (f"Run {self.paths.run} is open in another process, {self.holder.describe()}; "
                     "it can be resumed once that one ends.")
         why = f" ({m.abort_reason})" if m.abort_reason else ""
         return (f"Unfinished run {self.paths.run}: {m.status}{why}, {self.done} of "

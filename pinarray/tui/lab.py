@@ -161,6 +161,23 @@ class Lab:
         rig = self.connected()
         return self._busy(lambda: rig.check_timing(duration_ns))
 
+    def lower_return_delay(self, delay_us: int = 0):
+        """Every servo's return delay to ``delay_us``, until power-off (blocking: from a worker).
+
+        Returns ``(changes, failures)`` as `pinarray.bus.bringup.set_return_delay` does, or
+        None if stopped. A rig with a player process is connected again: the player plans
+        its read-backs with the delays the handshake reads, and the servos keep the new ones.
+        """
+        from pinarray.bus.bringup import set_return_delay
+
+        rig, request = self.connected(), self.request
+        assert request is not None
+        result = self._busy(
+            lambda: set_return_delay(rig.bus, rig.setup.servo_ids, delay_us, save=False))
+        if result is not None and rig.isolated:
+            self.connect(request)
+        return result
+
     def release(self, reason: str = "left the pre-flight"):
         """Stop what the hardware is doing, then pins to rest, torque off, port closed.
 
