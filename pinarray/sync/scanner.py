@@ -150,8 +150,9 @@ class Scanner:
         else:
             text += f", none in the last {sync.wait_timeout_ns / NS_PER_S:g} s"
         if isinstance(self.source, SerialVolumes) and self.source.other_bytes:
-            text += (f"; {self.source.other_bytes} other byte(s) came instead, e.g. "
-                     f"{self.source.other_example!r}: is the trigger character right?")
+            example = self.source.other_example.decode("ascii", "backslashreplace")
+            return (f"{text}; {self.source.other_bytes} other byte(s) came instead "
+                    f"({example!r}): is the trigger character right? No run was started.")
         return text + ". Is the scanner running? No run was started."
 
     @property
