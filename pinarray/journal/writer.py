@@ -372,8 +372,8 @@ class RunWriter:
     # -- scanner volumes ---------------------------------------------------------------------
 
     def log_volumes(self, pending: Callable[[], Sequence[VolumeRow]]) -> None:
-        """Keep the run's volume log (`pinarray.journal.volumes`): after each trial row, and
-        when the run closes, the rows ``pending()`` returns are appended and fsync'd.
+        """Keep the run's volume log (`pinarray.journal.volumes`): now, after each trial row,
+        and when the run closes, the rows ``pending()`` returns are appended and fsync'd.
 
         The run's manifest must name the log (``scanner``, given to `start`).
         """
@@ -386,6 +386,7 @@ class RunWriter:
                          json.dumps(volume_sidecar(record), indent=2, ensure_ascii=False) + "\n")
         self._volumes = _AppendOnlyTsv(path, VOLUME_NAMES)
         self._pending_volumes = pending
+        self._flush_volumes()  # the dummies and time zero are on disk before the first trial
 
     def _flush_volumes(self) -> None:
         if self._volumes is not None:
