@@ -24,11 +24,12 @@ from tests.tui.conftest import LOCALISATION, PROTOCOLS, SIZE, fill_start, settle
 NS = 1_000_000_000
 
 
-def scanner_app(results: Path, trigger: str, dummy_volumes: int, *, real_time: bool):
+def scanner_app(results: Path, trigger: str, dummy_volumes: int, *, real_time: bool,
+                lsl: str | None = None):
     options = TuiOptions(protocol_path=LOCALISATION, protocols_dir=PROTOCOLS,
                          results_root=results, time_scale=1 if real_time else 0, seed=3,
                          timing_check_ns=0,
-                         sync=SyncOverrides(parse_trigger(trigger), dummy_volumes))
+                         sync=SyncOverrides(parse_trigger(trigger), dummy_volumes), lsl=lsl)
     clock = (lambda port: choose_clock(None, 1.0)) if real_time else (lambda port: VirtualClock())
     return PinArrayApp(options, clock_factory=clock, rig_factory=Rig, list_ports=lambda: [])
 
@@ -137,11 +138,7 @@ async def test_the_ui_sends_an_lsl_marker_at_each_end_of_a_presented_stimulus(tm
     from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name
 
     results, name = tmp_path / "results", unique_stream_name()
-    options = TuiOptions(protocol_path=LOCALISATION, protocols_dir=PROTOCOLS,
-                         results_root=results, time_scale=1, seed=3, timing_check_ns=0,
-                         sync=SyncOverrides(parse_trigger("key")), lsl=name)
-    app = PinArrayApp(options, clock_factory=lambda port: choose_clock(None, 1.0),
-                      rig_factory=Rig, list_ports=lambda: [])
+    app = scanner_app(results, "key", 0, real_time=True, lsl=name)
     inlet = MarkerInlet(name, count=2)
     async with app.run_test(size=SIZE) as pilot:
         await begin_run(pilot)
