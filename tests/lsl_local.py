@@ -24,7 +24,10 @@ GlobalAddresses = {}
 [lab]
 KnownPeers = {}
 [log]
-level = -2
+level = -3
+
+The log keeps only fatal messages: every inlet reports its outlet closing at the end of a run
+("Stream transmission broke off") as an error, which is the end of a run here, not a fault.
 """
 
 
