@@ -16,7 +16,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, replace
 from fractions import Fraction
-from typing import TypeAlias
+from typing import TypeAlias, TypeVar
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.model import NS_PER_S
@@ -32,6 +32,7 @@ DEFAULT_WAIT_TIMEOUT_NS = 300 * NS_PER_S
 MAX_WAIT_TIMEOUT_NS = 3600 * NS_PER_S
 SYNC_KEYS = {"trigger", "dummy_volumes", "repetition_time_s", "lock_to_volumes", "baud_rate",
              "wait_timeout_s"}
+_T = TypeVar("_T")
 _DECIMAL = re.compile(r"\d{1,9}(\.\d{1,9})?")
 
 
@@ -255,4 +256,13 @@ class SyncOverrides:
             # An emulated trigger brings its own TR; the protocol's is the real scanner's.
             tr_ns = None if isinstance(trigger, EmulatedTrigger) else base.repetition_time_ns
             base = replace(base, trigger=trigger, repetition_time_ns=tr_ns)
-        return _check(replace(base, **changes))
+        return _check(replace(
+            base, dummy_volumes=_given(self.dummy_volumes, base.dummy_volumes),
+            repetition_time_ns=_given(self.repetition_time_ns, base.repetition_time_ns),
+            lock_to_volumes=_given(self.lock_to_volumes, base.lock_to_volumes),
+            wait_timeout_ns=_given(self.wait_timeout_ns, base.wait_timeout_ns)))
+
+
+def _given(chosen: int | None, protocol_value: _T) -> int | _T:
+    """The command line's value where it gives one, else the protocol's."""
+    return protocol_value if chosen is None else chosen

@@ -109,7 +109,7 @@ class SerialVolumes:
 
 def _reason(problem: BaseException) -> str:
     number = problem.args[0] if problem.args and isinstance(problem.args[0], int) else None
-    if number in errno.errorcode:
+    if number is not None and number in errno.errorcode:
         return os.strerror(number)
     return " ".join(str(problem).split()) or type(problem).__name__
 
