@@ -52,9 +52,13 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
     choose_clock(args.port, args.time_scale)  # refuses --time-scale with real servos, up front
-    from pinarray.protocol.sync import EmulatedTrigger
+    from pinarray.protocol.sync import EmulatedTrigger, SyncOverrides
 
     sync = common.sync_overrides(args)  # put over the chosen protocol's sync: at Begin run
+    if args.file and sync != SyncOverrides():  # checked now when the protocol is known
+        from pinarray.protocol.load import load_protocol
+
+        sync.over(load_protocol(args.file).sync)
     wall = [name for name, given in (("--lsl", args.lsl is not None),
                                      ("--trigger", sync.trigger is not None
                                       and not isinstance(sync.trigger, EmulatedTrigger)))

@@ -265,3 +265,18 @@ def test_a_signal_while_waiting_for_the_scanner_leaves_pins_at_rest_torque_off(
               for i in range(1, 17)]
     port.closePort()
     assert torque == [(0, COMM_SUCCESS)] * 16
+
+
+@pytest.mark.parametrize(("options", "said"), [
+    (["--dummy-volumes", "2"], "pinarray: --dummy-volumes: a scanner trigger is needed too"),
+    (["--lsl", "--time-scale", "20"], "pinarray: --lsl: stamped on this machine's clock"),
+    (["--trigger", "key", "--time-scale", "20"], "pinarray: --trigger: stamped on this machine"),
+    (["--trigger", "usb:/dev/x"], "expected a trigger serial:PATH[:CHAR], key[:CHAR] or emulate"),
+])
+def test_the_ui_refuses_scanner_options_that_cannot_work_before_it_opens(options, said):
+    done = subprocess.run([sys.executable, "-m", "pinarray", "tui", str(DEMO), *options],
+                          capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL,
+                          cwd=REPO)
+    assert done.returncode == 2 and done.stdout == ""
+    # One line (an option argparse rejects comes after its usage lines, as for every option).
+    assert said in done.stderr.strip().splitlines()[-1], done.stderr
