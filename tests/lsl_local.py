@@ -26,8 +26,9 @@ KnownPeers = {}
 [log]
 level = -3
 
-The log keeps only fatal messages: every inlet reports its outlet closing at the end of a run
-("Stream transmission broke off") as an error, which is the end of a run here, not a fault.
+liblsl's log keeps fatal messages only; an inlet still open when its outlet closes (the end
+of a batch run) logs "Stream transmission broke off" on stderr all the same: that is the end
+of a run here, not a fault.
 """
 
 

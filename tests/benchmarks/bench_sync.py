@@ -37,7 +37,7 @@ from tests.lsl_local import keep_lsl_on_this_machine
 
 NS = 1_000_000_000
 SECONDS = float(os.environ.get("PINARRAY_BENCH_SECONDS", "20"))
-ROUND_SECONDS = 6.0  # one batch round: start-up, handshake, wait, four trials
+ROUND_SECONDS = 4.0  # one batch round (about 5 s: start-up, handshake, wait, four trials)
 TR_S = 0.2
 REPO = Path(__file__).resolve().parents[2]
 
@@ -181,7 +181,7 @@ def run() -> None:
     keep_lsl_on_this_machine()  # before the first pylsl call, for this process and batch's
     import pylsl
 
-    rounds = max(3, round(SECONDS / ROUND_SECONDS))
+    rounds = max(5, round(SECONDS / ROUND_SECONDS))
     figures: dict[str, list[list[float]]] = {}
     bare_reader: list[list[float]] = []
     bare_lsl: list[list[float]] = []
