@@ -280,3 +280,26 @@ def test_the_ui_refuses_scanner_options_that_cannot_work_before_it_opens(options
     assert done.returncode == 2 and done.stdout == ""
     # One line (an option argparse rejects comes after its usage lines, as for every option).
     assert said in done.stderr.strip().splitlines()[-1], done.stderr
+
+
+def test_locked_trials_go_on_when_the_trigger_stream_stops(tmp_path, short_protocol):
+    """Onsets locked to every 4th volume; the converter goes quiet after volume 3 of the run:
+    the later trials start where the TR puts their volumes, on the session's own clock."""
+    root = tmp_path / "results"
+    with fake_scanner(tr_s=0.25, delay_s=0.3, stop_after=4) as scanner:
+        status, out, err = batch_with_scanner(
+            root, scanner, "--time-scale", "1", "--trigger", f"serial:{scanner.path}",
+            "--dummy-volumes", "1", "--tr", "0.25", "--lock-to-volumes", "4",
+            protocol=short_protocol)
+    assert status == 0, err
+    paths = RunPaths(root, "S", "1", "short", 1)
+    volumes = {int(v["volume"]): v for v in tsv(volume_log_path(paths))}
+    onsets = [float(e["onset"]) for e in tsv(paths.events_tsv)]
+    assert len(onsets) == 3 and onsets == sorted(onsets)
+    # Counted volume 4k is volume 4k + 2 (one dummy); trial 1 starts at time zero (volume 2).
+    locked = [volumes[4 * k + 2] for k in range(1, 10) if 4 * k + 2 in volumes]
+    assert {v["status"] for v in locked} == {"missed"}  # nothing came for them
+    slots = [float(v["onset"]) for v in locked]
+    # Trial 1's stimulus and interval end at 0.8 s: trial 2 takes the slot at 1 s (volume 6),
+    # trial 3 (ready at 1.8 s) the one at 2 s (volume 10), neither earlier than its volume.
+    assert slots[0] <= onsets[1] < slots[1] <= onsets[2]
