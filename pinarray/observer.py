@@ -49,6 +49,7 @@ import numpy as np
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
+from pinarray.protocol.model import LocalisationCondition
 
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
@@ -172,7 +173,7 @@ class ObserverModel:
 
     def for_protocol(self, protocol: Protocol) -> ObserverModel:
         """This model on the protocol's grid, calibrated on the pins its design stimulates."""
-        pins = {c.pin for c in protocol.design.conditions if c.pin is not None}
+        pins = {c.pin for c in protocol.design.conditions if isinstance(c, LocalisationCondition)}
         return replace(self, grid=protocol.device.grid).calibrated_on(pins)
 
     # -- subjects ---------------------------------------------------------------------------

@@ -21,6 +21,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import Any
 from typing import Protocol as Interface
 
 from pinarray.delivery import DeliveryRecord, Presentation
@@ -39,7 +40,7 @@ from pinarray.journal.records import (
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import Paradigm, Protocol
+from pinarray.protocol import LocalisationCondition, Paradigm, Protocol
 from pinarray.schedule import TrialSchedule, compile_trial
 
 DIRECTION_LABEL = DIRECTION_OF_WAVE  # a wave's kind as the subject names its direction
@@ -326,7 +327,7 @@ class Session:
             self._fix_zero(self._onset_ns, FIRST_TRIAL_ONSET)
         assert self._zero_ns is not None
         delivery = self._delivery
-        common = {
+        common: dict[str, Any] = {  # the fields both kinds of record share
             "trial": planned.trial, "block": planned.block, "task": self.task, "status": status,
             "onset_ns": self._onset_ns - self._zero_ns,
             "duration_ns": self._duration_ns if duration_ns is None else duration_ns,
@@ -338,15 +339,13 @@ class Session:
         }
         condition = planned.condition
         record: TrialRecord
-        if condition.pin is not None:
-            assert condition.frequency_hz is not None
+        if isinstance(condition, LocalisationCondition):
             named = None if response in (None, NOTHING_FELT) else int(str(response))
             record = LocalisationRecord(
                 **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
                 response=response,
                 error_class=None if named is None else self.grid.classify(condition.pin, named))
         else:
-            assert condition.direction is not None and condition.row is not None
             record = MotionRecord(**common, row=condition.row,
                                   direction=DIRECTION_LABEL[condition.direction],
                                   response=None if response is None else MotionAnswer(response))

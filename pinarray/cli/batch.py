@@ -189,6 +189,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
                 + (" ..." if len(missing) > 10 else "")
             )
+    from pinarray.protocol import LocalisationCondition
     from pinarray.protocol.sync import EmulatedTrigger
 
     # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
@@ -251,11 +252,11 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                         answer: str | int | None  # None: nothing felt
                         if responses is not None:
                             answer = responses[run.current.trial]
-                        elif condition.pin is not None and condition.frequency_hz is not None:
+                        elif isinstance(condition, LocalisationCondition):
                             assert observer is not None
                             answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
                         else:
-                            assert observer is not None and condition.direction is not None
+                            assert observer is not None
                             answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
                         run.respond(answer, response_time_ns=None)  # scripted: no real response time
                         progress.update(run.done_count)

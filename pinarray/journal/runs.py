@@ -31,7 +31,7 @@ from pinarray.journal.timebase import REAL_TIME, ClockKind, TimeScale
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
-from pinarray.protocol import Protocol
+from pinarray.protocol import LocalisationCondition, Protocol
 
 
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
@@ -39,9 +39,8 @@ def plan_entry(planned: PlannedTrial) -> PlanEntry:
     c = planned.condition
     common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
                               "practice": planned.practice, "stimulus": c.stimulus}
-    if c.pin is not None and c.frequency_hz is not None:
+    if isinstance(c, LocalisationCondition):
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
-    assert c.direction is not None and c.row is not None, "a condition is a pin or a wave"
     return MotionEntry(**common, row=c.row, wave=c.direction)
 
 

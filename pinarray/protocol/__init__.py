@@ -12,6 +12,8 @@ from pinarray.protocol.model import (
     Constraints,
     Design,
     Device,
+    LocalisationCondition,
+    MotionCondition,
     Ordering,
     Paradigm,
     PinCalibration,
@@ -20,12 +22,15 @@ from pinarray.protocol.model import (
     ServoSettings,
     Stimulus,
     Train,
+    TrainStimulus,
     Wave,
     WaveKind,
+    WaveStimulus,
 )
 
 __all__ = [
-    "BAUD_RATES", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Ordering",
-    "Paradigm", "PinCalibration", "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train",
-    "Wave", "WaveKind",
+    "BAUD_RATES", "NS_PER_S", "Condition", "Constraints", "Design", "Device",
+    "LocalisationCondition", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
+    "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainStimulus", "Wave",
+    "WaveKind", "WaveStimulus",
 ]

@@ -175,12 +175,22 @@ class Wave:
 
 
 @dataclass(frozen=True)
-class Stimulus:
-    """A named stimulus: a train (pin chosen by the design) or a wave."""
+class TrainStimulus:
+    """A named pulse train; the design chooses the pin (and may change the frequency)."""
 
     name: str
-    train: Train | None = None
-    wave: Wave | None = None
+    train: Train
+
+
+@dataclass(frozen=True)
+class WaveStimulus:
+    """A named travelling wave (or no-wave control): its pins are its own."""
+
+    name: str
+    wave: Wave
+
+
+Stimulus = TrainStimulus | WaveStimulus
 
 
 class Paradigm(StrEnum):
@@ -196,18 +206,41 @@ class Ordering(StrEnum):
 
 
 @dataclass(frozen=True)
-class Condition:
-    """What one trial presents: a train on a pin (localisation) or a wave (apparent motion)."""
+class LocalisationCondition:
+    """What one localisation trial presents: the stimulus's train on one pin, at one frequency."""
 
     stimulus: str
-    pin: int | None = None
-    frequency_hz: Fraction | None = None
-    direction: WaveKind | None = None
-    row: int | None = None
+    pin: int
+    frequency_hz: Fraction
 
     @property
     def key(self) -> tuple:
-        return (self.stimulus, self.pin, self.frequency_hz, self.direction)
+        return (self.stimulus, self.pin, self.frequency_hz, None)
+
+
+@dataclass(frozen=True)
+class MotionCondition:
+    """What one apparent-motion trial presents: a wave stimulus along its row."""
+
+    stimulus: str
+    direction: WaveKind
+    row: int  # 1 = bottom row, as the lab counts
+
+    @property
+    def key(self) -> tuple:
+        return (self.stimulus, None, None, self.direction)
+
+
+Condition = LocalisationCondition | MotionCondition
+
+
+def condition_value(condition: Condition, attribute: str) -> object:
+    """A condition's value of an attribute an order constraint names (``pin``, ``direction``...).
+
+    A constraint may name an attribute the paradigm's conditions lack (a localisation design
+    that may not repeat a direction): all of them then share the value None.
+    """
+    return getattr(condition, attribute, None)
 
 
 @dataclass(frozen=True)
@@ -264,3 +297,10 @@ class Protocol:
             if stimulus.name == name:
                 return stimulus
         raise PinArrayError(f"{self.source}: no stimulus named {name!r}")
+
+    def wave(self, name: str) -> Wave:
+        """The wave of the wave stimulus ``name``."""
+        stimulus = self.stimulus(name)
+        if not isinstance(stimulus, WaveStimulus):
+            raise PinArrayError(f"{self.source}: expected a wave stimulus, found pulse train {name!r}")
+        return stimulus.wave

@@ -20,7 +20,7 @@ from typing import Protocol as Interface
 from pinarray.delivery import Presentation
 from pinarray.journal.manifest import DIRECTION_OF_WAVE
 from pinarray.plan import PlannedTrial
-from pinarray.protocol import Protocol
+from pinarray.protocol import LocalisationCondition, Protocol
 from pinarray.schedule import TrialSchedule
 
 
@@ -42,13 +42,10 @@ def marker_text(event: str, planned: PlannedTrial, protocol: Protocol, task: str
     condition = planned.condition
     data: dict[str, object] = {"event": event, "task": task, "trial": planned.trial,
                                "block": planned.block, "practice": planned.practice}
-    if condition.pin is not None:
-        assert condition.frequency_hz is not None
+    if isinstance(condition, LocalisationCondition):
         data |= {"pin": condition.pin, "frequency_hz": _number(condition.frequency_hz)}
     else:
-        assert condition.direction is not None
-        wave = protocol.stimulus(condition.stimulus).wave
-        assert wave is not None
+        wave = protocol.wave(condition.stimulus)
         data |= {"row": condition.row, "direction": DIRECTION_OF_WAVE[condition.direction].value,
                  "frequency_hz": _number(wave.train.frequency_hz)}
     return json.dumps(data, sort_keys=True, separators=(",", ":"))

@@ -14,7 +14,7 @@ from textual.widgets import Footer, ProgressBar, Static
 
 from pinarray.journal.records import LocalisationRecord
 from pinarray.player import DEFAULT_LEAD_NS
-from pinarray.protocol import Paradigm
+from pinarray.protocol import Condition, LocalisationCondition, Paradigm
 from pinarray.session import DIRECTION_LABEL, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.lab import Lab
@@ -164,10 +164,9 @@ class RunScreen(Screen):
         if current is None:
             return ""
         condition = current.condition
-        if condition.pin is not None:
+        if isinstance(condition, LocalisationCondition):
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
-        assert condition.direction is not None
         direction = DIRECTION_LABEL[condition.direction]
         if direction == "none":
             return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
@@ -292,9 +291,8 @@ class RunScreen(Screen):
         cast("PinArrayApp", self.app).finish_run(self.session, reason)
 
 
-def _pins_of(session: Session, condition) -> tuple[int, ...]:
-    if condition.pin is not None:
+def _pins_of(session: Session, condition: Condition) -> tuple[int, ...]:
+    if isinstance(condition, LocalisationCondition):
         return (condition.pin,)
-    wave = session.protocol.stimulus(condition.stimulus).wave
-    assert wave is not None
+    wave = session.protocol.wave(condition.stimulus)
     return tuple(sorted({d.pin for d in wave.drives()}))

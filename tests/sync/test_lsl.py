@@ -8,6 +8,7 @@ import pytest
 from pinarray.clock import MonotonicClock
 from pinarray.journal.manifest import DIRECTION_OF_WAVE
 from pinarray.plan import make_plan
+from pinarray.protocol import LocalisationCondition
 from pinarray.protocol.load import load_protocol
 from pinarray.sync.lsl import STREAM_TYPE, MarkerOutlet
 from pinarray.sync.markers import marker_text
@@ -55,7 +56,7 @@ def test_a_marker_names_the_trial_and_its_stimulus(path):
         assert (data["event"], data["trial"], data["block"], data["practice"], data["task"]) == (
             "onset", planned.trial, planned.block, planned.practice, "t")
         condition = planned.condition
-        if condition.pin is not None:
+        if isinstance(condition, LocalisationCondition):
             assert (data["pin"], data["frequency_hz"]) == (condition.pin, condition.frequency_hz)
             assert "direction" not in data
         else:
