@@ -49,12 +49,12 @@ import numpy as np
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
-from pinarray.protocol.model import LocalisationCondition
+from pinarray.protocol.model import LocalisationCondition, MotionAnswer
 
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
 
-MOTION_ANSWERS = ("none", "left", "right", "unsure")
+MOTION_ANSWERS = tuple(MotionAnswer)  # "none", "left", "right", "unsure"
 _OPPOSITE = {"left": "right", "right": "left"}
 DEFAULT_SUBJECT_SD_LOGIT = 0.5
 _MAX_SUBJECT_SD_LOGIT = 5.0

@@ -27,7 +27,7 @@ from typing import Protocol as Interface
 from pinarray.delivery import DeliveryRecord, Presentation
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
-from pinarray.journal.manifest import DIRECTION_OF_WAVE, RunStatus
+from pinarray.journal.manifest import RunStatus
 from pinarray.journal.records import (
     NOTHING_FELT,
     DeliveryCounts,
@@ -40,10 +40,8 @@ from pinarray.journal.records import (
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import LocalisationCondition, Paradigm, Protocol
+from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Paradigm, Protocol
 from pinarray.schedule import TrialSchedule, compile_trial
-
-DIRECTION_LABEL = DIRECTION_OF_WAVE  # a wave's kind as the subject names its direction
 
 
 class Phase(StrEnum):
@@ -347,6 +345,6 @@ class Session:
                 error_class=None if named is None else self.grid.classify(condition.pin, named))
         else:
             record = MotionRecord(**common, row=condition.row,
-                                  direction=DIRECTION_LABEL[condition.direction],
+                                  direction=DIRECTION_OF_WAVE[condition.direction],
                                   response=None if response is None else MotionAnswer(response))
         return self.writer.write_trial(record)

@@ -65,8 +65,8 @@ class Design:
 
 def protocol_design(protocol: Protocol) -> Design:
     """The protocol's main trials (one plan; order does not matter to the observer)."""
-    from pinarray.journal.manifest import DIRECTION_OF_WAVE
     from pinarray.plan import make_plan
+    from pinarray.protocol import DIRECTION_OF_WAVE
 
     localisation, motion = [], []
     for trial in make_plan(protocol, 0).trials:

@@ -175,7 +175,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     from pinarray.plan import make_plan
     from pinarray.player import describe
     from pinarray.rig import Rig, choose_clock
-    from pinarray.session import DIRECTION_LABEL, Phase, task_label
+    from pinarray.session import Phase, task_label
     from pinarray.stop import Stopped, StopRequest, stop_on_signals
     from pinarray.sync.run import start_session
 
@@ -189,7 +189,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
                 + (" ..." if len(missing) > 10 else "")
             )
-    from pinarray.protocol import LocalisationCondition
+    from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
     from pinarray.protocol.sync import EmulatedTrigger
 
     # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
@@ -257,7 +257,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                             answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
                         else:
                             assert observer is not None
-                            answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
+                            answer = observer.respond_motion(DIRECTION_OF_WAVE[condition.direction])
                         run.respond(answer, response_time_ns=None)  # scripted: no real response time
                         progress.update(run.done_count)
                 except (Stopped, KeyboardInterrupt) as stopped:

@@ -32,7 +32,7 @@ from pinarray.journal.timebase import (
     seconds_text,
 )
 from pinarray.journal.volumes import ScannerRecord
-from pinarray.protocol import Paradigm, WaveKind
+from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
 
 
 class RunStatus(StrEnum):
@@ -47,8 +47,6 @@ class RunStatus(StrEnum):
         return self is not RunStatus.COMPLETED
 
 
-DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
-                     WaveKind.NONE: Direction.NONE}
 
 
 @dataclass(frozen=True, kw_only=True)

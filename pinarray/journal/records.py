@@ -24,11 +24,9 @@ from pinarray.errors import ResultsError
 from pinarray.grid import ErrorClass
 from pinarray.journal.paths import check_label
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
+from pinarray.protocol.model import NOTHING_FELT, Direction, MotionAnswer
 
 NA = "n/a"  # BIDS spelling of "not applicable"
-NOTHING_FELT = "none"  # a localisation answer: no pin felt
-
-
 class TrialStatus(StrEnum):
     """What became of a trial. Only ``ok`` finishes it; the others are presented again."""
 
@@ -36,23 +34,6 @@ class TrialStatus(StrEnum):
     REDONE = "redone"
     ABORTED = "aborted"
     INVALID = "invalid"
-
-
-class Direction(StrEnum):
-    """Which way an apparent-motion wave travels, as the subject would name it."""
-
-    LEFT = "left"
-    RIGHT = "right"
-    NONE = "none"  # the no-wave control: the central pin alternates with the lateral ones
-
-
-class MotionAnswer(StrEnum):
-    """The subject's answer to an apparent-motion trial."""
-
-    NONE = "none"  # felt no moving dot
-    LEFT = "left"
-    RIGHT = "right"
-    UNSURE = "unsure"  # felt a moving dot, could not tell which way
 
 
 @dataclass(frozen=True)

@@ -7,12 +7,16 @@ loading is ``from pinarray.protocol.load import load_protocol``.
 
 from pinarray.protocol.model import (
     BAUD_RATES,
+    DIRECTION_OF_WAVE,
+    NOTHING_FELT,
     NS_PER_S,
     Condition,
     Constraints,
     Design,
     Device,
+    Direction,
     LocalisationCondition,
+    MotionAnswer,
     MotionCondition,
     Ordering,
     Paradigm,
@@ -29,8 +33,8 @@ from pinarray.protocol.model import (
 )
 
 __all__ = [
-    "BAUD_RATES", "NS_PER_S", "Condition", "Constraints", "Design", "Device",
-    "LocalisationCondition", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
+    "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Direction",
+    "LocalisationCondition", "MotionAnswer", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
     "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainStimulus", "Wave",
     "WaveKind", "WaveStimulus",
 ]

@@ -133,6 +133,30 @@ class WaveKind(StrEnum):
     NONE = "none"  # the seed's "no wave": the central pin alternates with the lateral ones
 
 
+class Direction(StrEnum):
+    """Which way an apparent-motion wave travels, as the subject would name it."""
+
+    LEFT = "left"
+    RIGHT = "right"
+    NONE = "none"  # the no-wave control: the central pin alternates with the lateral ones
+
+
+DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
+                     WaveKind.NONE: Direction.NONE}
+
+
+class MotionAnswer(StrEnum):
+    """The subject's answer to an apparent-motion trial."""
+
+    NONE = "none"  # felt no moving dot
+    LEFT = "left"
+    RIGHT = "right"
+    UNSURE = "unsure"  # felt a moving dot, could not tell which way
+
+
+NOTHING_FELT = "none"  # a localisation answer: no pin felt
+
+
 @dataclass(frozen=True)
 class PinDrive:
     """One train played on one pin, starting ``delay_ns`` after the trial's stimulus onset."""

@@ -18,9 +18,8 @@ from collections.abc import Callable
 from typing import Protocol as Interface
 
 from pinarray.delivery import Presentation
-from pinarray.journal.manifest import DIRECTION_OF_WAVE
 from pinarray.plan import PlannedTrial
-from pinarray.protocol import LocalisationCondition, Protocol
+from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Protocol
 from pinarray.schedule import TrialSchedule
 
 

@@ -14,8 +14,8 @@ from textual.widgets import Footer, ProgressBar, Static
 
 from pinarray.journal.records import LocalisationRecord
 from pinarray.player import DEFAULT_LEAD_NS
-from pinarray.protocol import Condition, LocalisationCondition, Paradigm
-from pinarray.session import DIRECTION_LABEL, Phase, Session, SessionError
+from pinarray.protocol import DIRECTION_OF_WAVE, Condition, LocalisationCondition, Paradigm
+from pinarray.session import Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.lab import Lab
 from pinarray.tui.live import LiftTimeline, LiveCounts
@@ -167,7 +167,7 @@ class RunScreen(Screen):
         if isinstance(condition, LocalisationCondition):
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
-        direction = DIRECTION_LABEL[condition.direction]
+        direction = DIRECTION_OF_WAVE[condition.direction]
         if direction == "none":
             return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
         return f"stimulus: {direction}wards wave on pins {pins}"

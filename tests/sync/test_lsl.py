@@ -6,9 +6,8 @@ import os
 import pytest
 
 from pinarray.clock import MonotonicClock
-from pinarray.journal.manifest import DIRECTION_OF_WAVE
 from pinarray.plan import make_plan
-from pinarray.protocol import LocalisationCondition
+from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
 from pinarray.protocol.load import load_protocol
 from pinarray.sync.lsl import STREAM_TYPE, MarkerOutlet
 from pinarray.sync.markers import marker_text
