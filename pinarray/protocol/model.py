@@ -71,6 +71,9 @@ class PinCalibration:
         )
 
 
+SIMULATED_PORT = "sim://"  # a protocol without a port plays on the simulated array
+
+
 @dataclass(frozen=True)
 class Device:
     """The stimulator: grid, servo settings and one calibration per pin."""
@@ -78,7 +81,7 @@ class Device:
     grid: Grid
     servo: ServoSettings
     pins: tuple[PinCalibration, ...]
-    port: str = "sim://"
+    port: str = SIMULATED_PORT
     scale_infeasible: bool = False  # scale strokes the servo cannot follow instead of refusing
     # A trial counts as delivered when every goal change reached its servo within this.
     delivery_tolerance_ns: int = 10_000_000
