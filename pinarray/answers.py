@@ -20,13 +20,13 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.model import Paradigm, Protocol
+from pinarray.protocol.model import MotionAnswer, Paradigm, Protocol
 
 # 20 000 trials (a protocol's most) of a few bytes each, with room for extra columns.
 MAX_ANSWERS_BYTES = 4 << 20
 MAX_PROBLEMS = 100
 DELIMITERS = (",", "\t", ";")
-MOTION_ANSWERS = ("none", "left", "right", "unsure")
+MOTION_ANSWERS = tuple(MotionAnswer)  # "none", "left", "right", "unsure"
 _WHOLE = re.compile("[0-9]{1,9}")  # trial and pin numbers: ASCII digits, never a huge one
 
 

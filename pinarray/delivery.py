@@ -6,7 +6,8 @@ when the servo holds it, *healed* when it had to be written again (acknowledged)
 held, and *missing* when neither happened before the servo's next change or the trial's end.
 A trial is delivered when nothing is missing and every change reached its servo within the
 protocol's tolerance; otherwise it is reported as not delivered, with the reason in words.
-Pure bookkeeping: no I/O.
+A `PreparedTrial` is what is to be delivered: every frame encoded for the wire before onset,
+and the goal changes in it. Pure values and bookkeeping: no I/O.
 """
 
 from __future__ import annotations
@@ -35,6 +36,26 @@ class Change:
     pin: int
     goal_steps: int
     time_ns: int
+
+
+@dataclass(frozen=True)
+class PreparedFrame:
+    """One frame ready to send: its time from onset, its packet and the goals in it."""
+
+    time_ns: int
+    packet: bytes
+    goals: tuple[tuple[int, int], ...]  # (servo id, goal in steps)
+    first_change: int  # index of its first goal in `PreparedTrial.changes`
+
+
+@dataclass(frozen=True)
+class PreparedTrial:
+    """A trial encoded for the wire before onset: frames, their goal changes and the end."""
+
+    frames: tuple[PreparedFrame, ...]
+    changes: tuple[Change, ...]
+    end_ns: int
+    pin_of_servo: dict[int, int]
 
 
 @dataclass(frozen=True)

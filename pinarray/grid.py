@@ -40,23 +40,6 @@ ERROR_CLASS_MEANING: dict[ErrorClass, str] = {
 
 
 @dataclass(frozen=True)
-class PinSubset:
-    """A named set of pins, e.g. the 8 pins a protocol uses."""
-
-    name: str
-    pins: tuple[int, ...]
-
-    def __contains__(self, pin: object) -> bool:
-        return pin in self.pins
-
-    def __iter__(self):
-        return iter(self.pins)
-
-    def __len__(self) -> int:
-        return len(self.pins)
-
-
-@dataclass(frozen=True)
 class Grid:
     """An N x M pin grid with a fixed pitch between neighbouring pins.
 
@@ -134,13 +117,6 @@ class Grid:
             for c in range(max(0, column - 1), min(self.columns, column + 2))
             if (r, c) != (row, column)
         )
-
-    def subset(self, name: str, pins: tuple[int, ...] | list[int]) -> PinSubset:
-        """A named subset of this grid's pins, checked, in the given order, no repeats."""
-        checked = tuple(self.check_pin(p) for p in pins)
-        if len(set(checked)) != len(checked):
-            raise PinArrayError(f"pin subset {name!r} lists a pin twice: {list(checked)}")
-        return PinSubset(name, checked)
 
     def classify(self, stimulated: int, reported: int) -> ErrorClass:
         """Classify a localisation response as the seed does (section 9.7.1).

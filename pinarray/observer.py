@@ -32,6 +32,9 @@ reports no spread between its subjects; the default ``subject_sd_logit`` of 0.5 
 assumption that puts the middle 95 % of subjects between about 41 % and 82 % correct at
 10 Hz on the localisation protocol's 8 pins (`ObserverModel.subject_range`). Set it to 0 for
 identical subjects.
+
+Past 400 lines on purpose: the model of one simulated subject and the arithmetic that
+calibrates a population of them on the seed's figures belong together; apart, neither reads.
 """
 
 from __future__ import annotations
@@ -46,11 +49,12 @@ import numpy as np
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
+from pinarray.protocol.model import LocalisationCondition, MotionAnswer
 
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
 
-MOTION_ANSWERS = ("none", "left", "right", "unsure")
+MOTION_ANSWERS = tuple(MotionAnswer)  # "none", "left", "right", "unsure"
 _OPPOSITE = {"left": "right", "right": "left"}
 DEFAULT_SUBJECT_SD_LOGIT = 0.5
 _MAX_SUBJECT_SD_LOGIT = 5.0
@@ -169,7 +173,7 @@ class ObserverModel:
 
     def for_protocol(self, protocol: Protocol) -> ObserverModel:
         """This model on the protocol's grid, calibrated on the pins its design stimulates."""
-        pins = {c.pin for c in protocol.design.conditions if c.pin is not None}
+        pins = {c.pin for c in protocol.design.conditions if isinstance(c, LocalisationCondition)}
         return replace(self, grid=protocol.device.grid).calibrated_on(pins)
 
     # -- subjects ---------------------------------------------------------------------------

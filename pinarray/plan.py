@@ -13,8 +13,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Condition, Ordering, Protocol
+from pinarray.protocol import Condition, LocalisationCondition, Ordering, Protocol
 from pinarray.protocol.design import MAX_SHUFFLE_WORK
+from pinarray.protocol.model import condition_value
 
 if TYPE_CHECKING:
     import numpy as np
@@ -35,16 +36,12 @@ class PlannedTrial:
     def record(self) -> dict:
         """JSON-safe description, as stored in manifests and compile outputs."""
         c = self.condition
-        return {
-            "trial": self.trial,
-            "block": self.block,
-            "practice": self.practice,
-            "stimulus": c.stimulus,
-            "pin": c.pin,
-            "frequency_hz": None if c.frequency_hz is None else str(c.frequency_hz),
-            "direction": None if c.direction is None else c.direction.value,
-            "row": c.row,
-        }
+        what: dict[str, object] = (
+            {"pin": c.pin, "frequency_hz": str(c.frequency_hz), "direction": None, "row": None}
+            if isinstance(c, LocalisationCondition)
+            else {"pin": None, "frequency_hz": None, "direction": c.direction.value, "row": c.row})
+        return {"trial": self.trial, "block": self.block, "practice": self.practice,
+                "stimulus": c.stimulus} | what
 
 
 @dataclass(frozen=True)
@@ -68,10 +65,6 @@ class TrialPlan:
         )
 
 
-def _value(condition: Condition, attribute: str):
-    return getattr(condition, attribute)
-
-
 class _Pool:
     """The trials still to place, as counts of each distinct condition, with every constrained
     attribute's value coded as an integer: a search step costs a few array operations, not a
@@ -93,7 +86,7 @@ class _Pool:
         for attribute in limits:
             codes = self.codes[attribute] = {}
             self.coded[attribute] = np.array(
-                [codes.setdefault(_value(c, attribute), len(codes)) for c in self.conditions],
+                [codes.setdefault(condition_value(c, attribute), len(codes)) for c in self.conditions],
                 dtype=np.int64,
             )
 
@@ -195,7 +188,7 @@ def _runs_after(sequence: list[Condition], limits: dict[str, int]) -> dict[str, 
     runs: dict[str, tuple[object, int]] = {}
     for condition in sequence:
         for attribute in limits:
-            value = _value(condition, attribute)
+            value = condition_value(condition, attribute)
             last, run = runs.get(attribute, (None, 0))
             runs[attribute] = (value, run + 1 if value == last else 1)
     return runs

@@ -7,17 +7,16 @@ from typing import IO
 import numpy as np
 
 from pinarray.plan import PlannedTrial
-from pinarray.protocol import Protocol
+from pinarray.protocol import LocalisationCondition, Protocol
 from pinarray.schedule import TrialSchedule
 
 
 def describe_trial(planned: PlannedTrial) -> str:
     c = planned.condition
-    if c.direction is not None:
-        what = f"{c.direction.value} wave on row {c.row}"
-    else:
-        assert c.frequency_hz is not None  # a localisation condition has its frequency
+    if isinstance(c, LocalisationCondition):
         what = f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
+    else:
+        what = f"{c.direction.value} wave on row {c.row}"
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 

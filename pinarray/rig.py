@@ -20,12 +20,12 @@ from pinarray.delivery import Presentation
 from pinarray.errors import BusError, PinArrayError
 from pinarray.player import (
     GUARD_NS,
-    REWRITE_REQUEST_BYTES,
     PlaybackReport,
     play_prepared,
     prepare_trial,
 )
 from pinarray.protocol import NS_PER_S, Device, Protocol
+from pinarray.readback import REWRITE_REQUEST_BYTES
 from pinarray.stop import StoppableClock, StopRequest
 from pinarray.timing_check import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
 from pinarray.timing_check import Bus as TimingBus

@@ -17,6 +17,9 @@ ns after pulse ``k``. So only the first ``D`` pulses are computed from their ind
 of the train is whole-ns additions of that block onto itself, written straight into the output
 arrays, with no schedule-length temporaries. Servo targets change at the same few places of
 every cycle, so they are read off the pulse times with strided slices.
+
+Past 400 lines on purpose: the exact-arithmetic compiler for trains, waves and their merge;
+its parts share the same index arithmetic and are property-tested as one.
 """
 
 from __future__ import annotations

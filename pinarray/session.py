@@ -26,13 +26,13 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
+from typing import Any, NamedTuple
 from typing import Protocol as Interface
 
 from pinarray.delivery import DeliveryRecord, Presentation
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
-from pinarray.journal.manifest import DIRECTION_OF_WAVE, RunStatus
+from pinarray.journal.manifest import RunStatus
 from pinarray.journal.records import (
     NOTHING_FELT,
     DeliveryCounts,
@@ -45,10 +45,9 @@ from pinarray.journal.records import (
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import Paradigm, Protocol
+from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Paradigm, Protocol
 from pinarray.schedule import TrialSchedule, compile_trial
 
-DIRECTION_LABEL = DIRECTION_OF_WAVE  # a wave's kind as the subject names its direction
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
 
 
@@ -72,6 +71,14 @@ class Stimulator(Interface):
 
     def present(self, schedule: TrialSchedule) -> Presentation:
         """Play the trial; return its onset (clock ns) and whether it was delivered as scheduled."""
+        ...
+
+
+class OnsetGate(Interface):
+    """What may hold a trial back after its inter-trial interval, e.g. until a scanner volume."""
+
+    def wait_for_onset(self, ready_ns: int) -> None:
+        """Return when a trial ready since ``ready_ns`` (session clock ns) may start."""
         ...
 
 
@@ -125,17 +132,22 @@ class Session:
         first trial's stimulus onset. Only a run whose zero is not fixed yet can be told one.
     time_zero_event
         What ``time_zero_ns`` is, in words, for the manifest and the sidecars.
+    gate
+        Holds each trial, once its interval is over, until it may start (onsets locked to
+        scanner volumes); None: trials start when their interval ends.
     """
 
     def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
                  clock, on_change: Callable[[Session], None] | None = None,
-                 time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session"):
+                 time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session",
+                 gate: OnsetGate | None = None):
         self.protocol = protocol
         self.plan = plan
         self.writer = writer
         self.stimulator = stimulator
         self.clock = clock
         self.on_change = on_change or (lambda session: None)
+        self.gate = gate
         self.grid: Grid = protocol.device.grid
         self.task = task_label(protocol)
         remaining = {(entry.trial, entry.practice) for entry in writer.remaining()}
@@ -247,6 +259,8 @@ class Session:
         schedule = self.current_schedule()
         try:
             self.clock.sleep_until_ns(self._next_allowed_ns)
+            if self.gate is not None:  # the scanner's volume this trial is locked to
+                self.gate.wait_for_onset(self.clock.now_ns())
         except Interrupted:
             with self._state:
                 if not self._pausing:
@@ -395,7 +409,7 @@ class Session:
             self._fix_zero(self._onset_ns, FIRST_TRIAL_ONSET)
         assert self._zero_ns is not None
         delivery = self._delivery
-        common = {
+        common: dict[str, Any] = {  # the fields both kinds of record share
             "trial": planned.trial, "block": planned.block, "task": self.task, "status": status,
             "onset_ns": self._onset_ns - self._zero_ns,
             "duration_ns": self._duration_ns if duration_ns is None else duration_ns,
@@ -407,16 +421,14 @@ class Session:
         }
         condition = planned.condition
         record: TrialRecord
-        if condition.pin is not None:
-            assert condition.frequency_hz is not None
+        if isinstance(condition, LocalisationCondition):
             named = None if response in (None, NOTHING_FELT) else int(str(response))
             record = LocalisationRecord(
                 **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
                 response=response,
                 error_class=None if named is None else self.grid.classify(condition.pin, named))
         else:
-            assert condition.direction is not None and condition.row is not None
             record = MotionRecord(**common, row=condition.row,
-                                  direction=DIRECTION_LABEL[condition.direction],
+                                  direction=DIRECTION_OF_WAVE[condition.direction],
                                   response=None if response is None else MotionAnswer(response))
         return self.writer.write_trial(record)

@@ -29,14 +29,20 @@ ALLOWED = {
     "observer": {"errors", "grid", "protocol", "plan"},
     "preview": {"errors", "protocol", "plan", "schedule"},
     "answers": {"errors", "protocol", "plan", "text_files"},
-    "player": FOUNDATION | {"bus", "schedule"},
-    "player_process": FOUNDATION | {"bus", "player"},
+    "calibration_file": {"errors", "protocol", "text_files"},
+    "readback": FOUNDATION | {"bus"},
+    "player": FOUNDATION | {"bus", "schedule", "readback"},
+    "player_messages": {"bus", "player", "delivery"},
+    "player_child": FOUNDATION | {"bus", "player", "player_messages"},
+    "player_process": FOUNDATION | {"bus", "player", "player_messages", "player_child"},
     "timing_check": set(),
-    "rig": FOUNDATION | {"bus", "player", "player_process", "protocol", "schedule", "plan",
-                         "timing_check"},
+    "rig": FOUNDATION | {"bus", "player", "player_process", "readback", "protocol", "schedule",
+                         "plan", "timing_check"},
     "journal": FOUNDATION | {"protocol", "plan", "text_files"},
     "session": FOUNDATION | {"protocol", "plan", "schedule", "journal"},
     "analysis": FOUNDATION | {"protocol", "plan", "observer", "journal", "text_files"},
+    # Scanner triggers, volume logs and LSL markers around a session: above it, below the roots.
+    "sync": FOUNDATION | {"protocol", "plan", "schedule", "journal", "session"},
 }
 # The composition roots may import anything; nothing imports them (the CLI starts the UI).
 ROOTS = {"cli", "tui", "__main__"}

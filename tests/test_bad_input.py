@@ -168,6 +168,22 @@ def test_thousands_of_problems_list_the_first_hundred_and_count_the_rest():
     assert lines[-1] == "p.yaml: 200 more problem(s) not listed; fix these first"
 
 
+@pytest.mark.parametrize("text, expected", [
+    ("device:\n  grid: [4, 4\n", "p.yaml:3:1: malformed YAML: expected ',' or ']', found the end of "
+                                  "the file"),
+    ("protocol: a: b\n", "p.yaml:1:12: malformed YAML: expected one 'key: value' per line, found "
+                         "a second ':' (quote a value that holds ': ')"),
+    ("protocol:\n\tname: x\n", "p.yaml:2:1: malformed YAML: expected a YAML value or the end of "
+                              "one, found a tab (YAML indents with spaces)"),
+    ("protocol: 'x\n", "p.yaml:2:1: malformed YAML: expected the closing quote, found the end of "
+                       "the file"),
+    ("protocol: [1, 2]]\n", "p.yaml:1:17: malformed YAML: expected a key, found ']'"),
+])
+def test_broken_yaml_says_what_was_expected_and_what_was_found_there(text, expected):
+    (line,) = problems(text)
+    assert line == expected
+
+
 def test_a_second_document_in_the_file_is_refused():
     (line,) = problems(MINIMAL + "---\nprotocol: again\n")
     assert line == "p.yaml:11:1: malformed YAML: expected a single document, found a second one"

@@ -56,6 +56,9 @@ PARSE_ONLY = {
     ("play",): [DEMO], ("timing",): [], ("scan",): [], ("sim-serve",): [],
     ("batch",): [DEMO, "--subject", "s1", "--observer", "default"],
     ("analyse",): ["results"], ("power",): [DEMO], ("tui",): [],
+    ("servos", "scan"): [], ("servos", "set-id"): ["1", "2"], ("servos", "return-delay"): [],
+    ("servos", "calibrate"): [DEMO, "--pin", "1"], ("servos", "torque-off"): [],
+    ("servos", "rest"): [],
 }
 
 numbers = st.one_of(
@@ -82,7 +85,7 @@ def run(argv: list[str]) -> tuple[int, str]:
 
 
 def test_every_command_is_either_run_or_parsed_here():
-    assert set(RUN) | set(PARSE_ONLY) | {("softness",)} == set(COMMANDS)
+    assert set(RUN) | set(PARSE_ONLY) | {("softness",), ("servos",)} == set(COMMANDS)
 
 
 @settings(max_examples=200, deadline=None, database=None,

@@ -65,15 +65,6 @@ def test_an_out_of_range_pin_names_the_pin_and_the_valid_range(pin):
         classify(1, pin)
 
 
-def test_a_subset_keeps_order_and_refuses_repeats_and_strangers():
-    subset = DEFAULT_GRID.subset("seed8", [4, 1, 16])
-    assert subset.pins == (4, 1, 16) and 16 in subset and len(subset) == 3
-    with pytest.raises(PinArrayError, match="twice"):
-        DEFAULT_GRID.subset("bad", [1, 1])
-    with pytest.raises(PinArrayError, match="pin 17"):
-        DEFAULT_GRID.subset("bad", [17])
-
-
 def test_a_grid_must_have_pins_and_a_positive_pitch():
     with pytest.raises(PinArrayError, match="at least 1 row"):
         Grid(0, 4)

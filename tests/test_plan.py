@@ -2,6 +2,7 @@
 
 import itertools
 from collections import Counter
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,7 @@ from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError
 from pinarray.plan import constrained_shuffle, make_plan, williams_square
-from pinarray.protocol import Condition
+from pinarray.protocol import LocalisationCondition
 from pinarray.protocol.load import load_protocol, parse_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
@@ -58,10 +59,14 @@ def test_apparent_motion_presents_each_configuration_twice_per_block():
         assert directions == {"rightwards": 2, "leftwards": 2, "none": 2}
 
 
+def on_pin(pin: int) -> LocalisationCondition:
+    return LocalisationCondition("s", pin, Fraction(5))
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32), limit=st.integers(1, 3), values=st.integers(2, 5))
 def test_runs_never_exceed_the_maximum_run_length(seed, limit, values):
-    items = [Condition("s", pin=v) for v in range(1, values + 1)] * 4
+    items = [on_pin(v) for v in range(1, values + 1)] * 4
     order = constrained_shuffle(items, {"pin": limit}, np.random.default_rng(seed))
     assert Counter(order) == Counter(items)
     runs = [len(list(group)) for _, group in itertools.groupby(c.pin for c in order)]
@@ -70,13 +75,13 @@ def test_runs_never_exceed_the_maximum_run_length(seed, limit, values):
 
 def test_a_tight_but_possible_constraint_is_met_not_hung():
     # 5 x pin 1 among 9 trials with no repeats: only 1 x 1 x 1 x 1 x 1 interleaved works
-    items = [Condition("s", pin=1)] * 5 + [Condition("s", pin=2)] * 4
+    items = [on_pin(1)] * 5 + [on_pin(2)] * 4
     order = constrained_shuffle(items, {"pin": 1}, np.random.default_rng(0))
     assert [c.pin for c in order] == [1, 2, 1, 2, 1, 2, 1, 2, 1]
 
 
 def test_an_impossible_constraint_is_an_error_not_a_hang():
-    items = [Condition("s", pin=1)] * 3 + [Condition("s", pin=2)]
+    items = [on_pin(1)] * 3 + [on_pin(2)]
     with pytest.raises(PinArrayError, match="no order of the trials satisfies"):
         constrained_shuffle(items, {"pin": 1}, np.random.default_rng(0))
 

@@ -54,8 +54,9 @@ def test_the_seed_apparent_motion_protocol_has_three_configurations_on_one_row()
     assert directions == [WaveKind.RIGHTWARDS, WaveKind.LEFTWARDS, WaveKind.NONE]
     assert {c.row for c in protocol.design.conditions} == {2}
     assert protocol.design.blocks == 2 and protocol.design.repetitions == 2
-    # no SOA given: Tactile Brush, 0.32 x 400 ms + 47.3 ms
-    assert protocol.stimulus("rightwards").wave.soa_ns == 175_300_000
+    # one SOA for all three, so that none lasts longer than another (no duration cue)
+    assert {protocol.stimulus(c.stimulus).wave.soa_ns for c in protocol.design.conditions} == {
+        200_000_000}
 
 
 def test_the_demo_touches_all_16_pins_in_under_a_minute():
@@ -359,6 +360,18 @@ def test_wave_pins_get_the_same_checks_as_a_localisation_train():
     """
     (line,) = problems(text)
     assert line.startswith("p.yaml:4:") and "pin 1 cannot follow 40 Hz" in line
+
+
+def test_a_wave_without_an_soa_gets_the_tactile_brush_one():
+    text = textwrap.dedent("""\
+    protocol: m
+    stimuli:
+      tap: {frequency_hz: 5, duration_s: 0.4}
+      right: {wave: rightwards, row: 1, pins: [1, 2, 3], train: tap}
+    design: {paradigm: apparent_motion, configurations: [right]}
+    """)
+    # 0.32 x 400 ms + 47.3 ms
+    assert parse_protocol(text, "p.yaml").stimulus("right").wave.soa_ns == 175_300_000
 
 
 def test_a_no_wave_whose_centre_taps_overlap_is_refused_at_validation():

@@ -1,5 +1,6 @@
 """Results files as the lab relies on them: BIDS names, rows on disk at once, safe resume."""
 
+import errno
 import json
 import os
 import signal
@@ -79,7 +80,7 @@ def test_the_sidecar_describes_every_column_with_units_or_levels(tmp_path):
     columns = {k: v for k, v in sidecar.items() if k in BEH_NAMES}
     assert list(columns) == list(BEH_NAMES)
     assert all(entry["Description"] for entry in columns.values())
-    assert sidecar["onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
+    assert sidecar["stimulus_onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
     assert set(sidecar["status"]["Levels"]) == {"ok", "redone", "aborted", "invalid"}
     events = json.loads(writer.paths.events_json.read_text())
     assert [k for k in events if k in (*EVENT_NAMES, "trial_type")] == list(EVENT_NAMES)
@@ -295,3 +296,40 @@ def test_a_run_sigkilled_while_writing_resumes_with_no_row_lost_or_repeated(tmp_
     assert paths.events_tsv.read_text().count("\n") == 3001
     assert read_manifest(paths.manifest).status is RunStatus.COMPLETED
     assert any(r.resumed for r in rows)
+
+
+def _disk_full(*args):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def test_a_disk_that_fills_mid_run_is_one_line_and_leaves_the_rows_before_and_the_lock_free(
+        tmp_path, monkeypatch):
+    writer = start(tmp_path)
+    with pytest.raises(ResultsError) as refused, writer:
+        writer.write_trial(localisation(1))
+        monkeypatch.setattr(os, "fsync", _disk_full)
+        writer.write_trial(localisation(2))
+    monkeypatch.undo()
+    message = str(refused.value)
+    assert message.startswith(f"{writer.paths.beh_tsv}: cannot write results there: "
+                              "No space left on device; every row written before is on disk")
+    assert "\n" not in message
+    # Trial 2's row reached the file but not the disk's guarantee; events.tsv never got it.
+    assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1, 2]
+    assert writer.paths.events_tsv.read_text().count("\n") == 2
+    assert not writer.paths.lock.exists()  # given back: the run can be resumed
+    resumed = RunWriter.resume(writer.paths)
+    resumed.close()
+    assert [e.trial for e in resumed.remaining()] == [3, 4, 5]
+    assert writer.paths.events_tsv.read_text().count("\n") == 3  # rebuilt from beh.tsv
+
+
+def test_a_results_folder_that_cannot_be_written_on_resume_is_one_line(tmp_path, monkeypatch):
+    writer = start(tmp_path)
+    writer.close()
+    monkeypatch.setattr(os, "replace", _disk_full)
+    with pytest.raises(ResultsError, match="cannot write results there: No space left on device"):
+        RunWriter.resume(writer.paths)
+    monkeypatch.undo()
+    assert not writer.paths.lock.exists()
+    assert len(read_manifest(writer.paths.manifest).sittings) == 1  # no sitting was added

@@ -382,6 +382,8 @@ def test_a_batch_killed_at_any_moment_resumes_with_exactly_the_remaining_trials(
     rows = read_trials(beh)
     ok = [r for r in rows if r.status == "ok"]
     assert [r.trial for r in ok] == list(range(1, 27))  # none lost, none repeated, plan order
+    onsets = [r.onset_ns for r in rows]  # one time base: the resumed sitting continues it
+    assert onsets[0] == 0 and all(b > a for a, b in itertools.pairwise(onsets))
     first_sitting = [r.trial for r in ok if not r.resumed]
     if killed_rows or any(r.resumed for r in ok):
         assert first_sitting == killed_rows  # what was on disk stayed, the rest is marked resumed

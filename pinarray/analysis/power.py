@@ -26,7 +26,7 @@ from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.subjects import t_interval
 from pinarray.grid import Grid
 from pinarray.observer import ObserverModel, SimulatedObserver
-from pinarray.protocol import Protocol
+from pinarray.protocol import LocalisationCondition, Protocol
 
 ALPHA = 0.05
 TARGET_POWER = 0.8
@@ -65,17 +65,17 @@ class Design:
 
 def protocol_design(protocol: Protocol) -> Design:
     """The protocol's main trials (one plan; order does not matter to the observer)."""
-    from pinarray.journal.manifest import DIRECTION_OF_WAVE
     from pinarray.plan import make_plan
+    from pinarray.protocol import DIRECTION_OF_WAVE
 
     localisation, motion = [], []
     for trial in make_plan(protocol, 0).trials:
         if trial.practice:
             continue
         condition = trial.condition
-        if condition.pin is not None and condition.frequency_hz is not None:
+        if isinstance(condition, LocalisationCondition):
             localisation.append((condition.pin, float(condition.frequency_hz)))
-        elif condition.direction is not None:
+        else:
             motion.append(DIRECTION_OF_WAVE[condition.direction])
     return Design(tuple(localisation), tuple(motion), protocol.device.grid)
 

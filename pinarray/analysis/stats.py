@@ -20,12 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from pinarray.errors import ResultsError
-from pinarray.grid import DEFAULT_GRID, Grid
+from pinarray.grid import DEFAULT_GRID, ErrorClass, Grid
 from pinarray.journal.records import LocalisationRecord, MotionRecord, TrialRecord
+from pinarray.protocol import NOTHING_FELT
 
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
-ERROR_CLASSES = ("A", "B", "C", "D")
-NOTHING_FELT = "none"
+ERROR_CLASSES = tuple(c.value for c in ErrorClass if c is not ErrorClass.CORRECT)  # A-D
 # Every localisation answer falls in exactly one of these; "nothing felt" is a category of
 # its own in every table and figure, never dropped from a denominator.
 CATEGORIES = ("correct", *ERROR_CLASSES, NOTHING_FELT)

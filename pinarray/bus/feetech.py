@@ -6,7 +6,13 @@ checksum fit it. This module adds what a lab needs on top: a connect handshake t
 every missing servo at once, goal writes that never leave a pin's calibrated limits, bounded
 and counted retries of transient failures, the read-back and re-send that verify a goal
 reached its servo, and a safe stop that puts every pin at rest and releases torque wherever
-the bus still answers.
+the bus still answers. For bring-up (`pinarray.bus.bringup`) it also pings at the broadcast id,
+pings within a bounded time, and writes EEPROM, but only through the methods named for it
+(`write_eeprom`, `unlock_eeprom`, `lock_eeprom`): `write` refuses EEPROM registers.
+
+Longer than 400 lines because it is one class: everything that may be said to the servos is
+said here, so that no other module can write EEPROM or move a pin outside its limits; split,
+each part would reach into the others' retries, link and record of goals.
 """
 
 from __future__ import annotations
@@ -26,7 +32,7 @@ from pinarray.bus.base import (
     Telemetry,
 )
 from pinarray.bus.link import Expected, FdWire, Latency, Link, WireLost
-from pinarray.bus.packets import StatusPacket
+from pinarray.bus.packets import StatusPacket, StatusReader
 from pinarray.bus.registers import (
     BROADCAST_ID,
     Register,
@@ -56,6 +62,28 @@ NS_PER_US = 1_000
 READ_REQUEST_BYTES = 8
 # Sync reads that get no answer at all, in a row, before read-backs use READs instead.
 SYNC_READ_TRIES = 3
+
+
+@dataclass(frozen=True)
+class BroadcastPing:
+    """What came back from a PING at the broadcast id.
+
+    Attributes
+    ----------
+    servo_ids : tuple of int
+        Ids of the well-formed status packets heard, in arrival order.
+    garbled_bytes : int
+        Bytes that were no well-formed status packet: answers that overlapped on the wire
+        (several servos answering after the same return delay) or noise.
+    """
+
+    servo_ids: tuple[int, ...]
+    garbled_bytes: int
+
+    @property
+    def clean(self) -> bool:
+        """Every byte heard was a status packet: the ids are all who answered."""
+        return not self.garbled_bytes
 
 
 @dataclass(frozen=True)
@@ -179,6 +207,92 @@ class FeetechBus:
         except BusError:
             return None
         return from_bytes(data)
+
+    def ping_within(self, servo_id: int, timeout_ns: int) -> int | None:
+        """Model number of the servo at ``servo_id``, or None if no PING answer by ``timeout_ns``.
+
+        One PING attempt that waits at most ``timeout_ns`` (and no longer than `ping` would),
+        for sweeping many ids quickly; the model-number read of a servo that answered is retried
+        as usual.
+        """
+        packet = packets.ping(servo_id)
+        try:
+            replies = self.link.exchange(packet, (Expected(servo_id, 0),),
+                                         self.clock.now_ns() + timeout_ns)
+        except WireLost as error:
+            raise self._lost(f"pinging servo {servo_id}", error) from None
+        if servo_id not in replies:
+            return None
+        try:
+            data, _ = self.read(servo_id, Register.MODEL_NUMBER)
+        except PortLost:
+            raise
+        except BusError:
+            return None
+        return from_bytes(data)
+
+    def broadcast_ping(self) -> BroadcastPing:
+        """PING every servo at once (the broadcast id) and listen for all the answers.
+
+        Each servo answers with its own id after its own return delay; several with the same
+        delay answer together and garble each other (Feetech: "multiple servos can not use
+        broadcast PING instructions on the bus"), so only a `BroadcastPing.clean` answer says
+        who is there. Listens as long as the longest return delay and the adapter allow.
+        """
+        packet = packets.ping(BROADCAST_ID)
+        link = self.link
+        reader = StatusReader()
+        reader.longest_params = 0  # a PING's answer carries no data
+        # The last answer may start after the longest return delay; allow the wire for several.
+        expected = (Expected(BROADCAST_ID, 0), Expected(BROADCAST_ID, 0))
+        limit_ns = self.clock.now_ns() + link.reply_time_ns(len(packet), expected)
+        ids: list[int] = []
+        try:
+            link.drain()
+            link.send(packet)
+            while True:
+                data = link.wire.read_some(limit_ns)
+                if not data:
+                    break
+                link.counters.bytes_read += len(data)
+                ids.extend(status.servo_id for status in reader.feed(data))
+        except WireLost as error:
+            raise self._lost("broadcasting a PING", error) from None
+        return BroadcastPing(tuple(ids), reader.skipped_bytes + reader.pending_bytes)
+
+    # -- bring-up: EEPROM, written only through these methods, on purpose ---------------
+
+    def unlock_eeprom(self, servo_id: int) -> None:
+        """LOCK (address 55) = 0: EEPROM values written from now on survive a power cycle."""
+        self.write(servo_id, Register.LOCK, 0)
+
+    def lock_eeprom(self, servo_id: int) -> None:
+        """LOCK (address 55) = 1: EEPROM values written from now on last until power-off."""
+        self.write(servo_id, Register.LOCK, 1)
+
+    def write_eeprom(self, servo_id: int, register: Register, value: int) -> StatusError:
+        """Write one EEPROM register (below address 40) of one servo, once, acknowledged.
+
+        The value is in force at once; it survives a power cycle only if LOCK is 0 (see
+        `unlock_eeprom`). Not retried: a write whose acknowledgement was lost may have been
+        taken (an ID write changes the id the servo answers at), so the caller checks instead.
+
+        Raises
+        ------
+        BusError
+            For a RAM register (use `write`), or when no acknowledgement came back.
+        """
+        if not register.in_eeprom:
+            raise BusError(f"servo {servo_id}: {register.name} (address {register.address}) "
+                           "is a RAM register, not EEPROM; write it with `write`")
+        action = f"writing {register.name} (EEPROM address {register.address}) = {value}"
+        packet = packets.write(servo_id, register.address, to_bytes(value, register.size))
+        status = self._transact(servo_id, action, packet, 0, retries=0)
+        return StatusError(status.error)
+
+    def note_return_delay(self, servo_id: int, return_delay_us: int) -> None:
+        """The servo now waits ``return_delay_us`` before answering: plan exchanges with it."""
+        self.link.return_delay_ns[servo_id] = return_delay_us * NS_PER_US
 
     # -- handshake -----------------------------------------------------------------------
 

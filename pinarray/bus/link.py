@@ -11,6 +11,9 @@ only when its id, its length and its checksum fit the request; anything else is 
 stale or mismatched reply and skipped; and the wait ends at a deadline computed from the wire
 time at the baud rate, the servos' return delay and the adapter's latency. Nothing here
 retries: the caller decides (`pinarray.bus.feetech`).
+
+Past 400 lines on purpose: the wires, the latency model and the exchange are the three
+halves of one job (a request and its validated replies, on time) and are read together.
 """
 
 from __future__ import annotations

@@ -20,6 +20,9 @@ Who answers what (Feetech communication protocol manual V1.01): PING always answ
 the broadcast id; READ and SYNC READ answer with data; WRITE, REG WRITE, ACTION and RESET
 answer only at status return level 1 and never at the broadcast id. The answer carries the
 id the instruction addressed, also when the instruction changed that id.
+
+Past 400 lines on purpose: the simulated wire (packet framing, faults, replies) and its
+pyserial face are one device as a client sees it.
 """
 
 from __future__ import annotations
@@ -125,11 +128,6 @@ class SimBus:
         """True once the port has "disappeared" (see ``vanish_after``)."""
         limit = self.vanish_after_packets
         return limit is not None and self.packets_received >= limit
-
-    def advance_all(self, now_ns: int) -> None:
-        """Note that time has reached ``now_ns`` for every servo (e.g. before sampling them)."""
-        for servo in self.servos.values():
-            servo.advance_to(now_ns)
 
     def receive(
         self, data: bytes, at_ns: int, byte_ns: float | None = None, baud_rate: int | None = None

@@ -20,6 +20,9 @@ protocol manual V1.01, both in ``extras/`` of github.com/matthieuvigne/STS_servo
   1 step/s (phase bit 2; 50 step/s when cleared).
 - Present position = actual position - position correction (31), as LeRobot's calibration
   assumes; writing 128 to Torque Enable makes the present position read 2048.
+
+Past 400 lines on purpose: one servo's control table and what every instruction does to it,
+as Feetech's memory table describes it, register by register.
 """
 
 from __future__ import annotations

@@ -14,11 +14,11 @@ import sys
 from collections.abc import Sequence
 
 from pinarray import __version__
-from pinarray.cli import analysis, batch, bus, grid, protocols, softness, tui
+from pinarray.cli import analysis, batch, bus, grid, protocols, servos, softness, tui
 from pinarray.errors import PinArrayError
 from pinarray.stop import Stopped
 
-COMMANDS = (grid, protocols, bus, batch, analysis, softness, tui)
+COMMANDS = (grid, protocols, bus, servos, batch, analysis, softness, tui)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from pinarray.cli.bus import add_bus_choice
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
@@ -18,6 +19,10 @@ ends. A run that was killed or aborted resumes with --resume: exactly the remain
 plan order, on the run's own time base. --resume with no unfinished run for any FILE is an
 error (exit 2); a file without one starts a new run. A run open in another process is refused
 (exit 2): a run has one writer at a time.
+
+In the scanner (--trigger serial:PATH or emulate:TR, or the protocol's sync: section) each run
+waits for the first counted volume, times every onset from it, and logs every volume in
+sourcedata/ beside its manifest; --lsl sends one LSL marker per stimulus onset and offset.
 """
 
 
@@ -41,6 +46,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--results", default=str(DEFAULT_RESULTS_ROOT), metavar="DIR",
                    help="results folder (default results/)")
     p.add_argument("--resume", action="store_true", help="continue the subject's unfinished runs")
+    common.add_sync_options(p, key=False)
     p.set_defaults(func=_cmd_batch)
 
 
@@ -61,15 +67,70 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     for protocol in protocols:
         for warning in protocol_warnings(protocol):
             print(f"pinarray: warning: {protocol.source}: {warning}", file=sys.stderr)
+    syncs = [_scanner_settings(args, protocol) for protocol in protocols]  # all checked first
     resumable = _resumable(protocols, args.results, subject, session) if args.resume else set()
-    for index, protocol in enumerate(protocols):
-        try:
-            run_batch(protocol, args, subject, session, responses, resume=index in resumable,
-                      files_left=args.files[index:])
-        except NotDelivered as failed:
-            print(f"pinarray: {failed}", file=sys.stderr)
-            return EXIT_NOT_DELIVERED
+    _refuse_resumed_scans(protocols, syncs, resumable)
+    outlet = _marker_outlet(args)
+    try:
+        for index, protocol in enumerate(protocols):
+            try:
+                run_batch(protocol, args, subject, session, responses, resume=index in resumable,
+                          files_left=args.files[index:], sync=syncs[index], outlet=outlet)
+            except NotDelivered as failed:
+                print(f"pinarray: {failed}", file=sys.stderr)
+                return EXIT_NOT_DELIVERED
+    finally:
+        if outlet is not None:
+            outlet.close()
     return 0
+
+
+def _scanner_settings(args: argparse.Namespace, protocol):
+    """The run's scanner settings (protocol's sync: section, the options on top), checked."""
+    from pinarray.cli import common
+    from pinarray.protocol.sync import KeyTrigger, SerialTrigger, SyncError
+
+    sync = common.sync_overrides(args).over(protocol.sync)
+    if sync is not None and isinstance(sync.trigger, KeyTrigger):
+        raise SyncError(f"{protocol.source}: a key trigger needs the experimenter UI (pinarray "
+                        "tui); batch has no keyboard: use serial:PATH or emulate:TR")
+    if sync is not None and isinstance(sync.trigger, SerialTrigger) and not _wall_clock(args):
+        raise SyncError(f"{protocol.source}: {sync.trigger.describe()}: a scanner's triggers "
+                        "arrive in real time: run the simulator with --time-scale 1")
+    return sync
+
+
+def _wall_clock(args: argparse.Namespace) -> bool:
+    """Whether the runs keep wall-clock time: real servos, or the simulator at --time-scale 1."""
+    return bool(args.port) or args.time_scale == 1
+
+
+def _refuse_resumed_scans(protocols, syncs, resumable: set[int]) -> None:
+    from pinarray.protocol.sync import SyncError
+
+    for index in sorted(resumable):
+        if syncs[index] is not None:
+            raise SyncError(f"{protocols[index].source}: --resume: a run timed from scanner "
+                            "volumes cannot go on in a new scan (its time zero was the old "
+                            "scan's first volume); start a new run without --resume")
+
+
+def _marker_outlet(args: argparse.Namespace):
+    """The LSL marker outlet, open for every run of the command, or None without --lsl."""
+    if args.lsl is None:
+        return None
+    from pinarray.clock import MonotonicClock
+    from pinarray.errors import PinArrayError
+
+    if not _wall_clock(args):
+        raise PinArrayError("--lsl: markers are stamped on this machine's clock, and a "
+                            "simulated one is not it: run the simulator with --time-scale 1")
+    from pinarray.sync.lsl import MarkerOutlet
+
+    outlet = MarkerOutlet(args.lsl, MonotonicClock())
+    print(f"pinarray: LSL markers on stream {outlet.name!r} (type Markers, source "
+          f"{outlet.source_id})", file=sys.stderr)
+    return outlet
 
 
 def _resumable(protocols, root: str, subject: str, session: str) -> set[int]:
@@ -105,17 +166,18 @@ class NotDelivered(Exception):
 
 
 def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None, *,
-              resume: bool, files_left: list[str]) -> None:
-    import sys
+              resume: bool, files_left: list[str], sync=None, outlet=None) -> None:
 
     from pinarray.errors import PinArrayError
     from pinarray.journal.runs import open_run
+    from pinarray.journal.volumes import volume_log_path
     from pinarray.observer import SimulatedObserver, parse_observer
     from pinarray.plan import make_plan
     from pinarray.player import describe
     from pinarray.rig import Rig, choose_clock
-    from pinarray.session import DIRECTION_LABEL, Phase, Session, task_label
+    from pinarray.session import Phase, task_label
     from pinarray.stop import Stopped, StopRequest, stop_on_signals
+    from pinarray.sync.run import start_session
 
     task = task_label(protocol)
     if responses is not None:
@@ -127,21 +189,34 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
                 + (" ..." if len(missing) > 10 else "")
             )
-    clock = choose_clock(args.port, args.time_scale, paced=True)
+    from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
+    from pinarray.protocol.sync import EmulatedTrigger
+
+    # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
+    # time (at --time-scale 1) instead of a paced one.
+    wall_clock = outlet is not None or (sync is not None
+                                        and not isinstance(sync.trigger, EmulatedTrigger))
+    clock = choose_clock(args.port, args.time_scale, paced=not wall_clock)
+    if outlet is not None:
+        outlet.use_clock(clock)
     observer = None
     if responses is None:
         observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
     with stop_on_signals(StopRequest()) as stop:
         rig = Rig(protocol, args.port, args.sim, clock, stop)
+        scanner = None
         try:
             for warning in rig.warnings:
                 print(f"pinarray: warning: {warning}", file=sys.stderr)
             if args.resume and not resume:
                 print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; "
                       "starting a new run", file=sys.stderr)
+            if sync is not None:
+                scanner = _wait_for_scanner(sync, rig.clock, stop)
             writer, plan = open_run(protocol, args.results, subject, session, task, resume=resume,
                                     seed=args.seed, port_url=rig.url, clock=clock,
-                                    experimenter=args.experimenter)
+                                    experimenter=args.experimenter,
+                                    scanner=scanner.record() if scanner else None)
             if writer.stale_lock:
                 print(f"pinarray: warning: {writer.stale_lock}", file=sys.stderr)
             if writer.resumed and args.seed is not None and args.seed != plan.seed:
@@ -153,7 +228,8 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
             resume_hint = (f"resume with: pinarray batch {' '.join(files_left)} --subject {subject} "
                            f"--session {session} --resume")
             with writer:
-                run = Session(protocol, plan, writer, rig, rig.clock)
+                run = start_session(protocol, plan, writer, rig, rig.clock, scanner=scanner,
+                                    outlet=outlet)
                 progress = Progress(f"{task} sub-{subject} ses-{session}", run.total, run.done_count)
                 try:
                     run.begin()
@@ -171,13 +247,17 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                             run.retry()
                             continue
                         attempts = 0
+                        assert run.current is not None  # READY -> RESPONSE keeps the trial
                         condition = run.current.condition
+                        answer: str | int | None  # None: nothing felt
                         if responses is not None:
                             answer = responses[run.current.trial]
-                        elif condition.pin is not None:
+                        elif isinstance(condition, LocalisationCondition):
+                            assert observer is not None
                             answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
                         else:
-                            answer = observer.respond_motion(DIRECTION_LABEL[condition.direction])
+                            assert observer is not None
+                            answer = observer.respond_motion(DIRECTION_OF_WAVE[condition.direction])
                         run.respond(answer, response_time_ns=None)  # scripted: no real response time
                         progress.update(run.done_count)
                 except (Stopped, KeyboardInterrupt) as stopped:
@@ -187,10 +267,30 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                     raise
                 progress.close()
             print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed {plan.seed}, run {writer.paths.run})")
+            if scanner is not None:
+                print(f"scanner: {scanner.summary()}; every volume in "
+                      f"{volume_log_path(writer.paths)}")
         finally:
+            if scanner is not None:
+                scanner.close()
             safe = rig.close()
             if not safe.complete:
                 print(f"pinarray: warning: {describe(safe)}", file=sys.stderr)
+
+
+def _wait_for_scanner(sync, clock, stop):
+    """Open the trigger and wait for the run's time zero (nothing is written before it)."""
+    from pinarray.sync.scanner import Scanner
+
+    scanner = Scanner(sync, clock, stop)
+    try:
+        print(f"pinarray: waiting for the scanner ({sync.describe()}); Ctrl-C gives up",
+              file=sys.stderr)
+        scanner.wait_for_time_zero()
+    except BaseException:
+        scanner.close()
+        raise
+    return scanner
 
 
 class Progress:

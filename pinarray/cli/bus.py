@@ -1,10 +1,10 @@
-"""`pinarray play`, `pinarray scan` and `pinarray sim-serve`: the servo bus from the shell."""
+"""`pinarray play`, `timing`, `scan` (an alias of `servos scan`) and `sim-serve`: the servo bus
+from the shell."""
 
 import argparse
 
 from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.cli.output import say
-from pinarray.protocol import BAUD_RATES
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
 EXIT_NOT_DELIVERED = 3
@@ -64,7 +64,7 @@ Example: pinarray sim-serve --ids 1-16 --faults 'drop_writes=0.1&late=0.05&seed=
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``play``, ``scan`` and ``sim-serve`` to the `pinarray` parser."""
+    """Add ``play``, ``timing``, ``scan`` and ``sim-serve`` to the `pinarray` parser."""
     from pinarray.cli import common  # here, not at the top: the cli package imports this module
     p = subparsers.add_parser(
         "play",
@@ -92,16 +92,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="how long to measure wake-ups (default 2)")
     p.set_defaults(func=_cmd_timing)
 
+    from pinarray.cli import servos
     p = subparsers.add_parser(
         "scan",
-        help="list the servos that answer: model, voltage, temperature, error bits",
-        epilog="The simulated bus is the default; use --port for hardware.",
+        help="list the servos that answer: model, voltage, temperature, error bits "
+             "(= servos scan)",
+        epilog=servos.SCAN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    add_bus_choice(p)
-    p.add_argument("--ids", default="0-252", help="ids to ping, e.g. 1-16 (default 0-252)")
-    p.add_argument("--baud", type=int, default=1_000_000, choices=BAUD_RATES, metavar="BAUD",
-                   help="bit/s (default 1000000)")
-    p.set_defaults(func=_cmd_scan)
+    servos.add_scan_options(p)
 
     p = subparsers.add_parser(
         "sim-serve",
@@ -189,42 +187,6 @@ def _cmd_timing(args: argparse.Namespace) -> int:
             rig.close()
     say("\n".join(verdict.lines))
     return 0 if verdict.deliverable else EXIT_NOT_DELIVERED
-
-
-def _cmd_scan(args: argparse.Namespace) -> int:
-    from pinarray.bus.faults import parse_ids
-    from pinarray.bus.registers import STS3215_MODEL_NUMBER
-    from pinarray.bus.transport import open_bus
-    from pinarray.errors import BusError
-
-    ids = parse_ids(args.ids)
-    url = args.port or args.sim or SIM_DEFAULT
-    bus = open_bus(url, baud_rate=args.baud, retries=1)
-    try:
-        for warning in bus.warnings:
-            print(f"pinarray: warning: {warning}")
-        found = 0
-        print(f"{'id':>3}  {'model':<14} {'position':>8} {'voltage':>8} {'temp':>6}  errors")
-        for servo_id in ids:
-            model = bus.ping(servo_id, retry=False)
-            if model is None:
-                continue
-            found += 1
-            name = f"{model} (STS3215)" if model == STS3215_MODEL_NUMBER else str(model)
-            try:
-                (reading,) = bus.read_telemetry((servo_id,))
-            except BusError as error:
-                print(f"{servo_id:>3}  {name:<14} telemetry failed: {error}")
-                continue
-            print(
-                f"{servo_id:>3}  {name:<14} {reading.position_steps:>8} "
-                f"{reading.voltage_v:>7.1f}V {reading.temperature_c:>4}°C  "
-                f"{reading.errors.describe()}"
-            )
-        print(f"{found} servo(s) answered on {url} (ids {args.ids} pinged)")
-    finally:
-        bus.close()
-    return 0
 
 
 def _cmd_sim_serve(args: argparse.Namespace) -> int:

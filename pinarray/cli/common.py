@@ -203,3 +203,62 @@ class OutputFile:
             with contextlib.suppress(FileNotFoundError):
                 os.remove(self.temporary)
             self.temporary = None
+
+
+# -- scanners and EEG (batch, tui) -------------------------------------------------------------
+
+
+def trigger(text: str):
+    """A scanner trigger: serial:PATH[:CHAR], key[:CHAR] or emulate:TR."""
+    from pinarray.protocol.sync import SyncError, parse_trigger
+
+    try:
+        return parse_trigger(text)
+    except SyncError as problem:
+        raise argparse.ArgumentTypeError(str(problem)) from None
+
+
+def seconds_ns(minimum_s: float, maximum_s: float) -> Callable[[str], int]:
+    """Seconds from ``minimum_s`` to ``maximum_s``, as whole nanoseconds."""
+    within = number(minimum_s, maximum_s)
+
+    def parse(text: str) -> int:
+        return round(within(text) * 1_000_000_000)
+
+    return parse
+
+
+def add_sync_options(parser: argparse.ArgumentParser, *, key: bool) -> None:
+    """--trigger, --dummy-volumes, --tr, --lock-to-volumes, --trigger-timeout, --lsl."""
+    from pinarray.protocol.sync import MAX_DUMMY_VOLUMES, MAX_LOCK_VOLUMES
+    from pinarray.sync.lsl import DEFAULT_STREAM_NAME
+
+    kinds = "serial:PATH[:CHAR], key[:CHAR] (in the UI) or emulate:TR" if key else \
+        "serial:PATH[:CHAR] or emulate:TR"
+    group = parser.add_argument_group(
+        "scanner and EEG", "wait for a scanner's first counted volume and time every onset from "
+        "it; send LSL markers (these override the protocol's sync: section)")
+    group.add_argument("--trigger", type=trigger, metavar="SPEC",
+                       help=f"volume triggers: {kinds}; CHAR defaults to 5")
+    group.add_argument("--dummy-volumes", type=count(0, MAX_DUMMY_VOLUMES), metavar="N",
+                       help="volumes logged but not counted before time zero (default 0)")
+    group.add_argument("--tr", type=seconds_ns(0.1, 60), metavar="S",
+                       help="the scanner's TR in seconds, to flag irregular and missed volumes "
+                            "(default: the median interval seen)")
+    group.add_argument("--lock-to-volumes", type=count(0, MAX_LOCK_VOLUMES), metavar="N",
+                       help="start each trial on a counted volume numbered a multiple of N "
+                            "(0 = on the protocol's timing, the default)")
+    group.add_argument("--trigger-timeout", type=seconds_ns(1, 3600), metavar="S",
+                       help="give up when no volume comes for S seconds before time zero "
+                            "(default 300)")
+    group.add_argument("--lsl", nargs="?", const=DEFAULT_STREAM_NAME, metavar="NAME",
+                       help=f"send a marker per stimulus onset and offset on an LSL stream of "
+                            f"type Markers named NAME (default {DEFAULT_STREAM_NAME})")
+
+
+def sync_overrides(args: argparse.Namespace):
+    """The scanner options given on the command line (`SyncOverrides`)."""
+    from pinarray.protocol.sync import SyncOverrides
+
+    return SyncOverrides(args.trigger, args.dummy_volumes, args.tr, args.lock_to_volumes,
+                         args.trigger_timeout)

@@ -27,6 +27,10 @@ Exit status: 0 every run opened was completed (or none was); 1 an error the UI c
 handle (the run is marked crashed, resumable; the line names the file with the details);
 2 bad input on the command line; 4 quit with a run left unfinished (resumable);
 128 + N stopped by signal N (Ctrl-C counts as SIGINT: 130).
+
+In the scanner (--trigger, or the protocol's sync: section) Begin run waits for the first
+counted volume ("waiting for scanner", volumes seen; Esc stops waiting) and times the run from
+it; a key trigger is a key pressed on that screen. --lsl sends LSL markers.
 """
 
 
@@ -51,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--subject", default="", metavar="ID",
                    help="fill in the subject (with --session: offers that run's Resume)")
     p.add_argument("--session", default="1", metavar="N", help="fill in the session (default 1)")
+    common.add_sync_options(p, key=True)
     p.set_defaults(func=_cmd_tui)
 
 
@@ -64,11 +69,26 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
     choose_clock(args.port, args.time_scale)  # refuses --speed with real servos, up front
+    from pinarray.protocol.sync import EmulatedTrigger, SyncOverrides
+
+    sync = common.sync_overrides(args)  # put over the chosen protocol's sync: at Begin run
+    if args.file and sync != SyncOverrides():  # checked now when the protocol is known
+        from pinarray.protocol.load import load_protocol
+
+        sync.over(load_protocol(args.file).sync)
+    wall = [name for name, given in (("--lsl", args.lsl is not None),
+                                     ("--trigger", sync.trigger is not None
+                                      and not isinstance(sync.trigger, EmulatedTrigger)))
+            if given]
+    if wall and not args.port and args.time_scale != 1:
+        raise PinArrayError(f"{' and '.join(wall)}: stamped on this machine's clock, which a "
+                            "sped-up simulation is not: use --speed 1")
     options = TuiOptions(
         protocol_path=Path(args.file) if args.file else None,
         protocols_dir=Path(args.protocols), results_root=Path(args.results),
         port=args.port, sim_url=args.sim, time_scale=args.time_scale, seed=args.seed,
         subject=args.subject, session=args.session,
+        sync=sync, lsl=args.lsl,
     )
     app = PinArrayApp(options)
     with on_the_terminal():

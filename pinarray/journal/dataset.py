@@ -34,13 +34,13 @@ from pinarray.journal.records import (
     BEH_COLUMNS,
     COLUMN,
     EVENT_NAMES,
+    EVENT_ONLY,
     MOTION_ANSWER_MEANING,
     NOTHING_FELT,
-    TRIAL_TYPE,
     Column,
     condition_label,
 )
-from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind
+from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
 from pinarray.protocol import Paradigm
 
 BIDS_VERSION = "1.10.0"
@@ -71,12 +71,19 @@ status `ok` counts, and each trial has at most one.
 
 ## Time
 
-`onset` is in seconds from the run's time zero (the stimulus onset of its first trial unless
-the sidecar says otherwise), on one time base for the whole run: a run interrupted and resumed
-later continues where it stood (in real time the pause counts; in simulated time it continues
-from the end of the last trial on file). Each sitting's wall-clock start (with its UTC offset),
-its clock (real, or simulated and how fast) and where it joins the run's time are in the
-run's manifest and its sidecars' `TimeBase`. A simulated rehearsal says `"Simulated": true`.
+`onset` (events.tsv) and `stimulus_onset` (beh.tsv) are in seconds from the run's time zero
+(the stimulus onset of its first trial unless the sidecar says otherwise), on one time base
+for the whole run: a run interrupted and resumed later continues where it stood (in real time
+the pause counts; in simulated time it continues from the end of the last trial on file).
+Each sitting's wall-clock start (with its UTC offset), its clock (real, or simulated and how
+fast) and where it joins the run's time are in the run's manifest and its sidecars'
+`TimeBase`. A simulated rehearsal says `"Simulated": true`.
+
+## Resuming
+
+A run has one writer at a time (the `.lock` file in `sourcedata/` names it while it writes).
+A run that was stopped or killed resumes with exactly its remaining trials:
+`pinarray batch FILE --subject ID --resume`, or Resume on the UI's start screen.
 
 ## Provenance
 
@@ -112,6 +119,9 @@ def _read_json(path: Path) -> Any:
         return json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as error:
         raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
+    except UnicodeDecodeError as error:
+        raise ResultsError(f"{path}: expected UTF-8 JSON, found byte "
+                           f"0x{error.object[error.start]:02x} at offset {error.start}") from None
 
 
 def _dump(data: Any) -> str:
@@ -128,6 +138,9 @@ def _description(path: Path) -> None:
         raise ResultsError(f"{path}:1:1: expected a JSON object, found {type(data).__name__}")
     mine = generated_by()
     already = data.get("GeneratedBy") or []
+    if not isinstance(already, list):
+        raise ResultsError(f"{path}: GeneratedBy must be a list of objects (BIDS), found "
+                           f"{type(already).__name__}")
     if not any(isinstance(g, dict) and (g.get("Name"), g.get("Version")) == (mine["Name"],
                mine["Version"]) for g in already):
         write_atomically(path, _dump({**data, "GeneratedBy": [*already, mine]}))
@@ -137,7 +150,8 @@ def _participants(tsv: Path, subject: str) -> None:
     participant = f"sub-{subject}"
     rows: list[list[str]] = []
     if tsv.exists():
-        rows = list(csv.reader(io.StringIO(tsv.read_text(encoding="utf-8")), delimiter="\t"))
+        # utf-8-sig: a spreadsheet may have saved it with a byte-order mark; it is written without.
+        rows = list(csv.reader(io.StringIO(tsv.read_text(encoding="utf-8-sig")), delimiter="\t"))
     if not rows:
         rows = [[PARTICIPANT_ID]]
     if rows[0][:1] != [PARTICIPANT_ID]:
@@ -209,22 +223,57 @@ def _run_levels(manifest: RunManifest) -> dict[str, dict[str, str]]:
             "row": {str(r): f"row {r} (1 = bottom)" for r in range(1, info.grid_rows + 1)}}
 
 
+def _sitting(sitting: Sitting) -> dict[str, Any]:
+    if sitting.start_ns is None:  # no trial ran yet, or an earlier pinarray wrote the run
+        start, joins = None, "at a time not recorded"
+    else:
+        text = seconds_text(sitting.start_ns)
+        start, joins = float(text), f"at {text} s"
+    return {"Sitting": sitting.number, "StartedAt": sitting.started_at,
+            "Clock": sitting.clock.kind.value, "TimeScale": sitting.clock.factor,
+            "RunTimeAtStart": start,
+            "Description": f"{sitting.clock.describe()}; joins the run's time base {joins}"}
+
+
 def _time_base(manifest: RunManifest) -> dict[str, Any]:
     zero = manifest.time_zero
     return {
         "Zero": zero.event if zero else FIRST_TRIAL_ONSET,
+        "ZeroAt": zero.at if zero else None,
         # Simulated servos, or time that is not the wall clock's: not data from a real sitting.
         "Simulated": manifest.provenance.port.startswith("sim://") or any(
             s.clock.kind.simulated or s.clock.kind is ClockKind.SCALED for s in manifest.sittings),
-        "Sittings": [{"Sitting": s.number, "StartedAt": s.started_at,
-                      "Clock": s.clock.kind.value, "TimeScale": s.clock.factor,
-                      "Description": s.clock.describe()} for s in manifest.sittings],
-        "Description": "onset is in seconds from the run's time zero on one time base for all "
-                       "sittings; a resumed sitting joins it where the wall clock says in real "
-                       "time (the pause counts) and at the end of the last trial on file in "
-                       "simulated time. The manifest in sourcedata/ has where each sitting "
-                       "starts on this time base.",
+        "Sittings": [_sitting(s) for s in manifest.sittings],
+        **({} if manifest.scanner is None else {"Scanner": _scanner(manifest)}),
+        "Description": "onset (events.tsv) and stimulus_onset (beh.tsv) are in seconds from the "
+                       "run's time zero (Zero; ZeroAt is when it was on the wall clock, with its "
+                       "UTC offset) on one time base for all sittings. Each sitting (a resume "
+                       "starts a new one) records its wall-clock start (StartedAt), its clock "
+                       "and how many of its seconds passed per wall-clock second (TimeScale: 1 "
+                       "in real time, null in virtual time), and where it joins the run's time "
+                       "base (RunTimeAtStart, s): in real time where the wall clock says (the "
+                       "pause counts), in simulated time at the end of the last trial on file. "
+                       "Simulated is true when the servos were simulated or any sitting ran in "
+                       "simulated or sped-up time: not data from a subject.",
     }
+
+
+def _scanner(manifest: RunManifest) -> dict[str, Any]:
+    """A run timed from scanner volumes: its trigger, and where every volume is logged."""
+    record = manifest.scanner
+    assert record is not None
+
+    def seconds(ns: int | None) -> float | None:
+        return None if ns is None else float(seconds_text(ns))
+
+    return {
+        "Trigger": record.trigger, "DummyVolumes": record.dummy_volumes,
+        "RepetitionTime": seconds(record.repetition_time_ns),
+        "LockToVolumes": record.lock_to_volumes, "Tolerance": seconds(record.tolerance_ns),
+        "VolumeLog": record.volume_log,
+        "Description": "Time zero is the first counted scanner volume; every volume the trigger "
+                       "delivered (and every one it missed) is in volume_log, with its arrival "
+                       "on the same time base as onset."}
 
 
 def _common(manifest: RunManifest) -> dict[str, Any]:
@@ -257,7 +306,7 @@ def beh_sidecar(manifest: RunManifest) -> dict[str, Any]:
         if column.name in levels:
             entry["Levels"] = levels[column.name]
         columns[column.name] = entry
-    onset = columns["onset"]
+    onset = columns["stimulus_onset"]
     onset["Description"] += f" Zero: {_time_base(manifest)['Zero']}."
     return _common(manifest) | columns
 
@@ -265,10 +314,10 @@ def beh_sidecar(manifest: RunManifest) -> dict[str, Any]:
 def events_sidecar(manifest: RunManifest) -> dict[str, Any]:
     """The BIDS JSON sidecar of a run's ``events.tsv``."""
     beh = beh_sidecar(manifest)
-    columns = {name: beh[name] for name in EVENT_NAMES if name in beh}
-    columns["trial_type"] = _entry(TRIAL_TYPE) | {
-        "Levels": _trial_types(manifest.task, manifest.plan)}
-    return _common(manifest) | {name: columns[name] for name in EVENT_NAMES}
+    columns = {name: beh.get(name) or _entry(EVENT_ONLY[name]) for name in EVENT_NAMES}
+    columns["onset"]["Description"] += f" Zero: {_time_base(manifest)['Zero']}."
+    columns["trial_type"] |= {"Levels": _trial_types(manifest.task, manifest.plan)}
+    return _common(manifest) | columns
 
 
 def write_sidecars(paths: RunPaths, manifest: RunManifest) -> None:

@@ -43,9 +43,15 @@ class LockHolder:
     since: str
     command: str = ""
 
+    @property
+    def here(self) -> bool:
+        """Whether the holder ran on this computer."""
+        return self.host == this_host()
+
     def describe(self) -> str:
-        where = "this computer" if self.host == this_host() else f"host {self.host}"
-        return f"pid {self.pid} on {where}, since {self.since}"
+        """E.g. ``pid 4242 on host lab-pc (this computer), since 2024-05-01T14:03:07+02:00``."""
+        here = " (this computer)" if self.here else ""
+        return f"pid {self.pid} on host {self.host}{here}, since {self.since}"
 
     def to_json(self) -> str:
         return json.dumps({"pid": self.pid, "host": self.host, "since": self.since,
@@ -168,14 +174,30 @@ def lock_holder(path: Path) -> LockHolder | None:
 def locked_message(what: str, holder: LockHolder | None) -> str:
     """A refusal in words: ``what`` is open in another process, and which one."""
     who = holder.describe() if holder else "a process that has not yet named itself"
-    return (f"{what} is open in another process ({who}); a run has one writer at a time: "
+    return (f"{what} is open in another process, {who}; a run has one writer at a time: "
             "wait for that one to end, or end it, then try again")
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` exists on this computer (signal 0 checks without sending)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True  # another user's process (or a pid that cannot be asked): it exists
+    return True
 
 
 def stale_message(stale: LockHolder, what: str) -> str:
     """A taken-over lock in words, for the log."""
-    return (f"took over the lock of {what} left by {stale.describe()}: that process is no "
-            "longer running (killed or crashed), so its run is resumed here")
+    if stale.here and stale.pid > 0 and _running(stale.pid):
+        # Nobody holds the lock, so that process is not writing the run: its pid was reused.
+        gone = f"pid {stale.pid} is now another program; the writer ended without releasing it"
+    else:
+        gone = "that process is no longer running (killed or crashed)"
+    return (f"took over the lock of {what} left by {stale.describe()}: {gone}; its run is "
+            "resumed here")
 
 
 @contextmanager

@@ -31,7 +31,8 @@ from pinarray.journal.timebase import (
     ns_from_seconds,
     seconds_text,
 )
-from pinarray.protocol import Paradigm, WaveKind
+from pinarray.journal.volumes import ScannerRecord
+from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
 
 
 class RunStatus(StrEnum):
@@ -46,8 +47,6 @@ class RunStatus(StrEnum):
         return self is not RunStatus.COMPLETED
 
 
-DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
-                     WaveKind.NONE: Direction.NONE}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,9 +100,9 @@ def entry_from_json(data: object, where: str) -> PlanEntry:
     trial = data.get("trial")
     if isinstance(trial, bool) or not isinstance(trial, int):
         raise ResultsError(f"{where}: a trial plan entry needs an integer 'trial', found {data!r}")
-    common = {"trial": trial, "block": int(data.get("block", 1)),
-              "practice": bool(data.get("practice", False)),
-              "stimulus": str(data.get("stimulus") or "")}
+    common: dict[str, Any] = {"trial": trial, "block": int(data.get("block", 1)),
+                              "practice": bool(data.get("practice", False)),
+                              "stimulus": str(data.get("stimulus") or "")}
     try:
         if data.get("pin") is not None:
             return LocalisationEntry(**common, pin=int(data["pin"]),
@@ -169,6 +168,7 @@ class RunManifest:
     sittings: tuple[Sitting, ...] = ()
     time_zero: TimeZero | None = None
     software_version: str = __version__
+    scanner: ScannerRecord | None = None  # a run timed from scanner volumes
     machine: Mapping[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -205,6 +205,7 @@ class RunManifest:
             "time_zero": None if self.time_zero is None else {
                 "event": self.time_zero.event, "at": self.time_zero.at},
             "sittings": [_sitting_to_json(s) for s in self.sittings],
+            **({} if self.scanner is None else {"scanner": self.scanner.to_json()}),
             "plan": [entry_to_json(e) for e in self.plan],
         }
 
@@ -232,6 +233,8 @@ class RunManifest:
                 time_zero=None if zero is None else TimeZero(str(zero["event"]), str(zero["at"])),
                 software_version=str(data.get("software_version", "")),
                 machine={str(k): str(v) for k, v in dict(data.get("machine", {})).items()},
+                scanner=(ScannerRecord.from_json(data["scanner"]) if data.get("scanner")
+                         else None),
             )
         except (TypeError, KeyError, ValueError) as error:
             raise ResultsError(f"{where}: not a pinarray run manifest ({error!r})") from None

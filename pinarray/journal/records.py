@@ -24,11 +24,9 @@ from pinarray.errors import ResultsError
 from pinarray.grid import ErrorClass
 from pinarray.journal.paths import check_label
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
+from pinarray.protocol.model import NOTHING_FELT, Direction, MotionAnswer
 
 NA = "n/a"  # BIDS spelling of "not applicable"
-NOTHING_FELT = "none"  # a localisation answer: no pin felt
-
-
 class TrialStatus(StrEnum):
     """What became of a trial. Only ``ok`` finishes it; the others are presented again."""
 
@@ -36,23 +34,6 @@ class TrialStatus(StrEnum):
     REDONE = "redone"
     ABORTED = "aborted"
     INVALID = "invalid"
-
-
-class Direction(StrEnum):
-    """Which way an apparent-motion wave travels, as the subject would name it."""
-
-    LEFT = "left"
-    RIGHT = "right"
-    NONE = "none"  # the no-wave control: the central pin alternates with the lateral ones
-
-
-class MotionAnswer(StrEnum):
-    """The subject's answer to an apparent-motion trial."""
-
-    NONE = "none"  # felt no moving dot
-    LEFT = "left"
-    RIGHT = "right"
-    UNSURE = "unsure"  # felt a moving dot, could not tell which way
 
 
 @dataclass(frozen=True)
@@ -214,7 +195,7 @@ class Column(NamedTuple):
     cell: Cell
     description: str
     units: str | None = None
-    levels: Mapping[str, str] | None = None  # fixed levels; run-specific ones come from the sidecar
+    levels: Mapping[Any, str] | None = None  # fixed levels (str or StrEnum); run-specific: sidecar
 
 
 _BOOLEAN = {"true": True, "false": False}
@@ -263,10 +244,11 @@ BEH_COLUMNS: tuple[Column, ...] = (
     Column("direction_correct", Cell.BOOLEAN, "Whether the named direction matches the wave's; "
            "n/a when no motion was felt or there was no wave.",
            levels={"true": "named the wave's direction", "false": "did not"}),
-    Column("onset", Cell.SECONDS, "Stimulus onset on the run's time base: seconds from the run's "
-           "time zero, continuing across sittings (see TimeBase).", units="s"),
-    Column("duration", Cell.SECONDS, "Stimulus duration (for a trial cut short, the time it ran).",
-           units="s"),
+    Column("stimulus_onset", Cell.SECONDS, "Stimulus onset on the run's time base: seconds from "
+           "the run's time zero, continuing across sittings (see TimeBase); the onset column of "
+           "the run's events.tsv.", units="s"),
+    Column("stimulus_duration", Cell.SECONDS, "Stimulus duration (for a trial cut short, the time "
+           "it ran); the duration column of the run's events.tsv.", units="s"),
     Column("response_time", Cell.SECONDS, "Time from stimulus onset to the response; n/a for "
            "scripted answers.", units="s"),
     Column("status", Cell.TEXT, "What became of the trial.", levels=TRIAL_STATUS_MEANING),
@@ -290,10 +272,22 @@ BEH_COLUMNS: tuple[Column, ...] = (
 )
 BEH_NAMES = tuple(c.name for c in BEH_COLUMNS)
 COLUMN = {c.name: c for c in BEH_COLUMNS}
+# BIDS reserves onset and duration for events files (the validator warns BEH_ONSET_DURATION
+# about a beh.tsv that has them): the same times are onset and duration in events.tsv, where
+# BIDS requires them first, and stimulus_onset and stimulus_duration in beh.tsv.
+EVENT_ONLY = {c.name: c for c in (
+    Column("onset", Cell.SECONDS, "Stimulus onset on the run's time base: seconds from the run's "
+           "time zero, continuing across sittings (see TimeBase).", units="s"),
+    Column("duration", Cell.SECONDS, "Stimulus duration (for a trial cut short, the time it ran).",
+           units="s"),
+    Column("trial_type", Cell.TEXT, "Condition: the task and the frequency (localisation) or the "
+           "wave's direction (motion), e.g. localisation_10hz."),
+)}
+TRIAL_TYPE = EVENT_ONLY["trial_type"]
 EVENT_NAMES = ("onset", "duration", "trial_type", "trial", "pin", "row", "direction",
                "frequency_hz", "response", "status", "practice")
-TRIAL_TYPE = Column("trial_type", Cell.TEXT, "Condition: the task and the frequency "
-                    "(localisation) or the wave's direction (motion), e.g. localisation_10hz.")
+# beh.tsv columns that had another name in files written by an earlier pinarray: read as today's.
+RENAMED = {"onset": "stimulus_onset", "duration": "stimulus_duration"}
 # The columns of the first release; later ones were appended after them.
 _FIRST_NAMES = BEH_NAMES[: BEH_NAMES.index("resumed") + 1]
 
@@ -329,7 +323,7 @@ def _values(record: TrialRecord) -> dict[str, Any]:
     """The record's cells as Python values (None for n/a), by column name."""
     values: dict[str, Any] = {
         "trial": record.trial, "block": record.block, "task": record.task,
-        "onset": record.onset_ns, "duration": record.duration_ns,
+        "stimulus_onset": record.onset_ns, "stimulus_duration": record.duration_ns,
         "response_time": record.response_time_ns, "status": record.status,
         "practice": record.practice, "resumed": record.resumed,
         "status_reason": record.status_reason,
@@ -353,7 +347,8 @@ def _values(record: TrialRecord) -> dict[str, Any]:
 def _cells(values: Mapping[str, Any], names: Sequence[str]) -> list[str]:
     def cell(name: str) -> str:
         value = values.get(name)
-        return NA if value is None else _FORMAT[COLUMN.get(name, TRIAL_TYPE).cell](value)
+        column = COLUMN.get(name) or EVENT_ONLY[name]
+        return NA if value is None else _FORMAT[column.cell](value)
 
     return [cell(name) for name in names]
 
@@ -383,7 +378,10 @@ def trial_row(record: TrialRecord) -> list[str]:
 
 def event_row(record: TrialRecord) -> list[str]:
     """The ``events.tsv`` cells of ``record``, in `EVENT_NAMES` order."""
-    return _cells(_values(record) | {"trial_type": trial_type(record)}, EVENT_NAMES)
+    values = _values(record)
+    return _cells(values | {"onset": values["stimulus_onset"],
+                            "duration": values["stimulus_duration"],
+                            "trial_type": trial_type(record)}, EVENT_NAMES)
 
 
 def tsv_line(cells: Sequence[str]) -> str:
@@ -419,7 +417,14 @@ def beh_header(path: Path) -> list[str]:
             first = handle.readline()
     except FileNotFoundError:
         return []
+    if not first.endswith("\n"):
+        return []  # no header yet, or one torn by a crash (a resume drops it)
     return next(csv.reader([first], delimiter="\t"), []) if first.strip() else []
+
+
+def todays_names(header: Sequence[str]) -> tuple[str, ...]:
+    """A ``beh.tsv`` header with the columns an earlier pinarray named otherwise renamed."""
+    return tuple(RENAMED.get(name, name) for name in header)
 
 
 def _parse(name: str, text: str, where: str) -> Any:
@@ -439,14 +444,17 @@ def _required(values: Mapping[str, Any], name: str, where: str) -> Any:
 
 def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
     delivery = None
-    goals = [values.get(name) for name in ("goals_scheduled", "goals_confirmed", "goals_healed",
-                                            "goals_missing", "delivery_lateness")]
-    if all(value is not None for value in goals):
+    goals: list[int] = [values[name] for name in ("goals_scheduled", "goals_confirmed",
+                                                  "goals_healed", "goals_missing",
+                                                  "delivery_lateness")
+                        if values.get(name) is not None]
+    if len(goals) == 5:
         delivery = DeliveryCounts(*goals)
     common: dict[str, Any] = {
         "trial": _required(values, "trial", where), "block": _required(values, "block", where),
-        "task": _required(values, "task", where), "onset_ns": _required(values, "onset", where),
-        "duration_ns": _required(values, "duration", where),
+        "task": _required(values, "task", where),
+        "onset_ns": _required(values, "stimulus_onset", where),
+        "duration_ns": _required(values, "stimulus_duration", where),
         "status": _required(values, "status", where),
         "response_time_ns": values.get("response_time"),
         "practice": bool(values.get("practice")), "resumed": bool(values.get("resumed")),
@@ -482,9 +490,9 @@ def read_trials(path: Path | str) -> list[TrialRecord]:
     rows = list(csv.reader(io.StringIO(data[:end].decode("utf-8")), delimiter="\t"))
     if not rows:
         return []
-    header = rows[0]
-    if tuple(header) != BEH_NAMES[: len(header)] or len(header) < len(_FIRST_NAMES):
-        raise ResultsError(f"{path}:1: expected the columns {list(BEH_NAMES)}, found {header}")
+    header = todays_names(rows[0])
+    if header != BEH_NAMES[: len(header)] or len(header) < len(_FIRST_NAMES):
+        raise ResultsError(f"{path}:1: expected the columns {list(BEH_NAMES)}, found {rows[0]}")
     # Files written before the delivery columns existed end at `resumed`: read what they hold.
     records = []
     for number, cells in enumerate(rows[1:], start=2):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.errors import PinArrayError
@@ -27,19 +28,19 @@ from pinarray.journal.manifest import (
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import read_trials
 from pinarray.journal.timebase import REAL_TIME, ClockKind, TimeScale
+from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
-from pinarray.protocol import Protocol
+from pinarray.protocol import LocalisationCondition, Protocol
 
 
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
     """The journal's record of one planned trial."""
     c = planned.condition
-    common = {"trial": planned.trial, "block": planned.block, "practice": planned.practice,
-              "stimulus": c.stimulus}
-    if c.pin is not None and c.frequency_hz is not None:
+    common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
+                              "practice": planned.practice, "stimulus": c.stimulus}
+    if isinstance(c, LocalisationCondition):
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
-    assert c.direction is not None and c.row is not None, "a condition is a pin or a wave"
     return MotionEntry(**common, row=c.row, wave=c.direction)
 
 
@@ -63,8 +64,10 @@ def time_scale_of(clock: Clock) -> TimeScale:
             return TimeScale(ClockKind.VIRTUAL, None)
         case PacedClock():
             return TimeScale(ClockKind.PACED, clock.pace)
-        case ScaledClock():
+        case ScaledClock() if clock.scale != 1:
             return TimeScale(ClockKind.SCALED, clock.scale)
+        case ScaledClock():
+            return REAL_TIME  # scaled by 1: the wall clock's own time
         case MonotonicClock():
             return REAL_TIME
     return REAL_TIME
@@ -83,7 +86,7 @@ class Unfinished:
         """One line for the start screen."""
         m = self.manifest
         if self.holder is not None:
-            return (f"Run {self.paths.run} is open in another process ({self.holder.describe()}); "
+            return (f"Run {self.paths.run} is open in another process, {self.holder.describe()}; "
                     "it can be resumed once that one ends.")
         why = f" ({m.abort_reason})" if m.abort_reason else ""
         return (f"Unfinished run {self.paths.run}: {m.status}{why}, {self.done} of "
@@ -108,6 +111,7 @@ class NothingToResume(PinArrayError):
 def open_run(
     protocol: Protocol, root: Path | str, subject: str, session: str, task: str, *,
     resume: bool, seed: int | None, port_url: str, clock: Clock, experimenter: str = "",
+    scanner: ScannerRecord | None = None,
 ) -> tuple[RunWriter, TrialPlan]:
     """(writer, plan) for the subject's unfinished run (``resume``) or a new one.
 
@@ -129,6 +133,8 @@ def open_run(
         The sitting's clock (its kind and speed go into the run's time base).
     experimenter : str
         Who runs it, for the manifest.
+    scanner : ScannerRecord or None
+        A new run timed from scanner volumes: its trigger settings, for the manifest.
     """
     scale = time_scale_of(clock)
     if resume:
@@ -155,5 +161,5 @@ def open_run(
         experimenter=experimenter,
     )
     writer = RunWriter.start(root, subject, session, task, plan_entries(plan), provenance,
-                             task_info(protocol), scale)
+                             task_info(protocol), scale, scanner=scanner)
     return writer, plan

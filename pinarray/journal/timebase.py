@@ -19,7 +19,7 @@ Pure functions and values; the caller reads the clocks.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import datetime, timedelta
 from decimal import Decimal, InvalidOperation
 from enum import StrEnum
 
@@ -62,10 +62,10 @@ class TimeScale:
             case ClockKind.REAL:
                 return "real time"
             case ClockKind.SCALED:
-                return f"simulated: real time sped up {self.factor:g} times"
+                return f"simulated: wall-clock time at {self.factor:g}x real time"
             case ClockKind.PACED:
-                return (f"simulated: a scripted rehearsal paced {self.factor:g} times faster than "
-                        "real time (the computer's own delays not counted)")
+                return (f"simulated: a scripted rehearsal paced at {self.factor:g}x real time (the "
+                        "computer's own delays not counted)")
             case ClockKind.VIRTUAL:
                 return "simulated: virtual time, no relation to the wall clock"
         return "clock not recorded"
@@ -143,8 +143,6 @@ def wall_ns(at: datetime) -> int:
 
 def zero_wall_time(now: datetime, zero_ago_ns: int, clock: TimeScale) -> datetime:
     """The wall-clock time of a zero ``zero_ago_ns`` ago on ``clock`` (now if clock is simulated)."""
-    from datetime import timedelta
-
     if clock.kind.follows_wall_clock and clock.factor:
         return now - timedelta(microseconds=zero_ago_ns / clock.factor / 1000)
     return now

@@ -12,6 +12,8 @@ second process is refused with a one-line `RunLocked` naming the first.
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -22,7 +24,14 @@ from pathlib import Path
 from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.dataset import ensure_dataset, write_sidecars
-from pinarray.journal.files import fsync_folder, iso, this_host, this_machine, wall_now
+from pinarray.journal.files import (
+    fsync_folder,
+    iso,
+    this_host,
+    this_machine,
+    wall_now,
+    write_atomically,
+)
 from pinarray.journal.lock import RunLock, RunLocked, stale_message
 from pinarray.journal.manifest import (
     PlanEntry,
@@ -47,6 +56,7 @@ from pinarray.journal.records import (
     finished_twice,
     read_trials,
     split_torn_tail,
+    todays_names,
     trial_row,
     tsv_line,
 )
@@ -59,9 +69,25 @@ from pinarray.journal.timebase import (
     resumed_start_ns,
     zero_wall_time,
 )
+from pinarray.journal.volumes import (
+    VOLUME_NAMES,
+    ScannerRecord,
+    VolumeRow,
+    volume_cells,
+    volume_log_path,
+    volume_sidecar,
+)
 from pinarray.stop import deferred_signals
 
 Wall = Callable[[], datetime]
+
+
+def unwritable(problem: OSError, where: Path, *, mid_run: bool = False) -> ResultsError:
+    """A file that could not be written, in one line: which, and what the system said."""
+    after = ("; every row written before is on disk, and the run resumes once the results "
+             "can be written" if mid_run else "")
+    return ResultsError(f"{problem.filename or where}: cannot write results there: "
+                        f"{problem.strerror or problem}{after}")
 
 
 def repair_tail(path: Path, columns: int) -> str:
@@ -79,6 +105,28 @@ def repair_tail(path: Path, columns: int) -> str:
     return torn.decode("utf-8", errors="replace")
 
 
+def _rename_columns(path: Path) -> None:
+    """Give an earlier pinarray's ``beh.tsv`` today's column names; its rows stay as they are."""
+    rows = path.read_text(encoding="utf-8").split("\n", 1)[1]
+    write_atomically(path, tsv_line(BEH_NAMES) + rows)
+
+
+def _rebuild_events(path: Path, records: Sequence[TrialRecord]) -> None:
+    """Make ``events.tsv`` hold one row per trial row on file, rewriting it if it does not.
+
+    Its rows are a function of beh.tsv's, which is fsync'd first: a crash between the two
+    leaves events one row short (or a torn row), and a row deleted by hand from beh.tsv (a
+    trial logged ok twice) leaves one too many. Either way it is rebuilt from the trial rows.
+    """
+    text = tsv_line(EVENT_NAMES) + "".join(tsv_line(event_row(r)) for r in records)
+    try:
+        same = path.read_text(encoding="utf-8") == text
+    except (FileNotFoundError, UnicodeDecodeError):
+        same = False
+    if not same:
+        write_atomically(path, text)
+
+
 class _AppendOnlyTsv:
     """A TSV opened for appending whose every row is on disk when `append` returns."""
 
@@ -91,7 +139,11 @@ class _AppendOnlyTsv:
             fsync_folder(path.parent)
 
     def append(self, cells: Sequence[str]) -> None:
-        self._file.write(tsv_line(cells))
+        self.extend([cells])
+
+    def extend(self, rows: Sequence[Sequence[str]]) -> None:
+        """Append ``rows``, then flush and fsync once."""
+        self._file.write("".join(tsv_line(cells) for cells in rows))
         self._file.flush()
         os.fsync(self._file.fileno())
 
@@ -143,12 +195,16 @@ class RunWriter:
         self.records = records
         self.resumed = resumed
         self.repaired = repaired
-        self.stale_lock = stale_message(lock.stale, paths.label) if lock.stale else ""
+        # A new run may take a number whose lock a killed process left before writing anything:
+        # nothing of that run is resumed, so there is nothing to report.
+        self.stale_lock = stale_message(lock.stale, paths.label) if lock.stale and resumed else ""
         self._lock = lock
         self._wall = wall
         self._finished = set(finished_trials(records))
         self._beh = _AppendOnlyTsv(paths.beh_tsv, BEH_NAMES)
         self._events = _AppendOnlyTsv(paths.events_tsv, EVENT_NAMES)
+        self._volumes: _AppendOnlyTsv | None = None
+        self._pending_volumes: Callable[[], Sequence[VolumeRow]] = tuple
 
     @classmethod
     def start(
@@ -163,6 +219,7 @@ class RunWriter:
         clock: TimeScale = REAL_TIME,
         *,
         wall: Wall = wall_now,
+        scanner: ScannerRecord | None = None,
     ) -> RunWriter:
         """Start the next free run: root files, manifest (status running), sidecars.
 
@@ -178,6 +235,8 @@ class RunWriter:
             This sitting's clock (real time unless simulated).
         wall
             The wall clock (tests pass their own).
+        scanner
+            For a run timed from scanner volumes: the trigger and its log, for the manifest.
         """
         root = Path(root)
         lock = None
@@ -187,11 +246,14 @@ class RunWriter:
             paths, lock = _claim_next_run(root, probe.subject, probe.session, probe.task)
             now = wall()
             sitting = Sitting(1, iso(now), clock, None, os.getpid(), this_host(), __version__)
+            if scanner is not None:  # its log is named after the run just claimed
+                log = volume_log_path(paths).relative_to(root).as_posix()
+                scanner = replace(scanner, volume_log=log)
             manifest = RunManifest(
                 subject=paths.subject, session=paths.session, task=paths.task, run=paths.run,
                 plan=tuple(plan), provenance=provenance, task_info=task_info,
                 started_at=iso(now), updated_at=iso(now), sittings=(sitting,),
-                machine=this_machine(),
+                machine=this_machine(), scanner=scanner,
             )
             write_manifest(paths.manifest, manifest)
             write_sidecars(paths, manifest)
@@ -199,8 +261,7 @@ class RunWriter:
         except OSError as problem:
             if lock is not None:
                 lock.release()
-            where = problem.filename or root
-            raise ResultsError(f"{where}: cannot write results there: {problem.strerror}") from None
+            raise unwritable(problem, root) from None
         except BaseException:
             if lock is not None:
                 lock.release()
@@ -214,9 +275,15 @@ class RunWriter:
         Refused (`RunLocked`) while another process writes it; refused (`ResultsError`) when
         its rows finish a trial twice, which only a second writer or a hand edit leaves.
         """
-        lock = RunLock.acquire(paths.lock, paths.label, _command())
+        try:
+            lock = RunLock.acquire(paths.lock, paths.label, _command())
+        except OSError as problem:
+            raise unwritable(problem, paths.lock) from None
         try:
             return cls._resume_locked(paths, lock, clock, wall)
+        except OSError as problem:
+            lock.release()
+            raise unwritable(problem, paths.root) from None
         except BaseException:
             lock.release()
             raise
@@ -232,7 +299,7 @@ class RunWriter:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
         header = beh_header(paths.beh_tsv)
-        if header and tuple(header) != BEH_NAMES:
+        if header and todays_names(header) != BEH_NAMES:
             raise ResultsError(
                 f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
                 f"{', '.join(header)}; finish it with that version, or start a new run"
@@ -246,7 +313,9 @@ class RunWriter:
                 "not count, then resume"
             )
         repaired = repair_tail(paths.beh_tsv, len(BEH_NAMES))
-        repair_tail(paths.events_tsv, len(EVENT_NAMES))
+        if header and tuple(header) != BEH_NAMES:
+            _rename_columns(paths.beh_tsv)
+        _rebuild_events(paths.events_tsv, records)
         ensure_dataset(paths.root, paths.subject)
         now = wall()
         zero_at = (datetime.fromisoformat(manifest.time_zero.at)
@@ -261,17 +330,7 @@ class RunWriter:
         if source != paths.manifest:
             source.unlink()  # an older run's manifest, now moved to sourcedata/
         write_sidecars(paths, manifest)
-        writer = cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall)
-        writer._rebuild_missing_events()
-        return writer
-
-    def _rebuild_missing_events(self) -> None:
-        # beh.tsv is fsync'd before events.tsv, so a crash between the two leaves events one
-        # row short; its rows are a function of the trial rows, so the gap is rebuilt.
-        with open(self.paths.events_tsv, encoding="utf-8") as handle:
-            have = max(0, sum(1 for _ in handle) - 1)
-        for record in self.records[have:]:
-            self._events.append(event_row(record))
+        return cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall)
 
     # -- the run's time base -----------------------------------------------------------------
 
@@ -304,7 +363,36 @@ class RunWriter:
         sittings = (*self.manifest.sittings[:-1], replace(self.sitting, start_ns=sitting_start_ns))
         self.manifest = updated(self.manifest, sittings=sittings,
                                 time_zero=TimeZero(event, iso(at, "microseconds")))
-        write_manifest(self.paths.manifest, self.manifest)
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+            write_sidecars(self.paths, self.manifest)  # they say what the zero is, and when
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
+
+    # -- scanner volumes ---------------------------------------------------------------------
+
+    def log_volumes(self, pending: Callable[[], Sequence[VolumeRow]]) -> None:
+        """Keep the run's volume log (`pinarray.journal.volumes`): now, after each trial row,
+        and when the run closes, the rows ``pending()`` returns are appended and fsync'd.
+
+        The run's manifest must name the log (``scanner``, given to `start`).
+        """
+        record = self.manifest.scanner
+        if record is None:
+            raise ResultsError(f"{self.paths.label}: a volume log needs the run's scanner "
+                               "settings in its manifest")
+        path = volume_log_path(self.paths)
+        write_atomically(path.with_suffix(".json"),
+                         json.dumps(volume_sidecar(record), indent=2, ensure_ascii=False) + "\n")
+        self._volumes = _AppendOnlyTsv(path, VOLUME_NAMES)
+        self._pending_volumes = pending
+        self._flush_volumes()  # the dummies and time zero are on disk before the first trial
+
+    def _flush_volumes(self) -> None:
+        if self._volumes is not None:
+            rows = self._pending_volumes()
+            if rows:
+                self._volumes.extend([volume_cells(row) for row in rows])
 
     # -- rows --------------------------------------------------------------------------------
 
@@ -329,25 +417,42 @@ class RunWriter:
                                "a trial counts once")
         if self.resumed and not record.resumed:
             record = replace(record, resumed=True)
-        with deferred_signals():  # a Ctrl-C must not fall between the two files
-            self._beh.append(trial_row(record))
-            self._events.append(event_row(record))
-            self.records.append(record)
-            if record.status is TrialStatus.OK:
-                self._finished.add(record.key)
+        try:
+            with deferred_signals():  # a Ctrl-C must not fall between the two files
+                self._beh.append(trial_row(record))
+                self._events.append(event_row(record))
+                self.records.append(record)
+                if record.status is TrialStatus.OK:
+                    self._finished.add(record.key)
+        except OSError as problem:
+            raise unwritable(problem, self.paths.beh_tsv, mid_run=True) from None
+        self._flush_volumes()
         return record
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
         """Set the manifest's final status (completed / aborted / crashed), close, unlock."""
         self.manifest = updated(self.manifest, status=RunStatus(status), abort_reason=reason)
-        write_manifest(self.paths.manifest, self.manifest)
-        self.close()
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
+        finally:
+            self.close()
 
     def close(self) -> None:
-        """Close the files and give up the run's lock."""
-        self._beh.close()
-        self._events.close()
-        self._lock.release()
+        """Close the files and give up the run's lock (whatever closing the files says)."""
+        try:
+            self._flush_volumes()
+        finally:
+            try:
+                volumes, self._volumes = self._volumes, None
+                for tsv in (self._beh, self._events, *([volumes] if volumes else [])):
+                    # Every row was fsync'd as it was written; closing can only fail on one
+                    # whose write already failed and was reported.
+                    with contextlib.suppress(OSError):
+                        tsv.close()
+            finally:
+                self._lock.release()
 
     def __enter__(self) -> RunWriter:
         return self
@@ -356,7 +461,12 @@ class RunWriter:
         if kind is None or self.manifest.status is not RunStatus.RUNNING:
             # Nothing went wrong, or the caller already recorded how the run ended.
             self.close()
-        elif issubclass(kind, KeyboardInterrupt):
-            self.finish(RunStatus.ABORTED, "interrupted (Ctrl-C)")
         else:
-            self.finish(RunStatus.CRASHED, f"{kind.__name__}: {error}")
+            status, reason = ((RunStatus.ABORTED, "interrupted (Ctrl-C)")
+                              if issubclass(kind, KeyboardInterrupt)
+                              else (RunStatus.CRASHED, f"{kind.__name__}: {error}"))
+            # If the manifest cannot be written either (the disk that failed the block), it
+            # keeps saying running, which resume treats as unfinished: the block's own error
+            # is the one to report.
+            with contextlib.suppress(ResultsError):
+                self.finish(status, reason)

@@ -7,11 +7,17 @@ loading is ``from pinarray.protocol.load import load_protocol``.
 
 from pinarray.protocol.model import (
     BAUD_RATES,
+    DIRECTION_OF_WAVE,
+    NOTHING_FELT,
     NS_PER_S,
     Condition,
     Constraints,
     Design,
     Device,
+    Direction,
+    LocalisationCondition,
+    MotionAnswer,
+    MotionCondition,
     Ordering,
     Paradigm,
     PinCalibration,
@@ -20,12 +26,15 @@ from pinarray.protocol.model import (
     ServoSettings,
     Stimulus,
     Train,
+    TrainStimulus,
     Wave,
     WaveKind,
+    WaveStimulus,
 )
 
 __all__ = [
-    "BAUD_RATES", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Ordering",
-    "Paradigm", "PinCalibration", "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train",
-    "Wave", "WaveKind",
+    "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Direction",
+    "LocalisationCondition", "MotionAnswer", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
+    "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainStimulus", "Wave",
+    "WaveKind", "WaveStimulus",
 ]

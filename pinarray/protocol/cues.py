@@ -8,7 +8,7 @@ warns about it without refusing the protocol: the lab may have reasons. Pure; no
 from __future__ import annotations
 
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import Condition, Protocol
+from pinarray.protocol.model import Condition, LocalisationCondition, Protocol
 
 NS_PER_S = 1_000_000_000
 
@@ -21,7 +21,7 @@ def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:
 
 def _answer(condition: Condition) -> object:
     """What a correct answer names: the pin (localisation) or the wave's direction (motion)."""
-    return condition.pin if condition.direction is None else condition.direction
+    return condition.pin if isinstance(condition, LocalisationCondition) else condition.direction
 
 
 def duration_cues(protocol: Protocol) -> list[str]:
@@ -35,7 +35,8 @@ def duration_cues(protocol: Protocol) -> list[str]:
     for condition in protocol.design.conditions:
         duration_ns = stimulus_duration_ns(protocol, condition)
         durations.setdefault(_answer(condition), set()).add(duration_ns)
-        label = condition.stimulus if condition.pin is None else f"pin {condition.pin}"
+        label = (f"pin {condition.pin}" if isinstance(condition, LocalisationCondition)
+                 else condition.stimulus)
         if label not in names.setdefault(duration_ns, []):
             names[duration_ns].append(label)
     if len({frozenset(d) for d in durations.values()}) <= 1:

@@ -23,9 +23,14 @@ from pinarray.protocol.model import (
     Constraints,
     Design,
     Device,
+    LocalisationCondition,
+    MotionCondition,
     Ordering,
     Paradigm,
     Stimulus,
+    TrainStimulus,
+    WaveStimulus,
+    condition_value,
 )
 from pinarray.protocol.stimuli import MAX_FREQUENCY_HZ, check_train_on_pins, stimulus_named
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
@@ -162,8 +167,7 @@ def _localisation(reader: Reader, section: _Section) -> _Conditions:
     ]
     if len(set(pins)) != len(pins):
         raise reader.error(keys["pins"], f"expected each pin once, found {pins}")
-    stimulus = stimulus_named(reader, keys["stimulus"], by_name, declared, wave=False)
-    assert stimulus.train is not None  # a pulse train's stimulus holds its train
+    stimulus = stimulus_named(reader, keys["stimulus"], by_name, declared, TrainStimulus)
     frequency_nodes = reader.sequence(keys["frequencies_hz"], "the frequencies")
     if len(pin_nodes) * len(frequency_nodes) > MAX_TRIALS:
         raise reader.error(
@@ -178,7 +182,7 @@ def _localisation(reader: Reader, section: _Section) -> _Conditions:
         train = stimulus.train.with_frequency(frequency)
         _check_pulses(reader, frequency_node, pulse_slots(train))
         check_train_on_pins(reader, frequency_node, train, pins, device)
-        conditions.extend(Condition(stimulus.name, pin, frequency) for pin in pins)
+        conditions.extend(LocalisationCondition(stimulus.name, pin, frequency) for pin in pins)
         slots.extend(pulse_slots(train) for _ in pins)
     return tuple(conditions), tuple(slots)
 
@@ -199,12 +203,11 @@ def _motion(reader: Reader, section: _Section) -> _Conditions:
     conditions: list[Condition] = []
     slots: list[int] = []
     for item in items:
-        stimulus = stimulus_named(reader, item, by_name, declared, wave=True)
+        stimulus = stimulus_named(reader, item, by_name, declared, WaveStimulus)
         wave = stimulus.wave
-        assert wave is not None  # a wave stimulus holds its wave
         count = sum(pulse_slots(drive.train) for drive in wave.drives())
         _check_pulses(reader, item, count)
-        conditions.append(Condition(stimulus.name, direction=wave.kind, row=wave.row))
+        conditions.append(MotionCondition(stimulus.name, wave.kind, wave.row))
         slots.append(count)
     return tuple(conditions), tuple(slots)
 
@@ -259,7 +262,7 @@ def ordering_problem(design: Design) -> str | None:
     for attribute, limit in limits.items():
         counts: Counter = Counter()
         for condition in design.conditions:
-            counts[getattr(condition, attribute)] += copies
+            counts[condition_value(condition, attribute)] += copies
         value, count = counts.most_common(1)[0]
         # `count` equal values need `count / limit` runs separated by at least one other trial.
         if count > limit * (size - count + 1):

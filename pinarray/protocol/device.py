@@ -7,7 +7,13 @@ from fractions import Fraction
 from functools import partial
 
 from pinarray.grid import Grid
-from pinarray.protocol.model import BAUD_RATES, Device, PinCalibration, ServoSettings
+from pinarray.protocol.model import (
+    BAUD_RATES,
+    SIMULATED_PORT,
+    Device,
+    PinCalibration,
+    ServoSettings,
+)
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 
 MS = Fraction(1_000_000)  # ns per ms
@@ -48,7 +54,7 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
             servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
     except Invalid:
         return None
-    port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"), "sim://")
+    port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"), SIMULATED_PORT)
     scale = reader.optional(
         keys, "feasibility", lambda n: reader.string(n, "feasibility", ("reject", "scale")),
         "reject",

@@ -10,7 +10,16 @@ import itertools
 from collections.abc import Sequence
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.model import Condition, PinDrive, Protocol, Train
+from pinarray.protocol.model import (
+    Condition,
+    LocalisationCondition,
+    MotionCondition,
+    PinDrive,
+    Protocol,
+    Train,
+    TrainStimulus,
+    WaveStimulus,
+)
 
 
 def check_no_overlap(drives: Sequence[PinDrive]) -> None:
@@ -35,14 +44,14 @@ def check_no_overlap(drives: Sequence[PinDrive]) -> None:
 def trial_drives(protocol: Protocol, condition: Condition) -> tuple[PinDrive, ...]:
     """The pin drives a design condition asks for."""
     stimulus = protocol.stimulus(condition.stimulus)
-    if stimulus.wave is not None:
-        return stimulus.wave.drives()
-    assert stimulus.train is not None
-    train = stimulus.train
-    assert condition.pin is not None  # a train condition always names its pin
-    if condition.frequency_hz is not None:
-        train = train.with_frequency(condition.frequency_hz)
-    return (PinDrive(condition.pin, train, 0),)
+    match stimulus, condition:
+        case WaveStimulus(wave=wave), MotionCondition():
+            return wave.drives()
+        case TrainStimulus(train=train), LocalisationCondition(pin=pin, frequency_hz=frequency_hz):
+            return (PinDrive(pin, train.with_frequency(frequency_hz), 0),)
+    raise PinArrayError(
+        f"{protocol.source}: stimulus {stimulus.name!r} cannot present a "
+        f"{type(condition).__name__}")
 
 
 def pulse_slots(train: Train) -> int:

@@ -15,6 +15,7 @@ from pinarray.protocol.design import read_design
 from pinarray.protocol.device import read_device
 from pinarray.protocol.model import Protocol, Stimulus
 from pinarray.protocol.stimuli import read_stimuli
+from pinarray.protocol.sync import read_sync
 from pinarray.protocol.yaml_nodes import Node, Reader
 from pinarray.text_files import NotText, decode_text, read_bounded
 
@@ -40,7 +41,7 @@ def parse_protocol(text: str, source: str = "<protocol>") -> Protocol:
     top = reader.attempt(
         lambda: reader.mapping(
             root,
-            {"protocol", "description", "device", "stimuli", "design"},
+            {"protocol", "description", "device", "stimuli", "design", "sync"},
             {"protocol", "stimuli", "design"},
             "protocol",
         ),
@@ -60,6 +61,7 @@ def parse_protocol(text: str, source: str = "<protocol>") -> Protocol:
         design = reader.optional(
             top, "design", lambda n: read_design(reader, n, device, stimuli, declared), None
         )
+    sync = reader.optional(top, "sync", lambda n: read_sync(reader, n), None)
     reader.raise_if_errors()
     assert device is not None and design is not None
     return Protocol(
@@ -70,6 +72,7 @@ def parse_protocol(text: str, source: str = "<protocol>") -> Protocol:
         design,
         source,
         hashlib.sha256(text.encode("utf-8")).hexdigest(),
+        sync,
     )
 
 

@@ -10,9 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 from fractions import Fraction
+from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
+
+if TYPE_CHECKING:
+    from pinarray.protocol.sync import ScannerSync
 
 NS_PER_S = 1_000_000_000
 # Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
@@ -67,6 +71,9 @@ class PinCalibration:
         )
 
 
+SIMULATED_PORT = "sim://"  # a protocol without a port plays on the simulated array
+
+
 @dataclass(frozen=True)
 class Device:
     """The stimulator: grid, servo settings and one calibration per pin."""
@@ -74,7 +81,7 @@ class Device:
     grid: Grid
     servo: ServoSettings
     pins: tuple[PinCalibration, ...]
-    port: str = "sim://"
+    port: str = SIMULATED_PORT
     scale_infeasible: bool = False  # scale strokes the servo cannot follow instead of refusing
     # A trial counts as delivered when every goal change reached its servo within this.
     delivery_tolerance_ns: int = 10_000_000
@@ -129,6 +136,30 @@ class WaveKind(StrEnum):
     NONE = "none"  # the seed's "no wave": the central pin alternates with the lateral ones
 
 
+class Direction(StrEnum):
+    """Which way an apparent-motion wave travels, as the subject would name it."""
+
+    LEFT = "left"
+    RIGHT = "right"
+    NONE = "none"  # the no-wave control: the central pin alternates with the lateral ones
+
+
+DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
+                     WaveKind.NONE: Direction.NONE}
+
+
+class MotionAnswer(StrEnum):
+    """The subject's answer to an apparent-motion trial."""
+
+    NONE = "none"  # felt no moving dot
+    LEFT = "left"
+    RIGHT = "right"
+    UNSURE = "unsure"  # felt a moving dot, could not tell which way
+
+
+NOTHING_FELT = "none"  # a localisation answer: no pin felt
+
+
 @dataclass(frozen=True)
 class PinDrive:
     """One train played on one pin, starting ``delay_ns`` after the trial's stimulus onset."""
@@ -171,12 +202,22 @@ class Wave:
 
 
 @dataclass(frozen=True)
-class Stimulus:
-    """A named stimulus: a train (pin chosen by the design) or a wave."""
+class TrainStimulus:
+    """A named pulse train; the design chooses the pin (and may change the frequency)."""
 
     name: str
-    train: Train | None = None
-    wave: Wave | None = None
+    train: Train
+
+
+@dataclass(frozen=True)
+class WaveStimulus:
+    """A named travelling wave (or no-wave control): its pins are its own."""
+
+    name: str
+    wave: Wave
+
+
+Stimulus = TrainStimulus | WaveStimulus
 
 
 class Paradigm(StrEnum):
@@ -192,18 +233,41 @@ class Ordering(StrEnum):
 
 
 @dataclass(frozen=True)
-class Condition:
-    """What one trial presents: a train on a pin (localisation) or a wave (apparent motion)."""
+class LocalisationCondition:
+    """What one localisation trial presents: the stimulus's train on one pin, at one frequency."""
 
     stimulus: str
-    pin: int | None = None
-    frequency_hz: Fraction | None = None
-    direction: WaveKind | None = None
-    row: int | None = None
+    pin: int
+    frequency_hz: Fraction
 
     @property
     def key(self) -> tuple:
-        return (self.stimulus, self.pin, self.frequency_hz, self.direction)
+        return (self.stimulus, self.pin, self.frequency_hz, None)
+
+
+@dataclass(frozen=True)
+class MotionCondition:
+    """What one apparent-motion trial presents: a wave stimulus along its row."""
+
+    stimulus: str
+    direction: WaveKind
+    row: int  # 1 = bottom row, as the lab counts
+
+    @property
+    def key(self) -> tuple:
+        return (self.stimulus, None, None, self.direction)
+
+
+Condition = LocalisationCondition | MotionCondition
+
+
+def condition_value(condition: Condition, attribute: str) -> object:
+    """A condition's value of an attribute an order constraint names (``pin``, ``direction``...).
+
+    A constraint may name an attribute the paradigm's conditions lack (a localisation design
+    that may not repeat a direction): all of them then share the value None.
+    """
+    return getattr(condition, attribute, None)
 
 
 @dataclass(frozen=True)
@@ -253,9 +317,17 @@ class Protocol:
     design: Design
     source: str = "<protocol>"
     sha256: str = ""
+    sync: ScannerSync | None = None  # the scanner section, if the protocol has one
 
     def stimulus(self, name: str) -> Stimulus:
         for stimulus in self.stimuli:
             if stimulus.name == name:
                 return stimulus
         raise PinArrayError(f"{self.source}: no stimulus named {name!r}")
+
+    def wave(self, name: str) -> Wave:
+        """The wave of the wave stimulus ``name``."""
+        stimulus = self.stimulus(name)
+        if not isinstance(stimulus, WaveStimulus):
+            raise PinArrayError(f"{self.source}: expected a wave stimulus, found pulse train {name!r}")
+        return stimulus.wave

@@ -5,13 +5,23 @@ from __future__ import annotations
 from collections.abc import Collection, Mapping
 from fractions import Fraction
 from functools import partial
+from typing import TypeVar
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
 from pinarray.protocol.device import MS, read_pin, read_width_ns
 from pinarray.protocol.drives import check_no_overlap
 from pinarray.protocol.feasibility import check_train
-from pinarray.protocol.model import NS_PER_S, Device, Stimulus, Train, Wave, WaveKind
+from pinarray.protocol.model import (
+    NS_PER_S,
+    Device,
+    Stimulus,
+    Train,
+    TrainStimulus,
+    Wave,
+    WaveKind,
+    WaveStimulus,
+)
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, shown
 
 MAX_DURATION_S = 48 * 3600
@@ -47,7 +57,7 @@ def read_stimuli(
             continue
         train = reader.attempt(partial(_train, reader, value_node), None)
         if train is not None:
-            trains[name] = Stimulus(name, train=train)
+            trains[name] = TrainStimulus(name, train)
             stimuli.append(trains[name])
     declared_trains = {name for name, n in nodes.items() if not is_wave(n)}
     for name, value_node in waves:
@@ -55,7 +65,7 @@ def read_stimuli(
             partial(_wave, reader, value_node, device, trains, declared_trains), None
         )
         if wave is not None:
-            stimuli.append(Stimulus(name, wave=wave))
+            stimuli.append(WaveStimulus(name, wave))
     if not pairs and not reader.errors:
         reader.error(node, "expected at least one stimulus, found none")
     return tuple(stimuli), nodes
@@ -68,21 +78,24 @@ def is_wave(node: Node) -> bool:
     )
 
 
+Kind = TypeVar("Kind", TrainStimulus, WaveStimulus)
+
+
 def stimulus_named(
     reader: Reader,
     node: Node,
     by_name: Mapping[str, Stimulus],
     declared: Collection[str],
-    wave: bool,
-) -> Stimulus:
+    kind: type[Kind],
+) -> Kind:
     """The pulse train (or wave) named at ``node``; ``declared`` names those that are broken."""
-    what = "wave stimulus" if wave else "pulse train"
+    what = "wave stimulus" if kind is WaveStimulus else "pulse train"
     name = reader.string(node, f"the name of a {what}")
     stimulus = by_name.get(name)
     if stimulus is None and name in declared:
         raise Invalid(name)  # declared but broken: its own problem is already reported
-    if stimulus is None or (stimulus.wave is None) == wave:
-        known = ", ".join(s.name for s in by_name.values() if (s.wave is None) != wave) or "none"
+    if not isinstance(stimulus, kind):
+        known = ", ".join(s.name for s in by_name.values() if isinstance(s, kind)) or "none"
         raise reader.error(node, f"expected the name of a {what} ({known}), found {shown(name)}")
     return stimulus
 
@@ -231,8 +244,7 @@ def _wave(
             keys.get("pins", keys["row"]),
             f"a no-wave alternates a central pin with its two lateral ones: expected an odd number of pins, found {len(pins)}; list them with 'pins:'",
         )
-    train = stimulus_named(reader, keys["train"], trains, declared_trains, wave=False).train
-    assert train is not None  # a pulse train's stimulus holds its train
+    train = stimulus_named(reader, keys["train"], trains, declared_trains, TrainStimulus).train
     with reader.section():
         soa = reader.optional(
             keys, "soa_ms",

@@ -47,6 +47,51 @@ _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
 _RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)")
 
 
+# PyYAML's scanner and parser name tokens in angle brackets; a lab reads them as places.
+_TOKENS = {
+    "<stream end>": "the end of the file",
+    "<block end>": "the end of the indented block",
+    "<block mapping start>": "a new indented mapping",
+    "<block sequence start>": "a new indented list",
+    "<scalar>": "a value",
+    "'?'": "a new key at a different indent",
+    "key": "a key",
+    "'-' indicator": "'-' (the next item of the list)",
+}
+
+
+def _found_at(text: str, index: int) -> str:
+    """What a reader sees at ``index`` of ``text``, in words."""
+    if index >= len(text):
+        return "the end of the file"
+    char = text[index]
+    if char in "\r\n":
+        return "the end of the line"
+    if char == "\t":
+        return "a tab (YAML indents with spaces)"
+    return repr(char)
+
+
+def _expected_found(problem: str, found: str) -> str:
+    """PyYAML's description of a syntax error, said as what was expected and what was found."""
+    for pattern in (r"expected (.+?), but (?:found|got) (.+)", r"(?:did|could) not find expected (.+)"):
+        match = re.fullmatch(pattern, problem)
+        if match:
+            token = match.group(2) if match.lastindex == 2 else None
+            seen = _TOKENS.get(token, token) if token else found
+            return f"expected {_TOKENS.get(match.group(1), match.group(1))}, found {seen}"
+    if problem.startswith("found character") or problem == "found unexpected end of stream":
+        return f"expected a YAML value or the end of one, found {found}"
+    if problem.startswith("mapping values are not allowed"):
+        return ("expected one 'key: value' per line, found a second ':' "
+                "(quote a value that holds ': ')")
+    if problem == "expected the closing quote":
+        return f"{problem}, found {found}"
+    if problem.startswith(("expected", "more than", "alias")):
+        return problem  # already ours or already in that shape
+    return f"expected well-formed YAML, found {problem}"
+
+
 class Invalid(Exception):
     """Raised inside a reader after an error was recorded, to skip the rest of a section."""
 
@@ -124,8 +169,11 @@ class Reader:
         except yaml.MarkedYAMLError as problem:
             mark = problem.problem_mark or problem.context_mark
             what = " ".join(str(problem.problem or problem.context or "malformed YAML").split())
-            self._fail(f"malformed YAML: {what}", mark.line + 1 if mark else 0,
-                       mark.column + 1 if mark else 0)
+            found = _found_at(text, mark.index) if mark else "an unreadable file"
+            if "quoted scalar" in str(problem.context):
+                what = "expected the closing quote"
+            self._fail(f"malformed YAML: {_expected_found(what, found)}",
+                       mark.line + 1 if mark else 0, mark.column + 1 if mark else 0)
         except yaml.YAMLError as problem:
             self._fail(f"malformed YAML: {' '.join(str(problem).split())}")
         if root is None:

@@ -26,6 +26,7 @@ from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.journal.manifest import RunStatus
 from pinarray.player import describe
+from pinarray.protocol.sync import SyncOverrides
 from pinarray.rig import Rig, choose_clock
 from pinarray.session import Session
 from pinarray.stop import on_loop_signals, signal_name
@@ -56,6 +57,8 @@ class TuiOptions:
     timing_check_ns: int = 2_000_000_000  # pre-flight's wake-up measurement; 0 = skip
     subject: str = ""  # the start screen's fields filled in (e.g. to resume a run)
     session: str = "1"
+    sync: SyncOverrides = SyncOverrides()  # scanner options over the protocol's sync: section
+    lsl: str | None = None  # LSL marker stream name; None: no outlet
 
 
 def serial_ports() -> list[tuple[str, str]]:
@@ -102,7 +105,7 @@ class PinArrayApp(App[None]):
         scale = options.time_scale
         self.lab = Lab(options.results_root,
                        clock_factory or (lambda port: choose_clock(port, None if port else scale)),
-                       rig_factory)
+                       rig_factory, lsl_name=options.lsl)
         self.list_ports = list_ports
         self.ending: Ending = Quit()
         self._closing = False

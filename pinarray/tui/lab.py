@@ -19,9 +19,13 @@ from pinarray.clock import Clock
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
 from pinarray.protocol import Protocol
+from pinarray.protocol.sync import ScannerSync
 from pinarray.rig import Rig
 from pinarray.session import Phase, Session, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
+from pinarray.sync.lsl import MarkerOutlet
+from pinarray.sync.run import start_session
+from pinarray.sync.scanner import Scanner
 
 QUIT_REASON = "quit from the UI"
 PAUSE_REASON = "paused by the experimenter"
@@ -62,10 +66,13 @@ class Lab:
     rig_factory : callable
         ``rig_factory(protocol, port, sim_url, clock, stop)``; `Rig` unless a test injects
         faults.
+    lsl_name : str or None
+        Send LSL markers on a stream of this name (opened at the first connection, kept
+        until the sitting ends); None: no outlet.
     """
 
     def __init__(self, results_root: Path, clock_factory: Callable[[str | None], Clock],
-                 rig_factory: RigFactory = Rig):
+                 rig_factory: RigFactory = Rig, lsl_name: str | None = None):
         self.results_root = Path(results_root)
         self.clock_factory = clock_factory
         self.rig_factory = rig_factory
@@ -77,6 +84,9 @@ class Lab:
         # Every run opened in this sitting and what asked for it, for the line said on exit.
         self.runs: list[tuple[SessionRequest, Session]] = []
         self.last_safe: SafeStopReport | None = None  # how the last release left the pins
+        self.lsl_name = lsl_name
+        self.outlet: MarkerOutlet | None = None
+        self.scanner: Scanner | None = None
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
         # Set while the rig is being closed: a pause must not clear the stop a close relies on.
@@ -92,11 +102,57 @@ class Lab:
             self._closing = False
             self.stop.clear()
         base = self.clock_factory(request.port)
+        if self.lsl_name is not None:
+            self._open_outlet(self.lsl_name, base)
         rig = self.rig_factory(request.protocol, request.port, request.sim_url, base, self.stop)
         # The player and the session wait on the rig's stoppable clock; the bus on the plain one.
         self.clock = rig.clock
         self.rig = rig
         return rig
+
+    def _open_outlet(self, name: str, clock: Clock) -> None:
+        from pinarray.sync.lsl import LslError
+        from pinarray.sync.triggers import follows_wall_clock
+
+        if not follows_wall_clock(clock):
+            raise LslError("LSL markers are stamped on this machine's clock, and a simulated "
+                           "one is not it: start the UI with --time-scale 1")
+        if self.outlet is None:
+            self.outlet = MarkerOutlet(name, clock)
+        else:
+            self.outlet.use_clock(clock)
+
+    # -- the scanner ------------------------------------------------------------------------
+
+    def wait_for_scanner(self, sync: ScannerSync) -> Scanner | None:
+        """Open the trigger and wait for the first counted volume (blocking: from a worker).
+
+        Returns the scanner, or None when the wait was stopped (`abort_wait`, quitting);
+        raises `pinarray.sync.triggers.TriggerError` for a device that cannot be opened or a
+        scanner that sends nothing in time. No run is opened either way.
+        """
+        assert self.clock is not None, "not connected"
+        self.scanner = Scanner(sync, self.clock, self.stop)
+        try:
+            zero_ns = self._busy(self.scanner.wait_for_time_zero)
+        except BaseException:
+            self.close_scanner()
+            raise
+        if zero_ns is None:
+            self.close_scanner()
+            return None
+        return self.scanner
+
+    def abort_wait(self) -> None:
+        """Stop waiting for the scanner; the rig stays connected."""
+        self.stop.request("stopped waiting for the scanner")
+        self._wait_for_jobs()
+        self.stop.clear()
+
+    def close_scanner(self) -> None:
+        scanner, self.scanner = self.scanner, None
+        if scanner is not None:
+            scanner.close()
 
     def connected(self) -> Rig:
         """The connected rig (only asked for once `connect` has succeeded)."""
@@ -115,6 +171,23 @@ class Lab:
         rig = self.connected()
         return self._busy(lambda: rig.check_timing(duration_ns))
 
+    def lower_return_delay(self, delay_us: int = 0):
+        """Every servo's return delay to ``delay_us``, until power-off (blocking: from a worker).
+
+        Returns ``(changes, failures)`` as `pinarray.bus.bringup.set_return_delay` does, or
+        None if stopped. A rig with a player process is connected again: the player plans
+        its read-backs with the delays the handshake reads, and the servos keep the new ones.
+        """
+        from pinarray.bus.bringup import set_return_delay
+
+        rig, request = self.connected(), self.request
+        assert request is not None
+        result = self._busy(
+            lambda: set_return_delay(rig.bus, rig.setup.servo_ids, delay_us, save=False))
+        if result is not None and rig.isolated:
+            self.connect(request)
+        return result
+
     def release(self, reason: str = "left the pre-flight"):
         """Stop what the hardware is doing, then pins to rest, torque off, port closed.
 
@@ -124,6 +197,7 @@ class Lab:
             self._closing = True
         self.stop.request(reason)
         self._wait_for_jobs()
+        self.close_scanner()
         rig, self.rig = self.rig, None
         if rig is None:
             return None
@@ -136,16 +210,20 @@ class Lab:
         """Start (or resume) the request's run on the connected rig.
 
         A run open in another process is refused (`pinarray.journal.lock.RunLocked`), as is a
-        resume with nothing to resume; the run's lock is held until the session ends.
+        resume with nothing to resume; the run's lock is held until the session ends. After
+        `wait_for_scanner` the run is timed from the scanner's first counted volume.
         """
         request = self.request
         assert request is not None and self.rig is not None and self.clock is not None
+        scanner = self.scanner
         writer, plan = open_run(
             request.protocol, self.results_root, request.subject, request.session, request.task,
             resume=request.resume, seed=request.seed, port_url=self.rig.url,
             clock=self.rig.bus_clock, experimenter=request.experimenter,
+            scanner=None if scanner is None else scanner.record(),
         )
-        self.session = Session(request.protocol, plan, writer, self.rig, self.clock, on_change)
+        self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
+                                     scanner=scanner, outlet=self.outlet, on_change=on_change)
         self.runs.append((request, self.session))
         return self.session
 
@@ -200,4 +278,7 @@ class Lab:
                 session.abort(reason, status)
         finally:
             safe = self.release(reason)
+            outlet, self.outlet = self.outlet, None
+            if outlet is not None:
+                outlet.close()
         return safe

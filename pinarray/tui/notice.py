@@ -7,6 +7,8 @@ possible at this moment (the screen's `refusal` explains), or the key means noth
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from textual import events
 from textual.binding import Binding, BindingType
 from textual.widgets import Static
@@ -63,7 +65,7 @@ class KeyNotices:
     means here, e.g. an answer typed while no answer is expected).
     """
 
-    BINDINGS: list[BindingType]
+    BINDINGS: ClassVar[list[BindingType]]
 
     def on_key(self, event: events.Key) -> None:
         # Keys arrive here after the focused widget let them through and before Textual

@@ -1,4 +1,5 @@
-"""Pre-flight: connect, show every servo's state, wiggle pins, then begin the run."""
+"""Pre-flight: connect, show every servo's state and return delay, wiggle pins, then begin the
+run."""
 
 from __future__ import annotations
 
@@ -9,12 +10,18 @@ from textual.containers import Horizontal
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Input, Static
 
+from pinarray.bus import packets
+from pinarray.bus.registers import Register
 from pinarray.errors import PinArrayError
+from pinarray.session import Session
 from pinarray.tui.lab import Lab, SessionRequest
 from pinarray.tui.notice import KeyNotices, Notice
 
 COLUMNS = ("servo", "pin", "answers", "model", "position (steps)", "voltage (V)",
-           "temperature (°C)", "errors")
+           "temperature (°C)", "return delay (µs)", "errors")
+# A goal's read-back on the wire: the READ request and the status packet carrying the goal.
+GOAL = Register.GOAL_POSITION
+READBACK_BYTES = len(packets.read(1, GOAL.address, GOAL.size)) + packets.status_size(GOAL.size)
 
 
 class PreflightScreen(KeyNotices, Screen):
@@ -56,6 +63,8 @@ class PreflightScreen(KeyNotices, Screen):
         with Horizontal(id="preflight-buttons"):
             yield Button("Begin run (b)", id="begin", variant="primary", disabled=True)
             yield Button("Connect again", id="reconnect", disabled=True)
+            yield Button("Rest + torque off", id="release", disabled=True)
+            yield Button("Lower return delay", id="lower-delay", disabled=True)
             yield Button("Back (Esc)", id="back")
         yield Notice()
         yield Footer()
@@ -90,6 +99,8 @@ class PreflightScreen(KeyNotices, Screen):
         self.query_one("#begin", Button).disabled = not connected
         self.query_one("#test", Button).disabled = not connected
         self.query_one("#reconnect", Button).disabled = connected
+        self.query_one("#release", Button).disabled = not connected
+        self.query_one("#lower-delay", Button).disabled = not connected
         self.refresh_bindings()
 
     # -- hardware work, in threads -----------------------------------------------------------
@@ -146,14 +157,19 @@ class PreflightScreen(KeyNotices, Screen):
         table.clear()
         by_id = {t.servo_id: t for t in readings}
         model = self.request.protocol.device.servo.model
+        bus = self.lab.connected().bus
+        delays_ns = bus.link.return_delay_ns  # read by the handshake
         for servo in self.lab.connected().setup.servos:
             t = by_id.get(servo.servo_id)
+            delay = (str(delays_ns[servo.servo_id] // 1000) if servo.servo_id in delays_ns
+                     else "")
             if t is None:
-                table.add_row(str(servo.servo_id), str(servo.pin), "no", model, "", "", "", "")
+                table.add_row(str(servo.servo_id), str(servo.pin), "no", model, "", "", "",
+                              delay, "")
             else:
                 table.add_row(str(servo.servo_id), str(servo.pin), "yes", model,
                               str(t.position_steps), f"{t.voltage_v:.1f}", str(t.temperature_c),
-                              t.errors.describe())
+                              delay, t.errors.describe())
         faulty = [t.servo_id for t in readings if t.errors.describe() != "none"]
         where = self.request.port or "the simulated array"
         servos = self.lab.connected().setup.servos
@@ -161,6 +177,14 @@ class PreflightScreen(KeyNotices, Screen):
                 f"servos answer, all {model} (checked at connect).")
         if faulty:
             text += f" Servo(s) {', '.join(map(str, faulty))} report errors."
+        # A servo that waits longer before answering than the read-back itself takes on the
+        # wire slows every delivery check more than the wire does.
+        wire_ns = bus.wire_ns(READBACK_BYTES)
+        slow = sorted(i for i, ns in delays_ns.items() if ns > wire_ns)
+        if slow:
+            text += (f" Servo(s) {', '.join(map(str, slow))} wait longer before answering than "
+                     f"a read-back takes on the wire ({wire_ns // 1000} µs): Lower return delay "
+                     "(0 µs until power-off) makes delivery checks faster.")
         if note:
             text += f" ({note})"
         self._status(text, bool(faulty))
@@ -198,20 +222,77 @@ class PreflightScreen(KeyNotices, Screen):
         self._status("Connecting…")
         self._connect()
 
+    @on(Button.Pressed, "#release")
+    def _release_pressed(self) -> None:
+        self._start(self._release, "Pins to rest, torque off…")
+
+    def _start(self, job, status: str) -> None:
+        """A hardware job on the connected array; the buttons wait until it is done."""
+        if not self.connected:
+            return
+        self._ready(False)
+        self._status(status)
+        job()
+
+    @work(thread=True, exclusive=True, group="hardware")
+    def _release(self) -> None:
+        from pinarray.player import describe
+
+        # Lets go of the array (as `pinarray servos rest` does), e.g. to adjust a horn by hand.
+        safe = self.lab.release("rest and torque off from the pre-flight")
+        text = "nothing was connected" if safe is None else describe(safe)
+        self.app.call_from_thread(
+            self._status, f"Released: {text}, port closed. Connect again to go on.",
+            safe is None or not safe.complete)
+
+    @on(Button.Pressed, "#lower-delay")
+    def _lower_delay_pressed(self) -> None:
+        self._start(self._lower_delay,
+                    "Lowering every servo's return delay to 0 µs (until power-off)…")
+
+    @work(thread=True, exclusive=True, group="hardware")
+    def _lower_delay(self) -> None:
+        try:
+            result = self.lab.lower_return_delay(0)
+            readings = self.lab.connected().telemetry()
+        except PinArrayError as problem:
+            self.app.call_from_thread(self._failed, f"lowering the return delay: {problem}")
+            return
+        if result is None:
+            return  # stopped: the screen is being left
+        changes, failures = result
+        note = f"return delay 0 µs until power-off on {len(changes)} servo(s)"
+        if failures:
+            note += "; " + "; ".join(f.problem for f in failures)
+        self.app.call_from_thread(self._connected, readings, note)
+
     @on(Button.Pressed, "#begin")
     def action_begin(self) -> None:
         from pinarray.tui.run_screen import RunScreen
+        from pinarray.tui.scanner_screen import ScannerScreen, scanner_settings
 
         if not self.connected or self._leaving:
             return
         self._leaving = True  # b twice: one run
         try:
+            sync = scanner_settings(self.request, self.app.options.sync)  # type: ignore[attr-defined]
+            if sync is not None:  # the run opens at the scanner's first counted volume
+                self.app.push_screen(ScannerScreen(self.lab, sync), self._scanner_done)
+                return
             session = self.lab.open_session()
         except PinArrayError as problem:
             self._leaving = False
             self._status(f"Cannot open the run: {problem}", True)
             return
         self.app.switch_screen(RunScreen(self.lab, session))
+
+    def _scanner_done(self, session: Session | None) -> None:
+        from pinarray.tui.run_screen import RunScreen
+
+        if session is None:
+            self._status("Stopped waiting for the scanner; no run was started.")
+        else:
+            self.app.switch_screen(RunScreen(self.lab, session))
 
     @on(Button.Pressed, "#back")
     def action_back(self) -> None:

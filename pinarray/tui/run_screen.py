@@ -20,8 +20,8 @@ from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import LocalisationRecord
 from pinarray.player import DEFAULT_LEAD_NS
-from pinarray.protocol import Paradigm
-from pinarray.session import DIRECTION_LABEL, PAUSE_CUT_SHORT, Phase, Session, SessionError
+from pinarray.protocol import DIRECTION_OF_WAVE, Condition, LocalisationCondition, Paradigm
+from pinarray.session import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.lab import Lab
 from pinarray.tui.live import LiftTimeline, LiveCounts
@@ -267,11 +267,10 @@ class RunScreen(KeyNotices, Screen):
         if current is None:
             return ""
         condition = current.condition
-        if condition.pin is not None:
+        if isinstance(condition, LocalisationCondition):
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
-        assert condition.direction is not None
-        direction = DIRECTION_LABEL[condition.direction]
+        direction = DIRECTION_OF_WAVE[condition.direction]
         if direction == "none":
             return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
         return f"stimulus: {direction}wards wave on pins {pins}"
@@ -446,9 +445,8 @@ class RunScreen(KeyNotices, Screen):
         cast("PinArrayApp", self.app).finish_run(self.session, reason)
 
 
-def _pins_of(session: Session, condition) -> tuple[int, ...]:
-    if condition.pin is not None:
+def _pins_of(session: Session, condition: Condition) -> tuple[int, ...]:
+    if isinstance(condition, LocalisationCondition):
         return (condition.pin,)
-    wave = session.protocol.stimulus(condition.stimulus).wave
-    assert wave is not None
+    wave = session.protocol.wave(condition.stimulus)
     return tuple(sorted({d.pin for d in wave.drives()}))

@@ -21,10 +21,13 @@ from pinarray.tui.lab import SessionRequest
 from pinarray.tui.notice import KeyNotices, Notice
 
 if TYPE_CHECKING:
+    from textual.timer import Timer
+
     from pinarray.journal.runs import Unfinished
     from pinarray.tui.app import PinArrayApp
 
 SIM = "sim"
+HELD_RECHECK_S = 2.0  # how often to look again at a run another process has open
 
 
 def protocol_files(options) -> list[Path]:
@@ -55,6 +58,7 @@ class StartScreen(KeyNotices, Screen):
         self.ports = list_ports()
         self._unfinished: Unfinished | None = None
         self._back = False  # shown again after a pre-flight or a run
+        self._recheck: Timer | None = None
 
     def _new_seed(self) -> str:
         # Shown and recorded before the run starts, so a session can be replayed exactly.
@@ -162,8 +166,14 @@ class StartScreen(KeyNotices, Screen):
                                    task_label(protocol))
         except PinArrayError:
             found = None  # the form is not complete yet; Start will say what is wrong
-        # A run open in another process (its lock is held) cannot be resumed from here.
+        # A run open in another process (its lock is held) cannot be resumed from here; look
+        # again shortly, so the offer appears once that process ends.
         resumable = found is not None and found.holder is None
+        if self._recheck is not None:
+            self._recheck.stop()
+        self._recheck = None
+        if found is not None and found.holder is not None:
+            self._recheck = self.set_timer(HELD_RECHECK_S, self._look_for_unfinished)
         self.query_one("#resume", Button).disabled = not resumable
         self.query_one("#resume", Button).variant = "primary" if resumable else "default"
         self.query_one("#start", Button).variant = "default" if resumable else "primary"

@@ -31,7 +31,8 @@ from pinarray.bus.base import BusSetup, ServoSetup
 from pinarray.bus.transport import open_bus
 from pinarray.clock import MonotonicClock, VirtualClock
 from pinarray.player import DEFAULT_LEAD_NS, play_trial, prepare_trial
-from pinarray.player_process import REALTIME_PRIORITY, SPIN_NS, PlayerDied, PlayerProcess
+from pinarray.player_child import REALTIME_PRIORITY
+from pinarray.player_process import SPIN_NS, PlayerDied, PlayerProcess
 from pinarray.schedule import TargetList
 from pinarray.stop import StopRequest
 
@@ -157,20 +158,23 @@ class Sample:
         return np.concatenate(self.lateness_ns)
 
 
-def measure(rate_hz: int, realtime: bool, folder: Path, redraw=None) -> tuple[Sample, Sample]:
-    """Reference and player, ``CHUNKS`` interleaved chunks of ``SECONDS / CHUNKS`` each."""
+def measure(rate_hz: int, realtime: bool, folder: Path, redraw=None,
+            chunks: int = CHUNKS) -> tuple[Sample, Sample]:
+    """Reference and player, ``chunks`` interleaved chunks of ``SECONDS / CHUNKS`` each."""
     reference, ours = Sample([], []), Sample([], [])
     targets = wave(rate_hz, SECONDS / CHUNKS)
-    for _ in range(CHUNKS):
+    for _ in range(chunks):
         receiver = Receiver(folder)
         try:
             bus = open_bus(receiver.path, _setup(), MonotonicClock())
             player = PlayerProcess(bus, bus.link.wire.fd, StopRequest(), realtime=realtime)
             try:
                 trial = prepare_trial(bus, targets)
-                reference_onset = run_reference(receiver.path, trial, realtime, folder)
-                report = (redraw or (lambda call: call()))(
-                    lambda player=player, trial=trial: player.play(trial, tolerance_ns=TOLERANCE_NS))
+                # The reference runs under the same load as the player (a redrawing UI too).
+                reference_onset, report = (redraw or (lambda call: call()))(
+                    lambda player=player, trial=trial, path=receiver.path: (
+                        run_reference(path, trial, realtime, folder),
+                        player.play(trial, tolerance_ns=TOLERANCE_NS)))
             finally:
                 player.close()
                 bus.rest_and_release()
@@ -265,16 +269,30 @@ class Redrawing:
         return result["report"]
 
 
-def tui_redrawing(folder: Path, quiet: dict) -> None:
+def _merge(into: Sample, chunk: Sample) -> None:
+    into.lateness_ns += chunk.lateness_ns
+    into.chunk_p99_ns += chunk.chunk_p99_ns
+    into.not_delivered += chunk.not_delivered
+    into.problems += chunk.problems
+
+
+def tui_redrawing(folder: Path) -> None:
     print("\nthe same with the experimenter UI redrawing the pin grid in the parent process "
-          "(real-time priority); change against the quiet run above")
+          "(real-time priority), in chunks alternating with quiet ones so that a noisy "
+          "neighbour weighs on both alike; change of the player's p99 against the quiet chunks")
     print(HEADER + "  player p99 change")
     samples = []
     for rate in RATES:
-        reference, ours = measure(rate, True, folder, redraw=Redrawing())
+        reference, ours, quiet = Sample([], []), Sample([], []), Sample([], [])
+        for _ in range(CHUNKS):
+            _, quiet_chunk = measure(rate, True, folder, chunks=1)
+            reference_chunk, ours_chunk = measure(rate, True, folder, redraw=Redrawing(),
+                                                  chunks=1)
+            _merge(quiet, quiet_chunk)
+            _merge(reference, reference_chunk)
+            _merge(ours, ours_chunk)
         samples.append((reference, ours))
-        _, quiet_ours = quiet[(True, rate)]
-        change = (np.percentile(ours.pooled(), 99) / np.percentile(quiet_ours.pooled(), 99) - 1)
+        change = (np.percentile(ours.pooled(), 99) / np.percentile(quiet.pooled(), 99) - 1)
         print(_table_row("UI redrawing", rate, reference, ours) + f"  {change * 100:+6.1f} %",
               flush=True)
     _reasons(samples)
@@ -403,7 +421,7 @@ def run() -> None:
     with tempfile.TemporaryDirectory() as name:
         folder = Path(name)
         results = receiver_side_lateness(folder)
-        tui_redrawing(folder, results)
+        tui_redrawing(folder)
         verification_bytes(results)
         noticing_a_dead_player(folder)
         spin_thresholds()

@@ -31,7 +31,7 @@ def server():
     server.stop()
 
 
-def wait_until_safe(server, ids, timeout_s=10.0):
+def wait_until_safe(server, ids, timeout_s=30.0):
     """Every servo in ``ids`` at rest with torque off, as the lab checks after a stop."""
     deadline = time.monotonic() + timeout_s
     while True:

@@ -1,0 +1,268 @@
+"""`pinarray servos calibrate`: jog one pin to rest and up, then write them into its protocol.
+
+The jogging is `pinarray.bus.jog`; the file is edited by `pinarray.calibration_file`, which
+keeps its comments and layout. This module talks to the person: the line-by-line prompt, the
+confirmation of what was written, and the pin made safe on every way out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import TYPE_CHECKING
+
+from pinarray.cli.output import say
+from pinarray.cli.servos import bus_options, open_bare
+
+if TYPE_CHECKING:
+    from pinarray.calibration_file import NewCalibration
+    from pinarray.protocol import Device
+
+CALIBRATE_EPILOG = """\
+Holds the pin's servo where its horn is (torque on, at most 600 steps/s) and asks, on lines:
+  +  / -       one step (--step, default 10 steps) up / down the servo's count
+  +N / -N      N steps        =N   go to N steps        (empty line: where it is now)
+  ok           this is the position (first rest, then up)
+  q            stop without writing anything
+Goals stay within the servo's own angle limits (EEPROM 9/11). Then the protocol file's
+device: pins: N: entry gets rest_steps and positions (the narrowest pulse width at rest, the
+widest up, any in between where they were relative to those); limits_steps too, widened, if
+the file gives limits that the new positions leave. Only those values change: comments, key
+order and line ends stay. The result is read back as a protocol (every stimulus must still be
+feasible) before the file is replaced, in one step. On any exit the pin goes to rest and its
+torque off.
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``calibrate`` to the ``servos`` group."""
+    from pinarray.cli import common
+
+    p = subparsers.add_parser(
+        "calibrate", help="jog one pin to rest and up, then write its calibration into the "
+        "protocol", epilog=CALIBRATE_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("protocol", metavar="PROTOCOL", help="protocol YAML file to update")
+    p.add_argument("--pin", type=common.count(1, 4096), required=True, metavar="N",
+                   help="the pin to calibrate")
+    p.add_argument("--step", type=common.count(1, 500), default=10, metavar="STEPS",
+                   help="steps per + or - (default 10)")
+    bus_options(p, baud_default="the protocol's")
+    p.set_defaults(func=_cmd_calibrate)
+
+
+@dataclass(frozen=True)
+class _By:
+    steps: int
+
+
+@dataclass(frozen=True)
+class _To:
+    steps: int
+
+
+class JogWord(StrEnum):
+    """A line that is a word, not a move."""
+
+    OK = "ok"
+    QUIT = "quit"
+    SHOW = "show"  # an empty line: where the horn is now
+    HELP = "help"
+
+
+JOG_HELP = ("+ / - one step, +N / -N N steps, =N go to N steps, empty line: where it is, "
+            "ok: this is it, q: stop without writing")
+
+
+def parse_jog(line: str, step: int) -> _By | _To | JogWord:
+    """One line typed while jogging; `ValueError` with what was expected otherwise."""
+    text = line.strip().lower()
+    if not text:
+        return JogWord.SHOW
+    if text in ("?", "help", "h"):
+        return JogWord.HELP
+    if text in ("ok", "y", "yes"):
+        return JogWord.OK
+    if text in ("q", "quit", "exit"):
+        return JogWord.QUIT
+    if text in ("+", "-"):
+        return _By(step if text == "+" else -step)
+    sign, number = text[0], text[1:].strip()
+    if sign in "+-=" and number.isdigit() and len(number) <= 5:
+        value = int(number)
+        if sign == "=":
+            return _To(value)
+        return _By(value if sign == "+" else -value)
+    raise ValueError(f"expected +, -, +N, -N, =N, ok or q, found {line.strip()[:40]!r}")
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from pinarray.bus.jog import Jog
+    from pinarray.calibration_file import plan_calibration, rewrite_calibration
+    from pinarray.errors import PinArrayError, ProtocolError
+    from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
+    from pinarray.rig import bus_setup, sim_url_for
+    from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
+
+    protocol = load_protocol(args.protocol)
+    data = _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
+    device = protocol.device
+    calibration = device.calibration(args.pin)
+    old_up = calibration.positions_by_width_ns[-1][1]
+
+    def edited(rest_steps: int, up_steps: int) -> tuple[NewCalibration, bytes]:
+        new = plan_calibration(data, protocol, args.pin, rest_steps, up_steps)
+        return new, rewrite_calibration(data, protocol, new)
+
+    try:
+        edited(calibration.rest_steps, old_up)  # a file that cannot be edited: say so first
+    except ProtocolError:
+        raise
+    except PinArrayError:
+        pass  # e.g. rest = up today: the new values decide
+    setup = bus_setup(device)
+    servo = next(s for s in setup.servos if s.pin == args.pin)
+    url = args.port or sim_url_for(args.sim, setup.servo_ids)
+    result: tuple[NewCalibration, bytes] | None = None
+    with stop_on_signals(StopRequest()) as stop:
+        bus = open_bare(url, args.baud or device.servo.baud_rate)
+        jog = Jog(bus, servo, setup.model_number, device.servo.speed_steps_per_s,
+                  clock=StoppableClock(bus.clock, stop))
+        rest_steps = servo.rest_steps
+        try:
+            reading = jog.start()
+            say(f"{jog.name}: holding it at {reading.present_steps} steps (calibrated rest "
+                f"{servo.rest_steps}, up {old_up}; the servo allows {jog.bounds[0]}.."
+                f"{jog.bounds[1]}).")
+            say(f"Commands: {JOG_HELP}.")
+            found_rest = _jog_until_ok(jog, "rest", args.step, stop, lambda steps: None)
+            if found_rest is not None:
+                attempts: dict[int, tuple[NewCalibration, bytes]] = {}
+
+                def check(up_steps: int) -> str | None:
+                    if up_steps == found_rest:
+                        return f"up must differ from rest ({found_rest} steps): jog further"
+                    try:
+                        attempts[up_steps] = edited(found_rest, up_steps)
+                    except PinArrayError as problem:
+                        return f"{problem}; jog elsewhere, or q"
+                    return None
+
+                found_up = _jog_until_ok(jog, "up", args.step, stop, check)
+                if found_up is not None:
+                    result = attempts[found_up]
+                    rest_steps = found_rest
+        finally:
+            safe = jog.release(rest_steps)
+            bus.close()
+            where = f"at rest ({rest_steps} steps)" if safe.at_rest_ids else "NOT confirmed at rest"
+            torque = "torque off" if safe.released_ids else "torque NOT confirmed off"
+            say(f"{jog.name}: {where}, {torque}")
+    if result is None:
+        say(f"{args.protocol}: nothing written")
+        return 0
+    new, text = result
+    # Whoever saved the file meanwhile keeps their version: refuse rather than overwrite it.
+    _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
+    _replace_file(args.protocol, text)
+    say(f"{args.protocol}: {_describe(new, device, args.pin)}")
+    return 0
+
+
+def _describe(new: NewCalibration, device: Device, pin: int) -> str:
+    """What was written, and the stroke it gives, in words."""
+    import math
+
+    positions = ", ".join(f"{w / 1e6:g} ms: {p}" for w, p in new.positions)
+    limits = (f", limits_steps [{new.limits_steps[0]}, {new.limits_steps[1]}] (widened)"
+              if new.limits_widened else "")
+    stroke = abs(new.up_steps - new.rest_steps)
+    lever = device.calibration(pin).lever_mm
+    degrees = stroke * 360 / device.servo.steps_per_turn
+    return (f"device: pins: {pin}: rest_steps {new.rest_steps}, positions {{{positions}}}"
+            f"{limits}; stroke {stroke} steps ({degrees:.1f} deg, about "
+            f"{lever * math.radians(degrees):.2f} mm on its {lever:g} mm lever)")
+
+
+def _jog_until_ok(jog, what: str, step: int, stop, check) -> int | None:
+    """Jog until ``ok`` where ``check(goal)`` finds no problem (the goal), or ``q`` (None)."""
+    from pinarray.bus.jog import GoalOutOfRange
+    from pinarray.errors import BusError
+    from pinarray.stop import raise_on_signals
+
+    say(f"Jog {jog.name} to {what.upper()}, then type ok.")
+    while True:
+        stop.raise_if_requested()
+        try:
+            with raise_on_signals("calibration"):
+                line = input(f"{what}> ")
+        except EOFError:
+            raise BusError(f"{jog.name}: input ended before the {what} position was chosen; "
+                           "nothing written") from None
+        try:
+            command = parse_jog(line, step)
+        except ValueError as problem:
+            say(f"  {problem}")
+            continue
+        try:
+            match command:
+                case _By(steps=steps):
+                    reading = jog.move_by(steps)
+                case _To(steps=steps):
+                    reading = jog.move_to(steps)
+                case JogWord.OK:
+                    refused = check(jog.goal_steps)
+                    if refused is None:
+                        say(f"  {what} = {jog.goal_steps} steps")
+                        return jog.goal_steps
+                    say(f"  {refused}")
+                    continue
+                case JogWord.QUIT:
+                    return None
+                case JogWord.HELP:
+                    say(f"  {JOG_HELP}")
+                    continue
+                case JogWord.SHOW:
+                    reading = jog.read()
+        except GoalOutOfRange as problem:
+            say(f"  {problem}")
+            continue
+        arrived = "" if reading.arrived else " (still on its way: watch it, or type again)"
+        errors = "" if not reading.errors else f", error bits: {reading.errors.describe()}"
+        say(f"  goal {reading.goal_steps}, at {reading.present_steps} steps{arrived}{errors}")
+
+
+def _protocol_bytes(path: str, limit: int, sha256: str) -> bytes:
+    """The file's bytes, which must be the text that was loaded (its SHA-256)."""
+    import hashlib
+
+    from pinarray.errors import PinArrayError
+    from pinarray.text_files import NotText, decode_text, read_bounded
+
+    try:
+        data = read_bounded(path, limit, "protocol")
+        text = decode_text(data)
+    except NotText as problem:
+        raise PinArrayError(f"{path}: {problem.message}") from None
+    if hashlib.sha256(text.encode("utf-8")).hexdigest() != sha256:
+        raise PinArrayError(f"{path}: changed on disk since it was read; run the command again")
+    return data
+
+
+def _replace_file(path: str, data: bytes) -> None:
+    """Put ``data`` in place of the file in one step (a failure leaves the file as it was)."""
+    from pinarray.cli.common import OutputFile
+
+    out = OutputFile(path, binary=True)
+    try:
+        out.stream.write(data)
+        if out.temporary:
+            mode = os.stat(out.final).st_mode & 0o7777
+            os.chmod(out.temporary, mode)  # keep the file's permissions
+        out.commit()
+    except OSError as problem:
+        out.discard()
+        from pinarray.errors import PinArrayError
+
+        raise PinArrayError(f"{path}: cannot write: {problem.strerror}") from None

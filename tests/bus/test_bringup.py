@@ -1,0 +1,270 @@
+"""Bring-up as a lab does it on new servos, on the simulated bus in virtual time."""
+
+import pytest
+
+from pinarray.bus import bringup
+from pinarray.bus import jog as jog_module
+from pinarray.bus.base import BusSetup, ServoSetup
+from pinarray.bus.link import Latency
+from pinarray.bus.registers import Register, to_bytes
+from pinarray.bus.transport import open_bus
+from pinarray.clock import VirtualClock
+from pinarray.errors import BusError, PinArrayError
+from pinarray.stop import StoppableClock, Stopped, StopRequest
+
+
+def bare_bus(query: str = "ids=1"):
+    """Simulated servos, opened as the bring-up commands open them: no handshake."""
+    return open_bus(f"sim://?{query}", clock=VirtualClock())
+
+
+def answering(bus) -> list[int]:
+    return sorted(bus.sim.servos)
+
+
+# -- scan --------------------------------------------------------------------------------------
+
+
+def test_a_lone_new_servo_is_found_by_one_broadcast_ping():
+    bus = bare_bus("ids=1")
+    result = bringup.scan(bus)
+    assert result.method is bringup.ScanMethod.BROADCAST
+    (servo,) = result.found
+    assert (servo.servo_id, servo.model_number, servo.return_delay_us) == (1, 777, 500)
+    assert servo.telemetry.position_steps == 2048 and result.swept_ids == ()
+
+
+def test_several_servos_collide_on_a_broadcast_ping_so_every_id_is_swept_in_turn():
+    bus = bare_bus("ids=3,9,40")
+    seen = []
+    result = bringup.scan(bus, progress=lambda i, last, found: seen.append((i, last, found)))
+    assert result.method is bringup.ScanMethod.SWEEP
+    assert "collided" in result.sweep_reason
+    assert result.servo_ids == (3, 9, 40)
+    assert [i for i, _, _ in seen] == list(range(253)) and seen[-1][1] == 252
+    assert seen[8][2] == (3,) and seen[-1][2] == (3, 9, 40)
+
+
+def test_a_sweep_waits_a_bounded_time_per_silent_id():
+    bus = bare_bus("ids=1&missing=1")  # nothing answers: every id costs its whole wait
+    # An adapter whose latency nobody knows: a single exchange would wait 34 ms, as the SDK does.
+    bus.link.latency = Latency(timer_ms=None)
+    bus.broadcast_ping()
+    start_ns = bus.clock.now_ns()
+    result = bringup.scan(bus, ids=range(253), timeout_ns=3_000_000)
+    spent_ns = bus.clock.now_ns() - start_ns
+    assert result.found == ()
+    assert 253 * 3_000_000 <= spent_ns <= 253 * 3_100_000
+
+
+def test_a_silent_bus_is_swept_after_a_broadcast_ping_nobody_answers():
+    result = bringup.scan(bare_bus("ids=1&missing=1"))
+    assert result.found == () and result.sweep_reason == "nothing answered a broadcast ping"
+    assert result.swept_ids == tuple(range(253))
+
+
+def test_given_ids_are_swept_without_a_broadcast():
+    bus = bare_bus("ids=1-3")
+    result = bringup.scan(bus, ids=(2, 3, 4))
+    assert result.method is bringup.ScanMethod.SWEEP and result.sweep_reason == ""
+    assert result.servo_ids == (2, 3) and result.swept_ids == (2, 3, 4)
+
+
+def test_a_stop_requested_during_a_sweep_ends_it():
+    bus = bare_bus("ids=1-2")
+    stop = StopRequest()
+
+    def progress(servo_id, last_id, found):
+        if servo_id == 10:
+            stop.request("stopped by SIGINT", 2)
+        stop.raise_if_requested()
+
+    with pytest.raises(Stopped):
+        bringup.scan(bus, progress=progress)
+
+
+# -- set-id ------------------------------------------------------------------------------------
+
+
+def test_a_fresh_servo_is_renumbered_for_good_and_no_longer_answers_at_1():
+    bus = bare_bus("ids=1")
+    done = bringup.set_id(bus, 1, 7)
+    assert done == bringup.Renumbered(1, 7, 777, acknowledged=True)
+    assert bus.ping(7) == 777 and bus.ping(1) is None
+    servo = bus.sim.servos[7]
+    assert servo.get(Register.ID) == 7 and servo.get(Register.LOCK) == 1
+    assert [register for register, _ in servo.eeprom_writes] == [Register.ID]
+    bus.sim.power_cycle()
+    assert answering(bus) == [7]
+
+
+def test_set_id_refuses_an_id_another_servo_answers_at_and_writes_nothing():
+    bus = bare_bus("ids=1,5")
+    with pytest.raises(BusError, match="servo id 5 is already taken.*servo 1 the same id"):
+        bringup.set_id(bus, 1, 5)
+    assert all(s.eeprom_writes == [] for s in bus.sim.all_servos())
+    assert answering(bus) == [1, 5]
+
+
+def test_set_id_names_the_id_nothing_answers_at():
+    bus = bare_bus("ids=1")
+    with pytest.raises(BusError, match="no servo answers at id 4 on sim://"):
+        bringup.set_id(bus, 4, 9)
+
+
+def test_two_new_servos_on_id_1_are_told_to_be_connected_one_at_a_time():
+    bus = bare_bus("ids=1")
+    second = bus.sim.plug_in()  # a second factory-fresh servo, also at id 1
+    # Its horn sits elsewhere (the PING answers of the two are the same bytes; positions not).
+    second.write(Register.GOAL_POSITION.address, to_bytes(1000, 2), bus.clock.now_ns())
+    bus.clock.sleep_until_ns(bus.clock.now_ns() + 1_000_000_000)
+    with pytest.raises(BusError, match="several servos share id 1.*connect one new servo at a"):
+        bringup.set_id(bus, 1, 2)
+    assert all(s.eeprom_writes == [] for s in bus.sim.all_servos())
+
+
+def test_set_id_refuses_a_servo_that_acknowledges_no_writes():
+    bus = bare_bus("ids=1")
+    bus.sim.servos[1].table[Register.STATUS_RETURN_LEVEL.address] = 0
+    with pytest.raises(BusError, match=r"STATUS_RETURN_LEVEL \(address 8\) is 0"):
+        bringup.set_id(bus, 1, 2)
+
+
+@pytest.mark.parametrize("old, new", [(1, 253), (-1, 2), (1, 1)])
+def test_set_id_refuses_ids_no_servo_can_have(old, new):
+    with pytest.raises(PinArrayError):
+        bringup.set_id(bare_bus("ids=1"), old, new)
+
+
+def test_the_driver_writes_eeprom_only_through_its_eeprom_methods():
+    bus = bare_bus("ids=1")
+    with pytest.raises(BusError, match="refusing to write ID"):
+        bus.write(1, Register.ID, 3)
+    with pytest.raises(BusError, match="TORQUE_ENABLE .* is a RAM register"):
+        bus.write_eeprom(1, Register.TORQUE_ENABLE, 0)
+    assert bus.sim.servos[1].eeprom_writes == []
+
+
+# -- return delay ------------------------------------------------------------------------------
+
+
+def test_a_lowered_return_delay_answers_at_once_and_is_gone_after_power_off():
+    bus = bare_bus("ids=1-2")  # factory servos power on with LOCK 0: a plain write would stay
+    changes, failures = bringup.set_return_delay(bus, (1, 2), 0, save=False)
+    assert failures == ()
+    assert changes == (bringup.ReturnDelayChange(1, 500, 0, False),
+                       bringup.ReturnDelayChange(2, 500, 0, False))
+    assert all(s.return_delay_ns == 0 for s in bus.sim.servos.values())
+    assert bus.link.return_delay_ns[1] == 0
+    bus.sim.power_cycle()
+    assert all(s.return_delay_ns == 500_000 for s in bus.sim.servos.values())
+
+
+def test_a_saved_return_delay_survives_power_off_and_leaves_the_eeprom_locked():
+    bus = bare_bus("ids=1")
+    changes, _ = bringup.set_return_delay(bus, (1,), 20, save=True)
+    assert changes == (bringup.ReturnDelayChange(1, 500, 20, True),)
+    assert bus.sim.servos[1].get(Register.LOCK) == 1
+    bus.sim.power_cycle()
+    assert bus.sim.servos[1].return_delay_ns == 20_000
+
+
+def test_a_silent_servo_does_not_keep_the_others_from_their_new_return_delay():
+    bus = bare_bus("ids=1-3&missing=2")
+    changes, failures = bringup.set_return_delay(bus, (1, 2, 3), 0, save=False)
+    assert [c.servo_id for c in changes] == [1, 3]
+    (failure,) = failures
+    assert failure.servo_id == 2 and "RETURN_DELAY_TIME (address 7)" in failure.problem
+
+
+@pytest.mark.parametrize("delay_us", [-2, 3, 510])
+def test_a_return_delay_the_register_cannot_hold_is_refused(delay_us):
+    with pytest.raises(PinArrayError, match="RETURN_DELAY_TIME, address 7"):
+        bringup.set_return_delay(bare_bus(), (1,), delay_us, save=False)
+
+
+# -- torque off, rest --------------------------------------------------------------------------
+
+
+def test_torque_off_names_the_servos_that_did_not_answer():
+    bus = bare_bus("ids=1-4&missing=3")
+    for servo in bus.sim.servos.values():
+        servo.write(Register.TORQUE_ENABLE.address, b"\x01", bus.clock.now_ns())
+    released, failures = bringup.torque_off(bus, (1, 2, 3, 4))
+    assert released == (1, 2, 4) and [f.servo_id for f in failures] == [3]
+    assert not any(s.torque_enabled for i, s in bus.sim.servos.items() if i != 3)
+
+
+def test_rest_sends_every_answering_pin_to_rest_then_releases_it():
+    bus = bare_bus("ids=1-3&missing=2&backlash_deg=0")
+    for servo in bus.sim.servos.values():
+        servo.write(Register.GOAL_POSITION.address, to_bytes(2300, 2), bus.clock.now_ns())
+    bus.clock.sleep_until_ns(bus.clock.now_ns() + 1_000_000_000)
+    setup = BusSetup(tuple(ServoSetup(i, i, 2000, 1900, 2400) for i in (1, 2, 3)),
+                     speed_steps_per_s=1000)
+    safe = bringup.rest(bus, setup)
+    assert (safe.at_rest_ids, safe.released_ids, safe.silent_ids) == ((1, 3), (1, 3), (2,))
+    for servo_id in (1, 3):
+        servo = bus.sim.servos[servo_id]
+        assert not servo.torque_enabled and abs(servo.position_steps - 2000) <= 4
+        assert servo.get(Register.GOAL_SPEED) == 1000
+
+
+# -- jogging -----------------------------------------------------------------------------------
+
+
+def jog_bus(query: str = "ids=6&backlash_deg=0"):
+    bus = bare_bus(query)
+    jog = jog_module.Jog(bus, ServoSetup(6, 6, 2048, 2000, 2200), 777, speed_steps_per_s=3000)
+    return bus, jog
+
+
+def test_jogging_holds_the_horn_where_it_is_then_moves_it_by_steps():
+    bus, jog = jog_bus()
+    servo = bus.sim.servos[6]
+    servo.write(Register.GOAL_POSITION.address, to_bytes(2100, 2), bus.clock.now_ns())
+    bus.clock.sleep_until_ns(bus.clock.now_ns() + 1_000_000_000)
+    servo.write(Register.TORQUE_ENABLE.address, b"\x00", bus.clock.now_ns())  # limp at 2100
+    start = jog.start()
+    assert (start.goal_steps, start.present_steps, start.arrived) == (2100, 2100, True)
+    assert servo.torque_enabled and servo.get(Register.GOAL_SPEED) == jog_module.JOG_SPEED_STEPS_PER_S
+    assert jog.move_by(-30).present_steps == 2070
+    reading = jog.move_to(2150)
+    assert (reading.goal_steps, reading.present_steps, reading.arrived) == (2150, 2150, True)
+
+
+def test_jogging_stays_within_the_servos_angle_limits():
+    bus, jog = jog_bus()
+    address = Register.MAX_ANGLE_LIMIT.address
+    bus.sim.servos[6].table[address:address + 2] = to_bytes(3000, 2)
+    jog.start()
+    assert jog.bounds == (0, 3000)
+    with pytest.raises(BusError, match=r"pin 6 \(servo 6\): GOAL_POSITION 3001 steps is outside "
+                                       r"the servo's angle limits 0..3000 \(MIN/MAX_ANGLE_LIMIT"):
+        jog.move_to(3001)
+
+
+def test_a_jog_wait_ends_on_a_stop_request():
+    bus, _ = jog_bus()
+    stop = StopRequest()
+    jog = jog_module.Jog(bus, ServoSetup(6, 6, 2048, 2000, 2200), 777, 100,
+                      clock=StoppableClock(bus.clock, stop))
+    jog.start()
+    stop.request("stopped by SIGINT", 2)
+    with pytest.raises(Stopped):
+        jog.move_to(3000)  # 10 s at 100 steps/s
+
+
+def test_releasing_a_jogged_pin_puts_it_at_rest_with_torque_off():
+    bus, jog = jog_bus()
+    jog.start()
+    jog.move_to(2190)
+    safe = jog.release(2040)
+    servo = bus.sim.servos[6]
+    assert safe.complete and not servo.torque_enabled and abs(servo.position_steps - 2040) <= 4
+
+
+def test_a_jog_of_a_servo_that_is_not_there_names_the_pin_and_servo():
+    bus, jog = jog_bus("ids=5")
+    with pytest.raises(BusError, match=r"pin 6 \(servo 6\) does not answer on sim://"):
+        jog.start()

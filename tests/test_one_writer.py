@@ -1,0 +1,174 @@
+"""One writer per run: a second process is refused by name, a dead one's lock is taken over."""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pinarray.errors import ResultsError
+from pinarray.journal.lock import RunLocked, lock_holder
+from pinarray.journal.manifest import RunStatus, read_manifest
+from pinarray.journal.records import LocalisationRecord, read_trials
+from pinarray.journal.writer import RunWriter
+from tests.runs import (
+    REPO,
+    VIRTUAL,
+    localisation_plan,
+    open_elsewhere,
+    start_run,
+    unfinished_batch_run,
+)
+
+MOTION = REPO / "protocols" / "apparent_motion.yaml"
+HOST = socket.gethostname()
+
+
+def ok_row(trial):
+    """Trial ``trial`` answered right: pin 4 at 10 Hz."""
+    return LocalisationRecord(trial=trial, block=1, task="localisation", onset_ns=trial * 10**10,
+                              duration_ns=10**10, response="4", pin=4, frequency_hz=10.0,
+                              error_class="correct")
+
+
+def batch(root, *more, protocol=MOTION):
+    return subprocess.run(
+        [sys.executable, "-m", "pinarray", "batch", str(protocol), "--subject", "01",
+         "--observer", "default", "--seed", "7", "--results", str(root), *more],
+        capture_output=True, text=True, timeout=120, cwd=REPO)
+
+
+def test_a_second_process_resuming_a_run_in_use_is_refused_in_one_line_naming_the_first(tmp_path):
+    paths = unfinished_batch_run(tmp_path, MOTION)
+    with open_elsewhere(paths) as first:
+        manifest_before = paths.manifest.read_bytes()
+        second = batch(tmp_path, "--resume")
+        assert second.returncode == 2
+        (line,) = second.stderr.splitlines()
+        assert f"pid {first.pid} on host {HOST} (this computer)" in line
+        assert "is open in another process" in line and "one writer at a time" in line
+        assert "Traceback" not in second.stderr
+        # The refused process wrote nothing: no row, no sitting, the first one's manifest as it was.
+        assert not paths.beh_tsv.exists() or read_trials(paths.beh_tsv) == []
+        assert paths.manifest.read_bytes() == manifest_before
+    # Once the first process has ended the run resumes.
+    done = batch(tmp_path, "--resume")
+    assert done.returncode == 0, done.stderr
+    assert read_manifest(paths.manifest).status is RunStatus.COMPLETED
+    assert not paths.lock.exists()  # given back, not left behind
+
+
+def test_the_writer_refuses_a_second_writer_in_the_same_process_too(tmp_path):
+    writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10)))
+    writer.close()
+    first = RunWriter.resume(writer.paths, VIRTUAL)
+    try:
+        with pytest.raises(RunLocked, match=f"pid {os.getpid()} on host {HOST}"):
+            RunWriter.resume(writer.paths, VIRTUAL)
+    finally:
+        first.close()
+    RunWriter.resume(writer.paths, VIRTUAL).close()  # free again
+
+
+def test_a_stale_lock_left_by_a_killed_process_is_explained_and_taken_over(tmp_path):
+    paths = unfinished_batch_run(tmp_path, MOTION)
+    with open_elsewhere(paths) as killed:
+        killed.send_signal(signal.SIGKILL)
+        killed.wait(timeout=30)
+    # The file still names the dead process, but nobody holds the lock.
+    assert json.loads(paths.lock.read_text())["pid"] == killed.pid
+    assert lock_holder(paths.lock) is None
+    resumed = batch(tmp_path, "--resume")
+    assert resumed.returncode == 0, resumed.stderr
+    warning = next(line for line in resumed.stderr.splitlines() if "took over the lock" in line)
+    assert f"left by pid {killed.pid} on host {HOST} (this computer)" in warning
+    assert "no longer running (killed or crashed)" in warning
+    manifest = read_manifest(paths.manifest)
+    assert manifest.status is RunStatus.COMPLETED
+    assert [s.pid for s in manifest.sittings][-1] != killed.pid
+
+
+def test_a_lock_left_on_another_computer_is_refused_naming_the_file_to_delete(tmp_path):
+    writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10)))
+    writer.close()
+    lock = writer.paths.lock
+    lock.write_text(json.dumps({"pid": 4242, "host": "other-pc", "since": "2024-05-01T14:03:07+02:00",
+                                "command": "pinarray batch ..."}))
+    with pytest.raises(RunLocked) as refused:
+        RunWriter.resume(writer.paths, VIRTUAL)
+    message = str(refused.value)
+    assert "pid 4242 on host other-pc" in message and "this computer cannot see" in message
+    assert f"delete {lock}" in message and "\n" not in message
+    lock.unlink()
+    RunWriter.resume(writer.paths, VIRTUAL).close()
+
+
+def _duplicate_the_first_row(beh: Path) -> None:
+    lines = beh.read_text().splitlines(keepends=True)
+    beh.write_text("".join([*lines, lines[1]]))
+
+
+def test_a_trial_logged_ok_twice_is_refused_on_resume_with_its_lines(tmp_path):
+    writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10), (7, 3)))
+    writer.write_trial(ok_row(1))
+    writer.close()
+    _duplicate_the_first_row(writer.paths.beh_tsv)
+    with pytest.raises(ResultsError) as refused:
+        RunWriter.resume(writer.paths, VIRTUAL)
+    assert str(refused.value) == (
+        f"{writer.paths.beh_tsv}:3: trial 1 is logged ok twice (lines 2, 3); a trial counts "
+        "once: delete the row that should not count, then resume")
+    assert not writer.paths.lock.exists()  # the refusal gave the lock back
+    # With the extra row deleted the run resumes; events.tsv again has one row per trial row.
+    lines = writer.paths.beh_tsv.read_text().splitlines(keepends=True)
+    writer.paths.beh_tsv.write_text("".join(lines[:2]))
+    resumed = RunWriter.resume(writer.paths, VIRTUAL)
+    assert [e.trial for e in resumed.remaining()] == [2]
+    resumed.close()
+    assert len(writer.paths.events_tsv.read_text().splitlines()) == 2
+
+
+def test_batch_refuses_to_resume_a_run_with_a_trial_logged_ok_twice_in_one_line(tmp_path):
+    whole = batch(tmp_path)  # a whole run, then marked unfinished as a crash would leave it
+    assert whole.returncode == 0, whole.stderr
+    (manifest,) = tmp_path.rglob("*_manifest.json")
+    data = json.loads(manifest.read_text())
+    data["status"] = "crashed"
+    manifest.write_text(json.dumps(data))
+    (beh,) = tmp_path.rglob("*_beh.tsv")
+    _duplicate_the_first_row(beh)
+    refused = batch(tmp_path, "--resume")
+    assert refused.returncode == 2
+    (line,) = refused.stderr.splitlines()
+    assert line.startswith(f"pinarray: {beh}:15: practice trial 1 is logged ok twice (lines 2, 15)")
+    assert "Traceback" not in refused.stderr
+
+
+def test_a_second_ok_row_for_a_trial_is_refused_by_the_writer(tmp_path):
+    writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10)))
+    writer.write_trial(ok_row(1))
+    with pytest.raises(ResultsError, match="trial 1 is already logged ok; a trial counts once"):
+        writer.write_trial(ok_row(1))
+    writer.close()
+    with pytest.raises(ResultsError, match="the run is closed"):
+        writer.write_trial(ok_row(1))
+    assert len(read_trials(writer.paths.beh_tsv)) == 1
+
+
+def test_batch_resume_with_nothing_to_resume_is_exit_2_in_one_line_and_starts_nothing(tmp_path):
+    nothing = batch(tmp_path, "--resume")
+    assert nothing.returncode == 2
+    assert nothing.stderr.splitlines() == [
+        f"pinarray: --resume: no unfinished run of apparentmotion for subject 01, session 1 in "
+        f"{tmp_path}; run without --resume to start a new one"]
+    assert not list(tmp_path.rglob("sub-*"))
+    finished = batch(tmp_path)
+    assert finished.returncode == 0, finished.stderr
+    again = batch(tmp_path, "--resume")  # the only run is completed: still nothing to resume
+    assert again.returncode == 2 and len(again.stderr.splitlines()) == 1
+    assert [p.name for p in tmp_path.rglob("*_beh.tsv")] == [
+        "sub-01_ses-1_task-apparentmotion_run-1_beh.tsv"]

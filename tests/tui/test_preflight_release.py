@@ -1,0 +1,42 @@
+"""The pre-flight's "Rest + torque off": the experimenter lets go of the array without leaving."""
+
+from pinarray.rig import Rig
+from pinarray.tui.preflight_screen import PreflightScreen
+from pinarray.tui.run_screen import RunScreen
+from tests.tui.conftest import SIZE, fill_start, make_app, settle
+
+
+def text(app, selector):
+    return str(app.screen.query_one(selector).render())
+
+
+async def test_rest_and_torque_off_lets_go_of_every_pin_until_connect_again(results):
+    rigs = []
+
+    def rig_factory(*args, **kwargs):
+        rigs.append(Rig(*args, **kwargs))
+        return rigs[-1]
+
+    app = make_app(results, rig_factory=rig_factory)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        assert isinstance(app.screen, PreflightScreen)
+        await pilot.click("#release")
+        await settle(pilot)
+        assert text(app, "#preflight-status") == (
+            "Released: 16 servo(s) at rest, 16 released, port closed. Connect again to go on.")
+        assert app.lab.rig is None
+        assert app.screen.query_one("#begin").disabled and app.screen.query_one("#release").disabled
+        servos = rigs[0].bus.sim.servos.values()
+        assert not any(s.torque_enabled for s in servos)
+        assert all(abs(s.position_steps - 2048) <= 4 for s in servos)
+        await pilot.click("#reconnect")
+        await settle(pilot)
+        assert len(rigs) == 2 and not app.screen.query_one("#begin").disabled
+        await pilot.press("b")
+        await settle(pilot)
+        assert isinstance(app.screen, RunScreen)
+        await pilot.press("q")
+        await settle(pilot)

@@ -1,0 +1,70 @@
+"""The start screen's Resume offer honours the run's lock: one writer per run, in the UI too."""
+
+import json
+import socket
+
+from pinarray.journal.manifest import RunStatus, read_manifest
+from pinarray.tui import start_screen
+from pinarray.tui.preflight_screen import PreflightScreen
+from pinarray.tui.run_screen import RunScreen
+from tests.runs import open_elsewhere, unfinished_batch_run
+from tests.tui.conftest import LOCALISATION, SIZE, fill_start, make_app, settle
+
+HOST = socket.gethostname()
+
+
+def read_lock_since(paths):
+    return json.loads(paths.lock.read_text())["since"]
+
+
+def text(app, selector):
+    return str(app.screen.query_one(selector).render())
+
+
+async def test_a_run_open_in_another_process_is_not_offered_until_that_process_ends(
+        results, monkeypatch):
+    monkeypatch.setattr(start_screen, "HELD_RECHECK_S", 0.05)
+    paths = unfinished_batch_run(results, LOCALISATION, seed=3)
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        with open_elsewhere(paths) as other:
+            await fill_start(pilot)
+            assert app.screen.query_one("#resume").disabled
+            assert text(app, "#resume-info") == (
+                f"Run 1 is open in another process, pid {other.pid} on host {HOST} (this "
+                f"computer), since {read_lock_since(paths)}; it can be resumed once that one ends.")
+        await pilot.pause(0.5)  # the screen looks again on its own
+        assert not app.screen.query_one("#resume").disabled
+        assert text(app, "#resume-info").startswith("Unfinished run 1: running, 0 of 26 trials done")
+        await pilot.click("#resume")
+        await settle(pilot)
+        await pilot.press("b")
+        await settle(pilot)
+        assert isinstance(app.screen, RunScreen) and app.screen.session.writer.resumed
+        await pilot.press("ctrl+c")
+        await settle(pilot)
+    assert len(read_manifest(paths.manifest).sittings) == 3  # started, the other process, the UI
+
+
+async def test_a_run_taken_by_another_process_after_it_was_offered_is_refused_in_words(results):
+    paths = unfinished_batch_run(results, LOCALISATION, seed=3)
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        assert not app.screen.query_one("#resume").disabled  # free when the screen looked
+        await pilot.click("#resume")
+        await settle(pilot)
+        with open_elsewhere(paths) as other:  # ... and taken before the run begins
+            await pilot.press("b")
+            await settle(pilot)
+            assert isinstance(app.screen, PreflightScreen)
+            status = text(app, "#preflight-status")
+            assert status.startswith(f"Cannot open the run: sub-01 ses-1 task-localisation run-1 "
+                                     f"is open in another process, pid {other.pid} on host {HOST}")
+        await pilot.press("b")  # that process has ended: now it resumes
+        await settle(pilot)
+        assert isinstance(app.screen, RunScreen) and app.screen.session.writer.resumed
+        await pilot.press("ctrl+c")
+        await settle(pilot)
+    manifest = read_manifest(paths.manifest)
+    assert manifest.status is RunStatus.ABORTED and manifest.abort_reason == "quit from the UI"
