@@ -108,7 +108,7 @@ class PinArrayApp(App[None]):
                        rig_factory, lsl_name=options.lsl)
         self.list_ports = list_ports
         self.ending: Ending = Quit()
-        self._closing = False
+        self._leaving_app = False
         self._crash_closed = False  # after an error: the run is marked and the pins rest
 
     def on_mount(self) -> None:
@@ -167,9 +167,9 @@ class PinArrayApp(App[None]):
             if self._crash_closed:  # from the error screen, once the pins are safe
                 self.exit(return_code=1)
             return
-        if self._closing:
+        if self._leaving_app:
             return  # a second q (or a signal) while closing: already on the way out
-        self._closing = True
+        self._leaving_app = True
         self.ending = ending
         worker = self.run_worker(lambda: self.lab.finish(reason), thread=True, group="close",
                                  name="quit")
@@ -218,7 +218,7 @@ class PinArrayApp(App[None]):
             return
         from pinarray.tui.error_screen import ErrorScreen
 
-        self._closing = True
+        self._leaving_app = True
         screen = ErrorScreen(crash)
         self.push_screen(screen)
 
