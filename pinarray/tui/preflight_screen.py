@@ -290,6 +290,8 @@ class PreflightScreen(KeyNotices, Screen):
         from pinarray.tui.run_screen import RunScreen
 
         if session is None:
+            self._leaving = False  # back on this screen: b may begin again
+            self.refresh_bindings()
             self._status("Stopped waiting for the scanner; no run was started.")
         else:
             self.app.switch_screen(RunScreen(self.lab, session))

@@ -86,7 +86,7 @@ async def test_each_press_of_the_trigger_key_is_a_volume_and_the_third_starts_th
         assert isinstance(app.screen, RunScreen)
         await pilot.press("q")
         await settle(pilot)
-    assert app.return_value == "16 servo(s) at rest, 16 released"
+    assert "16 servo(s) at rest, 16 released" in app.outcome()[1]
     rows = volume_log(results)
     assert [(r["volume"], r["dummy"]) for r in rows[:3]] == [
         ("1", "true"), ("2", "true"), ("3", "false")]
@@ -113,7 +113,7 @@ async def test_escape_stops_waiting_for_a_silent_scanner_and_no_run_is_started(t
             assert isinstance(app.screen, ScannerScreen)
             await pilot.press("q")  # quitting while waiting: pins safe, as everywhere
             await settle(pilot)
-        assert app.return_value == "16 servo(s) at rest, 16 released"
+        assert "16 servo(s) at rest, 16 released" in app.outcome()[1]
     assert list(results.rglob("*_beh.tsv")) == [] and list(results.rglob("*_manifest.json")) == []
 
 

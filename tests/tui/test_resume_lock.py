@@ -67,4 +67,4 @@ async def test_a_run_taken_by_another_process_after_it_was_offered_is_refused_in
         await pilot.press("ctrl+c")
         await settle(pilot)
     manifest = read_manifest(paths.manifest)
-    assert manifest.status is RunStatus.ABORTED and manifest.abort_reason == "quit from the UI"
+    assert manifest.status is RunStatus.ABORTED and manifest.abort_reason == "interrupted (Ctrl-C)"

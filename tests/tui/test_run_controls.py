@@ -7,6 +7,7 @@ from pinarray.rig import Rig
 from pinarray.session import Phase
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.end_screen import EndScreen
+from pinarray.tui.notice import Notice
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
 from pinarray.tui.start_screen import StartScreen
@@ -94,7 +95,7 @@ async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped(res
         await pilot.press("a", "y")
         await settle(pilot)
         assert isinstance(app.screen, EndScreen)
-        assert "aborted (aborted by the experimenter) after 1 of 26" in text(app, "#headline")
+        assert "aborted (aborted by the experimenter) after 0 of 24 trials (practice 1 of 2)" in text(app, "#headline")
         assert manifest(results).status == "aborted"
         assert [r.status for r in rows(results)] == ["ok", "aborted"]
 
@@ -127,7 +128,7 @@ async def test_quitting_mid_run_leaves_a_resumable_run_and_keeps_every_row(resul
         await settle(pilot)
     assert app.lab.rig is None  # pins at rest, torque off, port closed
     run = manifest(results)
-    assert (run.status, run.abort_reason) == ("aborted", "quit from the UI")
+    assert (run.status, run.abort_reason) == ("aborted", "interrupted (Ctrl-C)")
     assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
 
 
@@ -197,7 +198,7 @@ async def test_mistakes_are_explained_on_screen_and_nothing_is_written(results):
         await present(pilot)
         await pilot.press("1", "7", "enter")
         await settle(pilot)
-        assert "expected a pin number from 1 to 16 or 'none', found 17" in text(app, "#problem")
+        assert "expected a pin number from 1 to 16 or 'none', found 17" in str(app.screen.query_one(Notice).render())
         assert session.phase is Phase.RESPONSE and session.records == []
 
 

@@ -22,17 +22,22 @@ async def still(pilot):
     await settle(pilot)
 
 
-def test_start_screen(app, snap_compare):
+SMALL = (80, 24)  # the smallest terminal a lab laptop opens: everything needed must show
+
+
+@pytest.mark.parametrize("size", [SIZE, SMALL], ids=["120x40", "80x24"])
+def test_start_screen(app, snap_compare, size):
     async def run_before(pilot):
         await fill_start(pilot, subject="07")
-        await pilot.click("#experimenter")
+        pilot.app.screen.query_one("#experimenter").focus()
         await pilot.press("J", "K")
         await still(pilot)
 
-    assert snap_compare(app, terminal_size=SIZE, run_before=run_before)
+    assert snap_compare(app, terminal_size=size, run_before=run_before)
 
 
-def test_run_screen_with_a_pin_typed_after_two_practice_trials(app, snap_compare):
+@pytest.mark.parametrize("size", [SIZE, SMALL], ids=["120x40", "80x24"])
+def test_run_screen_with_a_pin_typed_after_two_practice_trials(app, snap_compare, size):
     async def run_before(pilot):
         await to_run_screen(pilot)
         session = pilot.app.screen.session
@@ -47,7 +52,7 @@ def test_run_screen_with_a_pin_typed_after_two_practice_trials(app, snap_compare
         await still(pilot)
         assert session.phase is Phase.RESPONSE
 
-    assert snap_compare(app, terminal_size=SIZE, run_before=run_before)
+    assert snap_compare(app, terminal_size=size, run_before=run_before)
 
 
 def test_end_screen_of_a_whole_localisation_run(app, snap_compare):
