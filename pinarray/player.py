@@ -286,7 +286,7 @@ def play_prepared(
         except PinArrayError as error:
             safe = bus.rest_and_release()
             where = f"at frame {index + 1} of {count}" if index < count else "after the last frame"
-            raise PlaybackAborted(f"playback stopped {where}: {error}; {describe(safe)}",
+            raise PlaybackAborted(f"playback stopped {where}: {error}; {safe.describe()}",
                                   safe) from error
         except BaseException:
             bus.rest_and_release()  # Ctrl-C and anything unexpected: pins first, then re-raise
@@ -345,16 +345,6 @@ def _checked(readings: tuple[Telemetry, ...], setup: BusSetup) -> tuple[Telemetr
         )
         raise BusError(f"servo fault: {text}")
     return readings
-
-
-def describe(safe: SafeStopReport) -> str:
-    """How safe the pins are after a stop, in one clause."""
-    if safe.port_lost and not safe.released_ids:
-        return "port lost: could not reach any servo; cut servo power"
-    text = f"{len(safe.at_rest_ids)} servo(s) at rest, {len(safe.released_ids)} released"
-    if safe.silent_ids:
-        text += f"; servo(s) {', '.join(map(str, safe.silent_ids))} not confirmed safe"
-    return text
 
 
 @contextmanager

@@ -37,7 +37,6 @@ from pinarray.player import (
     PlaybackAborted,
     PlaybackReport,
     PreparedTrial,
-    describe,
 )
 from pinarray.player_child import REALTIME_PRIORITY
 from pinarray.player_messages import (
@@ -220,7 +219,7 @@ class PlayerProcess:
         how = (f"killed by signal {-status}" if status < 0 else f"exit status {status}")
         text = f"the player process ended while {doing} ({how}"
         text += f": {last_words[0]})" if last_words else ")"
-        raise PlayerDied(f"{text}; {describe(safe)}", safe, noticed_ns)
+        raise PlayerDied(f"{text}; {safe.describe()}", safe, noticed_ns)
 
     def close(self) -> None:
         """Stop what the child is doing, ask it to leave, make sure it has.

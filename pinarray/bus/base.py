@@ -107,6 +107,15 @@ class SafeStopReport:
     def complete(self) -> bool:
         return not self.silent_ids and not self.port_lost
 
+    def describe(self) -> str:
+        """How safe the pins are after a stop, in one clause."""
+        if self.port_lost and not self.released_ids:
+            return "port lost: could not reach any servo; cut servo power"
+        text = f"{len(self.at_rest_ids)} servo(s) at rest, {len(self.released_ids)} released"
+        if self.silent_ids:
+            text += f"; servo(s) {', '.join(map(str, self.silent_ids))} not confirmed safe"
+        return text
+
 
 class Bus(Protocol):
     """A connected servo bus (real or simulated) that the player drives."""

@@ -173,7 +173,6 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     from pinarray.journal.volumes import volume_log_path
     from pinarray.observer import SimulatedObserver, parse_observer
     from pinarray.plan import make_plan
-    from pinarray.player import describe
     from pinarray.rig import Rig, choose_clock
     from pinarray.session import Phase, task_label
     from pinarray.stop import Stopped, StopRequest, stop_on_signals
@@ -275,7 +274,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 scanner.close()
             safe = rig.close()
             if not safe.complete:
-                print(f"pinarray: warning: {describe(safe)}", file=sys.stderr)
+                print(f"pinarray: warning: {safe.describe()}", file=sys.stderr)
 
 
 def _wait_for_scanner(sync, clock, stop):

@@ -128,7 +128,7 @@ def add_bus_choice(parser: argparse.ArgumentParser) -> None:
 def _cmd_play(args: argparse.Namespace) -> int:
 
     from pinarray.plan import make_plan
-    from pinarray.player import PlaybackReport, describe
+    from pinarray.player import PlaybackReport
     from pinarray.protocol.load import load_protocol
     from pinarray.rig import Rig, choose_clock
     from pinarray.schedule import compile_trial
@@ -154,12 +154,12 @@ def _cmd_play(args: argparse.Namespace) -> int:
                 if not presentation.delivery.delivered:
                     undelivered.append(planned.trial)
         except BaseException:
-            say(f"pinarray: pins after the stop: {describe(rig.close())}", error=True)
+            say(f"pinarray: pins after the stop: {rig.close().describe()}", error=True)
             raise
         safe = rig.close()
     total = PlaybackReport.merged(rig.reports)
     say(f"played {len(rig.reports)} trial(s): {total.summary()}, {total.retries} retries; "
-        f"{describe(safe)}, torque off")
+        f"{safe.describe()}, torque off")
     if undelivered:
         say(f"pinarray: trial(s) {', '.join(map(str, undelivered))} NOT delivered as scheduled "
             "(see above)", error=True)

@@ -37,6 +37,7 @@ it; a key trigger is a key pressed on that screen. --lsl sends LSL markers.
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``tui`` to the `pinarray` parser."""
     from pinarray.cli.bus import add_bus_choice
+    from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
 
     p = subparsers.add_parser(
         "tui", help="run subjects from the experimenter's terminal UI",
@@ -44,7 +45,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("file", nargs="?", metavar="FILE", help="protocol YAML file to preselect")
     add_bus_choice(p)
-    p.add_argument("--results", default="results", metavar="DIR",
+    p.add_argument("--results", default=str(DEFAULT_RESULTS_ROOT), metavar="DIR",
                    help="results folder (default results/)")
     common.add_speed(p, default=1.0,
                      help="simulator only: X times real time (default 1; 20 = twenty times "

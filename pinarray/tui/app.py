@@ -25,7 +25,7 @@ from pinarray import __version__
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.journal.manifest import RunStatus
-from pinarray.player import describe
+from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
 from pinarray.protocol.sync import SyncOverrides
 from pinarray.rig import Rig, choose_clock
 from pinarray.session import Session
@@ -49,7 +49,7 @@ class TuiOptions:
 
     protocol_path: Path | None = None
     protocols_dir: Path = Path("protocols")
-    results_root: Path = Path("results")
+    results_root: Path = DEFAULT_RESULTS_ROOT
     port: str | None = None  # real servos; None: the simulator
     sim_url: str | None = None
     time_scale: float = 1.0  # simulator only: times real time; 0 = virtual time
@@ -194,7 +194,7 @@ class PinArrayApp(App[None]):
             runs.append(RunOutcome(label, RunStatus(manifest.status), manifest.abort_reason or "",
                                    counted, practice, command))
         safe = self.lab.last_safe
-        pins = describe(safe) if safe is not None else ""
+        pins = safe.describe() if safe is not None else ""
         return exit_status(self.ending, runs), farewell(self.ending, runs, pins)
 
     # -- errors nothing handled ---------------------------------------------------------------
@@ -237,7 +237,7 @@ class PinArrayApp(App[None]):
         except Exception as problem:  # noqa: BLE001 - the pins went to rest all the same
             note = f" (the run could not be marked crashed: {problem})"
         safe = self.lab.last_safe
-        return (describe(safe) if safe is not None else "not connected") + note
+        return (safe.describe() if safe is not None else "not connected") + note
 
 
 def _write_crash_log(results_root: Path, error: BaseException) -> Path | None:

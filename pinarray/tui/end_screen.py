@@ -12,7 +12,6 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer, Static
 
 from pinarray.analysis import summary_lines
-from pinarray.player import describe
 from pinarray.session import Phase, Session
 from pinarray.tui.lab import Lab
 from pinarray.tui.notice import KeyNotices, Notice
@@ -63,7 +62,7 @@ class EndScreen(KeyNotices, Screen):
             headline = (f"Run {paths.run} aborted ({manifest.abort_reason}) after "
                         f"{session.done_of(practice=False)} of {counted} trials{extra}. "
                         "Resume it from the start screen: same subject, session and protocol.")
-        pins = describe(self.safe_stop) if self.safe_stop is not None else "not connected"
+        pins = self.safe_stop.describe() if self.safe_stop is not None else "not connected"
         outcome = "-done" if session.phase is Phase.DONE else "-aborted"
         files = (paths.beh_tsv, paths.events_tsv, paths.manifest)
         yield Static(f"{session.protocol.name} · sub-{paths.subject} ses-{paths.session}",

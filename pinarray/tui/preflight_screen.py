@@ -236,11 +236,10 @@ class PreflightScreen(KeyNotices, Screen):
 
     @work(thread=True, exclusive=True, group="hardware")
     def _release(self) -> None:
-        from pinarray.player import describe
 
         # Lets go of the array (as `pinarray servos rest` does), e.g. to adjust a horn by hand.
         safe = self.lab.release("rest and torque off from the pre-flight")
-        text = "nothing was connected" if safe is None else describe(safe)
+        text = "nothing was connected" if safe is None else safe.describe()
         self.app.call_from_thread(
             self._status, f"Released: {text}, port closed. Connect again to go on.",
             safe is None or not safe.complete)
