@@ -96,12 +96,12 @@ def _scanner_settings(args: argparse.Namespace, protocol):
                         "tui); batch has no keyboard: use serial:PATH or emulate:TR")
     if sync is not None and isinstance(sync.trigger, SerialTrigger) and not _wall_clock(args):
         raise SyncError(f"{protocol.source}: {sync.trigger.describe()}: a scanner's triggers "
-                        "arrive in real time: run the simulator with --time-scale 1")
+                        "arrive in real time: run the simulator with --speed 1")
     return sync
 
 
 def _wall_clock(args: argparse.Namespace) -> bool:
-    """Whether the runs keep wall-clock time: real servos, or the simulator at --time-scale 1."""
+    """Whether the runs keep wall-clock time: real servos, or the simulator at --speed 1."""
     return bool(args.port) or args.time_scale == 1
 
 
@@ -124,7 +124,7 @@ def _marker_outlet(args: argparse.Namespace):
 
     if not _wall_clock(args):
         raise PinArrayError("--lsl: markers are stamped on this machine's clock, and a "
-                            "simulated one is not it: run the simulator with --time-scale 1")
+                            "simulated one is not it: run the simulator with --speed 1")
     from pinarray.sync.lsl import MarkerOutlet
 
     outlet = MarkerOutlet(args.lsl, MonotonicClock())
@@ -192,7 +192,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
     from pinarray.protocol.sync import EmulatedTrigger
 
     # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
-    # time (at --time-scale 1) instead of a paced one.
+    # time (at --speed 1) instead of a paced one.
     wall_clock = outlet is not None or (sync is not None
                                         and not isinstance(sync.trigger, EmulatedTrigger))
     clock = choose_clock(args.port, args.time_scale, paced=not wall_clock)

@@ -240,7 +240,7 @@ def test_scanner_options_without_a_trigger_or_with_a_key_are_refused_up_front(tm
     key = batch(root, "--trigger", "key")
     assert key.returncode == 2 and "batch has no keyboard" in key.stderr
     lsl = batch(root, "--lsl")
-    assert lsl.returncode == 2 and "--time-scale 1" in lsl.stderr
+    assert lsl.returncode == 2 and "--speed 1" in lsl.stderr
     assert no_run_was_created(root)
 
 
