@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import os
 import signal
+import termios
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -41,6 +42,10 @@ from pinarray.tui.outcome import (
     farewell,
     resume_command,
 )
+
+
+TERMINAL_FD = 0  # the terminal Textual reads keys from (standard input)
+TERMINAL_CHECK_S = 1.0  # how often the UI looks whether its terminal is still there
 
 
 @dataclass(frozen=True)
@@ -120,6 +125,17 @@ class PinArrayApp(App[None]):
             on_loop_signals(asyncio.get_running_loop(), self.lab.stop, self._signalled)
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             pass  # not the main thread (tests) or no such signals (Windows)
+        if os.isatty(TERMINAL_FD):
+            # A terminal can vanish without a SIGHUP reaching us (a shell that ignores it, a
+            # closed tmux pane whose shell was the session leader): Textual's input thread then
+            # spins on end-of-file forever. Looking at the terminal now and then catches it.
+            self.set_interval(TERMINAL_CHECK_S, self._check_terminal)
+
+    def _check_terminal(self) -> None:
+        try:
+            termios.tcgetattr(TERMINAL_FD)
+        except (termios.error, OSError):  # EIO: the terminal hung up
+            self._hang_up()
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action in ("quit", "interrupt") and isinstance(self.ending, Crashed):

@@ -1,0 +1,52 @@
+"""A terminal that goes away without a SIGHUP (a shell that ignores it, a closed tmux pane)
+still ends the UI like a hang-up: exit 128 + SIGHUP, never a process left spinning."""
+
+import os
+import pty
+import select
+import signal
+import subprocess
+import sys
+import time
+
+from tests.runs import REPO
+
+SCREEN_WAIT_S = 60  # bounds on a hang, not timing goals: a loaded machine may be slow
+EXIT_WAIT_S = 60
+
+
+def read_until(fd: int, text: bytes, wait_s: float) -> bytes:
+    seen = b""
+    deadline = time.monotonic() + wait_s
+    while text not in seen and time.monotonic() < deadline:
+        if select.select([fd], [], [], 0.5)[0]:
+            try:
+                seen += os.read(fd, 65536)
+            except OSError:
+                break
+    return seen
+
+
+def test_the_ui_leaves_when_its_terminal_is_gone_even_without_a_hangup_signal(tmp_path):
+    main, terminal = pty.openpty()
+    os.set_blocking(main, False)
+    # A session of its own: the pseudo-terminal is not its controlling terminal, so closing
+    # the other end sends no SIGHUP, as when a shell ignoring SIGHUP is the session leader.
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "tui", "protocols/localisation.yaml", "--sim",
+         "--subject", "01", "--results", str(tmp_path / "results")],
+        cwd=REPO, stdin=terminal, stdout=terminal, stderr=terminal, start_new_session=True,
+        env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
+    os.close(terminal)
+    try:
+        assert b"start a session" in read_until(main, b"start a session", SCREEN_WAIT_S)
+        os.close(main)  # the terminal window is closed
+        main = -1
+        status = process.wait(timeout=EXIT_WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        if main >= 0:
+            os.close(main)
+    assert status == 128 + signal.SIGHUP
