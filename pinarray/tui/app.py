@@ -43,7 +43,6 @@ from pinarray.tui.outcome import (
     resume_command,
 )
 
-
 TERMINAL_FD = 0  # the terminal Textual reads keys from (standard input)
 TERMINAL_CHECK_S = 1.0  # how often the UI looks whether its terminal is still there
 
