@@ -18,6 +18,9 @@ Times are integer nanoseconds on the run's time base (`pinarray.journal.timebase
 run's time zero, which is the first trial's stimulus onset unless the session is told another
 (``time_zero_ns``, a time on its clock); a resumed sitting continues where the writer says its
 clock joins the run.
+
+Past 400 lines on purpose: the state machine's transitions and the rows they write are one
+thing to read (a trial's row is written by the transition that ends it).
 """
 
 from __future__ import annotations

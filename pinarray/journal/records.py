@@ -8,6 +8,9 @@ this module only formats and parses, so the analysis reads results without any w
 
 A process killed while writing leaves at most one torn last line (`split_torn_tail`); the
 reader leaves it out.
+
+Past 400 lines on purpose: the two record types, the column schema and the reader are one
+contract (every column is written and read back by the same table); split, they drift apart.
 """
 
 from __future__ import annotations

@@ -8,6 +8,9 @@ last row, which a resume drops.
 A run has one writer at a time: `RunWriter.start` and `RunWriter.resume` take the run's lock
 (`pinarray.journal.lock`) before reading or writing anything, and `close` gives it back. A
 second process is refused with a one-line `RunLocked` naming the first.
+
+Past 400 lines on purpose: the order of the fsync'd writes (manifest, rows, events, volumes,
+sidecars) is what keeps a killed run resumable, and it reads only as one piece.
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@
 Keys are the experimenter's, typed with a participant waiting: each one is acted on or
 answered on the notice line (`KeyNotices`), a repeated key does what it did once, and the
 footer lists only what is possible now (`check_action`).
+
+Past 400 lines on purpose: one screen's keys, its refusals and what it draws for each phase of
+the session must agree; the pin grid and the live counts already live in their own modules.
 """
 
 from __future__ import annotations
