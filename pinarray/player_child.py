@@ -103,7 +103,10 @@ class ProtocolMismatch(Exception):
 
 
 def _serve(conn: Connection, port_fd: int) -> int:
-    hello = conn.recv()
+    try:
+        hello = conn.recv()
+    except (EOFError, OSError):
+        return 0  # the parent ended before saying anything: it never turned torque on
     if not isinstance(hello, Hello):
         raise ProtocolMismatch(f"expected a Hello, found {hello!r}")
     problem = make_realtime(hello.realtime_priority) if hello.realtime_priority else ""
@@ -111,8 +114,13 @@ def _serve(conn: Connection, port_fd: int) -> int:
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
     bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
-    conn.send(Ready(problem))
+    # From here on this process guards the servos: the parent turns torque on only once it
+    # has heard Ready, and however either of us ends, `finally` rests the pins.
     try:
+        try:
+            conn.send(Ready(problem))
+        except OSError:
+            return 0  # the parent is gone
         while True:
             try:
                 message = conn.recv()

@@ -118,7 +118,12 @@ class Rig:
         # 1 ms of Python is X ms of simulated time.
         self.time_scale = max(1.0, float(getattr(clock, "scale", 1.0)))
         self.tolerance_ns = round(protocol.device.delivery_tolerance_ns * self.time_scale)
-        self.bus = open_bus(self.url, self.setup, clock, baud_rate=protocol.device.servo.baud_rate)
+        self.bus = open_bus(self.url, None, clock, baud_rate=protocol.device.servo.baud_rate)
+        try:
+            self.bus.check(self.setup)  # reads only: nothing moves, no torque yet
+        except BaseException:
+            self.bus.close()
+            raise
         self.warnings = list(self.bus.warnings)
         self.reports: list[PlaybackReport] = []
         # One user of the port at a time: the UI may test a pin while a timing check runs.
@@ -129,13 +134,16 @@ class Rig:
         self._realtime = realtime
         self.player: PlayerProcess | None = None
         try:
-            self.bus.move_to_rest()
             if self._isolate:
+                # The player process guards the servos before torque comes on: if this process
+                # is killed at any moment from here, it rests the pins and releases torque.
                 self._start_player()
                 if self.player is not None and self.player.realtime_problem:
                     self.warnings.append(self.player.realtime_problem)
+            self.bus.hold()
+            self.bus.move_to_rest()
         except BaseException:
-            self.close()  # torque is on by now: nobody else holds this rig to release it
+            self.close()  # torque may be on: nobody else holds this rig to release it
             raise
 
     @property
@@ -160,6 +168,10 @@ class Rig:
             return self._present(schedule)
 
     def _present(self, schedule) -> Presentation:
+        if self.player is not None and not self.player.alive:
+            # Started again before torque can come back on, so that it guards it.
+            self.player.close()
+            self._start_player()
         if self._released:
             # A fault released torque; the handshake turns it back on, checking every servo.
             self.bus.connect(self.setup)
@@ -167,9 +179,6 @@ class Rig:
         trial = prepare_trial(self.bus, schedule.targets)
         try:
             if self.player is not None:
-                if not self.player.alive:
-                    self.player.close()
-                    self._start_player()
                 report = self.player.play(trial, tolerance_ns=self.tolerance_ns)
             else:
                 report = play_prepared(self.bus, trial, self.clock, tolerance_ns=self.tolerance_ns,

@@ -297,7 +297,15 @@ class FeetechBus:
     # -- handshake -----------------------------------------------------------------------
 
     def connect(self, setup: BusSetup) -> None:
-        """Ping every expected id, check models, then set torque, speed and acceleration.
+        """The whole handshake: `check` every servo, then `hold` (torque on)."""
+        self.check(setup)
+        self.hold()
+
+    def check(self, setup: BusSetup) -> None:
+        """Ping every expected id, check models, angle limits and return delays. Reads only.
+
+        Nothing moves and torque stays as it was, so a process that must guard the servos
+        (the player process) can be started between this and `hold`.
 
         Raises
         ------
@@ -323,20 +331,27 @@ class FeetechBus:
                 f"servo handshake on {self.port_name}: " + "; ".join(problems)
                 + f" (answered: {', '.join(map(str, answered)) or 'none'})"
             )
+        for servo in setup.servos:
+            delay, _ = self.read(servo.servo_id, Register.RETURN_DELAY_TIME)
+            self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
+            self._check_angle_limits(servo)
+
+    def hold(self) -> None:
+        """Torque on for every checked servo, holding where its horn is; speed, acceleration.
+
+        A servo that fails half-way leaves none holding torque.
+        """
         enabled: list[int] = []
         try:
-            for servo in setup.servos:
-                delay, _ = self.read(servo.servo_id, Register.RETURN_DELAY_TIME)
-                self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
-                self._check_angle_limits(servo)
+            for servo in self.setup.servos:
                 # Hold where the horn is before torque comes on, so it cannot jerk a pin.
                 data, _ = self.read(servo.servo_id, Register.PRESENT_POSITION)
                 # An STS servo switches torque on when it is given a goal: from here on this
                 # one must be released if anything fails.
                 enabled.append(servo.servo_id)
                 self.write(servo.servo_id, Register.GOAL_POSITION, from_bytes(data))
-                self.write(servo.servo_id, Register.ACCELERATION, setup.acceleration_register)
-                self.write(servo.servo_id, Register.GOAL_SPEED, setup.speed_steps_per_s)
+                self.write(servo.servo_id, Register.ACCELERATION, self.setup.acceleration_register)
+                self.write(servo.servo_id, Register.GOAL_SPEED, self.setup.speed_steps_per_s)
                 self.write(servo.servo_id, Register.TORQUE_ENABLE, 1)
                 self._last_goals[servo.servo_id] = decode_position(from_bytes(data))
         except BaseException:

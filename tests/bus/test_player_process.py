@@ -138,3 +138,88 @@ def test_a_killed_play_leaves_its_player_process_to_rest_the_pins(server):
     process.kill()  # SIGKILL: the parent cannot do anything; its player process must
     process.wait(timeout=30)
     wait_until_safe(server, range(1, 17))
+
+
+GOAL_POSITION, TORQUE_ENABLE, WRITE, SYNC_WRITE = 42, 40, 0x03, 0x83
+
+
+def turns_torque_on(packet) -> bool:
+    """A goal (an STS servo takes torque with it) or a torque-enable write."""
+    if packet.instruction == SYNC_WRITE:
+        return packet.params[0] == GOAL_POSITION
+    return packet.instruction == WRITE and (
+        packet.params[0] == GOAL_POSITION or packet.params[:2] == bytes([TORQUE_ENABLE, 1]))
+
+
+def lifts_a_pin(packet) -> bool:
+    """The first frame of a trial: a sync write sending some pin away from rest."""
+    if packet.instruction != SYNC_WRITE or packet.params[0] != GOAL_POSITION:
+        return False
+    length, body = packet.params[1], packet.params[2:]
+    goals = [int.from_bytes(body[k + 1:k + 3], "little") for k in range(0, len(body), length + 1)]
+    return any(goal != REST_STEPS for goal in goals)
+
+
+class StartUpWatch:
+    """Notes, from the servos' side, when torque first goes on and when the first frame comes;
+    kills ``pid`` a given time after torque first went on (0: as that packet arrives)."""
+
+    def __init__(self, kill_after_s: float | None = None):
+        self.kill_after_s = kill_after_s
+        self.pid: int | None = None
+        self.torque_on_ns: int | None = None
+        self.first_frame_ns: int | None = None
+        self.killed = threading.Event()
+
+    def __call__(self, packet) -> None:
+        if self.torque_on_ns is None and turns_torque_on(packet):
+            self.torque_on_ns = time.monotonic_ns()
+            if self.kill_after_s == 0:
+                self._kill()
+            elif self.kill_after_s is not None:
+                threading.Timer(self.kill_after_s, self._kill).start()
+        if self.first_frame_ns is None and lifts_a_pin(packet):
+            self.first_frame_ns = time.monotonic_ns()
+
+    def _kill(self) -> None:
+        if self.pid is not None and not self.killed.is_set():
+            os.kill(self.pid, signal.SIGKILL)
+            self.killed.set()
+
+
+@pytest.fixture(scope="module")
+def start_up_window_s():
+    """How long, on this machine, from torque first going on to the first frame (one run)."""
+    server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+    watch = StartUpWatch()
+    server.sim.packet_listener = watch
+    process = play_demo(server)
+    try:
+        deadline = time.monotonic() + 60  # a hang guard
+        while watch.first_frame_ns is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        process.kill()
+        process.communicate(timeout=30)
+        server.stop()
+    assert watch.torque_on_ns is not None and watch.first_frame_ns is not None
+    return (watch.first_frame_ns - watch.torque_on_ns) / 1e9
+
+
+@pytest.mark.parametrize("moment", [0.0, 0.01, 0.05, 0.15, 0.3, 0.5, 0.7, 0.9, 1.0])
+def test_killing_play_at_any_moment_of_its_start_up_leaves_every_pin_at_rest_and_torque_off(
+        server, start_up_window_s, moment):
+    # ``moment``: where in the window from the first torque write to the first frame, as a
+    # fraction of it; the window was measured on this machine by one run left alone.
+    watch = StartUpWatch(kill_after_s=moment * start_up_window_s)
+    server.sim.packet_listener = watch
+    process = play_demo(server)
+    watch.pid = process.pid
+    try:
+        assert watch.killed.wait(60), "play never turned torque on"
+        process.wait(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+        process.communicate(timeout=30)
+    wait_until_safe(server, range(1, 17))
