@@ -1,7 +1,8 @@
 """A scanner's trigger converter on a pseudo-terminal: one byte per volume at a set TR.
 
 The bytes are written at absolute deadlines (``start + delay + k * TR``), so the TR does not
-drift, and each write's time is kept (``time.monotonic_ns``, the clock pinarray stamps on).
+drift, and the moment each write began is kept (``time.monotonic_ns``, the clock pinarray
+stamps on).
 """
 
 import os
@@ -44,8 +45,10 @@ class FakeScanner:
             while (left := due_ns - time.monotonic_ns()) > 0:
                 if self._stopping.wait(min(left / NS, 0.05)):
                     return
-            os.write(self._controller, self.character)
+            # Stamped before the write: a reader may take the byte and stamp it before this
+            # thread runs again.
             self.written_ns.append(time.monotonic_ns())
+            os.write(self._controller, self.character)
 
     def send(self, data: bytes) -> None:
         os.write(self._controller, data)

@@ -93,6 +93,16 @@ def no_run_was_created(root: Path) -> bool:
     return not list(root.rglob("*_beh.tsv")) and not list(root.rglob("*_manifest.json"))
 
 
+def demo_in_short(tmp_path: Path) -> Path:
+    """demo.yaml (16 pins in order, 5 Hz) with 0.4 s stimuli 0.2 s apart: a 10 s run, not 48 s."""
+    text = DEMO.read_text()
+    assert "duration_s: 2\n" in text and "inter_trial_interval_s: 1\n" in text
+    path = tmp_path / "demo.yaml"
+    path.write_text(text.replace("duration_s: 2\n", "duration_s: 0.4\n")
+                    .replace("inter_trial_interval_s: 1\n", "inter_trial_interval_s: 0.2\n"))
+    return path
+
+
 def test_the_done_when_waits_for_the_volumes_logs_them_and_every_onset_reaches_lsl(tmp_path):
     """The issue's done-when, as a lab runs it: demo.yaml in real time, two dummy volumes."""
     root, name = tmp_path / "results", unique_stream_name()
@@ -100,7 +110,8 @@ def test_the_done_when_waits_for_the_volumes_logs_them_and_every_onset_reaches_l
         inlet = MarkerInlet(name, count=32)
         process = subprocess.Popen(
             batch_command(root, "--time-scale", "1", "--trigger", f"serial:{scanner.path}",
-                          "--dummy-volumes", "2", "--lsl", name),
+                          "--dummy-volumes", "2", "--lsl", name,
+                          protocol=demo_in_short(tmp_path)),
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
         try:
             assert inlet.found.wait(60), "no LSL stream named like the --lsl option"

@@ -2,6 +2,8 @@
 
 import json
 import os
+import subprocess
+import sys
 
 import pytest
 
@@ -11,6 +13,7 @@ from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
 from pinarray.protocol.load import load_protocol
 from pinarray.sync.lsl import STREAM_TYPE, MarkerOutlet
 from pinarray.sync.markers import marker_text
+from tests.lsl_local import MACHINE_ONLY
 from tests.runs import REPO
 from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name
 
@@ -22,6 +25,17 @@ def test_the_suite_keeps_lsl_on_this_machine():
     config = open(os.environ["LSLAPICFG"]).read()
     assert "ResolveScope = machine" in config and "MachineAddresses = {127.0.0.1}" in config
     assert "IPv6 = disable" in config and "GlobalAddresses = {}" in config
+
+
+def test_liblsl_takes_the_machine_only_configuration_whole():
+    # liblsl rejects a whole file for one line it cannot read (a '#' comment, prose) and falls
+    # back to its defaults, which announce streams on the lab's network: it says so on stderr.
+    opened = subprocess.run(
+        [sys.executable, "-c", "import pylsl; pylsl.StreamOutlet(pylsl.StreamInfo("
+         "'pinarray-config-check', 'Markers', 1, 0, 'string', 'check'))"],
+        capture_output=True, text=True, timeout=60, env={**os.environ, "LSLAPICFG": str(MACHINE_ONLY)})
+    assert opened.returncode == 0, opened.stderr
+    assert "config" not in opened.stderr.lower(), opened.stderr
 
 
 def test_every_marker_arrives_stamped_with_the_time_it_stands_for():
