@@ -82,10 +82,16 @@ _KINDS = (
 )
 
 
+def kind_of(mode: int) -> str:
+    """What a file of ``st_mode`` ``mode`` is, for people: "a folder", "a FIFO (named pipe)"..."""
+    if stat.S_ISREG(mode):
+        return "a regular file"
+    return next((kind for test, kind in _KINDS if test(mode)), "a file of another kind")
+
+
 def _refuse_unless_regular(mode: int, what: str) -> None:
     if not stat.S_ISREG(mode):
-        found = next((kind for test, kind in _KINDS if test(mode)), "a file of another kind")
-        raise NotText(f"expected a {what} file, found {found}")
+        raise NotText(f"expected a {what} file, found {kind_of(mode)}")
 
 
 def _too_large(what: str, limit_bytes: int, found: str) -> str:
