@@ -1,17 +1,17 @@
 """Text files people hand us (protocols, answer sheets): read with a size cap, decoded or located.
 
 A path can name anything: a regular file, a folder, a FIFO, ``/dev/zero``, a 50 MB export.
-Reading stops one byte past the cap, so a device that never ends costs at most that much, and
-text arrives as the editors and spreadsheets of a lab save it: UTF-8 with or without a
-byte-order mark, UTF-16 or UTF-32 with one (Excel's "Unicode text", Windows Notepad's
-"Unicode"), CRLF or CR line ends. Anything else is refused at the line and column of the first
-byte that is not text.
+Only a regular file is read: anything else is refused by its kind before it is opened, so no
+command waits on a FIFO's writer or reads a device that never ends. Reading stops one byte
+past the cap, so a file that keeps growing costs at most that much, and text arrives as the
+editors and spreadsheets of a lab save it: UTF-8 with or without a byte-order mark, UTF-16
+or UTF-32 with one (Excel's "Unicode text", Windows Notepad's "Unicode"), CRLF or CR line
+ends. Anything else is refused at the line and column of the first byte that is not text.
 """
 
 from __future__ import annotations
 
 import codecs
-import fcntl
 import os
 import stat
 
@@ -42,7 +42,10 @@ def read_bounded(path: str | os.PathLike[str], limit_bytes: int, what: str) -> b
     ``what`` names the file for people ("protocol", "answers").
     """
     try:
-        # O_NONBLOCK: opening a FIFO nobody writes to must not wait for a writer.
+        # Looked at before it is opened: opening a FIFO waits for a writer, and opening a
+        # device can act on it.
+        _refuse_unless_regular(os.stat(path).st_mode, what)
+        # O_NONBLOCK: should a FIFO take its place before the open, that must not wait either.
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except FileNotFoundError:
         raise NotText(f"no such {what} file") from None
@@ -50,12 +53,9 @@ def read_bounded(path: str | os.PathLike[str], limit_bytes: int, what: str) -> b
         raise NotText(f"cannot read the {what}: {problem.strerror}") from None
     try:
         info = os.fstat(fd)
-        if stat.S_ISDIR(info.st_mode):
-            raise NotText(f"expected a {what} file, found a folder")
-        if stat.S_ISREG(info.st_mode) and info.st_size > limit_bytes:
+        _refuse_unless_regular(info.st_mode, what)  # what was opened, if it was swapped
+        if info.st_size > limit_bytes:
             raise NotText(_too_large(what, limit_bytes, f"{info.st_size:,} bytes"))
-        # Back to blocking reads: a FIFO with a writer is read to its end like a file.
-        fcntl.fcntl(fd, fcntl.F_SETFL, fcntl.fcntl(fd, fcntl.F_GETFL) & ~os.O_NONBLOCK)
         chunks, size = [], 0
         while size <= limit_bytes:
             chunk = os.read(fd, min(1 << 20, limit_bytes + 1 - size))
@@ -70,6 +70,28 @@ def read_bounded(path: str | os.PathLike[str], limit_bytes: int, what: str) -> b
     if size > limit_bytes:
         raise NotText(_too_large(what, limit_bytes, "more (it does not end where a file would)"))
     return b"".join(chunks)
+
+
+# What a path that is not a regular file names, for people.
+_KINDS = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def kind_of(mode: int) -> str:
+    """What a file of ``st_mode`` ``mode`` is, for people: "a folder", "a FIFO (named pipe)"..."""
+    if stat.S_ISREG(mode):
+        return "a regular file"
+    return next((kind for test, kind in _KINDS if test(mode)), "a file of another kind")
+
+
+def _refuse_unless_regular(mode: int, what: str) -> None:
+    if not stat.S_ISREG(mode):
+        raise NotText(f"expected a {what} file, found {kind_of(mode)}")
 
 
 def _too_large(what: str, limit_bytes: int, found: str) -> str:

@@ -11,8 +11,10 @@ import contextlib
 import io
 import os
 import re
+import subprocess
+import sys
 import textwrap
-import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -30,6 +32,7 @@ from pinarray.schedule import compile_trial
 from tests.strategies import alias_bomb, protocol_files
 from tests.test_protocol_load import MINIMAL, problems
 
+REPO = Path(__file__).resolve().parent.parent
 FUZZ = settings(max_examples=250, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
@@ -243,23 +246,51 @@ def test_a_folder_an_endless_device_and_a_large_file_are_one_line_each(tmp_path)
     assert status == 2
     assert err.splitlines() == [
         f"{tmp_path}: expected a protocol file, found a folder",
-        "/dev/zero: expected a protocol file of at most 1,024 KiB, found more (it does not end "
-        "where a file would)",
+        "/dev/zero: expected a protocol file, found a character device",
         f"{large}: expected a protocol file of at most 1,024 KiB, found 1,048,580 bytes",
         "nowhere.yaml: no such protocol file",
     ]
     assert out.startswith("protocols/demo.yaml: ok")  # the files after them are still checked
 
 
-def test_a_fifo_nobody_writes_to_reads_as_empty_instead_of_waiting(tmp_path):
-    fifo = tmp_path / "fifo.yaml"
-    os.mkfifo(fifo)
-    finished = []
-    worker = threading.Thread(target=lambda: finished.append(validate_file(fifo)), daemon=True)
-    worker.start()
-    worker.join(30)  # a generous bound on a hang, not a timing check
-    assert finished, "validate waited for a writer"
-    assert finished[0][1] == [f"{fifo}: expected a protocol, found an empty file"]
+@contextlib.contextmanager
+def fifo_with_a_writer(path: Path) -> Iterator[Path]:
+    """A FIFO at ``path`` whose writer stays open and never writes."""
+    os.mkfifo(path)
+    writer = os.open(path, os.O_RDWR)  # O_RDWR: opening does not wait for a reader
+    try:
+        yield path
+    finally:
+        os.close(writer)
+
+
+def pinarray_process(*argv: str) -> subprocess.CompletedProcess:
+    # The timeout is a generous bound on a hang, not a timing check.
+    return subprocess.run([sys.executable, "-m", "pinarray", *argv], capture_output=True,
+                          text=True, timeout=60, cwd=REPO)
+
+
+def test_a_fifo_is_refused_at_once_whether_or_not_anyone_writes_to_it(tmp_path):
+    silent = tmp_path / "silent.yaml"
+    os.mkfifo(silent)
+    with fifo_with_a_writer(tmp_path / "open.yaml") as held_open:
+        result = pinarray_process("validate", str(silent), str(held_open), "protocols/demo.yaml")
+    assert result.returncode == 2
+    assert result.stderr.splitlines() == [
+        f"{silent}: expected a protocol file, found a FIFO (named pipe)",
+        f"{held_open}: expected a protocol file, found a FIFO (named pipe)",
+    ]
+    assert result.stdout.startswith("protocols/demo.yaml: ok")
+
+
+def test_an_answer_sheet_that_is_a_fifo_is_refused_before_any_run(tmp_path):
+    with fifo_with_a_writer(tmp_path / "answers.csv") as sheet:
+        result = pinarray_process("batch", "protocols/apparent_motion.yaml", "--subject", "01",
+                                  "--responses", str(sheet), "--results", str(tmp_path / "out"))
+    assert result.returncode == 2
+    assert result.stderr == (f"pinarray: {sheet}: expected a responses file, found a FIFO "
+                             "(named pipe)\n")
+    assert not (tmp_path / "out").exists()
 
 
 # -- designs too large to plan, compile or hold ------------------------------------------------

@@ -1,5 +1,6 @@
 """One writer per run: a second process is refused by name, a dead one's lock is taken over."""
 
+import errno
 import json
 import os
 import signal
@@ -10,9 +11,11 @@ from pathlib import Path
 
 import pytest
 
+from pinarray.cli import main
 from pinarray.errors import ResultsError
 from pinarray.journal.lock import RunLocked, lock_holder
 from pinarray.journal.manifest import RunStatus, read_manifest
+from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import LocalisationRecord, read_trials
 from pinarray.journal.writer import RunWriter
 from tests.runs import (
@@ -105,6 +108,76 @@ def test_a_lock_left_on_another_computer_is_refused_naming_the_file_to_delete(tm
     assert f"delete {lock}" in message and "\n" not in message
     lock.unlink()
     RunWriter.resume(writer.paths, VIRTUAL).close()
+
+
+def make_unusable(lock: Path, kind: str) -> None:
+    """Put something that cannot serve as a lock file at ``lock``."""
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    lock.unlink(missing_ok=True)
+    match kind:
+        case "folder":
+            lock.mkdir()
+        case "symlink loop":
+            other = lock.with_name("other.lock")
+            os.symlink(other, lock)
+            os.symlink(lock, other)
+        case "FIFO":
+            os.mkfifo(lock)
+
+
+def results_files(root: Path) -> dict[str, bytes]:
+    """Every regular file under ``root`` with its bytes."""
+    return {str(f): f.read_bytes() for f in root.rglob("*") if f.is_file() and not f.is_symlink()}
+
+
+UNUSABLE = {"folder": "Is a directory", "symlink loop": "Too many levels of symbolic links",
+            "FIFO": "expected a regular file, found a FIFO (named pipe)"}
+
+
+@pytest.mark.parametrize("kind", UNUSABLE)
+def test_resuming_a_run_whose_lock_file_cannot_be_used_is_refused_in_one_line(tmp_path, kind):
+    paths = unfinished_batch_run(tmp_path, MOTION)
+    make_unusable(paths.lock, kind)
+    before = results_files(tmp_path)
+    refused = batch(tmp_path, "--resume")
+    assert refused.returncode == 2
+    assert refused.stderr == (f"pinarray: {paths.lock}: cannot use the run's lock file: "
+                              f"{UNUSABLE[kind]}\n")
+    assert results_files(tmp_path) == before  # nothing written, nothing touched
+
+
+@pytest.mark.parametrize("kind", ["folder", "FIFO"])
+def test_a_new_run_whose_lock_file_cannot_be_used_is_refused_in_one_line(tmp_path, kind):
+    paths = RunPaths(tmp_path, "01", "1", "apparentmotion", 1)
+    make_unusable(paths.lock, kind)
+    refused = batch(tmp_path)
+    assert refused.returncode == 2
+    assert refused.stderr == (f"pinarray: {paths.lock}: cannot use the run's lock file: "
+                              f"{UNUSABLE[kind]}\n")
+    assert not paths.manifest.exists() and not paths.beh_tsv.exists()
+
+
+@pytest.mark.parametrize("error", [errno.EROFS, errno.EACCES])
+def test_resuming_where_the_lock_file_cannot_be_opened_for_writing_is_refused_in_one_line(
+        tmp_path, monkeypatch, capsys, error):
+    # A read-only file system, or a file even root may not write (immutable): as root, chmod
+    # stops nothing, so the system's answer is played by os.open.
+    paths = unfinished_batch_run(tmp_path, MOTION)
+    before = results_files(tmp_path)
+    system_open = os.open
+
+    def refusing_open(path, flags, *args, **kwargs):
+        if Path(path) == paths.lock and flags & (os.O_RDWR | os.O_WRONLY | os.O_CREAT):
+            raise OSError(error, os.strerror(error), str(path))
+        return system_open(path, flags, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", refusing_open)
+    status = main(["batch", str(MOTION), "--subject", "01", "--observer", "default",
+                   "--results", str(tmp_path), "--resume"])
+    assert status == 2
+    assert capsys.readouterr().err == (f"pinarray: {paths.lock}: cannot use the run's lock "
+                                       f"file: {os.strerror(error)}\n")
+    assert results_files(tmp_path) == before
 
 
 def _duplicate_the_first_row(beh: Path) -> None:

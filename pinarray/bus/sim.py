@@ -19,7 +19,10 @@ Two layers:
 Who answers what (Feetech communication protocol manual V1.01): PING always answers, also at
 the broadcast id; READ and SYNC READ answer with data; WRITE, REG WRITE, ACTION and RESET
 answer only at status return level 1 and never at the broadcast id. The answer carries the
-id the instruction addressed, also when the instruction changed that id.
+id the instruction addressed, also when the instruction changed that id. A request a servo
+cannot carry out (an unknown instruction, parameters missing, a READ whose answer would be
+longer than the longest packet the firmware sends) gets no answer: the STS error byte has no
+bit for it.
 
 Past 400 lines on purpose: the simulated wire (packet framing, faults, replies) and its
 pyserial face are one device as a client sees it.
@@ -36,6 +39,7 @@ import serial
 
 from pinarray.bus.faults import SimConfig
 from pinarray.bus.models import FACTORY_RETURN_DELAY_US, servo_model
+from pinarray.bus.packets import MAX_PACKET_BYTES, status_size
 from pinarray.bus.registers import (
     BAUD_RATE_BY_CODE,
     BROADCAST_ID,
@@ -73,6 +77,11 @@ def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
     """``FF FF id len err params chk`` with ``len = len(params) + 2``."""
     body = bytes([servo_id, len(params) + 2, error]) + params
     return b"\xff\xff" + body + bytes([checksum(body)])
+
+
+def _fits(length: int) -> bool:
+    """Whether an answer of ``length`` data bytes fits in one packet the servos can send."""
+    return status_size(length) <= MAX_PACKET_BYTES
 
 
 class SimBus:
@@ -283,7 +292,7 @@ class SimBus:
                 self._sync_write(params, end_ns, baud)
             return []
         if instruction == Instruction.SYNC_READ:
-            if not broadcast or len(params) < 2:
+            if not broadcast or len(params) < 2 or not _fits(params[1]):
                 return []
             address, length = params[0], params[1]
             return [
@@ -316,7 +325,7 @@ class SimBus:
         match instruction:
             case Instruction.PING:
                 return b""
-            case Instruction.READ if len(params) == 2:
+            case Instruction.READ if len(params) == 2 and _fits(params[1]):
                 return servo.read(params[0], params[1], end_ns)
             case Instruction.WRITE if len(params) >= 1:
                 servo.write(params[0], params[1:], end_ns)

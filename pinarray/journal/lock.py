@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from pathlib import Path
 
 from pinarray.errors import ResultsError
 from pinarray.journal.files import now_iso, this_host
+from pinarray.text_files import kind_of
 
 try:
     import fcntl
@@ -82,6 +84,30 @@ def _try_flock(fd: int) -> bool:
     return True
 
 
+def _unusable(path: Path, problem: OSError | str) -> ResultsError:
+    """A lock file that cannot be used (a folder, a symlink loop, read-only), in one line."""
+    why = problem if isinstance(problem, str) else problem.strerror or str(problem)
+    return ResultsError(f"{path}: cannot use the run's lock file: {why}")
+
+
+def _open(path: Path, flags: int) -> int:
+    """The lock file, opened; `ResultsError` for anything but a regular file that opens.
+
+    O_NONBLOCK: a FIFO or a device in its place must not make the open wait.
+    """
+    try:
+        fd = os.open(path, flags | os.O_NONBLOCK | os.O_NOCTTY, 0o644)
+    except FileNotFoundError:
+        raise  # no lock (its folder gone): the caller's to say what that means
+    except OSError as problem:
+        raise _unusable(path, problem) from None
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise _unusable(path, f"expected a regular file, found {kind_of(mode)}")
+    return fd
+
+
 def _same_file(fd: int, path: Path) -> bool:
     try:
         return os.stat(path).st_ino == os.fstat(fd).st_ino
@@ -121,17 +147,25 @@ class RunLock:
         """
         path.parent.mkdir(parents=True, exist_ok=True)
         while True:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-            if not _try_flock(fd):
-                holder = _read_holder(fd)
+            fd = _open(path, os.O_RDWR | os.O_CREAT)
+            try:
+                if not _try_flock(fd):
+                    raise RunLocked(locked_message(what, _read_holder(fd)))
+                if _same_file(fd, path):
+                    return cls._claimed(path, fd, what, command)
+            except OSError as problem:
                 os.close(fd)
-                raise RunLocked(locked_message(what, holder))
-            if _same_file(fd, path):
-                break
+                raise _unusable(path, problem) from None
+            except BaseException:
+                os.close(fd)
+                raise
             os.close(fd)  # its holder released (and removed) it while we waited: try afresh
+
+    @classmethod
+    def _claimed(cls, path: Path, fd: int, what: str, command: str) -> RunLock:
+        """The lock on ``fd`` is ours: refuse another computer's, else name this process."""
         previous = _read_holder(fd)
         if previous is not None and previous.host != this_host():
-            os.close(fd)
             raise RunLocked(
                 f"{what} is locked by {previous.describe()}, which this computer cannot see; "
                 f"if that process has ended, delete {path} and try again"
@@ -160,13 +194,15 @@ class RunLock:
 def lock_holder(path: Path) -> LockHolder | None:
     """Who holds the lock at ``path`` right now, or None when nobody does (free or stale)."""
     try:
-        fd = os.open(path, os.O_RDWR)
+        fd = _open(path, os.O_RDWR)
     except FileNotFoundError:
         return None
     try:
         if _try_flock(fd):
             return None  # nobody holds it; closing the descriptor lets go again
         return _read_holder(fd) or LockHolder(0, "", "unknown")
+    except OSError as problem:
+        raise _unusable(path, problem) from None
     finally:
         os.close(fd)
 

@@ -158,14 +158,19 @@ class StartScreen(KeyNotices, Screen):
 
         info = self.query_one("#resume-info", Static)
         self._unfinished = None
+        found, problem = None, ""
         try:
             protocol = self._protocol()
             subject = check_label("subject", self._value("subject"))
             session = check_label("session", self._value("session"))
-            found = unfinished_run(self.options.results_root, subject, session,
-                                   task_label(protocol))
         except PinArrayError:
-            found = None  # the form is not complete yet; Start will say what is wrong
+            pass  # the form is not complete yet; Start will say what is wrong
+        else:
+            try:
+                found = unfinished_run(self.options.results_root, subject, session,
+                                       task_label(protocol))
+            except PinArrayError as error:  # e.g. a run's lock file that cannot be used
+                problem = f"Cannot look for an unfinished run: {error}"
         # A run open in another process (its lock is held) cannot be resumed from here; look
         # again shortly, so the offer appears once that process ends.
         resumable = found is not None and found.holder is None
@@ -177,7 +182,7 @@ class StartScreen(KeyNotices, Screen):
         self.query_one("#resume", Button).disabled = not resumable
         self.query_one("#resume", Button).variant = "primary" if resumable else "default"
         self.query_one("#start", Button).variant = "default" if resumable else "primary"
-        info.update("" if found is None else found.describe())
+        info.update(problem or ("" if found is None else found.describe()))
         self._unfinished = found if resumable else None
 
     # -- buttons -----------------------------------------------------------------------------

@@ -84,6 +84,22 @@ def test_sim_serve_stops_cleanly_on_sigterm_sigint_and_sighup(signum):
         assert "sim-serve stopped" in process.stdout.read()
 
 
+def test_sim_serve_ignores_a_read_longer_than_a_packet_and_keeps_serving():
+    with sim_serve("--ids", "1-2") as (process, path):
+        with serial.Serial(path, 1_000_000, timeout=0.2) as port:
+            port.write(packet(1, Instruction.READ, bytes([0, 255])))
+            port.write(packet(BROADCAST_ID, Instruction.SYNC_READ, bytes([0, 254, 1, 2])))
+            assert port.read(300) == b""  # no answer to what no servo can send
+            port.timeout = 5
+            port.write(packet(1, Instruction.PING))
+            assert port.read(6) == bytes.fromhex("ffff010200fc")
+            port.write(packet(2, Instruction.READ, bytes([3, 2])))  # model number
+            assert port.read(8) == bytes.fromhex("ffff0204000903ed")
+        assert process.poll() is None  # still serving
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=10) == 0
+
+
 def test_sim_serve_logs_the_arrival_of_every_instruction_packet(tmp_path):
     log = tmp_path / "arrivals.tsv"
     with sim_serve("--ids", "1-2", "--arrivals", str(log)) as (process, path):

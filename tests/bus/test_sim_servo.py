@@ -225,6 +225,17 @@ def test_an_unknown_instruction_gets_no_answer():
     assert bus.send(1, 0x0B, to_bytes(2048, 2)) == []
 
 
+@pytest.mark.parametrize("length", [245, 253, 254, 255])
+def test_a_read_asking_more_than_one_packet_can_carry_gets_no_answer_and_the_bus_goes_on(length):
+    # A status packet carries at most 250 - 6 = 244 data bytes; the servo cannot answer more.
+    bus = RawBus("ids=1-2")
+    assert bus.send(1, Instruction.READ, bytes([0, length])) == []
+    assert bus.send(BROADCAST_ID, Instruction.SYNC_READ, bytes([0, length, 1, 2])) == []
+    assert [s.servo_id for s in bus.ping(1)] == [1]
+    assert bus.read_int(2, Register.MODEL_NUMBER.address, 2) == 777
+    assert [len(s.params) for s in bus.send(1, Instruction.READ, bytes([0, 244]))] == [244]
+
+
 def test_a_torn_packet_split_across_writes_is_still_understood():
     bus = RawBus("ids=1")
     ping = packet(1, Instruction.PING)

@@ -68,3 +68,16 @@ async def test_a_run_taken_by_another_process_after_it_was_offered_is_refused_in
         await settle(pilot)
     manifest = read_manifest(paths.manifest)
     assert manifest.status is RunStatus.ABORTED and manifest.abort_reason == "interrupted (Ctrl-C)"
+
+
+async def test_a_run_whose_lock_file_cannot_be_used_is_not_offered_and_the_screen_says_why(
+        results):
+    paths = unfinished_batch_run(results, LOCALISATION, seed=3)
+    paths.lock.mkdir()  # what a hand or a sync tool may leave in its place
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        assert app.screen.query_one("#resume").disabled
+        assert text(app, "#resume-info") == (
+            f"Cannot look for an unfinished run: {paths.lock}: cannot use the run's lock file: "
+            "Is a directory")
