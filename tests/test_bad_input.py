@@ -360,3 +360,35 @@ def test_a_wave_on_a_row_of_one_pin_is_refused():
     """
     (line,) = problems(text)
     assert line == "p.yaml:5:28: expected a row of at least 2 pins for a wave, found 1"
+
+
+# YAML 1.1 reads these as numbers other than the decimal they look like (or a YAML 1.2 reader
+# and the lab would take them for): 1:00 is 60, 0x10 is 16, 017 is 15, 1_000 is 1000.
+NOT_DECIMAL = ["1:00", "0x10", "017", "1_000", "0b101", "-0x1", "+017", "00", "1:30"]
+
+
+@pytest.mark.parametrize("written", NOT_DECIMAL)
+def test_a_whole_number_not_written_in_decimal_is_refused_at_its_value(written):
+    (line,) = problems(MINIMAL + f"  repetitions: {written}\n")
+    assert line == f"p.yaml:11:16: expected a decimal number, found {written!r}"
+
+
+@pytest.mark.parametrize("written", [*NOT_DECIMAL, "1:30.5", "1_0.5", "!!int 0x10",
+                                     "!!float 1:30.5"])
+def test_a_number_not_written_in_decimal_is_refused_at_its_value(written):
+    (line,) = problems(MINIMAL.replace("frequency_hz: 5\n", f"frequency_hz: {written}\n"))
+    assert line == f"p.yaml:4:19: expected a decimal number, found {written.split()[-1]!r}"
+
+
+def test_an_octal_number_in_the_yaml_1_2_style_is_refused_as_no_number():
+    (line,) = problems(MINIMAL + "  repetitions: 0o17\n")
+    assert line == "p.yaml:11:16: expected a whole number for repetitions, found '0o17'"
+
+
+@pytest.mark.parametrize("written", ["5", "+5", "5.0", "5.", "05.0", "0.5e1", "50e-1", ".5e1",
+                                     "5e0", "'5'", "10/2"])
+def test_decimal_numbers_are_read_as_written(written):
+    protocol = parse_protocol(MINIMAL.replace("frequency_hz: 5\n", f"frequency_hz: {written}\n")
+                              + "  repetitions: +3\n", "p.yaml")
+    assert protocol.stimulus("buzz").train.frequency_hz == 5
+    assert protocol.design.repetitions == 3

@@ -10,6 +10,8 @@ parsed only here (their handlers have tests of their own).
 import argparse
 import contextlib
 import io
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -158,3 +160,62 @@ def test_sizes_that_would_allocate_gigabytes_are_refused():
 def test_no_help_text_shows_a_doubled_percent_sign():
     for words, sub in subcommands(PARSER):
         assert "%%" not in sub.format_help(), words
+
+
+# -- servo ids and output paths ----------------------------------------------------------------
+
+
+def sim_serve(*args: str) -> subprocess.CompletedProcess:
+    """``pinarray sim-serve ARGS`` in its own process, expected to refuse at once (a server
+    that started instead is stopped by the timeout, which fails the test)."""
+    return subprocess.run([sys.executable, "-m", "pinarray", "sim-serve", *args],
+                          capture_output=True, text=True, timeout=60)
+
+
+@pytest.mark.parametrize("ids", ["", ",", " , "])
+def test_sim_serve_of_no_servo_id_is_refused_at_once(ids):
+    served = sim_serve("--ids", ids)
+    assert (served.returncode, served.stdout) == (2, "")
+    assert served.stderr == f"pinarray: --ids: expected at least one servo id 0-252, found {ids!r}\n"
+
+
+@pytest.mark.parametrize("command", [["servos", "rest"], ["servos", "torque-off"],
+                                     ["servos", "return-delay"], ["servos", "scan"], ["scan"]])
+@pytest.mark.parametrize("ids", ["", ","])
+def test_an_empty_ids_option_is_refused_not_read_as_every_servo(command, ids):
+    status, err = run([*command, "--ids", ids])
+    assert status == 2
+    assert err == f"pinarray: --ids: expected at least one servo id 0-252, found {ids!r}\n"
+
+
+def test_a_sim_url_of_no_servo_id_is_refused():
+    status, err = run(["play", DEMO, "--sim", "sim://?ids="])
+    assert status == 2
+    assert err == ("pinarray: sim://?ids=: sim URL key ids: expected at least one servo id "
+                   "0-252, found ''\n")
+
+
+@pytest.mark.parametrize("argv", [["preview", MOTION], ["softness", "hertz"]])
+def test_a_png_option_naming_a_folder_is_refused_before_anything_is_written(argv, tmp_path):
+    folder = tmp_path / "figures"
+    folder.mkdir()
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = main([*argv, "--png", str(folder)])
+    assert (status, out.getvalue()) == (2, "")
+    assert err.getvalue() == f"pinarray: {folder}: cannot write: it is a folder, expected a file name\n"
+    assert sorted(tmp_path.iterdir()) == [folder] and not any(folder.iterdir())
+
+
+@pytest.mark.parametrize("where", ["folder", "file-as-folder", "no-folder", "kernel-folder"])
+def test_sim_serve_refuses_an_arrivals_log_it_could_not_write_before_serving(where, tmp_path):
+    (tmp_path / "plain").write_text("")
+    path = {"folder": tmp_path, "file-as-folder": tmp_path / "plain" / "log.tsv",
+            "no-folder": tmp_path / "gone" / "log.tsv",
+            # a folder where nobody, root included, can make a file (permissions do not stop root)
+            "kernel-folder": Path("/proc/arrivals.tsv")}[where]
+    served = sim_serve("--ids", "1", "--arrivals", str(path))
+    assert (served.returncode, served.stdout) == (2, "")
+    assert served.stderr.startswith(f"pinarray: --arrivals {path}: ")
+    assert len(served.stderr.splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plain"]

@@ -162,8 +162,13 @@ class SimConfig:
         return tuple(i for i in self.ids if i not in self.faults.missing_ids)
 
 
-def parse_ids(text: str) -> tuple[int, ...]:
-    """``"1-4,7,9-10"`` -> ``(1, 2, 3, 4, 7, 9, 10)``; ids must be 0-252."""
+def parse_ids(text: str, allow_none: bool = False) -> tuple[int, ...]:
+    """``"1-4,7,9-10"`` -> ``(1, 2, 3, 4, 7, 9, 10)``; ids must be 0-252.
+
+    The one reader of servo id lists (command-line options and sim URL keys). An empty list
+    (``""``, ``","``) is refused unless ``allow_none``: where servos are named, naming none
+    is a mistake, not "all of them".
+    """
     ids: list[int] = []
     for part in filter(None, (p.strip() for p in text.split(","))):
         low, _, high = part.partition("-")
@@ -171,13 +176,15 @@ def parse_ids(text: str) -> tuple[int, ...]:
             first, last = int(low), int(high or low)
         except ValueError:
             raise PinArrayError(
-                f"servo ids: expected e.g. '1-16' or '1,3,5', found {text!r}"
+                f"expected servo ids such as '1-16' or '1,3,5', found {text!r}"
             ) from None
         if not 0 <= first <= last <= MAX_SERVO_ID:
             raise PinArrayError(
-                f"servo ids must be 0-{MAX_SERVO_ID} in rising ranges, found {part!r}"
+                f"expected servo ids 0-{MAX_SERVO_ID} in rising ranges, found {part!r}"
             )
         ids.extend(range(first, last + 1))
+    if not ids and not allow_none:
+        raise PinArrayError(f"expected at least one servo id 0-{MAX_SERVO_ID}, found {text!r}")
     return tuple(dict.fromkeys(ids))
 
 
@@ -221,14 +228,21 @@ def parse_sim_url(url: str) -> SimConfig:
                 raise PinArrayError(
                     f"{url}: sim URL key {key}: expected {what}, found {query[key]!r}"
                 ) from None
-    ids = parse_ids(query.get("ids", "1-16")) + parse_ids(query.get("extra", ""))
+    def ids_of(key: str, default: str = "") -> tuple[int, ...]:
+        try:
+            return parse_ids(query.get(key, default), allow_none=key != "ids")
+        except PinArrayError as error:
+            raise PinArrayError(f"{url}: sim URL key {key}: {error}") from None
+
+    ids = ids_of("ids", "1-16") + ids_of("extra")
+    missing = frozenset(ids_of("missing"))
     error_bits: dict[int, StatusError] = {}
     for key, bit in _ERROR_KEYS.items():
-        for servo_id in parse_ids(query.get(key, "")):
+        for servo_id in ids_of(key):
             error_bits[servo_id] = error_bits.get(servo_id, StatusError(0)) | bit
     try:
         faults = Faults(
-            missing_ids=frozenset(parse_ids(query.get("missing", ""))),
+            missing_ids=missing,
             error_bits=tuple(sorted(error_bits.items())),
             vanish_after_packets=numbers.get("vanish_after"),  # type: ignore[arg-type]
             seed=int(numbers.get("seed", 0)),

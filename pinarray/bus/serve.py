@@ -21,7 +21,7 @@ import threading
 import time
 import tty
 from dataclasses import dataclass
-from pathlib import Path
+from typing import IO
 
 from pinarray.bus.faults import SimConfig
 from pinarray.bus.registers import Instruction
@@ -194,15 +194,13 @@ class PtyServer:
         if self._thread is not None:
             self._thread.join(timeout_s)
 
-    def write_arrivals(self, path: str | Path) -> int:
-        """Write the recorded arrivals as TSV (columns `ARRIVALS_COLUMNS`); returns the rows."""
+    def write_arrivals(self, out: IO[str]) -> int:
+        """Write the recorded arrivals as TSV (columns `ARRIVALS_COLUMNS`) to ``out``; returns
+        the rows. A failed write raises its `OSError`: the caller knows the file's name."""
         if self.arrivals is None:
             raise PinArrayError("sim-serve: arrivals were not recorded (record_arrivals=False)")
         rows = ["\t".join(ARRIVALS_COLUMNS), *(a.tsv_row() for a in self.arrivals)]
-        try:
-            Path(path).write_text("\n".join(rows) + "\n")
-        except OSError as error:
-            raise PinArrayError(f"{path}: cannot write the arrivals log: {error.strerror}") from None
+        out.write("\n".join(rows) + "\n")
         return len(self.arrivals)
 
     def _host_baud(self) -> int:

@@ -194,23 +194,40 @@ def _cmd_sim_serve(args: argparse.Namespace) -> int:
 
     from pinarray.bus.faults import parse_sim_url
     from pinarray.bus.serve import PtyServer
+    from pinarray.cli import common
     from pinarray.errors import PinArrayError
     from pinarray.stop import StopRequest, stop_on_signals
 
+    common.servo_ids(args.ids)  # refused here, naming the option, rather than inside the URL
     query = f"ids={args.ids}" + (f"&{args.faults.lstrip('?&')}" if args.faults else "")
     config = parse_sim_url(f"sim://?{query}")
-    arrivals = Path(args.arrivals) if args.arrivals else None
-    if arrivals is not None and not arrivals.parent.is_dir():
-        raise PinArrayError(f"--arrivals {arrivals}: no folder {arrivals.parent}")
-    server = PtyServer(config, record_arrivals=arrivals is not None)
-    with stop_on_signals(StopRequest()) as stop:
-        stop.when_requested(server.request_stop)
-        say(f"simulated servos {args.ids} on {server.path}  (Ctrl-C, SIGTERM or SIGHUP to stop)")
-        server.serve_forever()
-    if arrivals is not None:
-        rows = server.write_arrivals(arrivals)
-        say(f"{rows} instruction packet(s) logged to {arrivals}")
+    arrivals = None
+    if args.arrivals is not None:
+        # Opened now, so that a log that could not be written is refused before serving
+        # rather than lost at the stop; an earlier log of that name stays until then.
+        folder = Path(args.arrivals).parent
+        if not folder.is_dir():
+            raise PinArrayError(f"--arrivals {args.arrivals}: no folder {folder}")
+        try:
+            arrivals = common.OutputFile(args.arrivals)
+        except PinArrayError as problem:
+            raise PinArrayError(f"--arrivals {problem}") from None
+    try:
+        server = PtyServer(config, record_arrivals=arrivals is not None)
+        with stop_on_signals(StopRequest()) as stop:
+            stop.when_requested(server.request_stop)
+            say(f"simulated servos {args.ids} on {server.path}  (Ctrl-C, SIGTERM or SIGHUP to stop)")
+            server.serve_forever()
+        if arrivals is not None:
+            try:
+                rows = server.write_arrivals(arrivals.stream)
+            except OSError as problem:
+                raise PinArrayError(f"{arrivals.path}: cannot write the arrivals log: "
+                                    f"{problem.strerror}") from None
+            arrivals.commit()
+            say(f"{rows} instruction packet(s) logged to {arrivals.path}")
+    finally:
+        if arrivals is not None:
+            arrivals.discard()
     say("sim-serve stopped")
     return 0
-
-

@@ -122,13 +122,32 @@ def number(
     return parse
 
 
+def servo_ids(text: str) -> tuple[int, ...]:
+    """The servo ids ``--ids`` names (``1-4,9``), at least one; refused naming the option.
+
+    Read in the command, not as an argparse ``type=``, so that the refusal is one line.
+    """
+    from pinarray.bus.faults import parse_ids
+
+    try:
+        return parse_ids(text)
+    except PinArrayError as problem:
+        raise PinArrayError(f"--ids: {problem}") from None
+
+
 def _short(text: str) -> str:
     return repr(text) if len(text) <= 30 else f"{text[:30]!r}... ({len(text)} characters)"
 
 
 def png_path(text: str) -> str:
     """Where a ``--png`` option writes: ``text`` if it ends in ``.png``, else ``text.png``, the
-    name matplotlib gives a picture saved without an extension; commands report this name."""
+    name matplotlib gives a picture saved without an extension; commands report this name.
+
+    A folder is refused, as `OutputFile` refuses one, rather than read as ``folder.png``
+    beside it (``--out`` names the folder where a command has one).
+    """
+    if os.path.isdir(text):
+        raise PinArrayError(f"{text}: cannot write: it is a folder, expected a file name")
     return text if text.lower().endswith(".png") else text + ".png"
 
 

@@ -220,21 +220,25 @@ def _preview(args: argparse.Namespace) -> int:
     plan = make_plan(protocol, args.seed)
     planned = plan.trial(args.trial)
     schedule = compile_trial(protocol, planned)
-    print(text_timeline(protocol, planned, schedule, args.width))
-    if args.seed is None and protocol.design.seed is None:
-        print(f"(plan seed {plan.seed}, drawn for this preview: --seed {plan.seed} shows the "
-              "same plan again)")
-    else:
-        print(f"(plan seed {plan.seed})")
-    if args.png:
-        from pinarray.preview import draw_timeline
+    # Opened before the timeline is printed: a PNG that cannot be written is refused first.
+    output = common.OutputFile(common.png_path(args.png), binary=True) if args.png else None
+    try:
+        print(text_timeline(protocol, planned, schedule, args.width))
+        if args.seed is None and protocol.design.seed is None:
+            print(f"(plan seed {plan.seed}, drawn for this preview: --seed {plan.seed} shows the "
+                  "same plan again)")
+        else:
+            print(f"(plan seed {plan.seed})")
+        if output is not None:
+            from pinarray.preview import draw_timeline
 
-        path = common.png_path(args.png)
-        output = common.OutputFile(path, binary=True)
-        try:
-            draw_timeline(protocol, planned, schedule, output.stream)
-        except OSError as problem:
-            _cannot_write(output, problem)
-        output.commit()
-        print(f"timeline drawn to {path}")
+            try:
+                draw_timeline(protocol, planned, schedule, output.stream)
+            except OSError as problem:
+                _cannot_write(output, problem)
+            output.commit()
+            print(f"timeline drawn to {output.path}")
+    finally:
+        if output is not None:
+            output.discard()  # nothing left of a picture not finished
     return 0

@@ -148,7 +148,7 @@ class Target:
 
 
 def _target(args: argparse.Namespace) -> Target:
-    from pinarray.bus.faults import parse_ids
+    from pinarray.cli import common
     from pinarray.cli.bus import DEFAULT_DEVICE_TEXT
     from pinarray.errors import PinArrayError
     from pinarray.protocol.load import load_protocol, parse_protocol
@@ -158,8 +158,8 @@ def _target(args: argparse.Namespace) -> Target:
                 else parse_protocol(DEFAULT_DEVICE_TEXT, "<default device>"))
     device_ids = bus_setup(protocol.device).servo_ids
     ids = device_ids
-    if args.ids:
-        ids = parse_ids(args.ids)
+    if args.ids is not None:
+        ids = common.servo_ids(args.ids)
         strangers = [i for i in ids if i not in device_ids]
         if strangers:
             raise PinArrayError(
@@ -207,11 +207,12 @@ def _failures(failures, what: str) -> None:
 
 def cmd_scan(args: argparse.Namespace) -> int:
     from pinarray.bus import bringup
-    from pinarray.bus.faults import SIM_DEFAULT, parse_ids
+    from pinarray.bus.faults import SIM_DEFAULT
     from pinarray.bus.registers import STS3215_MODEL_NUMBER
+    from pinarray.cli import common
     from pinarray.stop import StopRequest, stop_on_signals
 
-    ids = parse_ids(args.ids) if args.ids else None
+    ids = common.servo_ids(args.ids) if args.ids is not None else None
     url = args.port or args.sim or SIM_DEFAULT
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(url, args.baud or 1_000_000)

@@ -89,8 +89,11 @@ def _later(name: str):
 
     def run(args: argparse.Namespace) -> int:
         from pinarray.cli import softness_handlers
+        from pinarray.cli.common import png_path
         from pinarray.errors import PinArrayError
 
+        if args.png:
+            png_path(args.png)  # a folder is refused before the table is printed
         try:
             return getattr(softness_handlers, name)(args)
         except OSError as problem:  # the plot (or its folder) could not be written

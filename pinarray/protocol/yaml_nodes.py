@@ -44,6 +44,9 @@ for _resolvers in yaml.resolver.Resolver.yaml_implicit_resolvers.values():
 # Characters YAML allows in a stream (YAML 1.1, 5.1): anything else is refused where it is.
 _NOT_PRINTABLE = re.compile("[^\t\n\r\x20-\x7e\x85\xa0-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
+# YAML 1.1 also reads 0x10 as 16, 017 as 15 (octal), 0b101, 1_000 and 1:00 as 60; a protocol
+# writes its numbers in decimal, as the lab (and a YAML 1.2 reader) reads them.
+_NOT_DECIMAL = re.compile(r"[_:xb]|^[+-]?0[0-9]+$")
 _RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)")
 
 
@@ -266,6 +269,13 @@ class Reader:
             raise self.error(node, f"expected a plain value, found {shown(node.value)} ({what})"
                              ) from None
 
+    def decimal_value(self, node: Node) -> Any:
+        """`scalar_value`, refused where YAML read a number not written in decimal."""
+        value = self.scalar_value(node)
+        if node.tag in _NUMBER_TAGS and _NOT_DECIMAL.search(node.value):
+            raise self.error(node, f"expected a decimal number, found {shown(node.value)}")
+        return value
+
     def string(self, node: Node, what: str, choices: tuple[str, ...] = ()) -> str:
         value = self.scalar_value(node)
         if not isinstance(value, str) or not value.strip():
@@ -289,7 +299,7 @@ class Reader:
         allow_zero: bool = False,
     ) -> Fraction:
         """An exact number: 0.1 means 1/10; "1/3" is accepted; NaN and infinities are not."""
-        value = self.scalar_value(node)
+        value = self.decimal_value(node)
         if isinstance(value, float) and not math.isfinite(value):
             raise self.error(
                 node, f"expected a finite number of {unit} for {what}, found {node.value}"
@@ -322,7 +332,7 @@ class Reader:
     def integer(
         self, node: Node, what: str, minimum: int | None = None, maximum: int | None = None
     ) -> int:
-        value = self.scalar_value(node)
+        value = self.decimal_value(node)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(node, f"expected a whole number for {what}, found {describe(node)}")
         if minimum is not None and value < minimum:
@@ -336,12 +346,11 @@ def _exact(text: str, value: Any) -> Fraction | None:
     """The exact number ``text`` writes (``value`` is what YAML made of it), or None.
 
     Decimals are read from their text, so ``0.1`` is 1/10 and ``1e-400`` is refused rather
-    than rounded to 0.0; a YAML integer (hex, octal, ``1_000``) or sexagesimal float
-    (``1:30.5``) is taken as YAML read it.
+    than rounded to 0.0 (numbers YAML read are written in decimal: `Reader.decimal_value`).
     """
     if isinstance(value, bool) or not isinstance(value, int | float | str):
         return None
-    plain = text.strip().replace("_", "") if isinstance(value, int | float) else value.strip()
+    plain = text.strip() if isinstance(value, int | float) else value.strip()
     decimal = _DECIMAL.fullmatch(plain)
     ratio = None if decimal else _RATIO.fullmatch(plain)
     if (decimal and (decimal[2] or decimal[3])) or ratio:
@@ -360,10 +369,6 @@ def _exact(text: str, value: Any) -> Fraction | None:
         digits = int((decimal[2] or "") + fraction_digits or "0")
         exact = Fraction(digits) * Fraction(10) ** (written - len(fraction_digits))
         return -exact if decimal[1] == "-" else exact
-    if isinstance(value, int):
-        return Fraction(value)
-    if isinstance(value, float):
-        return Fraction(repr(value))  # sexagesimal: the shortest decimal that reads back
     return None
 
 
