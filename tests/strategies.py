@@ -116,7 +116,7 @@ def protocol_documents(draw) -> dict:
     if draw(st.booleans()):
         device["feasibility"] = draw(st.sampled_from(["reject", "scale"]))
     if draw(st.booleans()):
-        device["servo_ids"] = {draw(st.sampled_from(pins)): draw(st.integers(0, 253))}
+        device["servo_ids"] = {draw(st.sampled_from(pins)): draw(st.integers(0, 252))}
     document["device"] = device
     tap = {"frequency_hz": draw(st.one_of(st.integers(1, 12), _decimal(1, 12, 1))),
            "duration_s": draw(_decimal(0, 2, 1).filter(lambda r: float(r) > 0))}

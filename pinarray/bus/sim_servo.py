@@ -105,7 +105,7 @@ class SimServo:
     Parameters
     ----------
     servo_id : int
-        Bus id, 0-253.
+        Bus id, 0-252.
     start_ns : int
         Clock time at power-on, in nanoseconds.
     position_steps : int

@@ -24,6 +24,10 @@ MAX_POSITIONS = 64
 DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility",
                "delivery_tolerance_ms"}
 
+# The STS ids a servo can take (the vendor SDK's MAX_ID; 254 is broadcast). The bus says the
+# same in `pinarray.bus.registers.MAX_SERVO_ID`, which the protocol may not import.
+MAX_SERVO_ID = 252
+
 
 @dataclass(frozen=True)
 class _Given:
@@ -81,7 +85,8 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
         keys, "servo_ids", lambda n: reader.items(n, "servo_ids"), none
     ):
         pin = reader.attempt(partial(read_pin, reader, key_node, grid), None)
-        servo_id = reader.attempt(partial(reader.integer, value_node, "a servo id", 0, 253), None)
+        servo_id = reader.attempt(
+            partial(reader.integer, value_node, "a servo id", 0, MAX_SERVO_ID), None)
         if pin is not None and servo_id is not None:
             ids[pin] = (servo_id, value_node)
     device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get("servo_ids"))
