@@ -36,6 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--targets",
         help="also write servo target changes (trial,pin,time_ns,position_steps), CSV or .npz",
     )
+    p.add_argument(
+        "--allow-long",
+        action="store_true",
+        help="let a trial hold more than the 1 000 000 pulses one may play (up to the plan's "
+        "10 000 000): a schedule written to a file only, e.g. a 24 h endurance run",
+    )
     p.set_defaults(func=_compile)
 
     p = subparsers.add_parser("preview", help="a timeline of one trial's pins")
@@ -98,12 +104,21 @@ def _scaled_notes(protocol) -> list[str]:
     return notes
 
 
-PULSE_COLUMNS = ("trial", "pin", "start_ns", "width_ns")
-TARGET_COLUMNS = ("trial", "pin", "time_ns", "position_steps")
+# Column names and the types a numpy archive stores them as (the schedule's own).
+PULSE_COLUMNS = (("trial", "int32"), ("pin", "int16"), ("start_ns", "int64"), ("width_ns", "int64"))
+TARGET_COLUMNS = (
+    ("trial", "int32"), ("pin", "int16"), ("time_ns", "int64"), ("position_steps", "int32")
+)
+
+
+# Array elements, and CSV rows (as Python objects, some 40x larger), handed on at once: they
+# bound what writing a long trial adds to memory.
+_BLOCK = 1 << 20
+_CSV_ROWS = 1 << 16
 
 
 class _CsvTable:
-    """A CSV file with a header row, written a trial at a time."""
+    """A CSV file with a header row, written a trial at a time, a block of rows at a time."""
 
     def __init__(self, path: str, columns: tuple[str, ...]) -> None:
         import csv
@@ -113,8 +128,10 @@ class _CsvTable:
         self._writing(self.writer.writerow, columns)
 
     def add(self, trial: int, *columns) -> None:
-        rows = zip([trial] * len(columns[0]), *(c.tolist() for c in columns), strict=True)
-        self._writing(self.writer.writerows, rows)
+        for a in range(0, len(columns[0]), _CSV_ROWS):
+            block = [c[a : a + _CSV_ROWS].tolist() for c in columns]
+            rows = zip([trial] * len(block[0]), *block, strict=True)
+            self._writing(self.writer.writerows, rows)
 
     def finish(self) -> None:
         self.output.flush()
@@ -127,13 +144,16 @@ class _CsvTable:
 
 
 class _NpzTable:
-    """A numpy archive of one array per column, written whole once every trial is compiled.
+    """A numpy archive of one array per column, written once every trial is compiled.
 
-    Times stay int64 ns; the file is opened at once so that an unwritable path fails before
-    the compile.
+    The first column is the trial number (int32), the others keep the types given (times int64
+    ns). Each column is streamed into its ``.npy`` member a block at a time, from the trials as
+    compiled: they are never joined into whole columns, as `np.savez` would need, so the file
+    costs no copy of them (the plan's `MAX_PULSES` bounds what the trials hold). The file is
+    opened at once so that an unwritable path fails before the compile.
     """
 
-    def __init__(self, path: str, columns: tuple[str, ...]) -> None:
+    def __init__(self, path: str, columns: tuple[tuple[str, str], ...]) -> None:
         self.columns = columns
         self.output = common.OutputFile(path, binary=True)
         self.parts: list[tuple[int, tuple]] = []
@@ -142,22 +162,56 @@ class _NpzTable:
         self.parts.append((trial, columns))
 
     def finish(self) -> None:
-        import numpy as np
+        import zipfile
 
-        arrays = {
-            self.columns[0]: np.concatenate(
-                [np.full(len(c[0]), t, np.int32) for t, c in self.parts]
-                or [np.empty(0, np.int32)]
-            )
-        }
-        for i, name in enumerate(self.columns[1:]):
-            arrays[name] = np.concatenate([c[i] for _, c in self.parts])
-        savez: Callable[..., None] = np.savez  # its stubs type **arrays as its flags
+        # A device: zipfile would trust its position (/dev/null's stays 0) for the offsets.
+        device = self.output.temporary is None
+        stream = _Unseekable(self.output.stream) if device else self.output.stream
         try:
-            savez(self.output.stream, **arrays)
+            # Stored, not compressed, and zip64 as `np.savez` writes: `np.load` reads it alike.
+            with zipfile.ZipFile(stream, "w", zipfile.ZIP_STORED) as archive:
+                for index, (name, dtype) in enumerate(self.columns):
+                    with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                        self._write_column(member, index, dtype)
         except OSError as problem:
             _cannot_write(self.output, problem)
         self.output.flush()
+
+    def _write_column(self, member, index: int, dtype: str) -> None:
+        import numpy as np
+
+        count = sum(len(columns[0]) for _, columns in self.parts)
+        header = {
+            "descr": np.lib.format.dtype_to_descr(np.dtype(dtype)),
+            "fortran_order": False,
+            "shape": (count,),
+        }
+        np.lib.format.write_array_header_1_0(member, header)
+        for trial, columns in self.parts:
+            if index == 0:
+                block = np.full(min(_BLOCK, len(columns[0])), trial, dtype)
+                for a in range(0, len(columns[0]), _BLOCK):
+                    member.write(block[: len(columns[0]) - a])
+                continue
+            column = columns[index - 1]
+            for a in range(0, len(column), _BLOCK):
+                member.write(np.ascontiguousarray(column[a : a + _BLOCK], dtype))
+
+
+class _Unseekable:
+    """A stream with neither ``tell`` nor ``seek``: zipfile then counts the offsets itself."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, data: bytes) -> int:
+        return self._stream.write(data)
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        pass  # the output file's own `commit` or `discard` closes it
 
 
 def _cannot_write(output: common.OutputFile, problem: OSError):
@@ -167,11 +221,11 @@ def _cannot_write(output: common.OutputFile, problem: OSError):
     raise PinArrayError(f"{output.path}: cannot write: {problem.strerror}") from None
 
 
-def _table(path: str, columns: tuple[str, ...]) -> _CsvTable | _NpzTable:
+def _table(path: str, columns: tuple[tuple[str, str], ...]) -> _CsvTable | _NpzTable:
     """The output for ``path``: a numpy archive for a ``.npz`` name, else CSV (``-``: stdout)."""
     if path.lower().endswith(".npz"):
         return _NpzTable(path, columns)
-    return _CsvTable(path, columns)
+    return _CsvTable(path, tuple(name for name, _ in columns))
 
 
 def _compile(args: argparse.Namespace) -> int:
@@ -179,7 +233,7 @@ def _compile(args: argparse.Namespace) -> int:
     from pinarray.protocol.load import load_protocol
     from pinarray.schedule import compile_trial
 
-    protocol = load_protocol(args.file)
+    protocol = load_protocol(args.file, long_trials=args.allow_long)
     plan = make_plan(protocol, args.seed)
     tables: list[_CsvTable | _NpzTable] = []
     pulses = 0

@@ -2,9 +2,10 @@
 
 A design is refused at validation when its plan could not be drawn (an impossible ordering
 constraint) or would not fit in a bounded time and memory: at most `MAX_TRIALS` trials, at
-most `MAX_PULSES_PER_TRIAL` pulse slots in one trial and `MAX_PULSES` in the whole plan (what
-`pinarray compile` writes and an ``.npz`` holds in memory). Pure Python: `pinarray validate`
-runs it without numpy.
+most `MAX_PULSES_PER_TRIAL` pulse slots in one trial (what a trial may play) and `MAX_PULSES` in
+the whole plan (what `pinarray compile` writes and holds in memory). A design read for a file
+only (``long_trials``: ``pinarray compile --allow-long``) may put the whole plan's pulses in one
+trial. Pure Python: `pinarray validate` runs it without numpy.
 """
 
 from __future__ import annotations
@@ -69,6 +70,7 @@ class _Section(NamedTuple):
     device: Device
     by_name: Mapping[str, Stimulus]
     declared: Collection[str]  # every stimulus name written, broken ones included
+    long_trials: bool  # read for a file only: a trial may hold up to `MAX_PULSES`
 
 
 def read_design(
@@ -77,16 +79,21 @@ def read_design(
     device: Device,
     stimuli: Sequence[Stimulus],
     declared: Collection[str],
+    long_trials: bool = False,
 ) -> Design:
     """The design, checked against the device and stimuli; ``declared`` names every stimulus
-    written in the file, broken ones included (their problems are already reported)."""
+    written in the file, broken ones included (their problems are already reported).
+
+    ``long_trials``: the design is compiled to a file, never played, so one trial may hold
+    more than `MAX_PULSES_PER_TRIAL` pulses (up to the plan's `MAX_PULSES`).
+    """
     keys = reader.mapping(node, DESIGN_KEYS, {"paradigm"}, "design")
     paradigm = Paradigm(
         reader.string(keys["paradigm"], "the paradigm", tuple(p.value for p in Paradigm))
     )
     by_name = {s.name: s for s in stimuli}
     read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
-    section = _Section(node, keys, device, by_name, declared)
+    section = _Section(node, keys, device, by_name, declared, long_trials)
     read = reader.attempt(lambda: read_conditions(reader, section), None)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
@@ -156,7 +163,7 @@ def _check_size(reader: Reader, node: Node, design: Design, slots: Sequence[int]
 
 
 def _localisation(reader: Reader, section: _Section) -> _Conditions:
-    node, keys, device, by_name, declared = section
+    node, keys, device, by_name, declared, long_trials = section
     for key in ("stimulus", "pins", "frequencies_hz"):
         if key not in keys:
             raise reader.error(node, f"a localisation design needs a {key!r} key, found none")
@@ -180,7 +187,7 @@ def _localisation(reader: Reader, section: _Section) -> _Conditions:
     for frequency_node in frequency_nodes:
         frequency = reader.number(frequency_node, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ)
         train = stimulus.train.with_frequency(frequency)
-        _check_pulses(reader, frequency_node, pulse_slots(train))
+        _check_pulses(reader, frequency_node, pulse_slots(train), long_trials)
         check_train_on_pins(reader, frequency_node, train, pins, device)
         conditions.extend(LocalisationCondition(stimulus.name, pin, frequency) for pin in pins)
         slots.extend(pulse_slots(train) for _ in pins)
@@ -188,7 +195,7 @@ def _localisation(reader: Reader, section: _Section) -> _Conditions:
 
 
 def _motion(reader: Reader, section: _Section) -> _Conditions:
-    node, keys, _, by_name, declared = section
+    node, keys, _, by_name, declared, long_trials = section
     if "configurations" not in keys:
         raise reader.error(
             node,
@@ -206,18 +213,26 @@ def _motion(reader: Reader, section: _Section) -> _Conditions:
         stimulus = stimulus_named(reader, item, by_name, declared, WaveStimulus)
         wave = stimulus.wave
         count = sum(pulse_slots(drive.train) for drive in wave.drives())
-        _check_pulses(reader, item, count)
+        _check_pulses(reader, item, count, long_trials)
         conditions.append(MotionCondition(stimulus.name, wave.kind, wave.row))
         slots.append(count)
     return tuple(conditions), tuple(slots)
 
 
-def _check_pulses(reader: Reader, node: Node, count: int) -> None:
-    if count > MAX_PULSES_PER_TRIAL:
+def _check_pulses(reader: Reader, node: Node, count: int, long_trials: bool) -> None:
+    if long_trials and count > MAX_PULSES:
+        raise reader.error(
+            node,
+            f"expected at most {MAX_PULSES:,} pulses in one trial written to a file, found "
+            f"{count:,} (frequency x pulses per cycle x signal length, for each pin); shorten "
+            "the signal",
+        )
+    if not long_trials and count > MAX_PULSES_PER_TRIAL:
         raise reader.error(
             node,
             f"expected at most {MAX_PULSES_PER_TRIAL:,} pulses in one trial, found {count:,} "
-            "(frequency x pulses per cycle x signal length, for each pin); shorten the signal",
+            "(frequency x pulses per cycle x signal length, for each pin); shorten the signal, "
+            "or, to write a longer schedule to a file, use pinarray compile --allow-long",
         )
 
 

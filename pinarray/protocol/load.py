@@ -23,18 +23,24 @@ from pinarray.text_files import NotText, decode_text, read_bounded
 MAX_PROTOCOL_BYTES = 1 << 20
 
 
-def load_protocol(path: str | Path) -> Protocol:
-    """Read and validate a protocol file; raise `ProtocolErrors` listing every problem."""
+def load_protocol(path: str | Path, *, long_trials: bool = False) -> Protocol:
+    """Read and validate a protocol file; raise `ProtocolErrors` listing every problem.
+
+    ``long_trials``: read to be compiled to a file, never played, so a trial may hold more
+    pulses than one may play (see `pinarray.protocol.design`).
+    """
     try:
         text = decode_text(read_bounded(path, MAX_PROTOCOL_BYTES, "protocol"))
     except NotText as problem:
         raise ProtocolErrors(
             [ProtocolError(problem.message, str(path), problem.line, problem.col)]
         ) from None
-    return parse_protocol(text, str(path))
+    return parse_protocol(text, str(path), long_trials=long_trials)
 
 
-def parse_protocol(text: str, source: str = "<protocol>") -> Protocol:
+def parse_protocol(
+    text: str, source: str = "<protocol>", *, long_trials: bool = False
+) -> Protocol:
     reader = Reader(source)
     root = reader.compose(text)
     none: dict[str, Node] = {}
@@ -59,7 +65,8 @@ def parse_protocol(text: str, source: str = "<protocol>") -> Protocol:
     design = None
     if device is not None:
         design = reader.optional(
-            top, "design", lambda n: read_design(reader, n, device, stimuli, declared), None
+            top, "design", lambda n: read_design(reader, n, device, stimuli, declared, long_trials),
+            None,
         )
     sync = reader.optional(top, "sync", lambda n: read_sync(reader, n), None)
     reader.raise_if_errors()

@@ -1,22 +1,29 @@
 """The schedule compiler: time and memory against a naive integer-exact numpy train, throughput
 on many pins and large arrays, where a float schedule drifts from the exact one, dense sampling,
-and how fast `pinarray validate` starts against a bare interpreter.
+how fast `pinarray validate` starts against a bare interpreter, and a 24 h train written to a
+file by `pinarray compile --allow-long`.
 
 Targets (issue 17): a 24 h, 10 Hz train within 1.5x the naive train's time and 40 B per pulse;
 16 pins for 1 h at >= 10 M pulses/s; `validate` within 5x a bare interpreter's start.
+Issue 22: `compile --allow-long --out FILE.npz` of the 24 h, 10 Hz seed train within 2x a naive
+integer numpy train saved with `np.savez`, and the whole command under 600 MB peak RSS.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable
 from fractions import Fraction
 from math import lcm
 from pathlib import Path
 
 import numpy as np
 
+from pinarray.cli import main
 from pinarray.grid import Grid
 from pinarray.protocol import NS_PER_S, Device, PinCalibration, PinDrive, ServoSettings, Train
 from pinarray.schedule import compile_drives, pulse_indices, render_dense, train_pulses
@@ -340,6 +347,115 @@ def _start_up_and_outputs() -> None:
         )
 
 
+DAY_PROTOCOL = """\
+protocol: endurance
+description: The seed train for 24 h on one pin (a servo endurance run).
+stimuli:
+  seed_train:
+    frequency_hz: 10
+    duration_s: 86400
+    pulses_per_cycle: 10
+    duty_cycle: 0.5
+    pulse_width_ms: {up: 2.0, down: 1.5}
+design:
+  paradigm: localisation
+  stimulus: seed_train
+  pins: [1]
+  frequencies_hz: [10]
+"""
+
+
+def save_naive_day(path: str) -> None:
+    """The reference: the 24 h train's four columns, naive and whole in memory, `np.savez`'d."""
+    starts, widths = naive_exact_train(_seed_train(10, DAY_S))
+    savez: Callable[..., None] = np.savez  # its stubs type **arrays as its flags
+    savez(
+        path,
+        trial=np.ones(len(starts), np.int32),
+        pin=np.ones(len(starts), np.int16),
+        start_ns=starts,
+        width_ns=widths,
+    )
+
+
+# Run by a bare interpreter, which starts the command and reports its children's peak: a child
+# forked from this process (hundreds of MB by now) would count this one's pages as its own.
+_PEAK_RSS = (
+    "import resource, subprocess, sys\n"
+    "subprocess.run(sys.argv[1:], capture_output=True, check=True)\n"
+    "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
+)
+
+
+def _peak_rss_mb(command: list[str]) -> float:
+    """Peak resident memory of ``command`` run to its end, in MB."""
+    measured = subprocess.run(
+        [sys.executable, "-c", _PEAK_RSS, *command], capture_output=True, text=True, check=True
+    )
+    return int(measured.stdout) * 1024 / 1e6  # ru_maxrss is in KiB on Linux
+
+
+def _day_long_file() -> None:
+    python = sys.executable
+    with tempfile.TemporaryDirectory() as folder:
+        protocol, ours, naive = (str(Path(folder) / n) for n in ("day.yaml", "ours.npz", "ref.npz"))
+        Path(protocol).write_text(DAY_PROTOCOL)
+        argv = ["compile", protocol, "--seed", "1", "--allow-long", "--out", ours]
+
+        def compile_npz() -> None:
+            with contextlib.redirect_stderr(io.StringIO()):
+                assert main(argv) == 0
+
+        times = interleaved_seconds(
+            {"compile": compile_npz, "naive": lambda: save_naive_day(naive)}
+        )
+        with np.load(ours) as mine, np.load(naive) as reference:
+            same = sorted(mine.files) == sorted(reference.files) and all(
+                mine[name].dtype == reference[name].dtype
+                and np.array_equal(mine[name], reference[name])
+                for name in reference.files
+            )
+            pulses = len(reference["start_ns"])
+        size_mb = Path(ours).stat().st_size / 1e6
+        commands = {
+            "python -c 'import numpy' (reference)": [python, "-c", "import numpy"],
+            "pinarray compile --allow-long .npz": [python, "-m", "pinarray", *argv],
+            "naive + np.savez, as a process": [
+                python, "-c",
+                f"import sys; sys.path.insert(0, {str(ROOT)!r}); "
+                "from tests.benchmarks.bench_schedule import save_naive_day; "
+                f"save_naive_day({naive!r})",
+            ],
+        }
+        rss = {label: [_peak_rss_mb(c) for _ in range(5)] for label, c in commands.items()}
+        wall = interleaved_seconds(
+            {
+                label: (lambda c=command: subprocess.run(c, capture_output=True, check=True))
+                for label, command in commands.items()
+            }
+        )
+    print(
+        f"\n`pinarray compile --allow-long` of the 24 h seed train at 10 Hz to .npz: {pulses:,} "
+        f"pulses, {size_mb:.0f} MB, same arrays as the reference: {'yes' if same else 'NO'}"
+    )
+    print("in this process, ms over 5 interleaved runs (target: <= 2x the reference)")
+    print(f"{'what':<38} {SPREAD_HEADER} {'vs naive':>9}")
+    labels = {
+        "compile": "main(['compile', ..., '--allow-long'])",
+        "naive": "naive integer train + np.savez (ref.)",
+    }
+    for key, label in labels.items():
+        print(f"{label:<38} {spread(times[key])} {ratio(times[key], times['naive']):>9}")
+    print("whole processes, 5 runs each: peak RSS (MB; target: compile < 600) and wall time (ms)")
+    print(f"{'command':<38} {'RSS min':>8} {'median':>8} {'max':>8} {'wall med':>9}")
+    for label in commands:
+        low, middle, high = min(rss[label]), median(rss[label]), max(rss[label])
+        print(
+            f"{label:<38} {low:>8.0f} {middle:>8.0f} {high:>8.0f} "
+            f"{median(wall[label]) * 1e3:>9.0f}"
+        )
+
+
 def run() -> None:
     _day_long_train()
     _durations()
@@ -348,3 +464,4 @@ def run() -> None:
     _exactness()
     _dense()
     _start_up_and_outputs()
+    _day_long_file()
