@@ -11,14 +11,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from collections.abc import Sequence
 from importlib import import_module
+from typing import TYPE_CHECKING
 
 from pinarray import __version__
 from pinarray.errors import PinArrayError
-from pinarray.stop import Stopped
+
+if TYPE_CHECKING:
+    from pinarray.stop import Stopped
 
 # The module of this package that registers each command, in the order `pinarray --help` lists
 # them (tests/test_startup.py holds this table to what the modules register).
@@ -60,7 +62,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         return int(args.func(args) or 0)
-    except Stopped as stopped:
+    except _stopped() as stopped:
         print(f"pinarray: {stopped}", file=sys.stderr)
         return stopped.exit_status
     except PinArrayError as error:
@@ -76,7 +78,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         except OSError:
             pass
+        import signal
+
         return 128 + signal.SIGPIPE
+
+
+def _stopped() -> type[Stopped]:
+    """`Stopped`, imported only once a command has raised (an ``except`` clause is evaluated
+    then): `pinarray.stop` brings signal handling and threads that ``validate`` does not need."""
+    from pinarray.stop import Stopped
+
+    return Stopped
 
 
 if __name__ == "__main__":
