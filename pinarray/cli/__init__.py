@@ -2,26 +2,42 @@
 
 Each subcommand group is a module of this package with ``register(subparsers)``; only argparse
 is imported at module level and each handler imports what it needs when it runs, so
-``pinarray validate`` never pays for numpy, Textual or matplotlib.
+``pinarray validate`` never pays for numpy, Textual or matplotlib. A command line that starts
+with a command's name registers only the module of that command: ``pinarray validate`` does not
+import the bus, the journal or the other commands' modules to build their options.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from collections.abc import Sequence
+from importlib import import_module
+from typing import TYPE_CHECKING
 
 from pinarray import __version__
-from pinarray.cli import analysis, batch, bus, grid, protocols, servos, softness, tui
 from pinarray.errors import PinArrayError
-from pinarray.stop import Stopped
 
-COMMANDS = (grid, protocols, bus, servos, batch, analysis, softness, tui)
+if TYPE_CHECKING:
+    from pinarray.stop import Stopped
+
+# The module of this package that registers each command, in the order `pinarray --help` lists
+# them (tests/test_startup.py holds this table to what the modules register).
+COMMANDS = {
+    "grid": ("grid",),
+    "protocols": ("validate", "compile", "preview"),
+    "bus": ("play", "timing", "scan", "sim-serve"),
+    "servos": ("servos",),
+    "batch": ("batch",),
+    "analysis": ("analyse", "power"),
+    "softness": ("softness",),
+    "tui": ("tui",),
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The `pinarray` parser: every command, or only those of the module that registers ``command``."""
     parser = argparse.ArgumentParser(
         prog="pinarray",
         description="Drive a servo pin-array tactile stimulator and run experiments on it.",
@@ -29,20 +45,24 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"pinarray {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
-    for command in COMMANDS:
-        command.register(sub)
+    modules = [module for module, words in COMMANDS.items() if command in words] or list(COMMANDS)
+    for module in modules:
+        import_module(f"pinarray.cli.{module}").register(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # Only the first word can name the command: the parser's own options (-h, --version) come
+    # before it and end the run, so they get every command.
+    parser = build_parser(argv[0] if argv else None)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
     try:
         return int(args.func(args) or 0)
-    except Stopped as stopped:
+    except _stopped() as stopped:
         print(f"pinarray: {stopped}", file=sys.stderr)
         return stopped.exit_status
     except PinArrayError as error:
@@ -58,7 +78,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         except OSError:
             pass
+        import signal
+
         return 128 + signal.SIGPIPE
+
+
+def _stopped() -> type[Stopped]:
+    """`Stopped`, imported only once a command has raised (an ``except`` clause is evaluated
+    then): `pinarray.stop` brings signal handling and threads that ``validate`` does not need."""
+    from pinarray.stop import Stopped
+
+    return Stopped
 
 
 if __name__ == "__main__":

@@ -12,7 +12,6 @@ billion-digit integer before any range check), and at most `MAX_PROBLEMS` proble
 
 from __future__ import annotations
 
-import difflib
 import math
 import re
 from collections.abc import Callable, Iterator, Mapping
@@ -377,6 +376,8 @@ def _short_tag(tag: str) -> str:
 
 
 def _close_match(text: str, choices) -> list[str]:
+    import difflib  # here: only a misspelt key needs it
+
     # difflib's cost grows with the text's length; a long unknown word is no misspelling.
     return difflib.get_close_matches(text, choices, n=1) if len(text) <= 64 else []
 

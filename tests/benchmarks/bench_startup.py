@@ -1,0 +1,65 @@
+"""How long `pinarray validate` takes from start to exit, beside ``python -c pass``.
+
+Each command is a whole process, run in turn with the others (after one warm-up each), so a
+noisy neighbour slows them alike; the ratio is of the medians. CPU seconds are the children's
+own accounting (``getrusage``), steadier than wall time on a shared machine. Printed, never
+asserted; `tests/test_startup.py` checks what `validate` imports instead.
+"""
+
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from tests.benchmarks._timing import SPREAD_HEADER, median, spread
+
+REPO = Path(__file__).resolve().parents[2]
+PROTOCOL = "protocols/localisation.yaml"
+SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip install` wrote
+RUNS = 10  # a start-up is a tenth of a second: more rounds than the usual five
+
+
+def _run(command: list[str]) -> tuple[float, float]:
+    """(wall, cpu) seconds of one run of ``command``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    started = time.perf_counter()
+    subprocess.run(command, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   check=True, timeout=60)
+    wall = time.perf_counter() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
+
+
+def run() -> None:
+    python = sys.executable
+    commands = {
+        "python -c pass": [python, "-c", "pass"],
+        f"python -m pinarray validate {PROTOCOL}": [python, "-m", "pinarray", "validate",
+                                                   PROTOCOL],
+        "python -m pinarray --help (every command)": [python, "-m", "pinarray", "--help"],
+    }
+    if SCRIPT.exists():
+        commands[f"pinarray validate {PROTOCOL}"] = [str(SCRIPT), "validate", PROTOCOL]
+    for command in commands.values():
+        _run(command)
+    wall: dict[str, list[float]] = {name: [] for name in commands}
+    cpu: dict[str, list[float]] = {name: [] for name in commands}
+    for _ in range(RUNS):
+        for name, command in commands.items():
+            seconds = _run(command)
+            wall[name].append(seconds[0])
+            cpu[name].append(seconds[1])
+
+    reference = "python -c pass"
+    print(f"{RUNS} runs each; ms; ratio: median / median of `{reference}` in the same rounds")
+    if os.environ.get("PYTHONDONTWRITEBYTECODE"):
+        print("(PYTHONDONTWRITEBYTECODE is set: every run compiles pinarray's sources again)")
+    print(f"{'command':<56} {'wall':>4} {SPREAD_HEADER} {'ratio':>6}  {'cpu':>4} "
+          f"{SPREAD_HEADER} {'ratio':>6}")
+    for name in commands:
+        wall_ratio = median(wall[name]) / median(wall[reference])
+        cpu_ratio = median(cpu[name]) / median(cpu[reference])
+        print(f"{name:<56} {'':>4} {spread(wall[name])} {wall_ratio:>5.2f}x  {'':>4} "
+              f"{spread(cpu[name])} {cpu_ratio:>5.2f}x")

@@ -1,0 +1,82 @@
+"""`pinarray validate` starts light: it loads the protocol reader and its own command, nothing
+else of pinarray and none of the heavy libraries, whichever way the command is started.
+
+What a process imports is read from ``-X importtime`` (``PYTHONPROFILEIMPORTTIME`` for the
+installed script), so the check sees the whole start-up, the entry point's own imports included.
+How long the start-up takes is measured in ``tests/benchmarks/bench_startup.py``, not here.
+"""
+
+import argparse
+import os
+import subprocess
+import sys
+from importlib import import_module
+from pathlib import Path
+
+import pytest
+
+from pinarray.cli import COMMANDS, build_parser
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip install` wrote
+
+HEAVY = ("numpy", "scipy", "matplotlib", "textual", "serial", "scservo_sdk")
+# What validating needs of pinarray: the reader of protocol files and the validate command.
+NEEDED = ("pinarray", "pinarray.cli", "pinarray.cli.common", "pinarray.cli.protocols",
+          "pinarray.errors", "pinarray.grid", "pinarray.text_files", "pinarray.protocol")
+
+
+def imported_by(command: list[str]) -> set[str]:
+    """Every module the process running ``command`` imported, as ``-X importtime`` lists them."""
+    result = subprocess.run(
+        command, capture_output=True, text=True, timeout=60,
+        env={**os.environ, "PYTHONPROFILEIMPORTTIME": "1"},
+    )
+    assert result.returncode in (0, 2), result.stderr[-2000:]
+    return {line.rsplit("|", 1)[1].strip() for line in result.stderr.splitlines()
+            if line.startswith("import time:") and not line.endswith("imported package")}
+
+
+def commands_in(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    return next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def commands_of(register) -> list[str]:
+    parser = argparse.ArgumentParser()
+    register(parser.add_subparsers())
+    return list(commands_in(parser))
+
+
+@pytest.mark.parametrize("entry", ["python -m pinarray", "installed script"])
+@pytest.mark.parametrize("protocol", ["localisation.yaml", "a broken one"])
+def test_validate_loads_the_protocol_reader_and_nothing_else_of_pinarray_nor_heavy_libraries(
+    entry, protocol, tmp_path
+):
+    path = PROTOCOLS / protocol
+    if protocol == "a broken one":
+        path = tmp_path / "broken.yaml"
+        path.write_text((PROTOCOLS / "localisation.yaml").read_text().replace("pins:", "pinz:"))
+    if entry == "installed script" and not SCRIPT.exists():
+        pytest.skip(f"no console script beside {sys.executable}")
+    start = [sys.executable, "-m", "pinarray"] if entry.startswith("python") else [str(SCRIPT)]
+    modules = imported_by([*start, "validate", str(path)])
+
+    assert "pinarray.protocol.load" in modules  # the listing is read right: it did validate
+    assert sorted(m for m in modules if m.split(".")[0] in HEAVY) == []
+    others = {m for m in modules if m.split(".")[0] == "pinarray"
+              and not any(m == n or m.startswith("pinarray.protocol.") for n in NEEDED)}
+    assert sorted(others) == []
+
+
+def test_the_command_table_names_the_module_that_registers_each_command():
+    for module, words in COMMANDS.items():
+        assert commands_of(import_module(f"pinarray.cli.{module}").register) == list(words)
+    assert list(commands_in(build_parser())) == [w for words in COMMANDS.values() for w in words]
+
+
+@pytest.mark.parametrize("word", [word for words in COMMANDS.values() for word in words])
+def test_a_command_built_alone_is_the_command_the_whole_parser_holds(word):
+    alone, whole = commands_in(build_parser(word))[word], commands_in(build_parser())[word]
+    assert alone.format_help() == whole.format_help()
+    assert [a.option_strings or a.dest for a in alone._actions] == \
+        [a.option_strings or a.dest for a in whole._actions]
