@@ -54,7 +54,11 @@ def write_run():
 
 @pytest.fixture
 def results_root(tmp_path):
-    root = tmp_path / "results"
+    return write_results(tmp_path / "results")
+
+
+def write_results(root):
+    """Two subjects' localisation and motion runs, the numbers the tests count by hand."""
     for subject in ("A", "B"):
         localisation = [
             LocalisationRecord(trial=n, block=1, task="localisation", onset_ns=12 * S * n,

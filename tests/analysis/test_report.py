@@ -1,9 +1,13 @@
 """`pinarray analyse` as a lab uses it: results folder in, tables, figures and a page out."""
 
 import argparse
+import contextlib
 import csv
+import io
 import subprocess
 import sys
+from dataclasses import dataclass
+from pathlib import Path
 
 import pytest
 
@@ -12,7 +16,7 @@ from pinarray.analysis import plots
 from pinarray.cli.analysis import register
 from pinarray.errors import ResultsError
 from pinarray.journal.manifest import RunPaths
-from tests.analysis.conftest import localisation_row
+from tests.analysis.conftest import localisation_row, write_results
 
 FIGURES = ("correct_by_frequency", "error_types", "motion", "confusion_matrix", "pin_accuracy")
 
@@ -30,11 +34,26 @@ def read_csv(path):
         return list(csv.DictReader(handle))
 
 
-def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them(
-        results_root, tmp_path, capsys):
-    out = tmp_path / "analysis"
-    assert analyse(str(results_root), "--out", str(out)) == 0
-    printed = capsys.readouterr().out
+@dataclass(frozen=True)
+class Analysis:
+    out: Path
+    printed: str
+
+
+@pytest.fixture(scope="module")
+def analysed(tmp_path_factory):
+    """The two subjects' results analysed once with the default options (a few seconds of
+    figures and fits), for the tests that only read what it wrote and printed."""
+    folder = tmp_path_factory.mktemp("report")
+    out = folder / "analysis"
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert analyse(str(write_results(folder / "results")), "--out", str(out)) == 0
+    return Analysis(out, printed.getvalue())
+
+
+def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them(analysed):
+    out, printed = analysed.out, analysed.printed
     assert "counted 4 run(s): 2 subject(s), 11 localisation and 8 motion trials" in printed
     page = (out / "summary.md").read_text()
     for name in FIGURES:
@@ -47,11 +66,8 @@ def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them
         assert f"({name})" in page and (out / name).exists()
 
 
-def test_the_page_and_the_printout_give_subject_means_and_label_the_pooled_numbers(
-        results_root, tmp_path, capsys):
-    out = tmp_path / "analysis"
-    analyse(str(results_root), "--out", str(out))
-    printed = capsys.readouterr().out
+def test_the_page_and_the_printout_give_subject_means_and_label_the_pooled_numbers(analysed):
+    out, printed = analysed.out, analysed.printed
     # 3 Hz: subject A 25 %, subject B 50 %: mean 37.5 %; the 6 trials pooled: 2/6.
     assert "3 Hz: 37.5 % [" in printed and "(2 subj., 6 trials); trial-pooled 33.3 % [9.7, 70.0]" \
         in printed
@@ -78,9 +94,8 @@ def test_every_caption_states_n_the_unit_and_the_interval(results_root, tmp_path
                 in caption
 
 
-def test_the_tables_hold_the_hand_counted_numbers(results_root, tmp_path):
-    out = tmp_path / "analysis"
-    analyse(str(results_root), "--out", str(out))
+def test_the_tables_hold_the_hand_counted_numbers(analysed):
+    out = analysed.out
     means = {(r["frequency_hz"], r["category"]): r
              for r in read_csv(out / "localisation_subject_level.csv")}
     ten = means[("10", "correct")]
@@ -98,10 +113,8 @@ def test_the_tables_hold_the_hand_counted_numbers(results_root, tmp_path):
     assert motion["direction_right_of_felt"]["chance_pct"] == "50.00"
 
 
-def test_nothing_felt_appears_in_the_confusion_matrix_and_rows_divide_by_all_trials(
-        results_root, tmp_path):
-    out = tmp_path / "analysis"
-    analyse(str(results_root), "--out", str(out))
+def test_nothing_felt_appears_in_the_confusion_matrix_and_rows_divide_by_all_trials(analysed):
+    out = analysed.out
     rows = {r["stimulated_pin"]: r for r in read_csv(out / "confusion_matrix.csv")}
     ten = rows["10"]
     assert ten["nothing_felt"] == "1" and ten["trials"] == "5"
@@ -110,9 +123,8 @@ def test_nothing_felt_appears_in_the_confusion_matrix_and_rows_divide_by_all_tri
     assert set(rows) == {"1", "4", "10"}  # only stimulated pins get a row
 
 
-def test_pin_accuracy_numbers_pins_rows_and_columns_from_1(results_root, tmp_path):
-    out = tmp_path / "analysis"
-    analyse(str(results_root), "--out", str(out))
+def test_pin_accuracy_numbers_pins_rows_and_columns_from_1(analysed):
+    out = analysed.out
     pins = {r["pin"]: r for r in read_csv(out / "pin_accuracy.csv")}
     assert (pins["1"]["row"], pins["1"]["column"]) == ("1", "1")  # bottom-left
     assert (pins["16"]["row"], pins["16"]["column"]) == ("4", "4")  # top-right

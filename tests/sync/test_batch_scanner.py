@@ -27,7 +27,12 @@ DEMO = REPO / "protocols" / "demo.yaml"
 VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
 NS = 1_000_000_000
 
-SHORT = """\
+# These runs are about triggers, volumes and markers, not timing (`make bench` measures that):
+# a delivery tolerance no host hiccup on a busy machine reaches keeps a trial from being
+# presented again.
+RELAXED = "device:\n  delivery_tolerance_ms: 5000\n"
+
+SHORT = RELAXED + """\
 protocol: short
 description: Three pins, half a second each.
 stimuli:
@@ -94,11 +99,12 @@ def no_run_was_created(root: Path) -> bool:
 
 
 def demo_in_short(tmp_path: Path) -> Path:
-    """demo.yaml (16 pins in order, 5 Hz) with 0.4 s stimuli 0.2 s apart: a 10 s run, not 48 s."""
+    """demo.yaml (16 pins in order, 5 Hz) with 0.4 s stimuli 0.2 s apart: a 10 s run, not 48 s,
+    and a relaxed delivery tolerance."""
     text = DEMO.read_text()
     assert "duration_s: 2\n" in text and "inter_trial_interval_s: 1\n" in text
     path = tmp_path / "demo.yaml"
-    path.write_text(text.replace("duration_s: 2\n", "duration_s: 0.4\n")
+    path.write_text(RELAXED + text.replace("duration_s: 2\n", "duration_s: 0.4\n")
                     .replace("inter_trial_interval_s: 1\n", "inter_trial_interval_s: 0.2\n"))
     return path
 
