@@ -392,3 +392,19 @@ def test_decimal_numbers_are_read_as_written(written):
                               + "  repetitions: +3\n", "p.yaml")
     assert protocol.stimulus("buzz").train.frequency_hz == 5
     assert protocol.design.repetitions == 3
+
+
+def test_softness_samples_that_are_a_fifo_are_refused_at_once(tmp_path):
+    with fifo_with_a_writer(tmp_path / "samples.csv") as samples:
+        result = pinarray_process("softness", "fit", "--csv", str(samples))
+    assert result.returncode == 2
+    assert result.stderr == f"pinarray: {samples}: expected a samples file, found a FIFO (named pipe)\n"
+
+
+def test_analyse_names_what_it_was_given_when_that_is_no_results_file(tmp_path):
+    with fifo_with_a_writer(tmp_path / "beh.tsv") as fifo:
+        result = pinarray_process("analyse", str(fifo), "--out", str(tmp_path / "out"))
+    assert result.returncode == 2
+    assert result.stderr == (f"pinarray: {fifo}: expected a results file or folder, found a FIFO "
+                             "(named pipe)\n")
+    assert not (tmp_path / "out").exists()

@@ -34,7 +34,7 @@ from pinarray.journal.records import (
     read_trials,
     split_torn_tail,
 )
-from pinarray.text_files import NotText, position_of, read_bounded
+from pinarray.text_files import NotText, kind_of, position_of, read_bounded
 
 BEH_PATTERN = "*_beh.tsv"
 # 20 000 trials (a plan's most) of a few hundred bytes each, many times over.
@@ -159,6 +159,9 @@ def find_beh_files(paths: Iterable[Path | str]) -> list[Path]:
             found.update(p for p in path.rglob(BEH_PATTERN) if p.is_file())
         elif path.is_file():
             found.add(path)
+        elif path.exists():
+            raise ResultsError(f"{path}: expected a results file or folder, found "
+                               f"{kind_of(path.stat().st_mode)}")
         else:
             raise ResultsError(f"{path}: no such results file or folder")
     if not found:

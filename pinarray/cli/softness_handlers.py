@@ -173,7 +173,7 @@ def fit(args) -> int:
         fit_force_area,
         fit_force_displacement,
     )
-    from pinarray.softness.samples import Samples, read_samples
+    from pinarray.softness.samples import Samples
     from pinarray.softness.units import M2_PER_CM2, M_PER_CM
 
     if args.csv:
@@ -320,7 +320,6 @@ def forceps(args) -> int:
 
     from pinarray.softness._checks import SoftnessError
     from pinarray.softness.forceps import TissueModel, fit_tissue
-    from pinarray.softness.samples import read_samples
     from pinarray.softness.tf_display import ConeDisplay
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA
 
@@ -381,3 +380,20 @@ def forceps(args) -> int:
             )
         )
     return 0
+
+
+# A samples file: far more rows than any forceps or indenter records in a session.
+MAX_SAMPLES_BYTES = 64 * 1024 * 1024
+
+
+def read_samples(path: str):
+    """A samples CSV read as any input is (bounded; a FIFO or a device refused), then parsed."""
+    from pinarray.softness._checks import SoftnessError
+    from pinarray.softness.samples import parse_samples
+    from pinarray.text_files import NotText, decode_text, read_bounded
+
+    try:
+        text = decode_text(read_bounded(path, MAX_SAMPLES_BYTES, "samples"))
+    except NotText as problem:
+        raise SoftnessError(f"{path}: {problem}") from None
+    return parse_samples(text, path)

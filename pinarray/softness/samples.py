@@ -11,8 +11,8 @@ Recognised units: lengths ``m``, ``cm``, ``mm``; areas ``m2``, ``cm2``, ``mm2``;
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -39,17 +39,14 @@ class Samples:
     force_n: np.ndarray
 
 
-def read_samples(path: str | Path) -> Samples:
-    """Read a two-column CSV of force against area or displacement.
+def parse_samples(text: str, name: str) -> Samples:
+    """Read a two-column CSV of force against area or displacement from its text.
 
-    Raises `SoftnessError` naming the file and line of anything it cannot read.
+    ``name`` is the file's name for messages. Raises `SoftnessError` naming the file and line
+    of anything it cannot read. (Reading the file is the caller's: the library does no I/O.)
     """
-    path = Path(path)
-    try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            rows = list(csv.reader(handle))
-    except OSError as error:
-        raise SoftnessError(f"{path}: cannot read samples: {error.strerror or error}") from None
+    path = name
+    rows = list(csv.reader(io.StringIO(text, newline="")))
     if not rows:
         raise SoftnessError(f"{path}: empty file; expected a header such as area_cm2,force_n")
     header = [name.strip().lower() for name in rows[0]]
