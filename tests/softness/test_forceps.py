@@ -3,7 +3,7 @@ through Hertz -> the pressure a display needs to replicate the tissue."""
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
@@ -140,6 +140,9 @@ def test_samples_that_are_not_a_contact_are_refused():
         TissueModel(0.01, 1e5, poisson=0.6)
 
 
+# No deadline: 21 000 samples an example took 253 ms on a loaded machine with numpy's AVX
+# paths off (milliseconds unloaded); timing belongs in the benchmarks.
+@settings(deadline=None)
 @given(
     e0=moduli_pa,
     growth=st.one_of(log_uniform(1e-3, 1e3), st.floats(-0.74, -0.01)),
