@@ -68,6 +68,8 @@ def test_the_population_gives_77_percent_motion_felt_and_65_percent_of_those_rig
     for direction in ("left", "right"):
         answers = DEFAULT.motion_probabilities(direction)
         felt = 1 - answers["none"]
+        # plain arithmetic on the model's fractions (1 - (1 - 0.77), a product, a quotient):
+        # a few u, far inside 1e-12
         assert_allclose(felt, 0.77, atol=1e-12)
         assert_allclose(answers[direction] / felt, 0.65, atol=1e-12)
 
@@ -83,6 +85,7 @@ def test_subjects_differ_and_a_spread_of_0_makes_them_identical():
 
 def test_the_documented_spread_puts_the_middle_95_percent_between_41_and_82_percent_at_10_hz():
     low, high = ON_PROTOCOL.subject_range(10.0)
+    # 40.53 % and 81.59 %: no rounding of exp or the quantile comes near a half
     assert (round(100 * low), round(100 * high)) == (41, 82)
     assert "between about 41 % and 82 % correct" in " ".join(observer_module.__doc__.split())
 
@@ -171,6 +174,8 @@ def test_any_rising_anchors_are_met_on_average_and_answers_are_a_distribution(an
         assert_allclose(sum(rates.values()), 1.0, atol=1e-9)
     probabilities = model.report_probabilities(4.0)
     assert (probabilities >= 0).all()
+    # rows normalised by their sum (17 terms), averaged with 40 quadrature weights that sum to
+    # 1: within ~100 u of 1, far inside 1e-12, whatever exp's last bits
     assert_allclose(probabilities.sum(axis=1), 1.0, atol=1e-12)
 
 
@@ -178,6 +183,8 @@ def test_any_rising_anchors_are_met_on_average_and_answers_are_a_distribution(an
 @given(low=st.floats(0.5, 50), high=st.floats(0.5, 50))
 def test_sigma_never_grows_with_frequency(low, high):
     low, high = sorted((low, high))
+    # exp, log and interpolation err by a few ulps: 1e-12 (4500 u) allows only that much
+    # rise, and equal frequencies give the same computation, so the same sigma
     assert DEFAULT.sigma(high) <= DEFAULT.sigma(low) * (1 + 1e-12)
 
 

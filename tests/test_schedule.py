@@ -196,7 +196,7 @@ def test_dense_rendering_moves_each_edge_by_less_than_one_sample():
     rising = np.flatnonzero(np.diff(dense[0].astype(int)) == 1) + 1
     if dense[0][0]:
         rising = np.concatenate(([0], rising))
-    sample_ns = NS_PER_S / rate_hz
+    sample_ns = NS_PER_S / rate_hz  # 1e5 exactly; whole multiples of it are exact floats
     errors_ns = rising * sample_ns - schedule.pulses.start_ns
     assert len(rising) == len(schedule.pulses)
     assert (errors_ns >= 0).all() and (errors_ns < sample_ns).all()

@@ -24,6 +24,13 @@ from pinarray.softness.identification import LinearForceDisplacement, QuadraticF
 from pinarray.softness.tf_display import ConeDisplay
 from pinarray.softness.units import M2_PER_CM2, M_PER_CM
 
+# A force read off the material's curve at an area, F = alpha A^2 (two roundings), comes back
+# as A' = sqrt(F / alpha) (two more, the first two halved under the root): within 2.5 u of A
+# (u = 2^-53). A force at a pressure, F = p^2 / alpha, comes back as p' = alpha A' within
+# 3.5 u. An area or a pressure at most 4 u past a limit is on it: a display filled to its base
+# is not bottomed and a valve asked for its largest pressure can hold it, on every machine.
+_AT_LIMIT = 2 * np.finfo(float).eps
+
 
 @dataclass(frozen=True)
 class Material:
@@ -127,7 +134,7 @@ def control_commands(
     force = nonnegative("force_n", force_n)
     area = material.area_m2(force)
     pressure = material.alpha_n_per_m4 * area
-    bottomed = area > display.max_area_m2
+    bottomed = area > display.max_area_m2 * (1 + _AT_LIMIT)
     casr = display.indentation_for_area_m(np.minimum(area, display.max_area_m2))
     dhd = material.displacement_m(force) - casr
     return ControlCommands(
@@ -138,7 +145,8 @@ def control_commands(
         casr_displacement_m=casr,
         dhd_displacement_m=dhd,
         dhd_must_pull=dhd < 0,
-        pressure_out_of_range=(pressure < valve.min_pa) | (pressure > valve.max_pa),
+        pressure_out_of_range=(pressure < valve.min_pa * (1 - _AT_LIMIT))
+        | (pressure > valve.max_pa * (1 + _AT_LIMIT)),
         display_bottomed=bottomed,
     )
 

@@ -34,6 +34,21 @@ from pinarray.softness.identification import Fit
 
 _MAX_STEPS = 100
 
+_U = np.finfo(float).eps / 2  # the unit of rounding, 2^-53: + - * / and sqrt err by at most u
+# An area from `area_for_force_m2` comes back to a strain through `strain_for_area`:
+# A = (eps eps)(pi R R) rounds four times (eps^2, pi R, pi R R, the product) and
+# eps' = sqrt(A / pi) / R three more (the quotient under the root, the root, the division).
+# Under the root the five roundings count half, so eps' = eps (1 + r), |r| <= 4.5 u (plus
+# O(u^2)), which is at most 4.5 ulps of eps. A strain that far past the largest strain is the
+# largest strain, come back through its area; 6 u covers the O(u^2) terms.
+_STRAIN_ROUND_TRIP = 6 * _U
+# The force F = (4/3 R^2)(eps eps eps)(e0 + e1 eps) at a strain rounds four times in the
+# products and twice in E* = e0 + e1 eps; at the largest force e1 eps = -3 E*, so E*'s two
+# roundings weigh 3 u + u there: a computed force lies within 8 u of the exact curve. The curve
+# is flat at its top, so a force the forward function returns at a strain on the rising branch
+# is at most 16 u above the computed largest force.
+_FORCE_ROUNDING = 16 * _U
+
 
 @dataclass(frozen=True)
 class TissueModel:
@@ -71,14 +86,17 @@ class TissueModel:
         return np.inf if self.e1_pa >= 0 else 0.75 * self.e0_pa / -self.e1_pa
 
     def _strain(self, strain: np.ndarray) -> np.ndarray:
-        beyond = strain > self.max_strain
+        """The strain, with one within rounding past the largest strain taken as the largest
+        (`area_for_force_m2` returns that strain's area, which comes back up to 4.5 ulps past)."""
+        top = self.max_strain
+        beyond = strain > top * (1 + _STRAIN_ROUND_TRIP)
         if beyond.any():
             raise SoftnessError(
-                f"strain {strain[beyond].flat[0]:.4g} is past {self.max_strain:.4g}, where the "
+                f"strain {strain[beyond].flat[0]:.4g} is past {top:.4g}, where the "
                 "fitted "
                 "modulus softens so fast that force stops rising with area"
             )
-        return strain
+        return np.minimum(strain, top)
 
     def effective_modulus_pa(self, strain: object) -> np.ndarray:
         """E*(eps) = e0 + e1 eps, Pa; ``strain`` is eps = a / R, >= 0."""
@@ -94,8 +112,9 @@ class TissueModel:
 
     def force_for_strain_n(self, strain: object) -> np.ndarray:
         """F = (4/3) R^2 eps^3 E*(eps), N."""
-        eps = nonnegative("strain", strain)
-        return 4 / 3 * self.radius_m**2 * eps**3 * self.effective_modulus_pa(eps)
+        eps = self._strain(nonnegative("strain", strain))
+        # eps eps eps, not eps**3: products round correctly on every machine, pow need not.
+        return 4 / 3 * self.radius_m**2 * (eps * eps * eps) * self.effective_modulus_pa(eps)
 
     def force_for_area_n(self, area_m2: object) -> np.ndarray:
         """Force at which the contact reaches an area, N (the predicted force/area curve)."""
@@ -126,19 +145,24 @@ class TissueModel:
             return np.pi * (self.radius_m * np.cbrt(scale / self.e0_pa)) ** 2
         if self.e1_pa < 0:
             reachable = float(self.force_for_strain_n(self.max_strain))
-            too_big = force > reachable
+            too_big = force > reachable * (1 + _FORCE_ROUNDING)
             if too_big.any():
                 raise SoftnessError(
                     f"force_n {force[too_big].flat[0]:.4g} N is beyond the largest force the "
                     "fitted "
                     f"modulus reaches while rising, {reachable:.4g} N"
                 )
+            # within rounding of the top (see _FORCE_ROUNDING): the top
+            force = np.minimum(force, reachable)
         # eps^3 (e0 + e1 eps) = 3 F / (4 R^2)  <=>  eps^3 (1 + g eps) = w, w = 3 F / (4 R^2 e0)
         area = _strain_for_load(
             force.ravel(), 0.75 / (self.radius_m**2 * self.e0_pa), self.e1_pa / self.e0_pa
         )
+        # Near the top the strain is ill-conditioned (the curve is flat): a root found a
+        # rounding step past the largest strain is the largest strain.
+        np.minimum(area, self.max_strain, out=area)
         area *= area  # A = pi (R eps)^2, in place
-        area *= np.pi * self.radius_m**2
+        area *= np.pi * self.radius_m * self.radius_m  # products: rounded alike everywhere
         return area.reshape(force.shape)
 
 
@@ -162,16 +186,20 @@ def _strain_for_load(force_n: np.ndarray, per_newton: float, growth: float) -> n
     an upper bound, the root's fixed point ``cbrt(w / (1 + g eps))`` taken at a lower bound.
     Past that inflection (a softening tissue near its largest force) the curve is concave and
     the start is a lower bound instead. No bracket, no bisection, and no array is allocated
-    per iteration: three block-sized scratch arrays are updated in place.
+    per iteration: five block-sized scratch arrays are updated in place.
     """
     strain = np.empty_like(force_n)
     # A load on the convex side of the curve, for zero forces to be solved with (eps = 0 would
     # be 0 / 0 in the step).
     stand_in = 1.0 if growth > 0 else 0.5 * min(0.5 / -growth, 1.0) ** 3
-    w_all, a_all, b_all = (np.empty(min(_BLOCK, len(force_n))) for _ in range(3))
+    size = min(_BLOCK, len(force_n))
+    w_all, a_all, b_all, previous_all = (np.empty(size) for _ in range(4))
+    shrinks_all = np.empty(size, dtype=bool)
     for low in range(0, len(force_n), _BLOCK):
         eps = strain[low : low + _BLOCK]
-        w, a, b = (array[: len(eps)] for array in (w_all, a_all, b_all))
+        w, a, b, previous, shrinks = (
+            array[: len(eps)] for array in (w_all, a_all, b_all, previous_all, shrinks_all)
+        )
         np.multiply(force_n[low : low + _BLOCK], per_newton, out=w)
         zero = None if w.all() else w == 0
         if zero is not None:
@@ -182,7 +210,7 @@ def _strain_for_load(force_n: np.ndarray, per_newton: float, growth: float) -> n
         else:
             _start_softening(eps, w, growth, a, b)
             last_step = _SETTLED
-        previous = np.inf
+        previous.fill(np.inf)
         for _ in range(_MAX_STEPS):
             np.multiply(eps, eps, out=a)
             a *= eps
@@ -193,14 +221,17 @@ def _strain_for_load(force_n: np.ndarray, per_newton: float, growth: float) -> n
             b *= 4
             b += 3  # 3 + 4 g eps
             a /= b  # r
-            worst = max(a.max(), -a.min())
+            # Monotone convergence shrinks every step of a sample; one that does not shrink is
+            # rounding noise (a softening tissue near its largest force, where the curve is
+            # flat and the residual is all rounding): it is not taken, and that sample is done.
+            np.absolute(a, out=b)
+            np.less(b, previous, out=shrinks)
+            a *= shrinks
+            np.multiply(b, shrinks, out=previous)
             np.subtract(1, a, out=a)
             eps *= a
-            # Monotone convergence shrinks every step; one that does not shrink is rounding
-            # noise (a softening tissue near its largest force, where the curve is flat).
-            if worst <= last_step or worst >= previous:
+            if previous.max() <= last_step:
                 break
-            previous = worst
         if zero is not None:
             eps[zero] = 0.0
     return strain

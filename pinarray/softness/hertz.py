@@ -52,7 +52,9 @@ def effective_modulus_pa(
     young_2 = positive_or_infinite("young_2_pa", young_2_pa)
     nu_1 = poisson_ratio("poisson_1", poisson_1)
     nu_2 = poisson_ratio("poisson_2", poisson_2)
-    compliance = (1 - nu_1**2) / young_1 + (1 - nu_2**2) / young_2
+    # nu nu, not nu**2: a product rounds alike everywhere, and 1 - nu^2 magnifies the square's
+    # error up to 49-fold at nu = -0.99
+    compliance = (1 - nu_1 * nu_1) / young_1 + (1 - nu_2 * nu_2) / young_2
     if np.any(compliance == 0):
         raise SoftnessError(
             "young_1_pa and young_2_pa are both infinite: two rigid bodies never deform"

@@ -41,7 +41,7 @@ class QuadraticForceArea:
     @classmethod
     def from_cm(cls, a_n_per_cm4: float, b_n_per_cm2: float, c_n: float) -> QuadraticForceArea:
         """The model from coefficients of a fit with A in cm^2 (as in the seed's eq. 9.4)."""
-        return cls(a_n_per_cm4 / M2_PER_CM2**2, b_n_per_cm2 / M2_PER_CM2, c_n)
+        return cls(a_n_per_cm4 / (M2_PER_CM2 * M2_PER_CM2), b_n_per_cm2 / M2_PER_CM2, c_n)
 
     def force_n(self, area_m2: object) -> np.ndarray:
         """Force at contact areas, N; ``area_m2`` in m^2, >= 0."""
@@ -74,7 +74,8 @@ class QuadraticForceArea:
         if self.b_n_per_m2 == 0:
             # The form above is 0/0 at F = c when b = 0; sqrt((F - c) / a) has no cancellation.
             return np.sqrt(excess / self.a_n_per_m4)
-        root = np.sqrt(self.b_n_per_m2**2 + 4 * self.a_n_per_m4 * excess)
+        # b b, not b**2: a product rounds alike on every machine, a power need not
+        root = np.sqrt(self.b_n_per_m2 * self.b_n_per_m2 + 4 * self.a_n_per_m4 * excess)
         return 2 * excess / (self.b_n_per_m2 + root)
 
 

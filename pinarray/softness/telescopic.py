@@ -60,7 +60,15 @@ class TelescopicDisplay:
         Step i starts at indentation i dh; past the last step the index stays at n - 1.
         """
         z = nonnegative("indentation_m", indentation_m)
-        return np.minimum(np.floor(z / self.step_height_m), self.cylinder_count - 1).astype(int)
+        steps = z / self.step_height_m
+        # A step's start i dh, computed as `staircase_points` does, rounds once, and the
+        # quotient once more: i dh / dh comes back as low as i (1 - u)^2 (u = 2^-53), a rounding
+        # step below i, which would floor into the step before. Scaling by 1 + 4 u (1 + 2 eps,
+        # the second float above 1) lifts it to at least i (1 + u) > i, and i is a float, so its
+        # rounding cannot fall below i: an indentation within rounding of a step's start is on
+        # that step.
+        steps *= 1 + 2 * np.finfo(float).eps
+        return np.minimum(np.floor(steps), self.cylinder_count - 1).astype(int)
 
     def area_m2(self, indentation_m: object) -> np.ndarray:
         """Contact area at an indentation, m^2 (a staircase)."""

@@ -23,6 +23,14 @@ from pinarray.softness._checks import SoftnessError, nonnegative, positive, posi
 CASR_BASE_RADIUS_M = 0.0065
 CASR_HEIGHT_M = 0.01
 
+_U = np.finfo(float).eps / 2  # the unit of rounding, 2^-53: + - * / and sqrt err by at most u
+# The area at full indentation, pi (H (R / H))^2 in `area_m2`, rounds four times (R / H, the
+# product, the square, pi times it), the first two squared: within 6 u of pi R^2; the base area
+# pi R R rounds twice: within 2 u. A force p A(H) divided back by the pressure rounds twice more.
+# An area at most 10 u (at most 10 ulps) past the base is the base, come back through the
+# display's own forward functions.
+_AREA_ROUND_TRIP = 10 * _U
+
 
 @dataclass(frozen=True)
 class ConeDisplay:
@@ -48,7 +56,7 @@ class ConeDisplay:
     @property
     def max_area_m2(self) -> float:
         """Area at full indentation, pi R^2, m^2."""
-        return float(np.pi * self.base_radius_m**2)
+        return float(np.pi * self.base_radius_m * self.base_radius_m)
 
     def _indentation(self, indentation_m: object) -> np.ndarray:
         z = nonnegative("indentation_m", indentation_m)
@@ -69,7 +77,8 @@ class ConeDisplay:
             z, m, in [0, H].
         """
         z = self._indentation(indentation_m)
-        return np.pi * (z * (self.base_radius_m / self.height_m)) ** 2
+        radius = z * (self.base_radius_m / self.height_m)  # of the contact circle
+        return np.pi * (radius * radius)  # a product, not a power: rounded alike everywhere
 
     def swept_volume_m3(self, indentation_m: object) -> np.ndarray:
         """Volume swept by an indentation z, pi z^3 R^2 / (3 H^2), m^3."""
@@ -91,18 +100,21 @@ class ConeDisplay:
     def indentation_for_area_m(self, area_m2: object) -> np.ndarray:
         """Indentation that exposes a contact area, z = (H / R) sqrt(A / pi), m.
 
-        Raises `SoftnessError` for an area beyond the base, pi R^2.
+        Raises `SoftnessError` for an area beyond the base, pi R^2; one within rounding of the
+        base (see `_AREA_ROUND_TRIP`) is the base, at the full height.
         """
         area = nonnegative("area_m2", area_m2)
-        beyond = area > self.max_area_m2 * (1 + 1e-12)
+        beyond = area > self.max_area_m2 * (1 + _AREA_ROUND_TRIP)
         if beyond.any():
             raise SoftnessError(
                 f"area_m2 must be at most the display's base area {self.max_area_m2:.6g} m^2, "
                 f"found {area[beyond].flat[0]:.6g}"
             )
-        return np.minimum(
+        depth = np.minimum(
             (self.height_m / self.base_radius_m) * np.sqrt(area / np.pi), self.height_m
         )
+        # the base's own area, or one within rounding past it: the full height, exactly
+        return np.where(area >= self.max_area_m2, self.height_m, depth)
 
     def indentation_for_force_m(self, force_n: object, pressure_pa: object) -> np.ndarray:
         """Indentation at which the display balances a force at a pressure, m.

@@ -65,6 +65,7 @@ def test_a_confusion_row_divides_by_every_trial_of_its_pin_as_the_pin_map_does(r
 def test_pin_accuracy_is_laid_out_as_the_subject_feels_the_grid(results_root):
     pooled = summaries_of(results_root)["all"]
     accuracy = pooled.pin_accuracy_pct
+    # exact: 100 k / n is a correctly rounded quotient, and these are whole numbers
     assert accuracy[0, 3] == 50.0  # pin 4, bottom right: 2 of 4
     assert accuracy[2, 1] == 20.0  # pin 10, third row up, second column: 1 of 5
     assert accuracy[0, 0] == 50.0  # pin 1: 1 of 2 (practice and redone rows left out)

@@ -38,6 +38,8 @@ def test_a_subject_who_answered_16_trials_counts_once_in_the_across_subject_mean
               [localisation_row(n, 4, "4" if n == 1 else "3") for n in range(1, 5)])
     correct = level_of(root).localisation[0].share("correct")
     assert correct.subjects == 2 and correct.trials == 20
+    # == on floats, here and below: 100 k / n is a correctly rounded quotient, exact when the
+    # percentage is a whole number or a half, and sums of such are exact in any order
     assert correct.mean_pct == (100 + 25) / 2  # each subject once
     assert correct.pooled.pct == 100 * 17 / 20  # every trial once: 85 %, not the mean
 
@@ -55,7 +57,8 @@ def test_the_hand_built_set_gives_subject_means_beside_the_trial_pooled_numbers(
 
 def test_two_subjects_at_25_and_50_percent_give_a_bootstrap_interval_from_25_to_50(results_root):
     # Resampling two subjects gives means 25, 37.5 or 50 with odds 1:2:1: the 2.5 and 97.5
-    # percentiles are the two ends.
+    # percentiles are the two ends (exact values: a quarter of 2000 resamples, whatever the
+    # generator's stream in this numpy, sit at each end).
     correct = level_of(results_root).localisation[0].share("correct")
     assert correct.bootstrap_interval_pct == (25.0, 50.0)
     t_low, t_high = correct.t_interval_pct

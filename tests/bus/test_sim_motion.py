@@ -74,6 +74,8 @@ def test_after_a_reversal_the_horn_waits_while_the_gears_take_up_the_lash():
     up = plan_move(0, at_rest(2048.0), 2148.0, drive)
     down = plan_move(up.end_ns, up.state_at(up.end_ns), 2048.0, drive)
     lash_ns = round(12.0 / 3000.0 * NS_PER_S)  # 4 ms of drive travel moves nothing
+    # == holds on any machine: the horn is held at the goal the move snapped it to, and the
+    # drive is still 0.3 steps inside the lash, far from rounding
     assert down.state_at(up.end_ns + lash_ns - 100_000).horn_steps == 2148.0
     assert down.state_at(up.end_ns + lash_ns + 1_000_000).horn_steps < 2148.0
     assert math.isclose(down.final.horn_steps, 2048.0)

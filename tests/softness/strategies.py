@@ -29,3 +29,14 @@ quadratic_a_n_per_m4 = log_uniform(1e2, 1e12)
 quadratic_b_n_per_m2 = log_uniform(1e-2, 1e8)
 quadratic_c_n = st.floats(0.0, 5.0)
 strains = log_uniform(1e-6, 1.0)
+# Magnitudes far beyond any lab's, for the edges of the inverses: from 1e-200 to 1e200 every
+# intermediate of the models (a cube of a contact radius, a square of a pressure) stays a
+# normal float, so rounding stays relative.
+tiny_to_huge = log_uniform(1e-200, 1e200)
+
+# Tolerances are counted in the unit of rounding u = 2^-53: +, -, *, / and sqrt are correctly
+# rounded (IEEE 754), so each errs by at most u relative. numpy's cbrt, power, exp and log are
+# not: they differ by a few ulps between SIMD paths and versions (1.26 to 2.x), so a tolerance
+# counts each call as FEW_ULPS ulps, 2 u each (an ulp of x is at most 2 u |x|).
+U = 2.0**-53
+FEW_ULPS = 4

@@ -18,14 +18,18 @@ from pinarray.softness.control import (
 )
 from pinarray.softness.identification import M1_R11_FORCE_AREA, M2_R14_FORCE_DISPLACEMENT
 from pinarray.softness.tf_display import ConeDisplay
-from tests.softness.strategies import log_uniform, with_zero
+from tests.softness.strategies import U, log_uniform, with_zero
 
 CASR = ConeDisplay()
+CONES = st.builds(ConeDisplay, log_uniform(1e-4, 1.0), log_uniform(1e-4, 1.0))
+ALPHAS_N_PER_M4 = log_uniform(1e-50, 1e50)
 # alpha = 1.4e8 N/m^4 keeps the cone unbottomed up to alpha (pi R^2)^2 = 2.4665 N
 UNBOTTOMED_FORCES_N = with_zero(log_uniform(1e-6, 2.4))
 
 
 def test_the_seed_material_in_si_units():
+    # rtol 1e-15 (9 u) here and below: a few correctly rounded operations on once-rounded
+    # decimal inputs, within 6 u
     # alpha = 1.4 N/cm^4 = 1.4e8 N/m^4; beta = 1/23 cm/N = 1/2300 m/N
     assert_allclose(SEED_EXAMPLE_MATERIAL.alpha_n_per_m4, 1.4e8, rtol=1e-15)
     assert_allclose(SEED_EXAMPLE_MATERIAL.beta_m_per_n, 1 / 2300, rtol=1e-15)
@@ -75,12 +79,49 @@ def test_dhd_displacement_matches_eq_9_9(force, beta):
     assert_allclose(z_c + commands.dhd_displacement_m, beta * force, rtol=1e-9, atol=1e-15)
 
 
+# Force -> A = sqrt(F / alpha) (1.5 u), p = alpha A (1 u more), z_C = (H / R) sqrt(A / pi)
+# (3.5 u), A(z_C) = pi (z_C (R / H))^2 (z_C's error doubled, (H / R)(R / H) = 1 within 2 u
+# and doubled, then three roundings: 15 u), F = p A(z_C) (one more): 2.5 + 15 + 1 = 18.5 u.
+RENDERED_RTOL = 20 * U
+
+
+@given(cone=CONES, alpha=ALPHAS_N_PER_M4, fraction=with_zero(log_uniform(1e-150, 1.0)))
+def test_the_cone_renders_every_force_up_to_the_one_that_fills_it(cone, alpha, fraction):
+    # up to the force at which the material's area is the cone's whole base, the display is
+    # not bottomed, and at that force it is pressed to its full height
+    full_n = alpha * cone.max_area_m2 * cone.max_area_m2
+    force = fraction * full_n
+    commands = control_commands(Material(alpha, 1e-3), force, cone, ValveRange(0, 1e300))
+    assert not commands.display_bottomed
+    rendered = cone.force_n(commands.pressure_pa, commands.casr_displacement_m)
+    assert_allclose(rendered, force, rtol=RENDERED_RTOL)
+    if fraction == 1.0:
+        # A within 2.5 u of the base, pi R R within 2 u of pi R^2, halved by the root; the root,
+        # the quotient under it, H / R and the product: 2.25 + 3.5 = 5.75 u
+        assert_allclose(commands.casr_displacement_m, cone.height_m, rtol=6 * U)
+
+
+@given(alpha=ALPHAS_N_PER_M4, low=log_uniform(1e-3, 1e3), span=log_uniform(1.01, 1e3))
+def test_the_valves_own_limits_are_in_its_range(alpha, low, span):
+    valve = ValveRange(low, low * span)
+    material = Material(alpha, 1e-3)
+    # the forces that need exactly the valve's lowest and highest pressure, p^2 / alpha
+    limits_n = [valve.min_pa * valve.min_pa / alpha, valve.max_pa * valve.max_pa / alpha]
+    flags = control_commands(material, limits_n, CASR, valve).pressure_out_of_range
+    assert flags.tolist() == [False, False]
+    # some 900 u beyond them (far past the 4 u rounding can carry a pressure): out of range
+    beyond_n = [limits_n[0] * (1 - 1e-13) ** 2, limits_n[1] * (1 + 1e-13) ** 2]
+    flags = control_commands(material, beyond_n, CASR, valve).pressure_out_of_range
+    assert flags.tolist() == [True, True]
+
+
 def test_flags_for_the_valve_range_and_a_bottomed_display():
     # p = sqrt(alpha F): 1 N -> 11832 Pa, beyond a 10 kPa valve; 0.5 N -> 8367 Pa is fine
     commands = control_commands(SEED_EXAMPLE_MATERIAL, [0.5, 1.0, 3.0], valve=ValveRange(0, 10e3))
     assert commands.pressure_out_of_range.tolist() == [False, True, True]
     # 3 N wants A = sqrt(3 / 1.4e8) = 1.464e-4 m^2 > pi R^2 = 1.327e-4 m^2
     assert commands.display_bottomed.tolist() == [False, False, True]
+    # exact: the inverse maps the base area itself to the full height, not a rounding short
     assert commands.casr_displacement_m[2] == CASR.height_m
 
 
@@ -90,7 +131,9 @@ def test_a_valve_that_cannot_hold_a_small_pressure_is_flagged():
 
 
 def test_a_lag_follows_a_ramp_exactly_whatever_the_step():
-    # tau x' = t - x, x(0) = 0: x(t) = t - tau + tau e^(-t/tau); tau = 0.1 s, step 0.25 s
+    # tau x' = t - x, x(0) = 0: x(t) = t - tau + tau e^(-t/tau); tau = 0.1 s, step 0.25 s.
+    # exp and expm1 (a few ulps each) in a recursion that damps by e^-2.5 a step: tens of u at
+    # most, inside 1e-13 = 900 u
     time = np.arange(0, 2.01, 0.25)
     expected = time - 0.1 + 0.1 * np.exp(-time / 0.1)
     assert_allclose(first_order_lag(time, 0.25, 0.1), expected, rtol=1e-13, atol=1e-15)
@@ -144,7 +187,7 @@ def test_the_ramp_starts_at_zero_and_ends_at_the_peak(step):
     run = simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 1.0, step)
     assert run.commands.force_n[0] == 0.0
     assert_allclose(run.commands.force_n[-1], 2.0)
-    assert run.time_s[-1] == 1.0
+    assert run.time_s[-1] == 1.0  # exact: linspace sets its last sample to the stop itself
     assert np.all(np.isfinite(run.rendered_displacement_m))
 
 

@@ -17,11 +17,17 @@ from pinarray.softness.identification import (
     fit_force_displacement,
 )
 from tests.softness.strategies import (
+    U,
     forces_n,
+    log_uniform,
     quadratic_a_n_per_m4,
     quadratic_b_n_per_m2,
     quadratic_c_n,
+    tiny_to_huge,
 )
+
+# rtol 1e-15 (9 u) and 1e-14 (90 u) below: SI conversions and these formulas are a few
+# correctly rounded operations on once-rounded decimal inputs, within 6 u.
 
 
 def test_eq_9_4_in_si_units():
@@ -52,6 +58,7 @@ def test_the_inverse_keeps_full_precision_where_the_textbook_formula_cancels():
     # (-b + sqrt(b^2 + 4 a F)) / 2a gives 0 here because b^2 + 4aF rounds to b^2.
     assert_allclose(model.area_m2(1e-8), 1e-16, rtol=1e-15)
     textbook = (-1e8 + np.sqrt(1e16 + 4e-8)) / 2
+    # exact on any IEEE machine: 1e16 + 4e-8 rounds to 1e16, whose sqrt is 1e8
     assert textbook == 0.0  # documents why the stable form is needed
 
 
@@ -65,6 +72,38 @@ def test_force_to_area_to_force_round_trip(a, b, c, excess):
     model = QuadraticForceArea(a, b, c)
     force = c + excess
     assert_allclose(model.force_n(model.area_m2(force)), force, rtol=1e-12)
+
+
+# Force -> area -> force. A = 2 e / (b + sqrt(b b + 4 a e)), e = F - c: e rounds once, the
+# sum under the root by at most 2 u (halved by the root), the root, the sum and the quotient
+# once each: 5.5 u; the force a A^2 + b A feels A's error at most twice, and rounds four
+# times more: 2 * 5.5 + 4 + 1 = 16 u. (b = 0: sqrt(e / a), 2 u, doubled, plus 4 u.)
+QUADRATIC_ROUND_TRIP_RTOL = 16 * U
+# F -> (F - c) / k -> k z + c: four roundings.
+LINEAR_ROUND_TRIP_RTOL = 4 * U
+
+
+@given(
+    a=quadratic_a_n_per_m4,
+    b=st.one_of(st.just(0.0), quadratic_b_n_per_m2),
+    c=quadratic_c_n,
+    excess=tiny_to_huge,
+)
+def test_the_quadratic_inverse_at_its_edge_and_at_tiny_and_huge_forces(a, b, c, excess):
+    model = QuadraticForceArea(a, b, c)
+    # the force at zero area is the edge: exactly zero area, and back exactly that force
+    assert model.area_m2(c) == 0.0 and model.force_n(0.0) == c
+    force = c + excess
+    assert_allclose(model.force_n(model.area_m2(force)), force, rtol=QUADRATIC_ROUND_TRIP_RTOL)
+
+
+@given(slope=log_uniform(1e-3, 1e9), intercept=quadratic_c_n, excess=tiny_to_huge)
+def test_the_linear_inverse_at_its_edge_and_at_tiny_and_huge_forces(slope, intercept, excess):
+    model = LinearForceDisplacement(slope, intercept)
+    assert model.displacement_m(intercept) == 0.0 and model.force_n(0.0) == intercept
+    force = intercept + excess
+    back = model.force_n(model.displacement_m(force))
+    assert_allclose(back, force, rtol=LINEAR_ROUND_TRIP_RTOL)
 
 
 def test_a_falling_curve_is_not_invertible():
@@ -92,6 +131,8 @@ def test_the_seed_curve_is_recovered_from_its_own_samples():
     assert_allclose(
         [fit.model.a_n_per_m4, fit.model.b_n_per_m2, fit.model.c_n], [1.4e8, 3300, 0.55], rtol=1e-9
     )
+    # exact samples leave residuals of about cond (of the scaled Vandermonde columns, ~20)
+    # times a few u times the forces (up to 13 N): ~1e-13 N at most
     assert fit.max_residual_n < 1e-12
 
 
@@ -105,6 +146,7 @@ def test_residuals_of_a_noisy_fit_are_orthogonal_to_the_model_terms(seed, noise)
     scaled = area / 3e-4
     for column in (scaled**2, scaled, np.ones_like(scaled)):
         assert abs(column @ fit.residuals_n) < 1e-9 * (1 + np.abs(force).sum())
+    # the same computation as the fit's: equal to the bit, on any machine
     assert_allclose(fit.residuals_n, force - fit.model.force_n(area), atol=1e-12)
 
 

@@ -8,9 +8,13 @@ from numpy.testing import assert_allclose
 
 from pinarray.softness._checks import SoftnessError
 from pinarray.softness.tf_display import ConeDisplay
-from tests.softness.strategies import pressures_pa, with_zero
+from tests.softness.strategies import U, log_uniform, pressures_pa, with_zero
 
 CASR = ConeDisplay()  # R = 6.5 mm, H = 10 mm as in the seed
+CONES = st.builds(ConeDisplay, log_uniform(1e-4, 1.0), log_uniform(1e-4, 1.0))
+
+# rtol 1e-14 (90 u) and 1e-13 below: every formula here is a handful of correctly rounded
+# operations (products, quotients, sqrt), within 10 u.
 
 
 def test_area_at_half_and_full_indentation():
@@ -57,10 +61,52 @@ def test_area_round_trips_for_any_cone(radius, height, z_fraction):
     assert_allclose(display.indentation_for_area_m(display.area_m2(z)), z, rtol=1e-13, atol=1e-18)
 
 
+@given(cone=CONES)
+def test_the_base_area_is_exactly_the_full_height(cone):
+    assert cone.indentation_for_area_m(cone.max_area_m2) == cone.height_m
+
+
+# z -> A(z) = pi (z R / H)^2 -> z = (H / R) sqrt(A / pi): A rounds four times, the first two
+# squared (6 u), and the way back rounds the quotient (halved under the root), the root, H / R
+# and the product: 3.5 + 1 + 2 = 6.5 u. Through a force F = p A and back A = F / p, 1 u more.
+ROUND_TRIP_RTOL = 8 * U
+
+
+@given(cone=CONES, pressure=log_uniform(1e-150, 1e150))
+def test_the_full_height_comes_back_through_its_area_and_its_force(cone, pressure):
+    height = cone.height_m
+    by_area = cone.indentation_for_area_m(cone.area_m2(height))
+    force = cone.force_n(pressure, height)
+    by_force = cone.indentation_for_force_m(force, pressure)
+    for depth in (by_area, by_force):
+        assert_allclose(depth, height, rtol=ROUND_TRIP_RTOL)
+        cone.area_m2(depth)  # the forward function takes it
+    # F / A(H) with F = p A(H): two roundings
+    assert_allclose(cone.pressure_for_force_pa(force, height), pressure, rtol=3 * U)
+
+
+@given(cone=CONES)
+def test_areas_truly_past_the_base_are_still_refused(cone):
+    # 1e-13 is some 900 u past the base: far beyond the 10 u rounding can carry an area
+    with pytest.raises(SoftnessError, match="base area"):
+        cone.indentation_for_area_m(cone.max_area_m2 * (1 + 1e-13))
+
+
+@given(z_fraction=log_uniform(1e-50, 1.0), pressure=log_uniform(1e-150, 1e150))
+def test_tiny_and_huge_pressures_and_depths_come_back(z_fraction, pressure):
+    z = z_fraction * CASR.height_m
+    force = CASR.force_n(pressure, z)
+    assert_allclose(CASR.indentation_for_force_m(force, pressure), z, rtol=ROUND_TRIP_RTOL)
+    assert_allclose(CASR.pressure_for_force_pa(force, z), pressure, rtol=3 * U)
+    assert CASR.indentation_for_force_m(0.0, pressure) == 0.0
+    assert CASR.pressure_for_force_pa(0.0, z) == 0.0
+
+
 def test_arrays_broadcast_pressures_against_indentations():
     forces = CASR.force_n(np.array([[10e3], [20e3]]), np.array([0.0, 0.005, 0.01]))
     assert forces.shape == (2, 3)
     assert forces[0, 0] == 0.0
+    # doubling is exact in binary floating point: 2e4 A rounds to exactly twice 1e4 A
     assert_allclose(forces[1], 2 * forces[0], rtol=1e-15)
 
 
