@@ -1,6 +1,7 @@
-"""For the whole test suite: LSL stays on this machine (see `tests.lsl_local`), and no
-Hypothesis example is judged by how long it took (a wall-time limit fails on a busy machine;
-timing belongs in `make bench`)."""
+"""For the whole test suite: LSL stays on this machine (see `tests.lsl_local`); no Hypothesis
+example is judged by how long it took (a wall-time limit fails on a busy machine; timing
+belongs in `make bench`); the longest tests start first, so that on several workers none of
+them is left running alone at the end."""
 
 from hypothesis import settings
 
@@ -12,3 +13,7 @@ settings.load_profile("pinarray")
 
 def pytest_configure(config):
     keep_lsl_on_this_machine()
+
+
+def pytest_collection_modifyitems(config, items):
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)  # stable: keeps order

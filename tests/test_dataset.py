@@ -123,6 +123,7 @@ def validation(study):
     return report
 
 
+@pytest.mark.long
 def test_the_dataset_passes_the_official_bids_validator_with_no_errors(validation):
     issues = validation["issues"]["issues"]
     errors = [i for i in issues if i["severity"] == "error"]

@@ -352,12 +352,13 @@ def test_batch_refuses_unsafe_labels_and_incomplete_answers_in_one_line(tmp_path
     assert "Traceback" not in result.stderr
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("rows_before_kill", [None, 0, 1, 9, 20])
 def test_a_batch_killed_at_any_moment_resumes_with_exactly_the_remaining_trials(tmp_path, rows_before_kill):
     out = tmp_path / "out"
     common = [str(LOCALISATION), "--subject", "k1", "--observer", "default", "--seed", "21",
               "--results", str(out)]
-    process = subprocess.Popen([sys.executable, "-m", "pinarray", "batch", *common, "--time-scale", "50"],
+    process = subprocess.Popen([sys.executable, "-m", "pinarray", "batch", *common, "--time-scale", "200"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     if rows_before_kill is None:
         time.sleep(0.1)  # most likely before the manifest exists: nothing written yet

@@ -109,6 +109,7 @@ def demo_in_short(tmp_path: Path) -> Path:
     return path
 
 
+@pytest.mark.long
 def test_the_done_when_waits_for_the_volumes_logs_them_and_every_onset_reaches_lsl(tmp_path):
     """The issue's done-when, as a lab runs it: demo.yaml in real time, two dummy volumes."""
     root, name = tmp_path / "results", unique_stream_name()

@@ -25,8 +25,8 @@ NS = 1_000_000_000
 
 
 def scanner_app(results: Path, trigger: str, dummy_volumes: int, *, real_time: bool,
-                lsl: str | None = None):
-    options = TuiOptions(protocol_path=LOCALISATION, protocols_dir=PROTOCOLS,
+                lsl: str | None = None, protocol: Path = LOCALISATION):
+    options = TuiOptions(protocol_path=protocol, protocols_dir=PROTOCOLS,
                          results_root=results, time_scale=1 if real_time else 0, seed=3,
                          timing_check_ns=0,
                          sync=SyncOverrides(parse_trigger(trigger), dummy_volumes), lsl=lsl)
@@ -138,7 +138,12 @@ async def test_the_ui_sends_an_lsl_marker_at_each_end_of_a_presented_stimulus(tm
     from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name
 
     results, name = tmp_path / "results", unique_stream_name()
-    app = scanner_app(results, "key", 0, real_time=True, lsl=name)
+    # The seed's localisation with 1 s stimuli: the first presents in real time.
+    text = LOCALISATION.read_text()
+    assert "    duration_s: 10\n" in text
+    short = tmp_path / "localisation.yaml"
+    short.write_text(text.replace("    duration_s: 10\n", "    duration_s: 1\n"))
+    app = scanner_app(results, "key", 0, real_time=True, lsl=name, protocol=short)
     inlet = MarkerInlet(name, count=2)
     async with app.run_test(size=SIZE) as pilot:
         await begin_run(pilot)

@@ -6,6 +6,7 @@ import tempfile
 from collections import Counter
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -37,6 +38,7 @@ async def play(results: Path, sequence: list[list[str]]):
     return app
 
 
+@pytest.mark.long
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(sequence=bursts)
 def test_random_key_bursts_never_crash_the_run_screen_nor_garble_the_results(sequence):

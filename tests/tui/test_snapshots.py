@@ -55,6 +55,7 @@ def test_run_screen_with_a_pin_typed_after_two_practice_trials(app, snap_compare
     assert snap_compare(app, terminal_size=size, run_before=run_before)
 
 
+@pytest.mark.long
 def test_end_screen_of_a_whole_localisation_run(app, snap_compare):
     async def run_before(pilot):
         await to_run_screen(pilot)

@@ -1,5 +1,7 @@
 """Whole sessions driven through the UI by keys and clicks, checked in the results files."""
 
+import pytest
+
 from pinarray.grid import classify
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.records import read_trials
@@ -10,6 +12,7 @@ from pinarray.tui.run_screen import RunScreen
 from tests.tui.conftest import MOTION, SIZE, make_app, settle, to_run_screen
 
 
+@pytest.mark.long
 async def test_a_whole_localisation_session_by_typing_and_clicking(results):
     app = make_app(results)
     answers = {}
@@ -52,6 +55,7 @@ async def test_a_whole_localisation_session_by_typing_and_clicking(results):
     assert read_manifest(manifest).status == "completed" and read_manifest(manifest).seed == 3
 
 
+@pytest.mark.long
 async def test_a_whole_motion_session_by_keys_and_buttons(results):
     app = make_app(results, protocol=MOTION, seed=5)
     keys = {"left": "l", "right": "r", "none": "n", "unsure": "u"}
