@@ -5,6 +5,7 @@ count too: a lazy import is still an edge.
 """
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -68,6 +69,7 @@ def imports_of(path: Path) -> set[str]:
     return found
 
 
+@functools.cache  # one parse of the package for every rule
 def edges() -> list[tuple[str, str, str]]:
     """(importing part, imported part, file) for every import that crosses parts."""
     result = []
