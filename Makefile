@@ -21,13 +21,13 @@ run: $(STAMP)
 	$(BIN)/pinarray tui protocols/localisation.yaml --sim
 
 # On every core, twice over: much of the suite waits (pseudo-terminals, the UI's idle waits),
-# so more workers than cores keep the processors busy. Bytecode is cached even where the
-# environment says not to (PYTHONDONTWRITEBYTECODE): every test process would otherwise
-# compile pinarray again.
+# so more workers than cores keep the processors busy; the real-time tests run beside the
+# rest at a higher priority (tests/suite.py). Bytecode is cached even where the environment
+# says not to (PYTHONDONTWRITEBYTECODE): every test process would otherwise compile again.
 JOBS ?= $(shell $(PYTHON) -c 'import os; print(min(8, 2 * len(os.sched_getaffinity(0))))')
 
 test: $(STAMP)
-	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -n $(JOBS)
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m tests.suite -n $(JOBS)
 
 # The lowest versions pyproject.toml allows (.ci/floors.txt), in a second environment: the
 # numeric, protocol, analysis and bus tests (the UI's snapshots are drawn by today's Textual).

@@ -17,6 +17,10 @@ from pinarray.bus.registers import Register
 
 from .test_compat import LeRobotStyleBus, sim_serve, vendor_port  # noqa: F401  (a fixture)
 
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
+
 PROTOCOL = Path(__file__).resolve().parents[2] / "protocols" / "localisation.yaml"
 
 

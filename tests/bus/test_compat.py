@@ -41,6 +41,10 @@ from pinarray.clock import VirtualClock
 
 from .raw import packet, parse_status
 
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
+
 MAX_ID = 252
 
 

@@ -21,6 +21,10 @@ from pinarray.player import play_trial
 from .lab import assert_safe, device_setup, pulse_train
 from .raw import packet
 
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
+
 
 def test_a_raw_pyserial_ping_gets_a_status_packet_back():
     server = PtyServer(SimConfig(ids=(1,))).start()

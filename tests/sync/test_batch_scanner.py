@@ -23,6 +23,10 @@ from tests.runs import REPO
 from tests.sync.fake_scanner import fake_scanner
 from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name
 
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
+
 DEMO = REPO / "protocols" / "demo.yaml"
 VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
 NS = 1_000_000_000

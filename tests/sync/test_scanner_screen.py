@@ -8,6 +8,7 @@ since a trigger is stamped on it.
 import csv
 from pathlib import Path
 
+import pytest
 from textual.widgets import Static
 
 from pinarray.clock import VirtualClock
@@ -20,6 +21,10 @@ from pinarray.tui.run_screen import RunScreen
 from pinarray.tui.scanner_screen import ScannerScreen
 from tests.sync.fake_scanner import fake_scanner
 from tests.tui.conftest import LOCALISATION, PROTOCOLS, SIZE, fill_start, settle
+
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
 
 NS = 1_000_000_000
 

@@ -3,6 +3,8 @@
 
 from pathlib import Path
 
+import pytest
+
 from pinarray.bus.faults import parse_sim_url
 from pinarray.bus.registers import Register
 from pinarray.bus.serve import PtyServer
@@ -11,6 +13,10 @@ from pinarray.protocol.load import load_protocol
 from pinarray.tui.lab import Lab, SessionRequest
 from pinarray.tui.preflight_screen import PreflightScreen
 from tests.tui.conftest import LOCALISATION, SIZE, fill_start, make_app, settle
+
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
 
 DELAY_COLUMN = "return delay (µs)"
 

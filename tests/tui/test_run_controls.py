@@ -1,5 +1,8 @@
 """Pause, redo, abort (and resume), quit, bus faults and mistakes, driven through the UI."""
 
+
+import pytest
+
 from pinarray.errors import BusError
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.records import read_trials
@@ -217,6 +220,7 @@ async def test_a_failed_handshake_names_the_missing_servos_and_back_returns_to_s
     assert not list(results.rglob("*_beh.tsv"))
 
 
+@pytest.mark.realtime
 async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_pins(results):
     from pinarray.clock import ScaledClock
 
@@ -278,6 +282,7 @@ async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_pres
     assert again.delivery.missing == 0 and again.delivery.confirmed == again.delivery.scheduled
 
 
+@pytest.mark.realtime
 async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(results):
     app = make_app(results, timing_check_ns=200_000_000)
     async with app.run_test(size=SIZE) as pilot:

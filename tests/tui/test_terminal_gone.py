@@ -9,7 +9,13 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 from tests.runs import REPO
+
+# Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
+# (tests/suite.py), so that a busy machine does not starve the simulated servos.
+pytestmark = pytest.mark.realtime
 
 SCREEN_WAIT_S = 60  # bounds on a hang, not timing goals: a loaded machine may be slow
 EXIT_WAIT_S = 60

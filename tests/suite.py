@@ -1,0 +1,50 @@
+"""`make test`: the whole suite in two runs side by side, so a busy machine cannot fail it.
+
+Most tests only compute (the UI through Textual's pilot, numerics, analysis): they run on
+every core, twice over, at a lower priority (nice 10). The tests marked ``realtime`` drive
+simulated servos behind pseudo-terminals, player processes or stimuli on the wall clock: a
+simulator starved of the processor answers late, which no real servo does, so they run
+beside the rest at normal priority on two workers of their own and the scheduler serves them
+first. Their report follows the other's.
+
+    python -m tests.suite [-n WORKERS] [PYTEST ARGS...]
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+
+# pytest's exit status when a selection holds no test (e.g. `-k` matching only one kind).
+NO_TESTS_COLLECTED = 5
+REALTIME_WORKERS = 2
+BULK_NICENESS = 10
+
+
+def pytest_command(marker: str, workers: int, args: list[str]) -> list[str]:
+    return [sys.executable, "-m", "pytest", "-m", marker, "-n", str(workers), *args]
+
+
+def main(argv: list[str]) -> int:
+    workers = 2 * len(os.sched_getaffinity(0))
+    if argv[:1] == ["-n"]:
+        workers, argv = int(argv[1]), argv[2:]
+    with tempfile.TemporaryFile("w+") as realtime_log:
+        realtime = subprocess.Popen(
+            pytest_command("realtime", min(REALTIME_WORKERS, workers), argv),
+            stdout=realtime_log, stderr=subprocess.STDOUT)
+        bulk = subprocess.Popen(pytest_command("not realtime", workers, argv),
+                                preexec_fn=lambda: os.nice(BULK_NICENESS))
+        statuses = [bulk.wait(), realtime.wait()]
+        realtime_log.seek(0)
+        print("\n---- the real-time tests, run beside the others at normal priority ----",
+              flush=True)
+        sys.stdout.write(realtime_log.read())
+    ran = [status for status in statuses if status != NO_TESTS_COLLECTED]
+    return max(ran, default=NO_TESTS_COLLECTED)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
