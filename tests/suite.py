@@ -24,7 +24,8 @@ BULK_NICENESS = 10
 
 
 def pytest_command(marker: str, workers: int, args: list[str]) -> list[str]:
-    return [sys.executable, "-m", "pytest", "-m", marker, "-n", str(workers), *args]
+    return [sys.executable, "-m", "pytest", "-m", marker, "-n", str(workers), "--dist", "loadgroup",
+            *args]
 
 
 def main(argv: list[str]) -> int:

@@ -29,6 +29,9 @@ from pinarray.journal.records import LocalisationRecord, TrialStatus, read_trial
 from pinarray.journal.timebase import ClockKind, seconds_text
 from tests.runs import REPO
 
+# One worker builds the module's fixture once (make test runs --dist loadgroup).
+pytestmark = pytest.mark.xdist_group("study")
+
 LOCALISATION = REPO / "protocols" / "localisation.yaml"
 MOTION = REPO / "protocols" / "apparent_motion.yaml"
 SUBJECTS = ("01", "02", "03", "04")

@@ -18,6 +18,9 @@ from pinarray.errors import ResultsError
 from pinarray.journal.manifest import RunPaths
 from tests.analysis.conftest import localisation_row, write_results
 
+# One worker builds the module's fixture once (make test runs --dist loadgroup).
+pytestmark = pytest.mark.xdist_group("report")
+
 FIGURES = ("correct_by_frequency", "error_types", "motion", "confusion_matrix", "pin_accuracy")
 
 

@@ -22,7 +22,9 @@ from .lab import REST_STEPS, device_setup, pulse_train
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
 # (tests/suite.py), so that a busy machine does not starve the simulated servos.
-pytestmark = pytest.mark.realtime
+pytestmark = [pytest.mark.realtime,
+              # one worker builds the module's fixture once (make test runs --dist loadgroup)
+              pytest.mark.xdist_group("start-up window")]
 
 DEMO = Path(__file__).resolve().parents[2] / "protocols" / "demo.yaml"
 IDS = tuple(range(1, 5))

@@ -39,7 +39,7 @@ async def play(results: Path, sequence: list[list[str]]):
 
 
 @pytest.mark.long
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(sequence=bursts)
 def test_random_key_bursts_never_crash_the_run_screen_nor_garble_the_results(sequence):
     with tempfile.TemporaryDirectory() as folder:
