@@ -4,7 +4,7 @@ Most tests only compute (the UI through Textual's pilot, numerics, analysis): th
 every core, twice over, at a lower priority (nice 10). The tests marked ``realtime`` drive
 simulated servos behind pseudo-terminals, player processes or stimuli on the wall clock: a
 simulator starved of the processor answers late, which no real servo does, so they run
-beside the rest at normal priority on two workers of their own and the scheduler serves them
+beside the rest at normal priority, one at a time, and the scheduler serves them
 first. Their report follows the other's.
 
     python -m tests.suite [-n WORKERS] [PYTEST ARGS...]
@@ -19,7 +19,7 @@ import tempfile
 
 # pytest's exit status when a selection holds no test (e.g. `-k` matching only one kind).
 NO_TESTS_COLLECTED = 5
-REALTIME_WORKERS = 2
+REALTIME_WORKERS = 1
 BULK_NICENESS = 10
 
 
