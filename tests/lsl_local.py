@@ -2,16 +2,16 @@
 
 liblsl's default discovery multicasts and broadcasts on the network. Every test and benchmark
 that opens an outlet or an inlet runs with ``LSLAPICFG`` naming
-``pinarray/sync/lsl_machine_only.cfg`` (the test suite sets it for itself and every process it
+``pinarray/imaging/lsl_machine_only.cfg`` (the test suite sets it for itself and every process it
 starts, in ``tests/conftest.py``), so every LSL packet goes to 127.0.0.1.
 """
 
 import os
 from pathlib import Path
 
-import pinarray.sync
+import pinarray.imaging
 
-MACHINE_ONLY = Path(pinarray.sync.__file__).parent / "lsl_machine_only.cfg"
+MACHINE_ONLY = Path(pinarray.imaging.__file__).parent / "lsl_machine_only.cfg"
 
 
 def keep_lsl_on_this_machine() -> Path:

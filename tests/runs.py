@@ -24,7 +24,7 @@ from pinarray.journal.timebase import ClockKind, TimeScale
 from pinarray.journal.writer import RunWriter
 from pinarray.protocol import Paradigm, WaveKind
 from pinarray.protocol.load import load_protocol
-from pinarray.session import task_label
+from pinarray.session.trials import task_label
 
 PROVENANCE = Provenance(seed=42, protocol_sha256="0" * 64, port="sim://",
                         servo_models=("STS3215",), experimenter="AB")

@@ -19,11 +19,11 @@ def grid_and_two_pins(draw):
     return grid, draw(pins), draw(pins)
 
 
-# -- simulated servo motion (pinarray.bus.sim_motion) ------------------------------------------
+# -- simulated servo motion (pinarray.hardware.feetech.sim_motion) ------------------------------------------
 
 def servo_drives(lash: bool = True):
     """Speed and acceleration limits of a simulated servo, with or without backlash."""
-    from pinarray.bus.sim_motion import Drive
+    from pinarray.hardware.feetech.sim_motion import Drive
 
     speeds = st.floats(20.0, 4000.0)
     return st.builds(

@@ -14,36 +14,26 @@ PACKAGE = Path(__file__).resolve().parents[1] / "pinarray"
 
 # part -> the parts (besides itself) it may import. A part is a top-level module or package of
 # `pinarray`; "errors" etc. name `pinarray.errors`.
-FOUNDATION = {"errors", "grid", "clock", "stop", "delivery"}
+FOUNDATION = {"errors", "units", "grid", "clock", "stop"}
 ALLOWED = {
     "errors": set(),
+    "units": set(),
     "grid": {"errors"},
     "clock": {"errors"},
     "stop": {"errors", "clock"},
-    "delivery": set(),
     "text_files": {"errors"},
     "softness": {"errors"},
-    "protocol": {"errors", "grid", "text_files"},
-    "bus": {"errors", "clock", "stop"},
-    "schedule": {"errors", "protocol"},
-    "plan": {"errors", "protocol"},
-    "observer": {"errors", "grid", "protocol", "plan"},
-    "preview": {"errors", "protocol", "plan", "schedule"},
-    "answers": {"errors", "protocol", "plan", "text_files"},
-    "calibration_file": {"errors", "protocol", "text_files"},
-    "readback": FOUNDATION | {"bus"},
-    "player": FOUNDATION | {"bus", "schedule", "readback"},
-    "player_messages": {"bus", "player", "delivery"},
-    "player_child": FOUNDATION | {"bus", "player", "player_messages"},
-    "player_process": FOUNDATION | {"bus", "player", "player_messages", "player_child"},
-    "timing_check": set(),
-    "rig": FOUNDATION | {"bus", "player", "player_process", "readback", "protocol", "schedule",
-                         "plan", "timing_check"},
+    "protocol": {"errors", "units", "grid", "text_files"},
+    "hardware": {"errors", "units", "clock", "stop"},
+    "schedule": {"errors", "units", "protocol"},
+    "plan": {"errors", "units", "protocol"},
+    "player": FOUNDATION | {"hardware", "schedule", "protocol", "plan"},
     "journal": FOUNDATION | {"protocol", "plan", "text_files"},
-    "session": FOUNDATION | {"protocol", "plan", "schedule", "journal"},
-    "analysis": FOUNDATION | {"protocol", "plan", "observer", "journal", "text_files"},
+    "session": FOUNDATION | {"protocol", "plan", "schedule", "journal", "hardware", "player"},
+    "analysis": FOUNDATION | {"protocol", "plan", "journal", "text_files"},
     # Scanner triggers, volume logs and LSL markers around a session: above it, below the roots.
-    "sync": FOUNDATION | {"protocol", "plan", "schedule", "journal", "session"},
+    "imaging": FOUNDATION | {"protocol", "plan", "schedule", "journal", "session", "hardware",
+                             "player"},
 }
 # The composition roots may import anything; nothing imports them (the CLI starts the UI).
 ROOTS = {"cli", "tui", "__main__"}

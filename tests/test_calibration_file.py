@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pinarray.calibration_file import new_calibration, plan_calibration, rewrite_calibration
+from pinarray.cli.calibration_file import new_calibration, plan_calibration, rewrite_calibration
 from pinarray.errors import PinArrayError, ProtocolError
 from pinarray.protocol import PinCalibration
 from pinarray.protocol.load import parse_protocol

@@ -9,10 +9,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from pinarray import observer as observer_module
+from pinarray.analysis import observer as observer_module
+from pinarray.analysis.observer import (
+    ObserverModel,
+    SimulatedObserver,
+    SubjectOffsets,
+    parse_observer,
+)
 from pinarray.errors import PinArrayError
 from pinarray.grid import classify
-from pinarray.observer import ObserverModel, SimulatedObserver, SubjectOffsets, parse_observer
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"

@@ -14,17 +14,17 @@ from pathlib import Path
 import pytest
 
 from pinarray.clock import VirtualClock
-from pinarray.delivery import DEFAULT_TOLERANCE_NS, DeliveryRecord, Presentation
 from pinarray.errors import BusError
 from pinarray.grid import classify
+from pinarray.hardware.delivery import DEFAULT_TOLERANCE_NS, DeliveryRecord, Presentation
 from pinarray.journal.manifest import Provenance, RunStatus, read_manifest
 from pinarray.journal.records import read_trials
 from pinarray.journal.runs import plan_entries, task_info
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import make_plan
+from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
-from pinarray.rig import Rig
-from pinarray.session import PAUSE_CUT_SHORT, Phase, Session, SessionError, task_label
+from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError, task_label
 from pinarray.stop import StoppableClock, StopRequest
 from tests.runs import VIRTUAL
 

@@ -23,7 +23,8 @@ SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip ins
 HEAVY = ("numpy", "scipy", "matplotlib", "textual", "serial", "scservo_sdk")
 # What validating needs of pinarray: the reader of protocol files and the validate command.
 NEEDED = ("pinarray", "pinarray.cli", "pinarray.cli.common", "pinarray.cli.protocols",
-          "pinarray.errors", "pinarray.grid", "pinarray.text_files", "pinarray.protocol")
+          "pinarray.errors", "pinarray.units", "pinarray.grid", "pinarray.text_files",
+          "pinarray.protocol")
 
 
 def imported_by(command: list[str]) -> set[str]:

@@ -23,9 +23,9 @@ from pinarray.journal.timebase import (
     seconds_text,
 )
 from pinarray.journal.writer import RunWriter
+from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
-from pinarray.rig import Rig
-from pinarray.session import Phase, Session, task_label
+from pinarray.session.trials import Phase, Session, task_label
 from tests.runs import PROVENANCE, REPO, VIRTUAL, localisation_plan, start_run
 
 S = 1_000_000_000  # ns per s

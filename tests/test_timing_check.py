@@ -1,6 +1,6 @@
 """The timing check says in words whether a lost-then-healed goal still arrives in time."""
 
-from pinarray.timing_check import Bus, WakeUps, judge
+from pinarray.player.timing import Bus, WakeUps, judge
 
 MS = 1_000_000
 

@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.subjects import t_interval
 from pinarray.grid import Grid
-from pinarray.observer import ObserverModel, SimulatedObserver
 from pinarray.protocol import LocalisationCondition, Protocol
 
 ALPHA = 0.05

@@ -143,9 +143,9 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
 def _cmd_power(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from pinarray.analysis.observer import parse_observer
     from pinarray.analysis.power import power_study, write_power
     from pinarray.errors import ResultsError
-    from pinarray.observer import parse_observer
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)

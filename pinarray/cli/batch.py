@@ -61,7 +61,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     protocols = [load_protocol(path) for path in args.files]  # every file checked before any runs
     responses = None
     if args.responses:  # every answer checked against every protocol before any run starts
-        from pinarray.answers import load_answers
+        from pinarray.cli.answer_sheets import load_answers
 
         responses = load_answers(args.responses, protocols)
     for protocol in protocols:
@@ -88,7 +88,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 def _scanner_settings(args: argparse.Namespace, protocol):
     """The run's scanner settings (protocol's sync: section, the options on top), checked."""
     from pinarray.cli import common
-    from pinarray.protocol.sync import KeyTrigger, SerialTrigger, SyncError
+    from pinarray.protocol.imaging import KeyTrigger, SerialTrigger, SyncError
 
     sync = common.sync_overrides(args).over(protocol.sync)
     if sync is not None and isinstance(sync.trigger, KeyTrigger):
@@ -106,7 +106,7 @@ def _wall_clock(args: argparse.Namespace) -> bool:
 
 
 def _refuse_resumed_scans(protocols, syncs, resumable: set[int]) -> None:
-    from pinarray.protocol.sync import SyncError
+    from pinarray.protocol.imaging import SyncError
 
     for index in sorted(resumable):
         if syncs[index] is not None:
@@ -125,7 +125,7 @@ def _marker_outlet(args: argparse.Namespace):
     if not _wall_clock(args):
         raise PinArrayError("--lsl: markers are stamped on this machine's clock, and a "
                             "simulated one is not it: run the simulator with --speed 1")
-    from pinarray.sync.lsl import MarkerOutlet
+    from pinarray.imaging.lsl import MarkerOutlet
 
     outlet = MarkerOutlet(args.lsl, MonotonicClock())
     print(f"pinarray: LSL markers on stream {outlet.name!r} (type Markers, source "
@@ -140,7 +140,7 @@ def _resumable(protocols, root: str, subject: str, session: str) -> set[int]:
     """
     from pinarray.journal.lock import RunLocked, locked_message
     from pinarray.journal.runs import NothingToResume, unfinished_run
-    from pinarray.session import task_label
+    from pinarray.session.trials import task_label
 
     found = set()
     for index, protocol in enumerate(protocols):
@@ -168,15 +168,15 @@ class NotDelivered(Exception):
 def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None, *,
               resume: bool, files_left: list[str], sync=None, outlet=None) -> None:
 
+    from pinarray.analysis.observer import SimulatedObserver, parse_observer
     from pinarray.errors import PinArrayError
+    from pinarray.imaging.run import start_session
     from pinarray.journal.runs import open_run
     from pinarray.journal.volumes import volume_log_path
-    from pinarray.observer import SimulatedObserver, parse_observer
     from pinarray.plan import make_plan
-    from pinarray.rig import Rig, choose_clock
-    from pinarray.session import Phase, task_label
+    from pinarray.player.rig import Rig, choose_clock
+    from pinarray.session.trials import Phase, task_label
     from pinarray.stop import Stopped, StopRequest, stop_on_signals
-    from pinarray.sync.run import start_session
 
     task = task_label(protocol)
     if responses is not None:
@@ -189,7 +189,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 + (" ..." if len(missing) > 10 else "")
             )
     from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
-    from pinarray.protocol.sync import EmulatedTrigger
+    from pinarray.protocol.imaging import EmulatedTrigger
 
     # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
     # time (at --speed 1) instead of a paced one.
@@ -279,7 +279,7 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
 
 def _wait_for_scanner(sync, clock, stop):
     """Open the trigger and wait for the run's time zero (nothing is written before it)."""
-    from pinarray.sync.scanner import Scanner
+    from pinarray.imaging.scanner import Scanner
 
     scanner = Scanner(sync, clock, stop)
     try:

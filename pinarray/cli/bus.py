@@ -3,8 +3,8 @@ from the shell."""
 
 import argparse
 
-from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.cli.output import say
+from pinarray.hardware.feetech.faults import SIM_DEFAULT
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
 EXIT_NOT_DELIVERED = 3
@@ -128,9 +128,9 @@ def add_bus_choice(parser: argparse.ArgumentParser) -> None:
 def _cmd_play(args: argparse.Namespace) -> int:
 
     from pinarray.plan import make_plan
-    from pinarray.player import PlaybackReport
+    from pinarray.player.playback import PlaybackReport
+    from pinarray.player.rig import Rig, choose_clock
     from pinarray.protocol.load import load_protocol
-    from pinarray.rig import Rig, choose_clock
     from pinarray.schedule import compile_trial
     from pinarray.stop import StopRequest, stop_on_signals
 
@@ -170,8 +170,8 @@ def _cmd_play(args: argparse.Namespace) -> int:
 def _cmd_timing(args: argparse.Namespace) -> int:
 
     from pinarray.errors import PinArrayError
+    from pinarray.player.rig import Rig, choose_clock
     from pinarray.protocol.load import load_protocol, parse_protocol
-    from pinarray.rig import Rig, choose_clock
     from pinarray.stop import StopRequest, stop_on_signals
 
     if not 0.1 <= args.seconds <= 600:
@@ -192,10 +192,10 @@ def _cmd_timing(args: argparse.Namespace) -> int:
 def _cmd_sim_serve(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from pinarray.bus.faults import parse_sim_url
-    from pinarray.bus.serve import PtyServer
     from pinarray.cli import common
     from pinarray.errors import PinArrayError
+    from pinarray.hardware.feetech.faults import parse_sim_url
+    from pinarray.hardware.feetech.serve import PtyServer
     from pinarray.stop import StopRequest, stop_on_signals
 
     common.servo_ids(args.ids)  # refused here, naming the option, rather than inside the URL

@@ -1,6 +1,6 @@
 """`pinarray servos calibrate`: jog one pin to rest and up, then write them into its protocol.
 
-The jogging is `pinarray.bus.jog`; the file is edited by `pinarray.calibration_file`, which
+The jogging is `pinarray.hardware.feetech.jog`; the file is edited by `pinarray.cli.calibration_file`, which
 keeps its comments and layout. This module talks to the person: the line-by-line prompt, the
 confirmation of what was written, and the pin made safe on every way out.
 """
@@ -17,7 +17,7 @@ from pinarray.cli.output import say
 from pinarray.cli.servos import bus_options, open_bare
 
 if TYPE_CHECKING:
-    from pinarray.calibration_file import NewCalibration
+    from pinarray.cli.calibration_file import NewCalibration
     from pinarray.protocol import Device
 
 CALIBRATE_EPILOG = """\
@@ -98,11 +98,11 @@ def parse_jog(line: str, step: int) -> _By | _To | JogWord:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from pinarray.bus.jog import Jog
-    from pinarray.calibration_file import plan_calibration, rewrite_calibration
+    from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
     from pinarray.errors import PinArrayError, ProtocolError
+    from pinarray.hardware.feetech.jog import Jog
+    from pinarray.player.rig import bus_setup, sim_url_for
     from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
-    from pinarray.rig import bus_setup, sim_url_for
     from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
 
     protocol = load_protocol(args.protocol)
@@ -187,8 +187,8 @@ def _describe(new: NewCalibration, device: Device, pin: int) -> str:
 
 def _jog_until_ok(jog, what: str, step: int, stop, check) -> int | None:
     """Jog until ``ok`` where ``check(goal)`` finds no problem (the goal), or ``q`` (None)."""
-    from pinarray.bus.jog import GoalOutOfRange
     from pinarray.errors import BusError
+    from pinarray.hardware.feetech.jog import GoalOutOfRange
     from pinarray.stop import raise_on_signals
 
     say(f"Jog {jog.name} to {what.upper()}, then type ok.")

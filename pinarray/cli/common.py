@@ -127,7 +127,7 @@ def servo_ids(text: str) -> tuple[int, ...]:
 
     Read in the command, not as an argparse ``type=``, so that the refusal is one line.
     """
-    from pinarray.bus.faults import parse_ids
+    from pinarray.hardware.feetech.faults import parse_ids
 
     try:
         return parse_ids(text)
@@ -229,7 +229,7 @@ class OutputFile:
 
 def trigger(text: str):
     """A scanner trigger: serial:PATH[:CHAR], key[:CHAR] or emulate:TR."""
-    from pinarray.protocol.sync import SyncError, parse_trigger
+    from pinarray.protocol.imaging import SyncError, parse_trigger
 
     try:
         return parse_trigger(text)
@@ -249,8 +249,8 @@ def seconds_ns(minimum_s: float, maximum_s: float) -> Callable[[str], int]:
 
 def add_sync_options(parser: argparse.ArgumentParser, *, key: bool) -> None:
     """--trigger, --dummy-volumes, --tr, --lock-to-volumes, --trigger-timeout, --lsl."""
-    from pinarray.protocol.sync import MAX_DUMMY_VOLUMES, MAX_LOCK_VOLUMES
-    from pinarray.sync.lsl import DEFAULT_STREAM_NAME
+    from pinarray.imaging.lsl import DEFAULT_STREAM_NAME
+    from pinarray.protocol.imaging import MAX_DUMMY_VOLUMES, MAX_LOCK_VOLUMES
 
     kinds = "serial:PATH[:CHAR], key[:CHAR] (in the UI) or emulate:TR" if key else \
         "serial:PATH[:CHAR] or emulate:TR"
@@ -277,7 +277,7 @@ def add_sync_options(parser: argparse.ArgumentParser, *, key: bool) -> None:
 
 def sync_overrides(args: argparse.Namespace):
     """The scanner options given on the command line (`SyncOverrides`)."""
-    from pinarray.protocol.sync import SyncOverrides
+    from pinarray.protocol.imaging import SyncOverrides
 
     return SyncOverrides(args.trigger, args.dummy_volumes, args.tr, args.lock_to_volumes,
                          args.trigger_timeout)

@@ -265,8 +265,8 @@ def _compile(args: argparse.Namespace) -> int:
 
 
 def _preview(args: argparse.Namespace) -> int:
+    from pinarray.cli.timeline import text_timeline
     from pinarray.plan import make_plan
-    from pinarray.preview import text_timeline
     from pinarray.protocol.load import load_protocol
     from pinarray.schedule import compile_trial
 
@@ -284,7 +284,7 @@ def _preview(args: argparse.Namespace) -> int:
         else:
             print(f"(plan seed {plan.seed})")
         if output is not None:
-            from pinarray.preview import draw_timeline
+            from pinarray.cli.timeline import draw_timeline
 
             try:
                 draw_timeline(protocol, planned, schedule, output.stream)

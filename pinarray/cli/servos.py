@@ -1,4 +1,4 @@
-"""`pinarray servos ...`: bring-up of new servos from the shell (the work is in `pinarray.bus.bringup`).
+"""`pinarray servos ...`: bring-up of new servos from the shell (the work is in `pinarray.hardware.feetech.bringup`).
 
 Every command opens the bus without the playback handshake (which would switch torque on
 everywhere), names servo ids and registers in its errors (exit status 2, one line), and leaves
@@ -151,8 +151,8 @@ def _target(args: argparse.Namespace) -> Target:
     from pinarray.cli import common
     from pinarray.cli.bus import DEFAULT_DEVICE_TEXT
     from pinarray.errors import PinArrayError
+    from pinarray.player.rig import bus_setup, sim_url_for
     from pinarray.protocol.load import load_protocol, parse_protocol
-    from pinarray.rig import bus_setup, sim_url_for
 
     protocol = (load_protocol(args.protocol) if args.protocol
                 else parse_protocol(DEFAULT_DEVICE_TEXT, "<default device>"))
@@ -170,7 +170,7 @@ def _target(args: argparse.Namespace) -> Target:
 
 
 def open_bare(url: str, baud_rate: int):
-    from pinarray.bus.transport import open_bus
+    from pinarray.hardware.feetech.transport import open_bus
 
     bus = open_bus(url, baud_rate=baud_rate)
     for warning in bus.warnings:
@@ -206,10 +206,10 @@ def _failures(failures, what: str) -> None:
 
 
 def cmd_scan(args: argparse.Namespace) -> int:
-    from pinarray.bus import bringup
-    from pinarray.bus.faults import SIM_DEFAULT
-    from pinarray.bus.registers import STS3215_MODEL_NUMBER
     from pinarray.cli import common
+    from pinarray.hardware.feetech import bringup
+    from pinarray.hardware.feetech.faults import SIM_DEFAULT
+    from pinarray.hardware.feetech.registers import STS3215_MODEL_NUMBER
     from pinarray.stop import StopRequest, stop_on_signals
 
     ids = common.servo_ids(args.ids) if args.ids is not None else None
@@ -281,8 +281,8 @@ class _Progress:
 
 
 def _cmd_set_id(args: argparse.Namespace) -> int:
-    from pinarray.bus import bringup
-    from pinarray.bus.faults import SIM_DEFAULT
+    from pinarray.hardware.feetech import bringup
+    from pinarray.hardware.feetech.faults import SIM_DEFAULT
     from pinarray.stop import StopRequest, stop_on_signals
 
     url = args.port or args.sim or SIM_DEFAULT
@@ -304,8 +304,8 @@ def _cmd_set_id(args: argparse.Namespace) -> int:
 
 
 def _cmd_return_delay(args: argparse.Namespace) -> int:
-    from pinarray.bus import bringup
     from pinarray.errors import PinArrayError
+    from pinarray.hardware.feetech import bringup
     from pinarray.stop import StopRequest, stop_on_signals
 
     bringup.check_return_delay_us(args.us)
@@ -348,7 +348,7 @@ def _confirmed(question: str) -> bool:
 
 
 def _cmd_torque_off(args: argparse.Namespace) -> int:
-    from pinarray.bus import bringup
+    from pinarray.hardware.feetech import bringup
     from pinarray.stop import StopRequest, deferred_signals, stop_on_signals
 
     target = _target(args)
@@ -367,9 +367,9 @@ def _cmd_torque_off(args: argparse.Namespace) -> int:
 
 
 def _cmd_rest(args: argparse.Namespace) -> int:
-    from pinarray.bus import bringup
     from pinarray.errors import BusError
-    from pinarray.rig import bus_setup
+    from pinarray.hardware.feetech import bringup
+    from pinarray.player.rig import bus_setup
     from pinarray.stop import StopRequest, stop_on_signals
 
     target = _target(args)

@@ -64,13 +64,13 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from pinarray.errors import PinArrayError
-    from pinarray.rig import choose_clock
+    from pinarray.player.rig import choose_clock
     from pinarray.tui.app import PinArrayApp, TuiOptions
 
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
     choose_clock(args.port, args.time_scale)  # refuses --speed with real servos, up front
-    from pinarray.protocol.sync import EmulatedTrigger, SyncOverrides
+    from pinarray.protocol.imaging import EmulatedTrigger, SyncOverrides
 
     sync = common.sync_overrides(args)  # put over the chosen protocol's sync: at Begin run
     if args.file and sync != SyncOverrides():  # checked now when the protocol is known

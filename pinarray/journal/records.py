@@ -41,7 +41,7 @@ class TrialStatus(StrEnum):
 
 @dataclass(frozen=True)
 class DeliveryCounts:
-    """What reached the servos in one trial (see `pinarray.delivery.DeliveryRecord`)."""
+    """What reached the servos in one trial (see `pinarray.hardware.delivery.DeliveryRecord`)."""
 
     scheduled: int
     confirmed: int

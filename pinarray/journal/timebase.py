@@ -23,7 +23,8 @@ from datetime import datetime, timedelta
 from decimal import Decimal, InvalidOperation
 from enum import StrEnum
 
-NS_PER_S = 1_000_000_000
+from pinarray.units import NS_PER_S
+
 FIRST_TRIAL_ONSET = "the stimulus onset of the run's first trial"
 
 
@@ -50,7 +51,7 @@ class ClockKind(StrEnum):
 class TimeScale:
     """A sitting's clock: its kind, and how many of its seconds pass per wall-clock second.
 
-    ``factor`` is 1 in real time, X for ``--time-scale X``, and None for virtual time.
+    ``factor`` is 1 in real time, X for ``--speed X``, and None for virtual time.
     """
 
     kind: ClockKind

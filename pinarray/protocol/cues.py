@@ -9,8 +9,7 @@ from __future__ import annotations
 
 from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.model import Condition, LocalisationCondition, Protocol
-
-NS_PER_S = 1_000_000_000
+from pinarray.units import NS_PER_S
 
 
 def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:

@@ -25,7 +25,7 @@ DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "fea
                "delivery_tolerance_ms"}
 
 # The STS ids a servo can take (the vendor SDK's MAX_ID; 254 is broadcast). The bus says the
-# same in `pinarray.bus.registers.MAX_SERVO_ID`, which the protocol may not import.
+# same in `pinarray.hardware.feetech.registers.MAX_SERVO_ID`, which the protocol may not import.
 MAX_SERVO_ID = 252
 
 

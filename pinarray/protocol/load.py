@@ -13,9 +13,9 @@ from pathlib import Path
 from pinarray.errors import ProtocolError, ProtocolErrors
 from pinarray.protocol.design import read_design
 from pinarray.protocol.device import read_device
+from pinarray.protocol.imaging import read_sync
 from pinarray.protocol.model import Protocol, Stimulus
 from pinarray.protocol.stimuli import read_stimuli
-from pinarray.protocol.sync import read_sync
 from pinarray.protocol.yaml_nodes import Node, Reader
 from pinarray.text_files import NotText, decode_text, read_bounded
 

@@ -14,11 +14,11 @@ from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
+from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
-    from pinarray.protocol.sync import ScannerSync
+    from pinarray.protocol.imaging import ScannerSync
 
-NS_PER_S = 1_000_000_000
 # Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
 BAUD_RATES = (38_400, 57_600, 115_200, 128_000, 250_000, 500_000, 1_000_000)
 

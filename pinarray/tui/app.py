@@ -27,9 +27,9 @@ from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
-from pinarray.protocol.sync import SyncOverrides
-from pinarray.rig import Rig, choose_clock
-from pinarray.session import Session
+from pinarray.player.rig import Rig, choose_clock
+from pinarray.protocol.imaging import SyncOverrides
+from pinarray.session.trials import Session
 from pinarray.stop import on_loop_signals, signal_name
 from pinarray.tui.lab import QUIT_REASON, Lab, RigFactory
 from pinarray.tui.outcome import (

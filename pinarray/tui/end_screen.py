@@ -12,7 +12,7 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer, Static
 
 from pinarray.analysis import summary_lines
-from pinarray.session import Phase, Session
+from pinarray.session.trials import Phase, Session
 from pinarray.tui.lab import Lab
 from pinarray.tui.notice import KeyNotices, Notice
 

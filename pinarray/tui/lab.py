@@ -14,18 +14,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
-from pinarray.bus.base import SafeStopReport
 from pinarray.clock import Clock
+from pinarray.hardware.feetech.base import SafeStopReport
+from pinarray.imaging.lsl import MarkerOutlet
+from pinarray.imaging.run import start_session
+from pinarray.imaging.scanner import Scanner
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
+from pinarray.player.rig import Rig
 from pinarray.protocol import Protocol
-from pinarray.protocol.sync import ScannerSync
-from pinarray.rig import Rig
-from pinarray.session import Phase, Session, task_label
+from pinarray.protocol.imaging import ScannerSync
+from pinarray.session.trials import Phase, Session, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
-from pinarray.sync.lsl import MarkerOutlet
-from pinarray.sync.run import start_session
-from pinarray.sync.scanner import Scanner
 
 QUIT_REASON = "quit from the UI"
 PAUSE_REASON = "paused by the experimenter"
@@ -111,12 +111,12 @@ class Lab:
         return rig
 
     def _open_outlet(self, name: str, clock: Clock) -> None:
-        from pinarray.sync.lsl import LslError
-        from pinarray.sync.triggers import follows_wall_clock
+        from pinarray.imaging.lsl import LslError
+        from pinarray.imaging.triggers import follows_wall_clock
 
         if not follows_wall_clock(clock):
             raise LslError("LSL markers are stamped on this machine's clock, and a simulated "
-                           "one is not it: start the UI with --time-scale 1")
+                           "one is not it: start the UI with --speed 1")
         if self.outlet is None:
             self.outlet = MarkerOutlet(name, clock)
         else:
@@ -128,7 +128,7 @@ class Lab:
         """Open the trigger and wait for the first counted volume (blocking: from a worker).
 
         Returns the scanner, or None when the wait was stopped (`abort_wait`, quitting);
-        raises `pinarray.sync.triggers.TriggerError` for a device that cannot be opened or a
+        raises `pinarray.imaging.triggers.TriggerError` for a device that cannot be opened or a
         scanner that sends nothing in time. No run is opened either way.
         """
         assert self.clock is not None, "not connected"
@@ -174,11 +174,11 @@ class Lab:
     def lower_return_delay(self, delay_us: int = 0):
         """Every servo's return delay to ``delay_us``, until power-off (blocking: from a worker).
 
-        Returns ``(changes, failures)`` as `pinarray.bus.bringup.set_return_delay` does, or
+        Returns ``(changes, failures)`` as `pinarray.hardware.feetech.bringup.set_return_delay` does, or
         None if stopped. A rig with a player process is connected again: the player plans
         its read-backs with the delays the handshake reads, and the servos keep the new ones.
         """
-        from pinarray.bus.bringup import set_return_delay
+        from pinarray.hardware.feetech.bringup import set_return_delay
 
         rig, request = self.connected(), self.request
         assert request is not None

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
 
-from pinarray.bus.faults import SIM_DEFAULT
+from pinarray.hardware.feetech.faults import SIM_DEFAULT
 from pinarray.journal.manifest import RunStatus
 from pinarray.stop import signal_name
 

@@ -10,10 +10,10 @@ from textual.containers import Horizontal
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Input, Static
 
-from pinarray.bus import packets
-from pinarray.bus.registers import Register
 from pinarray.errors import PinArrayError
-from pinarray.session import Session
+from pinarray.hardware.feetech import packets
+from pinarray.hardware.feetech.registers import Register
+from pinarray.session.trials import Session
 from pinarray.tui.lab import Lab, SessionRequest
 from pinarray.tui.notice import KeyNotices, Notice
 

@@ -22,9 +22,9 @@ from textual.widgets import Footer, ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import LocalisationRecord
-from pinarray.player import DEFAULT_LEAD_NS
+from pinarray.player.playback import DEFAULT_LEAD_NS
 from pinarray.protocol import DIRECTION_OF_WAVE, Condition, LocalisationCondition, Paradigm
-from pinarray.session import PAUSE_CUT_SHORT, Phase, Session, SessionError
+from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.lab import Lab
 from pinarray.tui.live import LiftTimeline, LiveCounts

@@ -18,8 +18,8 @@ from textual.screen import Screen
 from textual.widgets import Footer, Static
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.sync import KeyTrigger, ScannerSync, SyncError, SyncOverrides
-from pinarray.session import Session
+from pinarray.protocol.imaging import KeyTrigger, ScannerSync, SyncError, SyncOverrides
+from pinarray.session.trials import Session
 from pinarray.tui.lab import Lab, SessionRequest
 
 # Redraws of the volume count per second while waiting.

@@ -13,8 +13,8 @@ from textual.containers import Grid, Horizontal, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Input, Label, Select, Static
 
-from pinarray.bus.faults import SIM_DEFAULT
 from pinarray.errors import PinArrayError
+from pinarray.hardware.feetech.faults import SIM_DEFAULT
 from pinarray.journal.paths import check_label
 from pinarray.protocol import Protocol
 from pinarray.tui.lab import SessionRequest
@@ -154,7 +154,7 @@ class StartScreen(KeyNotices, Screen):
     @on(Select.Changed, "#protocol")
     def _look_for_unfinished(self) -> None:
         from pinarray.journal.runs import unfinished_run
-        from pinarray.session import task_label
+        from pinarray.session.trials import task_label
 
         info = self.query_one("#resume-info", Static)
         self._unfinished = None

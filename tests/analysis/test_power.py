@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose
 from scipy import stats as scipy_stats
 
 from pinarray import cli
+from pinarray.analysis.observer import ObserverModel
 from pinarray.analysis.power import (
     Design,
     SubjectCounts,
@@ -19,7 +20,6 @@ from pinarray.analysis.power import (
     t_test_p,
 )
 from pinarray.grid import DEFAULT_GRID
-from pinarray.observer import ObserverModel
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"

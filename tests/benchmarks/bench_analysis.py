@@ -2,7 +2,7 @@
 
 Timings are printed, never asserted: each beside a reference measured in the same run, with
 the ratio, min/median/max over repeats. The study tables answer "how many subjects do I
-need?" with simulated subjects who differ from one another (`pinarray.observer`), analysed
+need?" with simulated subjects who differ from one another (`pinarray.analysis.observer`), analysed
 with subjects as the unit (`pinarray.analysis.power`), as `pinarray power` prints them.
 """
 
@@ -16,11 +16,11 @@ from pathlib import Path
 
 from pinarray.analysis.load import load_runs, select_runs
 from pinarray.analysis.mixed import Cell, _Data, fit_frequency_effect
+from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.power import power_study, protocol_design, simulate_subject
 from pinarray.analysis.study import study
 from pinarray.grid import classify
 from pinarray.journal.records import LocalisationRecord, trial_row
-from pinarray.observer import ObserverModel, SimulatedObserver
 from pinarray.protocol.load import load_protocol
 from tests.runs import plan_of, start_run
 

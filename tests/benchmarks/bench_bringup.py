@@ -16,8 +16,8 @@ import subprocess
 import sys
 from contextlib import contextmanager
 
-from pinarray.bus import bringup
-from pinarray.bus.transport import open_bus
+from pinarray.hardware.feetech import bringup
+from pinarray.hardware.feetech.transport import open_bus
 from tests.benchmarks._timing import SPREAD_HEADER, interleaved_seconds, ratio, spread
 
 IDS = tuple(range(64))

@@ -27,12 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from pinarray.bus.base import BusSetup, ServoSetup
-from pinarray.bus.transport import open_bus
 from pinarray.clock import MonotonicClock, VirtualClock
-from pinarray.player import DEFAULT_LEAD_NS, play_trial, prepare_trial
-from pinarray.player_child import REALTIME_PRIORITY
-from pinarray.player_process import SPIN_NS, PlayerDied, PlayerProcess
+from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.feetech.transport import open_bus
+from pinarray.player.child import REALTIME_PRIORITY
+from pinarray.player.playback import DEFAULT_LEAD_NS, play_trial, prepare_trial
+from pinarray.player.process import SPIN_NS, PlayerDied, PlayerProcess
 from pinarray.schedule import TargetList
 from pinarray.stop import StopRequest
 
@@ -338,7 +338,7 @@ def noticing_a_dead_player(folder: Path, tries: int = 10) -> None:
             player.close()
             bus.close()
             receiver.arrivals()  # stops the receiver
-    from pinarray.player_process import WATCH_S
+    from pinarray.player.process import WATCH_S
 
     times = sorted(noticed)
     print(f"{'min ms':>8} {'median ms':>10} {'max ms':>8} {'watch interval ms':>18} "

@@ -22,16 +22,22 @@ from pathlib import Path
 import numpy as np
 import serial
 
-from pinarray.bus.models import STS3215_C001
-from pinarray.bus.registers import BROADCAST_ID, Instruction, Register, checksum, to_bytes
-from pinarray.bus.sim_motion import MotionState
-from pinarray.bus.sim_servo import SimServo
-from pinarray.bus.transport import open_bus
 from pinarray.clock import VirtualClock
+from pinarray.hardware.feetech.models import STS3215_C001
+from pinarray.hardware.feetech.registers import (
+    BROADCAST_ID,
+    Instruction,
+    Register,
+    checksum,
+    to_bytes,
+)
+from pinarray.hardware.feetech.sim_motion import MotionState
+from pinarray.hardware.feetech.sim_servo import SimServo
+from pinarray.hardware.feetech.transport import open_bus
 from pinarray.plan import make_plan
-from pinarray.player import play_trial
+from pinarray.player.playback import play_trial
+from pinarray.player.rig import bus_setup
 from pinarray.protocol.load import load_protocol
-from pinarray.rig import bus_setup
 from pinarray.schedule import compile_trial
 
 LOCALISATION = Path(__file__).resolve().parents[2] / "protocols" / "localisation.yaml"

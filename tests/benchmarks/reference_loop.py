@@ -13,7 +13,7 @@ import pickle
 import sys
 import time
 
-from pinarray.player_child import REALTIME_PRIORITY, make_realtime
+from pinarray.player.child import REALTIME_PRIORITY, make_realtime
 
 
 def main(argv: list[str]) -> int:

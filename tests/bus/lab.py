@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from pinarray.bus.base import BusSetup, ServoSetup
-from pinarray.bus.transport import open_bus
 from pinarray.clock import VirtualClock
+from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.feetech.transport import open_bus
 from pinarray.schedule import TargetList
 
 REST_STEPS = 2048

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pinarray.bus.faults import parse_sim_url
-from pinarray.bus.registers import BROADCAST_ID, Instruction, checksum
-from pinarray.bus.sim import SimBus, SimSerial
 from pinarray.clock import VirtualClock
+from pinarray.hardware.feetech.faults import parse_sim_url
+from pinarray.hardware.feetech.registers import BROADCAST_ID, Instruction, checksum
+from pinarray.hardware.feetech.sim import SimBus, SimSerial
 
 
 def packet(servo_id: int, instruction: int, params: bytes = b"") -> bytes:

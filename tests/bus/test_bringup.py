@@ -2,14 +2,14 @@
 
 import pytest
 
-from pinarray.bus import bringup
-from pinarray.bus import jog as jog_module
-from pinarray.bus.base import BusSetup, ServoSetup
-from pinarray.bus.link import Latency
-from pinarray.bus.registers import Register, to_bytes
-from pinarray.bus.transport import open_bus
 from pinarray.clock import VirtualClock
 from pinarray.errors import BusError, PinArrayError
+from pinarray.hardware.feetech import bringup
+from pinarray.hardware.feetech import jog as jog_module
+from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.feetech.link import Latency
+from pinarray.hardware.feetech.registers import Register, to_bytes
+from pinarray.hardware.feetech.transport import open_bus
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from scservo_sdk import COMM_SUCCESS
 
-from pinarray.bus.registers import Register
+from pinarray.hardware.feetech.registers import Register
 
 from .test_compat import LeRobotStyleBus, sim_serve, vendor_port  # noqa: F401  (a fixture)
 

@@ -32,12 +32,12 @@ from scservo_sdk import (
     PortHandler,
 )
 
-from pinarray.bus.faults import parse_sim_url
-from pinarray.bus.models import STS3215_C001
-from pinarray.bus.registers import BROADCAST_ID, Instruction, Register
-from pinarray.bus.serve import PtyServer
-from pinarray.bus.sim import SimBus, SimSerial
 from pinarray.clock import VirtualClock
+from pinarray.hardware.feetech.faults import parse_sim_url
+from pinarray.hardware.feetech.models import STS3215_C001
+from pinarray.hardware.feetech.registers import BROADCAST_ID, Instruction, Register
+from pinarray.hardware.feetech.serve import PtyServer
+from pinarray.hardware.feetech.sim import SimBus, SimSerial
 
 from .raw import packet, parse_status
 

@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pinarray.delivery import Change, DeliveryLedger
-from pinarray.player import PlaybackAborted, play_trial
+from pinarray.hardware.delivery import Change, DeliveryLedger
+from pinarray.player.playback import PlaybackAborted, play_trial
 
 from .lab import REST_STEPS, assert_safe, pulse_train, sim_bus, targets
 

@@ -2,10 +2,10 @@
 
 import pytest
 
-from pinarray.bus.base import PortLost
-from pinarray.bus.registers import Register, StatusError
 from pinarray.errors import BusError, PinArrayError
-from pinarray.player import PlaybackAborted, play_trial
+from pinarray.hardware.feetech.base import PortLost
+from pinarray.hardware.feetech.registers import Register, StatusError
+from pinarray.player.playback import PlaybackAborted, play_trial
 
 from .lab import assert_safe, pulse_train, sim_bus
 
@@ -150,7 +150,7 @@ def test_late_answers_come_late_by_late_ms_in_virtual_time():
     ("seed=1.5", "seed"),
 ])
 def test_a_sim_url_value_out_of_range_is_one_line_naming_the_key(query, key):
-    from pinarray.bus.faults import parse_sim_url
+    from pinarray.hardware.feetech.faults import parse_sim_url
 
     with pytest.raises(PinArrayError) as caught:
         parse_sim_url(f"sim://?{query}")
@@ -159,7 +159,7 @@ def test_a_sim_url_value_out_of_range_is_one_line_naming_the_key(query, key):
 
 
 def test_every_new_key_reads_into_the_config():
-    from pinarray.bus.faults import parse_sim_url
+    from pinarray.hardware.feetech.faults import parse_sim_url
 
     config = parse_sim_url(
         "sim://?drop_writes=0.1&late=0.2&late_ms=30&model=sts3215-12v&supply_v=11.5"

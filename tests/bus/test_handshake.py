@@ -2,8 +2,8 @@
 
 import pytest
 
-from pinarray.bus.registers import Register
 from pinarray.errors import BusError, PinArrayError
+from pinarray.hardware.feetech.registers import Register
 
 from .lab import device_setup, sim_bus
 

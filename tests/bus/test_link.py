@@ -6,14 +6,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pinarray.bus import packets
-from pinarray.bus.base import BusSetup, ServoSetup
-from pinarray.bus.feetech import FeetechBus
-from pinarray.bus.link import Expected, Latency, Link, WireLost
-from pinarray.bus.registers import Register
-from pinarray.bus.sim import status_packet
 from pinarray.clock import VirtualClock
 from pinarray.errors import BusError
+from pinarray.hardware.feetech import packets
+from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.feetech.feetech import FeetechBus
+from pinarray.hardware.feetech.link import Expected, Latency, Link, WireLost
+from pinarray.hardware.feetech.registers import Register
+from pinarray.hardware.feetech.sim import status_packet
 
 MS = 1_000_000
 
@@ -171,7 +171,7 @@ def test_one_slow_reply_at_connect_does_not_stop_read_backs_from_being_planned()
 def test_a_device_that_goes_away_is_told_from_a_quiet_one():
     import os
 
-    from pinarray.bus.link import FdWire
+    from pinarray.hardware.feetech.link import FdWire
 
     read_end, write_end = os.pipe()
     os.set_blocking(read_end, False)

@@ -4,9 +4,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 from scservo_sdk import GroupSyncRead, GroupSyncWrite, PacketHandler
 
-from pinarray.bus import packets
-from pinarray.bus.packets import StatusPacket, StatusReader
-from pinarray.bus.sim import status_packet
+from pinarray.hardware.feetech import packets
+from pinarray.hardware.feetech.packets import StatusPacket, StatusReader
+from pinarray.hardware.feetech.sim import status_packet
 
 
 class RecordingPort:

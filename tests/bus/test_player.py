@@ -5,7 +5,7 @@ import pytest
 
 from pinarray.clock import VirtualClock
 from pinarray.errors import PinArrayError
-from pinarray.player import pins_made_safe, play_trial
+from pinarray.player.playback import pins_made_safe, play_trial
 from pinarray.stop import Stopped
 
 from .lab import assert_safe, pulse_train, sim_bus, targets
@@ -84,7 +84,7 @@ class StopAt(VirtualClock):
     (RuntimeError("bug in a callback"), RuntimeError),
 ])
 def test_every_way_out_leaves_pins_at_rest_with_torque_off(error, expected):
-    from pinarray.bus.transport import open_bus
+    from pinarray.hardware.feetech.transport import open_bus
 
     from .lab import device_setup
 

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from pinarray.bus.faults import SimConfig
-from pinarray.bus.serve import PtyServer
-from pinarray.bus.transport import open_bus
 from pinarray.clock import MonotonicClock
-from pinarray.player import prepare_trial
-from pinarray.player_process import PlayerDied, PlayerProcess
+from pinarray.hardware.feetech.faults import SimConfig
+from pinarray.hardware.feetech.serve import PtyServer
+from pinarray.hardware.feetech.transport import open_bus
+from pinarray.player.playback import prepare_trial
+from pinarray.player.process import PlayerDied, PlayerProcess
 from pinarray.stop import Stopped, StopRequest
 
 from .lab import REST_STEPS, device_setup, pulse_train

@@ -11,12 +11,12 @@ from contextlib import contextmanager
 import pytest
 import serial
 
-from pinarray.bus.faults import SimConfig, parse_sim_url
-from pinarray.bus.registers import BROADCAST_ID, Instruction
-from pinarray.bus.serve import PtyServer
-from pinarray.bus.transport import open_bus
 from pinarray.clock import MonotonicClock
-from pinarray.player import play_trial
+from pinarray.hardware.feetech.faults import SimConfig, parse_sim_url
+from pinarray.hardware.feetech.registers import BROADCAST_ID, Instruction
+from pinarray.hardware.feetech.serve import PtyServer
+from pinarray.hardware.feetech.transport import open_bus
+from pinarray.player.playback import play_trial
 
 from .lab import assert_safe, device_setup, pulse_train
 from .raw import packet

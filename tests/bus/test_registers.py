@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pinarray.bus.registers import (
+from pinarray.hardware.feetech.registers import (
     Register,
     StatusError,
     checksum,
@@ -60,7 +60,7 @@ def test_error_bits_read_as_words():
 
 
 def test_error_bits_without_a_name_are_reported_not_hidden():
-    from pinarray.bus.registers import StatusError
+    from pinarray.hardware.feetech.registers import StatusError
 
     assert StatusError(32).describe() == "overload"
     assert StatusError(32 | 16).describe() == "overload+unknown bits 0x10"

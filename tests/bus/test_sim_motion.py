@@ -6,10 +6,10 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pinarray.bus.models import STS3215_C001, STS3215_C018
-from pinarray.bus.registers import Register, to_bytes
-from pinarray.bus.sim_motion import NS_PER_S, Drive, MotionState, plan_move
-from pinarray.bus.sim_servo import SimServo
+from pinarray.hardware.feetech.models import STS3215_C001, STS3215_C018
+from pinarray.hardware.feetech.registers import Register, to_bytes
+from pinarray.hardware.feetech.sim_motion import NS_PER_S, Drive, MotionState, plan_move
+from pinarray.hardware.feetech.sim_servo import SimServo
 
 from ..strategies import positions_steps, servo_drives
 

@@ -2,8 +2,8 @@
 
 import pytest
 
-from pinarray.bus.models import STS3215_C001
-from pinarray.bus.registers import (
+from pinarray.hardware.feetech.models import STS3215_C001
+from pinarray.hardware.feetech.registers import (
     BROADCAST_ID,
     Instruction,
     Register,

@@ -1,6 +1,6 @@
 """When answers reach the host: return delays, sync-read queues, collisions, late packets."""
 
-from pinarray.bus.sim_wire import StatusReply, Transmission, schedule
+from pinarray.hardware.feetech.sim_wire import StatusReply, Transmission, schedule
 
 BYTE_NS = 10_000.0  # 1 Mbit/s
 PING_ANSWER = bytes.fromhex("ffff010200fc")

@@ -1,6 +1,6 @@
 """Goal positions go out as sync writes, byte for byte, and only for servos that changed."""
 
-from pinarray.bus.registers import checksum
+from pinarray.hardware.feetech.registers import checksum
 
 from .lab import sim_bus
 

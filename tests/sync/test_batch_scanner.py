@@ -272,7 +272,7 @@ def test_a_signal_while_waiting_for_the_scanner_leaves_pins_at_rest_torque_off(
         sim_serve, signum, tmp_path):  # noqa: F811
     from scservo_sdk import COMM_SUCCESS
 
-    from pinarray.bus.registers import Register
+    from pinarray.hardware.feetech.registers import Register
     from tests.bus.test_compat import vendor_port
 
     root = tmp_path / "results"

@@ -8,11 +8,11 @@ import sys
 import pytest
 
 from pinarray.clock import MonotonicClock
+from pinarray.imaging.lsl import STREAM_TYPE, MarkerOutlet
+from pinarray.imaging.markers import marker_text
 from pinarray.plan import make_plan
 from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
 from pinarray.protocol.load import load_protocol
-from pinarray.sync.lsl import STREAM_TYPE, MarkerOutlet
-from pinarray.sync.markers import marker_text
 from tests.lsl_local import MACHINE_ONLY
 from tests.runs import REPO
 from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name

@@ -13,8 +13,8 @@ from textual.widgets import Static
 
 from pinarray.clock import VirtualClock
 from pinarray.journal.manifest import read_manifest
-from pinarray.protocol.sync import SyncOverrides, parse_trigger
-from pinarray.rig import Rig, choose_clock
+from pinarray.player.rig import Rig, choose_clock
+from pinarray.protocol.imaging import SyncOverrides, parse_trigger
 from pinarray.tui.app import PinArrayApp, TuiOptions
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen

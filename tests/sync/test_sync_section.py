@@ -4,8 +4,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from pinarray.protocol.load import parse_protocol
-from pinarray.protocol.sync import (
+from pinarray.protocol.imaging import (
     EmulatedTrigger,
     KeyTrigger,
     ScannerSync,
@@ -14,6 +13,7 @@ from pinarray.protocol.sync import (
     SyncOverrides,
     parse_trigger,
 )
+from pinarray.protocol.load import parse_protocol
 from tests.test_protocol_load import MINIMAL, problems
 
 S = 1_000_000_000

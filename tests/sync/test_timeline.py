@@ -3,8 +3,8 @@
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pinarray.imaging.timeline import MAX_TOLERANCE_NS, VolumeTimeline, tolerance_ns
 from pinarray.journal.volumes import VolumeStatus
-from pinarray.sync.timeline import MAX_TOLERANCE_NS, VolumeTimeline, tolerance_ns
 
 S = 1_000_000_000
 TR = 2 * S

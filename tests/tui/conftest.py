@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from pinarray.clock import VirtualClock
-from pinarray.rig import Rig
+from pinarray.player.rig import Rig
 from pinarray.tui.app import PinArrayApp, TuiOptions
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"

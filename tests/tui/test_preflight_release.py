@@ -1,6 +1,6 @@
 """The pre-flight's "Rest + torque off": the experimenter lets go of the array without leaving."""
 
-from pinarray.rig import Rig
+from pinarray.player.rig import Rig
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
 from tests.tui.conftest import SIZE, fill_start, make_app, settle

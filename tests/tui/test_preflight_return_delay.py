@@ -5,10 +5,10 @@ from pathlib import Path
 
 import pytest
 
-from pinarray.bus.faults import parse_sim_url
-from pinarray.bus.registers import Register
-from pinarray.bus.serve import PtyServer
 from pinarray.clock import MonotonicClock
+from pinarray.hardware.feetech.faults import parse_sim_url
+from pinarray.hardware.feetech.registers import Register
+from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.protocol.load import load_protocol
 from pinarray.tui.lab import Lab, SessionRequest
 from pinarray.tui.preflight_screen import PreflightScreen

@@ -6,8 +6,8 @@ import pytest
 from pinarray.errors import BusError
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.records import read_trials
-from pinarray.rig import Rig
-from pinarray.session import Phase
+from pinarray.player.rig import Rig
+from pinarray.session.trials import Phase
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.notice import Notice

@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 from textual.widgets import Input
 
-from pinarray.session import Phase
+from pinarray.session.trials import Phase
 from tests.tui.conftest import SIZE, fill_start, make_app, settle, to_run_screen
 
 

@@ -6,7 +6,7 @@ from pinarray.grid import classify
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.records import read_trials
 from pinarray.protocol import DIRECTION_OF_WAVE
-from pinarray.session import Phase
+from pinarray.session.trials import Phase
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.run_screen import RunScreen
 from tests.tui.conftest import MOTION, SIZE, make_app, settle, to_run_screen

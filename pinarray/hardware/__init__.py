@@ -1,0 +1,1 @@
+"""Pin arrays of each hardware family behind one seam (`pinarray.hardware.driver`)."""

@@ -1,0 +1,1 @@
+"""Feetech STS bus servos: the protocol, the driver, bring-up and a byte-faithful simulator."""

@@ -1,0 +1,611 @@
+"""The Feetech STS driver: what a connected array of STS servos can be asked to do.
+
+Packets are built by `pinarray.hardware.feetech.packets` and exchanged by `pinarray.hardware.feetech.link`, which
+drains stale input before every request and accepts only replies whose id, length and
+checksum fit it. This module adds what a lab needs on top: a connect handshake that reports
+every missing servo at once, goal writes that never leave a pin's calibrated limits, bounded
+and counted retries of transient failures, the read-back and re-send that verify a goal
+reached its servo, and a safe stop that puts every pin at rest and releases torque wherever
+the bus still answers. For bring-up (`pinarray.hardware.feetech.bringup`) it also pings at the broadcast id,
+pings within a bounded time, and writes EEPROM, but only through the methods named for it
+(`write_eeprom`, `unlock_eeprom`, `lock_eeprom`): `write` refuses EEPROM registers.
+
+Longer than 400 lines because it is one class: everything that may be said to the servos is
+said here, so that no other module can write EEPROM or move a pin outside its limits; split,
+each part would reach into the others' retries, link and record of goals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from pinarray.clock import Clock
+from pinarray.errors import BusError
+from pinarray.hardware.feetech import packets
+from pinarray.hardware.feetech.base import (
+    BusSetup,
+    BusStats,
+    GoalReading,
+    PortLost,
+    SafeStopReport,
+    ServoSetup,
+    Telemetry,
+)
+from pinarray.hardware.feetech.link import Expected, FdWire, Latency, Link, WireLost
+from pinarray.hardware.feetech.packets import StatusPacket, StatusReader
+from pinarray.hardware.feetech.registers import (
+    BROADCAST_ID,
+    Register,
+    StatusError,
+    decode_load,
+    decode_position,
+    encode_position,
+    from_bytes,
+    to_bytes,
+)
+from pinarray.stop import deferred_signals
+from pinarray.units import NS_PER_US
+
+if TYPE_CHECKING:
+    from pinarray.hardware.feetech.sim import SimBus
+
+REST_TOLERANCE_STEPS = 4
+# Present position .. moving flag, read in one instruction while waiting for pins to settle.
+MOTION_LENGTH = Register.MOVING.address + 1 - Register.PRESENT_POSITION.address
+REST_POLL_NS = 10_000_000
+# Present position .. present temperature, read in one instruction.
+TELEMETRY_START = Register.PRESENT_POSITION
+TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.address
+# A READ instruction packet, in bytes.
+READ_REQUEST_BYTES = 8
+# Sync reads that get no answer at all, in a row, before read-backs use READs instead.
+SYNC_READ_TRIES = 3
+
+
+@dataclass(frozen=True)
+class BroadcastPing:
+    """What came back from a PING at the broadcast id.
+
+    Attributes
+    ----------
+    servo_ids : tuple of int
+        Ids of the well-formed status packets heard, in arrival order.
+    garbled_bytes : int
+        Bytes that were no well-formed status packet: answers that overlapped on the wire
+        (several servos answering after the same return delay) or noise.
+    """
+
+    servo_ids: tuple[int, ...]
+    garbled_bytes: int
+
+    @property
+    def clean(self) -> bool:
+        """Every byte heard was a status packet: the ids are all who answered."""
+        return not self.garbled_bytes
+
+
+@dataclass(frozen=True)
+class Handover:
+    """A connected bus as another process takes it over through the port's descriptor."""
+
+    port_name: str
+    baud_rate: int
+    setup: BusSetup
+    return_delay_ns: tuple[tuple[int, int], ...]  # (servo id, ns)
+    latency_timer_ms: int | None
+    worst_latency_ns: int
+    recent_latency_ns: tuple[int, ...]
+
+    def attach(self, fd: int, clock: Clock) -> FeetechBus:
+        """The same servos, driven over ``fd`` in this process (no handshake: already done)."""
+        latency = Latency(self.latency_timer_ms)
+        latency.record(self.worst_latency_ns)
+        for latency_ns in self.recent_latency_ns:
+            latency.record(latency_ns)
+        link = Link(FdWire(fd, clock, self.port_name), clock, self.baud_rate, latency)
+        link.return_delay_ns.update(dict(self.return_delay_ns))
+        bus = FeetechBus(link, clock)
+        bus.setup = self.setup
+        bus.assume_goals({s.servo_id: s.rest_steps for s in self.setup.servos})
+        return bus
+
+
+class FeetechBus:
+    """A connected STS bus, real or simulated.
+
+    Use `pinarray.hardware.feetech.transport.open_bus` to make one; it runs the handshake.
+
+    Parameters
+    ----------
+    link : Link
+        Timed, validated exchanges over the serial device or the simulator.
+    clock : Clock
+        The same clock the link uses; waits for pins to settle use it.
+    retries : int
+        Extra attempts after a transient failure (no fitting status packet in time).
+    """
+
+    def __init__(self, link: Link, clock: Clock, retries: int = 3):
+        self.link = link
+        self.clock = clock
+        self.retries = retries
+        self.setup = BusSetup(servos=())
+        self.warnings: list[str] = []
+        self.sim: SimBus | None = None  # behind a simulated port; for tests and benchmarks
+        self._last_goals: dict[int, int] = {}
+        self._sync_read_works = True
+        self._sync_reads_unanswered = 0
+        self._sync_writes = 0
+        self._goals_written = 0
+        self._retries = 0
+
+    @property
+    def port_name(self) -> str:
+        return self.link.name
+
+    # -- low level -----------------------------------------------------------------------
+
+    def _lost(self, action: str, error: OSError) -> PortLost:
+        return PortLost(f"servo port {self.port_name} lost while {action}: {error.strerror or error}")
+
+    def _transact(self, servo_id: int, action: str, packet: bytes, params_length: int,
+                  retries: int | None = None) -> StatusPacket:
+        """One request to one servo and its reply, retried a bounded number of times."""
+        attempts = (self.retries if retries is None else retries) + 1
+        expected = (Expected(servo_id, params_length),)
+        before = self.link.counters.mismatched_replies
+        for attempt in range(attempts):
+            if attempt:
+                self._retries += 1
+            try:
+                replies = self.link.exchange(packet, expected)
+            except WireLost as error:
+                raise self._lost(f"{action} of servo {servo_id}", error) from None
+            if servo_id in replies:
+                return replies[servo_id]
+        mismatched = self.link.counters.mismatched_replies - before
+        found = f"{mismatched} status packet(s) that did not fit" if mismatched else "no status packet"
+        raise BusError(f"servo {servo_id}: {action} failed after {attempts} attempt(s): "
+                       f"expected a status packet from servo {servo_id}, found {found}")
+
+    def read(self, servo_id: int, register: Register, length: int | None = None,
+             retries: int | None = None) -> tuple[bytes, StatusError]:
+        """Read ``length`` bytes (default: the register's size) from one servo."""
+        size = length or register.size
+        status = self._transact(
+            servo_id, f"reading {register.name} (address {register.address})",
+            packets.read(servo_id, register.address, size), size, retries,
+        )
+        return status.params, StatusError(status.error)
+
+    def write(self, servo_id: int, register: Register, value: int) -> StatusError:
+        """Write one register of one servo and wait for its acknowledgement."""
+        if register.in_eeprom:
+            raise BusError(
+                f"servo {servo_id}: refusing to write {register.name} (address "
+                f"{register.address}), an EEPROM register; EEPROM is only written on purpose"
+            )
+        status = self._transact(
+            servo_id, f"writing {register.name} (address {register.address})",
+            packets.write(servo_id, register.address, to_bytes(value, register.size)), 0,
+        )
+        return StatusError(status.error)
+
+    def ping(self, servo_id: int, retry: bool = True) -> int | None:
+        """Model number of the servo at ``servo_id``, or None if nothing answers.
+
+        A PING instruction, then a read of MODEL_NUMBER, as the vendor SDK's ``ping`` does.
+        """
+        retries = None if retry else 0
+        try:
+            self._transact(servo_id, "pinging", packets.ping(servo_id), 0, retries)
+            data, _ = self.read(servo_id, Register.MODEL_NUMBER, retries=retries)
+        except PortLost:
+            raise
+        except BusError:
+            return None
+        return from_bytes(data)
+
+    def ping_within(self, servo_id: int, timeout_ns: int) -> int | None:
+        """Model number of the servo at ``servo_id``, or None if no PING answer by ``timeout_ns``.
+
+        One PING attempt that waits at most ``timeout_ns`` (and no longer than `ping` would),
+        for sweeping many ids quickly; the model-number read of a servo that answered is retried
+        as usual.
+        """
+        packet = packets.ping(servo_id)
+        try:
+            replies = self.link.exchange(packet, (Expected(servo_id, 0),),
+                                         self.clock.now_ns() + timeout_ns)
+        except WireLost as error:
+            raise self._lost(f"pinging servo {servo_id}", error) from None
+        if servo_id not in replies:
+            return None
+        try:
+            data, _ = self.read(servo_id, Register.MODEL_NUMBER)
+        except PortLost:
+            raise
+        except BusError:
+            return None
+        return from_bytes(data)
+
+    def broadcast_ping(self) -> BroadcastPing:
+        """PING every servo at once (the broadcast id) and listen for all the answers.
+
+        Each servo answers with its own id after its own return delay; several with the same
+        delay answer together and garble each other (Feetech: "multiple servos can not use
+        broadcast PING instructions on the bus"), so only a `BroadcastPing.clean` answer says
+        who is there. Listens as long as the longest return delay and the adapter allow.
+        """
+        packet = packets.ping(BROADCAST_ID)
+        link = self.link
+        reader = StatusReader()
+        reader.longest_params = 0  # a PING's answer carries no data
+        # The last answer may start after the longest return delay; allow the wire for several.
+        expected = (Expected(BROADCAST_ID, 0), Expected(BROADCAST_ID, 0))
+        limit_ns = self.clock.now_ns() + link.reply_time_ns(len(packet), expected)
+        ids: list[int] = []
+        try:
+            link.drain()
+            link.send(packet)
+            while True:
+                data = link.wire.read_some(limit_ns)
+                if not data:
+                    break
+                link.counters.bytes_read += len(data)
+                ids.extend(status.servo_id for status in reader.feed(data))
+        except WireLost as error:
+            raise self._lost("broadcasting a PING", error) from None
+        return BroadcastPing(tuple(ids), reader.skipped_bytes + reader.pending_bytes)
+
+    # -- bring-up: EEPROM, written only through these methods, on purpose ---------------
+
+    def unlock_eeprom(self, servo_id: int) -> None:
+        """LOCK (address 55) = 0: EEPROM values written from now on survive a power cycle."""
+        self.write(servo_id, Register.LOCK, 0)
+
+    def lock_eeprom(self, servo_id: int) -> None:
+        """LOCK (address 55) = 1: EEPROM values written from now on last until power-off."""
+        self.write(servo_id, Register.LOCK, 1)
+
+    def write_eeprom(self, servo_id: int, register: Register, value: int) -> StatusError:
+        """Write one EEPROM register (below address 40) of one servo, once, acknowledged.
+
+        The value is in force at once; it survives a power cycle only if LOCK is 0 (see
+        `unlock_eeprom`). Not retried: a write whose acknowledgement was lost may have been
+        taken (an ID write changes the id the servo answers at), so the caller checks instead.
+
+        Raises
+        ------
+        BusError
+            For a RAM register (use `write`), or when no acknowledgement came back.
+        """
+        if not register.in_eeprom:
+            raise BusError(f"servo {servo_id}: {register.name} (address {register.address}) "
+                           "is a RAM register, not EEPROM; write it with `write`")
+        action = f"writing {register.name} (EEPROM address {register.address}) = {value}"
+        packet = packets.write(servo_id, register.address, to_bytes(value, register.size))
+        status = self._transact(servo_id, action, packet, 0, retries=0)
+        return StatusError(status.error)
+
+    def note_return_delay(self, servo_id: int, return_delay_us: int) -> None:
+        """The servo now waits ``return_delay_us`` before answering: plan exchanges with it."""
+        self.link.return_delay_ns[servo_id] = return_delay_us * NS_PER_US
+
+    # -- handshake -----------------------------------------------------------------------
+
+    def connect(self, setup: BusSetup) -> None:
+        """The whole handshake: `check` every servo, then `hold` (torque on)."""
+        self.check(setup)
+        self.hold()
+
+    def check(self, setup: BusSetup) -> None:
+        """Ping every expected id, check models, angle limits and return delays. Reads only.
+
+        Nothing moves and torque stays as it was, so a process that must guard the servos
+        (the player process) can be started between this and `hold`.
+
+        Raises
+        ------
+        BusError
+            Naming every missing id and every id with the wrong model, in one message.
+        """
+        self.setup = setup
+        found = {servo_id: self.ping(servo_id) for servo_id in setup.servo_ids}
+        missing = sorted(i for i, model in found.items() if model is None)
+        wrong = sorted(
+            (i, model) for i, model in found.items() if model not in (None, setup.model_number)
+        )
+        if missing or wrong:
+            problems = []
+            if missing:
+                ids = ", ".join(map(str, missing))
+                problems.append(f"no answer from servo id(s) {ids}")
+            if wrong:
+                found_text = ", ".join(f"id {i} reports model {m}" for i, m in wrong)
+                problems.append(f"expected model {setup.model_number}, but {found_text}")
+            answered = sorted(set(found) - set(missing))
+            raise BusError(
+                f"servo handshake on {self.port_name}: " + "; ".join(problems)
+                + f" (answered: {', '.join(map(str, answered)) or 'none'})"
+            )
+        for servo in setup.servos:
+            delay, _ = self.read(servo.servo_id, Register.RETURN_DELAY_TIME)
+            self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
+            self._check_angle_limits(servo)
+
+    def hold(self) -> None:
+        """Torque on for every checked servo, holding where its horn is; speed, acceleration.
+
+        A servo that fails half-way leaves none holding torque.
+        """
+        enabled: list[int] = []
+        try:
+            for servo in self.setup.servos:
+                # Hold where the horn is before torque comes on, so it cannot jerk a pin.
+                data, _ = self.read(servo.servo_id, Register.PRESENT_POSITION)
+                # An STS servo switches torque on when it is given a goal: from here on this
+                # one must be released if anything fails.
+                enabled.append(servo.servo_id)
+                self.write(servo.servo_id, Register.GOAL_POSITION, from_bytes(data))
+                self.write(servo.servo_id, Register.ACCELERATION, self.setup.acceleration_register)
+                self.write(servo.servo_id, Register.GOAL_SPEED, self.setup.speed_steps_per_s)
+                self.write(servo.servo_id, Register.TORQUE_ENABLE, 1)
+                self._last_goals[servo.servo_id] = decode_position(from_bytes(data))
+        except BaseException:
+            # A half-finished handshake must not leave some servos holding torque.
+            for servo_id in enabled:
+                try:
+                    self.write(servo_id, Register.TORQUE_ENABLE, 0)
+                except BusError:
+                    pass
+            raise
+
+    def _check_angle_limits(self, servo: ServoSetup) -> None:
+        """Refuse a pin whose calibrated stroke the servo would clamp (its angle limits).
+
+        A clamped goal would still read back as written: the read-back could not tell.
+        """
+        span = Register.MAX_ANGLE_LIMIT.address + 2 - Register.MIN_ANGLE_LIMIT.address
+        data, _ = self.read(servo.servo_id, Register.MIN_ANGLE_LIMIT, span)
+        low, high = from_bytes(data[0:2]), from_bytes(data[-2:])
+        if not low <= servo.min_steps <= servo.max_steps <= high:
+            raise BusError(
+                f"pin {servo.pin} (servo {servo.servo_id}): its angle limits MIN_ANGLE_LIMIT "
+                f"{low} .. MAX_ANGLE_LIMIT {high} (EEPROM addresses 9, 11) would clamp the "
+                f"calibrated stroke {servo.min_steps}..{servo.max_steps}; widen them with the "
+                "vendor's tool or recalibrate the pin"
+            )
+
+    # -- playback ------------------------------------------------------------------------
+
+    def goal_packet(self, goals_steps: Mapping[int, int]) -> bytes:
+        """The sync write of these goals, after checking each against its pin's limits."""
+        for servo_id, position in goals_steps.items():
+            self._check_limits(servo_id, position)
+        return packets.sync_write(
+            Register.GOAL_POSITION.address, Register.GOAL_POSITION.size,
+            ((i, to_bytes(encode_position(p), 2)) for i, p in goals_steps.items()),
+        )
+
+    def send_goals(self, packet: bytes,
+                   goals_steps: Mapping[int, int] | tuple[tuple[int, int], ...]) -> None:
+        """Put a prepared sync write of ``goals_steps`` on the wire (no reply comes back)."""
+        try:
+            self.link.send(packet)
+        except WireLost as error:
+            ids = ", ".join(map(str, dict(goals_steps)))
+            raise self._lost(f"sync-writing GOAL_POSITION to servo(s) {ids}", error) from None
+        self._last_goals.update(goals_steps)
+        self._sync_writes += 1
+        self._goals_written += len(goals_steps)
+
+    def write_goals(self, goals_steps: Mapping[int, int], force: bool = False) -> int:
+        """Sync-write goal positions of the servos whose goal changed; returns how many.
+
+        Parameters
+        ----------
+        goals_steps : mapping of servo id to position in steps
+            New targets; servos absent keep their goal.
+        force : bool
+            Write every servo given, changed or not (used when making pins safe).
+        """
+        changed = {
+            i: p for i, p in goals_steps.items() if force or self._last_goals.get(i) != p
+        }
+        if changed:
+            self.send_goals(self.goal_packet(changed), changed)
+        return len(changed)
+
+    def _check_limits(self, servo_id: int, position: int) -> None:
+        try:
+            servo = self.setup.servo(servo_id)
+        except KeyError:
+            raise BusError(
+                f"servo {servo_id} is not part of this device; refusing to move it"
+            ) from None
+        if not servo.min_steps <= position <= servo.max_steps:
+            raise BusError(
+                f"pin {servo.pin} (servo {servo_id}): GOAL_POSITION {position} steps is outside "
+                f"its calibrated limits {servo.min_steps}..{servo.max_steps}"
+            )
+
+    def read_goals(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, GoalReading]:
+        """Read back goal positions, giving up at ``deadline_ns``; a servo missing: no reply.
+
+        One servo: a READ. Several: one SYNC READ, each servo answering in turn (a reply lost
+        costs only that servo's reading). One attempt: the player decides when to try again.
+        A bus whose servos never answer a SYNC READ (some emulators) falls back to READs.
+        """
+        register = Register.GOAL_POSITION
+        expected = tuple(Expected(i, register.size) for i in servo_ids)
+        if len(servo_ids) == 1 or not self._sync_read_works:
+            packet = packets.read(servo_ids[0], register.address, register.size)
+            expected = expected[:1]
+        else:
+            packet = packets.sync_read(register.address, register.size, servo_ids)
+        try:
+            replies = self.link.exchange(packet, expected, deadline_ns)
+        except WireLost as error:
+            ids = ", ".join(str(e.servo_id) for e in expected)
+            raise self._lost(f"reading back GOAL_POSITION of servo(s) {ids}", error) from None
+        if len(expected) > 1:
+            self._sync_reads_unanswered = 0 if replies else self._sync_reads_unanswered + 1
+            if self._sync_reads_unanswered >= SYNC_READ_TRIES:
+                self._sync_read_works = False
+        return {i: GoalReading(decode_position(from_bytes(r.params)), StatusError(r.error))
+                for i, r in replies.items()}
+
+    def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_goals` of these servos should take (to fit it between two frames)."""
+        ids = servo_ids if len(servo_ids) > 1 and self._sync_read_works else servo_ids[:1]
+        request = (packets.INSTRUCTION_OVERHEAD_BYTES + 2 + len(ids) if len(ids) > 1
+                   else READ_REQUEST_BYTES)
+        return self.link.reply_time_ns(
+            request, tuple(Expected(i, Register.GOAL_POSITION.size) for i in ids), expected=True)
+
+    def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
+        """Write one goal again with an acknowledged WRITE; the error bits, or None: no ack."""
+        self._check_limits(servo_id, goal_steps)
+        register = Register.GOAL_POSITION
+        packet = packets.write(servo_id, register.address, to_bytes(encode_position(goal_steps), 2))
+        try:
+            replies = self.link.exchange(packet, (Expected(servo_id, 0),), deadline_ns)
+        except WireLost as error:
+            raise self._lost(f"re-writing GOAL_POSITION of servo {servo_id}", error) from None
+        status = replies.get(servo_id)
+        return None if status is None else StatusError(status.error)
+
+    def wire_ns(self, byte_count: int) -> int:
+        """Time ``byte_count`` bytes take on the bus at its baud rate."""
+        return self.link.wire_ns(byte_count)
+
+    def reply_time_ns(self, servo_id: int, request_bytes: int, reply_params: int) -> int:
+        """What one exchange with ``servo_id`` should take: wire, return delay, the adapter's
+        usual latency (`Latency.expected_ns`); for fitting a read-back between two frames."""
+        return self.link.reply_time_ns(request_bytes, (Expected(servo_id, reply_params),),
+                                       expected=True)
+
+    def read_telemetry(self, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
+        """Position, load, voltage, temperature and error bits, one read per servo."""
+        readings = []
+        for servo_id in servo_ids:
+            data, errors = self.read(servo_id, TELEMETRY_START, TELEMETRY_LENGTH)
+            readings.append(
+                Telemetry(
+                    servo_id=servo_id,
+                    position_steps=decode_position(from_bytes(data[0:2])),
+                    load_permille=decode_load(from_bytes(data[4:6])),
+                    voltage_v=data[6] / 10.0,
+                    temperature_c=data[7],
+                    errors=errors,
+                )
+            )
+        return tuple(readings)
+
+    # -- safety --------------------------------------------------------------------------
+
+    def move_to_rest(self, timeout_ns: int = 2_000_000_000) -> tuple[int, ...]:
+        """Send every pin to rest and wait until they report it; returns the ids at rest."""
+        rest = {s.servo_id: s.rest_steps for s in self.setup.servos}
+        self.write_goals(rest, force=True)
+        return self._wait_at(rest, timeout_ns)
+
+    def _wait_at(self, goals: Mapping[int, int], timeout_ns: int) -> tuple[int, ...]:
+        deadline_ns = self.clock.now_ns() + timeout_ns
+        pending = dict(goals)
+        arrived: list[int] = []
+        while pending:
+            for servo_id, goal in list(pending.items()):
+                try:
+                    data, _ = self.read(servo_id, Register.PRESENT_POSITION, MOTION_LENGTH)
+                except PortLost:
+                    raise
+                except BusError:
+                    continue
+                position = decode_position(from_bytes(data[0:2]))
+                still = data[-1] == 0  # MOVING register
+                if still and abs(position - goal) <= REST_TOLERANCE_STEPS:
+                    arrived.append(servo_id)
+                    del pending[servo_id]
+            if not pending or self.clock.now_ns() >= deadline_ns:
+                break
+            # A sync write lost on the wire would leave a pin up: say it again while waiting.
+            self.write_goals(pending, force=True)
+            self.clock.sleep_until_ns(self.clock.now_ns() + REST_POLL_NS)
+        return tuple(sorted(arrived))
+
+    def rest_and_release(self, timeout_ns: int = 2_000_000_000) -> SafeStopReport:
+        """Pins to rest, then torque off, on every servo that still answers. Never raises.
+
+        The stop signals are held back until it is done, so a second one cannot leave
+        servos holding torque.
+        """
+        with deferred_signals():
+            return self._rest_and_release(timeout_ns)
+
+    def _rest_and_release(self, timeout_ns: int) -> SafeStopReport:
+        ids = self.setup.servo_ids
+        try:
+            at_rest = self.move_to_rest(timeout_ns)
+        except PortLost:
+            self._release_everyone()
+            return SafeStopReport((), (), ids, port_lost=True)
+        except BusError:
+            at_rest = ()
+        released = []
+        for servo_id in ids:
+            try:
+                self.write(servo_id, Register.TORQUE_ENABLE, 0)
+                released.append(servo_id)
+            except PortLost:
+                self._release_everyone()
+                silent = tuple(i for i in ids if i not in released)
+                return SafeStopReport(at_rest, tuple(released), silent, port_lost=True)
+            except BusError:
+                continue
+        silent = tuple(i for i in ids if i not in released or i not in at_rest)
+        return SafeStopReport(at_rest, tuple(released), silent)
+
+    def _release_everyone(self) -> None:
+        """A last try when the port fails mid-stop: torque off for every servo, in one
+        broadcast write that needs no reply (it may still get through a flaky adapter)."""
+        try:
+            self.link.send(packets.write(BROADCAST_ID, Register.TORQUE_ENABLE.address, b"\x00"))
+        except (WireLost, OSError):
+            pass
+
+    # -- another process on the same port ----------------------------------------------
+
+    def handover(self) -> Handover:
+        """What a process given this port's descriptor needs to drive the same servos."""
+        latency = self.link.latency
+        return Handover(
+            port_name=self.port_name, baud_rate=self.link.baud_rate, setup=self.setup,
+            return_delay_ns=tuple(self.link.return_delay_ns.items()),
+            latency_timer_ms=latency.timer_ms,
+            worst_latency_ns=latency.worst_seen_ns, recent_latency_ns=tuple(latency.recent_ns),
+        )
+
+    def assume_goals(self, goals_steps: Mapping[int, int]) -> None:
+        """Another process (the player's) left these goals on the servos."""
+        self._last_goals.update(goals_steps)
+
+    # -- bookkeeping ---------------------------------------------------------------------
+
+    def stats(self) -> BusStats:
+        counters = self.link.counters
+        return BusStats(
+            bytes_written=counters.bytes_written,
+            bytes_read=counters.bytes_read,
+            sync_writes=self._sync_writes,
+            goals_written=self._goals_written,
+            retries=self._retries,
+            stale_bytes=counters.stale_bytes,
+            mismatched_replies=counters.mismatched_replies,
+        )
+
+    def close(self) -> None:
+        self.link.close()

@@ -1,0 +1,404 @@
+"""Timed exchanges with the servos: bytes out, validated status packets back, within a deadline.
+
+A `Wire` moves bytes: `FdWire` over a serial device's file descriptor (a USB adapter or a
+pseudo-terminal; it waits with ``select``, never by spinning, so a servo emulator sharing the
+machine is not starved), and `PolledWire` over any object with pyserial's interface (the
+in-process simulator, pyserial URL handlers), which waits on the clock.
+
+`Link.exchange` is one request and its replies, done the way the issue of late and stale
+replies demands: input left over from earlier exchanges is drained first; a reply is accepted
+only when its id, its length and its checksum fit the request; anything else is counted as a
+stale or mismatched reply and skipped; and the wait ends at a deadline computed from the wire
+time at the baud rate, the servos' return delay and the adapter's latency. Nothing here
+retries: the caller decides (`pinarray.hardware.feetech.feetech`).
+
+Past 400 lines on purpose: the wires, the latency model and the exchange are the three
+halves of one job (a request and its validated replies, on time) and are read together.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+import termios
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+from pinarray.clock import Clock
+from pinarray.hardware.feetech.packets import StatusPacket, StatusReader
+from pinarray.units import NS_PER_MS
+
+# Bits on the wire per byte: start, 8 data, stop.
+BITS_PER_BYTE = 10
+# The longest return delay the register can hold (254 x 2 us), assumed until read.
+MAX_RETURN_DELAY_NS = 508_000
+# How often a polled wire looks for bytes while it waits, in clock nanoseconds.
+POLL_NS = 20_000
+# A device that takes no bytes for this long is treated as gone (a full queue nobody drains).
+WRITE_TIMEOUT_NS = 500_000_000
+READ_CHUNK = 4096
+# Draining stale input stops after this much, so a device that never stops talking cannot
+# hold up a request (a bus can carry 100 kB a second at 1 Mbps).
+MAX_DRAIN_BYTES = 65_536
+
+
+class WireLost(OSError):
+    """The device under the wire went away (USB unplugged, pseudo-terminal closed)."""
+
+
+class Wire(Protocol):
+    """Bytes to and from the servos."""
+
+    name: str
+
+    def write(self, data: bytes) -> None:
+        """Hand all of ``data`` to the device in one call."""
+        ...
+
+    def read_some(self, deadline_ns: int) -> bytes:
+        """Wait until some bytes have arrived or the clock reaches ``deadline_ns``; return them."""
+        ...
+
+    def discard_input(self) -> int:
+        """Throw away whatever has arrived and not been read; return how many bytes."""
+        ...
+
+    def close(self) -> None: ...
+
+
+class FdWire:
+    """A serial device by file descriptor, in real (monotonic) time.
+
+    Parameters
+    ----------
+    fd : int
+        An open, non-blocking descriptor of a tty configured for raw bytes (pyserial opens
+        devices that way); a player process gets it from its parent.
+    clock : Clock
+        A clock on ``time.monotonic_ns``'s time base.
+    name : str
+        The device, for messages.
+    on_close : callable, optional
+        Closes the object that owns ``fd`` (e.g. the pyserial port), instead of ``os.close``.
+    """
+
+    def __init__(self, fd: int, clock: Clock, name: str, on_close=None,
+                 write_timeout_ns: int = WRITE_TIMEOUT_NS):
+        self.fd = fd
+        self.clock = clock
+        self.name = name
+        self.write_timeout_ns = write_timeout_ns
+        self._on_close = on_close
+
+    def write(self, data: bytes) -> None:
+        try:
+            written = os.write(self.fd, data)  # the usual case: one call, nothing allocated
+        except BlockingIOError:
+            written = 0
+        except OSError as error:
+            raise WireLost(error.errno, f"write failed: {error.strerror}") from None
+        if written == len(data):
+            return
+        give_up_ns = self.clock.now_ns() + self.write_timeout_ns
+        view = memoryview(data)[written:]
+        while view:
+            remaining_ns = give_up_ns - self.clock.now_ns()
+            if remaining_ns <= 0:
+                raise WireLost(errno.ETIMEDOUT, f"write failed: the device took no data for "
+                                                f"{self.write_timeout_ns / 1e9:g} s")
+            select.select([], [self.fd], [], remaining_ns / 1e9)  # the output queue is full
+            try:
+                written = os.write(self.fd, view)
+            except BlockingIOError:
+                continue
+            except OSError as error:
+                raise WireLost(error.errno, f"write failed: {error.strerror}") from None
+            view = view[written:]
+
+    def _read(self) -> bytes:
+        """What is there to read now (maybe nothing); `WireLost` if the device is gone."""
+        try:
+            data = os.read(self.fd, READ_CHUNK)
+        except BlockingIOError:
+            return b""
+        except OSError as error:
+            raise WireLost(error.errno, f"read failed: {error.strerror}") from None
+        if not data:
+            # A tty with VMIN 0 (as pyserial sets it) reads nothing also when there is
+            # nothing: the device is gone only if it no longer answers termios.
+            try:
+                termios.tcgetattr(self.fd)
+            except (termios.error, OSError):
+                raise WireLost(errno.EIO, "read failed: the device is gone") from None
+        return data
+
+    def read_some(self, deadline_ns: int) -> bytes:
+        while True:
+            remaining_ns = deadline_ns - self.clock.now_ns()
+            # select, not poll: its timeout has microseconds, and a player's read must not
+            # overrun the next frame's deadline by poll's rounding to milliseconds.
+            ready, _, _ = select.select([self.fd], [], [], max(0, remaining_ns) / 1e9)
+            if ready:
+                data = self._read()
+                if data:
+                    return data
+                # readable but empty: do not spin on it
+                select.select([], [], [], min(max(0, remaining_ns), POLL_NS) / 1e9)
+            if remaining_ns <= 0:
+                return b""
+
+    def discard_input(self) -> int:
+        dropped = 0
+        while dropped < MAX_DRAIN_BYTES and select.select([self.fd], [], [], 0)[0]:
+            data = self._read()
+            if not data:
+                break
+            dropped += len(data)
+        return dropped
+
+    def close(self) -> None:
+        try:
+            if self._on_close is not None:
+                self._on_close()
+            else:
+                os.close(self.fd)
+        except OSError:
+            pass
+
+
+class PolledWire:
+    """Any object with pyserial's ``write`` / ``in_waiting`` / ``read`` / ``close``.
+
+    The in-process simulator (`pinarray.hardware.feetech.sim.SimSerial`) is one: its bytes arrive on the
+    clock, so waiting here moves virtual time instead of sleeping.
+    """
+
+    def __init__(self, port, clock: Clock, name: str):
+        self.port = port
+        self.clock = clock
+        self.name = name
+
+    def write(self, data: bytes) -> None:
+        try:
+            self.port.write(data)
+        except OSError as error:  # serial.SerialException is an OSError
+            raise WireLost(errno.EIO, str(error)) from None
+
+    def read_some(self, deadline_ns: int) -> bytes:
+        try:
+            while True:
+                waiting = self.port.in_waiting
+                if waiting:
+                    return bytes(self.port.read(waiting))
+                now_ns = self.clock.now_ns()
+                if now_ns >= deadline_ns:
+                    return b""
+                self.clock.sleep_until_ns(min(deadline_ns, now_ns + POLL_NS))
+        except OSError as error:
+            raise WireLost(errno.EIO, str(error)) from None
+
+    def discard_input(self) -> int:
+        try:
+            waiting = self.port.in_waiting
+            return len(self.port.read(waiting)) if waiting else 0
+        except OSError as error:
+            raise WireLost(errno.EIO, str(error)) from None
+
+    def close(self) -> None:
+        try:
+            self.port.close()
+        except OSError:
+            pass
+
+
+@dataclass(frozen=True)
+class Expected:
+    """A reply a request asks for: from which servo, carrying how many data bytes."""
+
+    servo_id: int
+    params_length: int = 0
+
+
+@dataclass
+class LinkCounters:
+    """What went over the link since it was opened."""
+
+    bytes_written: int = 0
+    bytes_read: int = 0
+    exchanges: int = 0
+    stale_bytes: int = 0  # drained before a request: late answers to earlier ones
+    mismatched_replies: int = 0  # well-formed status packets that did not fit the request
+    timeouts: int = 0
+
+
+class Latency:
+    """How long the adapter may hold a reply, learnt from the latency timer or measured.
+
+    A USB-serial adapter passes received bytes to the host when its latency timer runs out
+    (FTDI default 16 ms; 1 ms once lowered), plus one USB frame. A pseudo-terminal or an
+    adapter whose timer cannot be read starts at the vendor SDK's cautious 16 ms and, once a
+    few exchanges have been timed, goes by what was measured.
+
+    Two figures: `allowance_ns`, how long to wait before a reply counts as lost (three times
+    the worst latency ever seen: waiting too long costs little), and `expected_ns`, what a
+    read-back squeezed between two frames should plan for (twice the 90th percentile of the
+    recent ones: one slow reply at connect must not stop every later read-back, and a reply
+    that comes later than planned only ends that read-back at its deadline, to be tried again).
+
+    Parameters
+    ----------
+    timer_ms : int or None
+        The adapter's latency timer, if known.
+    floor_ns : int
+        Never allow less than this (scheduling noise on the host).
+    """
+
+    CAUTIOUS_NS = 2 * 16 * NS_PER_MS + 2 * NS_PER_MS  # what the SDK allows an unknown adapter
+    SAMPLES_BEFORE_TRUST = 3
+    RECENT = 64
+
+    def __init__(self, timer_ms: int | None = None, floor_ns: int = NS_PER_MS):
+        self.timer_ms = timer_ms
+        self.floor_ns = floor_ns
+        self.worst_seen_ns = 0
+        self.samples = 0
+        self.recent_ns: deque[int] = deque(maxlen=self.RECENT)
+        self._p90_ns = 0
+
+    def record(self, latency_ns: int) -> None:
+        self.samples += 1
+        self.worst_seen_ns = max(self.worst_seen_ns, latency_ns)
+        self.recent_ns.append(latency_ns)
+        ordered = sorted(self.recent_ns)  # here, not in the slack before a read-back
+        self._p90_ns = ordered[min(len(ordered) - 1, 9 * len(ordered) // 10)]
+
+    def _known_ns(self) -> int:
+        if self.timer_ms is not None:
+            return max(self.floor_ns, (self.timer_ms + 1) * NS_PER_MS)
+        return self.floor_ns
+
+    @property
+    def allowance_ns(self) -> int:
+        """How long past the wire and return-delay time a reply may still arrive."""
+        if self.timer_ms is None and self.samples < self.SAMPLES_BEFORE_TRUST:
+            return max(self.CAUTIOUS_NS, 3 * self.worst_seen_ns)
+        return max(self._known_ns(), 3 * self.worst_seen_ns)
+
+    @property
+    def expected_ns(self) -> int:
+        """How long past the wire and return-delay time a read-back should plan to wait."""
+        if self.timer_ms is None and len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
+            return self.allowance_ns
+        return max(self._known_ns(), 2 * self._p90_ns)
+
+
+class Link:
+    """Requests and validated replies over a `Wire`, against a clock.
+
+    Parameters
+    ----------
+    wire : Wire
+        Where the bytes go.
+    clock : Clock
+        The time base of deadlines (virtual for the in-process simulator).
+    baud_rate : int
+        Bits per second on the servo bus.
+    latency : Latency
+        The adapter's latency allowance.
+    """
+
+    def __init__(self, wire: Wire, clock: Clock, baud_rate: int, latency: Latency):
+        self.wire = wire
+        self.clock = clock
+        self.baud_rate = baud_rate
+        self.latency = latency
+        self.reader = StatusReader()
+        self.counters = LinkCounters()
+        self.return_delay_ns: dict[int, int] = {}
+
+    @property
+    def name(self) -> str:
+        return self.wire.name
+
+    def wire_ns(self, byte_count: int) -> int:
+        """Time ``byte_count`` bytes take on the bus at its baud rate."""
+        return byte_count * BITS_PER_BYTE * 1_000_000_000 // self.baud_rate
+
+    def reply_time_ns(self, request_bytes: int, replies: Sequence[Expected],
+                      expected: bool = False) -> int:
+        """Longest a request and its replies may take before the replies count as lost.
+
+        ``expected``: what to plan for instead (`Latency.expected_ns`), e.g. before squeezing
+        a read-back between two frames.
+        """
+        reply_bytes = sum(6 + r.params_length for r in replies)
+        delays = sum(self.return_delay_ns.get(r.servo_id, MAX_RETURN_DELAY_NS) for r in replies)
+        latency = self.latency.expected_ns if expected else self.latency.allowance_ns
+        return self.wire_ns(request_bytes + reply_bytes) + delays + latency
+
+    def send(self, packet: bytes) -> None:
+        """Put a packet that gets no reply (a sync write) on the wire."""
+        self.wire.write(packet)
+        self.counters.bytes_written += len(packet)
+
+    def drain(self) -> None:
+        """Drop input left from earlier exchanges: late replies must not answer this request."""
+        stale = self.wire.discard_input() + self.reader.clear()
+        self.counters.stale_bytes += stale
+
+    def exchange(
+        self, packet: bytes, expected: Sequence[Expected], deadline_ns: int | None = None
+    ) -> dict[int, StatusPacket]:
+        """Send ``packet`` and collect the replies it asks for, until they are in or time is up.
+
+        Parameters
+        ----------
+        packet : bytes
+            The request (a READ, WRITE, PING or SYNC_READ instruction packet).
+        expected : sequence of Expected
+            The replies that fit it: one per servo id, each with its data length.
+        deadline_ns : int, optional
+            Give up at this clock time even if the reply time allows longer (the player's
+            next frame); default: the request's reply time from now.
+
+        Returns
+        -------
+        dict of servo id to StatusPacket
+            The replies that arrived and fit; a missing id means no fitting reply in time.
+        """
+        self.drain()
+        self.reader.longest_params = max((e.params_length for e in expected), default=0)
+        start_ns = self.clock.now_ns()
+        limit_ns = start_ns + self.reply_time_ns(len(packet), expected)
+        if deadline_ns is not None:
+            limit_ns = min(limit_ns, deadline_ns)
+        self.wire.write(packet)
+        self.counters.bytes_written += len(packet)
+        self.counters.exchanges += 1
+        wanted = {e.servo_id: e.params_length for e in expected}
+        replies: dict[int, StatusPacket] = {}
+        while len(replies) < len(wanted):
+            data = self.wire.read_some(limit_ns)
+            if not data:
+                self.counters.timeouts += 1
+                break
+            self.counters.bytes_read += len(data)
+            for status in self.reader.feed(data):
+                length = wanted.get(status.servo_id)
+                if length is None or length != len(status.params) or status.servo_id in replies:
+                    self.counters.mismatched_replies += 1
+                    continue
+                replies[status.servo_id] = status
+        if replies and len(replies) == len(wanted):
+            # The adapter's part of the exchange: what it took beyond the wire and the servos'
+            # return delays.
+            used_ns = self.clock.now_ns() - start_ns
+            wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
+            self.latency.record(max(0, used_ns - wire_and_delays_ns))
+        return replies
+
+    def close(self) -> None:
+        self.wire.close()

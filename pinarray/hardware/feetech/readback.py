@@ -1,0 +1,115 @@
+"""Read-backs in the slack between frames: is each changed goal on its servo? If not, heal it.
+
+A sync write gets no reply. After each frame the `Verifier` reads the changed goals back (as
+many as fit before the next frame, oldest first, in one SYNC READ), confirms those the servos
+hold and writes again, acknowledged, those they do not; it records each change's fate in the
+trial's `DeliveryLedger`. It never starts an exchange that would not end before the next
+frame's deadline.
+"""
+
+from __future__ import annotations
+
+from pinarray.clock import Clock
+from pinarray.errors import BusError
+from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
+from pinarray.hardware.feetech.base import Bus
+from pinarray.hardware.feetech.registers import StatusError
+
+# A WRITE of a 2-byte goal, in bytes.
+REWRITE_REQUEST_BYTES = 9
+
+
+class Verifier:
+    """Reads changed goals back in the slack between frames and re-writes the lost ones."""
+
+    def __init__(self, bus: Bus, clock: Clock, trial: PreparedTrial, onset_ns: int,
+                 ledger: DeliveryLedger):
+        self.bus, self.clock, self.trial, self.onset_ns = bus, clock, trial, onset_ns
+        self.ledger = ledger
+        self.pending: dict[int, int] = {}  # servo id -> index of its unconfirmed change
+        self.sent_lateness_ns = [0] * len(trial.changes)
+        self.rewritten_at_ns: dict[int, int] = {}  # change index -> ns from onset
+        self.wire_free_ns = 0  # when the last frame written will have left, ns from onset
+
+    def sent(self, frame: PreparedFrame, sent_ns: int) -> None:
+        """A frame's write returned ``sent_ns`` after onset: its changes await confirmation."""
+        # Frames written back to back queue behind each other on the wire.
+        arrival_ns = max(sent_ns, self.wire_free_ns) + self.bus.wire_ns(len(frame.packet))
+        self.wire_free_ns = arrival_ns
+        for offset, (servo_id, _goal) in enumerate(frame.goals):
+            index = frame.first_change + offset
+            previous = self.pending.pop(servo_id, None)
+            if previous is not None:
+                self.ledger.lose(previous, "the servo's next change came before a read-back "
+                                           "could confirm it")
+            self.pending[servo_id] = index
+            self.sent_lateness_ns[index] = arrival_ns - frame.time_ns
+
+    def work_until(self, limit_ns: int) -> None:
+        """Confirm or heal pending changes while an exchange still fits before ``limit_ns``.
+
+        Each round reads back as many pending goals as fit (oldest first, one SYNC READ),
+        then writes again, acknowledged, each goal its servo does not hold.
+        """
+        bus, clock = self.bus, self.clock
+        while self.pending:
+            ids = tuple(self.pending)
+            count = len(ids)
+            while count and clock.now_ns() + bus.read_goals_time_ns(ids[:count]) > limit_ns:
+                count -= 1
+            if not count:
+                return
+            asked = ids[:count]
+            readings = bus.read_goals(asked, limit_ns)
+            lost: list[int] = []
+            for servo_id in asked:
+                reading = readings.get(servo_id)
+                if reading is None:
+                    self._later(servo_id)  # no reply: the others first, this one again later
+                    continue
+                self._check(servo_id, reading.errors)
+                index = self.pending[servo_id]
+                change = self.trial.changes[index]
+                if reading.goal_steps != change.goal_steps:
+                    lost.append(servo_id)
+                    continue
+                del self.pending[servo_id]
+                rewritten_ns = self.rewritten_at_ns.get(index)
+                if rewritten_ns is None:
+                    self.ledger.confirm(index, self.sent_lateness_ns[index], healed=False)
+                else:
+                    self.ledger.confirm(index, rewritten_ns - change.time_ns, healed=True)
+            for servo_id in lost:
+                if not self._write_again(servo_id, limit_ns):
+                    return
+
+    def _write_again(self, servo_id: int, limit_ns: int) -> bool:
+        """The servo does not hold its goal (its sync write was lost): say it again.
+
+        False when there was no time for it before ``limit_ns``.
+        """
+        bus, clock = self.bus, self.clock
+        now_ns = clock.now_ns()
+        if now_ns + bus.reply_time_ns(servo_id, REWRITE_REQUEST_BYTES, 0) > limit_ns:
+            return False
+        index = self.pending[servo_id]
+        change = self.trial.changes[index]
+        self.rewritten_at_ns[index] = now_ns - self.onset_ns + bus.wire_ns(REWRITE_REQUEST_BYTES)
+        errors = bus.rewrite_goal(servo_id, change.goal_steps, limit_ns)
+        if errors is None:
+            self._later(servo_id)  # no acknowledgement: read back again later
+            return True
+        self._check(servo_id, errors)
+        del self.pending[servo_id]
+        self.ledger.confirm(index, self.rewritten_at_ns[index] - change.time_ns, healed=True)
+        return True
+
+    def _later(self, servo_id: int) -> None:
+        self.pending[servo_id] = self.pending.pop(servo_id)  # to the back of the queue
+
+    def _check(self, servo_id: int, errors: StatusError) -> None:
+        if errors:
+            pin = self.trial.pin_of_servo.get(servo_id)
+            raise BusError(f"servo fault: servo {servo_id} (pin {pin}) reports {errors.describe()}")
+
+

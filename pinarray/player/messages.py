@@ -1,0 +1,76 @@
+"""What the parent and its player process say to each other (pickled over a socket).
+
+Requests are numbered, so a stop meant for one cannot stop the next.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pinarray.hardware.delivery import PreparedTrial
+from pinarray.hardware.feetech.base import SafeStopReport
+from pinarray.hardware.feetech.feetech import Handover
+from pinarray.player.playback import PlaybackReport
+
+
+@dataclass(frozen=True)
+class Hello:
+    """The first message: the bus to drive (None: timing only), priority and spin."""
+
+    handover: Handover | None  # None: no port, only timing measurements
+    realtime_priority: int | None
+    spin_ns: int
+
+
+@dataclass(frozen=True)
+class Ready:
+    realtime_problem: str  # empty when real-time priority was granted (or not asked for)
+
+
+@dataclass(frozen=True)
+class Play:
+    number: int  # a stop request names the trial it is for: a late one must not stop the next
+    trial: PreparedTrial
+    lead_ns: int
+    tolerance_ns: int
+
+
+@dataclass(frozen=True)
+class StopPlaying:
+    number: int
+    reason: str
+    signal_number: int | None
+
+
+@dataclass(frozen=True)
+class MeasureWakeUps:
+    number: int
+    duration_ns: int
+    period_ns: int
+
+
+@dataclass(frozen=True)
+class Quit:
+    pass
+
+
+@dataclass(frozen=True)
+class Played:
+    report: PlaybackReport
+
+
+@dataclass(frozen=True)
+class PlayStopped:
+    reason: str
+    signal_number: int | None
+
+
+@dataclass(frozen=True)
+class PlayFailed:
+    message: str
+    safe_stop: SafeStopReport
+
+
+@dataclass(frozen=True)
+class WakeUpsMeasured:
+    lateness_ns: tuple[int, ...]

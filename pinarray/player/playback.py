@@ -1,0 +1,356 @@
+"""Plays a trial's goal changes against absolute deadlines and verifies that they arrived.
+
+Before onset every frame's sync write is encoded (`prepare_trial`), so at each deadline the
+loop does one thing: hand a prebuilt packet to the port in one call. Frame ``k`` goes out at
+``onset + time_ns[k]`` (never "period minus elapsed", so a late frame does not push the later
+ones), with the garbage collector frozen and paused for the trial.
+
+A sync write gets no reply, so in the slack between frames, and only when the slack is longer
+than the bus's worst-case round trip, the player reads each changed goal back from its servo
+(`pinarray.hardware.delivery`): a goal the servo does not hold is written again, acknowledged, and
+counted as healed, with how late it arrived. The trial's `DeliveryRecord` says whether it was
+delivered as scheduled. Telemetry is read only after the trial's last frame.
+
+Safety: a schedule that would take any pin outside its calibrated limits is refused before
+anything is sent, and every way out of `play_prepared` (normal end, exception, a stop request,
+a lost port) first puts pins at rest and torque off where the bus still answers.
+"""
+
+from __future__ import annotations
+
+import gc
+from array import array
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from pinarray.clock import Clock
+from pinarray.errors import BusError, Interrupted, PinArrayError
+from pinarray.hardware.delivery import (
+    DEFAULT_TOLERANCE_NS,
+    Change,
+    DeliveryLedger,
+    DeliveryRecord,
+    PreparedFrame,
+    PreparedTrial,
+)
+from pinarray.hardware.feetech.base import Bus, BusSetup, PortLost, SafeStopReport, Telemetry
+from pinarray.hardware.feetech.readback import Verifier
+from pinarray.hardware.feetech.registers import StatusError
+from pinarray.schedule import TargetList
+
+# Time between "go" and the first frame, so frame 0 is not late by construction.
+DEFAULT_LEAD_NS = 20_000_000
+# Read-backs stop this long before the next frame is due, so they never delay it.
+GUARD_NS = 300_000
+# After the trial's end, read-backs may go on this long to confirm the last changes.
+SETTLE_NS = 200_000_000
+
+
+class PlaybackAborted(PinArrayError):
+    """Playback stopped early; says why and what the safe stop achieved."""
+
+    def __init__(self, message: str, safe_stop: SafeStopReport):
+        super().__init__(message)
+        self.safe_stop = safe_stop
+
+
+@dataclass(frozen=True, eq=False)
+class PlaybackReport:
+    """What happened when one trial was played.
+
+    Attributes
+    ----------
+    onset_ns : int
+        Clock time of the trial's time zero, in nanoseconds.
+    scheduled_ns, sent_ns : numpy.ndarray
+        Per frame, when it was due and when its write returned, both relative to onset, in
+        nanoseconds (int64): the sender's view; the bench measures the servo's.
+    goals_written : int
+        Servo goals sent by the frames (a frame carries only the servos whose goal changed).
+    bytes_written, bytes_read : int
+        Bytes the host put on and took off the wire during the trial, read-backs included.
+    retries : int
+        Transient failures retried during the trial.
+    delivery : DeliveryRecord
+        Which goal changes were confirmed on their servo, healed or missing.
+    telemetry : tuple of Telemetry
+        Readings taken right after the trial.
+    safe_stop : SafeStopReport or None
+        Result of resting and releasing the pins, when the trial ended with it.
+    """
+
+    onset_ns: int
+    scheduled_ns: np.ndarray
+    sent_ns: np.ndarray
+    goals_written: int
+    bytes_written: int
+    bytes_read: int
+    retries: int
+    delivery: DeliveryRecord
+    telemetry: tuple[Telemetry, ...] = ()
+    safe_stop: SafeStopReport | None = None
+    errors_ns: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "errors_ns", self.sent_ns - self.scheduled_ns)
+
+    @property
+    def frames_sent(self) -> int:
+        return len(self.sent_ns)
+
+    @property
+    def bytes_on_wire(self) -> int:
+        return self.bytes_written + self.bytes_read
+
+    @classmethod
+    def merged(cls, reports: list[PlaybackReport]) -> PlaybackReport:
+        """Several trials as one report (frame times stay relative to each trial's onset)."""
+
+        def joined(name: str) -> np.ndarray:
+            arrays = [getattr(r, name) for r in reports]
+            return np.concatenate(arrays) if arrays else np.zeros(0, dtype=np.int64)
+
+        records = [r.delivery for r in reports]
+        delivery = DeliveryRecord(
+            scheduled=sum(d.scheduled for d in records),
+            confirmed=sum(d.confirmed for d in records),
+            healed=sum(d.healed for d in records),
+            missing=sum(d.missing for d in records),
+            worst_lateness_ns=max((d.worst_lateness_ns for d in records), default=0),
+            tolerance_ns=records[0].tolerance_ns if records else DEFAULT_TOLERANCE_NS,
+            problem=next((d.problem for d in records if d.problem), ""),
+        )
+        return cls(
+            onset_ns=reports[0].onset_ns if reports else 0,
+            scheduled_ns=joined("scheduled_ns"),
+            sent_ns=joined("sent_ns"),
+            goals_written=sum(r.goals_written for r in reports),
+            bytes_written=sum(r.bytes_written for r in reports),
+            bytes_read=sum(r.bytes_read for r in reports),
+            retries=sum(r.retries for r in reports),
+            delivery=delivery,
+            telemetry=tuple(t for r in reports for t in r.telemetry),
+        )
+
+    def deadline_error_ns(self, percentile: float) -> int:
+        """Lateness of the frames' writes at ``percentile`` (0-100), in nanoseconds."""
+        if not len(self.errors_ns):
+            return 0
+        return int(np.percentile(self.errors_ns, percentile, method="higher"))
+
+    def summary(self) -> str:
+        """One line: frames, bytes, write lateness p50/p99/max, delivery."""
+        p50, p99, worst = (self.deadline_error_ns(p) / 1e6 for p in (50, 99, 100))
+        return (
+            f"{self.frames_sent} frames, {self.bytes_on_wire} bytes on the wire, "
+            f"write lateness p50 {p50:.3f} ms, p99 {p99:.3f} ms, max {worst:.3f} ms; "
+            f"{self.delivery.summary()}"
+        )
+
+
+def check_limits(targets: TargetList, setup: BusSetup) -> None:
+    """Refuse a target list that would take any pin outside its calibrated limits.
+
+    Raises
+    ------
+    PinArrayError
+        Naming the pin, its servo id, the offending position and time, and the limits.
+    """
+    by_pin = {s.pin: s for s in setup.servos}
+    for pin in np.unique(targets.pin):
+        servo = by_pin.get(int(pin))
+        if servo is None:
+            known = ", ".join(map(str, sorted(by_pin)))
+            raise PinArrayError(f"the schedule moves pin {pin}, which has no servo (pins: {known})")
+        mask = targets.pin == pin
+        positions = targets.position_steps[mask]
+        outside = (positions < servo.min_steps) | (positions > servo.max_steps)
+        if outside.any():
+            first = int(np.argmax(outside))
+            time_s = targets.time_ns[mask][first] / 1e9
+            raise PinArrayError(
+                f"refusing to play: pin {pin} (servo {servo.servo_id}) would go to "
+                f"{positions[first]} steps at {time_s:.3f} s, outside its calibrated limits "
+                f"{servo.min_steps}..{servo.max_steps}"
+            )
+
+
+def prepare_trial(bus: Bus, targets: TargetList) -> PreparedTrial:
+    """Check a trial against the pins' limits and encode every frame's packet, before onset."""
+    setup = bus.setup
+    check_limits(targets, setup)
+    servo_of_pin = {s.pin: s.servo_id for s in setup.servos}
+    frames: list[PreparedFrame] = []
+    changes: list[Change] = []
+    for frame in targets.frames():
+        goals = tuple(
+            (servo_of_pin[int(pin)], int(position))
+            for pin, position in zip(frame.pins, frame.position_steps, strict=True)
+        )
+        frames.append(PreparedFrame(frame.time_ns, bus.goal_packet(dict(goals)), goals, len(changes)))
+        changes.extend(
+            Change(servo_id, int(pin), goal, frame.time_ns)
+            for (servo_id, goal), pin in zip(goals, frame.pins, strict=True)
+        )
+    return PreparedTrial(tuple(frames), tuple(changes), targets.end_ns,
+                         {s.servo_id: s.pin for s in setup.servos})
+
+
+@contextmanager
+def gc_paused() -> Iterator[None]:
+    """Collect now, then keep the garbage collector out of the trial (a pass can take ms)."""
+    enabled = gc.isenabled()
+    gc.collect()
+    gc.freeze()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+        if enabled:
+            gc.enable()
+
+
+def play_prepared(
+    bus: Bus,
+    trial: PreparedTrial,
+    clock: Clock,
+    *,
+    lead_ns: int = DEFAULT_LEAD_NS,
+    tolerance_ns: int = DEFAULT_TOLERANCE_NS,
+    guard_ns: int = GUARD_NS,
+    release_at_end: bool = True,
+) -> PlaybackReport:
+    """Play a prepared trial against absolute deadlines, verifying every goal change.
+
+    Parameters
+    ----------
+    bus : Bus
+        A connected bus (torque on); `pinarray.hardware.feetech.transport.open_bus`.
+    trial : PreparedTrial
+        From `prepare_trial`.
+    clock : Clock
+        The clock the bus uses too, or one that wraps it and raises `Interrupted` when a
+        stop is requested (`pinarray.stop.StoppableClock`).
+    lead_ns : int
+        Delay from the call to the trial onset, in nanoseconds.
+    tolerance_ns : int
+        How late a goal change may reach its servo and still count as delivered.
+    guard_ns : int
+        Read-backs end this long before the next frame is due.
+    release_at_end : bool
+        After a normal end, rest and release torque (True), or leave the pins holding rest
+        for the next trial (False; the caller makes them safe at the end).
+
+    Returns
+    -------
+    PlaybackReport
+        Including its `DeliveryRecord`; a trial not delivered as scheduled is reported, not
+        raised: the caller marks it invalid.
+    """
+    setup = bus.setup
+    frames = trial.frames
+    count = len(frames)
+    scheduled = np.fromiter((f.time_ns for f in frames), dtype=np.int64, count=count)
+    sent = array("q", bytes(8 * count))
+    ledger = DeliveryLedger(trial.changes, tolerance_ns)
+    before = bus.stats()
+    index = 0
+    with gc_paused():
+        onset_ns = clock.now_ns() + lead_ns
+        verifier = Verifier(bus, clock, trial, onset_ns, ledger)
+        try:
+            for index in range(count):
+                frame = frames[index]
+                deadline_ns = onset_ns + frame.time_ns
+                verifier.work_until(deadline_ns - guard_ns)
+                clock.sleep_until_ns(deadline_ns)
+                bus.send_goals(frame.packet, frame.goals)
+                sent[index] = clock.now_ns() - onset_ns
+                verifier.sent(frame, sent[index])
+            index = count
+            end_ns = onset_ns + trial.end_ns
+            verifier.work_until(end_ns)
+            clock.sleep_until_ns(end_ns)
+            verifier.work_until(end_ns + SETTLE_NS)
+            if verifier.pending:
+                # A change of the trial's end never confirmed may have left a pin up.
+                _rest(bus, tuple(verifier.pending))
+            readings = _checked(_telemetry(bus, setup.servo_ids), setup)
+        except Interrupted:
+            bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
+            raise
+        except PinArrayError as error:
+            safe = bus.rest_and_release()
+            where = f"at frame {index + 1} of {count}" if index < count else "after the last frame"
+            raise PlaybackAborted(f"playback stopped {where}: {error}; {safe.describe()}",
+                                  safe) from error
+        except BaseException:
+            bus.rest_and_release()  # Ctrl-C and anything unexpected: pins first, then re-raise
+            raise
+    safe_stop = bus.rest_and_release() if release_at_end else None
+    after = bus.stats()
+    return PlaybackReport(
+        onset_ns=onset_ns,
+        scheduled_ns=scheduled,
+        sent_ns=np.frombuffer(sent, dtype=np.int64).copy(),
+        goals_written=after.goals_written - before.goals_written,
+        bytes_written=after.bytes_written - before.bytes_written,
+        bytes_read=after.bytes_read - before.bytes_read,
+        retries=after.retries - before.retries,
+        delivery=ledger.record(),
+        telemetry=readings,
+        safe_stop=safe_stop,
+    )
+
+
+def play_trial(bus: Bus, targets: TargetList, clock: Clock, **options) -> PlaybackReport:
+    """`prepare_trial` then `play_prepared` (same options), in this process."""
+    return play_prepared(bus, prepare_trial(bus, targets), clock, **options)
+
+
+def _rest(bus: Bus, unconfirmed: tuple[int, ...]) -> None:
+    """Every pin to rest, confirmed; a servo left unconfirmed that does not get there is a fault."""
+    at_rest = bus.move_to_rest()
+    stuck = [i for i in unconfirmed if i not in at_rest]
+    if stuck:
+        raise BusError(f"servo(s) {', '.join(map(str, stuck))} did not confirm their last goal "
+                       "of the trial nor return to rest")
+
+
+def _telemetry(bus: Bus, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
+    """Each servo's state after the trial; one that does not answer now is skipped (the
+    delivery record already says what reached it, and the next trial's read-backs will tell)."""
+    readings: list[Telemetry] = []
+    for servo_id in servo_ids:
+        try:
+            readings.extend(bus.read_telemetry((servo_id,)))
+        except PortLost:
+            raise
+        except BusError:
+            continue
+    return tuple(readings)
+
+
+def _checked(readings: tuple[Telemetry, ...], setup: BusSetup) -> tuple[Telemetry, ...]:
+    faulty = [r for r in readings if r.errors != StatusError(0)]
+    if faulty:
+        pins = {s.servo_id: s.pin for s in setup.servos}
+        text = ", ".join(
+            f"servo {r.servo_id} (pin {pins.get(r.servo_id)}) reports {r.errors.describe()}"
+            for r in faulty
+        )
+        raise BusError(f"servo fault: {text}")
+    return readings
+
+
+@contextmanager
+def pins_made_safe(bus: Bus) -> Iterator[None]:
+    """Around a whole session: however it ends, pins go to rest and torque off."""
+    try:
+        yield
+    finally:
+        bus.rest_and_release()

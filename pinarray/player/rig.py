@@ -1,0 +1,273 @@
+"""The stimulator a session drives: a connected servo bus (real or simulated) and its clock.
+
+One place decides hardware vs simulation, real vs virtual time, and where the deadline loop
+runs: on a serial device (real servos, or simulated ones behind a pseudo-terminal) it runs in
+a player process of its own at real-time priority (`pinarray.player.process`); on the
+in-process simulator, in virtual or scaled time, it runs here. However a `Rig` is left
+(normal close, exception, a stop request), pins go to rest and torque goes off where the bus
+still answers.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import TYPE_CHECKING
+
+from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
+from pinarray.errors import BusError, PinArrayError
+from pinarray.hardware.delivery import Presentation
+from pinarray.hardware.feetech.base import BusSetup, SafeStopReport, ServoSetup, Telemetry
+from pinarray.hardware.feetech.faults import SIM_DEFAULT
+from pinarray.hardware.feetech.readback import REWRITE_REQUEST_BYTES
+from pinarray.player.playback import (
+    GUARD_NS,
+    PlaybackReport,
+    play_prepared,
+    prepare_trial,
+)
+from pinarray.player.timing import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
+from pinarray.player.timing import Bus as TimingBus
+from pinarray.protocol import NS_PER_S, Device, Protocol
+from pinarray.stop import StoppableClock, StopRequest
+
+if TYPE_CHECKING:
+    from pinarray.player.process import PlayerProcess
+
+
+def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False) -> Clock:
+    """Real servos run in real time; simulated ones in virtual time (scale 0/None) or scaled.
+
+    ``paced``: a scaled simulation for a scripted run, in simulated time that only moves
+    while something waits (`PacedClock`), so the host's own delays cannot make a stimulus
+    late; without it (the UI, where a person answers), scaled wall-clock time.
+    """
+    if port:
+        if time_scale not in (None, 1.0):
+            raise PinArrayError("real servos play in real time: --speed must be 1")
+        return MonotonicClock()
+    if not time_scale:
+        return VirtualClock()
+    return PacedClock(time_scale) if paced else ScaledClock(time_scale)
+
+
+def bus_setup(device: Device) -> BusSetup:
+    """What the bus handshake checks and sets, from a protocol's device section."""
+    from pinarray.hardware.feetech.models import servo_model
+
+    servos = tuple(
+        ServoSetup(servo_id=c.servo_id, pin=c.pin, rest_steps=c.rest_steps,
+                   min_steps=c.min_steps, max_steps=c.max_steps)
+        for c in device.pins
+    )
+    try:
+        model = servo_model(device.servo.model)
+    except PinArrayError as error:
+        raise BusError(f"device: {error}") from None
+    return BusSetup(servos=servos, model_number=model.model_number,
+                    speed_steps_per_s=device.servo.speed_steps_per_s,
+                    acceleration_register=device.servo.acceleration_register)
+
+
+def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
+    """A ``sim://`` URL that simulates exactly the protocol's servo ids unless it names its own."""
+    from pinarray.hardware.feetech.faults import is_sim_url
+
+    url = url or SIM_DEFAULT
+    if not is_sim_url(url):
+        raise PinArrayError(f"--sim expects a sim:// URL, found {url!r}")
+    if "ids=" not in url:
+        url += ("&" if "?" in url else "?") + "ids=" + ",".join(map(str, servo_ids))
+    return url
+
+
+class Rig:
+    """A connected pin array for one protocol's device.
+
+    Parameters
+    ----------
+    protocol : Protocol
+        Its device section gives servo ids, rest positions, limits, speed, baud rate and the
+        delivery tolerance.
+    port : str or None
+        A serial device of real servos; None for the simulator.
+    sim_url : str or None
+        A ``sim://`` URL (faults etc.) when ``port`` is None.
+    clock : Clock
+        The bus's clock; `Rig.clock` wraps it so that waits end on a stop request.
+    stop : StopRequest, optional
+        Set by the composition root (signals, the UI's quit); playback and the session's
+        waits end at their next look at it.
+    isolate : bool or None
+        Play in a player process of its own (None: whenever the port is a device).
+    realtime : bool
+        Ask for real-time priority in the player process.
+    """
+
+    def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
+                 stop: StopRequest | None = None, *, isolate: bool | None = None,
+                 realtime: bool = True):
+        from pinarray.hardware.feetech.transport import open_bus
+
+        self.protocol = protocol
+        self.stop = stop or StopRequest()
+        self.bus_clock = clock
+        self.clock = StoppableClock(clock, self.stop)
+        self.setup = bus_setup(protocol.device)
+        self.url = port or sim_url_for(sim_url, self.setup.servo_ids)
+        # A sped-up simulation (--speed X) judges the host's own delays on the wall clock:
+        # 1 ms of Python is X ms of simulated time.
+        self.time_scale = max(1.0, float(getattr(clock, "scale", 1.0)))
+        self.tolerance_ns = round(protocol.device.delivery_tolerance_ns * self.time_scale)
+        self.bus = open_bus(self.url, None, clock, baud_rate=protocol.device.servo.baud_rate)
+        try:
+            self.bus.check(self.setup)  # reads only: nothing moves, no torque yet
+        except BaseException:
+            self.bus.close()
+            raise
+        self.warnings = list(self.bus.warnings)
+        self.reports: list[PlaybackReport] = []
+        # One user of the port at a time: the UI may test a pin while a timing check runs.
+        self._port = threading.RLock()
+        self._released = False
+        self._fd = getattr(self.bus.link.wire, "fd", None)
+        self._isolate = self._fd is not None if isolate is None else isolate
+        self._realtime = realtime
+        self.player: PlayerProcess | None = None
+        try:
+            if self._isolate:
+                # The player process guards the servos before torque comes on: if this process
+                # is killed at any moment from here, it rests the pins and releases torque.
+                self._start_player()
+                if self.player is not None and self.player.realtime_problem:
+                    self.warnings.append(self.player.realtime_problem)
+            self.bus.hold()
+            self.bus.move_to_rest()
+        except BaseException:
+            self.close()  # torque may be on: nobody else holds this rig to release it
+            raise
+
+    @property
+    def isolated(self) -> bool:
+        """Whether trials play in a player process of their own."""
+        return self.player is not None
+
+    def _start_player(self) -> None:
+        from pinarray.player.process import PlayerProcess
+
+        if self._fd is None:
+            raise PinArrayError(f"{self.url}: a player process needs a serial device")
+        self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime)
+
+    def present(self, schedule) -> Presentation:
+        """Play one trial; the pins then hold at rest.
+
+        Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
+        scheduled is returned, not raised (the session marks the trial invalid).
+        """
+        with self._port:
+            return self._present(schedule)
+
+    def _present(self, schedule) -> Presentation:
+        if self.player is not None and not self.player.alive:
+            # Started again before torque can come back on, so that it guards it.
+            self.player.close()
+            self._start_player()
+        if self._released:
+            # A fault released torque; the handshake turns it back on, checking every servo.
+            self.bus.connect(self.setup)
+            self._released = False
+        trial = prepare_trial(self.bus, schedule.targets)
+        try:
+            if self.player is not None:
+                report = self.player.play(trial, tolerance_ns=self.tolerance_ns)
+            else:
+                report = play_prepared(self.bus, trial, self.clock, tolerance_ns=self.tolerance_ns,
+                                       guard_ns=round(GUARD_NS * self.time_scale),
+                                       release_at_end=False)
+        except PinArrayError:
+            self._released = True
+            raise
+        self.reports.append(report)
+        return Presentation(report.onset_ns, report.delivery)
+
+    def test_pin(self, pin: int, cycles: int = 3, frequency_hz: int = 2) -> Presentation:
+        """Wiggle one pin (its calibrated widths, the seed's pulse shape) to check the hardware."""
+        from fractions import Fraction
+
+        from pinarray.protocol import PinDrive, Train
+        from pinarray.schedule import compile_drives
+
+        calibration = self.protocol.device.calibration(pin)
+        widths = sorted(w for w, _ in calibration.positions_by_width_ns)
+        train = Train(Fraction(frequency_hz), cycles * NS_PER_S // frequency_hz,
+                      up_width_ns=widths[-1], down_width_ns=widths[0])
+        return self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
+
+    def check_timing(self, duration_ns: int = DEFAULT_DURATION_NS,
+                     period_ns: int = DEFAULT_PERIOD_NS) -> Verdict:
+        """Measure this machine's wake-ups in a player process and judge the protocol's timing.
+
+        On the in-process simulator a player process is started just for the measurement:
+        the question is whether this machine could play real servos in time.
+        """
+        with self._port:
+            return self._check_timing(duration_ns, period_ns)
+
+    def _check_timing(self, duration_ns: int, period_ns: int) -> Verdict:
+        from pinarray.player.process import PlayerProcess
+
+        player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
+        try:
+            wake_ups = WakeUps.of(player.measure_wake_ups(duration_ns, period_ns))
+            problem = player.realtime_problem
+        finally:
+            if player is not self.player:
+                player.close()
+        busiest = self._busiest_frame()
+        ids = self.setup.servo_ids[:busiest] or self.setup.servo_ids[:1]
+        heal_ns = (self.bus.read_goals_time_ns(ids)
+                   + self.bus.reply_time_ns(ids[0], REWRITE_REQUEST_BYTES, 0))
+        timer_ms = None if self.bus.sim is not None else self.bus.link.latency.timer_ms
+        bus = TimingBus(self.url, busiest, heal_ns, timer_ms)
+        return judge(wake_ups, problem, bus, self.tolerance_ns)
+
+    def _busiest_frame(self) -> int:
+        """The most goal changes one frame of this protocol's trials sends."""
+        from pinarray.plan import make_plan
+        from pinarray.schedule import compile_trial
+
+        seen, busiest = set(), 1
+        for planned in make_plan(self.protocol, 0).trials:
+            if planned.condition in seen:
+                continue
+            seen.add(planned.condition)
+            targets = compile_trial(self.protocol, planned).targets
+            busiest = max([busiest, *(len(frame.pins) for frame in targets.frames())])
+        return busiest
+
+    def telemetry(self) -> tuple[Telemetry, ...]:
+        with self._port:
+            return self.bus.read_telemetry(self.setup.servo_ids)
+
+    def close(self) -> SafeStopReport:
+        """Player process ended, pins to rest, torque off, port closed.
+
+        Waits for a stimulus in progress: request a stop first to cut it short.
+        """
+        with self._port:
+            return self._close()
+
+    def _close(self) -> SafeStopReport:
+        try:
+            if self.player is not None:
+                self.player.close()
+                self.player = None
+            return self.bus.rest_and_release()
+        finally:
+            self.bus.close()
+
+    def __enter__(self) -> Rig:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

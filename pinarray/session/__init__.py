@@ -1,0 +1,1 @@
+"""One run's trials (`trials`) and one sitting at the experimenter's desk."""

@@ -1,0 +1,437 @@
+"""The session engine: one subject's run through a plan, as a state machine. No UI code.
+
+    instructions -> [ready -> stimulus -> response] x N -> done
+                     pause/resume from ready, stimulus or response; redo from response;
+                     abort (with a reason) from anywhere before done
+
+A pause asked for while a trial is being presented (the inter-trial interval or the stimulus)
+takes effect when `present` returns: the caller cuts the stimulus short through its stop
+request, the trial is logged as cut short, and after resume the same trial is ready again.
+Without a stop the stimulus plays to its end and the run holds at the answer.
+
+Each trial row is written (and fsync'd) by the `RunWriter` the moment the trial ends, so the
+engine can be killed at any point and resumed with exactly the remaining trials. The engine
+is driven by a caller: `pinarray batch` loops over it, the TUI calls it from a worker. It
+waits only through its `Clock` (the inter-trial interval) and the `Stimulator` (the stimulus).
+
+Times are integer nanoseconds on the run's time base (`pinarray.journal.timebase`): from the
+run's time zero, which is the first trial's stimulus onset unless the session is told another
+(``time_zero_ns``, a time on its clock); a resumed sitting continues where the writer says its
+clock joins the run.
+
+Past 400 lines on purpose: the state machine's transitions and the rows they write are one
+thing to read (a trial's row is written by the transition that ends it).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Any, NamedTuple
+from typing import Protocol as Interface
+
+from pinarray.errors import Interrupted, PinArrayError
+from pinarray.grid import Grid
+from pinarray.hardware.delivery import DeliveryRecord, Presentation
+from pinarray.journal.manifest import RunStatus
+from pinarray.journal.records import (
+    NOTHING_FELT,
+    DeliveryCounts,
+    LocalisationRecord,
+    MotionAnswer,
+    MotionRecord,
+    TrialRecord,
+    TrialStatus,
+)
+from pinarray.journal.timebase import FIRST_TRIAL_ONSET
+from pinarray.journal.writer import RunWriter
+from pinarray.plan import PlannedTrial, TrialPlan
+from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Paradigm, Protocol
+from pinarray.schedule import TrialSchedule, compile_trial
+
+PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
+
+
+class Phase(StrEnum):
+    INSTRUCTIONS = "instructions"
+    READY = "ready"  # the next trial is waiting to be presented
+    STIMULUS = "stimulus"  # the pins are moving
+    RESPONSE = "response"  # waiting for the subject's answer
+    FAULT = "fault"  # the stimulus failed; retry or abort
+    PAUSED = "paused"
+    DONE = "done"
+    ABORTED = "aborted"
+
+
+class SessionError(PinArrayError):
+    """An action the session cannot take now, or a response it cannot accept."""
+
+
+class Stimulator(Interface):
+    """What presents a compiled trial: real or simulated servos, or nothing at all."""
+
+    def present(self, schedule: TrialSchedule) -> Presentation:
+        """Play the trial; return its onset (clock ns) and whether it was delivered as scheduled."""
+        ...
+
+
+class OnsetGate(Interface):
+    """What may hold a trial back after its inter-trial interval, e.g. until a scanner volume."""
+
+    def wait_for_onset(self, ready_ns: int) -> None:
+        """Return when a trial ready since ``ready_ns`` (session clock ns) may start."""
+        ...
+
+
+MEASURED = object()  # respond(): take the response time from the session's clock
+
+
+class TrialNumber(NamedTuple):
+    """Where a trial stands for the experimenter: practice and counted trials numbered apart."""
+
+    practice: bool
+    number: int  # 1-based among the plan's trials of the same kind
+    of: int  # how many trials of that kind the plan has
+
+    def __str__(self) -> str:
+        return f"{'practice' if self.practice else 'trial'} {self.number} of {self.of}"
+
+
+@dataclass(frozen=True)
+class TrialOutcome:
+    """What the last finished trial was, for live counts on a screen."""
+
+    record: TrialRecord
+    remaining: int
+
+
+def task_label(protocol: Protocol) -> str:
+    """The BIDS task label: the protocol's name with anything but letters and digits dropped."""
+    label = "".join(ch for ch in protocol.name if ch.isalnum())
+    if not label:
+        raise PinArrayError(f"{protocol.source}: the protocol name {protocol.name!r} has no letters or digits for a task label")
+    return label
+
+
+class Session:
+    """One run of a protocol for one subject.
+
+    Parameters
+    ----------
+    protocol, plan
+        What to present, and in which order (the plan saved in the run's manifest).
+    writer
+        The run's results writer (new or resumed).
+    stimulator
+        Presents each trial; its exceptions (`PinArrayError`) put the session in FAULT.
+    clock
+        Measures onsets and response times and waits out the inter-trial interval.
+    on_change
+        Called with the session after every state change (the UI refreshes from it).
+    time_zero_ns
+        The run's time zero on ``clock`` (e.g. the first counted scanner volume); None: the
+        first trial's stimulus onset. Only a run whose zero is not fixed yet can be told one.
+    time_zero_event
+        What ``time_zero_ns`` is, in words, for the manifest and the sidecars.
+    gate
+        Holds each trial, once its interval is over, until it may start (onsets locked to
+        scanner volumes); None: trials start when their interval ends.
+    """
+
+    def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
+                 clock, on_change: Callable[[Session], None] | None = None,
+                 time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session",
+                 gate: OnsetGate | None = None):
+        self.protocol = protocol
+        self.plan = plan
+        self.writer = writer
+        self.stimulator = stimulator
+        self.clock = clock
+        self.on_change = on_change or (lambda session: None)
+        self.gate = gate
+        self.grid: Grid = protocol.device.grid
+        self.task = task_label(protocol)
+        remaining = {(entry.trial, entry.practice) for entry in writer.remaining()}
+        self.queue: list[PlannedTrial] = [t for t in plan.trials if (t.trial, t.practice) in remaining]
+        self.current: PlannedTrial | None = None
+        self.phase = Phase.INSTRUCTIONS
+        self._paused_from: Phase | None = None
+        # The UI pauses from its own thread while a worker presents: transitions take turns.
+        self._state = threading.RLock()
+        self._in_present = False
+        self._pausing = False
+        self._sitting_start_ns = clock.now_ns()
+        joined = writer.sitting_start_ns
+        # The run's time zero on this sitting's clock; None until the first onset fixes it.
+        self._zero_ns: int | None = None if joined is None else self._sitting_start_ns - joined
+        if time_zero_ns is not None:
+            if self._zero_ns is not None:
+                raise SessionError(f"{writer.paths.label}: the run's time zero is already fixed; "
+                                   "a resumed run keeps it")
+            self._fix_zero(time_zero_ns, time_zero_event)
+        self._onset_ns = 0
+        self._duration_ns = 0
+        self._delivery: DeliveryRecord | None = None
+        self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
+        self._next_allowed_ns = self._sitting_start_ns
+        self.fault = ""
+        self.last: TrialOutcome | None = None
+
+    # -- what the caller can ask ---------------------------------------------------------------
+
+    @property
+    def total(self) -> int:
+        return len(self.plan.trials)
+
+    @property
+    def done_count(self) -> int:
+        return self.total - len(self.queue) - (1 if self.current is not None else 0)
+
+    @property
+    def records(self) -> list[TrialRecord]:
+        return self.writer.records
+
+    @property
+    def pausing(self) -> bool:
+        """A pause was asked for while a trial is being presented and waits for it to end."""
+        return self._pausing
+
+    def number_of(self, planned: PlannedTrial) -> TrialNumber:
+        """``planned``'s place among the plan's practice or counted trials."""
+        same = [t for t in self.plan.trials if t.practice == planned.practice]
+        return TrialNumber(planned.practice, same.index(planned) + 1, len(same))
+
+    def done_of(self, practice: bool) -> int:
+        """Practice (or counted) trials of the plan finished, in this sitting or an earlier one."""
+        open_ = {(t.trial, t.practice) for t in self.queue}
+        if self.current is not None:
+            open_.add((self.current.trial, self.current.practice))
+        return sum(1 for t in self.plan.trials
+                   if t.practice == practice and (t.trial, t.practice) not in open_)
+
+    def _set(self, phase: Phase) -> None:
+        self.phase = phase
+        self.on_change(self)
+
+    def _require(self, *phases: Phase) -> None:
+        if self.phase not in phases:
+            allowed = " or ".join(p.value for p in phases)
+            raise SessionError(f"cannot do that now: the session is at {self.phase.value}, expected {allowed}")
+
+    # -- transitions -----------------------------------------------------------------------------
+
+    def begin(self) -> None:
+        """Leave the instructions: the first remaining trial becomes ready."""
+        self._require(Phase.INSTRUCTIONS)
+        self._advance()
+
+    def _advance(self) -> None:
+        if self.queue:
+            self.current = self.queue.pop(0)
+            self._set(Phase.READY)
+        else:
+            self.current = None
+            self.writer.finish(RunStatus.COMPLETED)
+            self._set(Phase.DONE)
+
+    def present(self) -> None:
+        """Wait out the inter-trial interval, then play the current trial's stimulus."""
+        with self._state:
+            self._require(Phase.READY)
+            if self._in_present:
+                # The phase stays READY through the inter-trial wait: a second call must not
+                # present the same trial again from another thread.
+                raise SessionError("a trial is already being presented")
+            self._in_present = True
+        try:
+            self._present()
+        finally:
+            with self._state:
+                self._in_present = self._pausing = False
+
+    def current_schedule(self) -> TrialSchedule:
+        """The current trial compiled, once per trial (the UI shows it while it plays)."""
+        assert self.current is not None
+        if self._compiled is None or self._compiled[0] is not self.current:
+            self._compiled = (self.current, compile_trial(self.protocol, self.current))
+        return self._compiled[1]
+
+    def _present(self) -> None:
+        schedule = self.current_schedule()
+        try:
+            self.clock.sleep_until_ns(self._next_allowed_ns)
+            if self.gate is not None:  # the scanner's volume this trial is locked to
+                self.gate.wait_for_onset(self.clock.now_ns())
+        except Interrupted:
+            with self._state:
+                if not self._pausing:
+                    raise  # not a pause: the caller aborts the run
+                self._settle(Phase.READY)  # nothing was presented yet
+                return
+        with self._state:
+            if self._pausing:
+                self._settle(Phase.READY)
+                return
+            self._onset_ns = self.clock.now_ns()
+            self._delivery = None
+            self._set(Phase.STIMULUS)
+        try:
+            presentation = self.stimulator.present(schedule)
+        except Interrupted:
+            with self._state:
+                if not self._pausing:
+                    raise  # not a stimulus fault: the caller aborts the run
+                self._write(TrialStatus.ABORTED, duration_ns=self.clock.now_ns() - self._onset_ns,
+                            reason=PAUSE_CUT_SHORT)
+                self._settle(Phase.READY)  # presented again after resume
+                return
+        except PinArrayError as error:
+            with self._state:
+                self.fault = str(error)
+                self._write(TrialStatus.INVALID, duration_ns=self.clock.now_ns() - self._onset_ns,
+                            reason=self.fault)
+                self._settle(Phase.FAULT)
+                return
+        with self._state:
+            self._onset_ns = presentation.onset_ns
+            self._delivery = presentation.delivery
+            self._duration_ns = schedule.end_ns
+            if not presentation.delivery.delivered:
+                self.fault = f"the stimulus was not delivered as scheduled: {presentation.delivery.problem}"
+                self._write(TrialStatus.INVALID, reason=self.fault)
+                self._settle(Phase.FAULT)
+                return
+            self._settle(Phase.RESPONSE)
+
+    def _settle(self, phase: Phase) -> None:
+        """End a presentation at ``phase``; a pause asked for meanwhile holds the run there.
+
+        Called with the state lock held, so a `pause` sees either a presentation in progress
+        or its end, never the moment between.
+        """
+        self._in_present = False
+        pausing, self._pausing = self._pausing, False
+        if pausing and phase is not Phase.FAULT:  # a fault already holds the run
+            self._paused_from = phase
+            phase = Phase.PAUSED
+        self._set(phase)
+
+    def retry(self) -> None:
+        """After a fault: present the same trial again (its failed row stays, marked invalid)."""
+        self._require(Phase.FAULT)
+        self.fault = ""
+        self._set(Phase.READY)
+
+    def respond(self, response: str | int | None, response_time_ns: int | None | object = MEASURED) -> TrialOutcome:
+        """Record the subject's answer to the current trial and move on.
+
+        Localisation takes a pin number (or None / "none" for "nothing felt"); apparent
+        motion takes none / left / right / unsure. ``response_time_ns`` defaults to the time
+        since stimulus onset on the session's clock; None records it as not applicable
+        (scripted answers have no response time).
+        """
+        self._require(Phase.RESPONSE)
+        text = self._check_response(response)
+        if response_time_ns is MEASURED:
+            response_time_ns = self.clock.now_ns() - self._onset_ns
+        assert response_time_ns is None or isinstance(response_time_ns, int)
+        record = self._write(TrialStatus.OK, response=text, response_time_ns=response_time_ns)
+        self._next_allowed_ns = self.clock.now_ns() + self.protocol.design.inter_trial_interval_ns
+        self.last = TrialOutcome(record, len(self.queue))
+        self._advance()
+        return self.last
+
+    def redo(self) -> None:
+        """Present the current trial again; its first presentation is logged as redone."""
+        self._require(Phase.RESPONSE)
+        self._write(TrialStatus.REDONE)
+        self._set(Phase.READY)
+
+    def pause(self) -> None:
+        """Hold the run. While a trial is being presented the pause waits for `present` to
+        return (see the module's docstring); `pausing` says so meanwhile."""
+        with self._state:
+            self._require(Phase.READY, Phase.STIMULUS, Phase.RESPONSE)
+            if self._pausing:
+                return
+            if self._in_present:
+                self._pausing = True
+                return
+            self._paused_from = self.phase
+            self._set(Phase.PAUSED)
+
+    def resume(self) -> None:
+        with self._state:
+            self._require(Phase.PAUSED)
+            assert self._paused_from is not None
+            self._set(self._paused_from)
+            self._paused_from = None
+
+    def abort(self, reason: str, status: RunStatus = RunStatus.ABORTED) -> None:
+        """Stop the run for good (it can still be resumed later); ``status``: aborted or crashed."""
+        with self._state:
+            if self.phase in (Phase.DONE, Phase.ABORTED):
+                return
+            reason = reason or "aborted by the experimenter"
+            if self.phase is Phase.STIMULUS:
+                self._delivery = None  # cut short: what was delivered is not a whole stimulus
+                self._write(TrialStatus.ABORTED, duration_ns=self.clock.now_ns() - self._onset_ns, reason=reason)
+            elif self.phase is Phase.RESPONSE or (self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE):
+                self._write(TrialStatus.ABORTED, reason=reason)
+            self.writer.finish(status, reason)
+            self._set(Phase.ABORTED)
+
+    # -- rows ----------------------------------------------------------------------------------
+
+    def _check_response(self, response: str | int | None) -> str:
+        if self.protocol.design.paradigm is Paradigm.LOCALISATION:
+            if response is None or response == NOTHING_FELT:
+                return NOTHING_FELT
+            try:
+                pin = int(response)
+            except (TypeError, ValueError):
+                raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {response!r}") from None
+            if not 1 <= pin <= self.grid.pin_count:
+                raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
+            return str(pin)
+        if response not in set(MotionAnswer):
+            raise SessionError(f"expected one of {', '.join(MotionAnswer)}, found {response!r}")
+        return str(response)
+
+    def _fix_zero(self, zero_ns: int, event: str) -> None:
+        self._zero_ns = zero_ns
+        self.writer.set_time_zero(self._sitting_start_ns - zero_ns, self.clock.now_ns() - zero_ns, event)
+
+    def _write(self, status: TrialStatus, response: str | None = None, response_time_ns: int | None = None,
+               duration_ns: int | None = None, reason: str | None = None) -> TrialRecord:
+        planned = self.current
+        assert planned is not None
+        if self._zero_ns is None:
+            self._fix_zero(self._onset_ns, FIRST_TRIAL_ONSET)
+        assert self._zero_ns is not None
+        delivery = self._delivery
+        common: dict[str, Any] = {  # the fields both kinds of record share
+            "trial": planned.trial, "block": planned.block, "task": self.task, "status": status,
+            "onset_ns": self._onset_ns - self._zero_ns,
+            "duration_ns": self._duration_ns if duration_ns is None else duration_ns,
+            "response_time_ns": response_time_ns, "practice": planned.practice,
+            "delivery": None if delivery is None else DeliveryCounts(
+                delivery.scheduled, delivery.confirmed, delivery.healed, delivery.missing,
+                delivery.worst_lateness_ns),
+            "status_reason": None if reason is None else " ".join(reason.split()),  # one line
+        }
+        condition = planned.condition
+        record: TrialRecord
+        if isinstance(condition, LocalisationCondition):
+            named = None if response in (None, NOTHING_FELT) else int(str(response))
+            record = LocalisationRecord(
+                **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
+                response=response,
+                error_class=None if named is None else self.grid.classify(condition.pin, named))
+        else:
+            record = MotionRecord(**common, row=condition.row,
+                                  direction=DIRECTION_OF_WAVE[condition.direction],
+                                  response=None if response is None else MotionAnswer(response))
+        return self.writer.write_trial(record)
