@@ -195,3 +195,32 @@ def test_a_port_lost_mid_stop_still_broadcasts_torque_off():
     report = bus.rest_and_release()
     assert report.port_lost
     assert wire.requests[-1] == packets.write(0xFE, Register.TORQUE_ENABLE.address, b"\x00")
+
+
+def test_a_reply_held_up_by_a_busy_host_is_waited_for_on_retry():
+    # The allowance learnt on a quiet pseudo-terminal is 1 ms; then the host stalls the
+    # simulator for 12 ms on every request. The retries wait longer each time and get it.
+    def answer(packet):
+        return [(12 * MS, position_reply(packet[2], 2048))]
+
+    clock = VirtualClock()
+    wire = ScriptedWire(clock, answer)
+    latency = Latency(timer_ms=None)
+    for _ in range(3):
+        latency.record(200_000)
+    link = Link(wire, clock, 1_000_000, latency)
+    bus = FeetechBus(link, clock)
+    data, _ = bus.read(5, Register.PRESENT_POSITION)
+    assert int.from_bytes(data, "little") == 2048
+    assert len(wire.requests) == 3  # 1 ms, 4 ms, then 16 ms: the third attempt waits long enough
+
+
+def test_a_silent_servo_costs_the_whole_growing_wait_and_is_named():
+    clock = VirtualClock()
+    latency = Latency(timer_ms=1)  # 2 ms allowance
+    bus = FeetechBus(Link(ScriptedWire(clock, lambda packet: []), clock, 1_000_000, latency), clock)
+    start_ns = clock.now_ns()
+    with pytest.raises(BusError, match="servo 7: reading PRESENT_POSITION .* after 4 attempt"):
+        bus.read(7, Register.PRESENT_POSITION)
+    waited_ns = clock.now_ns() - start_ns
+    assert (1 + 4 + 16 + 64) * 2 * MS <= waited_ns < (1 + 4 + 16 + 64) * 2 * MS + 20 * MS

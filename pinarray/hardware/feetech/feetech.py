@@ -62,6 +62,8 @@ TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.ad
 READ_REQUEST_BYTES = 8
 # Sync reads that get no answer at all, in a row, before read-backs use READs instead.
 SYNC_READ_TRIES = 3
+# A retry after a silence waits this many times longer than the attempt before it.
+PATIENCE_GROWTH = 4
 
 
 @dataclass(frozen=True)
@@ -152,7 +154,12 @@ class FeetechBus:
 
     def _transact(self, servo_id: int, action: str, packet: bytes, params_length: int,
                   retries: int | None = None) -> StatusPacket:
-        """One request to one servo and its reply, retried a bounded number of times."""
+        """One request to one servo and its reply, retried a bounded number of times.
+
+        Each retry waits four times as long as the attempt before it (1, 4, 16, 64 latency
+        allowances): a reply held up by a busy host is waited for, and only a servo that stays
+        silent costs the whole wait.
+        """
         attempts = (self.retries if retries is None else retries) + 1
         expected = (Expected(servo_id, params_length),)
         before = self.link.counters.mismatched_replies
@@ -160,7 +167,7 @@ class FeetechBus:
             if attempt:
                 self._retries += 1
             try:
-                replies = self.link.exchange(packet, expected)
+                replies = self.link.exchange(packet, expected, patience=PATIENCE_GROWTH ** attempt)
             except WireLost as error:
                 raise self._lost(f"{action} of servo {servo_id}", error) from None
             if servo_id in replies:

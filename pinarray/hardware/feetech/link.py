@@ -328,15 +328,17 @@ class Link:
         return byte_count * BITS_PER_BYTE * 1_000_000_000 // self.baud_rate
 
     def reply_time_ns(self, request_bytes: int, replies: Sequence[Expected],
-                      expected: bool = False) -> int:
+                      expected: bool = False, patience: int = 1) -> int:
         """Longest a request and its replies may take before the replies count as lost.
 
         ``expected``: what to plan for instead (`Latency.expected_ns`), e.g. before squeezing
-        a read-back between two frames.
+        a read-back between two frames. ``patience``: allow that many times the latency
+        allowance (a retry after a silence waits longer: a busy host can hold a reply, or the
+        simulator serving it, for more than the allowance learnt while it was quiet).
         """
         reply_bytes = sum(6 + r.params_length for r in replies)
         delays = sum(self.return_delay_ns.get(r.servo_id, MAX_RETURN_DELAY_NS) for r in replies)
-        latency = self.latency.expected_ns if expected else self.latency.allowance_ns
+        latency = self.latency.expected_ns if expected else patience * self.latency.allowance_ns
         return self.wire_ns(request_bytes + reply_bytes) + delays + latency
 
     def send(self, packet: bytes) -> None:
@@ -350,7 +352,8 @@ class Link:
         self.counters.stale_bytes += stale
 
     def exchange(
-        self, packet: bytes, expected: Sequence[Expected], deadline_ns: int | None = None
+        self, packet: bytes, expected: Sequence[Expected], deadline_ns: int | None = None,
+        patience: int = 1,
     ) -> dict[int, StatusPacket]:
         """Send ``packet`` and collect the replies it asks for, until they are in or time is up.
 
@@ -363,6 +366,8 @@ class Link:
         deadline_ns : int, optional
             Give up at this clock time even if the reply time allows longer (the player's
             next frame); default: the request's reply time from now.
+        patience : int
+            How many latency allowances the reply time includes (see `reply_time_ns`).
 
         Returns
         -------
@@ -372,7 +377,7 @@ class Link:
         self.drain()
         self.reader.longest_params = max((e.params_length for e in expected), default=0)
         start_ns = self.clock.now_ns()
-        limit_ns = start_ns + self.reply_time_ns(len(packet), expected)
+        limit_ns = start_ns + self.reply_time_ns(len(packet), expected, patience=patience)
         if deadline_ns is not None:
             limit_ns = min(limit_ns, deadline_ns)
         self.wire.write(packet)
