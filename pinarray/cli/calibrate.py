@@ -101,7 +101,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
     from pinarray.errors import PinArrayError, ProtocolError
     from pinarray.hardware.feetech.jog import Jog
-    from pinarray.player.rig import bus_setup, sim_url_for
+    from pinarray.player.families import bus_setup, sim_url_for
     from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
     from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
 

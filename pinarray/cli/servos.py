@@ -151,7 +151,7 @@ def _target(args: argparse.Namespace) -> Target:
     from pinarray.cli import common
     from pinarray.cli.bus import DEFAULT_DEVICE_TEXT
     from pinarray.errors import PinArrayError
-    from pinarray.player.rig import bus_setup, sim_url_for
+    from pinarray.player.families import bus_setup, sim_url_for
     from pinarray.protocol.load import load_protocol, parse_protocol
 
     protocol = (load_protocol(args.protocol) if args.protocol
@@ -369,7 +369,7 @@ def _cmd_torque_off(args: argparse.Namespace) -> int:
 def _cmd_rest(args: argparse.Namespace) -> int:
     from pinarray.errors import BusError
     from pinarray.hardware.feetech import bringup
-    from pinarray.player.rig import bus_setup
+    from pinarray.player.families import bus_setup
     from pinarray.stop import StopRequest, stop_on_signals
 
     target = _target(args)

@@ -23,6 +23,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
+from types import TracebackType
 
 from pinarray import __version__
 from pinarray.errors import ResultsError
@@ -460,7 +461,8 @@ class RunWriter:
     def __enter__(self) -> RunWriter:
         return self
 
-    def __exit__(self, kind, error, traceback) -> None:
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 traceback: TracebackType | None) -> None:
         if kind is None or self.manifest.status is not RunStatus.RUNNING:
             # Nothing went wrong, or the caller already recorded how the run ended.
             self.close()

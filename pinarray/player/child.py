@@ -12,11 +12,14 @@ import ctypes
 import os
 import select
 import sys
+from collections.abc import Callable
+from functools import partial
 from multiprocessing.connection import Connection
 
 from pinarray.clock import MonotonicClock
-from pinarray.hardware.feetech.feetech import FeetechBus
+from pinarray.hardware.driver import ArrayDriver
 from pinarray.player.messages import (
+    Answer,
     Hello,
     MeasureWakeUps,
     Play,
@@ -128,10 +131,10 @@ def _serve(conn: Connection, port_fd: int) -> int:
                 return 0  # the parent is gone: `finally` makes the pins safe
             match message:
                 case Play(number=number) if bus is not None:
-                    conn.send(_working(clock, number, lambda m=message: _play(bus, m, clock)))
+                    conn.send(_working(clock, number, partial(_play, bus, message, clock)))
                 case MeasureWakeUps(number=number, duration_ns=duration_ns, period_ns=period_ns):
                     conn.send(_working(clock, number,
-                                       lambda d=duration_ns, p=period_ns: _wake_ups(clock, d, p)))
+                                       partial(_wake_ups, clock, duration_ns, period_ns)))
                 case Quit():
                     return 0  # `finally` rests the pins: the parent may not outlive this by much
                 case StopPlaying():
@@ -143,7 +146,7 @@ def _serve(conn: Connection, port_fd: int) -> int:
             bus.rest_and_release()
 
 
-def _working(clock: ControlledClock, number: int, work):
+def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) -> Answer:
     """Do one numbered request; a stop for it becomes a `PlayStopped` answer."""
     clock.working = number
     try:
@@ -154,7 +157,7 @@ def _working(clock: ControlledClock, number: int, work):
         clock.working = 0
 
 
-def _play(bus: FeetechBus, play: Play, clock: ControlledClock):
+def _play(bus: ArrayDriver, play: Play, clock: ControlledClock) -> Played | PlayFailed:
     try:
         report = play_prepared(bus, play.trial, clock, lead_ns=play.lead_ns,
                                tolerance_ns=play.tolerance_ns, release_at_end=False)

@@ -8,14 +8,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pinarray.hardware.delivery import PreparedTrial
-from pinarray.hardware.feetech.base import SafeStopReport
-from pinarray.hardware.feetech.feetech import Handover
+from pinarray.hardware.driver import Handover, SafeStopReport
 from pinarray.player.playback import PlaybackReport
 
 
 @dataclass(frozen=True)
 class Hello:
-    """The first message: the bus to drive (None: timing only), priority and spin."""
+    """The first message: the servos to drive (None: timing only), priority and spin."""
 
     handover: Handover | None  # None: no port, only timing measurements
     realtime_priority: int | None
@@ -74,3 +73,10 @@ class PlayFailed:
 @dataclass(frozen=True)
 class WakeUpsMeasured:
     lateness_ns: tuple[int, ...]
+
+
+# What the child answers, one per request (and Ready once, to Hello).
+Answer = Ready | Played | PlayStopped | PlayFailed | WakeUpsMeasured
+# What the parent asks, numbered where a stop may name it.
+Request = Play | StopPlaying | MeasureWakeUps | Quit
+ANSWERS = (Ready, Played, PlayStopped, PlayFailed, WakeUpsMeasured)

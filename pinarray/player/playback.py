@@ -1,19 +1,20 @@
 """Plays a trial's goal changes against absolute deadlines and verifies that they arrived.
 
-Before onset every frame's sync write is encoded (`prepare_trial`), so at each deadline the
-loop does one thing: hand a prebuilt packet to the port in one call. Frame ``k`` goes out at
-``onset + time_ns[k]`` (never "period minus elapsed", so a late frame does not push the later
-ones), with the garbage collector frozen and paused for the trial.
+Any `ArrayDriver` (`pinarray.hardware.driver`) can be played. Before onset every frame is
+encoded by the driver (`prepare_trial`), so at each deadline the loop does one thing: hand
+prepared bytes to the port in one call. Frame ``k`` goes out at ``onset + time_ns[k]``
+(never "period minus elapsed", so a late frame does not push the later ones), with the
+garbage collector frozen and paused for the trial.
 
-A sync write gets no reply, so in the slack between frames, and only when the slack is longer
-than the bus's worst-case round trip, the player reads each changed goal back from its servo
-(`pinarray.hardware.delivery`): a goal the servo does not hold is written again, acknowledged, and
-counted as healed, with how late it arrived. The trial's `DeliveryRecord` says whether it was
-delivered as scheduled. Telemetry is read only after the trial's last frame.
+In the slack between frames the driver's `FrameVerifier` confirms each goal change on its
+servo (Feetech: reads it back, and writes again, acknowledged, a goal the servo does not hold,
+counted as healed with how late it arrived), never past the next frame's deadline. The
+trial's `DeliveryRecord` says whether it was delivered as scheduled. Telemetry is read only
+after the trial's last frame.
 
 Safety: a schedule that would take any pin outside its calibrated limits is refused before
 anything is sent, and every way out of `play_prepared` (normal end, exception, a stop request,
-a lost port) first puts pins at rest and torque off where the bus still answers.
+a lost port) first puts pins at rest and torque off where the hardware still answers.
 """
 
 from __future__ import annotations
@@ -36,9 +37,13 @@ from pinarray.hardware.delivery import (
     PreparedFrame,
     PreparedTrial,
 )
-from pinarray.hardware.feetech.base import Bus, BusSetup, PortLost, SafeStopReport, Telemetry
-from pinarray.hardware.feetech.readback import Verifier
-from pinarray.hardware.feetech.registers import StatusError
+from pinarray.hardware.driver import (
+    ArrayDriver,
+    ArraySetup,
+    PortLost,
+    SafeStopReport,
+    Telemetry,
+)
 from pinarray.schedule import TargetList
 
 # Time between "go" and the first frame, so frame 0 is not late by construction.
@@ -151,7 +156,7 @@ class PlaybackReport:
         )
 
 
-def check_limits(targets: TargetList, setup: BusSetup) -> None:
+def check_limits(targets: TargetList, setup: ArraySetup) -> None:
     """Refuse a target list that would take any pin outside its calibrated limits.
 
     Raises
@@ -178,7 +183,7 @@ def check_limits(targets: TargetList, setup: BusSetup) -> None:
             )
 
 
-def prepare_trial(bus: Bus, targets: TargetList) -> PreparedTrial:
+def prepare_trial(bus: ArrayDriver, targets: TargetList) -> PreparedTrial:
     """Check a trial against the pins' limits and encode every frame's packet, before onset."""
     setup = bus.setup
     check_limits(targets, setup)
@@ -215,7 +220,7 @@ def gc_paused() -> Iterator[None]:
 
 
 def play_prepared(
-    bus: Bus,
+    bus: ArrayDriver,
     trial: PreparedTrial,
     clock: Clock,
     *,
@@ -228,8 +233,9 @@ def play_prepared(
 
     Parameters
     ----------
-    bus : Bus
-        A connected bus (torque on); `pinarray.hardware.feetech.transport.open_bus`.
+    bus : ArrayDriver
+        A connected array (torque on), e.g. a Feetech bus from
+        `pinarray.hardware.feetech.transport.open_bus`.
     trial : PreparedTrial
         From `prepare_trial`.
     clock : Clock
@@ -261,7 +267,7 @@ def play_prepared(
     index = 0
     with gc_paused():
         onset_ns = clock.now_ns() + lead_ns
-        verifier = Verifier(bus, clock, trial, onset_ns, ledger)
+        verifier = bus.verifier(clock, trial, onset_ns, ledger)
         try:
             for index in range(count):
                 frame = frames[index]
@@ -307,12 +313,13 @@ def play_prepared(
     )
 
 
-def play_trial(bus: Bus, targets: TargetList, clock: Clock, **options) -> PlaybackReport:
-    """`prepare_trial` then `play_prepared` (same options), in this process."""
-    return play_prepared(bus, prepare_trial(bus, targets), clock, **options)
+def play_trial(bus: ArrayDriver, targets: TargetList, clock: Clock, *,
+               release_at_end: bool = True) -> PlaybackReport:
+    """`prepare_trial` then `play_prepared` (default timing), in this process."""
+    return play_prepared(bus, prepare_trial(bus, targets), clock, release_at_end=release_at_end)
 
 
-def _rest(bus: Bus, unconfirmed: tuple[int, ...]) -> None:
+def _rest(bus: ArrayDriver, unconfirmed: tuple[int, ...]) -> None:
     """Every pin to rest, confirmed; a servo left unconfirmed that does not get there is a fault."""
     at_rest = bus.move_to_rest()
     stuck = [i for i in unconfirmed if i not in at_rest]
@@ -321,7 +328,7 @@ def _rest(bus: Bus, unconfirmed: tuple[int, ...]) -> None:
                        "of the trial nor return to rest")
 
 
-def _telemetry(bus: Bus, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
+def _telemetry(bus: ArrayDriver, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
     """Each servo's state after the trial; one that does not answer now is skipped (the
     delivery record already says what reached it, and the next trial's read-backs will tell)."""
     readings: list[Telemetry] = []
@@ -335,8 +342,8 @@ def _telemetry(bus: Bus, servo_ids: tuple[int, ...]) -> tuple[Telemetry, ...]:
     return tuple(readings)
 
 
-def _checked(readings: tuple[Telemetry, ...], setup: BusSetup) -> tuple[Telemetry, ...]:
-    faulty = [r for r in readings if r.errors != StatusError(0)]
+def _checked(readings: tuple[Telemetry, ...], setup: ArraySetup) -> tuple[Telemetry, ...]:
+    faulty = [r for r in readings if r.errors]
     if faulty:
         pins = {s.servo_id: s.pin for s in setup.servos}
         text = ", ".join(
@@ -348,7 +355,7 @@ def _checked(readings: tuple[Telemetry, ...], setup: BusSetup) -> tuple[Telemetr
 
 
 @contextmanager
-def pins_made_safe(bus: Bus) -> Iterator[None]:
+def pins_made_safe(bus: ArrayDriver) -> Iterator[None]:
     """Around a whole session: however it ends, pins go to rest and torque off."""
     try:
         yield

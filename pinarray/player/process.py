@@ -27,13 +27,16 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from multiprocessing.connection import Connection
+from typing import NoReturn
 
 from pinarray.clock import MonotonicClock
-from pinarray.hardware.feetech.base import SafeStopReport
-from pinarray.hardware.feetech.feetech import FeetechBus
+from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.player.child import REALTIME_PRIORITY
 from pinarray.player.messages import (
+    ANSWERS,
+    Answer,
     Hello,
     MeasureWakeUps,
     Play,
@@ -42,6 +45,7 @@ from pinarray.player.messages import (
     PlayStopped,
     Quit,
     Ready,
+    Request,
     StopPlaying,
     WakeUpsMeasured,
 )
@@ -81,9 +85,9 @@ class PlayerProcess:
 
     Parameters
     ----------
-    bus : FeetechBus or None
-        The parent's connected bus (its port descriptor is shared); None for a process that
-        only measures this machine's timing.
+    bus : ArrayDriver or None
+        The parent's connected array (its port descriptor is shared); None for a process
+        that only measures this machine's timing.
     fd : int or None
         The port's file descriptor.
     stop : StopRequest
@@ -92,7 +96,7 @@ class PlayerProcess:
         Ask the OS for SCHED_FIFO priority in the child.
     """
 
-    def __init__(self, bus: FeetechBus | None, fd: int | None, stop: StopRequest,
+    def __init__(self, bus: ArrayDriver | None, fd: int | None, stop: StopRequest,
                  realtime: bool = True, spin_ns: int = SPIN_NS):
         self.bus = bus
         self.fd = fd
@@ -154,7 +158,7 @@ class PlayerProcess:
                              SafeStopReport((), (), ()), time.monotonic_ns())
         return answer.lateness_ns
 
-    def _ask(self, request, doing: str):
+    def _ask(self, request: Callable[[int], Request], doing: str) -> Answer:
         """Send a numbered request and wait for its answer; a stop ends it with `Stopped`."""
         with self._one_at_a_time:
             self._requests += 1
@@ -171,7 +175,7 @@ class PlayerProcess:
             raise Stopped(answer.reason, answer.signal_number)
         return answer
 
-    def _answer(self, doing: str, timeout_ns: int | None = None):
+    def _answer(self, doing: str, timeout_ns: int | None = None) -> Answer:
         """The child's next message, passing a stop request on; a dead child is a `PlayerDied`.
 
         Once a stop is passed on, the child has `STOP_BUDGET_NS` to answer; after that it is
@@ -182,7 +186,11 @@ class PlayerProcess:
         while True:
             try:
                 if self.conn.poll(WATCH_S):
-                    return self.conn.recv()
+                    answer = self.conn.recv()
+                    if isinstance(answer, ANSWERS):
+                        return answer
+                    self.process.kill()  # a child that says what no child says: not ours
+                    self._died(f"{doing} (it answered {answer!r})")
             except (EOFError, OSError):
                 self._died(doing)
             if self.stop.requested and self._working and not self._stop_sent:
@@ -198,7 +206,7 @@ class PlayerProcess:
         except OSError:
             pass  # gone already: the watch loop notices
 
-    def _died(self, doing: str):
+    def _died(self, doing: str) -> NoReturn:
         noticed_ns = time.monotonic_ns()
         try:
             status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits

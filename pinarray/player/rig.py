@@ -1,4 +1,7 @@
-"""The stimulator a session drives: a connected servo bus (real or simulated) and its clock.
+"""The stimulator a session drives: a connected array (real or simulated) and its clock.
+
+The array is whatever `pinarray.player.families.open_array` opens for the protocol's device,
+seen only through the `ArrayDriver` seam.
 
 One place decides hardware vs simulation, real vs virtual time, and where the deadline loop
 runs: on a serial device (real servos, or simulated ones behind a pseudo-terminal) it runs in
@@ -14,20 +17,26 @@ import threading
 from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
-from pinarray.errors import BusError, PinArrayError
+from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import Presentation
-from pinarray.hardware.feetech.base import BusSetup, SafeStopReport, ServoSetup, Telemetry
-from pinarray.hardware.feetech.faults import SIM_DEFAULT
-from pinarray.hardware.feetech.readback import REWRITE_REQUEST_BYTES
+from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
+from pinarray.player.families import open_array
 from pinarray.player.playback import (
     GUARD_NS,
     PlaybackReport,
     play_prepared,
     prepare_trial,
 )
-from pinarray.player.timing import DEFAULT_DURATION_NS, DEFAULT_PERIOD_NS, Verdict, WakeUps, judge
-from pinarray.player.timing import Bus as TimingBus
-from pinarray.protocol import NS_PER_S, Device, Protocol
+from pinarray.player.timing import (
+    DEFAULT_DURATION_NS,
+    DEFAULT_PERIOD_NS,
+    PortFigures,
+    Verdict,
+    WakeUps,
+    judge,
+)
+from pinarray.protocol import NS_PER_S, Protocol
+from pinarray.schedule import TrialSchedule
 from pinarray.stop import StoppableClock, StopRequest
 
 if TYPE_CHECKING:
@@ -48,36 +57,6 @@ def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = Fa
     if not time_scale:
         return VirtualClock()
     return PacedClock(time_scale) if paced else ScaledClock(time_scale)
-
-
-def bus_setup(device: Device) -> BusSetup:
-    """What the bus handshake checks and sets, from a protocol's device section."""
-    from pinarray.hardware.feetech.models import servo_model
-
-    servos = tuple(
-        ServoSetup(servo_id=c.servo_id, pin=c.pin, rest_steps=c.rest_steps,
-                   min_steps=c.min_steps, max_steps=c.max_steps)
-        for c in device.pins
-    )
-    try:
-        model = servo_model(device.servo.model)
-    except PinArrayError as error:
-        raise BusError(f"device: {error}") from None
-    return BusSetup(servos=servos, model_number=model.model_number,
-                    speed_steps_per_s=device.servo.speed_steps_per_s,
-                    acceleration_register=device.servo.acceleration_register)
-
-
-def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
-    """A ``sim://`` URL that simulates exactly the protocol's servo ids unless it names its own."""
-    from pinarray.hardware.feetech.faults import is_sim_url
-
-    url = url or SIM_DEFAULT
-    if not is_sim_url(url):
-        raise PinArrayError(f"--sim expects a sim:// URL, found {url!r}")
-    if "ids=" not in url:
-        url += ("&" if "?" in url else "?") + "ids=" + ",".join(map(str, servo_ids))
-    return url
 
 
 class Rig:
@@ -106,21 +85,19 @@ class Rig:
     def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
                  stop: StopRequest | None = None, *, isolate: bool | None = None,
                  realtime: bool = True):
-        from pinarray.hardware.feetech.transport import open_bus
-
         self.protocol = protocol
         self.stop = stop or StopRequest()
         self.bus_clock = clock
         self.clock = StoppableClock(clock, self.stop)
-        self.setup = bus_setup(protocol.device)
-        self.url = port or sim_url_for(sim_url, self.setup.servo_ids)
         # A sped-up simulation (--speed X) judges the host's own delays on the wall clock:
         # 1 ms of Python is X ms of simulated time.
         self.time_scale = max(1.0, float(getattr(clock, "scale", 1.0)))
         self.tolerance_ns = round(protocol.device.delivery_tolerance_ns * self.time_scale)
-        self.bus = open_bus(self.url, None, clock, baud_rate=protocol.device.servo.baud_rate)
+        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock)
+        self.setup = self.bus.setup
+        self.url = self.bus.port_name
         try:
-            self.bus.check(self.setup)  # reads only: nothing moves, no torque yet
+            self.bus.check_servos()  # reads only: nothing moves, no torque yet
         except BaseException:
             self.bus.close()
             raise
@@ -129,7 +106,7 @@ class Rig:
         # One user of the port at a time: the UI may test a pin while a timing check runs.
         self._port = threading.RLock()
         self._released = False
-        self._fd = getattr(self.bus.link.wire, "fd", None)
+        self._fd = self.bus.descriptor
         self._isolate = self._fd is not None if isolate is None else isolate
         self._realtime = realtime
         self.player: PlayerProcess | None = None
@@ -158,7 +135,7 @@ class Rig:
             raise PinArrayError(f"{self.url}: a player process needs a serial device")
         self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime)
 
-    def present(self, schedule) -> Presentation:
+    def present(self, schedule: TrialSchedule) -> Presentation:
         """Play one trial; the pins then hold at rest.
 
         Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
@@ -167,14 +144,14 @@ class Rig:
         with self._port:
             return self._present(schedule)
 
-    def _present(self, schedule) -> Presentation:
+    def _present(self, schedule: TrialSchedule) -> Presentation:
         if self.player is not None and not self.player.alive:
             # Started again before torque can come back on, so that it guards it.
             self.player.close()
             self._start_player()
         if self._released:
             # A fault released torque; the handshake turns it back on, checking every servo.
-            self.bus.connect(self.setup)
+            self.bus.reconnect()
             self._released = False
         trial = prepare_trial(self.bus, schedule.targets)
         try:
@@ -224,12 +201,9 @@ class Rig:
             if player is not self.player:
                 player.close()
         busiest = self._busiest_frame()
-        ids = self.setup.servo_ids[:busiest] or self.setup.servo_ids[:1]
-        heal_ns = (self.bus.read_goals_time_ns(ids)
-                   + self.bus.reply_time_ns(ids[0], REWRITE_REQUEST_BYTES, 0))
-        timer_ms = None if self.bus.sim is not None else self.bus.link.latency.timer_ms
-        bus = TimingBus(self.url, busiest, heal_ns, timer_ms)
-        return judge(wake_ups, problem, bus, self.tolerance_ns)
+        port = PortFigures(self.url, busiest, self.bus.heal_time_ns(busiest),
+                           self.bus.latency_timer_ms)
+        return judge(wake_ups, problem, port, self.tolerance_ns)
 
     def _busiest_frame(self) -> int:
         """The most goal changes one frame of this protocol's trials sends."""
@@ -269,5 +243,5 @@ class Rig:
     def __enter__(self) -> Rig:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

@@ -46,8 +46,8 @@ class WakeUps:
 
 
 @dataclass(frozen=True)
-class Bus:
-    """What the check knows of the servo bus and of the protocol's frames."""
+class PortFigures:
+    """What the check knows of the servos' port and of the protocol's frames."""
 
     name: str
     changes_per_frame: int  # the most goal changes one frame of the protocol sends
@@ -64,7 +64,7 @@ class Verdict:
     lines: tuple[str, ...]
 
 
-def judge(wake_ups: WakeUps, realtime_problem: str, bus: Bus, tolerance_ns: int) -> Verdict:
+def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_ns: int) -> Verdict:
     """Whether a goal change reaches its servo within ``tolerance_ns`` at worst.
 
     The worst case is a goal whose sync write is lost in the busiest frame: it goes out as late

@@ -32,6 +32,7 @@ from enum import StrEnum
 from typing import Any, NamedTuple
 from typing import Protocol as Interface
 
+from pinarray.clock import Clock
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
 from pinarray.hardware.delivery import DeliveryRecord, Presentation
@@ -141,7 +142,7 @@ class Session:
     """
 
     def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
-                 clock, on_change: Callable[[Session], None] | None = None,
+                 clock: Clock, on_change: Callable[[Session], None] | None = None,
                  time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session",
                  gate: OnsetGate | None = None):
         self.protocol = protocol

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import TypeVar
 
 from pinarray.clock import Clock
-from pinarray.hardware.feetech.base import SafeStopReport
+from pinarray.errors import PinArrayError
+from pinarray.hardware.driver import SafeStopReport
 from pinarray.imaging.lsl import MarkerOutlet
 from pinarray.imaging.run import start_session
 from pinarray.imaging.scanner import Scanner
@@ -179,11 +180,15 @@ class Lab:
         its read-backs with the delays the handshake reads, and the servos keep the new ones.
         """
         from pinarray.hardware.feetech.bringup import set_return_delay
+        from pinarray.hardware.feetech.feetech import FeetechBus
 
         rig, request = self.connected(), self.request
         assert request is not None
+        bus = rig.bus
+        if not isinstance(bus, FeetechBus):
+            raise PinArrayError(f"{rig.url}: only Feetech bus servos have a return delay")
         result = self._busy(
-            lambda: set_return_delay(rig.bus, rig.setup.servo_ids, delay_us, save=False))
+            lambda: set_return_delay(bus, rig.setup.servo_ids, delay_us, save=False))
         if result is not None and rig.isolated:
             self.connect(request)
         return result

@@ -12,6 +12,7 @@ from textual.widgets import Button, DataTable, Footer, Input, Static
 
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech import packets
+from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import Register
 from pinarray.session.trials import Session
 from pinarray.tui.lab import Lab, SessionRequest
@@ -158,7 +159,8 @@ class PreflightScreen(KeyNotices, Screen):
         by_id = {t.servo_id: t for t in readings}
         model = self.request.protocol.device.servo.model
         bus = self.lab.connected().bus
-        delays_ns = bus.link.return_delay_ns  # read by the handshake
+        # Return delays are the Feetech family's (read by its handshake); others show none.
+        delays_ns = bus.link.return_delay_ns if isinstance(bus, FeetechBus) else {}
         for servo in self.lab.connected().setup.servos:
             t = by_id.get(servo.servo_id)
             delay = (str(delays_ns[servo.servo_id] // 1000) if servo.servo_id in delays_ns
@@ -179,7 +181,7 @@ class PreflightScreen(KeyNotices, Screen):
             text += f" Servo(s) {', '.join(map(str, faulty))} report errors."
         # A servo that waits longer before answering than the read-back itself takes on the
         # wire slows every delivery check more than the wire does.
-        wire_ns = bus.wire_ns(READBACK_BYTES)
+        wire_ns = bus.wire_ns(READBACK_BYTES) if isinstance(bus, FeetechBus) else 0
         slow = sorted(i for i, ns in delays_ns.items() if ns > wire_ns)
         if slow:
             text += (f" Servo(s) {', '.join(map(str, slow))} wait longer before answering than "

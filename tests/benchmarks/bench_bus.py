@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from pinarray.clock import MonotonicClock, VirtualClock
-from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.driver import ServoSetup
+from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.transport import open_bus
 from pinarray.player.child import REALTIME_PRIORITY
 from pinarray.player.playback import DEFAULT_LEAD_NS, play_trial, prepare_trial

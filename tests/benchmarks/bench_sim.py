@@ -35,8 +35,8 @@ from pinarray.hardware.feetech.sim_motion import MotionState
 from pinarray.hardware.feetech.sim_servo import SimServo
 from pinarray.hardware.feetech.transport import open_bus
 from pinarray.plan import make_plan
+from pinarray.player.families import bus_setup
 from pinarray.player.playback import play_trial
-from pinarray.player.rig import bus_setup
 from pinarray.protocol.load import load_protocol
 from pinarray.schedule import compile_trial
 

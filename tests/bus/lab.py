@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from pinarray.clock import VirtualClock
-from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.driver import ServoSetup
+from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.transport import open_bus
 from pinarray.schedule import TargetList
 

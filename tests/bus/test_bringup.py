@@ -4,9 +4,10 @@ import pytest
 
 from pinarray.clock import VirtualClock
 from pinarray.errors import BusError, PinArrayError
+from pinarray.hardware.driver import ServoSetup
 from pinarray.hardware.feetech import bringup
 from pinarray.hardware.feetech import jog as jog_module
-from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.link import Latency
 from pinarray.hardware.feetech.registers import Register, to_bytes
 from pinarray.hardware.feetech.transport import open_bus

@@ -3,7 +3,7 @@
 import pytest
 
 from pinarray.errors import BusError, PinArrayError
-from pinarray.hardware.feetech.base import PortLost
+from pinarray.hardware.driver import PortLost
 from pinarray.hardware.feetech.registers import Register, StatusError
 from pinarray.player.playback import PlaybackAborted, play_trial
 

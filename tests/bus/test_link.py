@@ -8,8 +8,9 @@ from hypothesis import strategies as st
 
 from pinarray.clock import VirtualClock
 from pinarray.errors import BusError
+from pinarray.hardware.driver import ServoSetup
 from pinarray.hardware.feetech import packets
-from pinarray.hardware.feetech.base import BusSetup, ServoSetup
+from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.link import Expected, Latency, Link, WireLost
 from pinarray.hardware.feetech.registers import Register

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 from enum import StrEnum
 
 from pinarray.errors import BusError, PinArrayError
-from pinarray.hardware.feetech.base import BusSetup, PortLost, SafeStopReport, Telemetry
+from pinarray.hardware.driver import PortLost, SafeStopReport, Telemetry
+from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import MAX_SERVO_ID, Register
 

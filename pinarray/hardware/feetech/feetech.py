@@ -1,18 +1,13 @@
-"""The Feetech STS driver: what a connected array of STS servos can be asked to do.
+"""The Feetech STS driver: a connected array of STS bus servos, an `ArrayDriver`.
 
-Packets are built by `pinarray.hardware.feetech.packets` and exchanged by `pinarray.hardware.feetech.link`, which
-drains stale input before every request and accepts only replies whose id, length and
-checksum fit it. This module adds what a lab needs on top: a connect handshake that reports
-every missing servo at once, goal writes that never leave a pin's calibrated limits, bounded
-and counted retries of transient failures, the read-back and re-send that verify a goal
-reached its servo, and a safe stop that puts every pin at rest and releases torque wherever
-the bus still answers. For bring-up (`pinarray.hardware.feetech.bringup`) it also pings at the broadcast id,
-pings within a bounded time, and writes EEPROM, but only through the methods named for it
-(`write_eeprom`, `unlock_eeprom`, `lock_eeprom`): `write` refuses EEPROM registers.
-
-Longer than 400 lines because it is one class: everything that may be said to the servos is
-said here, so that no other module can write EEPROM or move a pin outside its limits; split,
-each part would reach into the others' retries, link and record of goals.
+Packets are built by `packets` and exchanged by `link`, which drains stale input before every
+request and accepts only replies whose id, length and checksum fit it. `FeetechBus` adds
+bounded and counted retries of transient failures, goal writes that never leave a pin's
+calibrated limits, the read-backs of goals, telemetry and the bring-up pings; its jobs live
+beside it: the connect handshake (`handshake`), the read-back and re-send that verify a goal
+reached its servo (`readback`), the safe stop (`safety`) and the handover to the player
+process (`handover`). EEPROM is written only through the methods named for it
+(`write_eeprom`, `unlock_eeprom`, `lock_eeprom`, for `bringup`): `write` refuses it.
 """
 
 from __future__ import annotations
@@ -23,18 +18,14 @@ from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock
 from pinarray.errors import BusError
-from pinarray.hardware.feetech import packets
-from pinarray.hardware.feetech.base import (
-    BusSetup,
-    BusStats,
-    GoalReading,
-    PortLost,
-    SafeStopReport,
-    ServoSetup,
-    Telemetry,
-)
-from pinarray.hardware.feetech.link import Expected, FdWire, Latency, Link, WireLost
+from pinarray.hardware.delivery import DeliveryLedger, PreparedTrial
+from pinarray.hardware.driver import BusStats, PortLost, SafeStopReport, Telemetry
+from pinarray.hardware.feetech import handshake, packets, safety
+from pinarray.hardware.feetech.base import BusSetup, GoalReading
+from pinarray.hardware.feetech.handover import Handover, handover_of
+from pinarray.hardware.feetech.link import Expected, Link, WireLost
 from pinarray.hardware.feetech.packets import StatusPacket, StatusReader
+from pinarray.hardware.feetech.readback import REWRITE_REQUEST_BYTES, Verifier
 from pinarray.hardware.feetech.registers import (
     BROADCAST_ID,
     Register,
@@ -45,16 +36,11 @@ from pinarray.hardware.feetech.registers import (
     from_bytes,
     to_bytes,
 )
-from pinarray.stop import deferred_signals
 from pinarray.units import NS_PER_US
 
 if TYPE_CHECKING:
     from pinarray.hardware.feetech.sim import SimBus
 
-REST_TOLERANCE_STEPS = 4
-# Present position .. moving flag, read in one instruction while waiting for pins to settle.
-MOTION_LENGTH = Register.MOVING.address + 1 - Register.PRESENT_POSITION.address
-REST_POLL_NS = 10_000_000
 # Present position .. present temperature, read in one instruction.
 TELEMETRY_START = Register.PRESENT_POSITION
 TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.address
@@ -86,32 +72,6 @@ class BroadcastPing:
     def clean(self) -> bool:
         """Every byte heard was a status packet: the ids are all who answered."""
         return not self.garbled_bytes
-
-
-@dataclass(frozen=True)
-class Handover:
-    """A connected bus as another process takes it over through the port's descriptor."""
-
-    port_name: str
-    baud_rate: int
-    setup: BusSetup
-    return_delay_ns: tuple[tuple[int, int], ...]  # (servo id, ns)
-    latency_timer_ms: int | None
-    worst_latency_ns: int
-    recent_latency_ns: tuple[int, ...]
-
-    def attach(self, fd: int, clock: Clock) -> FeetechBus:
-        """The same servos, driven over ``fd`` in this process (no handshake: already done)."""
-        latency = Latency(self.latency_timer_ms)
-        latency.record(self.worst_latency_ns)
-        for latency_ns in self.recent_latency_ns:
-            latency.record(latency_ns)
-        link = Link(FdWire(fd, clock, self.port_name), clock, self.baud_rate, latency)
-        link.return_delay_ns.update(dict(self.return_delay_ns))
-        bus = FeetechBus(link, clock)
-        bus.setup = self.setup
-        bus.assume_goals({s.servo_id: s.rest_steps for s in self.setup.servos})
-        return bus
 
 
 class FeetechBus:
@@ -311,80 +271,21 @@ class FeetechBus:
     def check(self, setup: BusSetup) -> None:
         """Ping every expected id, check models, angle limits and return delays. Reads only.
 
-        Nothing moves and torque stays as it was, so a process that must guard the servos
-        (the player process) can be started between this and `hold`.
-
-        Raises
-        ------
-        BusError
-            Naming every missing id and every id with the wrong model, in one message.
+        See `pinarray.hardware.feetech.handshake.check`.
         """
-        self.setup = setup
-        found = {servo_id: self.ping(servo_id) for servo_id in setup.servo_ids}
-        missing = sorted(i for i, model in found.items() if model is None)
-        wrong = sorted(
-            (i, model) for i, model in found.items() if model not in (None, setup.model_number)
-        )
-        if missing or wrong:
-            problems = []
-            if missing:
-                ids = ", ".join(map(str, missing))
-                problems.append(f"no answer from servo id(s) {ids}")
-            if wrong:
-                found_text = ", ".join(f"id {i} reports model {m}" for i, m in wrong)
-                problems.append(f"expected model {setup.model_number}, but {found_text}")
-            answered = sorted(set(found) - set(missing))
-            raise BusError(
-                f"servo handshake on {self.port_name}: " + "; ".join(problems)
-                + f" (answered: {', '.join(map(str, answered)) or 'none'})"
-            )
-        for servo in setup.servos:
-            delay, _ = self.read(servo.servo_id, Register.RETURN_DELAY_TIME)
-            self.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
-            self._check_angle_limits(servo)
+        handshake.check(self, setup)
+
+    def check_servos(self) -> None:
+        """`check` the servos this bus was set up for (`ArrayDriver.check_servos`)."""
+        handshake.check(self, self.setup)
 
     def hold(self) -> None:
-        """Torque on for every checked servo, holding where its horn is; speed, acceleration.
+        """Torque on for every checked servo, holding where its horn is; speed, acceleration."""
+        handshake.hold(self)
 
-        A servo that fails half-way leaves none holding torque.
-        """
-        enabled: list[int] = []
-        try:
-            for servo in self.setup.servos:
-                # Hold where the horn is before torque comes on, so it cannot jerk a pin.
-                data, _ = self.read(servo.servo_id, Register.PRESENT_POSITION)
-                # An STS servo switches torque on when it is given a goal: from here on this
-                # one must be released if anything fails.
-                enabled.append(servo.servo_id)
-                self.write(servo.servo_id, Register.GOAL_POSITION, from_bytes(data))
-                self.write(servo.servo_id, Register.ACCELERATION, self.setup.acceleration_register)
-                self.write(servo.servo_id, Register.GOAL_SPEED, self.setup.speed_steps_per_s)
-                self.write(servo.servo_id, Register.TORQUE_ENABLE, 1)
-                self._last_goals[servo.servo_id] = decode_position(from_bytes(data))
-        except BaseException:
-            # A half-finished handshake must not leave some servos holding torque.
-            for servo_id in enabled:
-                try:
-                    self.write(servo_id, Register.TORQUE_ENABLE, 0)
-                except BusError:
-                    pass
-            raise
-
-    def _check_angle_limits(self, servo: ServoSetup) -> None:
-        """Refuse a pin whose calibrated stroke the servo would clamp (its angle limits).
-
-        A clamped goal would still read back as written: the read-back could not tell.
-        """
-        span = Register.MAX_ANGLE_LIMIT.address + 2 - Register.MIN_ANGLE_LIMIT.address
-        data, _ = self.read(servo.servo_id, Register.MIN_ANGLE_LIMIT, span)
-        low, high = from_bytes(data[0:2]), from_bytes(data[-2:])
-        if not low <= servo.min_steps <= servo.max_steps <= high:
-            raise BusError(
-                f"pin {servo.pin} (servo {servo.servo_id}): its angle limits MIN_ANGLE_LIMIT "
-                f"{low} .. MAX_ANGLE_LIMIT {high} (EEPROM addresses 9, 11) would clamp the "
-                f"calibrated stroke {servo.min_steps}..{servo.max_steps}; widen them with the "
-                "vendor's tool or recalibrate the pin"
-            )
+    def reconnect(self) -> None:
+        """The handshake again, after a fault released torque."""
+        self.connect(self.setup)
 
     # -- playback ------------------------------------------------------------------------
 
@@ -485,6 +386,17 @@ class FeetechBus:
         status = replies.get(servo_id)
         return None if status is None else StatusError(status.error)
 
+    def verifier(self, clock: Clock, trial: PreparedTrial, onset_ns: int,
+                 ledger: DeliveryLedger) -> Verifier:
+        """Read-backs of the trial's goal changes in the slack between frames, and heals."""
+        return Verifier(self, clock, trial, onset_ns, ledger)
+
+    def heal_time_ns(self, changes_per_frame: int) -> int:
+        """Reading back a frame of that many goal changes and writing one again, as usual."""
+        ids = self.setup.servo_ids[:changes_per_frame] or self.setup.servo_ids[:1]
+        return (self.read_goals_time_ns(ids)
+                + self.reply_time_ns(ids[0], REWRITE_REQUEST_BYTES, 0))
+
     def wire_ns(self, byte_count: int) -> int:
         """Time ``byte_count`` bytes take on the bus at its baud rate."""
         return self.link.wire_ns(byte_count)
@@ -514,87 +426,29 @@ class FeetechBus:
 
     # -- safety --------------------------------------------------------------------------
 
-    def move_to_rest(self, timeout_ns: int = 2_000_000_000) -> tuple[int, ...]:
+    def move_to_rest(self, timeout_ns: int = safety.REST_TIMEOUT_NS) -> tuple[int, ...]:
         """Send every pin to rest and wait until they report it; returns the ids at rest."""
-        rest = {s.servo_id: s.rest_steps for s in self.setup.servos}
-        self.write_goals(rest, force=True)
-        return self._wait_at(rest, timeout_ns)
+        return safety.move_to_rest(self, timeout_ns)
 
-    def _wait_at(self, goals: Mapping[int, int], timeout_ns: int) -> tuple[int, ...]:
-        deadline_ns = self.clock.now_ns() + timeout_ns
-        pending = dict(goals)
-        arrived: list[int] = []
-        while pending:
-            for servo_id, goal in list(pending.items()):
-                try:
-                    data, _ = self.read(servo_id, Register.PRESENT_POSITION, MOTION_LENGTH)
-                except PortLost:
-                    raise
-                except BusError:
-                    continue
-                position = decode_position(from_bytes(data[0:2]))
-                still = data[-1] == 0  # MOVING register
-                if still and abs(position - goal) <= REST_TOLERANCE_STEPS:
-                    arrived.append(servo_id)
-                    del pending[servo_id]
-            if not pending or self.clock.now_ns() >= deadline_ns:
-                break
-            # A sync write lost on the wire would leave a pin up: say it again while waiting.
-            self.write_goals(pending, force=True)
-            self.clock.sleep_until_ns(self.clock.now_ns() + REST_POLL_NS)
-        return tuple(sorted(arrived))
-
-    def rest_and_release(self, timeout_ns: int = 2_000_000_000) -> SafeStopReport:
-        """Pins to rest, then torque off, on every servo that still answers. Never raises.
-
-        The stop signals are held back until it is done, so a second one cannot leave
-        servos holding torque.
-        """
-        with deferred_signals():
-            return self._rest_and_release(timeout_ns)
-
-    def _rest_and_release(self, timeout_ns: int) -> SafeStopReport:
-        ids = self.setup.servo_ids
-        try:
-            at_rest = self.move_to_rest(timeout_ns)
-        except PortLost:
-            self._release_everyone()
-            return SafeStopReport((), (), ids, port_lost=True)
-        except BusError:
-            at_rest = ()
-        released = []
-        for servo_id in ids:
-            try:
-                self.write(servo_id, Register.TORQUE_ENABLE, 0)
-                released.append(servo_id)
-            except PortLost:
-                self._release_everyone()
-                silent = tuple(i for i in ids if i not in released)
-                return SafeStopReport(at_rest, tuple(released), silent, port_lost=True)
-            except BusError:
-                continue
-        silent = tuple(i for i in ids if i not in released or i not in at_rest)
-        return SafeStopReport(at_rest, tuple(released), silent)
-
-    def _release_everyone(self) -> None:
-        """A last try when the port fails mid-stop: torque off for every servo, in one
-        broadcast write that needs no reply (it may still get through a flaky adapter)."""
-        try:
-            self.link.send(packets.write(BROADCAST_ID, Register.TORQUE_ENABLE.address, b"\x00"))
-        except (WireLost, OSError):
-            pass
+    def rest_and_release(self, timeout_ns: int = safety.REST_TIMEOUT_NS) -> SafeStopReport:
+        """Pins to rest, then torque off, on every servo that still answers. Never raises."""
+        return safety.rest_and_release(self, timeout_ns)
 
     # -- another process on the same port ----------------------------------------------
 
     def handover(self) -> Handover:
         """What a process given this port's descriptor needs to drive the same servos."""
-        latency = self.link.latency
-        return Handover(
-            port_name=self.port_name, baud_rate=self.link.baud_rate, setup=self.setup,
-            return_delay_ns=tuple(self.link.return_delay_ns.items()),
-            latency_timer_ms=latency.timer_ms,
-            worst_latency_ns=latency.worst_seen_ns, recent_latency_ns=tuple(latency.recent_ns),
-        )
+        return handover_of(self)
+
+    @property
+    def descriptor(self) -> int | None:
+        """The serial device's descriptor (None: the in-process simulator has none)."""
+        return getattr(self.link.wire, "fd", None)
+
+    @property
+    def latency_timer_ms(self) -> int | None:
+        """The USB adapter's latency timer, when known (None on the simulator)."""
+        return None if self.sim is not None else self.link.latency.timer_ms
 
     def assume_goals(self, goals_steps: Mapping[int, int]) -> None:
         """Another process (the player's) left these goals on the servos."""

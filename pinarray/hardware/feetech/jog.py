@@ -11,13 +11,9 @@ from dataclasses import dataclass
 
 from pinarray.clock import Clock
 from pinarray.errors import BusError
-from pinarray.hardware.feetech.base import BusSetup, SafeStopReport, ServoSetup
-from pinarray.hardware.feetech.feetech import (
-    MOTION_LENGTH,
-    REST_POLL_NS,
-    REST_TOLERANCE_STEPS,
-    FeetechBus,
-)
+from pinarray.hardware.driver import SafeStopReport, ServoSetup
+from pinarray.hardware.feetech.base import BusSetup
+from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import (
     Register,
     StatusError,
@@ -25,6 +21,7 @@ from pinarray.hardware.feetech.registers import (
     encode_position,
     from_bytes,
 )
+from pinarray.hardware.feetech.safety import MOTION_LENGTH, REST_POLL_NS, REST_TOLERANCE_STEPS
 from pinarray.units import NS_PER_S
 
 # One-turn encoder range of an STS servo, in steps.

@@ -23,7 +23,7 @@ import os
 import select
 import termios
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -69,6 +69,19 @@ class Wire(Protocol):
     def close(self) -> None: ...
 
 
+class SerialPort(Protocol):
+    """What a polled wire needs of a pyserial port (or the simulator's stand-in for one)."""
+
+    @property
+    def in_waiting(self) -> int: ...
+
+    def read(self, size: int = 1) -> bytes: ...
+
+    def write(self, data: bytes) -> int | None: ...
+
+    def close(self) -> None: ...
+
+
 class FdWire:
     """A serial device by file descriptor, in real (monotonic) time.
 
@@ -85,7 +98,7 @@ class FdWire:
         Closes the object that owns ``fd`` (e.g. the pyserial port), instead of ``os.close``.
     """
 
-    def __init__(self, fd: int, clock: Clock, name: str, on_close=None,
+    def __init__(self, fd: int, clock: Clock, name: str, on_close: Callable[[], None] | None = None,
                  write_timeout_ns: int = WRITE_TIMEOUT_NS):
         self.fd = fd
         self.clock = clock
@@ -176,7 +189,7 @@ class PolledWire:
     clock, so waiting here moves virtual time instead of sleeping.
     """
 
-    def __init__(self, port, clock: Clock, name: str):
+    def __init__(self, port: SerialPort, clock: Clock, name: str):
         self.port = port
         self.clock = clock
         self.name = name

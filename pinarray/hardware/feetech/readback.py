@@ -12,7 +12,7 @@ from __future__ import annotations
 from pinarray.clock import Clock
 from pinarray.errors import BusError
 from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
-from pinarray.hardware.feetech.base import Bus
+from pinarray.hardware.feetech.base import ReadBackBus
 from pinarray.hardware.feetech.registers import StatusError
 
 # A WRITE of a 2-byte goal, in bytes.
@@ -22,7 +22,7 @@ REWRITE_REQUEST_BYTES = 9
 class Verifier:
     """Reads changed goals back in the slack between frames and re-writes the lost ones."""
 
-    def __init__(self, bus: Bus, clock: Clock, trial: PreparedTrial, onset_ns: int,
+    def __init__(self, bus: ReadBackBus, clock: Clock, trial: PreparedTrial, onset_ns: int,
                  ledger: DeliveryLedger):
         self.bus, self.clock, self.trial, self.onset_ns = bus, clock, trial, onset_ns
         self.ledger = ledger

@@ -418,7 +418,7 @@ class SimSerial:
             # The words pyserial uses when a USB adapter is pulled out mid-run.
             raise serial.SerialException(f"{what} failed: [Errno 5] Input/output error")
 
-    def write(self, data) -> int:
+    def write(self, data: bytes) -> int:
         self._check_alive("write")
         data = bytes(data)
         start_ns = max(self.clock.now_ns(), self._wire_free_ns)

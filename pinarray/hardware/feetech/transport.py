@@ -11,12 +11,16 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock, MonotonicClock, VirtualClock
 from pinarray.errors import BusError
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import is_sim_url, parse_sim_url
-from pinarray.hardware.feetech.link import FdWire, Latency, Link, PolledWire
+from pinarray.hardware.feetech.link import FdWire, Latency, Link, PolledWire, Wire
+
+if TYPE_CHECKING:
+    from pinarray.hardware.feetech.feetech import FeetechBus
 
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 
@@ -54,7 +58,7 @@ def open_bus(
     clock: Clock | None = None,
     baud_rate: int = 1_000_000,
     retries: int = 3,
-):
+) -> FeetechBus:
     """Open a real or simulated servo bus and, given a `BusSetup`, run the handshake.
 
     Parameters
@@ -87,7 +91,7 @@ def open_bus(
         clock = clock or VirtualClock()
         baud_rate = config.baud_rate or baud_rate
         sim = SimBus(config, clock)
-        wire = PolledWire(SimSerial(sim, clock, baud_rate, port=url), clock, url)
+        wire: Wire = PolledWire(SimSerial(sim, clock, baud_rate, port=url), clock, url)
         latency = Latency(timer_ms=0)
     else:
         clock = clock or MonotonicClock()
@@ -107,7 +111,7 @@ def open_bus(
     return bus
 
 
-def _open_device(url: str, baud_rate: int, clock: Clock):
+def _open_device(url: str, baud_rate: int, clock: Clock) -> Wire:
     """A wire over a serial device: its file descriptor when it has one, else polled."""
     import serial
 
