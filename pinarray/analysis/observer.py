@@ -49,13 +49,15 @@ import numpy as np
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
-from pinarray.protocol.model import LocalisationCondition, MotionAnswer
+from pinarray.protocol.model import Direction, LocalisationCondition, MotionAnswer
 
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
 
-MOTION_ANSWERS = tuple(MotionAnswer)  # "none", "left", "right", "unsure"
-_OPPOSITE = {"left": "right", "right": "left"}
+MOTION_ANSWERS = tuple(MotionAnswer)  # none, left, right, unsure
+# The answer that names a wave's own direction, and the one that names the other.
+_RIGHT_ANSWER = {Direction.LEFT: MotionAnswer.LEFT, Direction.RIGHT: MotionAnswer.RIGHT}
+_WRONG_ANSWER = {Direction.LEFT: MotionAnswer.RIGHT, Direction.RIGHT: MotionAnswer.LEFT}
 DEFAULT_SUBJECT_SD_LOGIT = 0.5
 _MAX_SUBJECT_SD_LOGIT = 5.0
 _QUADRATURE_NODES = 40  # Gauss-Hermite nodes for averages over subjects
@@ -205,7 +207,9 @@ class ObserverModel:
 
     def subject_range(self, frequency_hz: float, coverage: float = 0.95) -> tuple[float, float]:
         """Correct fractions between which the middle ``coverage`` of subjects fall."""
-        z = _normal_quantile(0.5 + coverage / 2) * self.subject_sd_logit
+        from scipy.special import ndtri  # the standard normal quantile
+
+        z = float(ndtri(0.5 + coverage / 2)) * self.subject_sd_logit
         return tuple(  # type: ignore[return-value]
             self.individual(SubjectOffsets(u)).expected_localisation(frequency_hz)["correct"]
             for u in (-z, z)
@@ -297,25 +301,25 @@ class ObserverModel:
         correct = np.diag(self.report_probabilities(frequency_hz)[:, 1:])
         return correct.reshape(self.grid.rows, self.grid.columns)
 
-    def motion_probabilities(self, direction: str) -> dict[str, float]:
-        """Exact answer probabilities for a wave going ``direction`` ("left", "right", "none").
+    def motion_probabilities(self, direction: Direction) -> dict[MotionAnswer, float]:
+        """Exact answer probabilities for a wave going ``direction`` (left, right or none).
 
         For a population these are the averages over subjects: felt and direction offsets
         are independent, so the average of their product is the product of the averages.
         """
-        if direction == "none":
+        direction = _direction(direction)
+        if direction is Direction.NONE:
             felt = self.no_wave_felt
             named = (1 - self.unsure_given_felt) / 2
-            return {"none": 1 - felt, "left": felt * named, "right": felt * named,
-                    "unsure": felt * self.unsure_given_felt}
-        if direction not in _OPPOSITE:
-            raise PinArrayError(
-                f"observer: wave direction must be left, right or none, found {direction!r}"
-            )
+            return {MotionAnswer.NONE: 1 - felt, MotionAnswer.LEFT: felt * named,
+                    MotionAnswer.RIGHT: felt * named,
+                    MotionAnswer.UNSURE: felt * self.unsure_given_felt}
         felt = self.motion_felt
         wrong = 1 - self.direction_given_felt - self.unsure_given_felt
-        return {"none": 1 - felt, direction: felt * self.direction_given_felt,
-                _OPPOSITE[direction]: felt * wrong, "unsure": felt * self.unsure_given_felt}
+        return {MotionAnswer.NONE: 1 - felt,
+                _RIGHT_ANSWER[direction]: felt * self.direction_given_felt,
+                _WRONG_ANSWER[direction]: felt * wrong,
+                MotionAnswer.UNSURE: felt * self.unsure_given_felt}
 
 
 class _Centres(NamedTuple):
@@ -408,13 +412,14 @@ def _log_anchor_sigmas(model: ObserverModel) -> tuple[list[float], list[float]]:
     return [math.log(f) for f, _ in anchors], [math.log(s) for s in sigmas]
 
 
-def _normal_quantile(p: float) -> float:
-    """Standard normal quantile by bisection on erf (no scipy needed here)."""
-    low, high = -10.0, 10.0
-    for _ in range(100):
-        middle = (low + high) / 2
-        low, high = (middle, high) if 0.5 * math.erfc(-middle / math.sqrt(2)) < p else (low, middle)
-    return (low + high) / 2
+def _direction(direction: Direction | str) -> Direction:
+    """A wave direction, or a one-line error naming what came instead."""
+    try:
+        return Direction(direction)
+    except ValueError:
+        raise PinArrayError(
+            f"observer: wave direction must be left, right or none, found {direction!r}"
+        ) from None
 
 
 def _check_fraction(name: str, value: float) -> None:
@@ -459,8 +464,8 @@ class SimulatedObserver:
         answer = min(int(np.searchsorted(row, self.rng.random(), side="right")), len(row) - 1)
         return answer or None
 
-    def respond_motion(self, direction: str) -> str:
-        """'none', 'left', 'right' or 'unsure' for a wave going left, right or not at all."""
+    def respond_motion(self, direction: Direction) -> MotionAnswer:
+        """What the subject says of a wave going left, right or not at all (`Direction.NONE`)."""
         probabilities = self.subject.motion_probabilities(direction)
         draw, total = self.rng.random(), 0.0
         for answer in MOTION_ANSWERS:

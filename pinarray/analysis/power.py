@@ -26,7 +26,7 @@ from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.subjects import t_interval
 from pinarray.grid import Grid
-from pinarray.protocol import LocalisationCondition, Protocol
+from pinarray.protocol import Direction, LocalisationCondition, MotionAnswer, Protocol
 
 ALPHA = 0.05
 TARGET_POWER = 0.8
@@ -51,7 +51,7 @@ class Design:
     """The main trials of a protocol, as the observer needs them."""
 
     localisation: tuple[tuple[int, float], ...]  # (pin, frequency_hz) per trial
-    motion: tuple[str, ...]  # "left", "right" or "none" per trial
+    motion: tuple[Direction, ...]  # per trial: the wave's direction (none: the no-wave control)
     grid: Grid
 
     @property
@@ -110,13 +110,13 @@ def simulate_subject(design: Design, observer: SimulatedObserver) -> SubjectCoun
     wave = felt = right = no_wave = no_wave_felt = 0
     for direction in design.motion:
         said = observer.respond_motion(direction)
-        if direction == "none":
+        if direction is Direction.NONE:
             no_wave += 1
-            no_wave_felt += said != "none"
+            no_wave_felt += said is not MotionAnswer.NONE
         else:
             wave += 1
-            felt += said != "none"
-            right += said == direction
+            felt += said is not MotionAnswer.NONE
+            right += said.value == direction.value  # named the way the wave went
     return SubjectCounts(categories, pin_correct, pin_trials, wave, felt, right, no_wave,
                          no_wave_felt)
 

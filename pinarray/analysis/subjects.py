@@ -211,11 +211,6 @@ class SubjectLevel:
         names = {s for row in self.localisation for s, _ in row.share("correct").per_subject}
         return tuple(sorted(names))
 
-    @property
-    def motion_subjects(self) -> tuple[str, ...]:
-        return tuple(sorted({s for s, _ in self.motion.felt.per_subject}
-                            | {s for s, _ in self.motion.no_wave_felt.per_subject}))
-
 
 def subject_level(per_subject: Sequence[Summary],
                   settings: IntervalSettings = DEFAULT_SETTINGS) -> SubjectLevel:

@@ -16,14 +16,11 @@ Formatting and parsing only; the writer appends rows (`pinarray.journal.writer`)
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
-from pinarray.errors import ResultsError
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
 
@@ -144,31 +141,3 @@ def volume_cells(row: VolumeRow) -> list[str]:
 
     return [seconds_text(row.onset_ns), str(row.volume), "true" if row.dummy else "false",
             row.status.value, seconds(row.interval_ns), seconds(row.deviation_ns)]
-
-
-def read_volumes(path: Path | str) -> list[VolumeRow]:
-    """The rows of a volume log (a torn last line is left out)."""
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ResultsError(f"{path}: no volume log here") from None
-    lines = text.splitlines(keepends=True)
-    if lines and not lines[-1].endswith("\n"):
-        lines.pop()  # torn by a crash while it was written
-    rows = list(csv.reader(io.StringIO("".join(lines)), delimiter="\t"))
-    if not rows or tuple(rows[0]) != VOLUME_NAMES:
-        raise ResultsError(f"{path}:1: expected the columns {list(VOLUME_NAMES)}, "
-                           f"found {rows[0] if rows else 'nothing'}")
-    out = []
-    for number, cells in enumerate(rows[1:], start=2):
-        try:
-            onset, volume, dummy, status, interval, deviation = cells
-            out.append(VolumeRow(int(volume), ns_from_seconds(onset), dummy == "true",
-                                 VolumeStatus(status),
-                                 None if interval == NA else ns_from_seconds(interval),
-                                 None if deviation == NA else ns_from_seconds(deviation)))
-        except ValueError:
-            raise ResultsError(f"{path}:{number}: expected {len(VOLUME_NAMES)} cells "
-                               f"{list(VOLUME_NAMES)}, found {cells}") from None
-    return out

@@ -29,7 +29,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any, NamedTuple
+from typing import NamedTuple, TypedDict
 from typing import Protocol as Interface
 
 from pinarray.clock import Clock
@@ -53,6 +53,28 @@ from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Paradigm
 from pinarray.schedule import TrialSchedule, compile_trial
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
+
+
+class _SharedFields(TypedDict):
+    """The fields both kinds of trial record share, as the session fills them in."""
+
+    trial: int
+    block: int
+    task: str
+    status: TrialStatus
+    onset_ns: int
+    duration_ns: int
+    response_time_ns: int | None
+    practice: bool
+    delivery: DeliveryCounts | None
+    status_reason: str | None
+
+
+def _counts(delivery: DeliveryRecord) -> DeliveryCounts:
+    """What the results keep of a trial's delivery record (its verdict is the trial's status)."""
+    return DeliveryCounts(scheduled=delivery.scheduled, confirmed=delivery.confirmed,
+                          healed=delivery.healed, missing=delivery.missing,
+                          lateness_ns=delivery.worst_lateness_ns)
 
 
 class Phase(StrEnum):
@@ -413,14 +435,12 @@ class Session:
             self._fix_zero(self._onset_ns, FIRST_TRIAL_ONSET)
         assert self._zero_ns is not None
         delivery = self._delivery
-        common: dict[str, Any] = {  # the fields both kinds of record share
+        common: _SharedFields = {
             "trial": planned.trial, "block": planned.block, "task": self.task, "status": status,
             "onset_ns": self._onset_ns - self._zero_ns,
             "duration_ns": self._duration_ns if duration_ns is None else duration_ns,
             "response_time_ns": response_time_ns, "practice": planned.practice,
-            "delivery": None if delivery is None else DeliveryCounts(
-                delivery.scheduled, delivery.confirmed, delivery.healed, delivery.missing,
-                delivery.worst_lateness_ns),
+            "delivery": None if delivery is None else _counts(delivery),
             "status_reason": None if reason is None else " ".join(reason.split()),  # one line
         }
         condition = planned.condition
