@@ -60,6 +60,7 @@ class RunScreen(KeyNotices, Screen):
         Binding("d", "redo", "redo trial"),
         Binding("t", "retry", "present again"),
         Binding("a", "abort", "abort run"),
+        Binding("q", "quit_run", "quit"),
     ]
 
     class Changed(Message):
@@ -390,7 +391,24 @@ class RunScreen(KeyNotices, Screen):
                                      "the results, marked redone."), confirmed)
 
     def action_retry(self) -> None:
+        """Present the failed trial again: re-arm it and present it, in one key."""
         self._try(self.session.retry)
+        if self.check_action("present", ()):
+            self.action_present()
+
+    async def action_quit_run(self) -> None:
+        """Quit; mid-run only once the experimenter says yes (as for abort)."""
+        if self.session.phase in (Phase.DONE, Phase.ABORTED) or self._ending:
+            await self.app.run_action("quit")
+            return
+
+        async def confirmed(yes: bool | None) -> None:
+            if yes:
+                await self.app.run_action("quit")
+
+        self.app.push_screen(Confirm("Quit now?\nA stimulus in progress is cut short and the pins "
+                                     "go to rest; rows logged so far stay, and the exit line "
+                                     "says how to resume the run."), confirmed)
 
     def action_abort(self) -> None:
         def confirmed(yes: bool | None) -> None:

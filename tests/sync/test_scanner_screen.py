@@ -89,7 +89,7 @@ async def test_each_press_of_the_trigger_key_is_a_volume_and_the_third_starts_th
         await pilot.press("5", "5")
         await settle(pilot)
         assert isinstance(app.screen, RunScreen)
-        await pilot.press("q")
+        await pilot.press("q", "y")  # mid-run, q asks first
         await settle(pilot)
     assert "16 servo(s) at rest, 16 released" in app.outcome()[1]
     rows = volume_log(results)
@@ -163,7 +163,7 @@ async def test_the_ui_sends_an_lsl_marker_at_each_end_of_a_presented_stimulus(tm
         await settle(pilot)
         planned = session.current
         markers = inlet.join()
-        await pilot.press("q")
+        await pilot.press("q", "y")  # mid-run, q asks first
         await settle(pilot)
     assert [(m["event"], m["trial"], m["pin"], m["practice"]) for m, _ in markers] == [
         ("onset", 1, planned.condition.pin, True), ("offset", 1, planned.condition.pin, True)]

@@ -33,7 +33,7 @@ async def play(results: Path, sequence: list[list[str]]):
         for burst in sequence:
             await pilot.press(*burst)
             await settle(pilot)
-        await pilot.press("q")
+        await pilot.press("q", "y")  # mid-run, q asks first
         await settle(pilot)
     return app
 

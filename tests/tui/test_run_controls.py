@@ -155,8 +155,8 @@ async def test_a_bus_fault_is_shown_in_words_and_retry_presents_the_trial_again(
         shown = text(app, "#phase")
         assert "STIMULUS FAILED (logged invalid): servo 6 (pin 6): no status packet" in shown
         assert "t: present the trial again" in shown
-        await pilot.press("t")
-        await present(pilot)
+        await pilot.press("t")  # one key: the trial is presented again
+        await settle(pilot)
         assert session.phase is Phase.RESPONSE
         await pilot.press("2", "enter")
         await settle(pilot)
@@ -235,7 +235,10 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
         pin = session.current.condition.pin
         assert [c.pin for c in app.screen.query("PinCell.-active")] == [pin]
         assert {c.pin for c in app.screen.query("PinCell.-lifted")} <= {pin}
-        await pilot.press("q")
+        await pilot.press("q")  # mid-run, quitting asks first (as abort does)
+        await pilot.pause(0.1)
+        assert isinstance(app.screen, Confirm) and session.phase is Phase.STIMULUS
+        await pilot.press("y")
         await settle(pilot)
     assert app.lab.rig is None
     (cut,) = rows(results)
@@ -270,8 +273,8 @@ async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_pres
         shown = text(app, "#phase")
         assert "STIMULUS FAILED (logged invalid): the stimulus was not delivered as scheduled" in shown
         assert "reached their servo later than the tolerance of 1e-06 ms" in shown
-        await pilot.press("t")
-        await present(pilot)
+        await pilot.press("t")  # one key: the trial is presented again
+        await settle(pilot)
         assert session.phase is Phase.RESPONSE
         await pilot.press("2", "enter")
         await settle(pilot)
@@ -296,3 +299,23 @@ async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(r
                 or "NOT OK: stimuli may be reported not delivered" in shown)
         await pilot.press("q")
         await settle(pilot)
+
+
+async def test_q_mid_run_asks_first_and_no_goes_on_with_the_run(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        await pilot.press("q")
+        await settle(pilot)
+        assert isinstance(app.screen, Confirm) and "Quit now?" in text(app, "#question")
+        assert session.phase is Phase.RESPONSE and session.records == []
+        await pilot.press("n")
+        await settle(pilot)
+        assert isinstance(app.screen, RunScreen) and app.lab.rig is not None
+        await pilot.press("4", "enter")
+        await settle(pilot)
+        assert [(r.status, r.response) for r in rows(results)] == [("ok", "4")]
+        await pilot.press("q", "y")
+        await settle(pilot)
+    assert app.lab.rig is None
+    assert manifest(results).abort_reason == "quit from the UI"
