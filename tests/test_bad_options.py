@@ -49,6 +49,7 @@ COMMANDS = {words: numeric_options(sub) for words, sub in subcommands(PARSER)}
 RUN = {
     ("grid",): [],
     ("preview",): [MOTION],
+    ("plan",): [MOTION],
     ("compile",): [DEMO, "--out", "-"],
     ("validate",): [DEMO],
     **{("softness", model): [] for model in

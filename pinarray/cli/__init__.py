@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 # them (tests/test_startup.py holds this table to what the modules register).
 COMMANDS = {
     "grid": ("grid",),
-    "protocols": ("validate", "compile", "preview"),
+    "protocols": ("validate", "compile", "preview", "plan"),
     "bus": ("play", "timing", "scan", "sim-serve"),
     "servos": ("servos",),
     "batch": ("batch",),

@@ -1,4 +1,4 @@
-"""`pinarray validate`, `compile` and `preview`: protocols in, checks and schedules out.
+"""`pinarray validate`, `compile`, `preview` and `plan`: protocols in, checks and schedules out.
 
 Only argparse at import: `validate` must answer fast and never load Textual or matplotlib.
 """
@@ -54,6 +54,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="columns of the text timeline (20 to 1000, default 72)")
     p.add_argument("--png", help="also draw the timeline to this PNG file")
     p.set_defaults(func=_preview)
+
+    p = subparsers.add_parser(
+        "plan", help="print the trial plan (trial -> pin and frequency, or wave), e.g. for a "
+        "paper answer sheet")
+    p.add_argument("file", metavar="FILE")
+    p.add_argument("--seed", type=common.seed,
+                   help="plan seed (default: the protocol's, else a new one, printed: give the "
+                   "run the same --seed, or type it in the UI's Seed field)")
+    p.add_argument("--tsv", action="store_true",
+                   help="tab-separated with a header row, for a spreadsheet (default: a table "
+                   "with an empty answer column to print)")
+    p.set_defaults(func=_plan)
 
 
 def _validate(args: argparse.Namespace) -> int:
@@ -295,4 +307,44 @@ def _preview(args: argparse.Namespace) -> int:
     finally:
         if output is not None:
             output.discard()  # nothing left of a picture not finished
+    return 0
+
+
+def _plan(args: argparse.Namespace) -> int:
+    from pinarray.plan import make_plan
+    from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
+    from pinarray.protocol.load import load_protocol
+
+    protocol = load_protocol(args.file)
+    plan = make_plan(protocol, args.seed)
+    localisation = all(isinstance(t.condition, LocalisationCondition) for t in plan.trials)
+    header = (["trial", "block", "practice", "stimulus"]
+              + (["pin", "frequency_hz"] if localisation else ["row", "direction"]))
+    rows = []
+    for planned in plan.trials:
+        c = planned.condition
+        what = ([str(c.pin), f"{float(c.frequency_hz):g}"] if isinstance(c, LocalisationCondition)
+                else [str(c.row), DIRECTION_OF_WAVE[c.direction].value])
+        rows.append([str(planned.trial), str(planned.block),
+                     "yes" if planned.practice else "no", c.stimulus, *what])
+    practice = sum(t.practice for t in plan.trials)
+    drawn = args.seed is None and protocol.design.seed is None
+    follow = (f"seed {plan.seed}, drawn now: run with --seed {plan.seed} (or that Seed in the UI) "
+              "to follow this plan" if drawn else f"seed {plan.seed}")
+    if args.tsv:
+        print("\t".join(header))
+        for row in rows:
+            print("\t".join(row))
+        print(f"# {protocol.name}: {len(plan)} trials ({practice} practice), {follow}",
+              file=sys.stderr)
+        return 0
+    print(f"{protocol.name}: {len(plan)} trials ({practice} practice), {follow}")
+    header.append("answer")
+    widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(header[:-1])]
+    widths.append(len("answer"))
+    print("  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip())
+    for row in rows:
+        cells = [c.rjust(w) if c.isdigit() else c.ljust(w)
+                 for c, w in zip(row, widths[:-1], strict=True)]
+        print("  ".join(cells) + "  " + "_" * widths[-1])
     return 0
