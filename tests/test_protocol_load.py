@@ -138,7 +138,7 @@ def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
             "stimulus: buzz",
             "stimulus: bzz",
             "8:13",
-            "expected the name of a pulse train (buzz), found 'bzz'",
+            "expected the name of a pulse train, found 'bzz'; did you mean 'buzz'?",
         ),
         (
             "paradigm: localisation",
@@ -391,3 +391,36 @@ def test_yaml_tags_and_impossible_dates_are_located_errors_not_tracebacks():
     assert line.startswith("p.yaml:4:19: expected a plain value")
     (line,) = problems(MINIMAL.replace("duration_s: 1\n", "duration_s: 2024-13-45\n"))
     assert line.startswith("p.yaml:5:17: expected a plain value")
+
+
+def test_every_independent_problem_is_reported_in_one_pass():
+    # A misspelt key in the train, a duty cycle of 0.55, a stimulus name mistyped and an
+    # interval written "2s": each was hidden behind the one before it.
+    text = (PROTOCOLS / "localisation.yaml").read_text()
+    for old, new in (("    duration_s: 10", "    duraton_s: 10"),
+                     ("    duty_cycle: 0.5 ", "    duty_cycle: 0.55"),
+                     ("  stimulus: seed_train", "  stimulus: seed_trian"),
+                     ("  inter_trial_interval_s: 3", "  inter_trial_interval_s: 2s")):
+        assert old in text
+        text = text.replace(old, new)
+    found = problems(text)
+    assert len(found) == 4, found
+    assert "unknown key 'duraton_s' in the pulse train; did you mean 'duration_s'?" in found[0]
+    assert "duty cycle that is a whole number of the 10 pulses per cycle, found 0.55" in found[1]
+    # Its train is broken, yet still the name meant:
+    assert "found 'seed_trian'; did you mean 'seed_train'?" in found[2]
+    assert "found '2s'" in found[3]
+
+
+def test_a_typo_in_the_device_section_does_not_hide_the_designs_problems():
+    text = (PROTOCOLS / "localisation.yaml").read_text()
+    for old, new in (("    baud_rate: 1000000", "    baud_rat: 1000000"),
+                     ("  repetitions: 1", "  repetitions: 0"),
+                     ("13, 16]", "13, 17]")):
+        assert old in text
+        text = text.replace(old, new)
+    found = problems(text)
+    assert [line.split(": ", 1)[1] for line in found] == [
+        "unknown key 'baud_rat' in the servo section; did you mean 'baud_rate'?",
+        "expected a pin from 1 to 16 on the 4x4 grid, found 17",
+        "expected repetitions of at least 1, found 0"]

@@ -11,7 +11,7 @@ trial. Pure Python: `pinarray validate` runs it without numpy.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from functools import partial
 from typing import NamedTuple
@@ -69,7 +69,7 @@ class _Section(NamedTuple):
     keys: dict[str, Node]
     device: Device
     by_name: Mapping[str, Stimulus]
-    declared: Collection[str]  # every stimulus name written, broken ones included
+    declared: Mapping[str, Node]  # every stimulus name written (broken ones too), where
     long_trials: bool  # read for a file only: a trial may hold up to `MAX_PULSES`
 
 
@@ -78,7 +78,7 @@ def read_design(
     node: Node,
     device: Device,
     stimuli: Sequence[Stimulus],
-    declared: Collection[str],
+    declared: Mapping[str, Node],
     long_trials: bool = False,
 ) -> Design:
     """The design, checked against the device and stimuli; ``declared`` names every stimulus

@@ -22,7 +22,7 @@ from pinarray.protocol.model import (
     WaveKind,
     WaveStimulus,
 )
-from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, shown
+from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, close_match, shown
 
 MAX_DURATION_S = 48 * 3600
 MAX_FREQUENCY_HZ = 1000
@@ -59,7 +59,7 @@ def read_stimuli(
         if train is not None:
             trains[name] = TrainStimulus(name, train)
             stimuli.append(trains[name])
-    declared_trains = {name for name, n in nodes.items() if not is_wave(n)}
+    declared_trains = {name: n for name, n in nodes.items() if not is_wave(n)}
     for name, value_node in waves:
         wave = reader.attempt(
             partial(_wave, reader, value_node, device, trains, declared_trains), None
@@ -85,23 +85,32 @@ def stimulus_named(
     reader: Reader,
     node: Node,
     by_name: Mapping[str, Stimulus],
-    declared: Collection[str],
+    declared: Mapping[str, Node],
     kind: type[Kind],
 ) -> Kind:
-    """The pulse train (or wave) named at ``node``; ``declared`` names those that are broken."""
+    """The pulse train (or wave) named at ``node``; ``declared``: every name, broken ones too."""
     what = "wave stimulus" if kind is WaveStimulus else "pulse train"
     name = reader.string(node, f"the name of a {what}")
     stimulus = by_name.get(name)
     if stimulus is None and name in declared:
         raise Invalid(name)  # declared but broken: its own problem is already reported
     if not isinstance(stimulus, kind):
-        known = ", ".join(s.name for s in by_name.values() if isinstance(s, kind)) or "none"
-        raise reader.error(node, f"expected the name of a {what} ({known}), found {shown(name)}")
+        # Those declared with problems of their own are still the names meant.
+        names = sorted({s.name for s in by_name.values() if isinstance(s, kind)}
+                       | {n for n, at in declared.items()
+                          if n not in by_name and is_wave(at) == (kind is WaveStimulus)})
+        hint = close_match(name, names)
+        known = (f"did you mean {hint[0]!r}?" if hint
+                 else f"the stimuli section has {', '.join(names)}" if names
+                 else "the stimuli section has none")
+        raise reader.error(node, f"expected the name of a {what}, found {shown(name)}; {known}")
     return stimulus
 
 
 def _train(reader: Reader, node: Node) -> Train:
-    keys = reader.mapping(node, TRAIN_KEYS, {"frequency_hz", "duration_s"}, "pulse train")
+    required = {"frequency_hz", "duration_s"}
+    # A key missing (or misspelt) still lets the rest of the train be checked in this pass.
+    keys = reader.mapping(node, TRAIN_KEYS, required, "pulse train", stop_if_missing=False)
     with reader.section():
         frequency = reader.optional(
             keys, "frequency_hz",
@@ -143,6 +152,8 @@ def _train(reader: Reader, node: Node) -> Train:
             where,
             f"expected a duty cycle strictly between 0 and 1 (the pin must go up and come down), found {float(duty):g}",
         )
+    if not required <= keys.keys():
+        raise Invalid("a required key is missing (reported)")
     duration_ns = duration * NS_PER_S
     if duration_ns.denominator != 1:
         raise reader.error(
@@ -212,7 +223,7 @@ def _wave(
     node: Node,
     device: Device | None,
     trains: Mapping[str, Stimulus],
-    declared_trains: Collection[str],
+    declared_trains: Mapping[str, Node],
 ) -> Wave:
     keys = reader.mapping(node, WAVE_KEYS, {"wave", "row", "train"}, "wave")
     kind = WaveKind(reader.string(keys["wave"], "the wave", tuple(k.value for k in WaveKind)))

@@ -109,6 +109,9 @@ class Reader:
         self.source = source
         self.errors: list[ProtocolError] = []
         self.unlisted = 0  # problems past MAX_PROBLEMS: counted, not listed
+        # Problems that leave the values read valid (an unknown key: its value is not used),
+        # so that a typo does not stop what depends on its section from being checked.
+        self.harmless = 0
         # One constructor per file: PyYAML's caches every object it built, keyed by node.
         self._constructor = yaml.constructor.SafeConstructor()
 
@@ -151,9 +154,9 @@ class Reader:
     @contextmanager
     def section(self) -> Iterator[None]:
         """Read every field of a section, then fail it as a whole if any field was wrong."""
-        before = len(self.errors) + self.unlisted
+        before = len(self.errors) + self.unlisted - self.harmless
         yield
-        if len(self.errors) + self.unlisted > before:
+        if len(self.errors) + self.unlisted - self.harmless > before:
             raise Invalid("section")
 
     # -- structure ---------------------------------------------------------------------------
@@ -191,8 +194,15 @@ class Reader:
         allowed: set[str],
         required: frozenset[str] | set[str] = frozenset(),
         what: str = "section",
+        *,
+        stop_if_missing: bool = True,
     ) -> dict[str, Node]:
-        """Keys of a mapping with their value nodes; unknown keys get a did-you-mean hint."""
+        """Keys of a mapping with their value nodes; unknown keys get a did-you-mean hint.
+
+        A required key missing is reported, then raises `Invalid` unless ``stop_if_missing``
+        is False: the caller reads the keys that are there (each problem of the section found
+        in one pass) and stops before it needs the missing one.
+        """
         if not isinstance(node, MappingNode):
             raise self.error(node, f"expected a mapping for the {what}, found {describe(node)}")
         out: dict[str, Node] = {}
@@ -203,7 +213,7 @@ class Reader:
                 self.error(key_node, f"duplicate key {shown(key_text)} in the {what}")
                 continue
             if key_text not in allowed:
-                hint = _close_match(key_text, sorted(allowed))
+                hint = close_match(key_text, sorted(allowed))
                 suggested.update(hint)
                 suggestion = (
                     f"; did you mean {hint[0]!r}?"
@@ -211,13 +221,14 @@ class Reader:
                     else f"; expected one of {', '.join(sorted(allowed))}"
                 )
                 self.error(key_node, f"unknown key {shown(key_text)} in the {what}{suggestion}")
+                self.harmless += 1
                 continue
             out[key_text] = value_node
         missing = sorted(required - out.keys())
         for key in missing:
             if key not in suggested:  # a misspelt key was already reported with its hint
                 self.error(node, f"the {what} needs a {key!r} key, found none")
-        if missing:
+        if missing and stop_if_missing:
             raise Invalid(f"missing {missing}")
         return out
 
@@ -280,7 +291,7 @@ class Reader:
         if not isinstance(value, str) or not value.strip():
             raise self.error(node, f"expected text for {what}, found {describe(node)}")
         if choices and value not in choices:
-            hint = _close_match(value, choices)
+            hint = close_match(value, choices)
             extra = f"; did you mean {hint[0]!r}?" if hint else ""
             raise self.error(
                 node, f"expected {what} to be one of {', '.join(choices)}, found {shown(value)}{extra}"
@@ -375,7 +386,7 @@ def _short_tag(tag: str) -> str:
     return "!!" + tag.removeprefix(_YAML) if tag.startswith(_YAML) else tag
 
 
-def _close_match(text: str, choices) -> list[str]:
+def close_match(text: str, choices) -> list[str]:
     import difflib  # here: only a misspelt key needs it
 
     # difflib's cost grows with the text's length; a long unknown word is no misspelling.
