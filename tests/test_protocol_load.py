@@ -424,3 +424,11 @@ def test_a_typo_in_the_device_section_does_not_hide_the_designs_problems():
         "unknown key 'baud_rat' in the servo section; did you mean 'baud_rate'?",
         "expected a pin from 1 to 16 on the 4x4 grid, found 17",
         "expected repetitions of at least 1, found 0"]
+
+
+def test_a_constraint_on_an_attribute_the_paradigms_trials_lack_is_refused_with_theirs():
+    text = (PROTOCOLS / "localisation.yaml").read_text().replace("no_repeat: [pin]",
+                                                                  "no_repeat: [direction]")
+    (line,) = problems(text)
+    assert line.endswith("expected an attribute localisation trials have (pin, frequency_hz, "
+                         "stimulus), found 'direction'")

@@ -43,6 +43,9 @@ MAX_PULSES = 10_000_000
 # conditions is the work, about 0.2 us each here (a few seconds at most).
 MAX_SHUFFLE_WORK = 20_000_000
 CONDITION_ATTRIBUTES = ("pin", "frequency_hz", "stimulus", "direction")
+# What an order constraint may name, by paradigm: what its trials have.
+ATTRIBUTES_OF = {Paradigm.LOCALISATION: ("pin", "frequency_hz", "stimulus"),
+                 Paradigm.APPARENT_MOTION: ("direction", "stimulus")}
 DESIGN_KEYS = {
     "paradigm",
     "stimulus",
@@ -104,7 +107,7 @@ def read_design(
         Ordering.RANDOM.value,
     ))
     constraints = reader.optional(
-        keys, "constraints", lambda n: _constraints(reader, n), Constraints()
+        keys, "constraints", lambda n: _constraints(reader, n, paradigm), Constraints()
     )
     seed = reader.optional(
         keys, "seed",
@@ -236,22 +239,32 @@ def _check_pulses(reader: Reader, node: Node, count: int, long_trials: bool) -> 
         )
 
 
-def _constraints(reader: Reader, node: Node) -> Constraints:
+def _constraints(reader: Reader, node: Node, paradigm: Paradigm) -> Constraints:
     keys = reader.mapping(node, {"no_repeat", "max_run"}, what="constraints")
     no_repeat: tuple[str, ...] = ()
     if "no_repeat" in keys:
         no_repeat = tuple(
-            reader.string(n, "an attribute that may not repeat", CONDITION_ATTRIBUTES)
+            _attribute(reader, n, "an attribute that may not repeat", paradigm)
             for n in reader.sequence(keys["no_repeat"], "no_repeat")
         )
     max_run: list[tuple[str, int]] = []
     if "max_run" in keys:
         for key_node, value_node in reader.items(keys["max_run"], "max_run"):
-            attribute = reader.string(key_node, "an attribute", CONDITION_ATTRIBUTES)
+            attribute = _attribute(reader, key_node, "an attribute", paradigm)
             max_run.append(
                 (attribute, reader.integer(value_node, f"the longest run of equal {attribute}", 1))
             )
     return Constraints(no_repeat, tuple(max_run))
+
+
+def _attribute(reader: Reader, node: Node, what: str, paradigm: Paradigm) -> str:
+    """An attribute the paradigm's trials have (a constraint on another could never hold)."""
+    attribute = reader.string(node, what, CONDITION_ATTRIBUTES)
+    have = ATTRIBUTES_OF[paradigm]
+    if attribute not in have:
+        raise reader.error(node, f"expected an attribute {paradigm.value} trials have "
+                                 f"({', '.join(have)}), found {attribute!r}")
+    return attribute
 
 
 def ordering_problem(design: Design) -> str | None:
