@@ -306,7 +306,13 @@ def _flag_summary(name: str, force, mask) -> str:
 def track(args) -> int:
     import numpy as np
 
-    from pinarray.softness.control import ActuatorLags, Material, ValveRange, simulate_force_ramp
+    from pinarray.softness.control import (
+        STARTUP_TIME_CONSTANTS,
+        ActuatorLags,
+        Material,
+        ValveRange,
+        simulate_force_ramp,
+    )
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA, S_PER_MS
 
     material = Material.from_cm(args.alpha_n_per_cm4, args.beta_cm_per_n)
@@ -373,11 +379,35 @@ def track(args) -> int:
         f"tracking error, rms (worst): displacement {rms_z:.4g} mm ({worst_z:.4g} mm), "
         f"area {rms_a:.4g} mm^2 ({worst_a:.4g} mm^2)"
     )
+    if run.startup_s > 0:
+        print(_startup_summary(run, STARTUP_TIME_CONSTANTS))
     if path := _plot_path(args):
         from pinarray.softness.plots import plot_tracking
 
         _wrote(plot_tracking(run, path, "Combined CASR + DHD tracking of a force ramp"))
     return 0
+
+
+def _startup_summary(run, time_constants: int) -> str:
+    """Two lines on the start-up of a tracking run: why it overshoots, by how much, and the
+    worst error after it."""
+    import numpy as np
+
+    from pinarray.softness.units import M2_PER_MM2, M_PER_MM, S_PER_MS
+
+    startup, settled = run.in_startup, ~run.in_startup
+    peak_z = np.max(run.rendered_displacement_m[startup]) / M_PER_MM
+    peak_a = np.max(run.rendered_area_m2[startup]) / M2_PER_MM2
+    after = "; the whole ramp is start-up"
+    if settled.any():
+        worst_z = np.max(np.abs(run.displacement_error_m[settled])) / M_PER_MM
+        worst_a = np.max(np.abs(run.area_error_m2[settled])) / M2_PER_MM2
+        after = f"; worst error after it {worst_z:.4g} mm, {worst_a:.4g} mm^2"
+    return (
+        f"start-up, the first {run.startup_s / S_PER_MS:.4g} ms ({time_constants} time constants "
+        "of the slower actuator): the actuators lag commands that are steepest at zero force\n"
+        f"  rendered up to {peak_z:.4g} mm and {peak_a:.4g} mm^2 in it{after}"
+    )
 
 
 def forceps(args) -> int:

@@ -181,3 +181,11 @@ def test_display_refuses_in_the_lab_s_units_never_by_an_internal_name(argv, mess
     assert main(["softness", "display", *argv]) == 2
     out, err = capsys.readouterr()
     assert (out, err) == ("", f"pinarray: {message}\n")
+
+
+def test_track_explains_its_start_up_and_gives_the_error_after_it(capsys):
+    assert main(["softness", "track"]) == 0
+    out = capsys.readouterr().out
+    assert ("start-up, the first 100 ms (5 time constants of the slower actuator): the actuators "
+            "lag commands that are steepest at zero force\n  rendered up to ") in out
+    assert "; worst error after it " in out
