@@ -79,7 +79,7 @@ def hertz(args) -> int:
             f"pinarray: warning: above {limit_n:.4g} N the contact radius passes "
             f"{SMALL_CONTACT_FRACTION:g} R ({SMALL_CONTACT_FRACTION * radius_mm:.4g} mm of "
             f"R = {radius_mm:.4g} mm), outside Hertz's small-contact assumption a << R "
-            "(seed 000, 4.1; Johnson, Contact Mechanics, 4.1): rows past it are extrapolated",
+            "(seed 000, 4.1; Johnson, Contact Mechanics, 4.2): rows past it are extrapolated",
             file=sys.stderr,
         )
     columns = (

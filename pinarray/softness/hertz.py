@@ -16,7 +16,7 @@ fractional power of a product that could underflow.
 
 The theory holds while the contact is small against the bodies: seed 000 (4.1) asks that
 "their dimensions must be significantly bigger than contact area", Johnson (Contact
-Mechanics, 1985, 4.1) that the contact be small against the relative radius, a << R. Past
+Mechanics, 1985, 4.2, assumptions i-iii) that it be small against the radii, a << R. Past
 ``SMALL_CONTACT_FRACTION`` R the results are an extrapolation (see `small_contact_force_n`).
 """
 
