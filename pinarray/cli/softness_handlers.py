@@ -5,6 +5,7 @@ with ``--png``/``--out``, writes a plot. numpy and the models are imported insid
 handler so that the CLI starts without them.
 """
 
+import sys
 from typing import Any
 
 # A tracking run keeps every step in memory, about 100 bytes each: a million is 100 MB.
@@ -43,10 +44,20 @@ def _wrote(path) -> None:
     print(f"wrote {path}")
 
 
+# A force typed as the small-contact limit (0.04/3 N for the seed's 10 mm, 100 kPa contact)
+# differs from the limit computed here by a few roundings: a few ulps past it is on it.
+_SAME_FORCE = 8 * 2.0**-53
+
+
 def hertz(args) -> int:
     import numpy as np
 
-    from pinarray.softness.hertz import HertzContact, effective_modulus_pa, relative_radius_m
+    from pinarray.softness.hertz import (
+        SMALL_CONTACT_FRACTION,
+        HertzContact,
+        effective_modulus_pa,
+        relative_radius_m,
+    )
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA
 
     e_star = effective_modulus_pa(
@@ -59,7 +70,18 @@ def hertz(args) -> int:
         f"E* = {contact.effective_modulus_pa / PA_PER_KPA:.4g} kPa"
     )
     print(title)
-    force = _rows(args.rows, 0.0, args.max_force_n)
+    limit_n = contact.small_contact_force_n
+    max_force_n = limit_n if args.max_force_n is None else args.max_force_n
+    force = _rows(args.rows, 0.0, max_force_n)
+    if max_force_n > limit_n * (1 + _SAME_FORCE):
+        radius_mm = contact.relative_radius_m / M_PER_MM
+        print(
+            f"pinarray: warning: above {limit_n:.4g} N the contact radius passes "
+            f"{SMALL_CONTACT_FRACTION:g} R ({SMALL_CONTACT_FRACTION * radius_mm:.4g} mm of "
+            f"R = {radius_mm:.4g} mm), outside Hertz's small-contact assumption a << R "
+            "(seed 000, 4.1; Johnson, Contact Mechanics, 4.2): rows past it are extrapolated",
+            file=sys.stderr,
+        )
     columns = (
         force,
         contact.contact_radius_m(force) / M_PER_MM,
@@ -71,7 +93,7 @@ def hertz(args) -> int:
     if path := _plot_path(args):
         from pinarray.softness.plots import plot_hertz
 
-        dense = np.linspace(0.0, args.max_force_n, 400)
+        dense = np.linspace(0.0, max_force_n, 400)
         area, approach = contact.contact_area_m2(dense), contact.approach_m(dense)
         _wrote(plot_hertz(dense, area, approach, path, title))
     return 0
@@ -132,24 +154,14 @@ def display(args) -> int:
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA
 
     cone = ConeDisplay()
+    _check_display_options(cone, args)
     pressures = [p * PA_PER_KPA for p in args.pressure_kpa]
     print(
         f"CASR cone: R = {cone.base_radius_m / M_PER_MM:g} mm, "
         f"H = {cone.height_m / M_PER_MM:g} mm; F = p pi z^2 R^2 / H^2"
     )
     if args.force_n is not None:
-        if args.indentation_mm is not None:
-            needed = cone.pressure_for_force_pa(args.force_n, args.indentation_mm * M_PER_MM)
-            print(
-                f"{args.force_n:g} N at {args.indentation_mm:g} mm "
-                f"needs {needed / PA_PER_KPA:.6g} kPa"
-            )
-        for pressure in pressures:
-            depth = cone.indentation_for_force_m(args.force_n, pressure)
-            print(
-                f"{args.force_n:g} N at {pressure / PA_PER_KPA:g} kPa "
-                f"balances at {depth / M_PER_MM:.6g} mm"
-            )
+        _solve_display(cone, args.force_n, args.indentation_mm, args.pressure_kpa)
         return 0
     depth = _rows(args.rows, 0.0, cone.height_m)
     forces = {p: cone.force_n(p, depth) for p in pressures}
@@ -162,6 +174,59 @@ def display(args) -> int:
         curves = {p: cone.force_n(p, dense) for p in pressures}
         _wrote(plot_cone(dense, curves, path, "TF/CASR display, F = p A(z)"))
     return 0
+
+
+def _check_display_options(cone, args) -> None:
+    """Refuse, in the lab's units, what the display cannot be asked."""
+    from pinarray.softness._checks import SoftnessError
+    from pinarray.softness.units import M_PER_MM
+
+    for pressure_kpa in args.pressure_kpa:
+        if pressure_kpa < 0:
+            raise SoftnessError(f"--pressure-kpa must be at least 0 kPa, found {pressure_kpa:g}")
+    if args.force_n is not None and args.force_n < 0:
+        raise SoftnessError(f"--force-n must be at least 0 N, found {args.force_n:g}")
+    if args.indentation_mm is None:
+        return
+    if args.force_n is None:
+        raise SoftnessError("--indentation-mm needs --force-n: the force to deliver there")
+    height_mm = cone.height_m / M_PER_MM
+    if not 0 <= args.indentation_mm <= height_mm:
+        raise SoftnessError(
+            f"--indentation-mm must be from 0 to the display's height {height_mm:g} mm, "
+            f"found {args.indentation_mm:g}"
+        )
+    if args.indentation_mm == 0 and args.force_n > 0:
+        raise SoftnessError(
+            f"{args.force_n:g} N at 0 mm: no pressure delivers it, the finger touches no area "
+            "of the display there; give --indentation-mm above 0"
+        )
+
+
+def _solve_display(cone, force_n: float, indentation_mm: float | None, pressures_kpa) -> None:
+    """Print where the cone balances ``force_n`` at each pressure, or why it cannot, and with
+    an indentation the pressure that delivers the force there; all in the lab's units."""
+    from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA
+
+    height_mm = cone.height_m / M_PER_MM
+    if indentation_mm is not None:
+        needed = cone.pressure_for_force_pa(force_n, indentation_mm * M_PER_MM)
+        print(f"{force_n:g} N at {indentation_mm:g} mm needs {needed / PA_PER_KPA:.6g} kPa")
+    base_mm2 = cone.max_area_m2 / M2_PER_MM2
+    for pressure_kpa in pressures_kpa:
+        pressure = pressure_kpa * PA_PER_KPA
+        if cone.balances(force_n, pressure):
+            # no force needs no indentation, even in an empty display
+            depth = cone.indentation_for_force_m(force_n, pressure) if force_n > 0 else 0.0
+            print(f"{force_n:g} N at {pressure_kpa:g} kPa balances at {depth / M_PER_MM:.6g} mm")
+            continue
+        least_kpa = force_n / cone.max_area_m2 / PA_PER_KPA
+        print(
+            f"{force_n:g} N at {pressure_kpa:g} kPa: out of reach, at most "
+            f"{float(cone.max_force_n(pressure)):.6g} N with the display pressed its full "
+            f"{height_mm:g} mm (base area {base_mm2:.4g} mm^2); {force_n:g} N needs at least "
+            f"{least_kpa:.6g} kPa"
+        )
 
 
 def fit(args) -> int:
@@ -241,7 +306,13 @@ def _flag_summary(name: str, force, mask) -> str:
 def track(args) -> int:
     import numpy as np
 
-    from pinarray.softness.control import ActuatorLags, Material, ValveRange, simulate_force_ramp
+    from pinarray.softness.control import (
+        STARTUP_TIME_CONSTANTS,
+        ActuatorLags,
+        Material,
+        ValveRange,
+        simulate_force_ramp,
+    )
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA, S_PER_MS
 
     material = Material.from_cm(args.alpha_n_per_cm4, args.beta_cm_per_n)
@@ -308,11 +379,35 @@ def track(args) -> int:
         f"tracking error, rms (worst): displacement {rms_z:.4g} mm ({worst_z:.4g} mm), "
         f"area {rms_a:.4g} mm^2 ({worst_a:.4g} mm^2)"
     )
+    if run.startup_s > 0:
+        print(_startup_summary(run, STARTUP_TIME_CONSTANTS))
     if path := _plot_path(args):
         from pinarray.softness.plots import plot_tracking
 
         _wrote(plot_tracking(run, path, "Combined CASR + DHD tracking of a force ramp"))
     return 0
+
+
+def _startup_summary(run, time_constants: int) -> str:
+    """Two lines on the start-up of a tracking run: why it overshoots, by how much, and the
+    worst error after it."""
+    import numpy as np
+
+    from pinarray.softness.units import M2_PER_MM2, M_PER_MM, S_PER_MS
+
+    startup, settled = run.in_startup, ~run.in_startup
+    peak_z = np.max(run.rendered_displacement_m[startup]) / M_PER_MM
+    peak_a = np.max(run.rendered_area_m2[startup]) / M2_PER_MM2
+    after = "; the whole ramp is start-up"
+    if settled.any():
+        worst_z = np.max(np.abs(run.displacement_error_m[settled])) / M_PER_MM
+        worst_a = np.max(np.abs(run.area_error_m2[settled])) / M2_PER_MM2
+        after = f"; worst error after it {worst_z:.4g} mm, {worst_a:.4g} mm^2"
+    return (
+        f"start-up, the first {run.startup_s / S_PER_MS:.4g} ms ({time_constants} time constants "
+        "of the slower actuator): the actuators lag commands that are steepest at zero force\n"
+        f"  rendered up to {peak_z:.4g} mm and {peak_a:.4g} mm^2 in it{after}"
+    )
 
 
 def forceps(args) -> int:

@@ -171,6 +171,11 @@ class ActuatorLags:
         object.__setattr__(self, "dhd_s", float(nonnegative("dhd_s", self.dhd_s)))
 
 
+#: A first-order lag forgets where it started within e^-5 < 1 % after five time constants;
+#: behind the square-root command its relative error, about tau / 2t, is 10 % by then.
+STARTUP_TIME_CONSTANTS = 5
+
+
 @dataclass(frozen=True, eq=False)
 class TrackingRun:
     """A simulated force ramp: desired (material) and rendered (display) curves over time."""
@@ -184,6 +189,23 @@ class TrackingRun:
     dhd_displacement_m: np.ndarray
     """DHD displacement the position loop actually reaches."""
     valve: ValveRange = field(default_factory=ValveRange)
+    lags: ActuatorLags = field(default_factory=ActuatorLags)
+
+    @property
+    def startup_s(self) -> float:
+        """Length of the start-up, s: `STARTUP_TIME_CONSTANTS` of the slower actuator.
+
+        The commands are infinitely steep at zero force (p = sqrt(alpha_m F), z_C ~ F^(1/4)).
+        A valve that lags holds almost no pressure at the first touch, so the display sinks
+        towards its base (area up to pi R^2, displacement up to H) until the pressure catches
+        up; a lagging DHD likewise trails its command. Both overshoot at the start.
+        """
+        return STARTUP_TIME_CONSTANTS * max(self.lags.valve_s, self.lags.dhd_s)
+
+    @property
+    def in_startup(self) -> np.ndarray:
+        """Which samples fall in the start-up (see `startup_s`), a boolean array."""
+        return self.time_s < self.startup_s
 
     @property
     def area_error_m2(self) -> np.ndarray:
@@ -268,4 +290,4 @@ def simulate_force_ramp(
     area = np.minimum(area, display.max_area_m2)
     casr = display.indentation_for_area_m(area)
     dhd = first_order_lag(material.displacement_m(force) - casr, step, lags.dhd_s)
-    return TrackingRun(time, commands, pressure, area, casr + dhd, dhd, valve)
+    return TrackingRun(time, commands, pressure, area, casr + dhd, dhd, valve, lags)

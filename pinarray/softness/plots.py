@@ -1,6 +1,6 @@
 """PNG figures of the softness models; the only module here that imports matplotlib.
 
-Every function takes SI arrays, draws them in the lab's units (mm, mm^2 or cm^2, kPa) and
+Every function takes SI arrays, draws them in the lab's units (mm, mm^2, kPa) and
 writes one PNG, returning its path.
 """
 
@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402 - the backend must be chosen first
 import numpy as np  # noqa: E402
 
-from pinarray.softness.units import M2_PER_CM2, M2_PER_MM2, M_PER_MM, PA_PER_KPA  # noqa: E402
+from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA  # noqa: E402
 
 
 def _panels(count: int, title: str):
@@ -104,24 +104,64 @@ def _shade(axes, force_n, mask, colour, label) -> None:
         )
 
 
+def _scale_past_startup(axes, desired, rendered, startup, unit) -> None:
+    """Set the y-axis by the tracked signal: the desired curve and the rendered one after the
+    start-up; a start-up excursion beyond that is clipped and its peak written on the plot."""
+    shown = np.concatenate([desired, rendered[~startup]]) if (~startup).any() else rendered
+    low, high = min(0.0, float(shown.min())), float(shown.max())
+    margin = 0.05 * (high - low) or 1.0
+    if not startup.any() or float(rendered[startup].max()) <= high + margin:
+        return  # nothing would be clipped: matplotlib's own limits show everything
+    axes.set_ylim(low - margin, high + margin)
+    axes.text(
+        0.2,
+        0.97,
+        f"start-up: rendered up to {float(rendered[startup].max()):.3g} {unit}, off scale",
+        transform=axes.transAxes,
+        va="top",
+        fontsize="small",
+    )
+
+
 def plot_tracking(run, path, title) -> Path:
+    """`tracking_figure` written to a PNG."""
+    return _save(tracking_figure(run, title), path)
+
+
+def tracking_figure(run, title):
     """Displacement and area against force, desired (solid) and rendered (dashed), as in the
-    seed's Figs. 9.9/9.10, with flagged stretches shaded."""
+    seed's Figs. 9.9/9.10, with flagged stretches shaded.
+
+    The start-up (`TrackingRun.startup_s`: the valve's pressure catching up with a command
+    that is infinitely steep at zero force) is shaded grey; the axes are scaled by the rest of
+    the ramp, and a start-up peak beyond them is written on the plot rather than setting the
+    scale.
+    """
     commands = run.commands
     force = commands.force_n
+    startup = run.in_startup
     figure, (left, right) = _panels(2, title)
-    left.plot(force, commands.material_displacement_m / M_PER_MM, "-", label="material")
-    left.plot(force, run.rendered_displacement_m / M_PER_MM, "--", label="rendered")
+    displacement = (
+        commands.material_displacement_m / M_PER_MM,
+        run.rendered_displacement_m / M_PER_MM,
+    )
+    area = (commands.material_area_m2 / M2_PER_MM2, run.rendered_area_m2 / M2_PER_MM2)
+    for axes, (desired, rendered), unit in (
+        (left, displacement, "mm"),
+        (right, area, "mm$^2$"),
+    ):
+        axes.plot(force, desired, "-", label="material")
+        axes.plot(force, rendered, "--", label="rendered")
+        _shade(axes, force, startup, "0.5", f"start-up ({run.startup_s * 1e3:.3g} ms)")
+        _scale_past_startup(axes, desired, rendered, startup, unit)
     left.set(xlabel="force (N)", ylabel="displacement (mm)", title="displacement")
-    right.plot(force, commands.material_area_m2 / M2_PER_CM2, "-", label="material")
-    right.plot(force, run.rendered_area_m2 / M2_PER_CM2, "--", label="rendered")
-    right.set(xlabel="force (N)", ylabel="area (cm$^2$)", title="area")
+    right.set(xlabel="force (N)", ylabel="area (mm$^2$)", title="area")
     _shade(left, force, commands.dhd_must_pull, "tab:red", "DHD must pull")
     _shade(right, force, commands.pressure_out_of_range, "tab:orange", "pressure off valve range")
     _shade(right, force, commands.display_bottomed, "tab:purple", "display bottomed")
-    left.legend(fontsize="small")
-    right.legend(fontsize="small")
-    return _save(figure, path)
+    left.legend(fontsize="small", loc="lower right")
+    right.legend(fontsize="small", loc="lower right")
+    return figure
 
 
 def plot_forceps(approach_m, force_n, fitted_n, area_m2, curve_force_n, pressure_pa, path, title):

@@ -116,6 +116,19 @@ class ConeDisplay:
         # the base's own area, or one within rounding past it: the full height, exactly
         return np.where(area >= self.max_area_m2, self.height_m, depth)
 
+    def max_force_n(self, pressure_pa: object) -> np.ndarray:
+        """Largest force the display balances at a pressure, p pi R^2, N (pressed to its base)."""
+        return nonnegative("pressure_pa", pressure_pa) * self.max_area_m2
+
+    def balances(self, force_n: object, pressure_pa: object) -> np.ndarray:
+        """Whether the display balances a force at a pressure before bottoming out: the forces
+        `indentation_for_force_m` answers rather than refuses (an empty display, at zero
+        pressure, balances only zero force)."""
+        force = nonnegative("force_n", force_n)
+        pressure = nonnegative("pressure_pa", pressure_pa)
+        area = np.divide(force, pressure, out=np.where(force > 0, np.inf, 0.0), where=pressure > 0)
+        return area <= self.max_area_m2 * (1 + _AREA_ROUND_TRIP)
+
     def indentation_for_force_m(self, force_n: object, pressure_pa: object) -> np.ndarray:
         """Indentation at which the display balances a force at a pressure, m.
 

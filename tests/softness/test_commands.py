@@ -1,12 +1,15 @@
 """`pinarray softness ...` as the lab would run it: tables on stdout, PNGs where asked,
 one-line errors with status 2 for bad input."""
 
+import argparse
+import math
 import subprocess
 import sys
 
 import pytest
 
-from pinarray.cli import main
+from pinarray.cli import build_parser, main
+from pinarray.softness.hertz import SMALL_CONTACT_FRACTION
 
 SUBCOMMANDS = ["hertz", "telescopic", "display", "fit", "track", "forceps"]
 
@@ -72,3 +75,117 @@ def test_bad_input_is_one_line_with_status_2(tmp_path):
 def test_a_negative_force_names_the_argument(capsys):
     assert main(["softness", "hertz", "--max-force-n", "-1"]) == 2
     assert "force_n must be finite and non-negative" in capsys.readouterr().err
+
+
+# The unit each option's name ends in, as its help must spell it.
+UNIT_OF_SUFFIX = {"-mm": "(mm)", "-mm2": "(mm^2)", "-kpa": "(kPa)", "-n": "(N)", "-ms": "(ms)",
+                  "-s": "(s)", "-n-per-cm4": "(N/cm^4)", "-cm-per-n": "(cm/N)"}
+# Options that are not quantities: files, folders and flags.
+NOT_QUANTITIES = {"--png", "--out", "--csv", "--constant-modulus"}
+
+
+def softness_options():
+    """(model, option, its argparse action) for every option of every softness model."""
+    models = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    softness = models.choices["softness"]
+    sub = next(a for a in softness._actions if isinstance(a, argparse._SubParsersAction))
+    for model, parser in sub.choices.items():
+        for action in parser._actions:
+            if action.option_strings and action.option_strings[0] != "-h":
+                yield model, action.option_strings[0], action
+
+
+def test_every_softness_option_says_its_unit_and_its_default():
+    missing = []
+    for model, option, action in softness_options():
+        text = action.help or ""
+        suffix = max((s for s in UNIT_OF_SUFFIX if option.endswith(s)), key=len, default=None)
+        if suffix:
+            unit_ok = UNIT_OF_SUFFIX[suffix] in text
+        else:
+            unit_ok = option in NOT_QUANTITIES or any(
+                kind in text for kind in ("(dimensionless)", "(a count)", "(a whole number)"))
+        if isinstance(action.default, list):
+            default_ok = all(f"{v:g}" in text.split("default:")[-1] for v in action.default)
+        elif action.default not in (None, False):
+            default_ok = "default: " in text and "%(default" in text  # the value itself
+        else:
+            default_ok = "default: " in text  # what happens without the option
+        if not (unit_ok and default_ok):
+            missing.append(f"{model} {option}: {text!r}")
+    assert missing == []
+
+
+def test_the_help_of_every_softness_model_shows_its_defaults(capsys):
+    with pytest.raises(SystemExit):
+        main(["softness", "track", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "--peak-force-n PEAK_FORCE_N force at the end of the ramp (N); default: 2.0" in help_text
+
+
+def test_hertz_by_default_stays_inside_the_small_contact_assumption(capsys):
+    # R = 10 mm, E* = 100 kPa: the last row is the force that makes a = 0.1 R = 1 mm, 0.04/3 N
+    assert main(["softness", "hertz"]) == 0
+    out, err = capsys.readouterr()
+    last = out.strip().splitlines()[-1].split()
+    # the table prints 6 significant digits: a half unit in the 6th is 5e-6 relative
+    assert float(last[0]) == pytest.approx(0.04 / 3, rel=5e-6)
+    assert float(last[1]) == pytest.approx(1.0, rel=5e-6)
+    assert err == ""
+
+
+def test_hertz_warns_in_one_line_when_the_contact_outgrows_the_sphere(capsys):
+    # 10 N on the 10 mm sphere: a = 9.09 mm, nearly the sphere's own radius
+    assert main(["softness", "hertz", "--max-force-n", "10"]) == 0
+    out, err = capsys.readouterr()
+    assert float(out.strip().splitlines()[-1].split()[1]) == pytest.approx(9.0856, rel=1e-5)
+    assert err.count("\n") == 1
+    assert err.startswith("pinarray: warning: above 0.01333 N the contact radius passes 0.1 R "
+                          "(1 mm of R = 10 mm), outside Hertz's small-contact assumption a << R")
+
+
+def test_the_small_contact_limit_in_the_help_is_the_models():
+    help_text = next(action.help for model, option, action in softness_options()
+                     if (model, option) == ("hertz", "--max-force-n"))
+    assert f"contact radius {SMALL_CONTACT_FRACTION:g} R" in help_text
+
+
+def test_display_delivers_a_force_at_the_pressures_that_can_and_says_why_not_at_the_others(
+        capsys):
+    # base area pi (6.5 mm)^2 = 132.73 mm^2: 10 kPa gives at most 1.3273 N, so 2 N needs
+    # 15.068 kPa; at 20 kPa z = (10 / 6.5) sqrt(2 N / (pi 20 kPa)) = 8.6798 mm, at 40 kPa 6.1376
+    assert main(["softness", "display", "--force-n", "2"]) == 0
+    out, err = capsys.readouterr()
+    lines = out.splitlines()
+    assert err == ""
+    assert lines[1] == ("2 N at 10 kPa: out of reach, at most 1.32732 N with the display pressed "
+                        "its full 10 mm (base area 132.7 mm^2); 2 N needs at least 15.0679 kPa")
+    # printed to 6 significant digits: a half unit in the 6th is 5e-6 relative
+    assert float(lines[2].removeprefix("2 N at 20 kPa balances at ").split()[0]) == \
+        pytest.approx(10 / 6.5 * math.sqrt(2 / (math.pi * 20e3)) * 1e3, rel=5e-6)
+    assert float(lines[3].removeprefix("2 N at 40 kPa balances at ").split()[0]) == \
+        pytest.approx(10 / 6.5 * math.sqrt(2 / (math.pi * 40e3)) * 1e3, rel=5e-6)
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--force-n", "2", "--indentation-mm", "12"],
+     "--indentation-mm must be from 0 to the display's height 10 mm, found 12"),
+    (["--force-n", "2", "--indentation-mm", "0"],
+     "2 N at 0 mm: no pressure delivers it, the finger touches no area of the display there; "
+     "give --indentation-mm above 0"),
+    (["--force-n", "-1"], "--force-n must be at least 0 N, found -1"),
+    (["--pressure-kpa", "-5"], "--pressure-kpa must be at least 0 kPa, found -5"),
+    (["--indentation-mm", "3"], "--indentation-mm needs --force-n: the force to deliver there"),
+])
+def test_display_refuses_in_the_lab_s_units_never_by_an_internal_name(argv, message, capsys):
+    assert main(["softness", "display", *argv]) == 2
+    out, err = capsys.readouterr()
+    assert (out, err) == ("", f"pinarray: {message}\n")
+
+
+def test_track_explains_its_start_up_and_gives_the_error_after_it(capsys):
+    assert main(["softness", "track"]) == 0
+    out = capsys.readouterr().out
+    assert ("start-up, the first 100 ms (5 time constants of the slower actuator): the actuators "
+            "lag commands that are steepest at zero force\n  rendered up to ") in out
+    assert "; worst error after it " in out

@@ -200,3 +200,27 @@ def test_bad_runs_are_rejected():
         ValveRange(2e4, 1e4)
     with pytest.raises(SoftnessError, match="beta_m_per_n"):
         Material(1e8, -1.0)
+
+
+def test_the_start_up_lasts_five_time_constants_of_the_slower_actuator():
+    run = simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 2.0, 1e-3,
+                              lags=ActuatorLags(valve_s=0.02, dhd_s=0.01))
+    assert run.startup_s == pytest.approx(0.1, rel=4 * U)  # 5 * 0.02: one rounding
+    assert np.array_equal(run.in_startup, run.time_s < run.startup_s)
+
+
+def test_ideal_actuators_have_no_start_up():
+    run = simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 2.0, 1e-3, lags=ActuatorLags(0.0, 0.0))
+    assert run.startup_s == 0.0
+    assert not run.in_startup.any()
+
+
+def test_the_first_touch_sinks_a_display_whose_valve_lags_and_only_in_the_start_up():
+    # 1 ms in, the command is 374 Pa (sqrt(alpha * 1 mN)) and a 20 ms valve holds 9 Pa: 1 mN
+    # presses the cone towards its base. After five lags the area is back near the material's.
+    run = simulate_force_ramp(SEED_EXAMPLE_MATERIAL, 2.0, 2.0, 1e-3)
+    desired = run.commands.material_area_m2
+    assert run.rendered_area_m2[1] > 0.5 * CASR.max_area_m2 > 10 * desired[1]
+    # a lag behind a square-root command errs by about tau / 2t: 10 % at t = 5 tau, then less
+    settled = ~run.in_startup
+    assert np.all(run.rendered_area_m2[settled] <= 1.2 * desired[settled])

@@ -7,7 +7,12 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from pinarray.softness._checks import SoftnessError
-from pinarray.softness.hertz import HertzContact, effective_modulus_pa, relative_radius_m
+from pinarray.softness.hertz import (
+    SMALL_CONTACT_FRACTION,
+    HertzContact,
+    effective_modulus_pa,
+    relative_radius_m,
+)
 from tests.softness.strategies import (
     FEW_ULPS,
     U,
@@ -166,3 +171,18 @@ def test_impossible_bodies_are_rejected():
         HertzContact(0.0, 1e5)
     with pytest.raises(SoftnessError, match="radius_1_m"):
         relative_radius_m(np.nan)
+
+
+@given(radius=radii_m, modulus=moduli_pa)
+def test_the_small_contact_limit_force_makes_a_contact_a_tenth_of_the_radius(radius, modulus):
+    contact = HertzContact(radius, modulus)
+    # F = 4 E* (0.1 R)^3 / (3 R): 0.1 R and the products round at most 4 u, the cube FEW_ULPS
+    # ulps (8 u); a = cbrt(0.75 F R / E*) adds 3 u under the root (divided by 3 by it) and
+    # FEW_ULPS ulps for cbrt: 8 u + (12 u + 3 u) / 3 + u for 0.1 R itself, within 16 u.
+    a = contact.contact_radius_m(contact.small_contact_force_n)
+    assert_allclose(a, SMALL_CONTACT_FRACTION * radius, rtol=16 * U)
+
+
+def test_the_hand_worked_contact_of_one_millimetre_is_at_the_small_contact_limit():
+    # a = 1 mm is 0.1 R on the 10 mm sphere; rtol 1e-14 as in the hand-worked test above
+    assert_allclose(CONTACT.small_contact_force_n, FORCE_FOR_1_MM_N, rtol=1e-14)

@@ -131,3 +131,23 @@ def test_the_display_cannot_be_pressed_past_its_height():
 def test_bad_pressures_are_rejected(bad):
     with pytest.raises(SoftnessError, match="pressure_pa"):
         CASR.force_n(bad, 0.005)
+
+
+def test_the_largest_force_at_a_pressure_is_with_the_display_pressed_to_its_base():
+    # 10 kPa over pi (6.5 mm)^2 = 1.327323e-4 m^2: 1.327323 N
+    assert_allclose(CASR.max_force_n(10e3), 1.3273228961416876, rtol=1e-14)
+    assert not CASR.balances(2.0, 10e3)
+    assert CASR.balances(2.0, 20e3)
+
+
+@given(pressure=with_zero(pressures_pa), ulps=st.integers(-40, 40))
+def test_a_force_balances_exactly_when_the_indentation_can_be_solved(pressure, ulps):
+    # forces within a few dozen ulps either side of the largest: the edge the two must share
+    force = float(CASR.max_force_n(pressure)) * (1 + ulps * U)
+    if not CASR.balances(force, pressure):
+        with pytest.raises(SoftnessError):
+            CASR.indentation_for_force_m(force, pressure)
+    elif pressure > 0:
+        assert CASR.indentation_for_force_m(force, pressure) <= CASR.height_m
+    else:
+        assert force == 0.0  # an empty display balances nothing but no force
