@@ -7,7 +7,8 @@ simulated session can run faster than real time. All times are integer nanosecon
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Protocol
 
 
@@ -64,6 +65,12 @@ class ScaledClock:
 
     ``now_ns`` counts scaled nanoseconds since construction; a schedule played against it
     takes ``1/scale`` of its nominal wall time.
+
+    Inside `own_time` (a stimulus played on the in-process simulator) time moves only when
+    something waits, as a `PacedClock`'s does: the host's own computing (the UI's redraws,
+    another program) costs the simulated servos no time, so a rehearsal's stimulus is never
+    late because the host was busy; it takes that much longer on the wall clock instead.
+    Afterwards the clock follows the wall clock again, never going back.
     """
 
     def __init__(self, scale: float, base: MonotonicClock | None = None):
@@ -74,15 +81,38 @@ class ScaledClock:
         self.scale = scale
         self._base = base or MonotonicClock()
         self._start_ns = self._base.now_ns()
+        self._own_ns: int | None = None  # inside `own_time`: the time it has reached
+        self._floor_ns = 0  # where the last `own_time` ended: now_ns never goes below it
 
     def now_ns(self) -> int:
-        return round((self._base.now_ns() - self._start_ns) * self.scale)
+        own_ns = self._own_ns
+        if own_ns is not None:
+            return own_ns
+        return max(self._floor_ns, round((self._base.now_ns() - self._start_ns) * self.scale))
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
-        self._base.sleep_until_ns(self._start_ns + int(deadline_ns / self.scale))
+        self._wait(deadline_ns, self._base.sleep_until_ns)
 
     def doze_until_ns(self, deadline_ns: int) -> None:
-        self._base.doze_until_ns(self._start_ns + int(deadline_ns / self.scale))
+        self._wait(deadline_ns, self._base.doze_until_ns)
+
+    def _wait(self, deadline_ns: int, until: Callable[[int], None]) -> None:
+        own_ns = self._own_ns
+        if own_ns is None:
+            until(self._start_ns + int(deadline_ns / self.scale))
+        elif deadline_ns > own_ns:
+            until(self._base.now_ns() + int((deadline_ns - own_ns) / self.scale))
+            self._own_ns = deadline_ns
+
+    @contextmanager
+    def own_time(self) -> Iterator[None]:
+        """Until the block ends, time moves only when something waits (one thread waits)."""
+        self._own_ns = self.now_ns()
+        try:
+            yield
+        finally:
+            self._floor_ns = self._own_ns
+            self._own_ns = None
 
 
 class PacedClock:

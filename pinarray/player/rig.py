@@ -14,6 +14,7 @@ still answers.
 from __future__ import annotations
 
 import threading
+from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
@@ -22,7 +23,6 @@ from pinarray.hardware.delivery import Presentation
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
 from pinarray.player.families import open_array
 from pinarray.player.playback import (
-    GUARD_NS,
     PlaybackReport,
     play_prepared,
     prepare_trial,
@@ -89,10 +89,10 @@ class Rig:
         self.stop = stop or StopRequest()
         self.bus_clock = clock
         self.clock = StoppableClock(clock, self.stop)
-        # A sped-up simulation (--speed X) judges the host's own delays on the wall clock:
-        # 1 ms of Python is X ms of simulated time.
-        self.time_scale = max(1.0, float(getattr(clock, "scale", 1.0)))
-        self.tolerance_ns = round(protocol.device.delivery_tolerance_ns * self.time_scale)
+        # The protocol's own tolerance everywhere: on the in-process simulator a stimulus
+        # plays in the simulator's own time (see `_present`), where the host's delays cost
+        # nothing, at any --speed.
+        self.tolerance_ns = protocol.device.delivery_tolerance_ns
         self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock)
         self.setup = self.bus.setup
         self.url = self.bus.port_name
@@ -158,14 +158,23 @@ class Rig:
             if self.player is not None:
                 report = self.player.play(trial, tolerance_ns=self.tolerance_ns)
             else:
-                report = play_prepared(self.bus, trial, self.clock, tolerance_ns=self.tolerance_ns,
-                                       guard_ns=round(GUARD_NS * self.time_scale),
-                                       release_at_end=False)
+                with self._own_time():
+                    report = play_prepared(self.bus, trial, self.clock,
+                                           tolerance_ns=self.tolerance_ns, release_at_end=False)
         except PinArrayError:
             self._released = True
             raise
         self.reports.append(report)
         return Presentation(report.onset_ns, report.delivery)
+
+    def _own_time(self) -> AbstractContextManager[None]:
+        """A rehearsal on the in-process simulator at wall-clock pace (the UI's) plays each
+        stimulus in the simulator's own time: the UI's redraws and the other programs of a
+        busy lab PC share this interpreter and CPU, and must not make a rehearsal's stimulus
+        late where real servos (in a player process of their own) would get it in time."""
+        if isinstance(self.bus_clock, ScaledClock):
+            return self.bus_clock.own_time()
+        return nullcontext()
 
     def test_pin(self, pin: int, cycles: int = 3, frequency_hz: int = 2) -> Presentation:
         """Wiggle one pin (its calibrated widths, the seed's pulse shape) to check the hardware."""

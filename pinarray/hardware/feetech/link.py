@@ -267,21 +267,29 @@ class Latency:
         The adapter's latency timer, if known.
     floor_ns : int
         Never allow less than this (scheduling noise on the host).
+    learns : bool
+        Go by measured exchanges (False: the in-process simulator, which has no adapter and
+        whose replies take no host time; what a busy host made an exchange take on the wall
+        clock says nothing about it).
     """
 
     CAUTIOUS_NS = 2 * 16 * NS_PER_MS + 2 * NS_PER_MS  # what the SDK allows an unknown adapter
     SAMPLES_BEFORE_TRUST = 3
     RECENT = 64
 
-    def __init__(self, timer_ms: int | None = None, floor_ns: int = NS_PER_MS):
+    def __init__(self, timer_ms: int | None = None, floor_ns: int = NS_PER_MS,
+                 learns: bool = True):
         self.timer_ms = timer_ms
         self.floor_ns = floor_ns
+        self.learns = learns
         self.worst_seen_ns = 0
         self.samples = 0
         self.recent_ns: deque[int] = deque(maxlen=self.RECENT)
         self._p90_ns = 0
 
     def record(self, latency_ns: int) -> None:
+        if not self.learns:
+            return
         self.samples += 1
         self.worst_seen_ns = max(self.worst_seen_ns, latency_ns)
         self.recent_ns.append(latency_ns)

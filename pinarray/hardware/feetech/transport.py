@@ -92,7 +92,7 @@ def open_bus(
         baud_rate = config.baud_rate or baud_rate
         sim = SimBus(config, clock)
         wire: Wire = PolledWire(SimSerial(sim, clock, baud_rate, port=url), clock, url)
-        latency = Latency(timer_ms=0)
+        latency = Latency(timer_ms=0, learns=False)
     else:
         clock = clock or MonotonicClock()
         wire = _open_device(url, baud_rate, clock)
