@@ -57,6 +57,7 @@ bench: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check pinarray tests
 	$(BIN)/mypy pinarray
+	$(BIN)/lint-imports --no-cache
 
 clean:
 	rm -rf $(VENV) $(FLOOR_VENV) build *.egg-info

@@ -126,6 +126,8 @@ class PtyServer:
         self, config: SimConfig, clock: Clock | None = None, record_arrivals: bool = False
     ):
         self.sim = SimBus(config, clock or MonotonicClock(), follow_host_baud=False)
+        # The pseudo-terminal lives in real time whatever clock the servos' motion runs on.
+        self._wall = MonotonicClock()
         self._controller, self._device = os.openpty()
         # Raw mode: no echo, no CR/LF translation, every byte passes through untouched.
         tty.setraw(self._device)
@@ -163,7 +165,8 @@ class PtyServer:
                     except BlockingIOError:
                         data = b""
                     except OSError:
-                        time.sleep(0.001)  # no client attached right now
+                        # No client attached right now: look again in a millisecond.
+                        self._wall.doze_until_ns(self._wall.now_ns() + 1_000_000)
                         continue
                     if data:
                         self._take(data, time.monotonic_ns())
