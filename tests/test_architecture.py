@@ -34,6 +34,9 @@ ALLOWED = {
     # Scanner triggers, volume logs and LSL markers around a session: above it, below the roots.
     "imaging": FOUNDATION | {"protocol", "plan", "schedule", "journal", "session", "hardware",
                              "player"},
+    # One sitting at the array (rig, scanner, run, retries, close), driven by the UI and batch.
+    "sitting": FOUNDATION | {"protocol", "plan", "journal", "session", "hardware", "player",
+                             "imaging"},
 }
 # The composition roots may import anything; nothing imports them (the CLI starts the UI).
 ROOTS = {"cli", "tui", "__main__"}

@@ -129,7 +129,7 @@ async def test_quitting_mid_run_leaves_a_resumable_run_and_keeps_every_row(resul
         await settle(pilot)
         await pilot.press("ctrl+c")
         await settle(pilot)
-    assert app.lab.rig is None  # pins at rest, torque off, port closed
+    assert app.sitting.rig is None  # pins at rest, torque off, port closed
     run = manifest(results)
     assert (run.status, run.abort_reason) == ("aborted", "interrupted (Ctrl-C)")
     assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
@@ -225,7 +225,7 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
     from pinarray.clock import ScaledClock
 
     app = make_app(results)
-    app.lab.clock_factory = lambda port: ScaledClock(1.0)  # the 10 s stimulus really takes 10 s
+    app.sitting.clock_factory = lambda port: ScaledClock(1.0)  # the 10 s stimulus really takes 10 s
     async with app.run_test(size=SIZE) as pilot:
         await to_run_screen(pilot)
         session = app.screen.session
@@ -237,7 +237,7 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
         assert {c.pin for c in app.screen.query("PinCell.-lifted")} <= {pin}
         await pilot.press("q")
         await settle(pilot)
-    assert app.lab.rig is None
+    assert app.sitting.rig is None
     (cut,) = rows(results)
     # The stimulus lasts 10 s: a shorter duration means it was cut short, not waited out.
     assert cut.status == "aborted" and 0 < cut.duration_ns < 10 * 10**9  # stopped early, not a fault
