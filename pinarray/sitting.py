@@ -413,7 +413,9 @@ class Sitting:
         self._wait_for_jobs()
         session, self.session = self.session, None
         try:
-            if session is not None and session.phase not in (Phase.DONE, Phase.ABORTED):
+            # A run whose writer already said how it ended (a crash in `run_scripted`) stays so.
+            if (session is not None and session.phase not in (Phase.DONE, Phase.ABORTED)
+                    and session.writer.manifest.status is RunStatus.RUNNING):
                 session.abort(reason, status)
         finally:
             safe = self.release(reason)

@@ -282,6 +282,38 @@ async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_pres
     assert again.delivery.missing == 0 and again.delivery.confirmed == again.delivery.scheduled
 
 
+class RigNeverOnTime(Rig):
+    """The real simulated rig, every stimulus due at its servos within 1 ns: none is
+    delivered as scheduled."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.tolerance_ns = 1
+
+
+async def test_an_undelivered_trial_is_tried_three_times_in_the_ui_as_in_batch_then_the_run_stops_with_it_named(
+        results):
+    app = make_app(results, rig_factory=RigNeverOnTime)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        trial = session.current.trial
+        assert session.phase is Phase.FAULT
+        assert "t: present the trial again (attempt 2 of 3)" in text(app, "#phase")
+        await pilot.press("t")
+        await present(pilot)
+        assert session.phase is Phase.FAULT
+        assert "t: present the trial again (attempt 3 of 3)" in text(app, "#phase")
+        await pilot.press("t")
+        await present(pilot)
+        assert isinstance(app.screen, EndScreen)
+        assert (f"aborted (trial {trial} failed 3 times: the stimulus was not delivered as "
+                "scheduled") in text(app, "#headline")
+    assert [(r.trial, r.status) for r in rows(results)] == [(trial, "invalid")] * 3
+    run = manifest(results)
+    assert run.status == "aborted" and run.abort_reason.startswith(f"trial {trial} failed 3 times")
+    assert app.sitting.rig is None  # pins at rest, torque off, port closed
+
+
 @pytest.mark.realtime
 async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(results):
     app = make_app(results, timing_check_ns=200_000_000)
