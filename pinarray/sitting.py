@@ -9,10 +9,15 @@ rest with torque off. No UI code: the surfaces say what happens, in their own wo
 
 It sits above `imaging` (whose `start_session` puts a session together with a scanner and an
 LSL outlet) and below the composition roots.
+
+Past 400 lines on purpose: every use of the hardware (connecting, the pre-flight's jobs, the
+scanner's wait, a presentation, a pause) and every way out share the count of jobs at work and
+the stop request that make closing safe; split apart, the modules would share those instead.
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,7 +26,7 @@ from types import TracebackType
 from typing import TypeVar
 
 from pinarray.clock import Clock, MonotonicClock
-from pinarray.errors import PinArrayError
+from pinarray.errors import PinArrayError, ResultsError
 from pinarray.hardware.feetech.base import SafeStopReport
 from pinarray.hardware.feetech.bringup import ReturnDelayChange, ServoFailure
 from pinarray.imaging.lsl import MarkerOutlet
@@ -148,10 +153,14 @@ class Sitting:
         """However the block ends, an unfinished run is marked and the pins go to rest."""
         if kind is None:
             self.finish(END_REASON)
-        elif isinstance(error, Stopped | KeyboardInterrupt):
-            self.finish(str(error) or INTERRUPTED_REASON)
-        else:
-            self.finish(f"crashed: {kind.__name__}: {error}", RunStatus.CRASHED)
+            return
+        # The pins rest whatever happens; if the run cannot be marked either (the disk that
+        # failed the block), the block's own error is the one to report.
+        with contextlib.suppress(ResultsError):
+            if isinstance(error, Stopped | KeyboardInterrupt):
+                self.finish(str(error) or INTERRUPTED_REASON)
+            else:
+                self.finish(f"crashed: {kind.__name__}: {error}", RunStatus.CRASHED)
 
     # -- hardware ---------------------------------------------------------------------------
 

@@ -209,7 +209,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
 
             try:
                 sitting.run_scripted(answer, failed=failed,
-                                     answered=lambda run: progress.update(run.done_count))
+                                     answered=lambda done: progress.update(done.done_count))
             except (Stopped, KeyboardInterrupt):
                 progress.close()
                 print(f"pinarray: run {writer.paths.run} aborted, {resume_hint}", file=sys.stderr)
