@@ -4,9 +4,20 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pinarray.cli.bus import add_bus_choice
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
+
+if TYPE_CHECKING:  # the command imports what it runs when it runs
+    from pinarray.clock import Clock
+    from pinarray.plan import PlannedTrial
+    from pinarray.protocol import Protocol
+    from pinarray.protocol.imaging import ScannerSync
+    from pinarray.session.sitting import Answer, FailedAttempt, SessionRequest, Sitting
+    from pinarray.session.trials import Session
 
 BATCH_EPILOG = """\
 Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'
@@ -51,10 +62,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_batch(args: argparse.Namespace) -> int:
-    import sys
-
     from pinarray.journal.paths import check_label
+    from pinarray.player.rig import choose_clock
     from pinarray.protocol.load import load_protocol, protocol_warnings
+    from pinarray.session.sitting import NotDelivered, SessionRequest, Sitting
 
     subject = check_label("subject", args.subject)
     session = check_label("session", args.session)
@@ -70,22 +81,30 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     syncs = [_scanner_settings(args, protocol) for protocol in protocols]  # all checked first
     resumable = _resumable(protocols, args.results, subject, session) if args.resume else set()
     _refuse_resumed_scans(protocols, syncs, resumable)
-    outlet = _marker_outlet(args)
-    try:
-        for index, protocol in enumerate(protocols):
-            try:
-                run_batch(protocol, args, subject, session, responses, resume=index in resumable,
-                          files_left=args.files[index:], sync=syncs[index], outlet=outlet)
-            except NotDelivered as failed:
-                print(f"pinarray: {failed}", file=sys.stderr)
-                return EXIT_NOT_DELIVERED
-    finally:
+    _check_markers(args)
+    # Each run connects on a clock of its own (`_run_clock`); this one is never asked for.
+    with Sitting(Path(args.results), lambda port: choose_clock(port, args.time_scale, paced=True),
+                 lsl_name=args.lsl) as sitting:
+        outlet = sitting.markers()  # open for every run of the command
         if outlet is not None:
-            outlet.close()
+            print(f"pinarray: LSL markers on stream {outlet.name!r} (type Markers, source "
+                  f"{outlet.source_id})", file=sys.stderr)
+        for index, protocol in enumerate(protocols):
+            request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
+                                     args.sim, args.seed, resume=index in resumable)
+            resume_hint = (f"resume with: pinarray batch {' '.join(args.files[index:])} "
+                           f"--subject {subject} --session {session} --resume")
+            try:
+                run_batch(sitting, request, args, responses, sync=syncs[index],
+                          resume_hint=resume_hint)
+            except NotDelivered as failed:
+                print(f"pinarray: {failed}; the run is left resumable ({resume_hint})",
+                      file=sys.stderr)
+                return EXIT_NOT_DELIVERED
     return 0
 
 
-def _scanner_settings(args: argparse.Namespace, protocol):
+def _scanner_settings(args: argparse.Namespace, protocol: Protocol) -> ScannerSync | None:
     """The run's scanner settings (protocol's sync: section, the options on top), checked."""
     from pinarray.cli import common
     from pinarray.protocol.imaging import KeyTrigger, SerialTrigger, SyncError
@@ -105,7 +124,8 @@ def _wall_clock(args: argparse.Namespace) -> bool:
     return bool(args.port) or args.time_scale == 1
 
 
-def _refuse_resumed_scans(protocols, syncs, resumable: set[int]) -> None:
+def _refuse_resumed_scans(protocols: list[Protocol], syncs: list[ScannerSync | None],
+                          resumable: set[int]) -> None:
     from pinarray.protocol.imaging import SyncError
 
     for index in sorted(resumable):
@@ -115,25 +135,18 @@ def _refuse_resumed_scans(protocols, syncs, resumable: set[int]) -> None:
                             "scan's first volume); start a new run without --resume")
 
 
-def _marker_outlet(args: argparse.Namespace):
-    """The LSL marker outlet, open for every run of the command, or None without --lsl."""
+def _check_markers(args: argparse.Namespace) -> None:
+    """--lsl only where markers can be stamped: on this machine's clock (exit 2 otherwise)."""
     if args.lsl is None:
-        return None
-    from pinarray.clock import MonotonicClock
+        return
     from pinarray.errors import PinArrayError
 
     if not _wall_clock(args):
         raise PinArrayError("--lsl: markers are stamped on this machine's clock, and a "
                             "simulated one is not it: run the simulator with --speed 1")
-    from pinarray.imaging.lsl import MarkerOutlet
-
-    outlet = MarkerOutlet(args.lsl, MonotonicClock())
-    print(f"pinarray: LSL markers on stream {outlet.name!r} (type Markers, source "
-          f"{outlet.source_id})", file=sys.stderr)
-    return outlet
 
 
-def _resumable(protocols, root: str, subject: str, session: str) -> set[int]:
+def _resumable(protocols: list[Protocol], root: str, subject: str, session: str) -> set[int]:
     """Which protocols have an unfinished run to resume; every one checked before any runs.
 
     Refused (exit 2) when none has one, or when one is open in another process.
@@ -156,29 +169,69 @@ def _resumable(protocols, root: str, subject: str, session: str) -> set[int]:
     return found
 
 
-# How many times batch presents a trial whose stimulus failed before it gives up.
-MAX_ATTEMPTS = 3
-EXIT_NOT_DELIVERED = 3
+EXIT_NOT_DELIVERED = 3  # a trial failed every attempt the sitting allows
 
 
-class NotDelivered(Exception):
-    """A trial failed `MAX_ATTEMPTS` times; the run is left aborted (resumable)."""
-
-
-def run_batch(protocol, args, subject: str, session: str, responses: dict[int, str] | None, *,
-              resume: bool, files_left: list[str], sync=None, outlet=None) -> None:
-
-    from pinarray.analysis.observer import SimulatedObserver, parse_observer
-    from pinarray.errors import PinArrayError
-    from pinarray.imaging.run import start_session
-    from pinarray.journal.runs import open_run
+def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespace,
+              responses: dict[int, str] | None, *, sync: ScannerSync | None,
+              resume_hint: str) -> None:
+    """One protocol's run on ``sitting``, answered from ``responses`` or ``--observer``; says
+    what happens on stderr and where the rows went on stdout. The rig is closed after it."""
     from pinarray.journal.volumes import volume_log_path
-    from pinarray.plan import make_plan
-    from pinarray.player.rig import Rig, choose_clock
-    from pinarray.session.trials import Phase, task_label
-    from pinarray.stop import Stopped, StopRequest, stop_on_signals
+    from pinarray.stop import Stopped, stop_on_signals
 
-    task = task_label(protocol)
+    protocol, subject, session = request.protocol, request.subject, request.session
+    answer = _answers(protocol, args, responses)
+    with stop_on_signals(sitting.stop):
+        try:
+            rig = sitting.connect(request, _run_clock(args, sync, sitting.outlet is not None))
+            for warning in rig.warnings:
+                print(f"pinarray: warning: {warning}", file=sys.stderr)
+            if args.resume and not request.resume:
+                print(f"pinarray: no unfinished {request.task} run for subject {subject}, "
+                      f"session {session}; starting a new run", file=sys.stderr)
+            if sync is not None:
+                def waiting(scanner: object) -> None:
+                    print(f"pinarray: waiting for the scanner ({sync.describe()}); Ctrl-C gives up",
+                          file=sys.stderr)
+
+                if sitting.wait_for_scanner(sync, opened=waiting) is None:
+                    sitting.stop.raise_if_requested()
+            scanner = sitting.scanner
+            run = sitting.open_session()
+            _say_how_the_run_opened(run, args)
+            writer = run.writer
+            progress = Progress(f"{request.task} sub-{subject} ses-{session}", run.total,
+                                run.done_count)
+
+            def failed(attempt: FailedAttempt) -> None:
+                print(f"\npinarray: {attempt}", file=sys.stderr)
+
+            try:
+                sitting.run_scripted(answer, failed=failed,
+                                     answered=lambda done: progress.update(done.done_count))
+            except (Stopped, KeyboardInterrupt):
+                progress.close()
+                print(f"pinarray: run {writer.paths.run} aborted, {resume_hint}", file=sys.stderr)
+                raise
+            progress.close()
+            print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed "
+                  f"{run.plan.seed}, run {writer.paths.run})")
+            if scanner is not None:
+                print(f"scanner: {scanner.summary()}; every volume in "
+                      f"{volume_log_path(writer.paths)}")
+        finally:
+            safe = sitting.release("the run is over")
+            if safe is not None and not safe.complete:
+                print(f"pinarray: warning: {safe.describe()}", file=sys.stderr)
+
+
+def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, str] | None
+             ) -> Callable[[PlannedTrial], Answer]:
+    """Who answers each trial: the --responses file (checked complete) or a simulated subject."""
+    from pinarray.errors import PinArrayError
+    from pinarray.plan import make_plan
+
     if responses is not None:
         # Checked before anything is opened, so a short file leaves no half-started run behind.
         count = len(make_plan(protocol, 0))  # every seed numbers the same trials 1..N
@@ -188,114 +241,48 @@ def run_batch(protocol, args, subject: str, session: str, responses: dict[int, s
                 f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
                 + (" ..." if len(missing) > 10 else "")
             )
+        return lambda planned: responses[planned.trial]
+    from pinarray.analysis.observer import SimulatedObserver, parse_observer
     from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
+
+    observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
+
+    def respond(planned: PlannedTrial) -> Answer:
+        condition = planned.condition
+        if isinstance(condition, LocalisationCondition):
+            return observer.respond_localisation(condition.pin, float(condition.frequency_hz))
+        return observer.respond_motion(DIRECTION_OF_WAVE[condition.direction])
+
+    return respond
+
+
+def _run_clock(args: argparse.Namespace, sync: ScannerSync | None, markers: bool) -> Clock:
+    """The run's clock: virtual or paced for the simulator, unless it must keep the wall's."""
+    from pinarray.player.rig import choose_clock
     from pinarray.protocol.imaging import EmulatedTrigger
 
     # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
     # time (at --speed 1) instead of a paced one.
-    wall_clock = outlet is not None or (sync is not None
-                                        and not isinstance(sync.trigger, EmulatedTrigger))
-    clock = choose_clock(args.port, args.time_scale, paced=not wall_clock)
-    if outlet is not None:
-        outlet.use_clock(clock)
-    observer = None
-    if responses is None:
-        observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
-    with stop_on_signals(StopRequest()) as stop:
-        rig = Rig(protocol, args.port, args.sim, clock, stop)
-        scanner = None
-        try:
-            for warning in rig.warnings:
-                print(f"pinarray: warning: {warning}", file=sys.stderr)
-            if args.resume and not resume:
-                print(f"pinarray: no unfinished {task} run for subject {subject}, session {session}; "
-                      "starting a new run", file=sys.stderr)
-            if sync is not None:
-                scanner = _wait_for_scanner(sync, rig.clock, stop)
-            writer, plan = open_run(protocol, args.results, subject, session, task, resume=resume,
-                                    seed=args.seed, port_url=rig.url, clock=clock,
-                                    experimenter=args.experimenter,
-                                    scanner=scanner.record() if scanner else None)
-            if writer.stale_lock:
-                print(f"pinarray: warning: {writer.stale_lock}", file=sys.stderr)
-            if writer.resumed and args.seed is not None and args.seed != plan.seed:
-                print(f"pinarray: warning: resuming run {writer.paths.run} with its own seed {plan.seed}; "
-                      f"--seed {args.seed} is ignored", file=sys.stderr)
-            if writer.repaired:
-                print(f"pinarray: warning: dropped a half-written last row from {writer.paths.beh_tsv}: "
-                      f"{writer.repaired!r}", file=sys.stderr)
-            resume_hint = (f"resume with: pinarray batch {' '.join(files_left)} --subject {subject} "
-                           f"--session {session} --resume")
-            with writer:
-                run = start_session(protocol, plan, writer, rig, rig.clock, scanner=scanner,
-                                    outlet=outlet)
-                progress = Progress(f"{task} sub-{subject} ses-{session}", run.total, run.done_count)
-                try:
-                    run.begin()
-                    attempts = 0
-                    while run.phase is Phase.READY:
-                        run.present()
-                        if run.phase is Phase.FAULT:
-                            attempts += 1
-                            print(f"\npinarray: trial {run.current.trial}, attempt {attempts} of "
-                                  f"{MAX_ATTEMPTS}: {run.fault}", file=sys.stderr)
-                            if attempts >= MAX_ATTEMPTS:
-                                run.abort(f"trial {run.current.trial} failed {attempts} times: {run.fault}")
-                                raise NotDelivered(f"trial {run.current.trial} failed {attempts} times; "
-                                                   f"the run is left resumable ({resume_hint})")
-                            run.retry()
-                            continue
-                        attempts = 0
-                        assert run.current is not None  # READY -> RESPONSE keeps the trial
-                        condition = run.current.condition
-                        answer: str | int | None  # None: nothing felt
-                        if responses is not None:
-                            answer = responses[run.current.trial]
-                        elif isinstance(condition, LocalisationCondition):
-                            assert observer is not None
-                            answer = observer.respond_localisation(condition.pin, float(condition.frequency_hz))
-                        else:
-                            assert observer is not None
-                            answer = observer.respond_motion(DIRECTION_OF_WAVE[condition.direction])
-                        run.respond(answer, response_time_ns=None)  # scripted: no real response time
-                        progress.update(run.done_count)
-                except (Stopped, KeyboardInterrupt) as stopped:
-                    run.abort(str(stopped) or "interrupted (Ctrl-C)")
-                    progress.close()
-                    print(f"pinarray: run {writer.paths.run} aborted, {resume_hint}", file=sys.stderr)
-                    raise
-                progress.close()
-            print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed {plan.seed}, run {writer.paths.run})")
-            if scanner is not None:
-                print(f"scanner: {scanner.summary()}; every volume in "
-                      f"{volume_log_path(writer.paths)}")
-        finally:
-            if scanner is not None:
-                scanner.close()
-            safe = rig.close()
-            if not safe.complete:
-                print(f"pinarray: warning: {safe.describe()}", file=sys.stderr)
+    wall_clock = markers or (sync is not None and not isinstance(sync.trigger, EmulatedTrigger))
+    return choose_clock(args.port, args.time_scale, paced=not wall_clock)
 
 
-def _wait_for_scanner(sync, clock, stop):
-    """Open the trigger and wait for the run's time zero (nothing is written before it)."""
-    from pinarray.imaging.scanner import Scanner
-
-    scanner = Scanner(sync, clock, stop)
-    try:
-        print(f"pinarray: waiting for the scanner ({sync.describe()}); Ctrl-C gives up",
-              file=sys.stderr)
-        scanner.wait_for_time_zero()
-    except BaseException:
-        scanner.close()
-        raise
-    return scanner
+def _say_how_the_run_opened(run: Session, args: argparse.Namespace) -> None:
+    writer = run.writer
+    if writer.stale_lock:
+        print(f"pinarray: warning: {writer.stale_lock}", file=sys.stderr)
+    if writer.resumed and args.seed is not None and args.seed != run.plan.seed:
+        print(f"pinarray: warning: resuming run {writer.paths.run} with its own seed {run.plan.seed}; "
+              f"--seed {args.seed} is ignored", file=sys.stderr)
+    if writer.repaired:
+        print(f"pinarray: warning: dropped a half-written last row from {writer.paths.beh_tsv}: "
+              f"{writer.repaired!r}", file=sys.stderr)
 
 
 class Progress:
     """A one-line progress bar on a terminal; silent when stderr is not one."""
 
-    def __init__(self, label: str, total: int, done: int, width: int = 30):
+    def __init__(self, label: str, total: int, done: int, width: int = 30) -> None:
         import sys
 
         self.label, self.total, self.width = label, max(total, 1), width

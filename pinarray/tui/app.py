@@ -1,4 +1,4 @@
-"""The experimenter's app: start -> pre-flight -> run -> end, over one `Lab`.
+"""The experimenter's app: start -> pre-flight -> run -> end, over one `Sitting`.
 
 However the app is left (q, Ctrl-C, a signal, an error nothing handled) the run in progress
 is closed, the pins go to rest with torque off, and `outcome` gives the one line and the exit
@@ -29,9 +29,9 @@ from pinarray.journal.manifest import RunStatus
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.imaging import SyncOverrides
+from pinarray.session.sitting import QUIT_REASON, RigFactory, Sitting
 from pinarray.session.trials import Session
 from pinarray.stop import on_loop_signals, signal_name
-from pinarray.tui.lab import QUIT_REASON, Lab, RigFactory
 from pinarray.tui.outcome import (
     Crashed,
     Ending,
@@ -107,9 +107,10 @@ class PinArrayApp(App[None]):
         super().__init__()
         self.options = options
         scale = options.time_scale
-        self.lab = Lab(options.results_root,
-                       clock_factory or (lambda port: choose_clock(port, None if port else scale)),
-                       rig_factory, lsl_name=options.lsl)
+        self.sitting = Sitting(
+            options.results_root,
+            clock_factory or (lambda port: choose_clock(port, None if port else scale)),
+            rig_factory, lsl_name=options.lsl)
         self.list_ports = list_ports
         self.ending: Ending = Quit()
         self._leaving_app = False
@@ -121,7 +122,7 @@ class PinArrayApp(App[None]):
         self.push_screen(StartScreen(self.options, self.list_ports))
         try:
             # Any stop signal: same as q. Closing the terminal: see `_hang_up`.
-            on_loop_signals(asyncio.get_running_loop(), self.lab.stop, self._signalled)
+            on_loop_signals(asyncio.get_running_loop(), self.sitting.stop, self._signalled)
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             pass  # not the main thread (tests) or no such signals (Windows)
         if os.isatty(TERMINAL_FD):
@@ -155,9 +156,9 @@ class PinArrayApp(App[None]):
 
         A normal exit would restore a terminal that no longer exists, and Textual's driver
         then waits forever (seen closing a tmux window mid-run). Rows and the manifest are
-        already fsync'd by the time `Lab.finish` returns, so nothing is lost by not unwinding.
+        already fsync'd by the time `Sitting.finish` returns, so nothing is lost by not unwinding.
         """
-        self.lab.finish(f"stopped by {signal_name(signal.SIGHUP)}")
+        self.sitting.finish(f"stopped by {signal_name(signal.SIGHUP)}")
         os._exit(128 + signal.SIGHUP)
 
     def finish_run(self, session: Session, reason: str) -> None:
@@ -165,8 +166,8 @@ class PinArrayApp(App[None]):
         from pinarray.tui.end_screen import EndScreen
 
         def close() -> None:
-            safe = self.lab.finish(reason or QUIT_REASON)
-            self.call_from_thread(self.switch_screen, EndScreen(session, self.lab, safe))
+            safe = self.sitting.finish(reason or QUIT_REASON)
+            self.call_from_thread(self.switch_screen, EndScreen(session, self.sitting, safe))
 
         self.run_worker(close, thread=True, group="close", name="finish run")
 
@@ -186,7 +187,7 @@ class PinArrayApp(App[None]):
             return  # a second q (or a signal) while closing: already on the way out
         self._leaving_app = True
         self.ending = ending
-        worker = self.run_worker(lambda: self.lab.finish(reason), thread=True, group="close",
+        worker = self.run_worker(lambda: self.sitting.finish(reason), thread=True, group="close",
                                  name="quit")
         await worker.wait()
         self.exit()
@@ -196,9 +197,9 @@ class PinArrayApp(App[None]):
 
         Call once the app has stopped (it closes whatever is still open first).
         """
-        self.lab.finish(QUIT_REASON)
+        self.sitting.finish(QUIT_REASON)
         runs = []
-        for request, session in self.lab.runs:
+        for request, session in self.sitting.runs:
             manifest = session.writer.manifest
             command = resume_command(request.protocol.source, request.subject, request.session,
                                      self.options.results_root, request.port, request.sim_url)
@@ -208,7 +209,7 @@ class PinArrayApp(App[None]):
             label = f"run {session.writer.paths.run} of sub-{request.subject} ses-{request.session} task-{request.task}"
             runs.append(RunOutcome(label, RunStatus(manifest.status), manifest.abort_reason or "",
                                    counted, practice, command))
-        safe = self.lab.last_safe
+        safe = self.sitting.last_safe
         pins = safe.describe() if safe is not None else ""
         return exit_status(self.ending, runs), farewell(self.ending, runs, pins)
 
@@ -247,11 +248,11 @@ class PinArrayApp(App[None]):
     def _close_after_crash(self, crash: Crashed) -> str:
         """Mark the run crashed and rest the pins; what became of them, in words."""
         try:
-            self.lab.finish(f"crashed: {crash.what}", RunStatus.CRASHED)
+            self.sitting.finish(f"crashed: {crash.what}", RunStatus.CRASHED)
             note = ""
         except Exception as problem:  # noqa: BLE001 - the pins went to rest all the same
             note = f" (the run could not be marked crashed: {problem})"
-        safe = self.lab.last_safe
+        safe = self.sitting.last_safe
         return (safe.describe() if safe is not None else "not connected") + note
 
 

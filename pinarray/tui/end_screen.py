@@ -12,8 +12,8 @@ from textual.screen import Screen
 from textual.widgets import Button, Footer, Static
 
 from pinarray.analysis import summary_lines
+from pinarray.session.sitting import Sitting
 from pinarray.session.trials import Phase, Session
-from pinarray.tui.lab import Lab
 from pinarray.tui.notice import KeyNotices, Notice
 
 
@@ -32,7 +32,7 @@ class EndScreen(KeyNotices, Screen):
     ----------
     session : Session
         The finished or aborted run.
-    lab : Lab
+    sitting : Sitting
         For the results folder.
     safe_stop : SafeStopReport or None
         What the final rest-and-release achieved.
@@ -42,10 +42,10 @@ class EndScreen(KeyNotices, Screen):
     # Nothing focused: Enter or Space still arriving from the last trial must not leave.
     AUTO_FOCUS = None
 
-    def __init__(self, session: Session, lab: Lab, safe_stop):
+    def __init__(self, session: Session, sitting: Sitting, safe_stop):
         super().__init__()
         self.session = session
-        self.lab = lab
+        self.sitting = sitting
         self.safe_stop = safe_stop
 
     def compose(self) -> ComposeResult:

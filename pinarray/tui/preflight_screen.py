@@ -14,8 +14,8 @@ from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech import packets
 from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import Register
+from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
-from pinarray.tui.lab import Lab, SessionRequest
 from pinarray.tui.notice import KeyNotices, Notice
 
 COLUMNS = ("servo", "pin", "answers", "model", "position (steps)", "voltage (V)",
@@ -30,7 +30,7 @@ class PreflightScreen(KeyNotices, Screen):
 
     Parameters
     ----------
-    lab : Lab
+    sitting : Sitting
         Connects the rig (in a worker thread) and later opens the run.
     request : SessionRequest
         What the start screen chose.
@@ -40,9 +40,9 @@ class PreflightScreen(KeyNotices, Screen):
     BINDINGS = [Binding("escape", "back", "back", priority=True),
                 Binding("b", "begin", "begin run", priority=True)]
 
-    def __init__(self, lab: Lab, request: SessionRequest):
+    def __init__(self, sitting: Sitting, request: SessionRequest):
         super().__init__()
-        self.lab = lab
+        self.sitting = sitting
         self.request = request
         self.connected = False
         self._leaving = False
@@ -109,7 +109,7 @@ class PreflightScreen(KeyNotices, Screen):
     @work(thread=True, exclusive=True, group="hardware")
     def _connect(self) -> None:
         try:
-            rig = self.lab.connect(self.request)
+            rig = self.sitting.connect(self.request)
             readings = rig.telemetry()
         except PinArrayError as problem:
             self.app.call_from_thread(self._failed, str(problem))
@@ -127,7 +127,7 @@ class PreflightScreen(KeyNotices, Screen):
     @work(thread=True, exclusive=True, group="timing")
     def _timing(self, duration_ns: int) -> None:
         try:
-            verdict = self.lab.check_timing(duration_ns)
+            verdict = self.sitting.check_timing(duration_ns)
         except (PinArrayError, AssertionError) as problem:  # not connected any more
             self.app.call_from_thread(self._timing_line, f"Timing: not checked ({problem})", True)
             return
@@ -144,8 +144,8 @@ class PreflightScreen(KeyNotices, Screen):
     @work(thread=True, exclusive=True, group="hardware")
     def _test(self, pin: int) -> None:
         try:
-            self.lab.test_pin(pin)
-            readings = self.lab.connected().telemetry()
+            self.sitting.test_pin(pin)
+            readings = self.sitting.connected().telemetry()
         except PinArrayError as problem:
             self.app.call_from_thread(self._status, f"Test of pin {pin} failed: {problem}", True)
             return
@@ -158,10 +158,10 @@ class PreflightScreen(KeyNotices, Screen):
         table.clear()
         by_id = {t.servo_id: t for t in readings}
         model = self.request.protocol.device.servo.model
-        bus = self.lab.connected().bus
+        bus = self.sitting.connected().bus
         # Return delays are the Feetech family's (read by its handshake); others show none.
         delays_ns = bus.link.return_delay_ns if isinstance(bus, FeetechBus) else {}
-        for servo in self.lab.connected().setup.servos:
+        for servo in self.sitting.connected().setup.servos:
             t = by_id.get(servo.servo_id)
             delay = (str(delays_ns[servo.servo_id] // 1000) if servo.servo_id in delays_ns
                      else "")
@@ -174,7 +174,7 @@ class PreflightScreen(KeyNotices, Screen):
                               delay, t.errors.describe())
         faulty = [t.servo_id for t in readings if t.errors.describe() != "none"]
         where = self.request.port or "the simulated array"
-        servos = self.lab.connected().setup.servos
+        servos = self.sitting.connected().setup.servos
         text = (f"Connected to {where}: {len(readings)} of {len(servos)} "
                 f"servos answer, all {model} (checked at connect).")
         if faulty:
@@ -240,7 +240,7 @@ class PreflightScreen(KeyNotices, Screen):
     def _release(self) -> None:
 
         # Lets go of the array (as `pinarray servos rest` does), e.g. to adjust a horn by hand.
-        safe = self.lab.release("rest and torque off from the pre-flight")
+        safe = self.sitting.release("rest and torque off from the pre-flight")
         text = "nothing was connected" if safe is None else safe.describe()
         self.app.call_from_thread(
             self._status, f"Released: {text}, port closed. Connect again to go on.",
@@ -254,8 +254,8 @@ class PreflightScreen(KeyNotices, Screen):
     @work(thread=True, exclusive=True, group="hardware")
     def _lower_delay(self) -> None:
         try:
-            result = self.lab.lower_return_delay(0)
-            readings = self.lab.connected().telemetry()
+            result = self.sitting.lower_return_delay(0)
+            readings = self.sitting.connected().telemetry()
         except PinArrayError as problem:
             self.app.call_from_thread(self._failed, f"lowering the return delay: {problem}")
             return
@@ -278,14 +278,14 @@ class PreflightScreen(KeyNotices, Screen):
         try:
             sync = scanner_settings(self.request, self.app.options.sync)  # type: ignore[attr-defined]
             if sync is not None:  # the run opens at the scanner's first counted volume
-                self.app.push_screen(ScannerScreen(self.lab, sync), self._scanner_done)
+                self.app.push_screen(ScannerScreen(self.sitting, sync), self._scanner_done)
                 return
-            session = self.lab.open_session()
+            session = self.sitting.open_session()
         except PinArrayError as problem:
             self._leaving = False
             self._status(f"Cannot open the run: {problem}", True)
             return
-        self.app.switch_screen(RunScreen(self.lab, session))
+        self.app.switch_screen(RunScreen(self.sitting, session))
 
     def _scanner_done(self, session: Session | None) -> None:
         from pinarray.tui.run_screen import RunScreen
@@ -295,7 +295,7 @@ class PreflightScreen(KeyNotices, Screen):
             self.refresh_bindings()
             self._status("Stopped waiting for the scanner; no run was started.")
         else:
-            self.app.switch_screen(RunScreen(self.lab, session))
+            self.app.switch_screen(RunScreen(self.sitting, session))
 
     @on(Button.Pressed, "#back")
     def action_back(self) -> None:
@@ -309,5 +309,5 @@ class PreflightScreen(KeyNotices, Screen):
     @work(thread=True, exclusive=True, group="leave")
     def _leave(self) -> None:
         # Stops a test pin or a timing check first, then pins to rest, torque off.
-        self.lab.release()
+        self.sitting.release()
         self.app.call_from_thread(self.app.pop_screen)

@@ -24,9 +24,9 @@ from textual.worker import Worker, WorkerState
 from pinarray.journal.records import LocalisationRecord
 from pinarray.player.playback import DEFAULT_LEAD_NS
 from pinarray.protocol import DIRECTION_OF_WAVE, Condition, LocalisationCondition, Paradigm
+from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
-from pinarray.tui.lab import Lab
 from pinarray.tui.live import LiftTimeline, LiveCounts
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
@@ -46,7 +46,7 @@ class RunScreen(KeyNotices, Screen):
 
     Parameters
     ----------
-    lab : Lab
+    sitting : Sitting
         Owns the rig; presents trials in a worker thread.
     session : Session
         The open run; its changes arrive here as `RunScreen.Changed` messages.
@@ -71,9 +71,9 @@ class RunScreen(KeyNotices, Screen):
             self.phase = phase
             self.at_ns = at_ns
 
-    def __init__(self, lab: Lab, session: Session):
+    def __init__(self, sitting: Sitting, session: Session):
         super().__init__()
-        self.lab = lab
+        self.sitting = sitting
         self.session = session
         self.localisation = session.protocol.design.paradigm is Paradigm.LOCALISATION
         self._by_trial = {t.trial: t for t in session.plan.trials}
@@ -85,7 +85,7 @@ class RunScreen(KeyNotices, Screen):
         self._ending = False
 
     def compose(self) -> ComposeResult:
-        protocol, request = self.session.protocol, self.lab.request
+        protocol, request = self.session.protocol, self.sitting.request
         assert request is not None
         used = {pin for c in protocol.design.conditions for pin in _pins_of(self.session, c)}
         yield Static(f"{protocol.name} · sub-{request.subject} ses-{request.session} · "
@@ -106,7 +106,7 @@ class RunScreen(KeyNotices, Screen):
         yield Footer()
 
     def on_mount(self) -> None:
-        clock = self.lab.clock
+        clock = self.sitting.clock
         assert clock is not None
         self.clock = clock
 
@@ -135,8 +135,8 @@ class RunScreen(KeyNotices, Screen):
                 return phase is Phase.PAUSED and not (busy or self._cutting)
             case "redo":
                 return phase is Phase.RESPONSE and not busy
-            case "retry":
-                return phase is Phase.FAULT and not busy
+            case "retry":  # once the sitting has counted the failed attempt
+                return phase is Phase.FAULT and not (busy or self._presenting)
             case "abort":
                 return phase not in (Phase.DONE, Phase.ABORTED) and not busy
         return True
@@ -233,8 +233,11 @@ class RunScreen(KeyNotices, Screen):
             case Phase.PAUSED:
                 return "PAUSED · p resumes."
             case Phase.FAULT:
+                failed = self.sitting.failed
+                next_try = (f" (attempt {failed.attempt + 1} of {MAX_ATTEMPTS})"
+                            if failed is not None else "")
                 return (f"STIMULUS FAILED (logged invalid): {session.fault}\n"
-                        "t: present the trial again · a: abort the run")
+                        f"t: present the trial again{next_try} · a: abort the run")
             case Phase.DONE:
                 return "Run complete."
         return "Run aborted."
@@ -323,6 +326,11 @@ class RunScreen(KeyNotices, Screen):
             refused = event.worker.result if event.state is WorkerState.SUCCESS else None
             if refused:
                 self.notice.say(refused)
+            failed = self.sitting.failed
+            if failed is not None and failed.last:
+                # The trial failed its last attempt: the sitting stopped the run, naming it.
+                self._end(failed.reason)
+                return
         elif event.worker.name == CUT_SHORT:
             self._cutting = False
             self.notice.say(self._cut_short_note())
@@ -351,7 +359,7 @@ class RunScreen(KeyNotices, Screen):
     def _present(self) -> str:
         """In a worker thread: present the trial; '' or why the session would not."""
         try:
-            self.lab.present()
+            self.sitting.present()
         except SessionError as refused:
             # Paused before this worker reached the session: the pause says it all.
             return "" if self.session.phase is Phase.PAUSED else str(refused)
@@ -372,7 +380,7 @@ class RunScreen(KeyNotices, Screen):
             # The session holds once the stimulus (or the interval before it) ends; the stop
             # request makes that now, the pins going to rest.
             self._cutting = True
-            self.run_worker(self.lab.cut_short, thread=True, group="pause", name=CUT_SHORT)
+            self.run_worker(self.sitting.cut_short, thread=True, group="pause", name=CUT_SHORT)
             self._draw()
 
     def action_resume(self) -> None:

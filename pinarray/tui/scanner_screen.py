@@ -19,8 +19,8 @@ from textual.widgets import Footer, Static
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.imaging import KeyTrigger, ScannerSync, SyncError, SyncOverrides
+from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
-from pinarray.tui.lab import Lab, SessionRequest
 
 # Redraws of the volume count per second while waiting.
 COUNT_FPS = 10
@@ -40,7 +40,7 @@ class ScannerScreen(Screen[Session | None]):
 
     Parameters
     ----------
-    lab : Lab
+    sitting : Sitting
         Connected; waits for the scanner in a worker and then opens the run.
     sync : ScannerSync
         The run's trigger, dummy volumes, TR and locking.
@@ -48,15 +48,15 @@ class ScannerScreen(Screen[Session | None]):
 
     BINDINGS = [Binding("escape", "stop_waiting", "stop waiting")]
 
-    def __init__(self, lab: Lab, sync: ScannerSync):
+    def __init__(self, sitting: Sitting, sync: ScannerSync):
         super().__init__()
-        self.lab = lab
+        self.sitting = sitting
         self.sync = sync
         self._leaving = False
         self._failed = False
 
     def compose(self) -> ComposeResult:
-        request = self.lab.request
+        request = self.sitting.request
         assert request is not None
         yield Static(f"Scanner · {request.protocol.name} · sub-{request.subject} "
                      f"ses-{request.session}", id="title")
@@ -78,7 +78,7 @@ class ScannerScreen(Screen[Session | None]):
         self._wait()
 
     def _count(self) -> None:
-        scanner = self.lab.scanner
+        scanner = self.sitting.scanner
         seen = scanner.seen if scanner is not None else 0
         needed = self.sync.dummy_volumes + 1
         self.query_one("#scanner-volumes", Static).update(
@@ -87,7 +87,7 @@ class ScannerScreen(Screen[Session | None]):
     @work(thread=True, exclusive=True, group="scanner")
     def _wait(self) -> None:
         try:
-            scanner = self.lab.wait_for_scanner(self.sync)
+            scanner = self.sitting.wait_for_scanner(self.sync)
         except PinArrayError as problem:
             self.app.call_from_thread(self._problem, str(problem))
             return
@@ -103,16 +103,16 @@ class ScannerScreen(Screen[Session | None]):
 
     def _begin(self) -> None:
         try:
-            session = self.lab.open_session()
+            session = self.sitting.open_session()
         except PinArrayError as problem:
-            self.lab.close_scanner()
+            self.sitting.close_scanner()
             self._problem(f"Cannot open the run: {problem}")
             return
         session.begin()  # the instructions were given before the scan started
         self.dismiss(session)
 
     def on_key(self, event: Key) -> None:
-        scanner = self.lab.scanner
+        scanner = self.sitting.scanner
         if scanner is not None and event.character == scanner.listens_for_key:
             scanner.press()
             event.stop()
@@ -128,5 +128,5 @@ class ScannerScreen(Screen[Session | None]):
     @work(thread=True, exclusive=True, group="scanner-stop")
     def _stop_waiting(self) -> None:
         if not self._failed:
-            self.lab.abort_wait()
+            self.sitting.abort_wait()
         self.app.call_from_thread(self.dismiss, None)

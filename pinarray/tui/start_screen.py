@@ -17,7 +17,7 @@ from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.faults import SIM_DEFAULT
 from pinarray.journal.paths import check_label
 from pinarray.protocol import Protocol
-from pinarray.tui.lab import SessionRequest
+from pinarray.session.sitting import SessionRequest
 from pinarray.tui.notice import KeyNotices, Notice
 
 if TYPE_CHECKING:
@@ -214,5 +214,5 @@ class StartScreen(KeyNotices, Screen):
             error.update(str(problem))
             return
         error.update("")
-        lab = cast("PinArrayApp", self.app).lab
-        self.app.push_screen(PreflightScreen(lab, request))
+        sitting = cast("PinArrayApp", self.app).sitting
+        self.app.push_screen(PreflightScreen(sitting, request))

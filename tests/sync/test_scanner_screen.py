@@ -112,7 +112,7 @@ async def test_escape_stops_waiting_for_a_silent_scanner_and_no_run_is_started(t
             screen = app.screen
             assert isinstance(screen, PreflightScreen)
             assert "Stopped waiting for the scanner; no run was started." in text(screen, "#preflight-status")
-            assert app.lab.rig is not None  # still connected: Begin run can wait again
+            assert app.sitting.rig is not None  # still connected: Begin run can wait again
             await pilot.press("b")
             await pilot.pause()
             assert isinstance(app.screen, ScannerScreen)

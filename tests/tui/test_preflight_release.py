@@ -27,7 +27,7 @@ async def test_rest_and_torque_off_lets_go_of_every_pin_until_connect_again(resu
         await settle(pilot)
         assert text(app, "#preflight-status") == (
             "Released: 16 servo(s) at rest, 16 released, port closed. Connect again to go on.")
-        assert app.lab.rig is None
+        assert app.sitting.rig is None
         assert app.screen.query_one("#begin").disabled and app.screen.query_one("#release").disabled
         servos = rigs[0].bus.sim.servos.values()
         assert not any(s.torque_enabled for s in servos)

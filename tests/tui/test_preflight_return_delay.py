@@ -10,7 +10,7 @@ from pinarray.hardware.feetech.faults import parse_sim_url
 from pinarray.hardware.feetech.registers import Register
 from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.protocol.load import load_protocol
-from pinarray.tui.lab import Lab, SessionRequest
+from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.tui.preflight_screen import PreflightScreen
 from tests.tui.conftest import LOCALISATION, SIZE, fill_start, make_app, settle
 
@@ -50,7 +50,7 @@ async def test_the_preflight_shows_factory_delays_and_lowers_them_until_power_of
         assert "wait longer" not in status
         assert "(return delay 0 µs until power-off on 16 servo(s))" in status
         assert not app.screen.query_one("#begin").disabled
-        sim = app.lab.connected().bus.sim  # the same simulated servos: not connected again
+        sim = app.sitting.connected().bus.sim  # the same simulated servos: not connected again
         assert all(s.return_delay_ns == 0 and s.get(Register.LOCK) == 1
                    for s in sim.servos.values())
         assert all(s.torque_enabled for s in sim.servos.values())  # still ready to run
@@ -62,7 +62,7 @@ async def test_the_preflight_shows_factory_delays_and_lowers_them_until_power_of
 
 def test_a_rig_with_a_player_process_is_connected_again_with_the_lowered_delays(tmp_path):
     server = PtyServer(parse_sim_url("sim://?ids=1-16")).start()
-    lab = Lab(Path(tmp_path), clock_factory=lambda port: MonotonicClock())
+    lab = Sitting(Path(tmp_path), clock_factory=lambda port: MonotonicClock())
     request = SessionRequest(load_protocol(LOCALISATION), "01", "1", "", server.path, None,
                              1, False)
     try:

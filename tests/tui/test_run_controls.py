@@ -129,7 +129,7 @@ async def test_quitting_mid_run_leaves_a_resumable_run_and_keeps_every_row(resul
         await settle(pilot)
         await pilot.press("ctrl+c")
         await settle(pilot)
-    assert app.lab.rig is None  # pins at rest, torque off, port closed
+    assert app.sitting.rig is None  # pins at rest, torque off, port closed
     run = manifest(results)
     assert (run.status, run.abort_reason) == ("aborted", "interrupted (Ctrl-C)")
     assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
@@ -225,7 +225,7 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
     from pinarray.clock import ScaledClock
 
     app = make_app(results)
-    app.lab.clock_factory = lambda port: ScaledClock(1.0)  # the 10 s stimulus really takes 10 s
+    app.sitting.clock_factory = lambda port: ScaledClock(1.0)  # the 10 s stimulus really takes 10 s
     async with app.run_test(size=SIZE) as pilot:
         await to_run_screen(pilot)
         session = app.screen.session
@@ -240,7 +240,7 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
         assert isinstance(app.screen, Confirm) and session.phase is Phase.STIMULUS
         await pilot.press("y")
         await settle(pilot)
-    assert app.lab.rig is None
+    assert app.sitting.rig is None
     (cut,) = rows(results)
     # The stimulus lasts 10 s: a shorter duration means it was cut short, not waited out.
     assert cut.status == "aborted" and 0 < cut.duration_ns < 10 * 10**9  # stopped early, not a fault
@@ -285,6 +285,38 @@ async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_pres
     assert again.delivery.missing == 0 and again.delivery.confirmed == again.delivery.scheduled
 
 
+class RigNeverOnTime(Rig):
+    """The real simulated rig, every stimulus due at its servos within 1 ns: none is
+    delivered as scheduled."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.tolerance_ns = 1
+
+
+async def test_an_undelivered_trial_is_tried_three_times_in_the_ui_as_in_batch_then_the_run_stops_with_it_named(
+        results):
+    app = make_app(results, rig_factory=RigNeverOnTime)
+    async with app.run_test(size=SIZE) as pilot:
+        session = await begin(pilot)
+        trial = session.current.trial
+        assert session.phase is Phase.FAULT
+        assert "t: present the trial again (attempt 2 of 3)" in text(app, "#phase")
+        await pilot.press("t")
+        await present(pilot)
+        assert session.phase is Phase.FAULT
+        assert "t: present the trial again (attempt 3 of 3)" in text(app, "#phase")
+        await pilot.press("t")
+        await present(pilot)
+        assert isinstance(app.screen, EndScreen)
+        assert (f"aborted (trial {trial} failed 3 times: the stimulus was not delivered as "
+                "scheduled") in text(app, "#headline")
+    assert [(r.trial, r.status) for r in rows(results)] == [(trial, "invalid")] * 3
+    run = manifest(results)
+    assert run.status == "aborted" and run.abort_reason.startswith(f"trial {trial} failed 3 times")
+    assert app.sitting.rig is None  # pins at rest, torque off, port closed
+
+
 @pytest.mark.realtime
 async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(results):
     app = make_app(results, timing_check_ns=200_000_000)
@@ -311,11 +343,11 @@ async def test_q_mid_run_asks_first_and_no_goes_on_with_the_run(results):
         assert session.phase is Phase.RESPONSE and session.records == []
         await pilot.press("n")
         await settle(pilot)
-        assert isinstance(app.screen, RunScreen) and app.lab.rig is not None
+        assert isinstance(app.screen, RunScreen) and app.sitting.rig is not None
         await pilot.press("4", "enter")
         await settle(pilot)
         assert [(r.status, r.response) for r in rows(results)] == [("ok", "4")]
         await pilot.press("q", "y")
         await settle(pilot)
-    assert app.lab.rig is None
+    assert app.sitting.rig is None
     assert manifest(results).abort_reason == "quit from the UI"

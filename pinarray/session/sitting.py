@@ -1,0 +1,468 @@
+"""One sitting at the pin array: the rig, the scanner, the run, the retries and the close.
+
+The experimenter's UI and `pinarray batch` both drive a `Sitting`: it connects the rig, waits
+for the scanner, opens (or resumes) a run and starts its session, presents trials under one
+retry policy for an undelivered stimulus (`MAX_ATTEMPTS`), and makes sure that however the
+sitting ends (finished, aborted, stopped by a signal, quit, terminal closed, an error) a
+stimulus in progress is cut short, the run's manifest says how it ended, and the pins go to
+rest with torque off. No UI code: the surfaces say what happens, in their own words.
+
+It sits above `imaging` (the scanner's volumes and the LSL markers it puts around a session,
+`start_session`) and below the composition roots.
+
+Past 400 lines on purpose: every use of the hardware (connecting, the pre-flight's jobs, the
+scanner's wait, a presentation, a pause) and every way out share the count of jobs at work and
+the stop request that make closing safe; split apart, the modules would share those instead.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import TypeVar
+
+from pinarray.clock import Clock, MonotonicClock
+from pinarray.errors import PinArrayError, ResultsError
+from pinarray.hardware.driver import SafeStopReport
+from pinarray.hardware.feetech.bringup import ReturnDelayChange, ServoFailure
+from pinarray.imaging.lsl import MarkerOutlet
+from pinarray.imaging.markers import MarkedStimulator
+from pinarray.imaging.scanner import Scanner
+from pinarray.journal.manifest import RunStatus
+from pinarray.journal.runs import open_run
+from pinarray.journal.writer import RunWriter
+from pinarray.plan import PlannedTrial, TrialPlan
+from pinarray.player.rig import Rig
+from pinarray.player.timing import Verdict
+from pinarray.protocol import Protocol
+from pinarray.protocol.imaging import ScannerSync
+from pinarray.session.trials import Phase, Session, Stimulator, task_label
+from pinarray.stop import StoppableClock, Stopped, StopRequest
+
+QUIT_REASON = "quit from the UI"
+PAUSE_REASON = "paused by the experimenter"
+END_REASON = "the sitting ended"
+INTERRUPTED_REASON = "interrupted (Ctrl-C)"
+# How many times a trial whose stimulus failed is presented before the run stops.
+MAX_ATTEMPTS = 3
+# How long closing waits for a cut-short stimulus to rest its pins, in seconds.
+STOP_WAIT_S = 30.0
+
+T = TypeVar("T")
+RigFactory = Callable[[Protocol, "str | None", "str | None", Clock, StopRequest], Rig]
+Answer = str | int | None  # a pin, a motion answer, or None: nothing felt
+
+
+@dataclass(frozen=True)
+class SessionRequest:
+    """What the run is: which protocol, for whom, on which bus."""
+
+    protocol: Protocol
+    subject: str
+    session: str
+    experimenter: str
+    port: str | None  # a serial device of real servos; None for the simulator
+    sim_url: str | None
+    seed: int | None
+    resume: bool
+
+    @property
+    def task(self) -> str:
+        return task_label(self.protocol)
+
+
+@dataclass(frozen=True)
+class FailedAttempt:
+    """A presentation whose stimulus failed (logged invalid): which one of the trial's tries."""
+
+    planned: PlannedTrial
+    attempt: int  # 1..MAX_ATTEMPTS, counted while the same trial keeps failing
+    fault: str
+
+    @property
+    def last(self) -> bool:
+        """No attempt is left: the sitting has aborted the run with `reason`."""
+        return self.attempt >= MAX_ATTEMPTS
+
+    @property
+    def reason(self) -> str:
+        """Why the run stopped after the last attempt, naming the trial (plan number)."""
+        return f"trial {self.planned.trial} failed {self.attempt} times: {self.fault}"
+
+    def __str__(self) -> str:
+        return (f"trial {self.planned.trial}, attempt {self.attempt} of {MAX_ATTEMPTS}: "
+                f"{self.fault}")
+
+
+class NotDelivered(PinArrayError):
+    """A trial failed `MAX_ATTEMPTS` times; the run is left aborted (resumable)."""
+
+    def __init__(self, failed: FailedAttempt):
+        super().__init__(f"trial {failed.planned.trial} failed {failed.attempt} times")
+        self.failed = failed
+
+
+class Sitting:
+    """Owns the connected rig, the scanner and the open session of one sitting.
+
+    Parameters
+    ----------
+    results_root : Path
+        Where runs are written (BIDS layout below it).
+    clock_factory : callable
+        ``clock_factory(port)`` gives the clock of a new connection (virtual in tests) when
+        `connect` is not given one.
+    rig_factory : callable
+        ``rig_factory(protocol, port, sim_url, clock, stop)``; `Rig` unless a test injects
+        faults.
+    lsl_name : str or None
+        Send LSL markers on a stream of this name (opened by `markers` or at the first
+        connection, kept until the sitting ends); None: no outlet.
+    """
+
+    def __init__(self, results_root: Path, clock_factory: Callable[[str | None], Clock],
+                 rig_factory: RigFactory = Rig, lsl_name: str | None = None):
+        self.results_root = Path(results_root)
+        self.clock_factory = clock_factory
+        self.rig_factory = rig_factory
+        self.request: SessionRequest | None = None
+        self.rig: Rig | None = None
+        self.clock: StoppableClock | None = None
+        self.stop = StopRequest()
+        self.session: Session | None = None
+        # Every run opened in this sitting and what asked for it, for the line said on exit.
+        self.runs: list[tuple[SessionRequest, Session]] = []
+        self.last_safe: SafeStopReport | None = None  # how the last release left the pins
+        self.failed: FailedAttempt | None = None  # the current trial's last failed attempt
+        self.lsl_name = lsl_name
+        self.outlet: MarkerOutlet | None = None
+        self.scanner: Scanner | None = None
+        self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
+        self._jobs_done = threading.Condition()
+        # Set while the rig is being closed: a pause must not clear the stop a close relies on.
+        self._closing = False
+
+    def __enter__(self) -> Sitting:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        """However the block ends, an unfinished run is marked and the pins go to rest."""
+        if kind is None:
+            self.finish(END_REASON)
+            return
+        # The pins rest whatever happens; if the run cannot be marked either (the disk that
+        # failed the block), the block's own error is the one to report.
+        with contextlib.suppress(ResultsError):
+            if isinstance(error, Stopped | KeyboardInterrupt):
+                self.finish(str(error) or INTERRUPTED_REASON)
+            else:
+                self.finish(f"crashed: {kind.__name__}: {error}", RunStatus.CRASHED)
+
+    # -- hardware ---------------------------------------------------------------------------
+
+    def markers(self) -> MarkerOutlet | None:
+        """The LSL outlet, opened now (on this machine's clock until a connection) if the
+        sitting sends markers; None if it does not."""
+        if self.lsl_name is not None and self.outlet is None:
+            self.outlet = MarkerOutlet(self.lsl_name, MonotonicClock())
+        return self.outlet
+
+    def connect(self, request: SessionRequest, clock: Clock | None = None) -> Rig:
+        """Open the bus and run the handshake (blocking: call it from a worker).
+
+        ``clock``: the connection's clock; None: ``clock_factory(request.port)``. A stop a
+        signal asked for stays requested: the sitting is over, not connecting again.
+        """
+        self.release("connecting again")
+        self.request = request
+        with self._jobs_done:
+            self._closing = False
+            if self.stop.signal_number is None:
+                self.stop.clear()
+        base = clock if clock is not None else self.clock_factory(request.port)
+        if self.lsl_name is not None:
+            self._open_outlet(self.lsl_name, base)
+        rig = self.rig_factory(request.protocol, request.port, request.sim_url, base, self.stop)
+        # The player and the session wait on the rig's stoppable clock; the bus on the plain one.
+        self.clock = rig.clock
+        self.rig = rig
+        return rig
+
+    def _open_outlet(self, name: str, clock: Clock) -> None:
+        from pinarray.imaging.lsl import LslError
+        from pinarray.imaging.triggers import follows_wall_clock
+
+        if not follows_wall_clock(clock):
+            raise LslError("LSL markers are stamped on this machine's clock, and a simulated "
+                           "one is not it: start the UI with --speed 1")
+        if self.outlet is None:
+            self.outlet = MarkerOutlet(name, clock)
+        else:
+            self.outlet.use_clock(clock)
+
+    def connected(self) -> Rig:
+        """The connected rig (only asked for once `connect` has succeeded)."""
+        assert self.rig is not None, "not connected"
+        return self.rig
+
+    def test_pin(self, pin: int) -> None:
+        """Wiggle one pin (blocking: call it from a worker)."""
+        rig, request = self.rig, self.request
+        assert rig is not None and request is not None
+        request.protocol.device.grid.check_pin(pin)
+        self._busy(lambda: rig.test_pin(pin))
+
+    def check_timing(self, duration_ns: int) -> Verdict | None:
+        """This machine's timing verdict (blocking: call it from a worker), None if stopped;
+        see `Rig.check_timing`."""
+        rig = self.connected()
+        return self._busy(lambda: rig.check_timing(duration_ns))
+
+    def lower_return_delay(self, delay_us: int = 0
+                           ) -> tuple[tuple[ReturnDelayChange, ...], tuple[ServoFailure, ...]] | None:
+        """Every servo's return delay to ``delay_us``, until power-off (blocking: from a worker).
+
+        Returns ``(changes, failures)`` as `pinarray.hardware.feetech.bringup.set_return_delay` does, or
+        None if stopped. A rig with a player process is connected again: the player plans
+        its read-backs with the delays the handshake reads, and the servos keep the new ones.
+        """
+        from pinarray.hardware.feetech.bringup import set_return_delay
+        from pinarray.hardware.feetech.feetech import FeetechBus
+
+        rig, request = self.connected(), self.request
+        assert request is not None
+        bus = rig.bus
+        if not isinstance(bus, FeetechBus):
+            raise PinArrayError(f"{rig.url}: only Feetech bus servos have a return delay")
+        result = self._busy(
+            lambda: set_return_delay(bus, rig.setup.servo_ids, delay_us, save=False))
+        if result is not None and rig.isolated:
+            self.connect(request)
+        return result
+
+    def release(self, reason: str = "left the pre-flight") -> SafeStopReport | None:
+        """Stop what the hardware is doing, then pins to rest, torque off, port closed.
+
+        Returns the `SafeStopReport`, or None if nothing was connected. Safe from any thread.
+        """
+        with self._jobs_done:
+            self._closing = True
+        self.stop.request(reason)
+        self._wait_for_jobs()
+        self.close_scanner()
+        rig, self.rig = self.rig, None
+        if rig is None:
+            return None
+        self.last_safe = rig.close()
+        return self.last_safe
+
+    # -- the scanner ------------------------------------------------------------------------
+
+    def wait_for_scanner(self, sync: ScannerSync,
+                         opened: Callable[[Scanner], object] | None = None) -> Scanner | None:
+        """Open the trigger and wait for the first counted volume (blocking: from a worker).
+
+        ``opened`` is called once the trigger is open, before the wait. Returns the scanner,
+        or None when the wait was stopped (`abort_wait`, quitting, a signal); raises
+        `pinarray.imaging.triggers.TriggerError` for a device that cannot be opened or a
+        scanner that sends nothing in time. No run is opened either way.
+        """
+        assert self.clock is not None, "not connected"
+        self.scanner = Scanner(sync, self.clock, self.stop)
+        try:
+            if opened is not None:
+                opened(self.scanner)
+            zero_ns = self._busy(self.scanner.wait_for_time_zero)
+        except BaseException:
+            self.close_scanner()
+            raise
+        if zero_ns is None:
+            self.close_scanner()
+            return None
+        return self.scanner
+
+    def abort_wait(self) -> None:
+        """Stop waiting for the scanner; the rig stays connected."""
+        self.stop.request("stopped waiting for the scanner")
+        self._wait_for_jobs()
+        self.stop.clear()
+
+    def close_scanner(self) -> None:
+        scanner, self.scanner = self.scanner, None
+        if scanner is not None:
+            scanner.close()
+
+    # -- the run ----------------------------------------------------------------------------
+
+    def open_session(self, on_change: Callable[[Session], None] | None = None) -> Session:
+        """Start (or resume) the request's run on the connected rig.
+
+        A run open in another process is refused (`pinarray.journal.lock.RunLocked`), as is a
+        resume with nothing to resume; the run's lock is held until the session ends. After
+        `wait_for_scanner` the run is timed from the scanner's first counted volume.
+        """
+        request = self.request
+        assert request is not None and self.rig is not None and self.clock is not None
+        scanner = self.scanner
+        writer, plan = open_run(
+            request.protocol, self.results_root, request.subject, request.session, request.task,
+            resume=request.resume, seed=request.seed, port_url=self.rig.url,
+            clock=self.rig.bus_clock, experimenter=request.experimenter,
+            scanner=None if scanner is None else scanner.record(),
+        )
+        self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
+                                     scanner=scanner, outlet=self.outlet, on_change=on_change)
+        self.failed = None
+        self.runs.append((request, self.session))
+        return self.session
+
+    def present(self) -> FailedAttempt | None:
+        """Present the current trial (blocking: call it from a worker).
+
+        Returns the failed attempt if the stimulus failed (logged invalid; `Session.retry`
+        presents it again), None otherwise. The `MAX_ATTEMPTS`-th failure of the same trial
+        aborts the run, naming the trial. A stop cuts the presentation short and returns None:
+        `finish` aborts the run (a pause holds it instead).
+        """
+        try:
+            return self._present()
+        except Stopped:
+            return None
+
+    def _present(self) -> FailedAttempt | None:
+        session = self.session
+        assert session is not None
+        self._working(session.present)
+        if session.phase is Phase.RESPONSE:
+            self.failed = None  # delivered: a later failure of the trial starts counting again
+        if session.phase is not Phase.FAULT or session.current is None:
+            return None
+        before = self.failed
+        attempt = before.attempt + 1 if before is not None and before.planned == session.current else 1
+        self.failed = FailedAttempt(session.current, attempt, session.fault)
+        if self.failed.last:
+            session.abort(self.failed.reason)
+        return self.failed
+
+    def run_scripted(self, answer: Callable[[PlannedTrial], Answer], *,
+                     failed: Callable[[FailedAttempt], object] = lambda attempt: None,
+                     answered: Callable[[Session], object] = lambda session: None) -> Session:
+        """Every remaining trial of the open run, answered by ``answer`` (no response times).
+
+        A failed stimulus is presented again at once (``failed`` hears of each attempt) until
+        the policy gives up: then `NotDelivered`. A stop (a signal, Ctrl-C) aborts the run
+        with its reason and is raised again; any other error marks the run crashed.
+        """
+        session = self.session
+        assert session is not None
+        with session.writer:  # an error nothing here expects marks the run crashed
+            try:
+                session.begin()
+                while session.phase is Phase.READY:
+                    attempt = self._present()
+                    if attempt is not None:
+                        failed(attempt)
+                        if attempt.last:
+                            raise NotDelivered(attempt)
+                        session.retry()
+                        continue
+                    assert session.current is not None  # READY -> RESPONSE keeps the trial
+                    session.respond(answer(session.current), response_time_ns=None)
+                    answered(session)
+            except (Stopped, KeyboardInterrupt) as stopped:
+                session.abort(str(stopped) or INTERRUPTED_REASON)
+                raise
+        return session
+
+    def cut_short(self, reason: str = PAUSE_REASON) -> None:
+        """Stop what the hardware is doing (pins to rest), then let it be used again.
+
+        For a pause (blocking: call it from a worker): the stimulus in progress ends at the
+        player's next look at the stop request, and the session logs it as cut short. A stop
+        that a close asked for meanwhile stays.
+        """
+        self.stop.request(reason)
+        self._wait_for_jobs()
+        with self._jobs_done:
+            if not self._closing and self.stop.reason == reason:
+                self.stop.clear()
+
+    def _busy(self, job: Callable[[], T]) -> T | None:
+        try:
+            return self._working(job)
+        except Stopped:
+            return None  # cut short: `finish` aborts the run, logging a trial that was playing
+
+    def _working(self, job: Callable[[], T]) -> T:
+        """``job()``, counted as hardware at work until it returns (closing waits for it)."""
+        with self._jobs_done:
+            self._jobs += 1
+        try:
+            return job()
+        finally:
+            with self._jobs_done:
+                self._jobs -= 1
+                self._jobs_done.notify_all()
+
+    def _wait_for_jobs(self) -> None:
+        with self._jobs_done:
+            self._jobs_done.wait_for(lambda: self._jobs == 0, STOP_WAIT_S)
+
+    def finish(self, reason: str = QUIT_REASON,
+               status: RunStatus = RunStatus.ABORTED) -> SafeStopReport | None:
+        """End the sitting: cut a stimulus short, mark an unfinished run ``status`` (aborted,
+        or crashed), pins to rest, the LSL outlet closed.
+
+        Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
+        if nothing was connected). The pins go to rest even if marking the run fails.
+        """
+        with self._jobs_done:
+            self._closing = True
+        self.stop.request(reason)
+        self._wait_for_jobs()
+        session, self.session = self.session, None
+        try:
+            # A run whose writer already said how it ended (a crash in `run_scripted`) stays so.
+            if (session is not None and session.phase not in (Phase.DONE, Phase.ABORTED)
+                    and session.writer.manifest.status is RunStatus.RUNNING):
+                session.abort(reason, status)
+        finally:
+            safe = self.release(reason)
+            outlet, self.outlet = self.outlet, None
+            if outlet is not None:
+                outlet.close()
+        return safe
+
+
+def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
+                  clock: Clock, *, scanner: Scanner | None = None, outlet: MarkerOutlet | None = None,
+                  on_change: Callable[[Session], None] | None = None) -> Session:
+    """A `Session` on ``writer``'s run, timed from ``scanner`` and marked on ``outlet`` if given.
+
+    With a scanner, the session's time zero is the first counted volume (the scanner has
+    waited for it already), trials may be held for their volumes, and the run's volume log is
+    written with its rows. With an LSL outlet, every presentation sends its onset and offset
+    markers.
+
+    ``writer`` must have been started with ``scanner.record()`` when there is a scanner, and
+    ``scanner`` must be past `Scanner.wait_for_time_zero`.
+    """
+    session: Session | None = None
+    if outlet is not None:
+        stimulator = MarkedStimulator(stimulator, outlet, protocol, writer.paths.task,
+                                      lambda: session.current if session else None)
+    if scanner is None:
+        session = Session(protocol, plan, writer, stimulator, clock, on_change)
+        return session
+    zero_ns = scanner.timeline.zero_ns
+    assert zero_ns is not None, "wait for the scanner's time zero first"
+    writer.log_volumes(scanner.pending_rows)
+    session = Session(protocol, plan, writer, stimulator, clock, on_change,
+                      time_zero_ns=zero_ns, time_zero_event=scanner.zero_event,
+                      gate=scanner.gate)
+    return session

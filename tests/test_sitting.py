@@ -1,0 +1,172 @@
+"""One sitting at the array, as the UI and batch both drive it: on the simulated array in
+virtual time, its runs checked on disk and its servos checked after it closes."""
+
+from pathlib import Path
+
+import pytest
+
+from pinarray.clock import VirtualClock
+from pinarray.journal.manifest import read_manifest
+from pinarray.journal.records import read_trials
+from pinarray.journal.runs import unfinished_run
+from pinarray.player.rig import Rig
+from pinarray.protocol.load import load_protocol
+from pinarray.session.sitting import MAX_ATTEMPTS, NotDelivered, SessionRequest, Sitting
+from pinarray.session.trials import Phase
+from pinarray.stop import Stopped
+
+LOCALISATION = Path(__file__).resolve().parent.parent / "protocols" / "localisation.yaml"
+
+
+class RigNeverOnTime(Rig):
+    """The simulated rig with a delivery tolerance of 1 ns: the wire alone makes every goal
+    change late, so no stimulus is delivered as scheduled."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.tolerance_ns = 1
+
+
+class RigLateEveryOtherTime(Rig):
+    """The simulated rig, every other stimulus late from the first: each trial fails once,
+    then plays."""
+
+    presented = 0
+
+    def present(self, schedule):
+        self.presented += 1
+        if self.presented % 2 == 0:
+            return super().present(schedule)
+        tolerance_ns, self.tolerance_ns = self.tolerance_ns, 1
+        try:
+            return super().present(schedule)
+        finally:
+            self.tolerance_ns = tolerance_ns
+
+
+class RigStoppedMidStimulus(Rig):
+    """The simulated rig, its first stimulus stopped as it starts (a signal, quitting)."""
+
+    def present(self, schedule):
+        self.stop.request("stopped by SIGHUP", 1)
+        return super().present(schedule)
+
+
+def sitting_on(results: Path, rig_factory=Rig) -> tuple[Sitting, SessionRequest]:
+    sitting = Sitting(results, clock_factory=lambda port: VirtualClock(), rig_factory=rig_factory)
+    request = SessionRequest(load_protocol(LOCALISATION), "01", "1", "", None, None, 3, False)
+    return sitting, request
+
+
+def answer_pin_one(planned):
+    return 1
+
+
+def rows(session):
+    return read_trials(session.writer.paths.beh_tsv)
+
+
+def assert_at_rest(protocol, sim):
+    """Every servo back at its pin's rest position with torque off."""
+    for pin in protocol.device.pins:
+        servo = sim.servos[pin.servo_id]
+        assert not servo.torque_enabled, f"servo {pin.servo_id} still has torque"
+        assert abs(servo.position_steps - pin.rest_steps) <= 4, f"pin {pin.pin} not at rest"
+
+
+def test_an_undelivered_trial_is_presented_three_times_then_the_run_stops_naming_it(tmp_path):
+    sitting, request = sitting_on(tmp_path, RigNeverOnTime)
+    attempts = []
+    with sitting:
+        sim = sitting.connect(request).bus.sim
+        session = sitting.open_session()
+        with pytest.raises(NotDelivered) as gave_up:
+            sitting.run_scripted(answer_pin_one, failed=attempts.append)
+    first = session.plan.trials[0].trial
+    assert [(a.planned.trial, a.attempt, a.last) for a in attempts] == [
+        (first, 1, False), (first, 2, False), (first, MAX_ATTEMPTS, True)]
+    assert str(gave_up.value) == f"trial {first} failed 3 times"
+    assert [(r.trial, r.status) for r in rows(session)] == [(first, "invalid")] * 3
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert manifest.status == "aborted"
+    assert manifest.abort_reason.startswith(
+        f"trial {first} failed 3 times: the stimulus was not delivered as scheduled")
+    assert unfinished_run(tmp_path, "01", "1", request.task) is not None  # resumable
+    assert_at_rest(request.protocol, sim)
+
+
+def test_a_trial_that_fails_once_then_plays_does_not_count_against_the_next(tmp_path):
+    sitting, request = sitting_on(tmp_path, RigLateEveryOtherTime)
+    with sitting:
+        sitting.connect(request)
+        session = sitting.open_session()
+        sitting.run_scripted(answer_pin_one)
+    assert session.phase is Phase.DONE
+    statuses = [r.status for r in rows(session)]
+    assert statuses == ["invalid", "ok"] * session.total
+
+
+def test_a_stop_asked_for_mid_run_aborts_the_run_with_its_reason_and_rests_the_pins(tmp_path):
+    sitting, request = sitting_on(tmp_path)
+    answered = []
+
+    def answer(planned):
+        answered.append(planned.trial)
+        if len(answered) == 2:
+            sitting.stop.request("stopped by SIGTERM", 15)  # as the signal handler does
+        return 1
+
+    with pytest.raises(Stopped, match="stopped by SIGTERM"), sitting:
+        sim = sitting.connect(request).bus.sim
+        session = sitting.open_session()
+        sitting.run_scripted(answer)
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert (manifest.status, manifest.abort_reason) == ("aborted", "stopped by SIGTERM")
+    assert [r.status for r in rows(session)] == ["ok", "ok"]
+    assert sitting.rig is None
+    assert_at_rest(request.protocol, sim)
+
+
+def test_a_sitting_closed_by_a_stop_request_cuts_the_stimulus_short_and_leaves_the_pins_at_rest(
+        tmp_path):
+    sitting, request = sitting_on(tmp_path, RigStoppedMidStimulus)
+    sim = sitting.connect(request).bus.sim
+    session = sitting.open_session()
+    session.begin()
+    assert sitting.present() is None  # cut short, not a failed stimulus
+    assert session.phase is Phase.STIMULUS
+    safe = sitting.finish("stopped by SIGHUP")
+    assert safe is not None and safe.complete
+    (cut,) = rows(session)
+    assert (cut.status, cut.status_reason) == ("aborted", "stopped by SIGHUP")
+    assert read_manifest(session.writer.paths.manifest).status == "aborted"
+    assert sitting.rig is None and sitting.session is None
+    assert_at_rest(request.protocol, sim)
+
+
+def test_an_error_inside_a_sitting_marks_the_run_crashed_and_rests_the_pins(tmp_path):
+    sitting, request = sitting_on(tmp_path)
+
+    def answer(planned):
+        raise RuntimeError("a bug in the answers")
+
+    with pytest.raises(RuntimeError), sitting:
+        sim = sitting.connect(request).bus.sim
+        session = sitting.open_session()
+        sitting.run_scripted(answer)
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert (manifest.status, manifest.abort_reason) == ("crashed", "RuntimeError: a bug in the answers")
+    assert_at_rest(request.protocol, sim)
+
+
+def test_a_sitting_left_before_its_run_ends_marks_it_and_rests_the_pins(tmp_path):
+    sitting, request = sitting_on(tmp_path)
+    with sitting:
+        sim = sitting.connect(request).bus.sim
+        session = sitting.open_session()
+        session.begin()
+        sitting.present()  # the subject's answer never comes: the experimenter leaves
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert (manifest.status, manifest.abort_reason) == ("aborted", "the sitting ended")
+    assert [r.status for r in rows(session)] == ["aborted"]
+    assert_at_rest(request.protocol, sim)
