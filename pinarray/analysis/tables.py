@@ -1,4 +1,4 @@
-"""CSV tables of a `Study`: subject-level tables with both intervals and the trial-pooled one.
+"""CSV tables of a `Study`: subject-level tables with their interval(s) and the trial-pooled one.
 
 Every table says its unit in its columns: ``subject_mean_pct`` and its ``bootstrap``
 interval have subjects as the unit (the interval level and the bootstrap's seed and
