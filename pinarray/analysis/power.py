@@ -14,8 +14,9 @@ The criteria are defined in `CRITERIA`: some are significance tests (two-sided a
 subjects as the unit), the others descriptive findings about the across-subject means (how
 often they come out in the seed's order; no test). The paired t-test of the highest against
 the lowest frequency is named so, not "frequency effect": `pinarray analyse`'s frequency
-effect is a mixed-effects logistic regression over every frequency, whose fit (tenths of a s
-each, and only from 6 subjects) is too slow to repeat for thousands of simulated studies.
+effect is a mixed-effects logistic regression over every frequency, whose fit (tenths of a
+second each, and only from 6 subjects) is too slow to repeat for thousands of simulated
+studies.
 """
 
 from __future__ import annotations
