@@ -29,7 +29,8 @@ def correct_by_frequency(study: Study) -> str:
     chance_text = f" Dashed line: {chance.definition()}." if chance else ""
     return (f"Correct localisation by frequency. Bars: mean of per-subject percentages "
             f"(unit: subject; {_localisation_n(study)}); error bars: {settings.describe()}; "
-            f"grey lines: individual subjects.{chance_text} {COUNTED}")
+            f"grey lines: individual subjects; under each bar: its mean, subjects and "
+            f"trials.{chance_text} {COUNTED}")
 
 
 def error_types(study: Study) -> str:
@@ -61,7 +62,8 @@ def motion(study: Study) -> str:
     settings = study.subject_level.settings
     level = study.subject_level.motion
     return (f"Apparent motion. Bars: mean of per-subject percentages (unit: subject); error "
-            f"bars: {settings.describe()}. Felt a moving dot: % of wave trials "
+            f"bars: {settings.describe()}; under each bar: its mean, subjects and trials; "
+            f"grey dots: individual subjects. Felt a moving dot: % of wave trials "
             f"({_n(level.felt)}). Direction right: % of the wave trials on which motion was "
             f"felt ({_n(level.direction_right)}); dashed line: chance "
             f"{100 * DIRECTION_CHANCE:.0f} % (left or right named at random; 'unsure' counts "

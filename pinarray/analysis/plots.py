@@ -89,24 +89,34 @@ def _means(measures: Sequence[AcrossSubjects]) -> list[float]:
     return [0.0 if math.isnan(m.mean_pct) else m.mean_pct for m in measures]
 
 
+def _label_bars(axes, x: np.ndarray, names: Sequence[str], measures: Sequence[AcrossSubjects],
+                digits: int) -> None:
+    """Each bar's name, mean, subjects and trials under the axis, as its tick label.
+
+    Under the axis, not on the bar: inside the axes any place a label could take is crossed,
+    for some results, by a subject's line or dot or an error bar.
+    """
+    axes.set_xticks(x, [f"{name}\n{m.mean_pct:.{digits}f} %\n{m.subjects} subj., "
+                        f"{m.trials} trials" for name, m in zip(names, measures, strict=True)],
+                    fontsize=7)
+
+
 def plot_correct_by_frequency(study: Study, stem: Path) -> list[Path]:
     """Fig. 9.13: correct localisation per frequency, subjects as the unit, with chance."""
     level = study.subject_level
     method = level.settings.method
     correct = [row.share("correct") for row in level.localisation]
     x = np.arange(len(correct))
-    figure, axes = plt.subplots(figsize=(5.0, 3.6))
+    # Room under each bar for its label (about 0.9 in at 7 pt), however many frequencies.
+    figure, axes = plt.subplots(figsize=(max(5.0, 1.2 + 0.9 * len(x)), 3.8))
     axes.bar(x, _means(correct), yerr=_bar_errors(correct, method), capsize=4,
              color=CATEGORY_COLOURS["correct"], alpha=0.85, zorder=1)
     _subject_dots(axes, x, correct, connect=True)
-    for xi, m in zip(x, correct, strict=True):
-        axes.annotate(f"{m.mean_pct:.1f} %\n{m.subjects} subj.\n{m.trials} trials", (xi, 2),
-                      ha="center", va="bottom", color="white", fontsize=7, zorder=4)
+    _label_bars(axes, x, [f"{row.frequency_hz:g} Hz" for row in level.localisation], correct, 1)
     if study.chance:
         axes.axhline(100 * study.chance.correct, color=CHANCE_COLOUR, linestyle="--",
                      linewidth=1.2, label=f"chance {100 * study.chance.correct:.2f} %")
         axes.legend(fontsize=7, loc="upper left")
-    axes.set_xticks(x, [f"{row.frequency_hz:g} Hz" for row in level.localisation])
     axes.set_ylim(0, 100)
     axes.set_ylabel("correct localisation (% of trials)")
     axes.set_title("Correct localisation by frequency")
@@ -195,18 +205,15 @@ def plot_motion(study: Study, stem: Path) -> list[Path]:
     motion = level.motion
     measures = [motion.felt, motion.direction_right, motion.no_wave_felt]
     x = np.arange(3)
-    figure, axes = plt.subplots(figsize=(5.0, 3.6))
+    figure, axes = plt.subplots(figsize=(5.0, 3.9))
     axes.bar(x, _means(measures), yerr=_bar_errors(measures, level.settings.method), capsize=4,
              color=[OKABE_ITO["green"], OKABE_ITO["blue"], OKABE_ITO["sky"]], alpha=0.9)
     _subject_dots(axes, x, measures, connect=False)
-    for xi, m in zip(x, measures, strict=True):
-        axes.annotate(f"{m.mean_pct:.0f} %\n{m.subjects} subj.\n{m.trials} trials", (xi, 2),
-                      ha="center", va="bottom", color="white", fontsize=7)
+    _label_bars(axes, x, ["felt a moving dot\n(wave trials)", "direction right\n(of those felt)",
+                          "felt motion\n(no-wave trials)"], measures, 0)
     axes.hlines(100 * DIRECTION_CHANCE, 0.55, 1.45, color=CHANCE_COLOUR, linestyle="--",
                 linewidth=1.2, label=f"chance {100 * DIRECTION_CHANCE:.0f} %")
     axes.legend(fontsize=7, loc="upper right")
-    axes.set_xticks(x, ["felt a moving dot\n(wave trials)", "direction right\n(of those felt)",
-                        "felt motion\n(no-wave trials)"], fontsize=8)
     axes.set_ylim(0, 100)
     axes.set_ylabel("% of trials")
     axes.set_title("Apparent motion")

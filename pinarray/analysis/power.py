@@ -10,7 +10,13 @@ study with subjects as the unit, as `pinarray analyse` does. Over many studies p
   which checks the observer's calibration), its spread from study to study, and the average
   half-width of the 95 % t interval a study of N subjects would report.
 
-The criteria are defined in `CRITERIA` (tests two-sided at `ALPHA`, subjects as the unit).
+The criteria are defined in `CRITERIA`: some are significance tests (two-sided at `ALPHA`,
+subjects as the unit), the others descriptive findings about the across-subject means (how
+often they come out in the seed's order; no test). The paired t-test of the highest against
+the lowest frequency is named so, not "frequency effect": `pinarray analyse`'s frequency
+effect is a mixed-effects logistic regression over every frequency, whose fit (tenths of a
+second each, and only from 6 subjects) is too slow to repeat for thousands of simulated
+studies.
 """
 
 from __future__ import annotations
@@ -30,19 +36,36 @@ from pinarray.protocol import Direction, LocalisationCondition, MotionAnswer, Pr
 
 ALPHA = 0.05
 TARGET_POWER = 0.8
+PAIRED_FREQUENCY = "highest vs lowest frequency (paired t)"
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """What finding a criterion counts, and whether it is a significance test."""
+
+    definition: str
+    test: bool
+
+
 CRITERIA = {
-    "frequency effect": "paired t-test of each subject's correct % at the highest against the "
-                        "lowest frequency: p < 0.05 and higher at the highest",
-    "rising means": "the across-subject mean correct % rises strictly from each frequency to "
-                    "the next",
-    "error A on top": "the across-subject mean % of error A exceeds B, C and D at every "
-                      "frequency",
-    "pin best": "the pin the model localises best (pin 4 by default) has the highest "
-                "across-subject mean correct % over all frequencies, strictly (no tie)",
-    "direction above chance": "one-sample t-test of each subject's direction-right % (of the "
-                              "wave trials felt) against 50 %: p < 0.05 and above",
-    "motion felt more on waves": "paired t-test of each subject's felt % on wave against "
-                                 "no-wave trials: p < 0.05 and higher on waves",
+    PAIRED_FREQUENCY: Criterion(
+        "paired t-test of each subject's correct % at the highest against the lowest "
+        "frequency: p < 0.05 and higher at the highest. Not the frequency effect `pinarray "
+        "analyse` reports (a mixed-effects logistic regression over every frequency): a "
+        "different test, whose power is not simulated here", test=True),
+    "rising means": Criterion("the across-subject mean correct % rises strictly from each "
+                              "frequency to the next", test=False),
+    "error A on top": Criterion("the across-subject mean % of error A exceeds B, C and D at "
+                                "every frequency", test=False),
+    "pin best": Criterion("the pin the model localises best (pin 4 by default) has the highest "
+                          "across-subject mean correct % over all frequencies, strictly (no "
+                          "tie)", test=False),
+    "direction above chance": Criterion("one-sample t-test of each subject's direction-right % "
+                                        "(of the wave trials felt) against 50 %: p < 0.05 and "
+                                        "above", test=True),
+    "motion felt more on waves": Criterion("paired t-test of each subject's felt % on wave "
+                                           "against no-wave trials: p < 0.05 and higher on "
+                                           "waves", test=True),
 }
 
 
@@ -172,7 +195,7 @@ def analyse_study(design: Design, subjects: Sequence[SubjectCounts],
             record(f"correct at {f:g} Hz", correct[:, i])
         mean_correct = correct.mean(axis=0)
         if len(frequencies) > 1:
-            found["frequency effect"] = _significant_above(correct[:, -1] - correct[:, 0])
+            found[PAIRED_FREQUENCY] = _significant_above(correct[:, -1] - correct[:, 0])
             found["rising means"] = bool(np.all(np.diff(mean_correct) > 0))
         errors = shares[:, :, 1:5].mean(axis=0)  # frequency x A..D
         found["error A on top"] = bool(np.all(errors[:, 0] > errors[:, 1:].max(axis=1)))
@@ -299,17 +322,25 @@ def power_study(protocol: Protocol, model: ObserverModel, subject_counts: Sequen
 
 
 def caption(curves: PowerCurves) -> str:
+    tests = [c for c in curves.criteria if _criterion(c).test]
+    descriptive = [c for c in curves.criteria if not _criterion(c).test]
+    kinds = []
+    if tests:
+        kinds.append(f"Tests, two-sided at p < {ALPHA:g} with subjects as the unit: "
+                     f"{'; '.join(tests)}.")
+    if descriptive:
+        kinds.append(f"Descriptive findings, not tests (how often the across-subject means "
+                     f"came out so): {'; '.join(descriptive)}.")
     return (f"Power to find each effect against the number of subjects, for protocol "
             f"'{curves.protocol}': share of {curves.studies} simulated studies per point "
             f"(seed {curves.seed}) in which it was found; shaded: 95 % Wilson interval of that "
             f"share (Monte-Carlo error). Simulated subjects differ with an SD of "
-            f"{curves.model.subject_sd_logit:g} logit units; tests are two-sided at "
-            f"p < {ALPHA:g} with subjects as the unit (criteria defined in power.md). "
-            f"Dashed: {100 * TARGET_POWER:.0f} % power.")
+            f"{curves.model.subject_sd_logit:g} logit units. {' '.join(kinds)} Criteria "
+            f"defined in power.md. Dashed: {100 * TARGET_POWER:.0f} % power.")
 
 
-def _definition(criterion: str) -> str:
-    return CRITERIA["pin best" if criterion.startswith("pin ") else criterion]
+def _criterion(name: str) -> Criterion:
+    return CRITERIA["pin best" if name.startswith("pin ") else name]
 
 
 def power_markdown(curves: PowerCurves, figure: str) -> str:
@@ -320,7 +351,8 @@ def power_markdown(curves: PowerCurves, figure: str) -> str:
              f"SD of {curves.model.subject_sd_logit:g} logit units, calibrated on pins "
              f"{', '.join(map(str, curves.model.pins))}. Each study is analysed with subjects "
              "as the unit.", "", "## Criteria", ""]
-    lines += [f"- **{c}**: {_definition(c)}" for c in curves.criteria]
+    lines += [f"- **{c}** ({'test' if _criterion(c).test else 'descriptive, not a test'}): "
+              f"{_criterion(c).definition}" for c in curves.criteria]
     lines += ["", "## Results", "", "```", *curves.table_lines(), "```", "",
               f"![power curves]({figure})", "", f"*{caption(curves)}*", ""]
     return "\n".join(lines)

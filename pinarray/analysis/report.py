@@ -13,7 +13,7 @@ from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import FrequencyEffect
 from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS, Proportion
 from pinarray.analysis.study import Study
-from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod
+from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 from pinarray.analysis.tables import number, write_tables
 
 
@@ -41,6 +41,21 @@ def measure_text(m: AcrossSubjects, method: IntervalMethod) -> str:
             f"({m.subjects} subj., {m.trials} trials)")
 
 
+def _interval_heads(settings: IntervalSettings) -> list[str]:
+    """The subject-level interval columns: the bootstrap, and the t interval if asked for."""
+    t = ["t interval (may pass 0-100 %)"] if settings.method is IntervalMethod.T else []
+    return [*t, "bootstrap interval"]
+
+
+def _interval_cells(m: AcrossSubjects, settings: IntervalSettings) -> list[str]:
+    t = [interval_text(m.t_interval_pct)] if settings.method is IntervalMethod.T else []
+    return [*t, interval_text(m.bootstrap_interval_pct)]
+
+
+def _row(cells: Sequence[object]) -> str:
+    return "| " + " | ".join(map(str, cells)) + " |"
+
+
 def run_lines(runs: RunSelection) -> list[str]:
     """The runs left out and the runs counted with a caveat, one line each."""
     lines = []
@@ -63,10 +78,12 @@ def _methods(study: Study) -> list[str]:
     settings = study.subject_level.settings
     lines = ["## Methods", "",
              "- **Unit: the subject.** For every measure each subject's own percentage is "
-             "computed; the table gives their mean across subjects with the "
-             f"{settings.describe(IntervalMethod.T)} and the "
-             f"{settings.describe(IntervalMethod.BOOTSTRAP)}. Figures draw the "
-             f"{settings.describe()}. t intervals are not cut at 0 or 100 %.",
+             "computed; the tables give their mean across subjects with the "
+             f"{settings.describe()}; figures draw it."
+             + (f" The {settings.describe(IntervalMethod.BOOTSTRAP)} is given beside it."
+                if settings.method is IntervalMethod.T else
+                " A percentile bootstrap of few subjects is narrower than its nominal "
+                "coverage; the t interval (`--interval t`) is not bounded by 0 and 100 %."),
              "- **Trial-pooled** numbers (every trial of every subject counted together, 95 % "
              "Wilson interval) are given beside them and labelled so: they treat trials as "
              "independent, which they are not when subjects differ, so their intervals are "
@@ -96,15 +113,15 @@ def _localisation(study: Study) -> list[str]:
     lines = ["## Localisation", "",
              f"Correct localisation, mean of per-subject percentages with the "
              f"{level.settings.describe()}:", "",
-             "| frequency | subjects | trials | correct (subject mean) | t interval | "
-             "bootstrap interval | trial-pooled [Wilson 95 %] | chance |",
-             "|---|---|---|---|---|---|---|---|"]
+             _row(["frequency", "subjects", "trials", "correct (subject mean)",
+                   *_interval_heads(level.settings), "trial-pooled [Wilson 95 %]", "chance"]),
+             "|---" * (6 + len(_interval_heads(level.settings))) + "|"]
     for row in level.localisation:
         m = row.share("correct")
-        lines.append(f"| {row.frequency_hz:g} Hz | {m.subjects} | {m.trials} | "
-                     f"{number(m.mean_pct)} % | {interval_text(m.t_interval_pct)} | "
-                     f"{interval_text(m.bootstrap_interval_pct)} | {_pooled(m.pooled)} | "
-                     f"{number(100 * chance.correct, 2) if chance else 'n/a'} % |")
+        lines.append(_row([f"{row.frequency_hz:g} Hz", m.subjects, m.trials,
+                           f"{number(m.mean_pct)} %", *_interval_cells(m, level.settings),
+                           _pooled(m.pooled),
+                           f"{number(100 * chance.correct, 2) if chance else 'n/a'} %"]))
     lines += ["", f"Every answer category, mean of per-subject percentages "
               f"[{level.settings.describe()}]:",
               "", "| frequency | " + " | ".join(CATEGORY_LABELS[c] for c in CATEGORIES) + " |",
@@ -130,7 +147,8 @@ def _localisation(study: Study) -> list[str]:
                 f"{number(p.pct)} % ({p.successes}/{p.trials})" if p.trials else "-"
                 for p in cells) + " |")
     effect = study.frequency_effect
-    lines += ["", f"**Frequency effect** (mixed-effects logistic): {effect.describe()}."]
+    lines += ["", f"**Frequency effect** (test: mixed-effects logistic regression): "
+              f"{effect.describe()}."]
     if isinstance(effect, FrequencyEffect):
         lines.append("Model's correct rate for a typical subject (random effect 0): " + ", ".join(
             f"{f:g} Hz {p:.1f} %" for f, p in zip(effect.frequencies_hz,
@@ -140,7 +158,8 @@ def _localisation(study: Study) -> list[str]:
         top = max(m.mean_pct for _, m in stimulated)
         best = [str(pin) for pin, m in stimulated if m.mean_pct == top]
         lines.append(f"Best localised pin(s), mean of per-subject percentages over all "
-                     f"frequencies: {', '.join(best)} ({number(top)} %).")
+                     f"frequencies (descriptive, not a test): {', '.join(best)} "
+                     f"({number(top)} %).")
     return lines + [""]
 
 
@@ -151,14 +170,13 @@ def _motion(study: Study) -> list[str]:
             ("direction right (of the wave trials felt)", motion.direction_right,
              f"{100 * DIRECTION_CHANCE:.0f} %"),
             ("felt motion on no-wave trials (false alarms)", motion.no_wave_felt, "-")]
+    heads = _interval_heads(level.settings)
     lines = ["## Apparent motion", "",
-             "| measure | subjects | trials | subject mean | t interval | bootstrap interval | "
-             "trial-pooled [Wilson 95 %] | chance |", "|---|---|---|---|---|---|---|---|"]
+             _row(["measure", "subjects", "trials", "subject mean", *heads,
+                   "trial-pooled [Wilson 95 %]", "chance"]), "|---" * (6 + len(heads)) + "|"]
     for name, m, chance in rows:
-        lines.append(f"| {name} | {m.subjects} | {m.trials} | {number(m.mean_pct)} % | "
-                     f"{interval_text(m.t_interval_pct)} | "
-                     f"{interval_text(m.bootstrap_interval_pct)} | {_pooled(m.pooled)} | "
-                     f"{chance} |")
+        lines.append(_row([name, m.subjects, m.trials, f"{number(m.mean_pct)} %",
+                           *_interval_cells(m, level.settings), _pooled(m.pooled), chance]))
     return lines + [""]
 
 

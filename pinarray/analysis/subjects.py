@@ -3,10 +3,13 @@
 Each subject contributes one number per measure, their own percentage, however many trials
 they answered; the across-subject mean is the plain mean of those numbers. Its interval is
 
-- a **t interval**: mean +/- t(level, N - 1) * SD / sqrt(N), SD the sample standard deviation
-  of the per-subject percentages (not cut at 0 or 100 %); or
-- a **subject bootstrap**: subjects resampled with replacement ``resamples`` times from a
-  generator seeded with ``seed``, the percentile interval of the resampled means.
+- a **subject bootstrap** (the default): subjects resampled with replacement ``resamples``
+  times from a generator seeded with ``seed``, the percentile interval of the resampled means.
+  Each resampled mean lies between the lowest and highest subject's percentage, so the
+  interval never leaves 0-100 %; or
+- a **t interval**, on request: mean +/- t(level, N - 1) * SD / sqrt(N), SD the sample
+  standard deviation of the per-subject percentages. It is not bounded: with few subjects
+  far apart it passes 0 or 100 % (two subjects at 25 and 50 % give [-121, 196] %).
 
 Both need at least two subjects. A subject with no trial for a measure (e.g. "direction right
 of those felt" for a subject who never felt motion) is left out of that measure's mean, and
@@ -44,7 +47,8 @@ class IntervalSettings:
     Parameters
     ----------
     method : IntervalMethod
-        The interval drawn in figures and named first in the summary (tables hold both).
+        The interval drawn in figures and given in the tables and the summary: the subject
+        bootstrap by default (it stays within 0-100 %); the t interval only when asked for.
     level : float
         Coverage, a fraction in (0, 1); 0.95 by default.
     bootstrap_seed : int
@@ -53,7 +57,7 @@ class IntervalSettings:
         Number of bootstrap resamples.
     """
 
-    method: IntervalMethod = IntervalMethod.T
+    method: IntervalMethod = IntervalMethod.BOOTSTRAP
     level: float = 0.95
     bootstrap_seed: int = DEFAULT_BOOTSTRAP_SEED
     bootstrap_resamples: int = DEFAULT_BOOTSTRAP_RESAMPLES
@@ -76,11 +80,11 @@ class IntervalSettings:
         match method or self.method:
             case IntervalMethod.T:
                 return (f"{self.level_pct} t interval across subjects "
-                        "(mean ± t(N-1) · SD/√N)")
+                        "(mean ± t(N-1) · SD/√N; not bounded: may pass 0 or 100 %)")
             case IntervalMethod.BOOTSTRAP:
                 return (f"{self.level_pct} subject bootstrap (percentile; "
                         f"{self.bootstrap_resamples} resamples of subjects, "
-                        f"seed {self.bootstrap_seed})")
+                        f"seed {self.bootstrap_seed}; stays within 0-100 %)")
         raise AssertionError(method)
 
 

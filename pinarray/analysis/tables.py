@@ -1,8 +1,9 @@
-"""CSV tables of a `Study`: subject-level tables with both intervals and the trial-pooled one.
+"""CSV tables of a `Study`: subject-level tables with their interval(s) and the trial-pooled one.
 
-Every table says its unit in its columns: ``subject_mean_pct`` and its ``t``/``bootstrap``
-intervals have subjects as the unit (the interval level and the bootstrap's seed and
-resample count are columns too, so a table read alone still says how it was made);
+Every table says its unit in its columns: ``subject_mean_pct`` and its ``bootstrap``
+interval have subjects as the unit (the interval level and the bootstrap's seed and
+resample count are columns too, so a table read alone still says how it was made); the
+``t`` interval, which may pass 0 or 100 %, is a column only when it was asked for;
 ``trial_pooled_*`` columns count every trial alike (Wilson interval). Pins, rows and
 columns are numbered from 1 (row 1 at the bottom, column 1 on the left), as the lab does.
 """
@@ -19,7 +20,7 @@ from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import FitSkipped, FrequencyEffect
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.study import Study
-from pinarray.analysis.subjects import AcrossSubjects, IntervalSettings
+from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 
 
 def number(value: float, digits: int = 1) -> str:
@@ -41,16 +42,18 @@ def _level(settings: IntervalSettings) -> str:
 
 def measure_header(settings: IntervalSettings) -> list[str]:
     lv = _level(settings)
-    return ["subjects", "trials", "subject_mean_pct", "subject_sd_pct", f"t{lv}_low_pct",
-            f"t{lv}_high_pct", f"bootstrap{lv}_low_pct", f"bootstrap{lv}_high_pct",
+    t = [f"t{lv}_low_pct", f"t{lv}_high_pct"] if settings.method is IntervalMethod.T else []
+    return ["subjects", "trials", "subject_mean_pct", "subject_sd_pct", *t,
+            f"bootstrap{lv}_low_pct", f"bootstrap{lv}_high_pct",
             "bootstrap_seed", "bootstrap_resamples", "trial_pooled_pct",
             "trial_pooled_wilson95_low_pct", "trial_pooled_wilson95_high_pct"]
 
 
 def measure_cells(m: AcrossSubjects, settings: IntervalSettings) -> list[object]:
     pooled = m.pooled
+    t = m.t_interval_pct if settings.method is IntervalMethod.T else ()
     return [m.subjects, m.trials, number(m.mean_pct), number(m.sd_pct),
-            *(number(v) for v in m.t_interval_pct), *(number(v) for v in m.bootstrap_interval_pct),
+            *(number(v) for v in t), *(number(v) for v in m.bootstrap_interval_pct),
             settings.bootstrap_seed, settings.bootstrap_resamples, number(pooled.pct),
             *(number(v) for v in pooled.interval_pct)]
 

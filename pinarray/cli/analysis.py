@@ -18,8 +18,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "analyse",
         help="subject-level tables, figures and a one-page summary from results files",
         description="Analyse beh.tsv results with subjects as the unit: per-subject "
-        "percentages, their across-subject mean with a t interval and a subject bootstrap, the "
-        "trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
+        "percentages, their across-subject mean with a subject bootstrap interval (a t "
+        "interval on request), the trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
         "levels, a confusion matrix, per-pin accuracy, apparent motion, and a mixed-effects "
         "logistic fit of the frequency effect when there are enough subjects. Runs whose "
         "manifest is not 'completed', or with no counted trial, are listed and left out. "
@@ -34,9 +34,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--skip-damaged", action="store_true",
                         help="go on without results files that cannot be read (each is named "
                         "with the reason); by default they stop the analysis")
-    parser.add_argument("--interval", choices=("t", "bootstrap"), default="t",
-                        help="across-subject interval drawn in figures (tables hold both; "
-                        "default: t)")
+    parser.add_argument("--interval", choices=("bootstrap", "t"), default="bootstrap",
+                        help="across-subject interval of figures and tables (default: "
+                        "bootstrap, which stays within 0-100 %%; t is not bounded and is "
+                        "given beside the bootstrap)")
     parser.add_argument("--bootstrap-seed", type=common.seed, default=None, metavar="N",
                         help="seed of the subject bootstrap (default: 20240501; recorded)")
     parser.add_argument("--bootstrap-resamples", type=common.count(100, MAX_RESAMPLES), default=None,
@@ -129,7 +130,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
             chance = (f"; chance {100 * result.chance.correct:.2f} %" if result.chance else "")
             print(f"  {row.frequency_hz:g} Hz: {measure_text(m, method)}; trial-pooled "
                   f"{m.pooled.pct:.1f} % [{low:.1f}, {high:.1f}]{chance}")
-        print(f"frequency effect: {result.frequency_effect.describe()}")
+        print("frequency effect (mixed-effects logistic regression): "
+              f"{result.frequency_effect.describe()}")
     if result.motion_trials:
         motion = level.motion
         print(f"motion, mean of per-subject % [{method} interval]: felt "

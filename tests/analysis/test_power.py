@@ -1,6 +1,7 @@
 """`pinarray power`: how many subjects, from whole simulated studies analysed per subject."""
 
 import csv
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,12 @@ from scipy import stats as scipy_stats
 from pinarray import cli
 from pinarray.analysis.observer import ObserverModel
 from pinarray.analysis.power import (
+    PAIRED_FREQUENCY,
     Design,
     SubjectCounts,
     analyse_study,
+    caption,
+    power_markdown,
     power_study,
     protocol_design,
     t_test_p,
@@ -52,7 +56,7 @@ def test_the_protocols_main_trials_are_what_the_simulated_subjects_answer():
 def test_a_study_where_every_subject_improves_finds_the_frequency_effect():
     found = analyse_study(DESIGN, [subject((2, 5)), subject((3, 6)), subject((1, 5)),
                                    subject((2, 7))], best_pin=1).found
-    assert found["frequency effect"] and found["rising means"]
+    assert found[PAIRED_FREQUENCY] and found["rising means"]
     assert found["error A on top"] is False  # B errors outnumber A here
     assert found["pin 1 best"]
 
@@ -60,7 +64,7 @@ def test_a_study_where_every_subject_improves_finds_the_frequency_effect():
 def test_a_study_where_half_improve_and_half_get_worse_finds_no_frequency_effect():
     found = analyse_study(DESIGN, [subject((2, 6)), subject((6, 2)), subject((3, 5)),
                                    subject((5, 3))], best_pin=4).found
-    assert not found["frequency effect"] and not found["rising means"]
+    assert not found[PAIRED_FREQUENCY] and not found["rising means"]
     assert not found["pin 4 best"]
 
 
@@ -84,7 +88,7 @@ def test_the_t_test_gives_scipys_p_value(values):
 def test_power_grows_with_subjects_and_the_simulation_repeats_with_its_seed():
     model = ObserverModel().for_protocol(LOCALISATION)
     curves = power_study(LOCALISATION, model, [4, 16], studies=40, seed=3)
-    effect = {p.subjects: p.met.pct for p in curves.points if p.criterion == "frequency effect"}
+    effect = {p.subjects: p.met.pct for p in curves.points if p.criterion == PAIRED_FREQUENCY}
     assert effect[16] > effect[4]
     again = power_study(LOCALISATION, model, [4, 16], studies=40, seed=3)
     assert again.points == curves.points
@@ -119,3 +123,30 @@ def test_the_power_command_prints_the_table_and_writes_csv_and_figures(tmp_path,
     assert all(r["seed"] == "5" and r["studies"] == "20" for r in rows)
     assert (out / "power_curves.png").exists() and (out / "power_curves.pdf").exists()
     assert (out / "precision.csv").exists()
+
+
+def small_localisation_study():
+    return power_study(LOCALISATION, ObserverModel().for_protocol(LOCALISATION), [4],
+                       studies=10, seed=2)
+
+
+def test_power_does_not_call_its_paired_t_test_the_frequency_effect_analyse_fits():
+    # `pinarray analyse` reports "frequency effect" from a mixed-effects logistic regression;
+    # a reader of both outputs must not take power's paired t-test for it.
+    curves = small_localisation_study()
+    assert PAIRED_FREQUENCY in curves.criteria
+    assert [c for c in curves.criteria if "frequency effect" in c] == []
+    page = power_markdown(curves, "power_curves.png")
+    assert f"- **{PAIRED_FREQUENCY}** (test): paired t-test" in page
+    assert "mixed-effects logistic regression" in page
+
+
+def test_the_caption_calls_only_the_tests_tests_and_the_pin_best_a_descriptive_finding():
+    curves = small_localisation_study()
+    text = caption(curves)
+    tests = re.search(r"Tests, two-sided at p < 0.05 with subjects as the unit: ([^.]*)\.", text)
+    descriptive = re.search(r"Descriptive findings, not tests[^:]*: ([^.]*)\.", text)
+    assert tests and descriptive, text
+    assert tests.group(1).split("; ") == [PAIRED_FREQUENCY]
+    assert descriptive.group(1).split("; ") == ["rising means", "error A on top", "pin 4 best"]
+    assert "tests are two-sided" not in text

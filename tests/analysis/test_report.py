@@ -4,6 +4,7 @@ import argparse
 import contextlib
 import csv
 import io
+import re
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -72,14 +73,48 @@ def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them
 def test_the_page_and_the_printout_give_subject_means_and_label_the_pooled_numbers(analysed):
     out, printed = analysed.out, analysed.printed
     # 3 Hz: subject A 25 %, subject B 50 %: mean 37.5 %; the 6 trials pooled: 2/6.
-    assert "3 Hz: 37.5 % [" in printed and "(2 subj., 6 trials); trial-pooled 33.3 % [9.7, 70.0]" \
+    # The subject bootstrap of two subjects spans the two: [25, 50] (see test_subjects).
+    assert "3 Hz: 37.5 % [25.0, 50.0] (2 subj., 6 trials); trial-pooled 33.3 % [9.7, 70.0]" \
         in printed
+    page = (out / "summary.md").read_text()
+    assert "| 3 Hz | 2 | 6 | 37.5 % | [25.0, 50.0] | 33.3 % [9.7, 70.0] (2/6) | 6.25 % |" in page
+    assert "95 % subject bootstrap (percentile; 10000 resamples of subjects, seed 20240501; " \
+           "stays within 0-100 %)" in page
+    assert "Trial-pooled" in page and "not fitted: needs at least 6 subjects" in page
+
+
+INTERVAL = re.compile(r"\[(-?[0-9.]+), (-?[0-9.]+)\]")
+
+
+def test_no_interval_of_a_percentage_leaves_0_to_100_by_default(analysed):
+    # Two subjects at 25 and 50 % correct: their t interval is [-121.3, 196.3] %.
+    out, printed = analysed.out, analysed.printed
+    shown = [(m.group(0), float(m.group(1)), float(m.group(2))) for text in
+             (printed, (out / "summary.md").read_text()) for m in INTERVAL.finditer(text)]
+    for csv_name in ("localisation_subject_level.csv", "pin_accuracy.csv",
+                     "motion_subject_level.csv"):
+        for row in read_csv(out / csv_name):
+            for column in row:
+                if column.endswith("_low_pct") and row[column] != "n/a":
+                    high = column.replace("_low_pct", "_high_pct")
+                    shown.append((f"{csv_name} {column}", float(row[column]), float(row[high])))
+    assert len(shown) > 20
+    assert [s for s in shown if not 0 <= s[1] <= s[2] <= 100] == []
+
+
+def test_the_old_t_interval_is_there_when_asked_for_and_says_it_is_not_bounded(results_root,
+                                                                              tmp_path, capsys):
+    out = tmp_path / "analysis"
+    analyse(str(results_root), "--out", str(out), "--interval", "t")
+    assert "3 Hz: 37.5 % [-121.3, 196.3] (2 subj., 6 trials)" in capsys.readouterr().out
     page = (out / "summary.md").read_text()
     assert "| 3 Hz | 2 | 6 | 37.5 % | [-121.3, 196.3] | [25.0, 50.0] | 33.3 % [9.7, 70.0] (2/6) " \
            "| 6.25 % |" in page
-    assert "95 % subject bootstrap (percentile; 10000 resamples of subjects, seed 20240501)" \
-        in page
-    assert "Trial-pooled" in page and "not fitted: needs at least 6 subjects" in page
+    assert "t interval across subjects (mean ± t(N-1) · SD/√N; not bounded: may pass 0 or " \
+           "100 %)" in page
+    three = next(r for r in read_csv(out / "localisation_subject_level.csv")
+                 if (r["frequency_hz"], r["category"]) == ("3", "correct"))
+    assert (three["t95_low_pct"], three["bootstrap95_low_pct"]) == ("-121.3", "25.0")
 
 
 def test_every_caption_states_n_the_unit_and_the_interval(results_root, tmp_path):
@@ -93,8 +128,8 @@ def test_every_caption_states_n_the_unit_and_the_interval(results_root, tmp_path
         assert "N = " in caption and "unit: " in caption
     for caption in captions:
         if "trial-pooled" not in caption and "per pin" not in caption:
-            assert "subject bootstrap (percentile; 10000 resamples of subjects, seed 9)" \
-                in caption
+            assert "subject bootstrap (percentile; 10000 resamples of subjects, seed 9; " \
+                   "stays within 0-100 %)" in caption
 
 
 def test_the_tables_hold_the_hand_counted_numbers(analysed):

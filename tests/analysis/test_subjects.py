@@ -13,6 +13,7 @@ from pinarray.analysis.load import load_runs, select_runs
 from pinarray.analysis.stats import Proportion, summarise_subjects
 from pinarray.analysis.study import study
 from pinarray.analysis.subjects import (
+    DEFAULT_SETTINGS,
     IntervalMethod,
     IntervalSettings,
     across_subjects,
@@ -89,7 +90,7 @@ def test_subjects_without_trials_for_a_measure_are_left_out_of_it():
 def test_the_interval_method_and_the_bootstrap_seed_are_named():
     chosen = IntervalSettings(IntervalMethod.BOOTSTRAP, bootstrap_seed=7, bootstrap_resamples=500)
     assert chosen.describe() == ("95 % subject bootstrap (percentile; 500 resamples of "
-                                 "subjects, seed 7)")
+                                 "subjects, seed 7; stays within 0-100 %)")
     assert chosen.describe(IntervalMethod.T).startswith("95 % t interval across subjects")
     with pytest.raises(PinArrayError, match="at least 100"):
         IntervalSettings(bootstrap_resamples=10)
@@ -125,3 +126,14 @@ def test_a_bootstrap_interval_holds_the_mean_stays_in_range_and_repeats_with_its
     mean = float(np.mean(values))
     assert min(values) - 1e-9 <= low <= mean + 1e-9 <= high + 2e-9 <= max(values) + 3e-9
     assert bootstrap_interval(values, seed, 2000) == (low, high)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.integers(0, 12).flatmap(lambda n: st.tuples(st.integers(0, n),
+                                                               st.just(n))),
+                min_size=2, max_size=12))
+def test_the_interval_figures_draw_by_default_never_leaves_0_to_100_percent(counts):
+    measure = across_subjects([(f"s{i}", Proportion(k, n)) for i, (k, n) in enumerate(counts)])
+    low, high = measure.interval_pct(DEFAULT_SETTINGS.method)
+    if measure.subjects >= 2:  # an interval needs two subjects with trials
+        assert 0 <= low <= high <= 100

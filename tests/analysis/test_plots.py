@@ -1,0 +1,90 @@
+"""The figures as a reader sees them: every label readable, none drawn over the data."""
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import Collection, PathCollection
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
+
+from pinarray.analysis import plots
+from pinarray.analysis.load import load_runs, select_runs
+from pinarray.analysis.study import study
+from tests.analysis.conftest import localisation_row, write_results
+
+
+@pytest.fixture
+def drawn(monkeypatch):
+    """Draw figures through the real `_save` and keep each figure, by name, to inspect."""
+    figures = {}
+    save = plots._save
+
+    def keep(figure, stem, caption):
+        figures[stem.name] = figure
+        return save(figure, stem, caption)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    return figures
+
+
+def bar_labels_and_the_data_they_must_not_cover(figure):
+    """Each bar's label (the text naming its subjects) and every data artist of the axes,
+    each as its rendered extent in display pixels."""
+    canvas = FigureCanvasAgg(figure)  # `_save` closed the figure: draw it on a canvas again
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    axes = figure.axes[0]
+    labels = [t for t in figure.findobj(Text) if "subj." in t.get_text() and t.get_visible()]
+    data = [*axes.lines, *axes.collections, *axes.patches]  # subject lines and dots,
+    if axes.get_legend():                                      # error bars, chance, bars
+        data.append(axes.get_legend())
+    return ([(t.get_text(), t.get_window_extent(renderer)) for t in labels],
+            [(a, extent(a, axes, renderer)) for a in data])
+
+
+def extent(artist, axes, renderer):
+    """Where ``artist`` draws, in display pixels, its line width and marker size included."""
+    points = axes.figure.dpi / 72  # pixels per point
+    if isinstance(artist, Collection):
+        # A collection's window extent is empty when its offsets are in data coordinates:
+        # take its data limits through the data transform instead.
+        box = artist.get_datalim(axes.transData).transformed(axes.transData)
+        sizes = artist.get_sizes() if isinstance(artist, PathCollection) else [0]
+        reach = max(max(np.sqrt(sizes)) / 2, max(artist.get_linewidths()) / 2)
+        return box.padded(reach * points)
+    if isinstance(artist, Line2D):
+        return artist.get_window_extent(renderer).padded(artist.get_linewidth() / 2 * points)
+    return artist.get_window_extent(renderer)
+
+
+def assert_labels_clear(figure, bars):
+    labels, data = bar_labels_and_the_data_they_must_not_cover(figure)
+    assert len(labels) == bars
+    for text, box in labels:
+        assert [a for a, extent in data if box.overlaps(extent)] == [], text
+    for i, (text, box) in enumerate(labels):
+        assert [other for other, b in labels[i + 1:] if box.overlaps(b)] == [], text
+
+
+def test_bar_labels_cover_no_subject_line_dot_error_bar_or_bar(tmp_path, drawn):
+    # Subject B's line falls from 50 % at 3 Hz to 0 % at 10 Hz, across where a label on
+    # the bar stood.
+    result = study(select_runs(load_runs([write_results(tmp_path / "results")])))
+    plots.plot_correct_by_frequency(result, tmp_path / "correct")
+    plots.plot_motion(result, tmp_path / "motion")
+    assert_labels_clear(drawn["correct"], bars=2)
+    assert_labels_clear(drawn["motion"], bars=3)
+
+
+def test_six_frequencies_keep_their_labels_apart_and_off_the_data(tmp_path, write_run,
+                                                                   drawn):
+    root = tmp_path / "results"
+    frequencies = (2.0, 3.0, 5.0, 10.0, 20.0, 40.0)
+    for n, subject in enumerate(("A", "B", "C")):
+        # Each subject zig-zags between 0 and 100 % so lines cross every bar low and high.
+        rows = [localisation_row(trial, 4, "4" if (trial + n) % 2 else "none", frequency_hz=f)
+                for trial, f in enumerate(frequencies, start=1)]
+        write_run(root, subject, "localisation", rows)
+    result = study(select_runs(load_runs([root])))
+    plots.plot_correct_by_frequency(result, tmp_path / "correct")
+    assert_labels_clear(drawn["correct"], bars=6)
