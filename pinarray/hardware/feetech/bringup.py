@@ -346,6 +346,15 @@ def _set_return_delay(bus: FeetechBus, servo_id: int, delay_us: int, save: bool
     return ReturnDelayChange(servo_id, before[0] * RETURN_DELAY_UNIT_US, delay_us, save)
 
 
+# -- who is connected --------------------------------------------------------------------------
+
+
+def silent_ids(bus: FeetechBus, servo_ids: Sequence[int]) -> tuple[int, ...]:
+    """Those of ``servo_ids`` that answer no PING, retried as any exchange is: not connected
+    (or not powered, or at another baud rate), as opposed to servos that answer but refuse."""
+    return tuple(servo_id for servo_id in servo_ids if bus.ping(servo_id) is None)
+
+
 # -- making pins safe -------------------------------------------------------------------------
 
 
