@@ -207,15 +207,21 @@ def _ranges(ids) -> str:
     return ", ".join(parts) or "none"
 
 
-def _absent(bus, target: Target, failed_ids) -> tuple[int, ...]:
-    """Those of the servos a command failed on that answer no PING either: not connected.
+def _absent(bus, target: Target) -> tuple[int, ...]:
+    """The device's servos that answer no PING: not connected, so left out of the command.
 
     Asked only when the device's servos were meant (no --ids): servos named by --ids must
-    answer, so there each of them that did not is a failure like any other.
+    answer, so there each of them that does not is a failure like any other.
     """
     from pinarray.hardware.feetech import bringup
 
-    return () if target.named else bringup.silent_ids(bus, tuple(failed_ids))
+    if target.named:
+        return ()
+    return bringup.silent_ids(bus, target.servo_ids, bringup.sweep_timeout_ns(bus))
+
+
+def _present(target: Target, absent: tuple[int, ...]) -> tuple[int, ...]:
+    return tuple(i for i in target.servo_ids if i not in absent)
 
 
 def _failures(failures, what: str, target: Target | None = None,
@@ -353,9 +359,9 @@ def _cmd_return_delay(args: argparse.Namespace) -> int:
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
-            changes, failures = bringup.set_return_delay(bus, target.servo_ids, args.us,
+            absent = _absent(bus, target)
+            changes, failures = bringup.set_return_delay(bus, _present(target, absent), args.us,
                                                          args.save)
-            absent = _absent(bus, target, (f.servo_id for f in failures))
         finally:
             bus.close()
         stop.raise_if_requested()
@@ -390,9 +396,9 @@ def _cmd_torque_off(args: argparse.Namespace) -> int:
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
+            absent = _absent(bus, target)
             with deferred_signals():
-                released, failures = bringup.torque_off(bus, target.servo_ids)
-            absent = _absent(bus, target, (f.servo_id for f in failures))
+                released, failures = bringup.torque_off(bus, _present(target, absent))
         finally:
             bus.close()
         stop.raise_if_requested()
@@ -412,13 +418,15 @@ def _cmd_rest(args: argparse.Namespace) -> int:
 
     target = _target(args, "rest")
     full = bus_setup(target.protocol.device)  # type: ignore[attr-defined]
-    setup = type(full)(tuple(s for s in full.servos if s.servo_id in target.servo_ids),
-                       full.model_number, full.speed_steps_per_s, full.acceleration_register)
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
+            absent = _absent(bus, target)
+            present = _present(target, absent)
+            setup = type(full)(tuple(s for s in full.servos if s.servo_id in present),
+                               full.model_number, full.speed_steps_per_s,
+                               full.acceleration_register)
             safe = bringup.rest(bus, setup)
-            absent = () if safe.port_lost else _absent(bus, target, safe.silent_ids)
         finally:
             bus.close()
         stop.raise_if_requested()
@@ -428,8 +436,7 @@ def _cmd_rest(args: argparse.Namespace) -> int:
     if safe.port_lost:
         raise BusError(f"rest: servo port {target.url} lost; cut servo power")
     _failures((), "rest", target, absent)
-    refused = [i for i in safe.silent_ids if i not in absent]
-    if refused:
-        raise BusError(f"rest: servo id(s) {', '.join(map(str, refused))} not "
+    if safe.silent_ids:
+        raise BusError(f"rest: servo id(s) {', '.join(map(str, safe.silent_ids))} not "
                        "confirmed at rest with torque off (GOAL_POSITION 42, TORQUE_ENABLE 40)")
     return 0
