@@ -224,14 +224,13 @@ def _present(target: Target, absent: tuple[int, ...]) -> tuple[int, ...]:
     return tuple(i for i in target.servo_ids if i not in absent)
 
 
-def _failures(failures, what: str, target: Target | None = None,
-              absent: tuple[int, ...] = ()) -> None:
+def _failures(failures, what: str, target: Target, absent: tuple[int, ...]) -> None:
     """Name the servos that are not connected (``absent``: left alone, not an error unless
     none answered), then one error line naming every other servo that did not do its part
     (and the first reason)."""
     from pinarray.errors import BusError
 
-    if absent and target is not None and len(absent) == len(target.servo_ids):
+    if absent and len(absent) == len(target.servo_ids):
         raise BusError(f"{what}: no servo answered on {target.url} (servo id(s) "
                        f"{_ranges(absent)}): check power, cables and --baud")
     if absent:
