@@ -4,7 +4,7 @@ from the shell."""
 import argparse
 
 from pinarray.cli.output import say
-from pinarray.hardware.feetech.faults import SIM_DEFAULT
+from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
 EXIT_NOT_DELIVERED = 3
@@ -40,7 +40,8 @@ Starts a player process as play, batch and the UI do (real-time priority when th
 it), measures how late it wakes for deadlines every millisecond, times a read-back of a goal
 on the bus, and says whether a goal lost on the wire and written again still reaches its
 servo within the protocol's delivery tolerance (device: delivery_tolerance_ms, default 10 ms),
-and what to change if not. Exit status 0 when it does, 3 when it does not.
+and what to change if not. Exit status 0 when it does, 3 when it does not. It needs --port PATH,
+or --sim [URL] to rehearse (then its first line says SIMULATED): never simulated by default.
 """
 
 SERVE_EPILOG = """\
@@ -87,7 +88,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=TIMING_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("file", nargs="?", help="protocol YAML file (default: the built-in device)")
-    add_bus_choice(p)
+    add_bus_choice(p, simulated_by_default=False)
     p.add_argument("--seconds", type=float, default=2.0, metavar="S",
                    help="how long to measure wake-ups (default 2)")
     p.set_defaults(func=_cmd_timing)
@@ -115,14 +116,43 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_sim_serve)
 
 
-def add_bus_choice(parser: argparse.ArgumentParser) -> None:
-    """--port PATH (real servos) or --sim [URL] (the default), never both."""
+def add_bus_choice(parser: argparse.ArgumentParser, simulated_by_default: bool = True) -> None:
+    """--port PATH (real servos) or --sim [URL], never both; neither means simulated servos,
+    unless not ``simulated_by_default`` (a command that changes or inspects servos: then
+    `chosen_bus` refuses to run without one of them)."""
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--port", metavar="PATH", help="serial device of real servos")
     group.add_argument(
         "--sim", nargs="?", const=SIM_DEFAULT, metavar="URL",
-        help="simulated servos (default), optionally a sim:// URL with faults",
+        help="simulated servos (default), optionally a sim:// URL with faults"
+        if simulated_by_default else
+        "simulated servos, to rehearse (this or --port is needed), optionally a sim:// URL "
+        "with faults, e.g. 'sim://?ids=1' for one factory-fresh servo",
     )
+
+
+def chosen_bus(args: argparse.Namespace, command: str,
+               servo_ids: tuple[int, ...] | None = None) -> str:
+    """The servos a command that changes or inspects them opens: ``--port``, or ``--sim``
+    given explicitly, never simulated ones by default (a scan of servos that do not exist
+    reads as a scan of the real bus). Simulated ones are said, as the command's first line.
+
+    ``servo_ids``: the ids a ``--sim`` URL that names none simulates (default: its own).
+    """
+    from pinarray.errors import PinArrayError
+    from pinarray.hardware.feetech.faults import parse_sim_url
+    from pinarray.player.families import sim_url_for
+
+    if args.port:
+        return args.port
+    if args.sim is None:
+        raise PinArrayError(
+            f"{command}: which servos? add --port PATH for real ones (e.g. --port /dev/ttyUSB0), "
+            "or --sim to rehearse on simulated ones")
+    url = sim_url_for(args.sim, servo_ids) if servo_ids else args.sim
+    parse_sim_url(url)  # a URL that cannot be opened is refused before anything is said
+    say(f"SIMULATED servos ({url}): no real servo is touched")
+    return url
 
 
 def _cmd_play(args: argparse.Namespace) -> int:
@@ -144,7 +174,8 @@ def _cmd_play(args: argparse.Namespace) -> int:
             for warning in rig.warnings:
                 say(f"pinarray: warning: {warning}", error=True)
             where = "a player process" if rig.isolated else "this process"
-            say(f"{protocol.name}: {len(trials)} trial(s) on {rig.url}, played by {where} "
+            servos = f"SIMULATED servos ({rig.url})" if is_sim_url(rig.url) else rig.url
+            say(f"{protocol.name}: {len(trials)} trial(s) on {servos}, played by {where} "
                 f"(seed {plan.seed})")
             undelivered = []
             for planned in trials:
@@ -170,6 +201,7 @@ def _cmd_play(args: argparse.Namespace) -> int:
 def _cmd_timing(args: argparse.Namespace) -> int:
 
     from pinarray.errors import PinArrayError
+    from pinarray.player.families import bus_setup
     from pinarray.player.rig import Rig, choose_clock
     from pinarray.protocol.load import load_protocol, parse_protocol
     from pinarray.stop import StopRequest, stop_on_signals
@@ -177,6 +209,7 @@ def _cmd_timing(args: argparse.Namespace) -> int:
     if not 0.1 <= args.seconds <= 600:
         raise PinArrayError(f"--seconds: expected 0.1 to 600, found {args.seconds:g}")
     protocol = load_protocol(args.file) if args.file else parse_protocol(DEFAULT_DEVICE_TEXT, "<default>")
+    chosen_bus(args, "timing", bus_setup(protocol.device).servo_ids)
     with stop_on_signals(StopRequest()) as stop:
         rig = Rig(protocol, args.port, args.sim, choose_clock(args.port, None), stop)
         try:

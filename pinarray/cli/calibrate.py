@@ -98,10 +98,11 @@ def parse_jog(line: str, step: int) -> _By | _To | JogWord:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from pinarray.cli.bus import chosen_bus
     from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
     from pinarray.errors import PinArrayError, ProtocolError
     from pinarray.hardware.feetech.jog import Jog
-    from pinarray.player.families import bus_setup, sim_url_for
+    from pinarray.player.families import bus_setup
     from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
     from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
 
@@ -123,7 +124,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         pass  # e.g. rest = up today: the new values decide
     setup = bus_setup(device)
     servo = next(s for s in setup.servos if s.pin == args.pin)
-    url = args.port or sim_url_for(args.sim, setup.servo_ids)
+    url = chosen_bus(args, "servos calibrate", setup.servo_ids)
     result: tuple[NewCalibration, bytes] | None = None
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(url, args.baud or device.servo.baud_rate)

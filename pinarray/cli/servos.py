@@ -23,7 +23,8 @@ The first hour with new servos (each ships answering at id 1, at 1000000 bit/s):
   3. `pinarray servos calibrate PROTOCOL --pin N --port ...` for each pin: jog it to rest and
      up; the protocol's calibration is rewritten with its comments kept.
   4. `pinarray servos rest|torque-off [PROTOCOL] --port ...` whenever pins must let go.
-The simulated bus is the default (--sim URL, e.g. 'sim://?ids=1' for one factory-fresh servo).
+Each command needs --port PATH (real servos) or --sim [URL] (simulated ones, said as the first
+line of its output; e.g. 'sim://?ids=1' for one factory-fresh servo): never simulated by default.
 """
 
 SCAN_EPILOG = """\
@@ -56,6 +57,13 @@ keeps it across power cycles (LOCK 0, write, LOCK 1), after a confirmation: type
 --yes.
 """
 
+WHO_ANSWERS_EPILOG = """\
+Without --ids every servo of the device is tried; those that answer no PING (not connected,
+not powered) are named and left as they are. Exit status 0 when every servo that answers did
+its part; 2 when one of them did not, or when no servo answered at all. With --ids each
+named servo must answer and do its part, else exit status 2.
+"""
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``servos`` and its subcommands to the `pinarray` parser."""
     from pinarray.cli import calibrate, common
@@ -81,7 +89,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_set_id)
 
     p = commands.add_parser("return-delay", help="lower the servos' return delay (until "
-                            "power-off unless --save)", epilog=RETURN_DELAY_EPILOG,
+                            "power-off unless --save)",
+                            epilog=RETURN_DELAY_EPILOG + "\n" + WHO_ANSWERS_EPILOG,
                             formatter_class=argparse.RawDescriptionHelpFormatter)
     _which_servos(p)
     p.add_argument("--us", type=common.count(0, 508), default=0, metavar="US",
@@ -94,12 +103,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     calibrate.register(commands)
 
     p = commands.add_parser("torque-off", help="switch torque off on every servo of a device, "
-                            "saying which answered")
+                            "saying which answered", epilog=WHO_ANSWERS_EPILOG,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     _which_servos(p)
     p.set_defaults(func=_cmd_torque_off)
 
     p = commands.add_parser("rest", help="every pin of a device to rest, then torque off, "
-                            "saying which answered")
+                            "saying which answered", epilog=WHO_ANSWERS_EPILOG,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     _which_servos(p)
     p.set_defaults(func=_cmd_rest)
 
@@ -121,7 +132,7 @@ def bus_options(parser: argparse.ArgumentParser, baud_default: str = "1000000") 
     from pinarray.cli.bus import add_bus_choice
     from pinarray.protocol import BAUD_RATES
 
-    add_bus_choice(parser)
+    add_bus_choice(parser, simulated_by_default=False)
     parser.add_argument("--baud", type=int, choices=BAUD_RATES, metavar="BAUD",
                         help=f"bit/s the servos listen at (default {baud_default})")
 
@@ -130,7 +141,8 @@ def _which_servos(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("protocol", nargs="?", metavar="PROTOCOL",
                         help="protocol YAML whose device names the servos (default: the "
                              "built-in 4x4 device, servos 1-16)")
-    parser.add_argument("--ids", metavar="IDS", help="only these servo ids, e.g. 1-4,9")
+    parser.add_argument("--ids", metavar="IDS", help="only these servo ids, e.g. 1-4,9, each "
+                        "of which must answer (default: the device's, those that answer)")
     bus_options(parser, baud_default="the protocol's")
 
 
@@ -145,13 +157,14 @@ class Target:
     servo_ids: tuple[int, ...]
     url: str
     baud_rate: int
+    named: bool  # the ids were given (--ids): each must answer, not only those connected
 
 
-def _target(args: argparse.Namespace) -> Target:
+def _target(args: argparse.Namespace, command: str) -> Target:
     from pinarray.cli import common
-    from pinarray.cli.bus import DEFAULT_DEVICE_TEXT
+    from pinarray.cli.bus import DEFAULT_DEVICE_TEXT, chosen_bus
     from pinarray.errors import PinArrayError
-    from pinarray.player.families import bus_setup, sim_url_for
+    from pinarray.player.families import bus_setup
     from pinarray.protocol.load import load_protocol, parse_protocol
 
     protocol = (load_protocol(args.protocol) if args.protocol
@@ -165,8 +178,9 @@ def _target(args: argparse.Namespace) -> Target:
             raise PinArrayError(
                 f"--ids: servo id(s) {', '.join(map(str, strangers))} are not part of the "
                 f"device of {protocol.source} (its servos: {_ranges(device_ids)})")
-    url = args.port or sim_url_for(args.sim, device_ids)
-    return Target(protocol, ids, url, args.baud or protocol.device.servo.baud_rate)
+    url = chosen_bus(args, f"servos {command}", device_ids)
+    return Target(protocol, ids, url, args.baud or protocol.device.servo.baud_rate,
+                  args.ids is not None)
 
 
 def open_bare(url: str, baud_rate: int):
@@ -193,10 +207,35 @@ def _ranges(ids) -> str:
     return ", ".join(parts) or "none"
 
 
-def _failures(failures, what: str) -> None:
-    """One error line naming every servo that did not do its part (and the first reason)."""
+def _absent(bus, target: Target) -> tuple[int, ...]:
+    """The device's servos that answer no PING: not connected, so left out of the command.
+
+    Asked only when the device's servos were meant (no --ids): servos named by --ids must
+    answer, so there each of them that does not is a failure like any other.
+    """
+    from pinarray.hardware.feetech import bringup
+
+    if target.named:
+        return ()
+    return bringup.silent_ids(bus, target.servo_ids, bringup.sweep_timeout_ns(bus))
+
+
+def _present(target: Target, absent: tuple[int, ...]) -> tuple[int, ...]:
+    return tuple(i for i in target.servo_ids if i not in absent)
+
+
+def _failures(failures, what: str, target: Target, absent: tuple[int, ...]) -> None:
+    """Name the servos that are not connected (``absent``: left alone, not an error unless
+    none answered), then one error line naming every other servo that did not do its part
+    (and the first reason)."""
     from pinarray.errors import BusError
 
+    if absent and len(absent) == len(target.servo_ids):
+        raise BusError(f"{what}: no servo answered on {target.url} (servo id(s) "
+                       f"{_ranges(absent)}): check power, cables and --baud")
+    if absent:
+        say(f"no answer from servo(s) {_ranges(absent)} (not connected?): left as they are")
+    failures = [f for f in failures if f.servo_id not in absent]
     if failures:
         ids = ", ".join(str(f.servo_id) for f in failures)
         raise BusError(f"{what}: no success on servo id(s) {ids} (first: {failures[0].problem})")
@@ -207,13 +246,13 @@ def _failures(failures, what: str) -> None:
 
 def cmd_scan(args: argparse.Namespace) -> int:
     from pinarray.cli import common
+    from pinarray.cli.bus import chosen_bus
     from pinarray.hardware.feetech import bringup
-    from pinarray.hardware.feetech.faults import SIM_DEFAULT
     from pinarray.hardware.feetech.registers import STS3215_MODEL_NUMBER
     from pinarray.stop import StopRequest, stop_on_signals
 
     ids = common.servo_ids(args.ids) if args.ids is not None else None
-    url = args.port or args.sim or SIM_DEFAULT
+    url = chosen_bus(args, "scan" if args.command == "scan" else "servos scan")
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(url, args.baud or 1_000_000)
         try:
@@ -281,11 +320,11 @@ class _Progress:
 
 
 def _cmd_set_id(args: argparse.Namespace) -> int:
+    from pinarray.cli.bus import chosen_bus
     from pinarray.hardware.feetech import bringup
-    from pinarray.hardware.feetech.faults import SIM_DEFAULT
     from pinarray.stop import StopRequest, stop_on_signals
 
-    url = args.port or args.sim or SIM_DEFAULT
+    url = chosen_bus(args, "servos set-id")
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(url, args.baud or 1_000_000)
         try:
@@ -309,7 +348,7 @@ def _cmd_return_delay(args: argparse.Namespace) -> int:
     from pinarray.stop import StopRequest, stop_on_signals
 
     bringup.check_return_delay_us(args.us)
-    target = _target(args)
+    target = _target(args, "return-delay")
     ids = _ranges(target.servo_ids)
     if args.save and not args.yes:
         question = (f"Save RETURN_DELAY_TIME (EEPROM address 7) = {args.us} us in the EEPROM of "
@@ -319,7 +358,8 @@ def _cmd_return_delay(args: argparse.Namespace) -> int:
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
-            changes, failures = bringup.set_return_delay(bus, target.servo_ids, args.us,
+            absent = _absent(bus, target)
+            changes, failures = bringup.set_return_delay(bus, _present(target, absent), args.us,
                                                          args.save)
         finally:
             bus.close()
@@ -328,7 +368,7 @@ def _cmd_return_delay(args: argparse.Namespace) -> int:
     for change in changes:
         say(f"servo {change.servo_id}: RETURN_DELAY_TIME (address 7) {change.before_us} us -> "
             f"{change.after_us} us, {lasting}")
-    _failures(failures, "return-delay")
+    _failures(failures, "return-delay", target, absent)
     return 0
 
 
@@ -351,18 +391,21 @@ def _cmd_torque_off(args: argparse.Namespace) -> int:
     from pinarray.hardware.feetech import bringup
     from pinarray.stop import StopRequest, deferred_signals, stop_on_signals
 
-    target = _target(args)
+    target = _target(args, "torque-off")
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
+            absent = _absent(bus, target)
             with deferred_signals():
-                released, failures = bringup.torque_off(bus, target.servo_ids)
+                released, failures = bringup.torque_off(bus, _present(target, absent))
         finally:
             bus.close()
         stop.raise_if_requested()
-    say(f"torque off on servo(s) {_ranges(released)}" if released
-        else "torque off: no servo acknowledged")
-    _failures(failures, "torque-off (TORQUE_ENABLE, address 40)")
+    if released:
+        say(f"torque off on servo(s) {_ranges(released)}")
+    elif len(absent) < len(target.servo_ids):
+        say("torque off: no servo acknowledged")
+    _failures(failures, "torque-off (TORQUE_ENABLE, address 40)", target, absent)
     return 0
 
 
@@ -372,21 +415,26 @@ def _cmd_rest(args: argparse.Namespace) -> int:
     from pinarray.player.families import bus_setup
     from pinarray.stop import StopRequest, stop_on_signals
 
-    target = _target(args)
+    target = _target(args, "rest")
     full = bus_setup(target.protocol.device)  # type: ignore[attr-defined]
-    setup = type(full)(tuple(s for s in full.servos if s.servo_id in target.servo_ids),
-                       full.model_number, full.speed_steps_per_s, full.acceleration_register)
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(target.url, target.baud_rate)
         try:
+            absent = _absent(bus, target)
+            present = _present(target, absent)
+            setup = type(full)(tuple(s for s in full.servos if s.servo_id in present),
+                               full.model_number, full.speed_steps_per_s,
+                               full.acceleration_register)
             safe = bringup.rest(bus, setup)
         finally:
             bus.close()
         stop.raise_if_requested()
-    say(f"at rest: servo(s) {_ranges(safe.at_rest_ids)}; torque off: servo(s) "
-        f"{_ranges(safe.released_ids)}")
+    if len(absent) < len(target.servo_ids):
+        say(f"at rest: servo(s) {_ranges(safe.at_rest_ids)}; torque off: servo(s) "
+            f"{_ranges(safe.released_ids)}")
     if safe.port_lost:
         raise BusError(f"rest: servo port {target.url} lost; cut servo power")
+    _failures((), "rest", target, absent)
     if safe.silent_ids:
         raise BusError(f"rest: servo id(s) {', '.join(map(str, safe.silent_ids))} not "
                        "confirmed at rest with torque off (GOAL_POSITION 42, TORQUE_ENABLE 40)")

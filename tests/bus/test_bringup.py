@@ -46,6 +46,11 @@ def test_several_servos_collide_on_a_broadcast_ping_so_every_id_is_swept_in_turn
     assert seen[8][2] == (3,) and seen[-1][2] == (3, 9, 40)
 
 
+def test_servos_that_answer_no_ping_are_told_apart_from_those_connected():
+    bus = bare_bus("ids=1-3,6&missing=2")
+    assert bringup.silent_ids(bus, range(1, 8)) == (2, 4, 5, 7)
+
+
 def test_a_sweep_waits_a_bounded_time_per_silent_id():
     bus = bare_bus("ids=1&missing=1")  # nothing answers: every id costs its whole wait
     # An adapter whose latency nobody knows: a single exchange would wait 34 ms, as the SDK does.
