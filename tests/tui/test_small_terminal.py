@@ -24,7 +24,6 @@ from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.error_screen import ErrorScreen
 from pinarray.tui.outcome import Crashed
 from pinarray.tui.preflight_screen import PreflightScreen
-from pinarray.tui.run_screen import RunScreen
 from pinarray.tui.scanner_screen import ScannerScreen
 from pinarray.tui.start_screen import StartScreen
 from tests.tui.conftest import (
