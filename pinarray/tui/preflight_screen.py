@@ -144,6 +144,8 @@ class PreflightScreen(KeyNotices, Screen):
         line.update(text)
         line.display = bool(text)  # no blank lines before the check (or without one)
         line.set_class(problem, "-problem")
+        # At 80x24 the news above the table scrolls: the verdict, said last, is what to see.
+        self.call_after_refresh(line.scroll_visible, top=True, animate=False)
 
     @work(thread=True, exclusive=True, group="hardware")
     def _test(self, pin: int) -> None:

@@ -6,6 +6,8 @@ scrollbar; the run screen cut the summary and hid the notice, the last answer an
 motion answers.
 """
 
+import html
+import re
 import threading
 
 import pytest
@@ -97,6 +99,12 @@ def unseen(screen) -> list[str]:
             if needed > box.height:
                 problems.append(f"{name}: {needed} lines of text in {box.height}")
     return problems
+
+
+def on_screen(app) -> str:
+    """The characters the terminal shows, row after row."""
+    svg = app.export_screenshot()
+    return html.unescape(re.sub(r"<[^>]+>", "", svg)).replace("\xa0", " ")
 
 
 def says(screen, selector: str) -> str:
@@ -205,6 +213,7 @@ async def test_the_preflight_after_a_not_ok_timing_check_still_shows_every_butto
         await settle(pilot)
         screen = app.screen
         assert "NOT OK" in says(screen, "#timing")
+        assert "NOT OK: stimuli may be reported not delivered" in on_screen(app)
         assert unseen(screen) == []
         table = screen.query_one(DataTable)
         assert table.scrollable_content_region.height >= table.header_height + 5
