@@ -91,8 +91,10 @@ class PinArrayApp(App[None]):
     TITLE = "pinarray"
     # The command palette would be a second way to do things the footer does not show.
     ENABLE_COMMAND_PALETTE = False
-    # Screens get -short below 32 rows (the 80x24 terminal): the pin grid draws smaller.
+    # Screens get -short below 32 rows and -narrow below 100 columns (the 80x24 terminal):
+    # buttons one row tall, rows of buttons in two, the pin grid smaller (pinarray.tcss).
     VERTICAL_BREAKPOINTS = [(0, "-short"), (32, "-tall")]
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (100, "-wide")]
     BINDINGS = [
         Binding("q", "quit", "quit"),
         # In the UI Ctrl-C is a key, not a signal: it leaves the run resumable and the pins at

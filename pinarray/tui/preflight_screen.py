@@ -6,7 +6,7 @@ from __future__ import annotations
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal
+from textual.containers import Horizontal, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Footer, Input, Static
 
@@ -18,8 +18,9 @@ from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
 from pinarray.tui.notice import KeyNotices, Notice
 
-COLUMNS = ("servo", "pin", "answers", "model", "position (steps)", "voltage (V)",
-           "temperature (°C)", "return delay (µs)", "errors")
+# Two-line headings: the whole table fits an 80-column terminal, units still in the names.
+COLUMNS = ("servo", "pin", "answers", "model", "position\n(steps)", "volts", "temp.\n(°C)",
+           "return\ndelay (µs)", "errors")
 # A goal's read-back on the wire: the READ request and the status packet carrying the goal.
 GOAL = Register.GOAL_POSITION
 READBACK_BYTES = len(packets.read(1, GOAL.address, GOAL.size)) + packets.status_size(GOAL.size)
@@ -54,9 +55,11 @@ class PreflightScreen(KeyNotices, Screen):
         verb = "resume" if r.resume else "new run"
         yield Static(f"Pre-flight · {r.protocol.name} · sub-{r.subject} ses-{r.session} · "
                      f"{verb} · {bus}", id="title")
-        yield Static("Connecting…", id="preflight-status")
-        yield Static("", id="timing")
-        yield DataTable(id="servos", cursor_type="none", zebra_stripes=True)
+        # What is said about the array scrolls if it is long (80x24); the controls stay in view.
+        with VerticalScroll(id="preflight-info"):
+            yield Static("Connecting…", id="preflight-status")
+            yield Static("", id="timing")
+        yield DataTable(id="servos", cursor_type="none", zebra_stripes=True, header_height=2)
         with Horizontal(id="test-row"):
             yield Input(placeholder="pin", id="test-pin", type="integer")
             yield Button("Test pin", id="test", disabled=True)
@@ -85,7 +88,7 @@ class PreflightScreen(KeyNotices, Screen):
     def on_mount(self) -> None:
         table = self.query_one(DataTable)
         for label in COLUMNS:
-            table.add_column(label, width=max(len(label), 8))
+            table.add_column(label)  # as wide as its heading or its widest value
         self._connect()
 
     def _status(self, text: str, problem: bool = False) -> None:
@@ -139,7 +142,10 @@ class PreflightScreen(KeyNotices, Screen):
     def _timing_line(self, text: str, problem: bool = False) -> None:
         line = self.query_one("#timing", Static)
         line.update(text)
+        line.display = bool(text)  # no blank lines before the check (or without one)
         line.set_class(problem, "-problem")
+        # At 80x24 the news above the table scrolls: the verdict, said last, is what to see.
+        self.call_after_refresh(line.scroll_visible, top=True, animate=False)
 
     @work(thread=True, exclusive=True, group="hardware")
     def _test(self, pin: int) -> None:

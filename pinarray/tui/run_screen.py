@@ -95,6 +95,7 @@ class RunScreen(KeyNotices, Screen):
                 yield Static("the array as the subject feels it", classes="caption")
                 yield PinGrid(self.session.grid, used, id="pins")
                 yield Static(id="stimulus")
+                yield Static(id="last")  # beside the array: the other side is full at 80x24
             with Vertical(id="control-side"):
                 yield Static(id="trial")
                 yield ProgressBar(total=self.session.total, show_eta=False, id="progress")
@@ -102,7 +103,6 @@ class RunScreen(KeyNotices, Screen):
                 yield ResponsePad(self.localisation, self.session.grid.pin_count, id="pad")
                 yield Notice()
                 yield Static(id="counts")
-                yield Static(id="last")
         yield Footer()
 
     def on_mount(self) -> None:

@@ -18,7 +18,7 @@ from tests.tui.conftest import LOCALISATION, SIZE, fill_start, make_app, settle
 # (tests/suite.py), so that a busy machine does not starve the simulated servos.
 pytestmark = pytest.mark.realtime
 
-DELAY_COLUMN = "return delay (µs)"
+DELAY_COLUMN = "return\ndelay (µs)"
 
 
 def text(app, selector):

@@ -1,0 +1,411 @@
+"""At 80x24 (tmux on a lab laptop) as at 120x40, every screen in every phase shows each button,
+each answer, each key hint and what it says whole: nothing off screen, cut, or behind a scroll.
+
+Issue 24: at 80x24 the pre-flight's last buttons were off screen yet focusable, its table a
+scrollbar; the run screen cut the summary and hid the notice, the last answer and two of the four
+motion answers.
+"""
+
+import html
+import re
+import threading
+
+import pytest
+from textual.content import Content
+from textual.errors import NoWidget
+from textual.widgets import Button, DataTable, Static
+
+from pinarray.errors import BusError
+from pinarray.player.rig import Rig
+from pinarray.player.timing import PortFigures, WakeUps, judge
+from pinarray.protocol.imaging import SyncOverrides, parse_trigger
+from pinarray.session.trials import Phase
+from pinarray.tui.app import PinArrayApp, TuiOptions
+from pinarray.tui.confirm import Confirm
+from pinarray.tui.end_screen import EndScreen
+from pinarray.tui.error_screen import ErrorScreen
+from pinarray.tui.outcome import Crashed
+from pinarray.tui.preflight_screen import PreflightScreen
+from pinarray.tui.scanner_screen import ScannerScreen
+from pinarray.tui.start_screen import StartScreen
+from tests.tui.conftest import (
+    LOCALISATION,
+    MOTION,
+    PROTOCOLS,
+    SIZE,
+    fill_start,
+    make_app,
+    settle,
+    to_run_screen,
+)
+
+SMALL = (80, 24)
+SIZES = pytest.mark.parametrize("size", [SMALL, SIZE], ids=["80x24", "120x40"])
+PARADIGMS = pytest.mark.parametrize("protocol", [LOCALISATION, MOTION],
+                                    ids=["localisation", "motion"])
+# Read by scrolling on purpose: the pre-flight's news of the array above the table.
+SCROLLS = frozenset({"preflight-info"})
+
+
+def shown_text(widget) -> str:
+    return str(widget.render()).strip() if isinstance(widget, Static) else "control"
+
+
+def meant_to_show(widget) -> bool:
+    return all(node.display and node.visible for node in (widget, *widget.ancestors)
+               if hasattr(node, "display"))
+
+
+def unseen(screen) -> list[str]:
+    """Each button, key hint and line of text of ``screen`` that is not wholly in view, and why."""
+    problems = []
+    for widget in screen.query("*"):
+        if not isinstance(widget, Static | Button) and type(widget).__name__ != "FooterKey":
+            continue
+        if not meant_to_show(widget) or not shown_text(widget):
+            continue
+        if any(node.id in SCROLLS for node in widget.ancestors):
+            continue
+        name = f"{type(widget).__name__} {widget.id or shown_text(widget)[:40]!r}"
+        try:
+            where = screen.find_widget(widget)
+        except NoWidget:
+            problems.append(f"{name}: not on the screen")
+            continue
+        region = where.region
+        if region.area == 0:
+            problems.append(f"{name}: no room at all")
+            continue
+        if region.intersection(screen.region) != region:
+            problems.append(f"{name}: {region} partly off the screen {screen.region}")
+            continue
+        if region.intersection(where.clip) != region:
+            problems.append(f"{name}: {region} cut by its container (shows {where.clip})")
+            continue
+        corners = {(region.x, region.y), (region.right - 1, region.y), (region.x, region.bottom - 1),
+                   (region.right - 1, region.bottom - 1), region.center}
+        for x, y in corners:
+            top, _ = screen.get_widget_at(int(x), int(y))
+            if top is not widget and widget not in top.ancestors:
+                problems.append(f"{name}: covered by {type(top).__name__} at {x},{y}")
+                break
+        box = widget.content_region
+        if isinstance(widget, Button):
+            label = Content.from_text(widget.label).cell_length
+            if label + 2 > box.width:  # the label and a space either side (line-pad)
+                problems.append(f"{name}: label of {label} columns in {box.width}")
+        elif isinstance(widget, Static):
+            needed = widget.get_content_height(widget.size, screen.size, box.width)
+            if needed > box.height:
+                problems.append(f"{name}: {needed} lines of text in {box.height}")
+    return problems
+
+
+def on_screen(app) -> str:
+    """The characters the terminal shows, row after row."""
+    svg = app.export_screenshot()
+    return html.unescape(re.sub(r"<[^>]+>", "", svg)).replace("\xa0", " ")
+
+
+def says(screen, selector: str) -> str:
+    return str(screen.query_one(selector, Static).render())
+
+
+class ArrayRig(Rig):
+    """The simulated array, made to hold a stimulus until released, or to fail one."""
+
+    hold: threading.Event | None = None
+    failures = 0
+
+    def present(self, schedule):
+        if self.hold is not None:
+            self.hold.wait(30)
+        if ArrayRig.failures:
+            ArrayRig.failures -= 1
+            raise BusError("servo 10 (pin 10): no status packet after 3 retries; the cable or "
+                           "the servo's power may have come loose")
+        return super().present(schedule)
+
+    def check_timing(self, duration_ns=0, period_ns=0):
+        # A busy laptop's verdict: the longest the pre-flight has to show.
+        return judge(WakeUps(2000, 1_200_000, 9_800_000, 32_100_000),
+                     "no real-time priority (run `pinarray setup-realtime` once, then log in "
+                     "again)", PortFigures("/dev/ttyUSB0", 8, 3_400_000, 16), 10_000_000)
+
+
+@pytest.fixture(autouse=True)
+def fresh_rig():
+    ArrayRig.hold, ArrayRig.failures = None, 0
+
+
+async def answer_one(pilot, protocol):
+    """Begin, present the first trial and answer it (pin 1, or left)."""
+    await pilot.press("space")
+    await settle(pilot)
+    await pilot.press("space")
+    await settle(pilot)
+    await pilot.press(*(["1", "enter"] if protocol == LOCALISATION else ["l"]))
+    await settle(pilot)
+
+
+# -- start and pre-flight --------------------------------------------------------------------
+
+
+@SIZES
+async def test_the_start_form_shows_every_field_and_button_and_what_is_wrong(results, size):
+    app = make_app(results)
+    async with app.run_test(size=size) as pilot:
+        await fill_start(pilot, subject="a-b")
+        await pilot.click("#start")
+        await settle(pilot)
+        assert isinstance(app.screen, StartScreen)
+        assert "subject label 'a-b' is not allowed" in says(app.screen, "#start-error")
+        assert unseen(app.screen) == []
+
+
+@SIZES
+async def test_the_start_form_offering_to_resume_an_aborted_run_shows_every_button(results,
+                                                                                  size):
+    app = make_app(results)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, LOCALISATION)
+        await pilot.press("a", "y")
+        await settle(pilot)
+        assert isinstance(app.screen, EndScreen)
+        assert unseen(app.screen) == []  # the aborted run's end screen too
+        await pilot.press("n")
+        await settle(pilot)
+        assert isinstance(app.screen, StartScreen)
+        assert "unfinished" in says(app.screen, "#resume-info").lower()
+        assert unseen(app.screen) == []
+        await pilot.click("#resume")
+        await settle(pilot)
+        await pilot.press("b")
+        await settle(pilot)
+        assert "Resumed:" in says(app.screen, "#phase")
+        assert unseen(app.screen) == []
+
+
+@SIZES
+async def test_the_preflight_shows_every_button_the_table_and_the_pin_test_hint(results, size):
+    app = make_app(results)
+    async with app.run_test(size=size) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        screen = app.screen
+        assert isinstance(screen, PreflightScreen) and screen.connected
+        await pilot.press("x")  # not a key here: the notice says so
+        assert screen.notice.text
+        assert unseen(screen) == []
+        table = screen.query_one(DataTable)
+        assert table.scrollable_content_region.height >= table.header_height + 5
+        assert table.scrollable_content_region.width >= table.virtual_size.width  # every column
+
+
+@SIZES
+async def test_the_preflight_after_a_not_ok_timing_check_still_shows_every_button(results, size):
+    app = make_app(results, rig_factory=ArrayRig, timing_check_ns=1)
+    async with app.run_test(size=size) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        screen = app.screen
+        assert "NOT OK" in says(screen, "#timing")
+        assert "NOT OK: stimuli may be reported not delivered" in on_screen(app)
+        assert unseen(screen) == []
+        table = screen.query_one(DataTable)
+        assert table.scrollable_content_region.height >= table.header_height + 5
+
+
+@SIZES
+async def test_the_preflight_that_cannot_connect_shows_every_button(results, size):
+    app = make_app(results, sim_url="sim://?ids=1-15")
+    async with app.run_test(size=size) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        assert "Could not connect" in says(app.screen, "#preflight-status")
+        assert unseen(app.screen) == []
+
+
+@SIZES
+async def test_the_scanner_wait_shows_what_it_waits_for_and_how_to_stop(results, size):
+    options = TuiOptions(protocol_path=LOCALISATION, protocols_dir=PROTOCOLS, results_root=results,
+                         time_scale=0, seed=3, timing_check_ns=0,
+                         sync=SyncOverrides(parse_trigger("serial:/dev/no-such-trigger"), 4))
+    app = PinArrayApp(options, list_ports=lambda: [])
+    async with app.run_test(size=size) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        await pilot.press("b")
+        await settle(pilot)
+        assert isinstance(app.screen, ScannerScreen)
+        assert "cannot open the trigger device" in says(app.screen, "#scanner-state")
+        assert unseen(app.screen) == []
+
+
+# -- the run ---------------------------------------------------------------------------------
+
+
+@SIZES
+@PARADIGMS
+async def test_the_instructions_show_every_key_and_answer(results, size, protocol):
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        assert app.screen.session.phase is Phase.INSTRUCTIONS
+        assert unseen(app.screen) == []
+
+
+@SIZES
+@PARADIGMS
+async def test_a_trial_ready_to_present_shows_the_last_answer_and_the_notice(results, size,
+                                                                            protocol):
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, protocol)
+        await pilot.press("x")
+        screen = app.screen
+        assert screen.session.phase is Phase.READY
+        assert says(screen, "#last").startswith("last: practice 1")
+        assert screen.notice.text.startswith("x does nothing here")
+        assert unseen(screen) == []
+
+
+@SIZES
+@PARADIGMS
+async def test_a_stimulus_playing_shows_every_key_and_answer(results, size, protocol):
+    app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, protocol)
+        ArrayRig.hold = threading.Event()
+        await pilot.press("space")
+        session = app.screen.session
+        while session.phase is not Phase.STIMULUS:
+            await pilot.pause(0.01)
+        await pilot.press("x")
+        try:
+            assert app.screen.notice.text.startswith("x does nothing here")
+            assert says(app.screen, "#last").startswith("last: practice 1")
+            assert unseen(app.screen) == []
+        finally:
+            ArrayRig.hold.set()
+            await settle(pilot)
+
+
+@SIZES
+@PARADIGMS
+async def test_the_answer_awaited_shows_every_answer_the_last_one_and_the_notice(results, size,
+                                                                                protocol):
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, protocol)
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press("x")  # not an answer: the notice says what is
+        screen = app.screen
+        assert screen.session.phase is Phase.RESPONSE
+        assert screen.notice.text.startswith("not an answer")
+        assert says(screen, "#last").startswith("last: practice 1")
+        answers = screen.query("#pad Button")
+        assert len(answers) == (0 if protocol == LOCALISATION else 4)
+        assert unseen(screen) == []
+
+
+@SIZES
+@PARADIGMS
+async def test_a_paused_run_shows_every_key_the_last_answer_and_the_notice(results, size,
+                                                                          protocol):
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, protocol)
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press("p")
+        await settle(pilot)
+        await pilot.press("space")
+        screen = app.screen
+        assert screen.session.phase is Phase.PAUSED
+        assert screen.notice.text == "paused: p resumes first"
+        assert says(screen, "#last").startswith("last: practice 1")
+        assert unseen(screen) == []
+
+
+@SIZES
+@PARADIGMS
+async def test_a_failed_stimulus_shows_why_what_next_and_every_key(results, size, protocol):
+    app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, protocol)
+        ArrayRig.failures = 1
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press("space")
+        screen = app.screen
+        assert screen.session.phase is Phase.FAULT
+        assert "t: present the trial again" in says(screen, "#phase")
+        assert screen.notice.text.startswith("the stimulus failed")
+        assert unseen(screen) == []
+
+
+@SIZES
+@pytest.mark.parametrize("key", ["q", "a", "d"], ids=["quit", "abort", "redo"])
+async def test_a_question_shows_itself_and_both_answers_whole(results, size, key):
+    app = make_app(results)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await answer_one(pilot, LOCALISATION)
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press(key)
+        await settle(pilot)
+        await pilot.press("x")
+        assert isinstance(app.screen, Confirm)
+        assert app.screen.notice.text == "y: yes · n or Escape: no"
+        assert unseen(app.screen) == []
+        await pilot.press("n")
+        await settle(pilot)
+
+
+# -- the end ---------------------------------------------------------------------------------
+
+
+@SIZES
+@PARADIGMS
+async def test_the_end_of_a_whole_run_shows_its_summary_files_and_buttons(results, size, protocol):
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        session = app.screen.session
+        session.begin()
+        while session.phase is Phase.READY:  # the keys are tested elsewhere; here the result
+            session.present()
+            session.respond(str(session.current.condition.pin)
+                            if protocol == LOCALISATION else "left")
+        await settle(pilot)
+        await pilot.press("x")
+        assert isinstance(app.screen, EndScreen)
+        assert unseen(app.screen) == []
+
+
+@SIZES
+async def test_the_error_screen_shows_what_happened_and_how_to_leave(results, size):
+    app = make_app(results)
+    async with app.run_test(size=size) as pilot:
+        screen = ErrorScreen(Crashed(
+            "RuntimeError: the player process ended without a word (exit status -9) while "
+            "presenting practice 1 of 2",
+            results / "sourcedata" / "crash-20250101T120000Z-12345.log", bug=True))
+        await app.push_screen(screen)
+        screen.closed("16 servo(s) at rest, 16 released")
+        await pilot.pause()
+        await pilot.press("x")
+        assert unseen(screen) == []
