@@ -16,7 +16,7 @@ from pinarray.errors import BusError
 from pinarray.hardware.driver import BusStats, SafeStopReport, ServoSetup
 from pinarray.player.playback import PlaybackAborted, play_trial
 
-from .bus.lab import pulse_train
+from .hardware.lab import pulse_train
 
 REST = 2048
 

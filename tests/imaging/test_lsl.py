@@ -13,9 +13,9 @@ from pinarray.imaging.markers import marker_text
 from pinarray.plan import make_plan
 from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
 from pinarray.protocol.load import load_protocol
+from tests.imaging.lsl_inlet import MarkerInlet, unique_stream_name
 from tests.lsl_local import MACHINE_ONLY
 from tests.runs import REPO
-from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name
 
 MOTION = REPO / "protocols" / "apparent_motion.yaml"
 LOCALISATION = REPO / "protocols" / "localisation.yaml"

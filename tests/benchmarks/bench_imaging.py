@@ -42,7 +42,7 @@ TR_S = 0.2
 REPO = Path(__file__).resolve().parents[2]
 
 PROTOCOL = """\
-protocol: bench_sync
+protocol: bench_imaging
 description: Four pins, 0.3 s each.
 stimuli:
   buzz: {frequency_hz: 10, duration_s: 0.3, pulse_width_ms: {up: 2.0, down: 1.5}}
@@ -63,7 +63,7 @@ def _tsv(path: Path) -> list[dict]:
 
 def _bare_reader_round(volumes: int) -> list[float]:
     """The reference for trigger arrival: write a byte, a blocked reader thread stamps it (s)."""
-    from tests.sync.fake_scanner import FakeScanner
+    from tests.imaging.fake_scanner import FakeScanner
 
     scanner = FakeScanner(TR_S, delay_s=0.05, volumes=volumes)
     stamps: list[int] = []
@@ -104,8 +104,8 @@ def _bare_lsl_round(pylsl, count: int) -> list[float]:
 
 
 def _pinarray_round(pylsl, protocol: Path, root: Path) -> dict[str, list[float]]:
-    from tests.sync.fake_scanner import FakeScanner
-    from tests.sync.lsl_inlet import unique_stream_name
+    from tests.imaging.fake_scanner import FakeScanner
+    from tests.imaging.lsl_inlet import unique_stream_name
 
     name = unique_stream_name()
     scanner = FakeScanner(TR_S, delay_s=0.1)
@@ -186,7 +186,7 @@ def run() -> None:
     bare_reader: list[list[float]] = []
     bare_lsl: list[list[float]] = []
     with tempfile.TemporaryDirectory(prefix="pinarray-bench-sync-") as folder:
-        protocol = Path(folder) / "bench_sync.yaml"
+        protocol = Path(folder) / "bench_imaging.yaml"
         protocol.write_text(PROTOCOL)
         root = Path(folder) / "results"
         for _ in range(rounds):  # interleaved: a noisy neighbour slows both alike

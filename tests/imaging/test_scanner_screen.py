@@ -19,7 +19,7 @@ from pinarray.tui.app import PinArrayApp, TuiOptions
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
 from pinarray.tui.scanner_screen import ScannerScreen
-from tests.sync.fake_scanner import fake_scanner
+from tests.imaging.fake_scanner import fake_scanner
 from tests.tui.conftest import LOCALISATION, PROTOCOLS, SIZE, fill_start, settle
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
@@ -140,7 +140,7 @@ async def test_a_trigger_device_that_does_not_open_is_said_on_the_wait_screen(tm
 
 
 async def test_the_ui_sends_an_lsl_marker_at_each_end_of_a_presented_stimulus(tmp_path):
-    from tests.sync.lsl_inlet import MarkerInlet, unique_stream_name
+    from tests.imaging.lsl_inlet import MarkerInlet, unique_stream_name
 
     results, name = tmp_path / "results", unique_stream_name()
     # The seed's localisation with 1 s stimuli: the first presents in real time.
