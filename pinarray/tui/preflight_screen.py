@@ -16,6 +16,7 @@ from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import Register
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
+from pinarray.tui.confirm import Confirm
 from pinarray.tui.notice import KeyNotices, Notice
 
 # Two-line headings: the whole table fits an 80-column terminal, units still in the names.
@@ -48,6 +49,7 @@ class PreflightScreen(KeyNotices, Screen):
         self.connected = False
         self._leaving = False
         self._good = ""  # the last status that was not a complaint
+        self._timing_not_ok = False  # the last timing check said NOT OK: beginning asks first
 
     def compose(self) -> ComposeResult:
         r = self.request
@@ -136,6 +138,7 @@ class PreflightScreen(KeyNotices, Screen):
             return
         if verdict is None:
             return  # stopped: the screen is being left
+        self._timing_not_ok = not verdict.deliverable
         self.app.call_from_thread(self._timing_line, "Timing: " + "\n".join(verdict.lines),
                                   not verdict.deliverable)
 
@@ -272,14 +275,30 @@ class PreflightScreen(KeyNotices, Screen):
         if failures:
             note += "; " + "; ".join(f.problem for f in failures)
         self.app.call_from_thread(self._connected, readings, note)
+        # Read-backs are faster now: the timing verdict is measured again for them.
+        self.app.call_from_thread(self._check_timing)
 
     @on(Button.Pressed, "#begin")
     def action_begin(self) -> None:
+        if not self.connected or self._leaving:
+            return
+        if not self._timing_not_ok:
+            self._begin()
+            return
+
+        def confirmed(yes: bool | None) -> None:
+            if yes and self.connected and not self._leaving:
+                self._begin()
+
+        self.app.push_screen(Confirm(
+            "Begin although the timing check said NOT OK?\nOn this machine now, stimuli may "
+            "be reported not delivered (each is then presented again, up to 3 times)."),
+            confirmed)
+
+    def _begin(self) -> None:
         from pinarray.tui.run_screen import RunScreen
         from pinarray.tui.scanner_screen import ScannerScreen, scanner_settings
 
-        if not self.connected or self._leaving:
-            return
         self._leaving = True  # b twice: one run
         try:
             sync = scanner_settings(self.request, self.app.options.sync)  # type: ignore[attr-defined]

@@ -409,3 +409,4 @@ async def test_the_error_screen_shows_what_happened_and_how_to_leave(results, si
         await pilot.pause()
         await pilot.press("x")
         assert unseen(screen) == []
+
