@@ -73,13 +73,26 @@ def time_scale_of(clock: Clock) -> TimeScale:
     return REAL_TIME
 
 
+def progress_text(counted: tuple[int, int], practice: tuple[int, int]) -> str:
+    """"3 of 24 trials (practice 2 of 2)": main trials done of planned, then practice's.
+
+    Said the same way wherever a run's progress is shown (the start screen, the exit line).
+    """
+    done, planned = counted
+    text = f"{done} of {planned} trials"
+    if practice[1]:
+        text += f" (practice {practice[0]} of {practice[1]})"
+    return text
+
+
 @dataclass(frozen=True)
 class Unfinished:
     """A subject's unfinished run: where, its manifest, its rows done, and who has it open."""
 
     paths: RunPaths
     manifest: RunManifest
-    done: int  # trials of its plan finished
+    counted: tuple[int, int]  # main trials finished, of the plan's
+    practice: tuple[int, int]  # practice trials finished, of the plan's
     holder: LockHolder | None  # the process writing it now, or None when it can be resumed
 
     def describe(self) -> str:
@@ -89,8 +102,9 @@ class Unfinished:
             return (f"Run {self.paths.run} is open in another process, {self.holder.describe()}; "
                     "it can be resumed once that one ends.")
         why = f" ({m.abort_reason})" if m.abort_reason else ""
-        return (f"Unfinished run {self.paths.run}: {m.status}{why}, {self.done} of "
-                f"{len(m.plan)} trials done, seed {m.seed}. Resume continues it.")
+        return (f"Unfinished run {self.paths.run}: {m.status}{why}, "
+                f"{progress_text(self.counted, self.practice)} done, seed {m.seed}. "
+                "Resume continues it (with its own seed).")
 
 
 def unfinished_run(root: Path | str, subject: str, session: str, task: str) -> Unfinished | None:
@@ -100,8 +114,13 @@ def unfinished_run(root: Path | str, subject: str, session: str, task: str) -> U
         return None
     paths, manifest = found[-1]
     rows = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
-    done = len(manifest.plan) - len(remaining_plan(manifest.plan, rows))
-    return Unfinished(paths, manifest, done, lock_holder(paths.lock))
+    left = remaining_plan(manifest.plan, rows)
+
+    def finished(practice: bool) -> tuple[int, int]:
+        planned = sum(1 for e in manifest.plan if e.practice is practice)
+        return planned - sum(1 for e in left if e.practice is practice), planned
+
+    return Unfinished(paths, manifest, finished(False), finished(True), lock_holder(paths.lock))
 
 
 class NothingToResume(PinArrayError):

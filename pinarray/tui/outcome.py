@@ -13,6 +13,7 @@ from pathlib import Path
 
 from pinarray.hardware.feetech.faults import SIM_DEFAULT
 from pinarray.journal.manifest import RunStatus
+from pinarray.journal.runs import progress_text
 from pinarray.stop import signal_name
 
 DEFAULT_RESULTS = Path("results")
@@ -76,11 +77,7 @@ class RunOutcome:
     resume: str
 
     def progress(self) -> str:
-        done, planned = self.counted
-        text = f"{done} of {planned} trials"
-        if self.practice[1]:
-            text += f" (practice {self.practice[0]} of {self.practice[1]})"
-        return text
+        return progress_text(self.counted, self.practice)
 
 
 def resume_command(protocol_source: str, subject: str, session: str, results_root: Path,

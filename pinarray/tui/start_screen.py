@@ -183,6 +183,9 @@ class StartScreen(KeyNotices, Screen):
         self.query_one("#resume", Button).variant = "primary" if resumable else "default"
         self.query_one("#start", Button).variant = "default" if resumable else "primary"
         info.update(problem or ("" if found is None else found.describe()))
+        if resumable and found is not None and found.manifest.seed is not None:
+            # The seed beside the offer is the run's: Resume keeps it (a new run would too).
+            self.query_one("#seed", Input).value = str(found.manifest.seed)
         self._unfinished = found if resumable else None
 
     # -- buttons -----------------------------------------------------------------------------

@@ -35,7 +35,7 @@ async def test_a_run_open_in_another_process_is_not_offered_until_that_process_e
                 f"computer), since {read_lock_since(paths)}; it can be resumed once that one ends.")
         await pilot.pause(0.5)  # the screen looks again on its own
         assert not app.screen.query_one("#resume").disabled
-        assert text(app, "#resume-info").startswith("Unfinished run 1: running, 0 of 26 trials done")
+        assert text(app, "#resume-info").startswith("Unfinished run 1: running, 0 of 24 trials (practice 0 of 2) done")
         await pilot.click("#resume")
         await settle(pilot)
         await pilot.press("b")

@@ -351,3 +351,26 @@ async def test_q_mid_run_asks_first_and_no_goes_on_with_the_run(results):
         await settle(pilot)
     assert app.sitting.rig is None
     assert manifest(results).abort_reason == "quit from the UI"
+
+
+async def test_the_start_screen_offers_to_resume_with_the_exit_lines_counts_and_the_runs_seed(
+        results):
+    first = make_app(results, seed=3)
+    async with first.run_test(size=SIZE) as pilot:
+        await begin(pilot)  # practice trial 1 presented
+        for answer in ("7", "3", "5"):  # two practice trials, then one main trial
+            await pilot.press(answer, "enter")
+            await settle(pilot)
+            if first.screen.session.phase is Phase.READY:
+                await present(pilot)
+        await pilot.press("q", "y")
+        await settle(pilot)
+    _, line = first.outcome()
+    progress = "1 of 24 trials (practice 2 of 2)"
+    assert progress in line
+    again = make_app(results, seed=99)  # the next sitting would draw another order...
+    async with again.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        offer = text(again, "#resume-info")
+        assert f"{progress} done, seed 3" in offer
+        assert again.screen.query_one("#seed").value == "3"  # ...but the run keeps its own
