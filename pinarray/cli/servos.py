@@ -3,6 +3,9 @@
 Every command opens the bus without the playback handshake (which would switch torque on
 everywhere), names servo ids and registers in its errors (exit status 2, one line), and leaves
 nothing holding torque however it ends.
+
+Past 400 lines: one job, the six `servos` subcommands, which share how a bus is chosen, how
+servos that do not answer are named and how every way out leaves them safe.
 """
 
 from __future__ import annotations

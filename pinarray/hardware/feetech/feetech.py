@@ -8,6 +8,10 @@ beside it: the connect handshake (`handshake`), the read-back and re-send that v
 reached its servo (`readback`), the safe stop (`safety`) and the handover to the player
 process (`handover`). EEPROM is written only through the methods named for it
 (`write_eeprom`, `unlock_eeprom`, `lock_eeprom`, for `bringup`): `write` refuses it.
+
+Past 400 lines: one class, the only one that puts bytes on an STS bus; what needs none of its
+private state (the handshake, the safe stop, the handover, the read-backs' bookkeeping) lives
+in the modules beside it.
 """
 
 from __future__ import annotations
