@@ -89,8 +89,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("file", nargs="?", help="protocol YAML file (default: the built-in device)")
     add_bus_choice(p, simulated_by_default=False)
-    p.add_argument("--seconds", type=float, default=2.0, metavar="S",
-                   help="how long to measure wake-ups (default 2)")
+    p.add_argument("--seconds", type=float, metavar="S",
+                   help="how long to measure wake-ups (default: as long as the protocol's "
+                   "trials need for a verdict that holds, 2 to 15 s)")
     p.set_defaults(func=_cmd_timing)
 
     from pinarray.cli import servos
@@ -206,7 +207,7 @@ def _cmd_timing(args: argparse.Namespace) -> int:
     from pinarray.protocol.load import load_protocol, parse_protocol
     from pinarray.stop import StopRequest, stop_on_signals
 
-    if not 0.1 <= args.seconds <= 600:
+    if args.seconds is not None and not 0.1 <= args.seconds <= 600:
         raise PinArrayError(f"--seconds: expected 0.1 to 600, found {args.seconds:g}")
     protocol = load_protocol(args.file) if args.file else parse_protocol(DEFAULT_DEVICE_TEXT, "<default>")
     chosen_bus(args, "timing", bus_setup(protocol.device).servo_ids)
@@ -215,7 +216,8 @@ def _cmd_timing(args: argparse.Namespace) -> int:
         try:
             for warning in rig.warnings:
                 say(f"pinarray: warning: {warning}", error=True)
-            verdict = rig.check_timing(round(args.seconds * 1e9))
+            verdict = rig.check_timing(
+                None if args.seconds is None else round(args.seconds * 1e9))
         finally:
             rig.close()
     say("\n".join(verdict.lines))

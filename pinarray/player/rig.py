@@ -28,11 +28,11 @@ from pinarray.player.playback import (
     prepare_trial,
 )
 from pinarray.player.timing import (
-    DEFAULT_DURATION_NS,
     DEFAULT_PERIOD_NS,
     PortFigures,
     Verdict,
     WakeUps,
+    duration_for,
     judge,
 )
 from pinarray.protocol import NS_PER_S, Protocol
@@ -189,19 +189,24 @@ class Rig:
                       up_width_ns=widths[-1], down_width_ns=widths[0])
         return self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
 
-    def check_timing(self, duration_ns: int = DEFAULT_DURATION_NS,
+    def check_timing(self, duration_ns: int | None = None,
                      period_ns: int = DEFAULT_PERIOD_NS) -> Verdict:
         """Measure this machine's wake-ups in a player process and judge the protocol's timing.
 
-        On the in-process simulator a player process is started just for the measurement:
-        the question is whether this machine could play real servos in time.
+        ``duration_ns`` None: as long as the protocol's trials need for a verdict that holds
+        from one try to the next (`pinarray.player.timing.duration_for`). On the in-process
+        simulator a player process is started just for the measurement: the question is
+        whether this machine could play real servos in time.
         """
         with self._port:
             return self._check_timing(duration_ns, period_ns)
 
-    def _check_timing(self, duration_ns: int, period_ns: int) -> Verdict:
+    def _check_timing(self, duration_ns: int | None, period_ns: int) -> Verdict:
         from pinarray.player.process import PlayerProcess
 
+        busiest, frames = self._frames()
+        if duration_ns is None:
+            duration_ns = duration_for(frames, period_ns)
         player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
         try:
             wake_ups = WakeUps.of(player.measure_wake_ups(duration_ns, period_ns))
@@ -209,24 +214,26 @@ class Rig:
         finally:
             if player is not self.player:
                 player.close()
-        busiest = self._busiest_frame()
         port = PortFigures(self.url, busiest, self.bus.heal_time_ns(busiest),
-                           self.bus.latency_timer_ms)
+                           self.bus.latency_timer_ms, frames)
         return judge(wake_ups, problem, port, self.tolerance_ns)
 
-    def _busiest_frame(self) -> int:
-        """The most goal changes one frame of this protocol's trials sends."""
+    def _frames(self) -> tuple[int, int]:
+        """The most goal changes one frame of this protocol's trials sends, and the most
+        frames one trial writes."""
         from pinarray.plan import make_plan
         from pinarray.schedule import compile_trial
 
-        seen, busiest = set(), 1
+        seen, busiest, frames = set(), 1, 1
         for planned in make_plan(self.protocol, 0).trials:
             if planned.condition in seen:
                 continue
             seen.add(planned.condition)
-            targets = compile_trial(self.protocol, planned).targets
-            busiest = max([busiest, *(len(frame.pins) for frame in targets.frames())])
-        return busiest
+            sizes = [len(frame.pins) for frame in compile_trial(self.protocol, planned)
+                     .targets.frames()]
+            busiest = max([busiest, *sizes])
+            frames = max(frames, len(sizes))
+        return busiest, frames
 
     def telemetry(self) -> tuple[Telemetry, ...]:
         with self._port:

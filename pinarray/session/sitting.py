@@ -217,7 +217,7 @@ class Sitting:
         request.protocol.device.grid.check_pin(pin)
         self._busy(lambda: rig.test_pin(pin))
 
-    def check_timing(self, duration_ns: int) -> Verdict | None:
+    def check_timing(self, duration_ns: int | None) -> Verdict | None:
         """This machine's timing verdict (blocking: call it from a worker), None if stopped;
         see `Rig.check_timing`."""
         rig = self.connected()

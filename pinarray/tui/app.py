@@ -58,7 +58,8 @@ class TuiOptions:
     sim_url: str | None = None
     time_scale: float = 1.0  # simulator only: times real time; 0 = virtual time
     seed: int | None = None
-    timing_check_ns: int = 2_000_000_000  # pre-flight's wake-up measurement; 0 = skip
+    # The pre-flight's wake-up measurement: None as long as the protocol needs; 0 = skip.
+    timing_check_ns: int | None = None
     subject: str = ""  # the start screen's fields filled in (e.g. to resume a run)
     session: str = "1"
     sync: SyncOverrides = SyncOverrides()  # scanner options over the protocol's sync: section

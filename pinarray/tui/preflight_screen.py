@@ -49,7 +49,8 @@ class PreflightScreen(KeyNotices, Screen):
         self.connected = False
         self._leaving = False
         self._good = ""  # the last status that was not a complaint
-        self._timing_not_ok = False  # the last timing check said NOT OK: beginning asks first
+        # What the last timing check said when it was not OK (NOT OK, NOT SURE): Begin asks first.
+        self._timing_doubt = ""
 
     def compose(self) -> ComposeResult:
         r = self.request
@@ -125,12 +126,13 @@ class PreflightScreen(KeyNotices, Screen):
 
     def _check_timing(self) -> None:
         duration_ns = self.app.options.timing_check_ns  # type: ignore[attr-defined]
-        if duration_ns:
-            self._timing_line(f"Timing: measuring this machine for {duration_ns / 1e9:g} s…")
+        if duration_ns != 0:
+            self._timing_line("Timing: measuring this machine" + (
+                "…" if duration_ns is None else f" for {duration_ns / 1e9:g} s…"))
             self._timing(duration_ns)
 
     @work(thread=True, exclusive=True, group="timing")
-    def _timing(self, duration_ns: int) -> None:
+    def _timing(self, duration_ns: int | None) -> None:
         try:
             verdict = self.sitting.check_timing(duration_ns)
         except (PinArrayError, AssertionError) as problem:  # not connected any more
@@ -138,7 +140,7 @@ class PreflightScreen(KeyNotices, Screen):
             return
         if verdict is None:
             return  # stopped: the screen is being left
-        self._timing_not_ok = not verdict.deliverable
+        self._timing_doubt = "" if verdict.deliverable else verdict.judgement.value
         self.app.call_from_thread(self._timing_line, "Timing: " + "\n".join(verdict.lines),
                                   not verdict.deliverable)
 
@@ -282,7 +284,7 @@ class PreflightScreen(KeyNotices, Screen):
     def action_begin(self) -> None:
         if not self.connected or self._leaving:
             return
-        if not self._timing_not_ok:
+        if not self._timing_doubt:
             self._begin()
             return
 
@@ -291,8 +293,9 @@ class PreflightScreen(KeyNotices, Screen):
                 self._begin()
 
         self.app.push_screen(Confirm(
-            "Begin although the timing check said NOT OK?\nOn this machine now, stimuli may "
-            "be reported not delivered (each is then presented again, up to 3 times)."),
+            f"Begin although the timing check said {self._timing_doubt}?\nOn this machine now, "
+            "stimuli may be reported not delivered (each is then presented again, up to 3 "
+            "times)."),
             confirmed)
 
     def _begin(self) -> None:
