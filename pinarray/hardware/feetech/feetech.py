@@ -151,7 +151,8 @@ class FeetechBus:
         )
         return status.params, StatusError(status.error)
 
-    def write(self, servo_id: int, register: Register, value: int) -> StatusError:
+    def write(self, servo_id: int, register: Register, value: int,
+              retries: int | None = None) -> StatusError:
         """Write one register of one servo and wait for its acknowledgement."""
         if register.in_eeprom:
             raise BusError(
@@ -161,6 +162,7 @@ class FeetechBus:
         status = self._transact(
             servo_id, f"writing {register.name} (address {register.address})",
             packets.write(servo_id, register.address, to_bytes(value, register.size)), 0,
+            retries,
         )
         return StatusError(status.error)
 

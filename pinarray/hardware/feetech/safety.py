@@ -25,6 +25,9 @@ MOTION_LENGTH = Register.MOVING.address + 1 - Register.PRESENT_POSITION.address
 REST_POLL_NS = 10_000_000
 # How long pins may take to reach rest before the stop goes on without them.
 REST_TIMEOUT_NS = 2_000_000_000
+# Torque-off writes are tried twice (the second waiting four times longer): a servo that
+# answers neither is reported silent rather than holding up the others' release.
+RELEASE_RETRIES = 1
 
 
 def move_to_rest(bus: FeetechBus, timeout_ns: int = REST_TIMEOUT_NS) -> tuple[int, ...]:
@@ -40,8 +43,12 @@ def _wait_at(bus: FeetechBus, goals: Mapping[int, int], timeout_ns: int) -> tupl
     arrived: list[int] = []
     while pending:
         for servo_id, goal in list(pending.items()):
+            if bus.clock.now_ns() >= deadline_ns:
+                break
             try:
-                data, _ = bus.read(servo_id, Register.PRESENT_POSITION, MOTION_LENGTH)
+                # One attempt: this loop asks again until the deadline, so a silent servo
+                # costs one reply time a pass, not the growing waits of a retried read.
+                data, _ = bus.read(servo_id, Register.PRESENT_POSITION, MOTION_LENGTH, retries=0)
             except PortLost:
                 raise
             except BusError:
@@ -81,7 +88,7 @@ def _rest_and_release(bus: FeetechBus, timeout_ns: int) -> SafeStopReport:
     released = []
     for servo_id in ids:
         try:
-            bus.write(servo_id, Register.TORQUE_ENABLE, 0)
+            bus.write(servo_id, Register.TORQUE_ENABLE, 0, retries=RELEASE_RETRIES)
             released.append(servo_id)
         except PortLost:
             _release_everyone(bus)
