@@ -6,6 +6,7 @@ simulated session can run faster than real time. All times are integer nanosecon
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -82,6 +83,7 @@ class ScaledClock:
         self._base = base or MonotonicClock()
         self._start_ns = self._base.now_ns()
         self._own_ns: int | None = None  # inside `own_time`: the time it has reached
+        self._owner: int | None = None  # the thread that plays in own time (it alone waits so)
         self._floor_ns = 0  # where the last `own_time` ended: now_ns never goes below it
 
     def now_ns(self) -> int:
@@ -98,7 +100,8 @@ class ScaledClock:
 
     def _wait(self, deadline_ns: int, until: Callable[[int], None]) -> None:
         own_ns = self._own_ns
-        if own_ns is None:
+        if own_ns is None or self._owner != threading.get_ident():
+            # The wall clock's time line (another thread inside `own_time` waits on it too).
             until(self._start_ns + int(deadline_ns / self.scale))
         elif deadline_ns > own_ns:
             until(self._base.now_ns() + int((deadline_ns - own_ns) / self.scale))
@@ -106,12 +109,16 @@ class ScaledClock:
 
     @contextmanager
     def own_time(self) -> Iterator[None]:
-        """Until the block ends, time moves only when something waits (one thread waits)."""
+        """Until the block ends, time moves only when this thread waits; one block at a time."""
+        if self._own_ns is not None:
+            raise RuntimeError("own_time is already in use: one stimulus plays at a time")
+        self._owner = threading.get_ident()
         self._own_ns = self.now_ns()
         try:
             yield
         finally:
             self._floor_ns = self._own_ns
+            self._owner = None
             self._own_ns = None
 
 

@@ -6,6 +6,9 @@ must not make a rehearsal's stimulus late where real servos, in a player process
 own, would have had it in time: each stimulus plays in the simulator's own time.
 """
 
+import threading
+import time
+
 import pytest
 
 from pinarray.clock import MonotonicClock, ScaledClock
@@ -72,3 +75,25 @@ def test_the_time_after_a_stimulus_follows_the_wall_clock_again_and_never_goes_b
     # Back on the wall clock: within a few host hiccups of it, not behind by the stimulus.
     wall = round(host.now_ns() - clock._start_ns)
     assert abs(clock.now_ns() - wall) <= 2 * 40_000_000
+
+
+def test_another_thread_waiting_through_a_stimulus_leaves_the_clock_running():
+    # The UI's thread dozes on the clock while the player's thread plays in the simulator's
+    # own time; when the stimulus ends first, time still follows the wall clock.
+    clock = ScaledClock(1.0)
+    dozing = threading.Thread(target=lambda: clock.doze_until_ns(clock.now_ns() + 60_000_000))
+    with clock.own_time():
+        dozing.start()
+        clock.sleep_until_ns(clock.now_ns() + 10_000_000)
+    dozing.join()
+    before = clock.now_ns()
+    time.sleep(0.05)
+    assert clock.now_ns() - before >= 40_000_000  # moving with the wall clock again
+
+
+def test_one_stimulus_plays_in_own_time_at_a_time():
+    clock = ScaledClock(1.0)
+    with clock.own_time(), pytest.raises(RuntimeError, match="one stimulus plays at a time"):
+        with clock.own_time():
+            pass
+    assert clock.now_ns() >= 0  # the clock still reads after the refused block

@@ -170,3 +170,42 @@ def test_a_sitting_left_before_its_run_ends_marks_it_and_rests_the_pins(tmp_path
     assert (manifest.status, manifest.abort_reason) == ("aborted", "the sitting ended")
     assert [r.status for r in rows(session)] == ["aborted"]
     assert_at_rest(request.protocol, sim)
+
+
+def test_a_sitting_closed_while_it_connects_leaves_the_new_rig_at_rest_and_closed(tmp_path):
+    # q while the pre-flight still says "Connecting": the close waits for the connection,
+    # which then closes the rig it just made instead of keeping it held.
+    import threading
+
+    made: list[Rig] = []
+    closer: list[threading.Thread] = []
+
+    def connecting(*args):
+        closer.append(threading.Thread(target=sitting.finish))
+        closer[0].start()
+        while not sitting._closing:  # the close has begun, and waits for this connection
+            pass
+        made.append(Rig(*args))
+        return made[0]
+
+    sitting, request = sitting_on(tmp_path, rig_factory=connecting)
+    with pytest.raises(Stopped):
+        sitting.connect(request)
+    closer[0].join(10)
+    assert sitting.rig is None
+    servos = made[0].bus.sim.servos.values()
+    assert not any(s.torque_enabled for s in servos)
+
+
+def test_stimuli_play_on_the_wall_clock_when_lsl_markers_stamp_them(tmp_path):
+    # A rehearsal plays each stimulus in the simulator's own time; with LSL markers, stamped
+    # on this machine's clock for another machine's recording, on the wall clock.
+    from pinarray.clock import ScaledClock
+    from tests.imaging.lsl_inlet import unique_stream_name
+
+    request = SessionRequest(load_protocol(LOCALISATION), "01", "1", "", None, None, 3, False)
+    with Sitting(tmp_path, clock_factory=lambda port: ScaledClock(1.0)) as rehearsal:
+        assert rehearsal.connect(request).plays_in_own_time
+    with Sitting(tmp_path, clock_factory=lambda port: ScaledClock(1.0),
+                 lsl_name=unique_stream_name()) as marked:
+        assert not marked.connect(request).plays_in_own_time

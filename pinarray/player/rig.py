@@ -106,6 +106,7 @@ class Rig:
         # One user of the port at a time: the UI may test a pin while a timing check runs.
         self._port = threading.RLock()
         self._released = False
+        self._wall_time = False  # see `keep_wall_time`
         self._fd = self.bus.descriptor
         self._isolate = self._fd is not None if isolate is None else isolate
         self._realtime = realtime
@@ -167,12 +168,23 @@ class Rig:
         self.reports.append(report)
         return Presentation(report.onset_ns, report.delivery)
 
+    def keep_wall_time(self) -> None:
+        """Play every stimulus on the wall clock (never in the simulator's own time): another
+        machine stamps this one's events on it (LSL markers, a scanner's triggers)."""
+        self._wall_time = True
+
+    @property
+    def plays_in_own_time(self) -> bool:
+        """Whether each stimulus plays in the simulator's own time (see `_own_time`)."""
+        return isinstance(self.bus_clock, ScaledClock) and not self._wall_time
+
     def _own_time(self) -> AbstractContextManager[None]:
         """A rehearsal on the in-process simulator at wall-clock pace (the UI's) plays each
         stimulus in the simulator's own time: the UI's redraws and the other programs of a
         busy lab PC share this interpreter and CPU, and must not make a rehearsal's stimulus
         late where real servos (in a player process of their own) would get it in time."""
-        if isinstance(self.bus_clock, ScaledClock):
+        if self.plays_in_own_time:
+            assert isinstance(self.bus_clock, ScaledClock)
             return self.bus_clock.own_time()
         return nullcontext()
 

@@ -39,7 +39,7 @@ from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.player.rig import Rig
 from pinarray.player.timing import Verdict
 from pinarray.protocol import Protocol
-from pinarray.protocol.imaging import ScannerSync
+from pinarray.protocol.imaging import EmulatedTrigger, ScannerSync
 from pinarray.session.trials import Phase, Session, Stimulator, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
@@ -187,10 +187,21 @@ class Sitting:
         base = clock if clock is not None else self.clock_factory(request.port)
         if self.lsl_name is not None:
             self._open_outlet(self.lsl_name, base)
-        rig = self.rig_factory(request.protocol, request.port, request.sim_url, base, self.stop)
-        # The player and the session wait on the rig's stoppable clock; the bus on the plain one.
-        self.clock = rig.clock
-        self.rig = rig
+        # Counted as hardware at work, so that a sitting closed meanwhile waits for it...
+        rig = self._working(lambda: self.rig_factory(request.protocol, request.port,
+                                                     request.sim_url, base, self.stop))
+        with self._jobs_done:
+            closed = self._closing
+            if not closed:
+                # The player and the session wait on the rig's stoppable clock; the bus on the
+                # plain one.
+                self.clock = rig.clock
+                self.rig = rig
+        if closed:
+            rig.close()  # ...and then finds it here: pins to rest, torque off, port closed
+            raise Stopped(self.stop.reason or END_REASON, self.stop.signal_number)
+        if self.outlet is not None:
+            rig.keep_wall_time()  # LSL stamps the markers on this machine's clock
         return rig
 
     def _open_outlet(self, name: str, clock: Clock) -> None:
@@ -272,7 +283,9 @@ class Sitting:
         `pinarray.imaging.triggers.TriggerError` for a device that cannot be opened or a
         scanner that sends nothing in time. No run is opened either way.
         """
-        assert self.clock is not None, "not connected"
+        assert self.clock is not None and self.rig is not None, "not connected"
+        if not isinstance(sync.trigger, EmulatedTrigger):
+            self.rig.keep_wall_time()  # the scanner's triggers are stamped on the wall clock
         self.scanner = Scanner(sync, self.clock, self.stop)
         try:
             if opened is not None:
