@@ -432,3 +432,17 @@ def test_a_constraint_on_an_attribute_the_paradigms_trials_lack_is_refused_with_
     (line,) = problems(text)
     assert line.endswith("expected an attribute localisation trials have (pin, frequency_hz, "
                          "stimulus), found 'direction'")
+
+
+def test_a_misspelt_servo_key_is_reported_alone_not_with_problems_of_the_default_it_left():
+    # Misspelt, the servo's speed falls back to the default: whether pins can follow 20 Hz is
+    # not judged on a speed nobody wrote (the design's other problems still are).
+    text = (PROTOCOLS / "localisation.yaml").read_text()
+    for old, new in (("    speed_steps_per_s: 3000", "    sped_steps_per_s: 3000"),
+                     ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [3, 5, 10, 20]"),
+                     ("  repetitions: 1", "  repetitions: 0")):
+        assert old in text
+        text = text.replace(old, new)
+    found = [line.split(": ", 1)[1] for line in problems(text)]
+    assert found == ["unknown key 'sped_steps_per_s' in the servo section; did you mean "
+                     "'speed_steps_per_s'?", "expected repetitions of at least 1, found 0"]

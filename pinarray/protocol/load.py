@@ -57,7 +57,9 @@ def parse_protocol(
     description = reader.optional(
         top, "description", lambda n: reader.string(n, "the description"), ""
     )
+    before = reader.harmless
     device = read_device(reader, top.get("device"))
+    reader.guessing = reader.harmless > before
     nothing: tuple[tuple[Stimulus, ...], dict[str, Node]] = ((), {})
     stimuli, declared = reader.optional(
         top, "stimuli", lambda n: read_stimuli(reader, n, device), nothing

@@ -202,8 +202,14 @@ def check_widths_fit(reader: Reader, node: Node, train: Train) -> None:
 def check_train_on_pins(
     reader: Reader, node: Node, train: Train, pins: Collection[int], device: Device
 ) -> None:
-    """``train`` fits its period and every pin of ``pins`` can follow it (or scales it)."""
+    """``train`` fits its period and every pin of ``pins`` can follow it (or scales it).
+
+    Whether a pin can follow is not judged on a device read with a misspelt key
+    (`Reader.guessing`): the speed or stroke it would rest on may be a default.
+    """
     check_widths_fit(reader, node, train)
+    if reader.guessing:
+        return
     for pin in pins:
         calibration = device.calibration(pin)
         try:

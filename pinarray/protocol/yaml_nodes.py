@@ -115,6 +115,10 @@ class Reader:
         # Problems that leave the values read valid (an unknown key: its value is not used),
         # so that a typo does not stop what depends on its section from being checked.
         self.harmless = 0
+        # A section read with a misspelt key stands on defaults where the author meant a value:
+        # checks that rest on it (a servo's speed, a pin's calibration) are left out until the
+        # typo is fixed, so that no problem is reported about a value nobody wrote.
+        self.guessing = False
         # One constructor per file: PyYAML's caches every object it built, keyed by node.
         self._constructor = yaml.constructor.SafeConstructor()
 
