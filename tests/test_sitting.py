@@ -209,3 +209,33 @@ def test_stimuli_play_on_the_wall_clock_when_lsl_markers_stamp_them(tmp_path):
     with Sitting(tmp_path, clock_factory=lambda port: ScaledClock(1.0),
                  lsl_name=unique_stream_name()) as marked:
         assert not marked.connect(request).plays_in_own_time
+
+
+def test_a_rig_whose_player_process_will_not_end_quietly_still_rests_the_pins(tmp_path):
+    sitting, request = sitting_on(tmp_path)
+    rig = sitting.connect(request)
+
+    class Interrupted:
+        def close(self):
+            raise KeyboardInterrupt  # a second Ctrl-C as the player process left
+
+    rig.player = Interrupted()
+    with pytest.raises(KeyboardInterrupt):
+        sitting.release()
+    servos = rig.bus.sim.servos.values()
+    assert not any(s.torque_enabled for s in servos)
+
+
+def test_a_scanner_that_fails_to_close_does_not_keep_the_rig_held(tmp_path):
+    sitting, request = sitting_on(tmp_path)
+    rig = sitting.connect(request)
+
+    class Stuck:
+        def close(self):
+            raise OSError(5, "Input/output error")
+
+    sitting.scanner = Stuck()
+    with pytest.raises(OSError):
+        sitting.release()
+    assert sitting.rig is None
+    assert not any(s.torque_enabled for s in rig.bus.sim.servos.values())

@@ -261,12 +261,16 @@ class Rig:
 
     def _close(self) -> SafeStopReport:
         try:
-            if self.player is not None:
-                self.player.close()
-                self.player = None
-            return self.bus.rest_and_release()
+            player, self.player = self.player, None
+            try:
+                if player is not None:
+                    player.close()
+            finally:
+                # However the player's end went (a second Ctrl-C as it left), pins go to rest.
+                safe = self.bus.rest_and_release()
         finally:
             self.bus.close()
+        return safe
 
     def __enter__(self) -> Rig:
         return self

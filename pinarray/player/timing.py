@@ -21,7 +21,8 @@ from pinarray.units import NS_PER_MS
 # as its protocol needs: `duration_for`).
 DEFAULT_PERIOD_NS = NS_PER_MS
 DEFAULT_DURATION_NS = 2_000 * NS_PER_MS
-# A verdict is OK when at most this share of trials would be presented again (95 % bound).
+# A verdict is OK when fewer than this share of trials would be presented again, as measured
+# on enough deadlines to have shown that share (`samples_needed`); NOT OK at this share or more.
 RETRY_SHARE = 0.05
 # Measurements the pre-flight takes at most (a protocol of very long trials says "measure
 # longer" and how long).

@@ -265,12 +265,13 @@ class Sitting:
             self._closing = True
         self.stop.request(reason)
         self._wait_for_jobs()
-        self.close_scanner()
         rig, self.rig = self.rig, None
-        if rig is None:
-            return None
-        self.last_safe = rig.close()
-        return self.last_safe
+        try:
+            self.close_scanner()
+        finally:
+            if rig is not None:
+                self.last_safe = rig.close()  # pins first, whatever the scanner's close did
+        return None if rig is None else self.last_safe
 
     # -- the scanner ------------------------------------------------------------------------
 
@@ -301,9 +302,13 @@ class Sitting:
 
     def abort_wait(self) -> None:
         """Stop waiting for the scanner; the rig stays connected."""
-        self.stop.request("stopped waiting for the scanner")
+        reason = "stopped waiting for the scanner"
+        self.stop.request(reason)
         self._wait_for_jobs()
-        self.stop.clear()
+        with self._jobs_done:
+            # A stop a close or a signal asked for meanwhile stays.
+            if not self._closing and self.stop.reason == reason:
+                self.stop.clear()
 
     def close_scanner(self) -> None:
         scanner, self.scanner = self.scanner, None
