@@ -71,7 +71,7 @@ def hold(bus: FeetechBus) -> None:
             bus.write(servo.servo_id, Register.ACCELERATION, bus.setup.acceleration_register)
             bus.write(servo.servo_id, Register.GOAL_SPEED, bus.setup.speed_steps_per_s)
             bus.write(servo.servo_id, Register.TORQUE_ENABLE, 1)
-            bus._last_goals[servo.servo_id] = decode_position(from_bytes(data))
+            bus.assume_goals({servo.servo_id: decode_position(from_bytes(data))})
     except BaseException:
         # A half-finished handshake must not leave some servos holding torque.
         for servo_id in enabled:
