@@ -82,14 +82,14 @@ class ScaledClock:
         self.scale = scale
         self._base = base or MonotonicClock()
         self._start_ns = self._base.now_ns()
-        self._own_ns: int | None = None  # inside `own_time`: the time it has reached
+        self._own: PacedClock | None = None  # inside `own_time`: the simulator's own time
         self._owner: int | None = None  # the thread that plays in own time (it alone waits so)
         self._floor_ns = 0  # where the last `own_time` ended: now_ns never goes below it
 
     def now_ns(self) -> int:
-        own_ns = self._own_ns
-        if own_ns is not None:
-            return own_ns
+        own = self._own
+        if own is not None:
+            return own.now_ns()
         return max(self._floor_ns, round((self._base.now_ns() - self._start_ns) * self.scale))
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
@@ -99,27 +99,28 @@ class ScaledClock:
         self._wait(deadline_ns, self._base.doze_until_ns)
 
     def _wait(self, deadline_ns: int, until: Callable[[int], None]) -> None:
-        own_ns = self._own_ns
-        if own_ns is None or self._owner != threading.get_ident():
+        own = self._own
+        if own is not None and self._owner == threading.get_ident():
+            own.sleep_until_ns(deadline_ns)
+        else:
             # The wall clock's time line (another thread inside `own_time` waits on it too).
             until(self._start_ns + int(deadline_ns / self.scale))
-        elif deadline_ns > own_ns:
-            until(self._base.now_ns() + int((deadline_ns - own_ns) / self.scale))
-            self._own_ns = deadline_ns
 
     @contextmanager
     def own_time(self) -> Iterator[None]:
-        """Until the block ends, time moves only when this thread waits; one block at a time."""
-        if self._own_ns is not None:
+        """Until the block ends, time moves only when this thread waits, as a `PacedClock`'s
+        at this clock's scale; one block at a time."""
+        if self._own is not None:
             raise RuntimeError("own_time is already in use: one stimulus plays at a time")
+        own = PacedClock(self.scale, self.now_ns(), self._base)
         self._owner = threading.get_ident()
-        self._own_ns = self.now_ns()
+        self._own = own
         try:
             yield
         finally:
-            self._floor_ns = self._own_ns
+            self._floor_ns = own.now_ns()
             self._owner = None
-            self._own_ns = None
+            self._own = None
 
 
 class PacedClock:
