@@ -261,10 +261,7 @@ class Sitting:
 
         Returns the `SafeStopReport`, or None if nothing was connected. Safe from any thread.
         """
-        with self._jobs_done:
-            self._closing = True
-        self.stop.request(reason)
-        self._wait_for_jobs()
+        self._stop_jobs(reason)
         rig, self.rig = self.rig, None
         try:
             self.close_scanner()
@@ -427,6 +424,14 @@ class Sitting:
                 self._jobs -= 1
                 self._jobs_done.notify_all()
 
+    def _stop_jobs(self, reason: str) -> None:
+        """Closing: the job at work is asked to stop and waited for (a connection that ends
+        meanwhile closes the rig it made)."""
+        with self._jobs_done:
+            self._closing = True
+        self.stop.request(reason)
+        self._wait_for_jobs()
+
     def _wait_for_jobs(self) -> None:
         with self._jobs_done:
             self._jobs_done.wait_for(lambda: self._jobs == 0, STOP_WAIT_S)
@@ -439,10 +444,7 @@ class Sitting:
         Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
         if nothing was connected). The pins go to rest even if marking the run fails.
         """
-        with self._jobs_done:
-            self._closing = True
-        self.stop.request(reason)
-        self._wait_for_jobs()
+        self._stop_jobs(reason)
         session, self.session = self.session, None
         try:
             # A run whose writer already said how it ended (a crash in `run_scripted`) stays so.
