@@ -393,16 +393,22 @@ def test_yaml_tags_and_impossible_dates_are_located_errors_not_tracebacks():
     assert line.startswith("p.yaml:5:17: expected a plain value")
 
 
+def seed_localisation_with(*edits: tuple[str, str]) -> str:
+    """protocols/localisation.yaml with each (old, new) edit made (each old text is there)."""
+    text = (PROTOCOLS / "localisation.yaml").read_text()
+    for old, new in edits:
+        assert old in text
+        text = text.replace(old, new)
+    return text
+
+
 def test_every_independent_problem_is_reported_in_one_pass():
     # A misspelt key in the train, a duty cycle of 0.55, a stimulus name mistyped and an
     # interval written "2s": each was hidden behind the one before it.
-    text = (PROTOCOLS / "localisation.yaml").read_text()
-    for old, new in (("    duration_s: 10", "    duraton_s: 10"),
-                     ("    duty_cycle: 0.5 ", "    duty_cycle: 0.55"),
-                     ("  stimulus: seed_train", "  stimulus: seed_trian"),
-                     ("  inter_trial_interval_s: 3", "  inter_trial_interval_s: 2s")):
-        assert old in text
-        text = text.replace(old, new)
+    text = seed_localisation_with(("    duration_s: 10", "    duraton_s: 10"),
+                                  ("    duty_cycle: 0.5 ", "    duty_cycle: 0.55"),
+                                  ("  stimulus: seed_train", "  stimulus: seed_trian"),
+                                  ("  inter_trial_interval_s: 3", "  inter_trial_interval_s: 2s"))
     found = problems(text)
     assert len(found) == 4, found
     assert "unknown key 'duraton_s' in the pulse train; did you mean 'duration_s'?" in found[0]
@@ -413,12 +419,9 @@ def test_every_independent_problem_is_reported_in_one_pass():
 
 
 def test_a_typo_in_the_device_section_does_not_hide_the_designs_problems():
-    text = (PROTOCOLS / "localisation.yaml").read_text()
-    for old, new in (("    baud_rate: 1000000", "    baud_rat: 1000000"),
-                     ("  repetitions: 1", "  repetitions: 0"),
-                     ("13, 16]", "13, 17]")):
-        assert old in text
-        text = text.replace(old, new)
+    text = seed_localisation_with(("    baud_rate: 1000000", "    baud_rat: 1000000"),
+                                  ("  repetitions: 1", "  repetitions: 0"),
+                                  ("13, 16]", "13, 17]"))
     found = problems(text)
     assert [line.split(": ", 1)[1] for line in found] == [
         "unknown key 'baud_rat' in the servo section; did you mean 'baud_rate'?",
@@ -427,8 +430,7 @@ def test_a_typo_in_the_device_section_does_not_hide_the_designs_problems():
 
 
 def test_a_constraint_on_an_attribute_the_paradigms_trials_lack_is_refused_with_theirs():
-    text = (PROTOCOLS / "localisation.yaml").read_text().replace("no_repeat: [pin]",
-                                                                  "no_repeat: [direction]")
+    text = seed_localisation_with(("no_repeat: [pin]", "no_repeat: [direction]"))
     (line,) = problems(text)
     assert line.endswith("expected an attribute localisation trials have (pin, frequency_hz, "
                          "stimulus), found 'direction'")
@@ -437,12 +439,9 @@ def test_a_constraint_on_an_attribute_the_paradigms_trials_lack_is_refused_with_
 def test_a_misspelt_servo_key_is_reported_alone_not_with_problems_of_the_default_it_left():
     # Misspelt, the servo's speed falls back to the default: whether pins can follow 20 Hz is
     # not judged on a speed nobody wrote (the design's other problems still are).
-    text = (PROTOCOLS / "localisation.yaml").read_text()
-    for old, new in (("    speed_steps_per_s: 3000", "    sped_steps_per_s: 3000"),
-                     ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [3, 5, 10, 20]"),
-                     ("  repetitions: 1", "  repetitions: 0")):
-        assert old in text
-        text = text.replace(old, new)
+    text = seed_localisation_with(("    speed_steps_per_s: 3000", "    sped_steps_per_s: 3000"),
+                                  ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [3, 5, 10, 20]"),
+                                  ("  repetitions: 1", "  repetitions: 0"))
     found = [line.split(": ", 1)[1] for line in problems(text)]
     assert found == ["unknown key 'sped_steps_per_s' in the servo section; did you mean "
                      "'speed_steps_per_s'?", "expected repetitions of at least 1, found 0"]
