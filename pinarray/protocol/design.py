@@ -42,10 +42,10 @@ MAX_PULSES = 10_000_000
 # Ordering under constraints weighs every distinct condition at each trial placed: trials x
 # conditions is the work, about 0.2 us each here (a few seconds at most).
 MAX_SHUFFLE_WORK = 20_000_000
-CONDITION_ATTRIBUTES = ("pin", "frequency_hz", "stimulus", "direction")
 # What an order constraint may name, by paradigm: what its trials have.
 ATTRIBUTES_OF = {Paradigm.LOCALISATION: ("pin", "frequency_hz", "stimulus"),
                  Paradigm.APPARENT_MOTION: ("direction", "stimulus")}
+CONDITION_ATTRIBUTES = tuple(dict.fromkeys(a for names in ATTRIBUTES_OF.values() for a in names))
 DESIGN_KEYS = {
     "paradigm",
     "stimulus",
