@@ -274,3 +274,11 @@ def test_a_jog_of_a_servo_that_is_not_there_names_the_pin_and_servo():
     bus, jog = jog_bus("ids=5")
     with pytest.raises(BusError, match=r"pin 6 \(servo 6\) does not answer on sim://"):
         jog.start()
+
+
+def test_a_servo_whose_answer_a_busy_host_held_up_is_still_found_among_an_arrays_ids():
+    # Every answer comes 20 ms late (past the sweep's 10 ms wait): a look again, four times
+    # longer, at the ids that were silent finds them.
+    bus = bare_bus("ids=1-3&late=1&late_ms=20")
+    result = bringup.scan(bus, ids=(1, 2, 3, 4), timeout_ns=10_000_000)
+    assert result.servo_ids == (1, 2, 3)

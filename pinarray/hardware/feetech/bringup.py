@@ -31,6 +31,8 @@ MAX_RETURN_DELAY_US = 254 * RETURN_DELAY_UNIT_US
 # A sweep waits this long for each id's PING answer unless told otherwise: a pseudo-terminal
 # or a USB adapter at a 1 ms latency timer answers well within it.
 SWEEP_TIMEOUT_NS = 10_000_000
+# A sweep of at most this many given ids looks again at the silent ones (a whole 4x4 array).
+LOOK_AGAIN_IDS = 16
 
 Progress = Callable[[int, int, tuple[int, ...]], object]
 
@@ -107,8 +109,11 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     bus : FeetechBus
         Opened without the handshake.
     ids : sequence of int, optional
-        Sweep exactly these ids. Default: a broadcast ping, which finds a lone servo (a new
-        one) at once; when nothing answers it or several answers collide, every id 0-252.
+        Sweep exactly these ids; when they are an array's worth or fewer (`LOOK_AGAIN_IDS`),
+        look again, four times longer, at those that did not answer (a busy host can hold an
+        answer past a quiet host's wait). Default: a
+        broadcast ping, which finds a lone servo (a new one) at once; when nothing answers it
+        or several answers collide, every id 0-252, once.
     timeout_ns : int
         How long to wait for each id's PING answer in a sweep, in nanoseconds.
     progress : callable, optional
@@ -116,6 +121,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         stop the sweep (e.g. `pinarray.stop.Stopped`).
     """
     reason = ""
+    look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
     if ids is None:
         answer = bus.broadcast_ping()
         if answer.clean and answer.servo_ids:
@@ -130,6 +136,9 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
+    if look_again:
+        for servo_id in [i for i, model in models.items() if model is None]:
+            models[servo_id] = bus.ping_within(servo_id, 4 * timeout_ns)
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
 

@@ -184,14 +184,18 @@ class FeetechBus:
     def ping_within(self, servo_id: int, timeout_ns: int) -> int | None:
         """Model number of the servo at ``servo_id``, or None if no PING answer by ``timeout_ns``.
 
-        One PING attempt that waits at most ``timeout_ns`` (and no longer than `ping` would),
-        for sweeping many ids quickly; the model-number read of a servo that answered is retried
-        as usual.
+        One PING attempt that waits ``timeout_ns`` (and no longer than `ping`'s attempts would
+        together), for sweeping many ids quickly; the model-number read of a servo that
+        answered is retried as usual.
         """
         packet = packets.ping(servo_id)
+        # As many latency allowances as the timeout holds: the wait is the timeout, not the
+        # allowance learnt while the host was quiet.
+        allowance_ns = max(1, self.link.latency.allowance_ns)
+        patience = min(-(-timeout_ns // allowance_ns), sum(PATIENCE_GROWTH ** k for k in range(4)))
         try:
             replies = self.link.exchange(packet, (Expected(servo_id, 0),),
-                                         self.clock.now_ns() + timeout_ns)
+                                         self.clock.now_ns() + timeout_ns, patience=max(1, patience))
         except WireLost as error:
             raise self._lost(f"pinging servo {servo_id}", error) from None
         if servo_id not in replies:
