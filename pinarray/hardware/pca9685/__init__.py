@@ -1,0 +1,1 @@
+"""Hobby PWM servos on a PCA9685 board: the second family behind the array-driver seam."""
