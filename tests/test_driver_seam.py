@@ -14,6 +14,7 @@ import pytest
 from pinarray.clock import VirtualClock
 from pinarray.errors import BusError
 from pinarray.hardware.driver import BusStats, SafeStopReport, ServoSetup
+from pinarray.hardware.frames import goal_frames
 from pinarray.player.playback import PlaybackAborted, play_trial
 
 from .hardware.lab import pulse_train
@@ -28,6 +29,8 @@ class Setup:
     @property
     def servo_ids(self):
         return tuple(s.servo_id for s in self.servos)
+
+    position_unit = "steps"
 
 
 class EchoVerifier:
@@ -60,6 +63,7 @@ class Pulses:
         ServoSetup(i, i, REST, 1900, 2300) for i in range(1, 17))))
     frames: list = field(default_factory=list)
     stops: int = 0
+    begun: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     port_name: str = "pwm-board"
     descriptor: None = None
@@ -67,6 +71,12 @@ class Pulses:
 
     def goal_packet(self, goals_steps):
         return b"".join(bytes([i]) + g.to_bytes(2, "little") for i, g in goals_steps.items())
+
+    def prepare(self, targets, pulses):
+        return goal_frames(self, targets)
+
+    def begin(self, trial, onset_ns):
+        self.begun.append(onset_ns)
 
     def send_goals(self, packet, goals_steps):
         if self.fail_at_frame == len(self.frames):
@@ -104,6 +114,7 @@ def test_another_family_is_played_on_the_schedules_absolute_deadlines():
     assert [t - onset_ns for t, _ in driver.frames] == list(report.scheduled_ns)
     assert report.delivery.delivered and report.delivery.confirmed == report.delivery.scheduled
     assert driver.stops == 1  # the normal end made it safe, its own way
+    assert driver.begun == [onset_ns]  # readied once, before its onset, its own way
 
 
 def test_a_change_another_family_cannot_confirm_is_reported_not_delivered():

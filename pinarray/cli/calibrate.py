@@ -102,7 +102,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
     from pinarray.errors import PinArrayError, ProtocolError
     from pinarray.hardware.feetech.jog import Jog
-    from pinarray.player.families import bus_setup
+    from pinarray.player.families import bus_setup, sts_servos
     from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
     from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
 
@@ -127,8 +127,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     url = chosen_bus(args, "servos calibrate", setup.servo_ids)
     result: tuple[NewCalibration, bytes] | None = None
     with stop_on_signals(StopRequest()) as stop:
-        bus = open_bare(url, args.baud or device.servo.baud_rate)
-        jog = Jog(bus, servo, setup.model_number, device.servo.speed_steps_per_s,
+        bus = open_bare(url, args.baud or sts_servos(device).baud_rate)
+        jog = Jog(bus, servo, setup.model_number, setup.speed_steps_per_s,
                   clock=StoppableClock(bus.clock, stop))
         rest_steps = servo.rest_steps
         try:
@@ -180,7 +180,7 @@ def _describe(new: NewCalibration, device: Device, pin: int) -> str:
               if new.limits_widened else "")
     stroke = abs(new.up_steps - new.rest_steps)
     lever = device.calibration(pin).lever_mm
-    degrees = stroke * 360 / device.servo.steps_per_turn
+    degrees = device.servo.degrees(stroke)
     return (f"device: pins: {pin}: rest_steps {new.rest_steps}, positions {{{positions}}}"
             f"{limits}; stroke {stroke} steps ({degrees:.1f} deg, about "
             f"{lever * math.radians(degrees):.2f} mm on its {lever:g} mm lever)")

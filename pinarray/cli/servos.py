@@ -167,7 +167,7 @@ def _target(args: argparse.Namespace, command: str) -> Target:
     from pinarray.cli import common
     from pinarray.cli.bus import DEFAULT_DEVICE_TEXT, chosen_bus
     from pinarray.errors import PinArrayError
-    from pinarray.player.families import bus_setup
+    from pinarray.player.families import bus_setup, sts_servos
     from pinarray.protocol.load import load_protocol, parse_protocol
 
     protocol = (load_protocol(args.protocol) if args.protocol
@@ -182,7 +182,7 @@ def _target(args: argparse.Namespace, command: str) -> Target:
                 f"--ids: servo id(s) {', '.join(map(str, strangers))} are not part of the "
                 f"device of {protocol.source} (its servos: {_ranges(device_ids)})")
     url = chosen_bus(args, f"servos {command}", device_ids)
-    return Target(protocol, ids, url, args.baud or protocol.device.servo.baud_rate,
+    return Target(protocol, ids, url, args.baud or sts_servos(protocol.device).baud_rate,
                   args.ids is not None)
 
 

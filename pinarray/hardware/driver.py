@@ -13,10 +13,13 @@ What a driver does, in the order a sitting asks for it:
    calibrated limits), `check_servos` reads every servo and refuses, naming each missing or wrong
    one, before anything moves; `hold` then gives them torque where their horns are. A player
    process that guards the servos is started between the two (`handover`).
-2. **limits**: `goal_packet` refuses any goal outside a pin's calibrated limits.
-3. **prepare a trial's frames**: `goal_packet` encodes one frame's goal changes before onset,
-   so that at each deadline the player hands prepared bytes to the port in one call.
-4. **write a frame at its deadline**: `send_goals`.
+2. **limits**: `goal_packet` and `prepare` refuse any goal outside a pin's calibrated limits.
+3. **prepare a trial's frames**: `prepare` turns a trial's goal changes (and, for a family
+   that needs them, its pulses) into frames encoded before onset, so that at each deadline the
+   player hands prepared bytes to the port in one call (`pinarray.hardware.frames`).
+4. **start and write**: `begin` readies the hardware in the lead time before onset (a PWM
+   board: its period and its counter started at onset; bus servos: nothing), then each frame
+   goes out at its deadline: `send_goals`.
 5. **verify and heal**: `verifier` returns the driver's own way of confirming, in the slack
    between frames, that each change reached its servo, and of healing those that did not,
    recording each change's fate in the trial's `DeliveryLedger`; `heal_time_ns` says what
@@ -28,9 +31,11 @@ What a driver does, in the order a sitting asks for it:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
 
 from pinarray.errors import BusError
 
@@ -62,6 +67,55 @@ class ArraySetup(Protocol):
 
     @property
     def servo_ids(self) -> tuple[int, ...]: ...
+
+    @property
+    def position_unit(self) -> str:
+        """What positions count: ``steps`` (bus servos), ``us`` of pulse width (PWM)."""
+        ...
+
+
+class TargetFrame(Protocol):
+    """The goal changes due at one instant (ns from onset)."""
+
+    @property
+    def time_ns(self) -> int: ...
+
+    @property
+    def pins(self) -> np.ndarray: ...
+
+    @property
+    def position_steps(self) -> np.ndarray: ...
+
+
+class Targets(Protocol):
+    """A trial's goal changes, sorted by time then pin (`pinarray.schedule.TargetList`)."""
+
+    @property
+    def time_ns(self) -> np.ndarray: ...
+
+    @property
+    def pin(self) -> np.ndarray: ...
+
+    @property
+    def position_steps(self) -> np.ndarray: ...
+
+    @property
+    def end_ns(self) -> int: ...
+
+    def frames(self) -> Iterator[TargetFrame]: ...
+
+
+class Pulses(Protocol):
+    """A trial's servo pulses, sorted by start then pin (`pinarray.schedule.PulseList`)."""
+
+    @property
+    def pin(self) -> np.ndarray: ...
+
+    @property
+    def start_ns(self) -> np.ndarray: ...
+
+    @property
+    def width_ns(self) -> np.ndarray: ...
 
 
 class ServoFaults(Protocol):
@@ -192,6 +246,19 @@ class ArrayDriver(Protocol):
 
     def goal_packet(self, goals_steps: Mapping[int, int]) -> bytes:
         """One frame's goal changes, encoded, after checking each against its pin's limits."""
+        ...
+
+    def prepare(self, targets: Targets, pulses: Pulses) -> PreparedTrial:
+        """A trial's frames encoded for the wire before onset, limits checked.
+
+        Raises `pinarray.errors.PinArrayError` for a trial this array cannot play as
+        scheduled (outside a pin's limits; a PWM board: pulses its period cannot place within
+        the protocol's tolerance), saying what to change.
+        """
+        ...
+
+    def begin(self, trial: PreparedTrial, onset_ns: int) -> None:
+        """In the lead time before ``onset_ns``: ready the hardware for ``trial``'s frames."""
         ...
 
     def send_goals(self, packet: bytes,

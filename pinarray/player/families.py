@@ -14,25 +14,40 @@ from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import ArrayDriver, ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
-from pinarray.protocol import Device
+from pinarray.protocol import Device, HobbyServos, ServoSettings
+
+
+def sts_servos(device: Device) -> ServoSettings:
+    """The STS settings of a device of bus servos; a PWM device is refused, saying so."""
+    if isinstance(device.servo, HobbyServos):
+        raise PinArrayError(
+            "this protocol's device is hobby servos on a PCA9685 board (device: board:), not "
+            "STS bus servos: use `pinarray pwm ...`")
+    return device.servo
+
+
+def servo_setups(device: Device) -> tuple[ServoSetup, ...]:
+    """Each pin's servo (bus id or board channel), rest and calibrated limits."""
+    return tuple(
+        ServoSetup(servo_id=c.servo_id, pin=c.pin, rest_steps=c.rest_steps,
+                   min_steps=c.min_steps, max_steps=c.max_steps)
+        for c in device.pins
+    )
 
 
 def bus_setup(device: Device) -> BusSetup:
     """What the STS handshake checks and sets, from a protocol's device section."""
     from pinarray.hardware.feetech.models import servo_model
 
-    servos = tuple(
-        ServoSetup(servo_id=c.servo_id, pin=c.pin, rest_steps=c.rest_steps,
-                   min_steps=c.min_steps, max_steps=c.max_steps)
-        for c in device.pins
-    )
+    settings = sts_servos(device)
+    servos = servo_setups(device)
     try:
-        model = servo_model(device.servo.model)
+        model = servo_model(settings.model)
     except PinArrayError as error:
         raise BusError(f"device: {error}") from None
     return BusSetup(servos=servos, model_number=model.model_number,
-                    speed_steps_per_s=device.servo.speed_steps_per_s,
-                    acceleration_register=device.servo.acceleration_register)
+                    speed_steps_per_s=settings.speed_steps_per_s,
+                    acceleration_register=settings.acceleration_register)
 
 
 def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
@@ -56,6 +71,6 @@ def open_array(device: Device, port: str | None, sim_url: str | None,
 
     setup = bus_setup(device)
     url = port or sim_url_for(sim_url, setup.servo_ids)
-    bus = open_bus(url, None, clock, baud_rate=device.servo.baud_rate)
+    bus = open_bus(url, None, clock, baud_rate=sts_servos(device).baud_rate)
     bus.setup = setup
     return bus

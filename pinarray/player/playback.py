@@ -1,7 +1,8 @@
 """Plays a trial's goal changes against absolute deadlines and verifies that they arrived.
 
 Any `ArrayDriver` (`pinarray.hardware.driver`) can be played. Before onset every frame is
-encoded by the driver (`prepare_trial`), so at each deadline the loop does one thing: hand
+encoded by the driver (`prepare_trial`) and the driver readies its hardware in the lead time
+(`ArrayDriver.begin`), so at each deadline the loop does one thing: hand
 prepared bytes to the port in one call. Frame ``k`` goes out at ``onset + time_ns[k]``
 (never "period minus elapsed", so a late frame does not push the later ones), with the
 garbage collector frozen and paused for the trial.
@@ -31,10 +32,8 @@ from pinarray.clock import Clock
 from pinarray.errors import BusError, Interrupted, PinArrayError
 from pinarray.hardware.delivery import (
     DEFAULT_TOLERANCE_NS,
-    Change,
     DeliveryLedger,
     DeliveryRecord,
-    PreparedFrame,
     PreparedTrial,
 )
 from pinarray.hardware.driver import (
@@ -44,7 +43,13 @@ from pinarray.hardware.driver import (
     SafeStopReport,
     Telemetry,
 )
-from pinarray.schedule import TargetList
+from pinarray.hardware.frames import check_limits
+from pinarray.schedule import PulseList, TargetList
+
+__all__ = ["check_limits", "play_prepared", "play_trial", "prepare_trial"]
+
+NO_PULSES = PulseList(np.zeros(0, dtype=np.int16), np.zeros(0, dtype=np.int64),
+                      np.zeros(0, dtype=np.int64))
 
 # Time between "go" and the first frame, so frame 0 is not late by construction.
 DEFAULT_LEAD_NS = 20_000_000
@@ -156,52 +161,14 @@ class PlaybackReport:
         )
 
 
-def check_limits(targets: TargetList, setup: ArraySetup) -> None:
-    """Refuse a target list that would take any pin outside its calibrated limits.
+def prepare_trial(bus: ArrayDriver, targets: TargetList,
+                  pulses: PulseList | None = None) -> PreparedTrial:
+    """The driver's frames for a trial, encoded before onset (see `ArrayDriver.prepare`).
 
-    Raises
-    ------
-    PinArrayError
-        Naming the pin, its servo id, the offending position and time, and the limits.
+    Without ``pulses`` (a bare list of goal changes), a family that places pulses plays
+    every change at its own pulse rate.
     """
-    by_pin = {s.pin: s for s in setup.servos}
-    for pin in np.unique(targets.pin):
-        servo = by_pin.get(int(pin))
-        if servo is None:
-            known = ", ".join(map(str, sorted(by_pin)))
-            raise PinArrayError(f"the schedule moves pin {pin}, which has no servo (pins: {known})")
-        mask = targets.pin == pin
-        positions = targets.position_steps[mask]
-        outside = (positions < servo.min_steps) | (positions > servo.max_steps)
-        if outside.any():
-            first = int(np.argmax(outside))
-            time_s = targets.time_ns[mask][first] / 1e9
-            raise PinArrayError(
-                f"refusing to play: pin {pin} (servo {servo.servo_id}) would go to "
-                f"{positions[first]} steps at {time_s:.3f} s, outside its calibrated limits "
-                f"{servo.min_steps}..{servo.max_steps}"
-            )
-
-
-def prepare_trial(bus: ArrayDriver, targets: TargetList) -> PreparedTrial:
-    """Check a trial against the pins' limits and encode every frame's packet, before onset."""
-    setup = bus.setup
-    check_limits(targets, setup)
-    servo_of_pin = {s.pin: s.servo_id for s in setup.servos}
-    frames: list[PreparedFrame] = []
-    changes: list[Change] = []
-    for frame in targets.frames():
-        goals = tuple(
-            (servo_of_pin[int(pin)], int(position))
-            for pin, position in zip(frame.pins, frame.position_steps, strict=True)
-        )
-        frames.append(PreparedFrame(frame.time_ns, bus.goal_packet(dict(goals)), goals, len(changes)))
-        changes.extend(
-            Change(servo_id, int(pin), goal, frame.time_ns)
-            for (servo_id, goal), pin in zip(goals, frame.pins, strict=True)
-        )
-    return PreparedTrial(tuple(frames), tuple(changes), targets.end_ns,
-                         {s.servo_id: s.pin for s in setup.servos})
+    return bus.prepare(targets, pulses if pulses is not None else NO_PULSES)
 
 
 @contextmanager
@@ -269,6 +236,7 @@ def play_prepared(
         onset_ns = clock.now_ns() + lead_ns
         verifier = bus.verifier(clock, trial, onset_ns, ledger)
         try:
+            bus.begin(trial, onset_ns)
             for index in range(count):
                 frame = frames[index]
                 deadline_ns = onset_ns + frame.time_ns

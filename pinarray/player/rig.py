@@ -154,7 +154,7 @@ class Rig:
             # A fault released torque; the handshake turns it back on, checking every servo.
             self.bus.reconnect()
             self._released = False
-        trial = prepare_trial(self.bus, schedule.targets)
+        trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
         try:
             if self.player is not None:
                 report = self.player.play(trial, tolerance_ns=self.tolerance_ns)

@@ -15,14 +15,17 @@ from pinarray.protocol.model import (
     Design,
     Device,
     Direction,
+    HobbyServos,
     LocalisationCondition,
     MotionAnswer,
     MotionCondition,
     Ordering,
     Paradigm,
+    Pca9685Board,
     PinCalibration,
     PinDrive,
     Protocol,
+    Servos,
     ServoSettings,
     Stimulus,
     Train,
@@ -34,7 +37,7 @@ from pinarray.protocol.model import (
 
 __all__ = [
     "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Direction",
-    "LocalisationCondition", "MotionAnswer", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
+    "HobbyServos", "LocalisationCondition", "MotionAnswer", "Pca9685Board", "Servos", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
     "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainStimulus", "Wave",
     "WaveKind", "WaveStimulus",
 ]

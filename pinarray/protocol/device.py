@@ -11,7 +11,10 @@ from pinarray.protocol.model import (
     BAUD_RATES,
     SIMULATED_PORT,
     Device,
+    HobbyServos,
+    Pca9685Board,
     PinCalibration,
+    Servos,
     ServoSettings,
 )
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
@@ -19,14 +22,35 @@ from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 MS = Fraction(1_000_000)  # ns per ms
 # The seed's calibration: a 1.5 ms pulse holds the rest position, 2 ms lifts the pin.
 DEFAULT_POSITIONS = ((1_500_000, 2048), (2_000_000, 2162))
+# On a PWM board a pin's positions are its own pulse widths: the seed's, until calibrated.
+DEFAULT_WIDTHS_US = ((1_500_000, 1500), (2_000_000, 2000))
+# A PWM array plays on the simulated board unless the protocol names an I2C bus.
+SIMULATED_BOARD_PORT = "sim://pca9685"
+PCA9685_CHANNELS = 16
 # A servo maps a handful of pulse widths to positions; the map is copied to every pin.
 MAX_POSITIONS = 64
 DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility",
-               "delivery_tolerance_ms"}
+               "delivery_tolerance_ms", "board", "channels"}
 
 # The STS ids a servo can take (the vendor SDK's MAX_ID; 254 is broadcast). The bus says the
 # same in `pinarray.hardware.feetech.registers.MAX_SERVO_ID`, which the protocol may not import.
 MAX_SERVO_ID = 252
+
+
+@dataclass(frozen=True)
+class _Unit:
+    """How a family's positions are written: STS encoder steps, or PWM pulse widths in us."""
+
+    suffix: str  # "steps" or "us": rest_steps / limits_us ...
+    low: int
+    high: int
+    what: str  # "steps", "us of pulse width"
+    default_positions: tuple[tuple[int, int], ...]
+
+
+STEPS = _Unit("steps", 0, 4095, "steps", DEFAULT_POSITIONS)
+# Hobby servos take roughly 500-2500 us; the bounds leave room for odd ones, never a period.
+WIDTH_US = _Unit("us", 100, 3000, "us of pulse width", DEFAULT_WIDTHS_US)
 
 
 @dataclass(frozen=True)
@@ -52,13 +76,30 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     keys = reader.attempt(lambda: reader.mapping(node, DEVICE_KEYS, what="device section"), None)
     if keys is None:
         return None
+    pwm = "board" in keys
+    unit = WIDTH_US if pwm else STEPS
+    ids_key = "channels" if pwm else "servo_ids"
+    for wrong in ("channels", "servo_ids"):
+        if wrong != ids_key and wrong in keys:
+            reader.error(keys[wrong], f"expected {ids_key} for {'a PWM board' if pwm else 'bus servos'}"
+                         f" (a device with{'' if pwm else 'out'} board:), found {wrong}")
+    servo: Servos
     try:
         with reader.section():
             grid = reader.optional(keys, "grid", lambda n: _grid(reader, n), Grid())
-            servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
+            if pwm:
+                board = _board(reader, keys["board"])
+                servo = reader.optional(keys, "servo", lambda n: _hobby(reader, n, board),
+                                        HobbyServos(board))
+                if grid.pin_count > PCA9685_CHANNELS:
+                    raise reader.error(keys["grid"], f"expected at most {PCA9685_CHANNELS} pins on "
+                                       f"one PCA9685 board, found {grid.pin_count}")
+            else:
+                servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
     except Invalid:
         return None
-    port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"), SIMULATED_PORT)
+    port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"),
+                           SIMULATED_BOARD_PORT if pwm else SIMULATED_PORT)
     scale = reader.optional(
         keys, "feasibility", lambda n: reader.string(n, "feasibility", ("reject", "scale")),
         "reject",
@@ -69,7 +110,7 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
         Device.delivery_tolerance_ns,
     )
     base = reader.optional(
-        keys, "calibration", lambda n: _calibration(reader, n, "calibration"), _Given()
+        keys, "calibration", lambda n: _calibration(reader, n, "calibration", unit), _Given()
     )
     none: list[tuple[Node, Node]] = []
     overrides: dict[int, _Given] = {}
@@ -77,19 +118,21 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
         keys, "pins", lambda n: reader.items(n, "the per-pin calibration"), none
     ):
         pin = reader.attempt(partial(read_pin, reader, key_node, grid), None)
-        given = reader.attempt(partial(_calibration, reader, value_node, "pin calibration"), None)
+        given = reader.attempt(
+            partial(_calibration, reader, value_node, "pin calibration", unit), None)
         if pin is not None and given is not None:
             overrides[pin] = given
     ids: dict[int, tuple[int, Node]] = {}
     for key_node, value_node in reader.optional(
-        keys, "servo_ids", lambda n: reader.items(n, "servo_ids"), none
+        keys, ids_key, lambda n: reader.items(n, ids_key), none
     ):
         pin = reader.attempt(partial(read_pin, reader, key_node, grid), None)
         servo_id = reader.attempt(
-            partial(reader.integer, value_node, "a servo id", 0, MAX_SERVO_ID), None)
+            partial(reader.integer, value_node, "a channel" if pwm else "a servo id", 0,
+                    PCA9685_CHANNELS - 1 if pwm else MAX_SERVO_ID), None)
         if pin is not None and servo_id is not None:
             ids[pin] = (servo_id, value_node)
-    device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get("servo_ids"))
+    device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get(ids_key), unit)
     if device is None:
         return None
     return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns)
@@ -162,6 +205,56 @@ def _servo(reader: Reader, node: Node) -> ServoSettings:
     return ServoSettings(model, baud, speed, accel, steps)
 
 
+def _board(reader: Reader, node: Node) -> Pca9685Board:
+    keys = reader.mapping(node, {"chip", "address", "osc_hz", "pwm_hz"}, what="board section")
+    d = Pca9685Board()
+    with reader.section():
+        reader.optional(keys, "chip", lambda n: reader.string(n, "the board's chip", ("PCA9685",)),
+                        "PCA9685")
+        address = reader.optional(keys, "address", lambda n: _address(reader, n), d.address)
+        osc_hz = reader.optional(
+            keys, "osc_hz",
+            lambda n: reader.integer(n, "the board's oscillator (Hz; 25000000 nominal, up to "
+                                     "50000000 on EXTCLK)", 1_000_000, 50_000_000), d.osc_hz)
+        pwm_hz = reader.optional(
+            keys, "pwm_hz", lambda n: reader.integer(n, "the PWM rate (Hz)", 24, 1526), d.pwm_hz)
+    return Pca9685Board(address, osc_hz, pwm_hz)
+
+
+def _address(reader: Reader, node: Node) -> int:
+    # Written as a quoted "0x40" (YAML 1.2 reads bare hex as a string; we refuse YAML 1.1 hex).
+    text = reader.string(node, 'the board\'s I2C address ("0x40" to "0x7f")')
+    try:
+        address = int(text, 16) if text.lower().startswith("0x") else int(text)
+    except ValueError:
+        raise reader.error(node, f'expected an I2C address such as "0x40", found {text!r}') from None
+    if not 0x40 <= address <= 0x7F or address == 0x70:
+        raise reader.error(node, "expected a PCA9685 address from 0x40 to 0x7f other than the "
+                           f"all-call 0x70, found {text!r}")
+    return address
+
+
+def _hobby(reader: Reader, node: Node, board: Pca9685Board) -> HobbyServos:
+    keys = reader.mapping(node, {"model", "speed_us_per_s", "dead_band_us", "degrees_per_us"},
+                          what="servo section (hobby servos)")
+    d = HobbyServos(board)
+    with reader.section():
+        model = reader.optional(keys, "model", lambda n: reader.string(n, "the servo model"),
+                                d.model)
+        speed = reader.optional(
+            keys, "speed_us_per_s",
+            lambda n: reader.integer(n, "how fast the servo follows a width change (us/s)", 1,
+                                     1_000_000), d.speed_us_per_s)
+        dead_band = reader.optional(
+            keys, "dead_band_us", lambda n: reader.integer(n, "the dead band (us)", 0, 100),
+            d.dead_band_us)
+        degrees = reader.optional(
+            keys, "degrees_per_us",
+            lambda n: reader.number(n, "the horn's angle per us of width", "deg/us", maximum=1),
+            d.degrees_per_us)
+    return HobbyServos(board, model, speed, dead_band, degrees)
+
+
 def _baud_rate(reader: Reader, node: Node) -> int:
     baud = reader.integer(node, "the baud rate")
     if baud not in BAUD_RATES:
@@ -172,15 +265,18 @@ def _baud_rate(reader: Reader, node: Node) -> int:
     return baud
 
 
-def _calibration(reader: Reader, node: Node, what: str) -> _Given:
-    keys = reader.mapping(node, {"rest_steps", "positions", "limits_steps", "lever_mm"}, what=what)
+def _calibration(reader: Reader, node: Node, what: str, unit: _Unit = STEPS) -> _Given:
+    rest_key, limits_key = f"rest_{unit.suffix}", f"limits_{unit.suffix}"
+    keys = reader.mapping(node, {rest_key, "positions", limits_key, "lever_mm"}, what=what)
     with reader.section():
         rest = reader.optional(
-            keys, "rest_steps",
-            lambda n: (reader.integer(n, "the rest position (steps)", 0, 4095), n), None,
+            keys, rest_key,
+            lambda n: (reader.integer(n, f"the rest position ({unit.what})", unit.low, unit.high),
+                       n), None,
         )
-        positions = reader.optional(keys, "positions", lambda n: _positions(reader, n), None)
-        limits = reader.optional(keys, "limits_steps", lambda n: _limits(reader, n), None)
+        positions = reader.optional(keys, "positions", lambda n: _positions(reader, n, unit),
+                                    None)
+        limits = reader.optional(keys, limits_key, lambda n: _limits(reader, n, unit), None)
         lever_mm = reader.optional(
             keys, "lever_mm",
             lambda n: float(reader.number(n, "the lever length", "mm", maximum=1000)), None,
@@ -188,8 +284,9 @@ def _calibration(reader: Reader, node: Node, what: str) -> _Given:
     return _Given(rest, positions, limits, lever_mm)
 
 
-def _positions(reader: Reader, node: Node) -> tuple[tuple[int, int, Node | None], ...]:
-    pairs = reader.items(node, "positions (pulse width in ms: steps)")
+def _positions(reader: Reader, node: Node,
+               unit: _Unit) -> tuple[tuple[int, int, Node | None], ...]:
+    pairs = reader.items(node, f"positions (pulse width in ms: {unit.what})")
     if len(pairs) > MAX_POSITIONS:
         raise reader.error(
             node, f"expected at most {MAX_POSITIONS} calibrated positions, found {len(pairs)}"
@@ -198,20 +295,22 @@ def _positions(reader: Reader, node: Node) -> tuple[tuple[int, int, Node | None]
     for width_node, position_node in pairs:
         width_ns = reader.attempt(partial(read_width_ns, reader, width_node), None)
         position = reader.attempt(
-            partial(reader.integer, position_node, "a position (steps)", 0, 4095), None
+            partial(reader.integer, position_node, f"a position ({unit.what})", unit.low,
+                    unit.high), None
         )
         if width_ns is not None and position is not None:
             positions.append((width_ns, position, position_node))
     return tuple(positions)
 
 
-def _limits(reader: Reader, node: Node) -> tuple[tuple[int, int], Node]:
-    items = reader.sequence(node, "the limits [min, max] in steps", 2)
+def _limits(reader: Reader, node: Node, unit: _Unit) -> tuple[tuple[int, int], Node]:
+    items = reader.sequence(node, f"the limits [min, max] in {unit.suffix}", 2)
     if len(items) != 2:
         raise reader.error(
-            node, f"expected two limits [min, max] in steps, found {len(items)} values"
+            node, f"expected two limits [min, max] in {unit.suffix}, found {len(items)} values"
         )
-    low, high = (reader.integer(n, "a limit (steps)", 0, 4095) for n in items)
+    low, high = (reader.integer(n, f"a limit ({unit.what})", unit.low, unit.high)
+                 for n in items)
     if low >= high:
         raise reader.error(
             node, f"expected limits [min, max] with min < max, found [{low}, {high}]"
@@ -222,11 +321,12 @@ def _limits(reader: Reader, node: Node) -> tuple[tuple[int, int], Node]:
 def _pin_calibrations(
     reader: Reader,
     grid: Grid,
-    servo: ServoSettings,
+    servo: Servos,
     base: _Given,
     overrides: dict[int, _Given] | None = None,
     ids: dict[int, tuple[int, Node]] | None = None,
     ids_node: Node | None = None,
+    unit: _Unit = STEPS,
 ) -> Device | None:
     """One calibration per pin: the shared one, overridden per pin; every position in limits."""
     overrides = overrides or {}
@@ -235,7 +335,7 @@ def _pin_calibrations(
     ok = True
     for pin in grid.pins:
         given = overrides[pin].over(base) if pin in overrides else base
-        positions = given.positions or tuple((w, p, None) for w, p in DEFAULT_POSITIONS)
+        positions = given.positions or tuple((w, p, None) for w, p in unit.default_positions)
         rest, rest_node = given.rest or (positions[0][1], None)
         # Without explicit limits a pin may go exactly where it is calibrated to go, no further.
         span = [p for _, p, _ in positions] + [rest]
@@ -247,10 +347,12 @@ def _pin_calibrations(
             if not low <= position <= high:
                 reader.error(
                     node or limits_node,
-                    f"pin {pin}: {what} {position} steps is outside its limits [{low}, {high}]",
+                    f"pin {pin}: {what} {position} {unit.suffix} is outside its limits "
+                    f"[{low}, {high}]",
                 )
                 ok = False
-        servo_id = ids.get(pin, (pin, None))[0]
+        # STS ids default to the pin's number; board channels count from 0.
+        servo_id = ids.get(pin, (pin - 1 if unit is WIDTH_US else pin, None))[0]
         pins.append(
             PinCalibration(
                 pin,
@@ -268,7 +370,8 @@ def _pin_calibrations(
             node = ids[calibration.pin][1] if calibration.pin in ids else ids_node
             reader.error(
                 node,
-                f"servo id {calibration.servo_id} drives both pin {seen[calibration.servo_id]} and pin {calibration.pin}",
+                f"{'channel' if unit is WIDTH_US else 'servo id'} {calibration.servo_id} drives "
+                f"both pin {seen[calibration.servo_id]} and pin {calibration.pin}",
             )
             ok = False
         seen[calibration.servo_id] = calibration.pin

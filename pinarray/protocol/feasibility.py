@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pinarray.protocol.model import NS_PER_S, PinCalibration, ServoSettings, Train
+from pinarray.protocol.model import NS_PER_S, PinCalibration, Servos, Train
 
 
 def reachable_steps(
@@ -58,24 +58,26 @@ class Feasibility:
     def amplitude_fraction(self) -> float:
         return 1.0 if self.feasible else self.reachable_steps / self.stroke_steps
 
-    def describe(self, servo: ServoSettings, lever_mm: float) -> str:
+    def describe(self, servo: Servos, lever_mm: float) -> str:
+        unit = servo.position_unit
+
         def angle(steps: float) -> float:
-            return steps * 360.0 / servo.steps_per_turn
+            return servo.degrees(steps)
 
         def travel_mm(steps: float) -> float:
             return lever_mm * math.radians(angle(steps))
 
         return (
             f"pin {self.pin} cannot follow {self.frequency_hz:g} Hz: its stroke of "
-            f"{self.stroke_steps} steps ({angle(self.stroke_steps):.1f} deg, "
+            f"{self.stroke_steps} {unit} ({angle(self.stroke_steps):.1f} deg, "
             f"{travel_mm(self.stroke_steps):.2f} mm) needs at most {self.max_frequency_hz:.2f} Hz; "
-            f"at {self.frequency_hz:g} Hz only {self.reachable_steps:.0f} steps "
+            f"at {self.frequency_hz:g} Hz only {self.reachable_steps:.0f} {unit} "
             f"({angle(self.reachable_steps):.1f} deg, {travel_mm(self.reachable_steps):.2f} mm, "
             f"{self.amplitude_fraction:.0%} of the stroke) are reachable"
         )
 
 
-def check_train(train: Train, calibration: PinCalibration, servo: ServoSettings) -> Feasibility:
+def check_train(train: Train, calibration: PinCalibration, servo: Servos) -> Feasibility:
     """Feasibility of ``train`` on the pin ``calibration`` describes, with ``servo``'s limits."""
     up = calibration.position_for_width(train.up_width_ns)
     down = calibration.position_for_width(train.down_width_ns)

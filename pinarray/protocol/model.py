@@ -42,6 +42,66 @@ class ServoSettings:
         """Acceleration limit in step/s^2, or None for the servo's maximum."""
         return self.acceleration_register * 100 or None
 
+    @property
+    def position_unit(self) -> str:
+        """What a pin's positions count: the servo's encoder steps."""
+        return "steps"
+
+    def degrees(self, steps: float) -> float:
+        """A travel in steps as the horn's angle."""
+        return steps * 360.0 / self.steps_per_turn
+
+
+@dataclass(frozen=True)
+class Pca9685Board:
+    """A PCA9685 16-channel PWM board on an I2C bus (the device's ``port``).
+
+    ``osc_hz`` is this board's oscillator as measured (nominally 25 MHz, boards are off by up
+    to several percent; README: "Measuring a board's oscillator"); ``pwm_hz`` is the pulse
+    rate used when a trial's pulses do not set one (trains of different rates at once).
+    """
+
+    address: int = 0x40
+    osc_hz: int = 25_000_000
+    pwm_hz: int = 50
+
+
+@dataclass(frozen=True)
+class HobbyServos:
+    """Hobby PWM servos (the seed's kind) on a PCA9685 board: a pulse's width sets the angle.
+
+    A pin's positions are pulse widths in microseconds. ``speed_us_per_s`` is how fast the
+    servo follows a change of width (an SG90's 0.1 s per 60 deg, with 1000 us per 90 deg, is
+    about 6667 us/s); ``degrees_per_us`` turns width into horn angle for the lab's reports.
+    """
+
+    board: Pca9685Board = Pca9685Board()
+    model: str = "SG90"
+    speed_us_per_s: int = 6667
+    dead_band_us: int = 8
+    degrees_per_us: Fraction = Fraction(9, 100)
+
+    @property
+    def speed_steps_per_s(self) -> int:
+        """Speed in the pins' position unit (us of pulse width) per second."""
+        return self.speed_us_per_s
+
+    @property
+    def acceleration_steps_per_s2(self) -> None:
+        """Hobby servos state no acceleration: motion is speed-limited."""
+        return None
+
+    @property
+    def position_unit(self) -> str:
+        return "us"
+
+    def degrees(self, width_us: float) -> float:
+        return width_us * float(self.degrees_per_us)
+
+
+# The family of servo a device is built of: STS bus servos, or hobby servos on a PWM board.
+Servos = ServoSettings | HobbyServos
+
 
 @dataclass(frozen=True)
 class PinCalibration:
@@ -76,10 +136,15 @@ SIMULATED_PORT = "sim://"  # a protocol without a port plays on the simulated ar
 
 @dataclass(frozen=True)
 class Device:
-    """The stimulator: grid, servo settings and one calibration per pin."""
+    """The stimulator: grid, servo settings and one calibration per pin.
+
+    ``servo`` says the family: `ServoSettings` (Feetech STS bus servos; a pin's ``servo_id``
+    is its bus id, positions in encoder steps) or `HobbyServos` (a PCA9685 board; a pin's
+    ``servo_id`` is its channel 0-15, positions are pulse widths in microseconds).
+    """
 
     grid: Grid
-    servo: ServoSettings
+    servo: Servos
     pins: tuple[PinCalibration, ...]
     port: str = SIMULATED_PORT
     scale_infeasible: bool = False  # scale strokes the servo cannot follow instead of refusing

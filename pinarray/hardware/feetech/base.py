@@ -40,6 +40,10 @@ class BusSetup:
     def servo_ids(self) -> tuple[int, ...]:
         return tuple(s.servo_id for s in self.servos)
 
+    @property
+    def position_unit(self) -> str:
+        return "steps"
+
     def servo(self, servo_id: int) -> ServoSetup:
         for each in self.servos:
             if each.servo_id == servo_id:

@@ -23,7 +23,14 @@ from typing import TYPE_CHECKING
 from pinarray.clock import Clock
 from pinarray.errors import BusError
 from pinarray.hardware.delivery import DeliveryLedger, PreparedTrial
-from pinarray.hardware.driver import BusStats, PortLost, SafeStopReport, Telemetry
+from pinarray.hardware.driver import (
+    BusStats,
+    PortLost,
+    Pulses,
+    SafeStopReport,
+    Targets,
+    Telemetry,
+)
 from pinarray.hardware.feetech import handshake, packets, safety
 from pinarray.hardware.feetech.base import BusSetup, GoalReading
 from pinarray.hardware.feetech.handover import Handover, handover_of
@@ -40,6 +47,7 @@ from pinarray.hardware.feetech.registers import (
     from_bytes,
     to_bytes,
 )
+from pinarray.hardware.frames import goal_frames
 from pinarray.units import NS_PER_US
 
 if TYPE_CHECKING:
@@ -395,6 +403,13 @@ class FeetechBus:
             raise self._lost(f"re-writing GOAL_POSITION of servo {servo_id}", error) from None
         status = replies.get(servo_id)
         return None if status is None else StatusError(status.error)
+
+    def prepare(self, targets: Targets, pulses: Pulses) -> PreparedTrial:
+        """Bus servos take goal changes: one SYNC WRITE per instant a goal changes."""
+        return goal_frames(self, targets)
+
+    def begin(self, trial: PreparedTrial, onset_ns: int) -> None:
+        """Nothing to ready: the servos hold their goals until a frame changes them."""
 
     def verifier(self, clock: Clock, trial: PreparedTrial, onset_ns: int,
                  ledger: DeliveryLedger) -> Verifier:
