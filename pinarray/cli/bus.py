@@ -80,6 +80,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                      help="simulator only: X times real time (default 0: virtual time, "
                           "nothing waits; 1 = real time, 20 = twenty times faster)")
     p.add_argument("--seed", type=common.seed, default=None, help="seed of the trial order")
+    p.add_argument("--i2c-log", metavar="FILE", type=common.new_file,
+                   help="PWM boards: write every I2C message to FILE as a logic analyser "
+                        "decodes it, one line each: t_ns addr rw data_hex ack (t_ns: when the "
+                        "message's STOP ended, ns from its trial's onset on the player's clock)")
     p.set_defaults(func=_cmd_play)
 
     p = subparsers.add_parser(
@@ -170,7 +174,7 @@ def _cmd_play(args: argparse.Namespace) -> int:
     trials = (plan.trial(args.trial),) if args.trial is not None else plan.trials
     clock = choose_clock(args.port, args.time_scale, paced=True)
     with stop_on_signals(StopRequest()) as stop:
-        rig = Rig(protocol, args.port, args.sim, clock, stop)
+        rig = Rig(protocol, args.port, args.sim, clock, stop, wire_log=args.i2c_log)
         try:
             for warning in rig.warnings:
                 say(f"pinarray: warning: {warning}", error=True)

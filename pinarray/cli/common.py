@@ -151,6 +151,16 @@ def png_path(text: str) -> str:
     return text if text.lower().endswith(".png") else text + ".png"
 
 
+def new_file(text: str) -> str:
+    """A file a command will write as it goes (a log): not a folder, in a folder that exists."""
+    if os.path.isdir(text):
+        raise PinArrayError(f"{text}: cannot write: it is a folder, expected a file name")
+    folder = os.path.dirname(text) or "."
+    if not os.path.isdir(folder):
+        raise PinArrayError(f"{text}: cannot write: no folder {folder!r}")
+    return text
+
+
 class OutputFile:
     """A file a command writes whole or not at all.
 

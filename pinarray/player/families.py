@@ -1,20 +1,28 @@
 """Which driver plays a protocol's device: one entry per family of servo.
 
-Feetech STS bus servos (`pinarray.hardware.feetech`) are the family today. A second family
-(hobby PWM servos on a PCA9685 board: `pinarray.hardware.pca9685`) implements
-`pinarray.hardware.driver.ArrayDriver` in its own package and adds its entry here: how its
-setup follows from the device section, and how it opens a port or its simulator. The rig,
-the session, the journal and the UI stay as they are.
+Two families: Feetech STS bus servos (`pinarray.hardware.feetech`, a device section with
+``servo:`` settings and ``servo_ids``), and hobby PWM servos on a PCA9685 board
+(`pinarray.hardware.pca9685`, a device section with ``board:`` and ``channels``). Each
+implements `pinarray.hardware.driver.ArrayDriver` in its own package; here is how its setup
+follows from the device section, and how it opens a port or its simulator. The rig, the
+session, the journal and the UI stay as they are.
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock
 from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import ArrayDriver, ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
-from pinarray.protocol import Device, HobbyServos, ServoSettings
+from pinarray.protocol import Device, HobbyServos, Pca9685Board, ServoSettings
+from pinarray.protocol.device import SIMULATED_BOARD_PORT
+
+if TYPE_CHECKING:
+    from pinarray.hardware.pca9685.i2c import I2cLink
+    from pinarray.hardware.pca9685.timing import PwmSetup
 
 
 def sts_servos(device: Device) -> ServoSettings:
@@ -60,13 +68,51 @@ def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
     return url
 
 
+def pwm_setup(device: Device) -> PwmSetup:
+    """What a PCA9685 array plays with, from a protocol's device section."""
+    from pinarray.hardware.pca9685.timing import PwmSetup
+
+    servos = device.servo
+    if not isinstance(servos, HobbyServos):
+        raise PinArrayError("this protocol's device is STS bus servos, not a PWM board")
+    board = servos.board
+    return PwmSetup(servo_setups(device), board.address, board.osc_hz, board.pwm_hz,
+                    device.delivery_tolerance_ns)
+
+
+def board_sim_url(url: str | None, board: Pca9685Board) -> str:
+    """A ``sim://pca9685`` URL for the protocol's board: its address, and its oscillator as
+    the protocol states it, unless the URL names its own."""
+    from pinarray.hardware.pca9685.sim import is_pca9685_url
+
+    if url is None or url == SIM_DEFAULT:
+        url = SIMULATED_BOARD_PORT
+    if not is_pca9685_url(url):
+        raise PinArrayError(f"--sim: a PWM board is simulated by a sim://pca9685 URL (e.g. "
+                            f"'sim://pca9685?osc_hz=25300000'), found {url!r}")
+    extra = []
+    if "address=" not in url:
+        extra.append(f"address=0x{board.address:02x}")
+    if "osc_hz=" not in url:
+        extra.append(f"osc_hz={board.osc_hz}")
+    if extra:
+        url += ("&" if "?" in url else "?") + "&".join(extra)
+    return url
+
+
 def open_array(device: Device, port: str | None, sim_url: str | None,
-               clock: Clock) -> ArrayDriver:
+               clock: Clock, wire_log: str | None = None) -> ArrayDriver:
     """The device's servos on ``port`` (or simulated, as ``sim_url`` says), not yet checked.
 
-    The caller runs the handshake (`ArrayDriver.check_servos`, then `hold`) and closes the
-    driver if it fails.
+    ``wire_log``: a file for every message on the wire, as a logic analyser decodes it (PWM
+    boards: I2C). The caller runs the handshake (`ArrayDriver.check_servos`, then `hold`) and
+    closes the driver if it fails.
     """
+    if isinstance(device.servo, HobbyServos):
+        return _open_board(device, device.servo, port, sim_url, clock, wire_log)
+    if wire_log is not None:
+        raise PinArrayError("--i2c-log: this protocol's servos are STS bus servos (serial, no "
+                            "I2C); the log is for a PCA9685 board's protocol")
     from pinarray.hardware.feetech.transport import open_bus
 
     setup = bus_setup(device)
@@ -74,3 +120,26 @@ def open_array(device: Device, port: str | None, sim_url: str | None,
     bus = open_bus(url, None, clock, baud_rate=sts_servos(device).baud_rate)
     bus.setup = setup
     return bus
+
+
+def _open_board(device: Device, servos: HobbyServos, port: str | None, sim_url: str | None,
+                clock: Clock, wire_log: str | None) -> ArrayDriver:
+    from pinarray.hardware.pca9685.driver import Pca9685Array
+    from pinarray.hardware.pca9685.i2c_log import I2cLog
+
+    setup = pwm_setup(device)
+    log = I2cLog(wire_log) if wire_log is not None else None
+    try:
+        if port:
+            from pinarray.hardware.pca9685.smbus_link import SmbusLink
+
+            link: I2cLink = SmbusLink(port, clock)
+        else:
+            from pinarray.hardware.pca9685.sim import SimI2cLink
+
+            link = SimI2cLink(board_sim_url(sim_url, servos.board), clock)
+    except BaseException:
+        if log is not None:
+            log.close()
+        raise
+    return Pca9685Array(link, setup, clock, servos.speed_us_per_s, log, wire_log)

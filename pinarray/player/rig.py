@@ -80,11 +80,13 @@ class Rig:
         Play in a player process of its own (None: whenever the port is a device).
     realtime : bool
         Ask for real-time priority in the player process.
+    wire_log : str or None
+        A file for every message on the wire as a logic analyser decodes it (PWM boards).
     """
 
     def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
                  stop: StopRequest | None = None, *, isolate: bool | None = None,
-                 realtime: bool = True):
+                 realtime: bool = True, wire_log: str | None = None):
         self.protocol = protocol
         self.stop = stop or StopRequest()
         self.bus_clock = clock
@@ -93,7 +95,7 @@ class Rig:
         # plays in the simulator's own time (see `_present`), where the host's delays cost
         # nothing, at any --speed.
         self.tolerance_ns = protocol.device.delivery_tolerance_ns
-        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock)
+        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, wire_log)
         self.setup = self.bus.setup
         self.url = self.bus.port_name
         try:

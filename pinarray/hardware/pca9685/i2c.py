@@ -60,6 +60,18 @@ class I2cNack(BusError):
 Listener = Callable[[I2cMessage], None]
 
 
+class MessageLog(Protocol):
+    """Where a driver's messages go as a logic analyser would show them (``--i2c-log``)."""
+
+    def __call__(self, message: I2cMessage) -> None: ...
+
+    def trial_onset(self, onset_ns: int) -> None:
+        """A trial's onset on the player's clock: its messages are timed from it."""
+        ...
+
+    def close(self) -> None: ...
+
+
 class I2cLink(Protocol):
     """An I2C bus master: real (i2c-dev) or simulated."""
 
