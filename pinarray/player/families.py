@@ -125,10 +125,13 @@ def open_array(device: Device, port: str | None, sim_url: str | None,
 def _open_board(device: Device, servos: HobbyServos, port: str | None, sim_url: str | None,
                 clock: Clock, wire_log: str | None) -> ArrayDriver:
     from pinarray.hardware.pca9685.driver import Pca9685Array
-    from pinarray.hardware.pca9685.i2c_log import I2cLog
 
     setup = pwm_setup(device)
-    log = I2cLog(wire_log) if wire_log is not None else None
+    log = None
+    if wire_log is not None:
+        from pinarray.hardware.pca9685.i2c_log import I2cLog
+
+        log = I2cLog(wire_log)
     try:
         if port:
             from pinarray.hardware.pca9685.smbus_link import SmbusLink
