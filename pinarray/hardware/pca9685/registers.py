@@ -36,12 +36,21 @@ RESTART = 0x80
 EXTCLK = 0x40
 AI = 0x20  # register auto-increment
 SLEEP = 0x10
+SUB1, SUB2, SUB3 = 0x08, 0x04, 0x02  # answer SUBADR1..3
 ALLCALL = 0x01
 MODE1_RESET = SLEEP | ALLCALL  # 0x11 at power-up
 # MODE2 bits
 OCH = 0x08  # 0: outputs change on STOP, 1: on ACK
 OUTDRV = 0x04  # totem-pole outputs (the reset value)
 MODE2_RESET = OUTDRV
+MODE2_WRITABLE = 0x1F  # bits 7:5 are reserved and read 0
+# SUBADR1..3 and ALLCALLADR at power-up, 8-bit form (7-bit address << 1): 0x71, 0x72, 0x74, 0x70
+SUBADR_RESET = (0xE2, 0xE4, 0xE8)
+ALLCALLADR_RESET = 0xE0
+LED_HIGH_WRITABLE = 0x1F  # LEDn_ON_H / LEDn_OFF_H bits 7:5 are reserved and read 0
+# The software reset: general call address 0x00, then this one data byte.
+SWRST_ADDRESS = 0x00
+SWRST_BYTE = 0x06
 
 FULL_BIT = 0x10  # bit 4 of LEDn_ON_H (full on) and of LEDn_OFF_H (full off, which wins)
 COUNTS = 4096
