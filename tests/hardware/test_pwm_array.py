@@ -1,0 +1,90 @@
+"""The seed's own rig: hobby servos on a PCA9685 board play the localisation train as pulses.
+
+Each pulse of the schedule is one period of the board, counted from the trial's onset; the
+simulated board (datasheet-faithful, `board_sim`) says what its pins really carried.
+"""
+
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+from pinarray.clock import VirtualClock
+from pinarray.errors import PinArrayError
+from pinarray.hardware.pca9685.registers import COUNTS, period_ns
+from pinarray.plan import make_plan
+from pinarray.player.rig import Rig
+from pinarray.protocol.load import load_protocol, parse_protocol
+from pinarray.schedule import compile_trial
+
+PROTOCOL = Path(__file__).parents[2] / "protocols" / "localisation_pwm.yaml"
+
+
+def _trial(protocol, frequency_hz):
+    plan = make_plan(protocol, 0)
+    return next(t for t in plan.trials if t.condition.frequency_hz == frequency_hz)
+
+
+def _board_pulses(rig, pin, onset_ns, end_ns):
+    channel = protocol_channel(rig, pin)
+    board = rig.bus.link.board(rig.bus.setup.address)
+    return board.pulses(channel, onset_ns, onset_ns + end_ns)
+
+
+def protocol_channel(rig, pin):
+    return next(s.servo_id for s in rig.setup.servos if s.pin == pin)
+
+
+@pytest.mark.parametrize("frequency_hz", [3, 5, 10])
+def test_every_pulse_of_the_train_leaves_the_board_in_its_own_period_at_its_width(frequency_hz):
+    protocol = load_protocol(PROTOCOL)
+    planned = _trial(protocol, frequency_hz)
+    schedule = compile_trial(protocol, planned)
+    with Rig(protocol, None, "sim://pca9685?osc_hz=25300000", VirtualClock()) as rig:
+        presentation = rig.present(schedule)
+        pin = planned.condition.pin
+        # the board's periods are 0.4 % long: its last pulses of the train leave after end_ns
+        carried = _board_pulses(rig, pin, presentation.onset_ns, schedule.end_ns * 101 // 100)
+        trial = rig.reports[-1]
+    assert presentation.delivery.delivered, presentation.delivery.problem
+    mine = schedule.pulses.pin == pin
+    scheduled_widths = schedule.pulses.width_ns[mine]
+    assert len(carried) >= len(scheduled_widths)
+    rate = Fraction(frequency_hz * 10)
+    prescale = round(Fraction(25_300_000) / (COUNTS * rate)) - 1
+    period = period_ns(25_300_000, prescale)
+    tick = period / COUNTS
+    calibration = protocol.device.calibration(pin)
+    for k, ((start, width), nominal) in enumerate(zip(carried, scheduled_widths, strict=False)):
+        # in its own period of the board, counted from onset
+        assert k * period - 1 < start - presentation.onset_ns < (k + 1) * period  # floored ns
+        wanted_ns = calibration.position_for_width(int(nominal)) * 1000
+        assert abs(width - wanted_ns) <= tick / 2 + 1, (k, width, wanted_ns)
+    assert trial.delivery.confirmed == trial.delivery.scheduled
+
+
+def test_a_board_whose_period_drifts_past_the_tolerance_is_refused_with_what_to_change():
+    text = PROTOCOL.read_text().replace("delivery_tolerance_ms: 40", "delivery_tolerance_ms: 10")
+    protocol = parse_protocol(text, "strict.yaml")
+    schedule = compile_trial(protocol, _trial(protocol, 10))
+    with Rig(protocol, None, None, VirtualClock()) as rig, \
+            pytest.raises(PinArrayError, match=r"37\.6 ms from the schedule.*at most 2\.6 s"):
+        rig.present(schedule)
+
+
+def test_idle_pins_hold_rest_and_after_the_stop_no_channel_carries_pulses():
+    protocol = load_protocol(PROTOCOL)
+    planned = _trial(protocol, 10)
+    schedule = compile_trial(protocol, planned)
+    clock = VirtualClock()
+    rig = Rig(protocol, None, None, clock)
+    presentation = rig.present(schedule)
+    idle = next(p for p in range(1, 17) if p != planned.condition.pin)
+    held = _board_pulses(rig, idle, presentation.onset_ns, schedule.end_ns)
+    widths = {w for _, w in held}
+    assert len(held) >= 996 and all(abs(w - 1_500_000) < 3_000 for w in widths)
+    board = rig.bus.link.board(rig.bus.setup.address)
+    safe = rig.close()
+    assert safe.complete
+    after = clock.now_ns()
+    assert all(board.pulses(ch, after, after + 1_000_000_000) == [] for ch in range(16))
