@@ -203,10 +203,28 @@ def _cmd_play(args: argparse.Namespace) -> int:
     return 0
 
 
+def chosen_array(args: argparse.Namespace, command: str, device) -> str:
+    """`chosen_bus` for a protocol's device, whichever family it is."""
+    from pinarray.errors import PinArrayError
+    from pinarray.player.families import board_sim_url, bus_setup
+    from pinarray.protocol import HobbyServos
+
+    if not isinstance(device.servo, HobbyServos):
+        return chosen_bus(args, command, bus_setup(device).servo_ids)
+    if args.port:
+        return args.port
+    if args.sim is None:
+        raise PinArrayError(
+            f"{command}: which board? add --port PATH for a real one (its I2C bus, e.g. "
+            "--port /dev/i2c-1), or --sim to rehearse on a simulated one")
+    url = board_sim_url(args.sim, device.servo.board)
+    say(f"SIMULATED board ({url}): no real servo is touched")
+    return url
+
+
 def _cmd_timing(args: argparse.Namespace) -> int:
 
     from pinarray.errors import PinArrayError
-    from pinarray.player.families import bus_setup
     from pinarray.player.rig import Rig, choose_clock
     from pinarray.protocol.load import load_protocol, parse_protocol
     from pinarray.stop import StopRequest, stop_on_signals
@@ -214,7 +232,7 @@ def _cmd_timing(args: argparse.Namespace) -> int:
     if args.seconds is not None and not 0.1 <= args.seconds <= 600:
         raise PinArrayError(f"--seconds: expected 0.1 to 600, found {args.seconds:g}")
     protocol = load_protocol(args.file) if args.file else parse_protocol(DEFAULT_DEVICE_TEXT, "<default>")
-    chosen_bus(args, "timing", bus_setup(protocol.device).servo_ids)
+    chosen_array(args, "timing", protocol.device)
     with stop_on_signals(StopRequest()) as stop:
         rig = Rig(protocol, args.port, args.sim, choose_clock(args.port, None), stop)
         try:
