@@ -19,7 +19,9 @@ arrays, with no schedule-length temporaries. Servo targets change at the same fe
 every cycle, so they are read off the pulse times with strided slices.
 
 Past 400 lines on purpose: the exact-arithmetic compiler for trains, waves and their merge;
-its parts share the same index arithmetic and are property-tested as one.
+its parts share the same index arithmetic and are property-tested as one. Its two samplers for
+a DAQ (`render_dense`, and `daq_words` a block at a time) share the rule of which sample a
+pulse covers.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from pinarray.errors import PinArrayError
 from pinarray.protocol import Device, PinDrive, Protocol, Train
 from pinarray.protocol.drives import check_no_overlap, trial_drives
 from pinarray.protocol.feasibility import check_train
+from pinarray.units import NS_PER_S
 
 __all__ = [
     "Frame",
@@ -45,6 +48,9 @@ __all__ = [
     "check_no_overlap",
     "compile_drives",
     "compile_trial",
+    "DAQ_LINES",
+    "daq_sample_count",
+    "daq_words",
     "pulse_indices",
     "render_dense",
     "train_pulses",
@@ -468,6 +474,58 @@ def render_dense(
     np.add.at(edges, (rows, np.minimum(stop, samples)), -1)
     out[:] = np.cumsum(edges, axis=1)[:, :samples] > 0
     return out
+
+
+# The DAQ's digital lines: pin n drives line n - 1, one bit of a uint16 sample.
+DAQ_LINES = 16
+
+
+def daq_sample_count(end_ns: int, sample_rate_hz: int) -> int:
+    """Samples of a trial on the DAQ's lines: every instant ``n / sample_rate_hz`` s from its
+    onset up to and including its end ``end_ns``, at which every pulse is over.
+
+    One more than `render_dense` gives where the end falls on a sample instant, and never
+    fewer: the last sample is low on every line, so a finite task leaves the lines low.
+    """
+    return end_ns * sample_rate_hz // NS_PER_S + 1
+
+
+def daq_words(
+    pulses: PulseList, sample_rate_hz: int, count: int, block: int = 1 << 18
+) -> Iterator[np.ndarray]:
+    """Samples 0 to ``count - 1`` of a trial for a DAQ's 16 lines, ``block`` at a time.
+
+    Each sample is a uint16 word, bit ``pin - 1`` high while a pulse of that pin covers the
+    sample's instant: `render_dense`'s rule, exact in integers. Memory is a few ``block``-sized
+    arrays whatever ``count`` is; only the pulses that reach a block are looked at.
+    """
+    if sample_rate_hz <= 0:
+        raise PinArrayError(f"sample rate must be a positive number of Hz, found {sample_rate_hz}")
+    if len(pulses) and not 1 <= int(pulses.pin.min()) <= int(pulses.pin.max()) <= DAQ_LINES:
+        outside = int(pulses.pin.max()) if pulses.pin.max() > DAQ_LINES else int(pulses.pin.min())
+        raise PinArrayError(
+            f"expected pins 1 to {DAQ_LINES}, one per line of the DAQ's uint16 samples, "
+            f"found pin {outside}"
+        )
+    # Pulses of one pin never overlap (drives of a pin do not, and no width exceeds its
+    # period), nor do their spans of samples: so each pin's bit is added and taken away once
+    # per pulse, and a running sum of those steps is the word.
+    widest_ns = int(pulses.width_ns.max(initial=0))
+    for a in range(0, count, block):
+        b = min(count, a + block)
+        # Pulses whose first sample is before b, and that may still be high at a.
+        low = np.searchsorted(pulses.start_ns, a * NS_PER_S // sample_rate_hz - widest_ns,
+                              side="right")
+        high = np.searchsorted(pulses.start_ns, (b - 1) * NS_PER_S // sample_rate_hz,
+                               side="right")
+        start_ns = pulses.start_ns[low:high]
+        first = _first_sample_at_or_after(start_ns, sample_rate_hz) - a
+        stop = _first_sample_at_or_after(start_ns + pulses.width_ns[low:high], sample_rate_hz) - a
+        bits = np.left_shift(1, pulses.pin[low:high].astype(np.int32) - 1)
+        steps = np.zeros(b - a + 1, dtype=np.int32)
+        np.add.at(steps, np.clip(first, 0, b - a), bits)
+        np.add.at(steps, np.clip(stop, 0, b - a), -bits)
+        yield np.cumsum(steps[:-1], dtype=np.int32).astype("<u2")
 
 
 def _first_sample_at_or_after(time_ns: np.ndarray, sample_rate_hz: int) -> np.ndarray:

@@ -15,6 +15,11 @@ from pinarray.cli import common
 # them is refused by the plan with the plan's own range.
 MAX_TRIAL_NUMBER = 1_000_000
 
+# `compile --daq-rate`: whole Hz, so that every sample instant is exact in integer ns
+# arithmetic; NI's X-series cards time digital output at up to 10 MHz; a servo pulse needs far less (1 MHz puts each
+# edge within 1 us).
+MAX_DAQ_RATE_HZ = 10_000_000
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser("validate", help="check protocol files; one line per problem")
@@ -35,6 +40,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--targets",
         help="also write servo target changes (trial,pin,time_ns,position_steps), CSV or .npz",
+    )
+    p.add_argument(
+        "--daq-rate", type=common.count(1, MAX_DAQ_RATE_HZ), metavar="HZ",
+        help="write instead the samples of a DAQ card's 16 digital lines at HZ samples a second "
+        "(a whole number, 1 Hz to 10 MHz) to --out FILE.npz: `samples` (uint16, bit n-1 = pin "
+        "n), `sample_rate_hz`, and per trial `trial_first_sample`, `trial_sample_count` and its "
+        "condition (`trial_pin`, `trial_frequency_hz`, ...; `plan` as JSON) in plan order. "
+        "Sample k is at k/HZ s from the trial's onset and is high while a pulse covers that "
+        "instant, so each edge is up to one sample late. The trials' samples lie back to back "
+        "with no inter-trial interval (a sitting waits for the answer): play each trial's run "
+        "as one finite hardware-timed task at its onset; its last sample is low on every line",
     )
     p.add_argument(
         "--allow-long",
@@ -245,34 +261,58 @@ def _compile(args: argparse.Namespace) -> int:
     from pinarray.protocol.load import load_protocol
     from pinarray.schedule import compile_trial
 
+    if args.daq_rate is not None:
+        from pinarray.cli.daq_samples import DaqSamples, check_out
+
+        check_out(args.out)
     protocol = load_protocol(args.file, long_trials=args.allow_long)
     plan = make_plan(protocol, args.seed)
     tables: list[_CsvTable | _NpzTable] = []
+    outputs: list[common.OutputFile] = []
+    daq = None
     pulses = 0
-    try:
-        tables.append(_table(args.out, PULSE_COLUMNS))
-        if args.targets:
-            tables.append(_table(args.targets, TARGET_COLUMNS))
+
+    def compiled():
+        nonlocal pulses
         for planned in plan.trials:
             schedule = compile_trial(protocol, planned)
             p = schedule.pulses
-            tables[0].add(planned.trial, p.pin, p.start_ns, p.width_ns)
+            if daq is None:
+                tables[0].add(planned.trial, p.pin, p.start_ns, p.width_ns)
             pulses += len(p)
             if args.targets:
                 t = schedule.targets
-                tables[1].add(planned.trial, t.pin, t.time_ns, t.position_steps)
+                tables[-1].add(planned.trial, t.pin, t.time_ns, t.position_steps)
+            yield planned, schedule
+
+    try:
+        if args.daq_rate is None:
+            tables.append(_table(args.out, PULSE_COLUMNS))
+            outputs.append(tables[-1].output)
+        else:
+            daq = DaqSamples(args.out, protocol, plan, args.daq_rate)
+            outputs.append(daq.output)
+        if args.targets:
+            tables.append(_table(args.targets, TARGET_COLUMNS))
+            outputs.append(tables[-1].output)
+        if daq is None:
+            for _ in compiled():
+                pass
+        else:
+            daq.write(compiled())  # the samples are streamed as each trial is compiled
         for table in tables:
             table.finish()
         # Put in place only once every one is written: a failed one leaves none of them.
-        for table in tables:
-            table.output.commit()
+        for output in outputs:
+            output.commit()
     finally:
-        for table in tables:
-            table.output.discard()  # nothing left of a file not finished
-    print(
-        f"{args.file}: {len(plan)} trials, {pulses} pulses, seed {plan.seed} -> {args.out}",
-        file=sys.stderr,
-    )
+        for output in outputs:
+            output.discard()  # nothing left of a file not finished
+    what = f"{args.out}" if daq is None else (
+        f"{args.out}: {daq.total:,} samples at {args.daq_rate:,} Hz (each edge up to one "
+        f"sample, {1e6 / args.daq_rate:g} us, late)")
+    print(f"{args.file}: {len(plan)} trials, {pulses} pulses, seed {plan.seed} -> {what}",
+          file=sys.stderr)
     return 0
 
 
