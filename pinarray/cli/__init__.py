@@ -29,6 +29,7 @@ COMMANDS = {
     "protocols": ("validate", "compile", "preview", "plan"),
     "bus": ("play", "timing", "scan", "sim-serve"),
     "servos": ("servos",),
+    "pwm": ("pwm",),
     "batch": ("batch",),
     "analysis": ("analyse", "power"),
     "softness": ("softness",),

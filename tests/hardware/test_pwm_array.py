@@ -88,3 +88,24 @@ def test_idle_pins_hold_rest_and_after_the_stop_no_channel_carries_pulses():
     assert safe.complete
     after = clock.now_ns()
     assert all(board.pulses(ch, after, after + 1_000_000_000) == [] for ch in range(16))
+
+
+def test_a_scan_lists_each_board_on_the_bus_asleep_as_it_powers_up_and_leaves_all_call_alone(
+        capsys):
+    from pinarray.cli import main
+
+    assert main(["pwm", "scan", "--sim", "sim://pca9685?address=0x40,0x7f"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("SIMULATED")
+    assert [line[:4] for line in lines[1:3]] == ["0x40", "0x7f"]
+    assert "asleep" in lines[1] and "prescale 30" in lines[1]
+    assert lines[-1].startswith("2 board(s) answer")
+
+
+def test_a_scan_of_a_bus_without_boards_says_what_to_check_and_exits_3(capsys):
+    from pinarray.cli import main
+
+    assert main(["pwm", "scan", "--sim", "sim://pca9685?nack=1"]) == 3  # nobody acknowledges
+    assert "check power, SDA/SCL" in capsys.readouterr().out
+    assert main(["pwm", "scan", "--port", "/nonexistent/i2c-9"]) == 2
+    assert "i2c-9" in capsys.readouterr().err
