@@ -33,8 +33,10 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     from pinarray.clock import MonotonicClock
     from pinarray.errors import PinArrayError
     from pinarray.hardware.pca9685.bringup import scan
+    from pinarray.hardware.pca9685.i2c import I2cLink
 
     clock = MonotonicClock()
+    link: I2cLink
     if args.port:
         from pinarray.hardware.pca9685.smbus_link import SmbusLink
 

@@ -109,3 +109,55 @@ def test_a_scan_of_a_bus_without_boards_says_what_to_check_and_exits_3(capsys):
     assert "check power, SDA/SCL" in capsys.readouterr().out
     assert main(["pwm", "scan", "--port", "/nonexistent/i2c-9"]) == 2
     assert "i2c-9" in capsys.readouterr().err
+
+
+def _decode_log(lines, channel):
+    """From a logic analyser's view alone: the prescale and the RESTART that start the trial's
+    counter, and the width (counts) the channel's registers hold for each period after it."""
+    prescale, restart_ns, width, changes = None, None, None, []
+    for line in lines:
+        t_ns, address, rw, data, ack = line.split()
+        raw = bytes.fromhex(data)
+        if rw != "w" or ack != "ack" or address != "0x40" or not raw:
+            continue
+        t = int(t_ns)
+        register, values = raw[0], raw[1:]
+        if register == 0xFE and values and t < 0:
+            prescale = values[0]
+        elif register == 0x00 and values and values[0] & 0x80 and t <= 1_000_000:
+            restart_ns = t  # the counter's period 0 begins here
+        first = 0x06 + 4 * channel
+        if 0x06 <= register <= first and register + len(values) >= first + 4:
+            on_l, on_h, off_l, off_h = values[first - register:first - register + 4]
+            counts = ((off_h & 0x0F) << 8 | off_l) - ((on_h & 0x0F) << 8 | on_l)
+            if restart_ns is None:
+                width = counts % 4096  # in place before the counter starts
+            else:
+                changes.append((t, counts % 4096))
+    return prescale, restart_ns, width, changes
+
+
+def test_the_i2c_log_shows_each_pulse_of_the_schedule_on_its_channel_to_the_count_and_period(
+        tmp_path, capsys):
+    from pinarray.cli import main
+
+    log = tmp_path / "log.txt"
+    protocol = load_protocol(PROTOCOL)
+    plan = make_plan(protocol, 7)
+    number = next(t.trial for t in plan.trials if t.condition.frequency_hz == 10)
+    assert main(["play", str(PROTOCOL), "--sim", "sim://pca9685?osc_hz=25300000",
+                 "--seed", "7", "--trial", str(number), "--i2c-log", str(log)]) == 0
+    planned = plan.trial(number)
+    pin = planned.condition.pin
+    schedule = compile_trial(protocol, planned)
+    prescale, restart_ns, width, changes = _decode_log(log.read_text().splitlines(), pin - 1)
+    assert prescale == 61 and abs(restart_ns) < 1_000_000
+    period = Fraction(4096 * (prescale + 1) * 10**9, 25_300_000)
+    tick = period / 4096
+    mine = schedule.pulses.pin == pin
+    for k, nominal in enumerate(schedule.pulses.width_ns[mine].tolist()):
+        begins = restart_ns + k * period
+        while changes and changes[0][0] < begins:  # written in an earlier period: latched
+            width = changes.pop(0)[1]
+        wanted_us = protocol.device.calibration(pin).position_for_width(nominal)
+        assert abs(width * tick - wanted_us * 1000) <= tick / 2, (k, width, wanted_us)

@@ -209,6 +209,7 @@ class Pca9685Array:
         self.prescale = trial.rate.prescale
         self.on_counts = {p.channel: p.on_count for p in trial.predictions}
         if self.log is not None:
+            self.log.trial_end()  # the last trial's lines on disk
             self.log.trial_onset(onset_ns)
         self._start(trial.rate.prescale, trial.first_blocks, onset_ns)
         for change in trial.changes[:trial.frames[0].first_change if trial.frames else None]:
@@ -316,7 +317,7 @@ class Pca9685Handover:
         from pinarray.hardware.pca9685.smbus_link import SmbusLink
 
         log = I2cLog(self.log_path, append=True) if self.log_path is not None else None
-        board = Pca9685Array(SmbusLink.from_descriptor(fd, self.port_name, clock), self.setup,
+        board = Pca9685Array(SmbusLink(fd, clock, fd=True), self.setup,
                              clock, self.speed_us_per_s, log, self.log_path)
         board.warnings.clear()
         return board

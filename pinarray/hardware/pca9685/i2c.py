@@ -69,6 +69,10 @@ class MessageLog(Protocol):
         """A trial's onset on the player's clock: its messages are timed from it."""
         ...
 
+    def trial_end(self) -> None:
+        """What was written so far goes to disk."""
+        ...
+
     def close(self) -> None: ...
 
 

@@ -27,9 +27,10 @@ DEFAULT_MAX_HELD = 65_536
 class I2cLog:
     """A listener for an `I2cLink` writing the log file at ``path``."""
 
-    def __init__(self, path: str | Path, max_held: int = DEFAULT_MAX_HELD):
+    def __init__(self, path: str | Path, max_held: int = DEFAULT_MAX_HELD, append: bool = False):
+        """``append``: add to the file (the player process, beside the parent's lines)."""
         try:
-            self._file = open(path, "w", encoding="ascii")  # closed by close()
+            self._file = open(path, "a" if append else "w", encoding="ascii")  # close()
         except OSError as error:
             raise ResultsError(f"cannot write the I2C log {path}: {error.strerror}") from None
         self._path = path
