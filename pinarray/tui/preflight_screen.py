@@ -14,6 +14,7 @@ from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech import packets
 from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import Register
+from pinarray.hardware.pca9685.driver import Pca9685Array
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
 from pinarray.tui.confirm import Confirm
@@ -165,11 +166,14 @@ class PreflightScreen(KeyNotices, Screen):
     # -- results, on the UI thread -----------------------------------------------------------
 
     def _connected(self, readings, note: str) -> None:
+        bus = self.sitting.connected().bus
+        if isinstance(bus, Pca9685Array):
+            self._board_connected(bus, note)
+            return
         table = self.query_one(DataTable)
         table.clear()
         by_id = {t.servo_id: t for t in readings}
         model = self.request.protocol.device.servo.model
-        bus = self.sitting.connected().bus
         # Return delays are the Feetech family's (read by its handshake); others show none.
         delays_ns = bus.link.return_delay_ns if isinstance(bus, FeetechBus) else {}
         for servo in self.sitting.connected().setup.servos:
@@ -201,6 +205,27 @@ class PreflightScreen(KeyNotices, Screen):
         if note:
             text += f" ({note})"
         self._status(text, bool(faulty))
+        self._ready(True)
+
+    def _board_connected(self, board: Pca9685Array, note: str) -> None:
+        """A PWM board: hobby servos report nothing, so the table says what each pin is sent."""
+        table = self.query_one(DataTable)
+        table.clear()
+        model = self.request.protocol.device.servo.model
+        for servo in board.setup.servos:
+            table.add_row(f"ch {servo.servo_id}", str(servo.pin), "no feedback", model,
+                          f"{servo.rest_steps} us", "", "", "", "")
+        self.query_one("#lower-delay", Button).display = False
+        where = self.request.port or "the simulated board"
+        setup = board.setup
+        text = (f"Connected to {where}: PCA9685 at 0x{setup.address:02x}, its oscillator "
+                f"{setup.osc_hz / 1e6:g} MHz as the protocol states it, {len(setup.servos)} "
+                f"{model} hobby servos holding rest. Hobby servos report nothing back: the "
+                "table shows each pin's channel and rest width, not where it is; each trial's "
+                "board rate and drift are checked before it plays.")
+        if note:
+            text += f" ({note})"
+        self._status(text)
         self._ready(True)
 
     def _failed(self, problem: str) -> None:
