@@ -14,6 +14,7 @@ from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import ArrayDriver, ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
+from pinarray.player.simulators import SimulatedArrays
 from pinarray.protocol import Device
 
 
@@ -46,16 +47,21 @@ def sim_url_for(url: str | None, servo_ids: tuple[int, ...]) -> str:
 
 
 def open_array(device: Device, port: str | None, sim_url: str | None,
-               clock: Clock) -> ArrayDriver:
+               clock: Clock, simulators: SimulatedArrays | None = None) -> ArrayDriver:
     """The device's servos on ``port`` (or simulated, as ``sim_url`` says), not yet checked.
 
-    The caller runs the handshake (`ArrayDriver.check_servos`, then `hold`) and closes the
-    driver if it fails.
+    ``simulators``: simulated arrays kept from earlier connections; the simulated servos are
+    found there (as they were left) or kept there. The caller runs the handshake
+    (`ArrayDriver.check_servos`, then `hold`) and closes the driver if it fails.
     """
+    from pinarray.hardware.feetech.sim import SimBus
     from pinarray.hardware.feetech.transport import open_bus
 
     setup = bus_setup(device)
     url = port or sim_url_for(sim_url, setup.servo_ids)
-    bus = open_bus(url, None, clock, baud_rate=device.servo.baud_rate)
+    kept = None if simulators is None else simulators.find(url, SimBus)
+    bus = open_bus(url, None, clock, baud_rate=device.servo.baud_rate, sim=kept)
+    if simulators is not None and bus.sim is not None:
+        simulators.keep(url, bus.sim)
     bus.setup = setup
     return bus

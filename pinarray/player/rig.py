@@ -27,6 +27,7 @@ from pinarray.player.playback import (
     play_prepared,
     prepare_trial,
 )
+from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import (
     DEFAULT_PERIOD_NS,
     PortFigures,
@@ -80,11 +81,14 @@ class Rig:
         Play in a player process of its own (None: whenever the port is a device).
     realtime : bool
         Ask for real-time priority in the player process.
+    simulators : SimulatedArrays, optional
+        Simulated arrays kept from earlier connections in this program: the simulated servos
+        are the ones the last connection to the same URL left (None: factory-new ones).
     """
 
     def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
                  stop: StopRequest | None = None, *, isolate: bool | None = None,
-                 realtime: bool = True):
+                 realtime: bool = True, simulators: SimulatedArrays | None = None):
         self.protocol = protocol
         self.stop = stop or StopRequest()
         self.bus_clock = clock
@@ -93,7 +97,7 @@ class Rig:
         # plays in the simulator's own time (see `_present`), where the host's delays cost
         # nothing, at any --speed.
         self.tolerance_ns = protocol.device.delivery_tolerance_ns
-        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock)
+        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, simulators)
         self.setup = self.bus.setup
         self.url = self.bus.port_name
         try:
