@@ -180,12 +180,12 @@ def test_a_sitting_closed_while_it_connects_leaves_the_new_rig_at_rest_and_close
     made: list[Rig] = []
     closer: list[threading.Thread] = []
 
-    def connecting(*args):
+    def connecting(*args, **kwargs):
         closer.append(threading.Thread(target=sitting.finish))
         closer[0].start()
         while not sitting._closing:  # the close has begun, and waits for this connection
             pass
-        made.append(Rig(*args))
+        made.append(Rig(*args, **kwargs))
         return made[0]
 
     sitting, request = sitting_on(tmp_path, rig_factory=connecting)
@@ -239,3 +239,48 @@ def test_a_scanner_that_fails_to_close_does_not_keep_the_rig_held(tmp_path):
         sitting.release()
     assert sitting.rig is None
     assert not any(s.torque_enabled for s in rig.bus.sim.servos.values())
+
+
+def test_servos_connected_again_are_the_ones_the_release_left_with_their_lowered_return_delay(
+        tmp_path):
+    # Releasing turns torque off and closing the port does nothing to servos: what was written
+    # until power-off stays, on the simulated array as on real servos.
+    sitting, request = sitting_on(tmp_path)
+    with sitting:
+        first = sitting.connect(request)
+        assert set(first.bus.link.return_delay_ns.values()) == {500_000}
+        sitting.lower_return_delay(0)
+        sitting.release()
+        again = sitting.connect(request)
+        assert again is not first and again.bus.sim is first.bus.sim
+        assert set(again.bus.link.return_delay_ns.values()) == {0}  # read by its handshake
+        assert all(s.return_delay_ns == 0 for s in again.bus.sim.servos.values())
+
+
+def test_servos_connected_again_on_a_clock_of_its_own_move_on_it_and_deliver_every_stimulus(
+        tmp_path):
+    # As batch connects each run: a new clock at 0, behind where the first run left the servos.
+    sitting, request = sitting_on(tmp_path)
+    pin = request.protocol.device.pins[0]
+    with sitting:
+        first = sitting.connect(request, VirtualClock())
+        sitting.open_session()
+        sitting.run_scripted(answer_pin_one)
+        assert first.clock.now_ns() > 60 * 1_000_000_000
+        sitting.release()
+        again = sitting.connect(request, VirtualClock())
+        sim = again.bus.sim
+        assert sim is first.bus.sim
+        servo = sim.servos[pin.servo_id]
+        servo.start_recording()
+        start_ns = again.clock.now_ns()
+        sitting.test_pin(pin.pin)
+        # The horn went to and fro on the new clock, while the pin test played.
+        wiggle = [abs(servo.position_at_ns(t) - pin.rest_steps)
+                  for t in range(start_ns, again.clock.now_ns(), 1_000_000)]
+        assert max(wiggle) > 100
+        session = sitting.open_session()
+        sitting.run_scripted(answer_pin_one)
+    assert session.phase is Phase.DONE
+    assert {r.status for r in rows(session)} == {"ok"}
+    assert_at_rest(request.protocol, sim)

@@ -17,6 +17,7 @@ from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import ArrayDriver, ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
+from pinarray.player.simulators import SimulatedArrays
 from pinarray.protocol import Device, HobbyServos, Pca9685Board, ServoSettings
 from pinarray.protocol.device import SIMULATED_BOARD_PORT
 
@@ -101,23 +102,29 @@ def board_sim_url(url: str | None, board: Pca9685Board) -> str:
 
 
 def open_array(device: Device, port: str | None, sim_url: str | None,
-               clock: Clock, wire_log: str | None = None) -> ArrayDriver:
+               clock: Clock, wire_log: str | None = None,
+               simulators: SimulatedArrays | None = None) -> ArrayDriver:
     """The device's servos on ``port`` (or simulated, as ``sim_url`` says), not yet checked.
 
     ``wire_log``: a file for every message on the wire, as a logic analyser decodes it (PWM
-    boards: I2C). The caller runs the handshake (`ArrayDriver.check_servos`, then `hold`) and
-    closes the driver if it fails.
+    boards: I2C). ``simulators``: simulated arrays kept from earlier connections; simulated
+    bus servos are found there (as they were left) or kept there. The caller runs the
+    handshake (`ArrayDriver.check_servos`, then `hold`) and closes the driver if it fails.
     """
     if isinstance(device.servo, HobbyServos):
         return _open_board(device, device.servo, port, sim_url, clock, wire_log)
     if wire_log is not None:
         raise PinArrayError("--i2c-log: this protocol's servos are STS bus servos (serial, no "
                             "I2C); the log is for a PCA9685 board's protocol")
+    from pinarray.hardware.feetech.sim import SimBus
     from pinarray.hardware.feetech.transport import open_bus
 
     setup = bus_setup(device)
     url = port or sim_url_for(sim_url, setup.servo_ids)
-    bus = open_bus(url, None, clock, baud_rate=sts_servos(device).baud_rate)
+    kept = None if simulators is None else simulators.find(url, SimBus)
+    bus = open_bus(url, None, clock, baud_rate=sts_servos(device).baud_rate, sim=kept)
+    if simulators is not None and bus.sim is not None:
+        simulators.keep(url, bus.sim)
     bus.setup = setup
     return bus
 

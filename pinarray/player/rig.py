@@ -27,6 +27,7 @@ from pinarray.player.playback import (
     play_prepared,
     prepare_trial,
 )
+from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import (
     DEFAULT_PERIOD_NS,
     PortFigures,
@@ -82,11 +83,15 @@ class Rig:
         Ask for real-time priority in the player process.
     wire_log : str or None
         A file for every message on the wire as a logic analyser decodes it (PWM boards).
+    simulators : SimulatedArrays, optional
+        Simulated arrays kept from earlier connections in this program: the simulated servos
+        are the ones the last connection to the same URL left (None: factory-new ones).
     """
 
     def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
                  stop: StopRequest | None = None, *, isolate: bool | None = None,
-                 realtime: bool = True, wire_log: str | None = None):
+                 realtime: bool = True, wire_log: str | None = None,
+                 simulators: SimulatedArrays | None = None):
         self.protocol = protocol
         self.stop = stop or StopRequest()
         self.bus_clock = clock
@@ -95,7 +100,8 @@ class Rig:
         # plays in the simulator's own time (see `_present`), where the host's delays cost
         # nothing, at any --speed.
         self.tolerance_ns = protocol.device.delivery_tolerance_ns
-        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, wire_log)
+        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, wire_log,
+                                           simulators)
         self.setup = self.bus.setup
         self.url = self.bus.port_name
         try:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ from pinarray.journal.runs import open_run
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.player.rig import Rig
+from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import Verdict
 from pinarray.protocol import Protocol
 from pinarray.protocol.imaging import EmulatedTrigger, ScannerSync
@@ -53,7 +55,15 @@ MAX_ATTEMPTS = 3
 STOP_WAIT_S = 30.0
 
 T = TypeVar("T")
-RigFactory = Callable[[Protocol, "str | None", "str | None", Clock, StopRequest], Rig]
+
+
+class RigFactory(typing.Protocol):
+    """Makes the `Rig` of a connection: `Rig` itself, or a test's that injects faults."""
+
+    def __call__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
+                 stop: StopRequest, *, simulators: SimulatedArrays) -> Rig: ...
+
+
 Answer = str | int | None  # a pin, a motion answer, or None: nothing felt
 
 
@@ -116,9 +126,9 @@ class Sitting:
     clock_factory : callable
         ``clock_factory(port)`` gives the clock of a new connection (virtual in tests) when
         `connect` is not given one.
-    rig_factory : callable
-        ``rig_factory(protocol, port, sim_url, clock, stop)``; `Rig` unless a test injects
-        faults.
+    rig_factory : RigFactory
+        ``rig_factory(protocol, port, sim_url, clock, stop, simulators=...)``; `Rig` unless a
+        test injects faults.
     lsl_name : str or None
         Send LSL markers on a stream of this name (opened by `markers` or at the first
         connection, kept until the sitting ends); None: no outlet.
@@ -129,6 +139,9 @@ class Sitting:
         self.results_root = Path(results_root)
         self.clock_factory = clock_factory
         self.rig_factory = rig_factory
+        # Simulated servos outlive a connection, as real ones do: Connect again, or the next
+        # run, finds them as the last connection left them.
+        self.simulators = SimulatedArrays()
         self.request: SessionRequest | None = None
         self.rig: Rig | None = None
         self.clock: StoppableClock | None = None
@@ -189,7 +202,8 @@ class Sitting:
             self._open_outlet(self.lsl_name, base)
         # Counted as hardware at work, so that a sitting closed meanwhile waits for it...
         rig = self._working(lambda: self.rig_factory(request.protocol, request.port,
-                                                     request.sim_url, base, self.stop))
+                                                     request.sim_url, base, self.stop,
+                                                     simulators=self.simulators))
         with self._jobs_done:
             closed = self._closing
             if not closed:

@@ -60,6 +60,13 @@ async def to_run_screen(pilot, subject="01", resume=False):
     await settle(pilot)
 
 
+def delay_column(app) -> list[str]:
+    """The pre-flight's return delay of each servo, as shown (µs)."""
+    table = app.screen.query_one("#servos")
+    column = [c.label.plain for c in table.columns.values()].index("return\ndelay (µs)")
+    return [str(table.get_row_at(row)[column]) for row in range(table.row_count)]
+
+
 @pytest.fixture
 def results(tmp_path):
     return tmp_path / "results"

@@ -3,7 +3,7 @@
 from pinarray.player.rig import Rig
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
-from tests.tui.conftest import SIZE, fill_start, make_app, settle
+from tests.tui.conftest import SIZE, delay_column, fill_start, make_app, settle
 
 
 def text(app, selector):
@@ -39,4 +39,27 @@ async def test_rest_and_torque_off_lets_go_of_every_pin_until_connect_again(resu
         await settle(pilot)
         assert isinstance(app.screen, RunScreen)
         await pilot.press("q")
+        await settle(pilot)
+
+
+async def test_connect_again_after_a_release_shows_the_return_delay_lowered_before_it(results):
+    # Torque off and a closed port leave servos as they were until power-off, simulated too.
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        await pilot.click("#lower-delay")
+        await settle(pilot)
+        assert delay_column(app) == ["0"] * 16
+        await pilot.click("#release")
+        await settle(pilot)
+        assert app.sitting.rig is None
+        await pilot.click("#reconnect")
+        await settle(pilot)
+        assert text(app, "#preflight-status").startswith(
+            "Connected to the simulated array: 16 of 16 servos answer")
+        assert delay_column(app) == ["0"] * 16
+        assert "wait longer" not in text(app, "#preflight-status")
+        await pilot.press("escape")
         await settle(pilot)

@@ -12,23 +12,14 @@ from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.protocol.load import load_protocol
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.tui.preflight_screen import PreflightScreen
-from tests.tui.conftest import LOCALISATION, SIZE, fill_start, make_app, settle
+from tests.tui.conftest import LOCALISATION, SIZE, delay_column, fill_start, make_app, settle
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
 # (tests/suite.py), so that a busy machine does not starve the simulated servos.
 pytestmark = pytest.mark.realtime
 
-DELAY_COLUMN = "return\ndelay (µs)"
-
-
 def text(app, selector):
     return str(app.screen.query_one(selector).render())
-
-
-def delay_column(app) -> list[str]:
-    table = app.screen.query_one("#servos")
-    column = [c.label.plain for c in table.columns.values()].index(DELAY_COLUMN)
-    return [str(table.get_row_at(row)[column]) for row in range(table.row_count)]
 
 
 async def test_the_preflight_shows_factory_delays_and_lowers_them_until_power_off(results):

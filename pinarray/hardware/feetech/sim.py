@@ -259,6 +259,24 @@ class SimBus:
             servo.power_cycle(now_ns)
         self._renumber()
 
+    def reopen(self, clock: Clock) -> None:
+        """A new connection opens the port, on ``clock``: the servos were powered all along.
+
+        Closing a port does nothing to servos, and releasing them only turns torque off: RAM
+        and EEPROM stay as they were (a return delay lowered until power-off included). The
+        time since the last connection passed with nobody talking: the servos go on from the
+        new clock's now (moves ended), and the injected faults count from the new port's
+        first packet, as a new bus's would.
+        """
+        if clock is not self.clock:
+            now_ns = clock.now_ns()
+            for servo in self.all_servos():
+                servo.carry_on_at(now_ns)
+            self.clock = clock
+        self._buffer.clear()  # half a packet on a closed port never ends
+        self.packets_received = 0
+        self.packets_rejected = 0
+
     def _at(self, servo_id: int, baud_rate: int | None) -> list[SimServo]:
         """Every servo answering at ``servo_id`` that hears the host's speed."""
         servo = self.servos.get(servo_id)

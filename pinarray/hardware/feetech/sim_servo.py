@@ -344,6 +344,14 @@ class SimServo:
             TrajectorySample(t, self.position_at_ns(t)) for t in range(start, end + 1, STEP_NS)
         ]
 
+    def carry_on_at(self, now_ns: int) -> None:
+        """Go on from ``now_ns`` on another clock's time line, as if time had passed with
+        nobody talking to the servo: a move in progress has ended, the table is as it was."""
+        self._move = at_rest(now_ns, self._move.state_at(self._move.end_ns), self._drive())
+        self._last_ns = now_ns
+        if self._history is not None:
+            self.start_recording()  # the old time line's moves mean nothing on the new one
+
     def advance_to(self, now_ns: int) -> None:
         """Note that time has reached ``now_ns`` (motion needs no stepping)."""
         self._touch(now_ns)

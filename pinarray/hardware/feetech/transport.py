@@ -21,6 +21,7 @@ from pinarray.hardware.feetech.link import FdWire, Latency, Link, PolledWire, Wi
 
 if TYPE_CHECKING:
     from pinarray.hardware.feetech.feetech import FeetechBus
+    from pinarray.hardware.feetech.sim import SimBus
 
 SYSFS_USB_SERIAL = Path("/sys/bus/usb-serial/devices")
 
@@ -58,6 +59,7 @@ def open_bus(
     clock: Clock | None = None,
     baud_rate: int = 1_000_000,
     retries: int = 3,
+    sim: SimBus | None = None,
 ) -> FeetechBus:
     """Open a real or simulated servo bus and, given a `BusSetup`, run the handshake.
 
@@ -73,6 +75,9 @@ def open_bus(
         Wire speed in bit/s (a ``baud=`` key in a sim URL wins).
     retries : int
         Extra attempts after a transient failure.
+    sim : SimBus, optional
+        For a ``sim://`` URL: the simulated servos an earlier connection to it left (they
+        keep their tables, as real servos do); None: new ones, as the URL says.
 
     Returns
     -------
@@ -83,17 +88,20 @@ def open_bus(
     from pinarray.hardware.feetech.feetech import FeetechBus
 
     warnings: list[str] = []
-    sim = None
     if is_sim_url(url):
         from pinarray.hardware.feetech.sim import SimBus, SimSerial
 
         config = parse_sim_url(url)
         clock = clock or VirtualClock()
         baud_rate = config.baud_rate or baud_rate
-        sim = SimBus(config, clock)
+        if sim is None:
+            sim = SimBus(config, clock)
+        else:
+            sim.reopen(clock)
         wire: Wire = PolledWire(SimSerial(sim, clock, baud_rate, port=url), clock, url)
         latency = Latency(timer_ms=0, learns=False)
     else:
+        sim = None  # real servos keep their state themselves
         clock = clock or MonotonicClock()
         wire = _open_device(url, baud_rate, clock)
         latency = Latency(timer_ms=latency_timer_ms(url))

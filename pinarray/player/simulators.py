@@ -1,0 +1,33 @@
+"""The simulated arrays of one program run, kept from one connection to the next.
+
+Real servos keep their state when the port closes: releasing them only turns torque off, and
+what was written to them until power-off (a lowered return delay, a new id) stays. A
+simulated array opened again by the same program (the pre-flight's "Connect again", the next
+run of a batch) is therefore the one the last connection left, not a factory-new one.
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+T = TypeVar("T")
+
+
+class SimulatedArrays:
+    """Simulators by their ``sim://`` URL: one URL, one simulated array for the whole run.
+
+    Each family's entry in `pinarray.player.families` keeps the simulator it opened and finds
+    it again for the next connection to the same URL.
+    """
+
+    def __init__(self) -> None:
+        self._by_url: dict[str, object] = {}
+
+    def find(self, url: str, kind: type[T]) -> T | None:
+        """The ``kind`` of simulator a connection to ``url`` left, or None."""
+        found = self._by_url.get(url)
+        return found if isinstance(found, kind) else None
+
+    def keep(self, url: str, simulator: object) -> None:
+        """Remember ``simulator`` for the next connection to ``url``."""
+        self._by_url[url] = simulator
