@@ -10,6 +10,7 @@ from pinarray.protocol.model import (
     DIRECTION_OF_WAVE,
     NOTHING_FELT,
     NS_PER_S,
+    AnyWave,
     Condition,
     Constraints,
     Design,
@@ -20,12 +21,14 @@ from pinarray.protocol.model import (
     MotionCondition,
     Ordering,
     Paradigm,
+    PathWave,
     PinCalibration,
     PinDrive,
     Protocol,
     ServoSettings,
     Stimulus,
     Train,
+    TrainShape,
     TrainStimulus,
     Wave,
     WaveKind,
@@ -33,8 +36,9 @@ from pinarray.protocol.model import (
 )
 
 __all__ = [
-    "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Direction",
-    "LocalisationCondition", "MotionAnswer", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
-    "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainStimulus", "Wave",
+    "AnyWave", "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Direction",
+    "LocalisationCondition", "MotionAnswer", "MotionCondition", "Ordering", "Paradigm", "PathWave",
+    "PinCalibration",
+    "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainShape", "TrainStimulus", "Wave",
     "WaveKind", "WaveStimulus",
 ]
