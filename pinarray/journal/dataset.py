@@ -42,6 +42,7 @@ from pinarray.journal.records import (
 )
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
 from pinarray.protocol import Direction, MotionAnswer, Paradigm
+from pinarray.protocol.model import answered_directions
 
 BIDS_VERSION = "1.10.0"
 NAME = "pinarray results"
@@ -229,8 +230,7 @@ def _run_levels(manifest: RunManifest) -> dict[str, dict[str, str]]:
         response = {p: f"named pin {p}" for p in pins} | {NOTHING_FELT: "nothing felt"}
     else:
         directions = [e.direction for e in manifest.plan if isinstance(e, MotionEntry)]
-        offered = [*dict.fromkeys(d for d in directions if d != Direction.NONE),
-                   MotionAnswer.NONE, MotionAnswer.UNSURE]
+        offered = [*answered_directions(directions), MotionAnswer.NONE, MotionAnswer.UNSURE]
         response = {str(a): _answer_meaning(a) for a in offered}
         levels["direction"] = {str(d): direction_meaning(d) for d in dict.fromkeys(directions)}
     return levels | {"task": {manifest.task: info.name + (f": {info.description}" if info.description else "")},

@@ -8,6 +8,7 @@ compiler and the player never see a bad number. Frequencies and durations are ex
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from enum import StrEnum
 from fractions import Fraction
@@ -348,6 +349,16 @@ def condition_value(condition: Condition, attribute: str) -> object:
     return getattr(condition, attribute, None)
 
 
+def answered_directions(presented: Iterable[Direction]) -> tuple[Direction, ...]:
+    """The directions a subject may name, of the waves ``presented`` (the no-wave control's
+    none left out): left, right, up and down first in that order, then the directions
+    sequences name, in the order first met."""
+    named = list(presented)
+    usual = (Direction.LEFT, Direction.RIGHT, Direction.UP, Direction.DOWN)
+    return tuple(dict.fromkeys([*(d for d in usual if d in named),
+                                *(d for d in named if d != Direction.NONE)]))
+
+
 @dataclass(frozen=True)
 class Constraints:
     """Ordering constraints on consecutive trials.
@@ -382,13 +393,9 @@ class Design:
 
     @property
     def directions(self) -> tuple[Direction, ...]:
-        """The wave directions the design's trials present (the no-wave control's none left
-        out): what a subject may answer besides none and unsure. Left, right, up and down come
-        first in that order, then the directions sequences name, in the order first listed."""
-        named = [c.direction for c in self.conditions if isinstance(c, MotionCondition)]
-        usual = (Direction.LEFT, Direction.RIGHT, Direction.UP, Direction.DOWN)
-        return tuple(dict.fromkeys([*(d for d in usual if d in named),
-                                    *(d for d in named if d != Direction.NONE)]))
+        """The wave directions the design's trials present: see `answered_directions`."""
+        return answered_directions(
+            c.direction for c in self.conditions if isinstance(c, MotionCondition))
 
     @property
     def motion_answers(self) -> tuple[MotionAnswer, ...]:

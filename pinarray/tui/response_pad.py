@@ -72,8 +72,10 @@ class ResponsePad(Widget, can_focus=True):
         &.-accepting { border: round $accent; }
         &:focus.-accepting { border: heavy $accent; }
         #entry { text-style: bold; }
-        #motion-buttons { height: auto; }
-        #motion-buttons Button { margin-right: 1; }
+        /* rows of four: a protocol's waves may go more ways than one row holds */
+        #motion-buttons { height: auto; layout: grid; grid-size: 4; grid-rows: 3;
+                          grid-gutter: 0 1; }
+        #motion-buttons Button { width: 100%; }
     }
     """
 
