@@ -39,7 +39,8 @@ class PlannedTrial:
         what: dict[str, object] = (
             {"pin": c.pin, "frequency_hz": str(c.frequency_hz), "direction": None, "row": None}
             if isinstance(c, LocalisationCondition)
-            else {"pin": None, "frequency_hz": None, "direction": c.direction.value, "row": c.row})
+            else {"pin": None, "frequency_hz": None, "direction": c.kind.value, "row": c.row}
+            | ({} if c.row is not None else {"pins": list(c.pins), "towards": c.direction.value}))
         return {"trial": self.trial, "block": self.block, "practice": self.practice,
                 "stimulus": c.stimulus} | what
 

@@ -53,7 +53,8 @@ def plan_of(records: list[TrialRecord]) -> tuple[PlanEntry, ...]:
                     **common, pin=r.pin, frequency_hz=Fraction(str(r.frequency_hz))))
             case MotionRecord():
                 entries.setdefault(r.key, MotionEntry(**common, row=r.row,
-                                                      wave=WAVE[r.direction.value]))
+                                                      wave=WAVE[r.direction.value],
+                                                      direction=r.direction))
     return tuple(entries.values())
 
 

@@ -50,7 +50,7 @@ def test_the_seed_localisation_protocol_is_8_pins_by_3_frequencies_of_10_s():
 
 def test_the_seed_apparent_motion_protocol_has_three_configurations_on_one_row():
     protocol = load_protocol(PROTOCOLS / "apparent_motion.yaml")
-    directions = [c.direction for c in protocol.design.conditions]
+    directions = [c.kind for c in protocol.design.conditions]
     assert directions == [WaveKind.RIGHTWARDS, WaveKind.LEFTWARDS, WaveKind.NONE]
     assert {c.row for c in protocol.design.conditions} == {2}
     assert protocol.design.blocks == 2 and protocol.design.repetitions == 2

@@ -54,10 +54,9 @@ from pinarray.protocol.model import Direction, LocalisationCondition, MotionAnsw
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
 
-MOTION_ANSWERS = tuple(MotionAnswer)  # none, left, right, unsure
-# The answer that names a wave's own direction, and the one that names the other.
-_RIGHT_ANSWER = {Direction.LEFT: MotionAnswer.LEFT, Direction.RIGHT: MotionAnswer.RIGHT}
-_WRONG_ANSWER = {Direction.LEFT: MotionAnswer.RIGHT, Direction.RIGHT: MotionAnswer.LEFT}
+# The directions a subject may name when a protocol does not say (the seed's rows).
+ROW_DIRECTIONS = (Direction.LEFT, Direction.RIGHT)
+_OPPOSITE_WORD = {"left": "right", "right": "left", "up": "down", "down": "up"}
 DEFAULT_SUBJECT_SD_LOGIT = 0.5
 _MAX_SUBJECT_SD_LOGIT = 5.0
 _QUADRATURE_NODES = 40  # Gauss-Hermite nodes for averages over subjects
@@ -301,25 +300,41 @@ class ObserverModel:
         correct = np.diag(self.report_probabilities(frequency_hz)[:, 1:])
         return correct.reshape(self.grid.rows, self.grid.columns)
 
-    def motion_probabilities(self, direction: Direction) -> dict[MotionAnswer, float]:
-        """Exact answer probabilities for a wave going ``direction`` (left, right or none).
+    def motion_probabilities(
+        self, direction: Direction | str, directions: Sequence[Direction] = ROW_DIRECTIONS
+    ) -> dict[MotionAnswer, float]:
+        """Exact answer probabilities for a wave going ``direction`` (one of ``directions``,
+        the ones the subject may name, or none), in the order none, ``directions``, unsure.
 
-        For a population these are the averages over subjects: felt and direction offsets
-        are independent, so the average of their product is the product of the averages.
+        A felt no-wave is named any of the directions alike; a wave's direction named wrongly
+        is named opposite (right for left, down-left for up-right) when that may be answered,
+        else any other direction alike, else unsure. For a population these are the averages
+        over subjects: felt and direction offsets are independent, so the average of their
+        product is the product of the averages.
         """
-        direction = _direction(direction)
-        if direction is Direction.NONE:
+        direction = _direction(direction, directions)
+        unsure = self.unsure_given_felt
+        answers = dict.fromkeys(
+            (MotionAnswer.NONE, *map(MotionAnswer, directions), MotionAnswer.UNSURE), 0.0)
+        if direction == Direction.NONE:
             felt = self.no_wave_felt
-            named = (1 - self.unsure_given_felt) / 2
-            return {MotionAnswer.NONE: 1 - felt, MotionAnswer.LEFT: felt * named,
-                    MotionAnswer.RIGHT: felt * named,
-                    MotionAnswer.UNSURE: felt * self.unsure_given_felt}
-        felt = self.motion_felt
-        wrong = 1 - self.direction_given_felt - self.unsure_given_felt
-        return {MotionAnswer.NONE: 1 - felt,
-                _RIGHT_ANSWER[direction]: felt * self.direction_given_felt,
-                _WRONG_ANSWER[direction]: felt * wrong,
-                MotionAnswer.UNSURE: felt * self.unsure_given_felt}
+            for named in directions:
+                answers[MotionAnswer(named)] = felt * ((1 - unsure) / len(directions))
+            if not directions:  # nothing to name but unsure
+                answers[MotionAnswer.UNSURE] = felt * (1 - unsure)
+        else:
+            felt = self.motion_felt
+            opposite = "-".join(_OPPOSITE_WORD.get(w, w) for w in direction.split("-"))
+            others: list[str] = ([opposite] if opposite in directions
+                                 else [d for d in directions if d != direction]
+                                 or [MotionAnswer.UNSURE])
+            wrong = felt * (1 - self.direction_given_felt - unsure)
+            answers[MotionAnswer(direction)] = felt * self.direction_given_felt
+            for other in others:
+                answers[MotionAnswer(other)] += wrong / len(others)
+        answers[MotionAnswer.NONE] = 1 - felt
+        answers[MotionAnswer.UNSURE] += felt * unsure
+        return answers
 
 
 class _Centres(NamedTuple):
@@ -412,14 +427,12 @@ def _log_anchor_sigmas(model: ObserverModel) -> tuple[list[float], list[float]]:
     return [math.log(f) for f, _ in anchors], [math.log(s) for s in sigmas]
 
 
-def _direction(direction: Direction | str) -> Direction:
-    """A wave direction, or a one-line error naming what came instead."""
-    try:
-        return Direction(direction)
-    except ValueError:
-        raise PinArrayError(
-            f"observer: wave direction must be left, right or none, found {direction!r}"
-        ) from None
+def _direction(direction: Direction | str, directions: Sequence[Direction]) -> Direction:
+    """A wave direction the subject may name (or none), or a one-line error naming what came."""
+    if direction != Direction.NONE and direction not in directions:
+        raise PinArrayError(f"observer: wave direction must be {', '.join(directions)} or none, "
+                            f"found {direction!r}")
+    return Direction(direction)
 
 
 def _check_fraction(name: str, value: float) -> None:
@@ -464,15 +477,18 @@ class SimulatedObserver:
         answer = min(int(np.searchsorted(row, self.rng.random(), side="right")), len(row) - 1)
         return answer or None
 
-    def respond_motion(self, direction: Direction) -> MotionAnswer:
-        """What the subject says of a wave going left, right or not at all (`Direction.NONE`)."""
-        probabilities = self.subject.motion_probabilities(direction)
+    def respond_motion(
+        self, direction: Direction | str, directions: Sequence[Direction] = ROW_DIRECTIONS
+    ) -> MotionAnswer:
+        """What the subject says of a wave going ``direction`` (one of ``directions``, those
+        the subject may name) or not at all (`Direction.NONE`)."""
+        probabilities = self.subject.motion_probabilities(direction, directions)
         draw, total = self.rng.random(), 0.0
-        for answer in MOTION_ANSWERS:
-            total += probabilities[answer]
+        for answer, probability in probabilities.items():
+            total += probability
             if draw < total:
                 return answer
-        return MOTION_ANSWERS[-1]
+        return MotionAnswer.UNSURE
 
 
 def parse_observer(spec: str) -> ObserverModel:

@@ -76,6 +76,7 @@ class Design:
     localisation: tuple[tuple[int, float], ...]  # (pin, frequency_hz) per trial
     motion: tuple[Direction, ...]  # per trial: the wave's direction (none: the no-wave control)
     grid: Grid
+    directions: tuple[Direction, ...] = (Direction.LEFT, Direction.RIGHT)  # a subject may name
 
     @property
     def frequencies_hz(self) -> tuple[float, ...]:
@@ -89,7 +90,6 @@ class Design:
 def protocol_design(protocol: Protocol) -> Design:
     """The protocol's main trials (one plan; order does not matter to the observer)."""
     from pinarray.plan import make_plan
-    from pinarray.protocol import DIRECTION_OF_WAVE
 
     localisation, motion = [], []
     for trial in make_plan(protocol, 0).trials:
@@ -99,8 +99,9 @@ def protocol_design(protocol: Protocol) -> Design:
         if isinstance(condition, LocalisationCondition):
             localisation.append((condition.pin, float(condition.frequency_hz)))
         else:
-            motion.append(DIRECTION_OF_WAVE[condition.direction])
-    return Design(tuple(localisation), tuple(motion), protocol.device.grid)
+            motion.append(condition.direction)
+    return Design(tuple(localisation), tuple(motion), protocol.device.grid,
+                  protocol.design.directions)
 
 
 @dataclass(frozen=True)
@@ -132,13 +133,13 @@ def simulate_subject(design: Design, observer: SimulatedObserver) -> SubjectCoun
         pin_correct[pin - 1] += verdict == "correct"
     wave = felt = right = no_wave = no_wave_felt = 0
     for direction in design.motion:
-        said = observer.respond_motion(direction)
-        if direction is Direction.NONE:
+        said = observer.respond_motion(direction, design.directions)
+        if direction == Direction.NONE:
             no_wave += 1
-            no_wave_felt += said is not MotionAnswer.NONE
+            no_wave_felt += said != MotionAnswer.NONE
         else:
             wave += 1
-            felt += said is not MotionAnswer.NONE
+            felt += said != MotionAnswer.NONE
             right += said.value == direction.value  # named the way the wave went
     return SubjectCounts(categories, pin_correct, pin_trials, wave, felt, right, no_wave,
                          no_wave_felt)

@@ -20,13 +20,12 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.model import MotionAnswer, Paradigm, Protocol
+from pinarray.protocol.model import Paradigm, Protocol
 
 # 20 000 trials (a protocol's most) of a few bytes each, with room for extra columns.
 MAX_ANSWERS_BYTES = 4 << 20
 MAX_PROBLEMS = 100
 DELIMITERS = (",", "\t", ";")
-MOTION_ANSWERS = tuple(MotionAnswer)  # "none", "left", "right", "unsure"
 _WHOLE = re.compile("[0-9]{1,9}")  # trial and pin numbers: ASCII digits, never a huge one
 
 
@@ -125,10 +124,11 @@ def check_answers(
                 continue
             expected = f"a pin number from 1 to {pins} or 'none'"
         else:
-            if word in MOTION_ANSWERS:
+            offered = protocol.design.motion_answers  # the directions waves go, none, unsure
+            if word in offered:
                 by_trial[answer.trial] = word
                 continue
-            expected = f"one of {', '.join(MOTION_ANSWERS)}"
+            expected = f"one of {', '.join(offered)}"
         problems.append((answer.line, f"trial {answer.trial}: expected {expected}, found "
                                       f"{_shown(answer.response) if answer.response else 'nothing'}"))
     missing = [n for n in range(1, count + 1) if n not in by_trial]

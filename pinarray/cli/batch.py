@@ -243,7 +243,7 @@ def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, 
             )
         return lambda planned: responses[planned.trial]
     from pinarray.analysis.observer import SimulatedObserver, parse_observer
-    from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
+    from pinarray.protocol import LocalisationCondition
 
     observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
 
@@ -251,7 +251,7 @@ def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, 
         condition = planned.condition
         if isinstance(condition, LocalisationCondition):
             return observer.respond_localisation(condition.pin, float(condition.frequency_hz))
-        return observer.respond_motion(DIRECTION_OF_WAVE[condition.direction])
+        return observer.respond_motion(condition.direction, protocol.design.directions)
 
     return respond
 

@@ -352,7 +352,7 @@ def _preview(args: argparse.Namespace) -> int:
 
 def _plan(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
-    from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
+    from pinarray.protocol import LocalisationCondition
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.file)
@@ -364,7 +364,7 @@ def _plan(args: argparse.Namespace) -> int:
     for planned in plan.trials:
         c = planned.condition
         what = ([str(c.pin), f"{float(c.frequency_hz):g}"] if isinstance(c, LocalisationCondition)
-                else [str(c.row), DIRECTION_OF_WAVE[c.direction].value])
+                else ["-" if c.row is None else str(c.row), c.direction.value])
         rows.append([str(planned.trial), str(planned.block),
                      "yes" if planned.practice else "no", c.stimulus, *what])
     practice = sum(t.practice for t in plan.trials)

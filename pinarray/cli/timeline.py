@@ -16,7 +16,8 @@ def describe_trial(planned: PlannedTrial) -> str:
     if isinstance(c, LocalisationCondition):
         what = f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
     else:
-        what = f"{c.direction.value} wave on row {c.row}"
+        where = f"row {c.row}" if c.row is not None else "pins " + " ".join(map(str, c.pins))
+        what = f"{c.direction.value} wave on {where}"
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 

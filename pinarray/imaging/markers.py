@@ -19,7 +19,7 @@ from typing import Protocol as Interface
 
 from pinarray.hardware.delivery import Presentation
 from pinarray.plan import PlannedTrial
-from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Protocol
+from pinarray.protocol import LocalisationCondition, Protocol
 from pinarray.schedule import TrialSchedule
 
 
@@ -45,7 +45,7 @@ def marker_text(event: str, planned: PlannedTrial, protocol: Protocol, task: str
         data |= {"pin": condition.pin, "frequency_hz": _number(condition.frequency_hz)}
     else:
         wave = protocol.wave(condition.stimulus)
-        data |= {"row": condition.row, "direction": DIRECTION_OF_WAVE[condition.direction].value,
+        data |= {"row": condition.row, "direction": condition.direction.value,
                  "frequency_hz": _number(wave.train.frequency_hz)}
     return json.dumps(data, sort_keys=True, separators=(",", ":"))
 

@@ -32,7 +32,7 @@ from pinarray.journal.manifest import LocalisationEntry, MotionEntry, PlanEntry,
 from pinarray.journal.paths import SOURCEDATA, RunPaths
 from pinarray.journal.records import (
     BEH_COLUMNS,
-    COLUMN,
+    DIRECTION_MEANING,
     EVENT_NAMES,
     EVENT_ONLY,
     MOTION_ANSWER_MEANING,
@@ -41,7 +41,8 @@ from pinarray.journal.records import (
     condition_label,
 )
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
-from pinarray.protocol import Paradigm
+from pinarray.protocol import Direction, MotionAnswer, Paradigm
+from pinarray.protocol.model import answered_directions
 
 BIDS_VERSION = "1.10.0"
 NAME = "pinarray results"
@@ -100,8 +101,9 @@ INSTRUCTIONS = {
                            "that moved by its number (1 = bottom-left as you feel it), or say "
                            "'none' if you felt nothing.",
     Paradigm.APPARENT_MOTION: "Rest your fingertip on the pins. After each stimulus, say whether "
-                              "you felt a dot moving and, if so, which way: left, right, or "
-                              "unsure; say 'none' if you felt no movement.",
+                              "you felt a dot moving and, if so, which way it went (left, right, "
+                              "up, down: the directions the experimenter named), or unsure; "
+                              "say 'none' if you felt no movement.",
 }
 
 
@@ -207,18 +209,31 @@ def _trial_types(task: str, plan: tuple[PlanEntry, ...]) -> dict[str, str]:
 
 
 def _direction_meaning(entry: MotionEntry) -> str:
-    return str(COLUMN["direction"].levels[entry.direction])  # type: ignore[index]
+    return direction_meaning(entry.direction)
+
+
+def direction_meaning(direction: Direction) -> str:
+    """A direction column's level: the fixed ones, or a direction a sequence of pins declares."""
+    return DIRECTION_MEANING.get(direction, f"wave travels {direction} along a sequence of pins")
+
+
+def _answer_meaning(answer: str) -> str:
+    return MOTION_ANSWER_MEANING.get(MotionAnswer(answer), f"a dot moving {answer}")
 
 
 def _run_levels(manifest: RunManifest) -> dict[str, dict[str, str]]:
     info = manifest.task_info
     pins = {str(p): f"row {(p - 1) // info.grid_columns + 1}, column "
                     f"{(p - 1) % info.grid_columns + 1} (row 1 at the bottom)" for p in info.pins}
+    levels: dict[str, dict[str, str]] = {}
     if info.paradigm is Paradigm.LOCALISATION:
         response = {p: f"named pin {p}" for p in pins} | {NOTHING_FELT: "nothing felt"}
     else:
-        response = {str(a): meaning for a, meaning in MOTION_ANSWER_MEANING.items()}
-    return {"task": {manifest.task: info.name + (f": {info.description}" if info.description else "")},
+        directions = [e.direction for e in manifest.plan if isinstance(e, MotionEntry)]
+        offered = [*answered_directions(directions), MotionAnswer.NONE, MotionAnswer.UNSURE]
+        response = {str(a): _answer_meaning(a) for a in offered}
+        levels["direction"] = {str(d): direction_meaning(d) for d in dict.fromkeys(directions)}
+    return levels | {"task": {manifest.task: info.name + (f": {info.description}" if info.description else "")},
             "pin": pins, "response": response,
             "row": {str(r): f"row {r} (1 = bottom)" for r in range(1, info.grid_rows + 1)}}
 

@@ -33,6 +33,7 @@ from pinarray.journal.timebase import (
 )
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
+from pinarray.protocol.model import is_motion_answer
 
 
 class RunStatus(StrEnum):
@@ -65,12 +66,13 @@ class LocalisationEntry(_Entry):
 
 @dataclass(frozen=True, kw_only=True)
 class MotionEntry(_Entry):
-    row: int
-    wave: WaveKind
+    """A wave along ``row``; or, with ``row`` None, one visiting ``pins`` in order (up or down
+    a column, or a sequence going the ``direction`` it names)."""
 
-    @property
-    def direction(self) -> Direction:
-        return DIRECTION_OF_WAVE[self.wave]
+    row: int | None
+    wave: WaveKind
+    direction: Direction
+    pins: tuple[int, ...] = ()
 
 
 PlanEntry: TypeAlias = LocalisationEntry | MotionEntry
@@ -90,7 +92,11 @@ def entry_to_json(entry: PlanEntry) -> dict[str, Any]:
         case LocalisationEntry():
             data |= {"pin": entry.pin, "frequency_hz": str(entry.frequency_hz)}
         case MotionEntry():
+            # "direction" holds the wave's kind (rightwards...), as it always has; a wave not
+            # along a row adds its pins and the direction a subject names.
             data |= {"direction": entry.wave.value, "row": entry.row}
+            if entry.row is None:
+                data |= {"pins": list(entry.pins), "towards": entry.direction.value}
     return data
 
 
@@ -108,11 +114,19 @@ def entry_from_json(data: object, where: str) -> PlanEntry:
             return LocalisationEntry(**common, pin=int(data["pin"]),
                                      frequency_hz=Fraction(str(data["frequency_hz"])))
         if data.get("direction") is not None:
-            return MotionEntry(**common, row=int(data["row"]), wave=WaveKind(data["direction"]))
+            wave = WaveKind(data["direction"])
+            if data.get("row") is not None:
+                return MotionEntry(**common, row=int(data["row"]), wave=wave,
+                                   direction=DIRECTION_OF_WAVE[wave])
+            towards = str(data["towards"])
+            if not is_motion_answer(towards):
+                raise ValueError(towards)
+            return MotionEntry(**common, row=None, wave=wave, direction=Direction(towards),
+                               pins=tuple(int(p) for p in data["pins"]))
     except (KeyError, TypeError, ValueError, ZeroDivisionError):
         pass
     raise ResultsError(f"{where}: trial {trial} of the plan names neither a pin and a frequency "
-                       f"nor a wave direction and a row: {dict(data)!r}")
+                       f"nor a wave direction and a row (or pins): {dict(data)!r}")
 
 
 def remaining_plan(plan: Iterable[PlanEntry], records: Iterable[TrialRecord]) -> list[PlanEntry]:

@@ -27,7 +27,7 @@ from pinarray.errors import ResultsError
 from pinarray.grid import ErrorClass
 from pinarray.journal.paths import check_label
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
-from pinarray.protocol.model import NOTHING_FELT, Direction, MotionAnswer
+from pinarray.protocol.model import NOTHING_FELT, Direction, MotionAnswer, is_motion_answer
 
 NA = "n/a"  # BIDS spelling of "not applicable"
 class TrialStatus(StrEnum):
@@ -59,6 +59,17 @@ def _coerce(record: object, name: str, kind: type[Enum], where: str) -> None:
     except ValueError:
         allowed = ", ".join(str(member.value) for member in kind)
         raise ResultsError(f"{where}: {name} must be one of {allowed}, found {value!r}") from None
+
+
+def _coerce_name(record: object, name: str, kind: type[str], where: str) -> None:
+    """A direction or motion answer: lowercase words joined by hyphens (left, up-right...)."""
+    value = getattr(record, name)
+    if value is None:
+        return
+    if not isinstance(value, str) or not is_motion_answer(value):
+        raise ResultsError(f"{where}: {name} must be a direction's name (lowercase words joined "
+                           f"by hyphens, e.g. left, up-right), none or unsure, found {value!r}")
+    object.__setattr__(record, name, kind(value))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -152,27 +163,28 @@ class LocalisationRecord(_Trial):
 
 @dataclass(frozen=True, kw_only=True)
 class MotionRecord(_Trial):
-    """An apparent-motion trial: a wave along ``row`` going ``direction`` (or no wave)."""
+    """An apparent-motion trial: a wave going ``direction`` (or no wave), along ``row`` or,
+    with ``row`` None, up or down a column or along a sequence of pins."""
 
-    row: int
+    row: int | None
     direction: Direction
     response: MotionAnswer | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
         where = f"trial {self.trial}"
-        _coerce(self, "direction", Direction, where)
-        _coerce(self, "response", MotionAnswer, where)
+        _coerce_name(self, "direction", Direction, where)
+        _coerce_name(self, "response", MotionAnswer, where)
 
     @property
     def perceived_motion(self) -> bool | None:
         """Whether a moving dot was felt; None when the trial got no answer."""
-        return None if self.response is None else self.response is not MotionAnswer.NONE
+        return None if self.response is None else self.response != MotionAnswer.NONE
 
     @property
     def direction_correct(self) -> bool | None:
         """Whether the direction named is the wave's; None without a felt wave to name."""
-        if not self.perceived_motion or self.direction is Direction.NONE:
+        if not self.perceived_motion or self.direction == Direction.NONE:
             return None
         return self.response.value == self.direction.value if self.response else None
 
@@ -212,6 +224,8 @@ TRIAL_STATUS_MEANING = {
 DIRECTION_MEANING = {
     Direction.LEFT: "wave travels leftwards",
     Direction.RIGHT: "wave travels rightwards",
+    Direction.UP: "wave travels up a column",
+    Direction.DOWN: "wave travels down a column",
     Direction.NONE: "no wave: the central pin alternates with the lateral ones",
 }
 CATEGORY_MEANING = {
@@ -221,7 +235,8 @@ CATEGORY_MEANING = {
 }
 MOTION_ANSWER_MEANING = {
     MotionAnswer.NONE: "felt no moving dot", MotionAnswer.LEFT: "a dot moving leftwards",
-    MotionAnswer.RIGHT: "a dot moving rightwards",
+    MotionAnswer.RIGHT: "a dot moving rightwards", MotionAnswer("up"): "a dot moving upwards",
+    MotionAnswer("down"): "a dot moving downwards",
     MotionAnswer.UNSURE: "a moving dot, direction not named",
 }
 
@@ -234,8 +249,11 @@ BEH_COLUMNS: tuple[Column, ...] = (
     Column("pin", Cell.INTEGER, "Stimulated pin, numbered as the subject sees it (1 = bottom-left, "
            "rising along the bottom row, then row by row upwards); n/a for motion trials."),
     Column("row", Cell.INTEGER, "Grid row the apparent-motion wave runs along (1 = bottom row); "
-           "n/a for localisation trials."),
-    Column("direction", Cell.TEXT, "Direction of the stimulated wave; n/a for localisation trials.",
+           "n/a for localisation trials and for waves not along a row (up or down a column, or "
+           "along a sequence of pins)."),
+    Column("direction", Cell.TEXT, "Direction of the stimulated wave, as the subject would name "
+           "it: left or right (a row), up or down (a column), a direction a sequence of pins "
+           "declares, or none (no wave); n/a for localisation trials.",
            levels=DIRECTION_MEANING),
     Column("frequency_hz", Cell.NUMBER, "Stimulation frequency of the moving pin.", units="Hz"),
     Column("response", Cell.TEXT, "The subject's answer; n/a when the trial got none (redone, "
@@ -471,7 +489,7 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
                 response=values.get("response"),
                 error_class=None if error_class in (None, NOTHING_FELT) else error_class)
         if values.get("direction") is not None:
-            return MotionRecord(**common, row=_required(values, "row", where),
+            return MotionRecord(**common, row=values.get("row"),
                                 direction=values["direction"], response=values.get("response"))
     except ResultsError as problem:
         raise ResultsError(f"{where}: {problem}") from None

@@ -41,7 +41,7 @@ def plan_entry(planned: PlannedTrial) -> PlanEntry:
                               "practice": planned.practice, "stimulus": c.stimulus}
     if isinstance(c, LocalisationCondition):
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
-    return MotionEntry(**common, row=c.row, wave=c.direction)
+    return MotionEntry(**common, row=c.row, wave=c.kind, direction=c.direction, pins=c.pins)
 
 
 def plan_entries(plan: TrialPlan) -> tuple[PlanEntry, ...]:

@@ -10,6 +10,7 @@ from pinarray.protocol.model import (
     DIRECTION_OF_WAVE,
     NOTHING_FELT,
     NS_PER_S,
+    AnyWave,
     Condition,
     Constraints,
     Design,
@@ -21,6 +22,7 @@ from pinarray.protocol.model import (
     MotionCondition,
     Ordering,
     Paradigm,
+    PathWave,
     Pca9685Board,
     PinCalibration,
     PinDrive,
@@ -29,6 +31,7 @@ from pinarray.protocol.model import (
     ServoSettings,
     Stimulus,
     Train,
+    TrainShape,
     TrainStimulus,
     Wave,
     WaveKind,
@@ -36,8 +39,10 @@ from pinarray.protocol.model import (
 )
 
 __all__ = [
-    "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition", "Constraints", "Design", "Device", "Direction",
-    "HobbyServos", "LocalisationCondition", "MotionAnswer", "Pca9685Board", "Servos", "MotionCondition", "Ordering", "Paradigm", "PinCalibration",
-    "PinDrive", "Protocol", "ServoSettings", "Stimulus", "Train", "TrainStimulus", "Wave",
+    "AnyWave", "BAUD_RATES", "DIRECTION_OF_WAVE", "NOTHING_FELT", "NS_PER_S", "Condition",
+    "Constraints", "Design", "Device", "Direction", "HobbyServos", "LocalisationCondition",
+    "MotionAnswer", "MotionCondition", "Ordering", "Paradigm", "PathWave", "Pca9685Board",
+    "PinCalibration", "PinDrive", "Protocol", "Servos", "ServoSettings", "Stimulus", "Train",
+    "TrainShape", "TrainStimulus", "Wave",
     "WaveKind", "WaveStimulus",
 ]

@@ -28,12 +28,20 @@ from pinarray.protocol.model import (
     MotionCondition,
     Ordering,
     Paradigm,
+    PathWave,
     Stimulus,
+    TrainShape,
     TrainStimulus,
+    Wave,
     WaveStimulus,
     condition_value,
 )
-from pinarray.protocol.stimuli import MAX_FREQUENCY_HZ, check_train_on_pins, stimulus_named
+from pinarray.protocol.stimuli import (
+    MAX_FREQUENCY_HZ,
+    check_period,
+    check_train_on_pins,
+    stimulus_named,
+)
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 
 MAX_TRIALS = 20_000
@@ -98,6 +106,7 @@ def read_design(
     read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
     section = _Section(node, keys, device, by_name, declared, long_trials)
     read = reader.attempt(lambda: read_conditions(reader, section), None)
+    _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
     )
@@ -190,11 +199,28 @@ def _localisation(reader: Reader, section: _Section) -> _Conditions:
     for frequency_node in frequency_nodes:
         frequency = reader.number(frequency_node, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ)
         train = stimulus.train.with_frequency(frequency)
+        if isinstance(stimulus.train, TrainShape):  # a train with a frequency was checked alone
+            check_period(reader, frequency_node, frequency_node, train)
         _check_pulses(reader, frequency_node, pulse_slots(train), long_trials)
         check_train_on_pins(reader, frequency_node, train, pins, device)
         conditions.extend(LocalisationCondition(stimulus.name, pin, frequency) for pin in pins)
         slots.extend(pulse_slots(train) for _ in pins)
     return tuple(conditions), tuple(slots)
+
+
+def _check_shapes_completed(reader: Reader, section: _Section, paradigm: Paradigm) -> None:
+    """Every train without a frequency is the stimulus of a localisation design that gives one."""
+    completed = None
+    if paradigm is Paradigm.LOCALISATION and "stimulus" in section.keys:
+        completed = section.keys["stimulus"].value  # the name itself is checked with the design
+    for stimulus in section.by_name.values():
+        if (isinstance(stimulus, TrainStimulus) and isinstance(stimulus.train, TrainShape)
+                and stimulus.name != completed):
+            reader.error(
+                section.declared.get(stimulus.name, section.node),
+                f"expected a frequency_hz in train {stimulus.name!r}, found none: only the "
+                "stimulus of a localisation design may leave it to the design's frequencies_hz",
+            )
 
 
 def _motion(reader: Reader, section: _Section) -> _Conditions:
@@ -217,7 +243,13 @@ def _motion(reader: Reader, section: _Section) -> _Conditions:
         wave = stimulus.wave
         count = sum(pulse_slots(drive.train) for drive in wave.drives())
         _check_pulses(reader, item, count, long_trials)
-        conditions.append(MotionCondition(stimulus.name, wave.kind, wave.row))
+        match wave:
+            case Wave():
+                condition = MotionCondition(stimulus.name, wave.kind, wave.direction, wave.row)
+            case PathWave():
+                condition = MotionCondition(stimulus.name, wave.kind, wave.direction, None,
+                                            wave.pins)
+        conditions.append(condition)
         slots.append(count)
     return tuple(conditions), tuple(slots)
 

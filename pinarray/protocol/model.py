@@ -7,10 +7,12 @@ compiler and the player never see a bad number. Frequencies and durations are ex
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
 from enum import StrEnum
 from fractions import Fraction
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, ClassVar
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
@@ -184,42 +186,87 @@ class Train:
         return NS_PER_S / (self.frequency_hz * self.pulses_per_cycle)
 
     def with_frequency(self, frequency_hz: Fraction) -> Train:
-        return Train(
-            frequency_hz,
-            self.duration_ns,
-            self.pulses_per_cycle,
-            self.up_pulses,
-            self.up_width_ns,
-            self.down_width_ns,
-            self.phase,
-        )
+        return replace(self, frequency_hz=frequency_hz)
+
+
+@dataclass(frozen=True)
+class TrainShape:
+    """A pulse train without its frequency: a localisation design's ``frequencies_hz`` give it.
+
+    The fields mean what `Train`'s do; only `with_frequency` makes a train that can play.
+    """
+
+    duration_ns: int
+    pulses_per_cycle: int = 10
+    up_pulses: int = 5
+    up_width_ns: int = 2_000_000
+    down_width_ns: int = 1_500_000
+    phase: Fraction = Fraction(0)
+
+    def with_frequency(self, frequency_hz: Fraction) -> Train:
+        return Train(frequency_hz, self.duration_ns, self.pulses_per_cycle, self.up_pulses,
+                     self.up_width_ns, self.down_width_ns, self.phase)
 
 
 class WaveKind(StrEnum):
-    RIGHTWARDS = "rightwards"
-    LEFTWARDS = "leftwards"
+    RIGHTWARDS = "rightwards"  # along a row, left to right
+    LEFTWARDS = "leftwards"  # along a row, right to left
     NONE = "none"  # the seed's "no wave": the central pin alternates with the lateral ones
+    UPWARDS = "upwards"  # up a column, its pins listed bottom to top
+    DOWNWARDS = "downwards"  # down a column, its pins listed top to bottom
+    SEQUENCE = "sequence"  # any pins, in the order listed, going the direction it names
 
 
-class Direction(StrEnum):
-    """Which way an apparent-motion wave travels, as the subject would name it."""
+class Direction(str):
+    """Which way an apparent-motion wave travels, as the subject would name it.
 
-    LEFT = "left"
-    RIGHT = "right"
-    NONE = "none"  # the no-wave control: the central pin alternates with the lateral ones
+    left, right (rows), up, down (columns), none (the no-wave control), or a name a sequence
+    wave declares (``up-right``): lowercase words joined by hyphens.
+    """
 
+    LEFT: ClassVar[Direction]
+    RIGHT: ClassVar[Direction]
+    UP: ClassVar[Direction]
+    DOWN: ClassVar[Direction]
+    NONE: ClassVar[Direction]
+
+    @property
+    def value(self) -> str:
+        return str(self)
+
+
+Direction.LEFT, Direction.RIGHT = Direction("left"), Direction("right")
+Direction.UP, Direction.DOWN = Direction("up"), Direction("down")
+Direction.NONE = Direction("none")  # the no-wave control: no direction to name
+DIRECTION_NAME = re.compile(r"[a-z]+(-[a-z]+)*")
+MAX_DIRECTION_CHARS = 24
 
 DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: Direction.LEFT,
-                     WaveKind.NONE: Direction.NONE}
+                     WaveKind.NONE: Direction.NONE, WaveKind.UPWARDS: Direction.UP,
+                     WaveKind.DOWNWARDS: Direction.DOWN}
 
 
-class MotionAnswer(StrEnum):
-    """The subject's answer to an apparent-motion trial."""
+class MotionAnswer(str):
+    """The subject's answer to an apparent-motion trial: a direction, none or unsure."""
 
-    NONE = "none"  # felt no moving dot
-    LEFT = "left"
-    RIGHT = "right"
-    UNSURE = "unsure"  # felt a moving dot, could not tell which way
+    NONE: ClassVar[MotionAnswer]
+    UNSURE: ClassVar[MotionAnswer]
+    LEFT: ClassVar[MotionAnswer]
+    RIGHT: ClassVar[MotionAnswer]
+
+    @property
+    def value(self) -> str:
+        return str(self)
+
+
+MotionAnswer.NONE = MotionAnswer("none")  # felt no moving dot
+MotionAnswer.UNSURE = MotionAnswer("unsure")  # felt a moving dot, could not tell which way
+MotionAnswer.LEFT, MotionAnswer.RIGHT = MotionAnswer("left"), MotionAnswer("right")
+
+
+def is_motion_answer(text: str) -> bool:
+    """Whether ``text`` can be a motion answer: none, unsure, or a direction's name."""
+    return len(text) <= MAX_DIRECTION_CHARS and DIRECTION_NAME.fullmatch(text) is not None
 
 
 NOTHING_FELT = "none"  # a localisation answer: no pin felt
@@ -249,6 +296,10 @@ class Wave:
     train: Train
     soa_ns: int
 
+    @property
+    def direction(self) -> Direction:
+        return DIRECTION_OF_WAVE[self.kind]
+
     def drives(self) -> tuple[PinDrive, ...]:
         if self.kind is WaveKind.NONE:
             centre = len(self.pins) // 2
@@ -267,11 +318,33 @@ class Wave:
 
 
 @dataclass(frozen=True)
+class PathWave:
+    """A travelling wave visiting its pins in the order listed: up or down a column, or any
+    sequence going the direction it names. Step ``i`` (pin ``pins[i]``) starts at ``i * soa_ns``.
+    """
+
+    kind: WaveKind  # upwards, downwards or sequence
+    direction: Direction
+    pins: tuple[int, ...]  # in the order visited
+    train: Train
+    soa_ns: int
+
+    def drives(self) -> tuple[PinDrive, ...]:
+        return tuple(PinDrive(pin, self.train, i * self.soa_ns) for i, pin in enumerate(self.pins))
+
+
+AnyWave = Wave | PathWave
+
+
+@dataclass(frozen=True)
 class TrainStimulus:
-    """A named pulse train; the design chooses the pin (and may change the frequency)."""
+    """A named pulse train; the design chooses the pin (and may change the frequency).
+
+    A `TrainShape` (no ``frequency_hz``) plays only at a localisation design's frequencies.
+    """
 
     name: str
-    train: Train
+    train: Train | TrainShape
 
 
 @dataclass(frozen=True)
@@ -279,7 +352,7 @@ class WaveStimulus:
     """A named travelling wave (or no-wave control): its pins are its own."""
 
     name: str
-    wave: Wave
+    wave: AnyWave
 
 
 Stimulus = TrainStimulus | WaveStimulus
@@ -312,11 +385,17 @@ class LocalisationCondition:
 
 @dataclass(frozen=True)
 class MotionCondition:
-    """What one apparent-motion trial presents: a wave stimulus along its row."""
+    """What one apparent-motion trial presents: a wave stimulus going ``direction``.
+
+    ``kind`` and ``row`` say how it was written: a row's wave has its row (1 = bottom); a wave
+    up or down a column, or along a sequence, has ``row`` None and its ``pins`` in order.
+    """
 
     stimulus: str
-    direction: WaveKind
-    row: int  # 1 = bottom row, as the lab counts
+    kind: WaveKind
+    direction: Direction
+    row: int | None  # 1 = bottom row, as the lab counts; None: not along a row
+    pins: tuple[int, ...] = ()  # in the order visited, for a wave not along a row
 
     @property
     def key(self) -> tuple:
@@ -333,6 +412,16 @@ def condition_value(condition: Condition, attribute: str) -> object:
     that may not repeat a direction): all of them then share the value None.
     """
     return getattr(condition, attribute, None)
+
+
+def answered_directions(presented: Iterable[Direction]) -> tuple[Direction, ...]:
+    """The directions a subject may name, of the waves ``presented`` (the no-wave control's
+    none left out): left, right, up and down first in that order, then the directions
+    sequences name, in the order first met."""
+    named = list(presented)
+    usual = (Direction.LEFT, Direction.RIGHT, Direction.UP, Direction.DOWN)
+    return tuple(dict.fromkeys([*(d for d in usual if d in named),
+                                *(d for d in named if d != Direction.NONE)]))
 
 
 @dataclass(frozen=True)
@@ -368,6 +457,17 @@ class Design:
     practice_trials: int
 
     @property
+    def directions(self) -> tuple[Direction, ...]:
+        """The wave directions the design's trials present: see `answered_directions`."""
+        return answered_directions(
+            c.direction for c in self.conditions if isinstance(c, MotionCondition))
+
+    @property
+    def motion_answers(self) -> tuple[MotionAnswer, ...]:
+        """Every answer an apparent-motion trial of this design takes."""
+        return (*map(MotionAnswer, self.directions), MotionAnswer.NONE, MotionAnswer.UNSURE)
+
+    @property
     def trial_count(self) -> int:
         """Trials in every plan of this design, practice included (numbered 1..this)."""
         return len(self.conditions) * self.repetitions * self.blocks + self.practice_trials
@@ -390,7 +490,7 @@ class Protocol:
                 return stimulus
         raise PinArrayError(f"{self.source}: no stimulus named {name!r}")
 
-    def wave(self, name: str) -> Wave:
+    def wave(self, name: str) -> AnyWave:
         """The wave of the wave stimulus ``name``."""
         stimulus = self.stimulus(name)
         if not isinstance(stimulus, WaveStimulus):

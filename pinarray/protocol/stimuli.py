@@ -13,10 +13,18 @@ from pinarray.protocol.device import MS, read_pin, read_width_ns
 from pinarray.protocol.drives import check_no_overlap
 from pinarray.protocol.feasibility import check_train
 from pinarray.protocol.model import (
+    DIRECTION_NAME,
+    DIRECTION_OF_WAVE,
+    MAX_DIRECTION_CHARS,
     NS_PER_S,
+    AnyWave,
     Device,
+    Direction,
+    MotionAnswer,
+    PathWave,
     Stimulus,
     Train,
+    TrainShape,
     TrainStimulus,
     Wave,
     WaveKind,
@@ -34,7 +42,8 @@ TRAIN_KEYS = {
     "pulse_width_ms",
     "phase_deg",
 }
-WAVE_KEYS = {"wave", "row", "pins", "train", "soa_ms"}
+WAVE_KEYS = {"wave", "row", "pins", "direction", "train", "soa_ms"}
+ROW_WAVES = (WaveKind.RIGHTWARDS, WaveKind.LEFTWARDS, WaveKind.NONE)
 
 
 def read_stimuli(
@@ -107,8 +116,10 @@ def stimulus_named(
     return stimulus
 
 
-def _train(reader: Reader, node: Node) -> Train:
-    required = {"frequency_hz", "duration_s"}
+def _train(reader: Reader, node: Node) -> Train | TrainShape:
+    """A train; one without ``frequency_hz`` is a shape a localisation design's frequencies
+    complete (whether one does is checked with the design)."""
+    required = {"duration_s"}
     # A key missing (or misspelt) still lets the rest of the train be checked in this pass.
     keys = reader.mapping(node, TRAIN_KEYS, required, "pulse train", stop_if_missing=False)
     with reader.section():
@@ -160,22 +171,27 @@ def _train(reader: Reader, node: Node) -> Train:
             keys["duration_s"],
             f"expected a signal length in whole nanoseconds, found {float(duration)} s",
         )
-    train = Train(
-        frequency,
-        int(duration_ns),
-        per_cycle,
-        int(up_pulses),
-        up_ns,
-        down_ns,
-        (phase_deg / 360) % 1,
+    shape = TrainShape(
+        int(duration_ns), per_cycle, int(up_pulses), up_ns, down_ns, (phase_deg / 360) % 1
     )
-    check_widths_fit(reader, keys.get("pulse_width_ms", keys["frequency_hz"]), train)
-    if duration_ns < train.slot_ns:
-        raise reader.error(
-            keys["duration_s"],
-            f"expected a signal length of at least one pulse period ({float(train.slot_ns) / 1e6:g} ms), found {float(duration) * 1e3:g} ms",
-        )
+    if "frequency_hz" not in keys:
+        return shape
+    train = shape.with_frequency(frequency)
+    check_period(reader, keys.get("pulse_width_ms", keys["frequency_hz"]), keys["duration_s"],
+                 train)
     return train
+
+
+def check_period(reader: Reader, widths_node: Node, duration_node: Node, train: Train) -> None:
+    """The train's pulses fit its pulse period, and its signal lasts at least one period."""
+    check_widths_fit(reader, widths_node, train)
+    if train.duration_ns < train.slot_ns:
+        raise reader.error(
+            duration_node,
+            f"expected a signal length of at least one pulse period "
+            f"({float(train.slot_ns) / 1e6:g} ms at {float(train.frequency_hz):g} Hz), "
+            f"found {train.duration_ns / 1e6:g} ms",
+        )
 
 
 def _widths(reader: Reader, node: Node) -> tuple[int, int]:
@@ -230,10 +246,63 @@ def _wave(
     device: Device | None,
     trains: Mapping[str, Stimulus],
     declared_trains: Mapping[str, Node],
-) -> Wave:
-    keys = reader.mapping(node, WAVE_KEYS, {"wave", "row", "train"}, "wave")
+) -> AnyWave:
+    keys = reader.mapping(node, WAVE_KEYS, {"wave", "train"}, "wave")
     kind = WaveKind(reader.string(keys["wave"], "the wave", tuple(k.value for k in WaveKind)))
     grid = device.grid if device else Grid()
+    if kind in ROW_WAVES:
+        if "direction" in keys:
+            raise reader.error(
+                keys["direction"],
+                f"expected no 'direction' for a {kind.value} wave (it goes "
+                f"{DIRECTION_OF_WAVE[kind].value}); name a direction with 'wave: sequence'",
+            )
+        if "row" not in keys:
+            raise reader.error(node, f"a {kind.value} wave runs along a row: expected a 'row' "
+                                     "key, found none")
+        pins, row = _row_pins(reader, keys, kind, grid)
+    else:
+        if "row" in keys:
+            raise reader.error(
+                keys["row"],
+                f"expected no 'row' for a {kind.value} wave: it visits its 'pins' in the order "
+                "listed",
+            )
+        pins = _path_pins(reader, node, keys, kind, grid)
+        direction = _path_direction(reader, node, keys, kind)
+    stimulus = stimulus_named(reader, keys["train"], trains, declared_trains, TrainStimulus)
+    train = stimulus.train
+    if not isinstance(train, Train):
+        raise reader.error(
+            keys["train"],
+            f"expected a train with a frequency_hz for a wave, found train {stimulus.name!r} "
+            "without one (only a localisation design's frequencies_hz complete such a train)",
+        )
+    with reader.section():
+        soa = reader.optional(
+            keys, "soa_ms",
+            lambda n: MS * reader.number(
+                n, "the SOA", "ms", maximum=60_000, minimum=0, allow_zero=True
+            ),
+            # Tactile Brush (Israr & Poupyrev): SOA = 0.32 x duration + 47.3 ms.
+            Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS,
+        )
+    wave: AnyWave = (Wave(kind, row, pins, train, round(soa)) if kind in ROW_WAVES
+                     else PathWave(kind, direction, pins, train, round(soa)))
+    if device is not None:
+        # What a localisation train gets checked for, each pin of the wave gets too.
+        check_train_on_pins(reader, keys["train"], train, pins, device)
+    try:
+        check_no_overlap(wave.drives())
+    except PinArrayError as problem:
+        raise reader.error(keys.get("soa_ms", node), str(problem)) from None
+    return wave
+
+
+def _row_pins(
+    reader: Reader, keys: Mapping[str, Node], kind: WaveKind, grid: Grid
+) -> tuple[tuple[int, ...], int]:
+    """(pins left to right, row) of a wave along a row."""
     row = reader.integer(keys["row"], "the row (1 = bottom)", 1, grid.rows)
     row_pins = grid.row_pins(row - 1)
     pins = row_pins
@@ -261,22 +330,82 @@ def _wave(
             keys.get("pins", keys["row"]),
             f"a no-wave alternates a central pin with its two lateral ones: expected an odd number of pins, found {len(pins)}; list them with 'pins:'",
         )
-    train = stimulus_named(reader, keys["train"], trains, declared_trains, TrainStimulus).train
-    with reader.section():
-        soa = reader.optional(
-            keys, "soa_ms",
-            lambda n: MS * reader.number(
-                n, "the SOA", "ms", maximum=60_000, minimum=0, allow_zero=True
-            ),
-            # Tactile Brush (Israr & Poupyrev): SOA = 0.32 x duration + 47.3 ms.
-            Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS,
+    return pins, row
+
+
+def _path_pins(
+    reader: Reader, node: Node, keys: Mapping[str, Node], kind: WaveKind, grid: Grid
+) -> tuple[int, ...]:
+    """The pins a column or sequence wave visits, in order: distinct, on the grid, and for
+    upwards and downwards one column's, each above (below) the one before."""
+    if "pins" not in keys:
+        raise reader.error(node, f"a {kind.value} wave visits the pins listed: expected a "
+                                 "'pins' key, found none")
+    pins = tuple(
+        read_pin(reader, n, grid) for n in reader.sequence(keys["pins"], "the wave's pins", 2)
+    )
+    repeated = sorted({p for p in pins if pins.count(p) > 1})
+    if repeated:
+        raise reader.error(
+            keys["pins"],
+            f"expected each pin of a wave once, found {', '.join(map(str, repeated))} more than "
+            f"once in {list(pins)}",
         )
-    wave = Wave(kind, row, pins, train, round(soa))
-    if device is not None:
-        # What a localisation train gets checked for, each pin of the wave gets too.
-        check_train_on_pins(reader, keys["train"], train, pins, device)
-    try:
-        check_no_overlap(wave.drives())
-    except PinArrayError as problem:
-        raise reader.error(keys.get("soa_ms", node), str(problem)) from None
-    return wave
+    if kind is WaveKind.SEQUENCE:
+        return pins
+    up = kind is WaveKind.UPWARDS
+    cells = [grid.cell(p) for p in pins]
+    rows = [r for r, _ in cells]
+    if len({c for _, c in cells}) == 1 and rows == sorted(rows, reverse=not up):
+        return pins
+    raise reader.error(
+        keys["pins"],
+        f"expected the pins of a{'n' if up else ''} {kind.value} wave to go {'up' if up else 'down'} one "
+        f"column ({'bottom to top' if up else 'top to bottom'}), found {list(pins)}: "
+        f"{path_text(grid, pins)}",
+    )
+
+
+def path_text(grid: Grid, pins: tuple[int, ...]) -> str:
+    """What a sequence of pins does on the grid, as the lab would say it."""
+    cells = [grid.cell(p) for p in pins]
+    rows, columns = [r for r, _ in cells], [c for _, c in cells]
+    if len(set(rows)) == 1:
+        way = ("rightwards" if columns == sorted(columns)
+               else "leftwards" if columns == sorted(columns, reverse=True) else "back and forth")
+        return f"they run {way} along row {rows[0] + 1}"
+    if len(set(columns)) == 1:
+        way = ("go up" if rows == sorted(rows)
+               else "go down" if rows == sorted(rows, reverse=True) else "go up and down")
+        return f"they {way} column {columns[0] + 1}"
+    stray = next(p for p, c in zip(pins, columns, strict=True) if c != columns[0])
+    return (f"they leave column {columns[0] + 1} (pin {pins[0]}): pin {stray} is in column "
+            f"{grid.cell(stray)[1] + 1}")
+
+
+def _path_direction(
+    reader: Reader, node: Node, keys: Mapping[str, Node], kind: WaveKind
+) -> Direction:
+    """The direction a subject names: up or down for a column, the declared one for a sequence."""
+    if kind is not WaveKind.SEQUENCE:
+        if "direction" in keys:
+            raise reader.error(
+                keys["direction"],
+                f"expected no 'direction' for a {kind.value} wave (it goes "
+                f"{DIRECTION_OF_WAVE[kind].value}); name a direction with 'wave: sequence'",
+            )
+        return DIRECTION_OF_WAVE[kind]
+    if "direction" not in keys:
+        raise reader.error(node, "a sequence wave names the direction a subject would answer: "
+                                 "expected a 'direction' key (e.g. up-right), found none")
+    name = reader.string(keys["direction"], "the direction")
+    reserved = (Direction.NONE, MotionAnswer.UNSURE)
+    if (name in reserved or len(name) > MAX_DIRECTION_CHARS
+            or DIRECTION_NAME.fullmatch(name) is None):
+        raise reader.error(
+            keys["direction"],
+            f"expected a direction of lowercase words joined by hyphens (e.g. up-right), at most "
+            f"{MAX_DIRECTION_CHARS} characters and neither none nor unsure (answers of their "
+            f"own), found {shown(name)}",
+        )
+    return Direction(name)

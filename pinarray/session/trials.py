@@ -49,7 +49,7 @@ from pinarray.journal.records import (
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition, Paradigm, Protocol
+from pinarray.protocol import LocalisationCondition, Paradigm, Protocol
 from pinarray.schedule import TrialSchedule, compile_trial
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
@@ -419,8 +419,9 @@ class Session:
             if not 1 <= pin <= self.grid.pin_count:
                 raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
             return str(pin)
-        if response not in set(MotionAnswer):
-            raise SessionError(f"expected one of {', '.join(MotionAnswer)}, found {response!r}")
+        answers = self.protocol.design.motion_answers
+        if response not in answers:
+            raise SessionError(f"expected one of {', '.join(answers)}, found {response!r}")
         return str(response)
 
     def _fix_zero(self, zero_ns: int, event: str) -> None:
@@ -453,6 +454,6 @@ class Session:
                 error_class=None if named is None else self.grid.classify(condition.pin, named))
         else:
             record = MotionRecord(**common, row=condition.row,
-                                  direction=DIRECTION_OF_WAVE[condition.direction],
+                                  direction=condition.direction,
                                   response=None if response is None else MotionAnswer(response))
         return self.writer.write_trial(record)

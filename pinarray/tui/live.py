@@ -76,7 +76,7 @@ class LiveCounts:
     def of(cls, records: list[TrialRecord]) -> LiveCounts:
         counted = [r for r in records if r.counts]
         classes = Counter(r.category for r in counted if isinstance(r, LocalisationRecord))
-        waves = [r for r in counted if isinstance(r, MotionRecord) and r.direction is not Direction.NONE]
+        waves = [r for r in counted if isinstance(r, MotionRecord) and r.direction != Direction.NONE]
         named = [r for r in waves if r.direction_correct is not None]
         return cls(
             counted=len(counted),

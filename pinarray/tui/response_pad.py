@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 from textual import events, on
 from textual.app import ComposeResult
 from textual.containers import Horizontal
@@ -10,14 +12,39 @@ from textual.reactive import reactive
 from textual.widget import Widget
 from textual.widgets import Button, Static
 
-# Motion answers by key; arrows too, since the subject says "left" or "right".
-MOTION_KEYS = {"l": "left", "left": "left", "r": "right", "right": "right",
-               "n": "none", "u": "unsure"}
-MOTION_BUTTONS = (("left", "← left (l)"), ("right", "right (r) →"),
-                  ("none", "no motion (n)"), ("unsure", "unsure (u)"))
+# The usual motion answers: their keys (arrows too, since the subject says "left" or "up")
+# and buttons. u is unsure and d the run screen's redo, so up and down have their arrows only.
+USUAL_ANSWERS = {"left": (("l", "left"), "← left (l)"), "right": (("r", "right"), "right (r) →"),
+                 "up": (("up",), "↑ up"), "down": (("down",), "↓ down"),
+                 "none": (("n",), "no motion (n)"), "unsure": (("u",), "unsure (u)")}
+SEQUENCE_KEYS = "123456789"  # the directions sequence waves name, in the order first listed
 # Keys that answer on one paradigm or the other: typed while no answer is expected they are
 # refused with a notice by the run screen, not taken for something else.
-ANSWER_KEYS = frozenset({*MOTION_KEYS, *"0123456789", "backspace"})
+ANSWER_KEYS = frozenset({*(k for keys, _ in USUAL_ANSWERS.values() for k in keys),
+                         *"0123456789", "backspace"})
+
+
+def motion_answer_keys(answers: Sequence[str]) -> tuple[tuple[str, tuple[str, ...], str], ...]:
+    """(answer, its keys, its button label) for each motion answer the protocol offers."""
+    named = iter(SEQUENCE_KEYS)
+    out = []
+    for answer in answers:
+        if answer in USUAL_ANSWERS:
+            keys, label = USUAL_ANSWERS[answer]
+        else:
+            key = next(named, None)  # a design names at most 9 of its own (ten would be keyless)
+            keys, label = ((key,), f"{answer} ({key})") if key else ((), answer)
+        out.append((answer, keys, label))
+    return tuple(out)
+
+
+def motion_hint(answers: Sequence[str]) -> str:
+    """The keys that answer, as the run screen's prompt says them: ``l / r / n (no motion)...``."""
+    names = {"left": "l", "right": "r", "up": "↑", "down": "↓"}
+    return " / ".join(
+        "n (no motion)" if answer == "none" else "u (unsure)" if answer == "unsure"
+        else names.get(answer, f"{keys[0] if keys else '?'} ({answer})")
+        for answer, keys, _ in motion_answer_keys(answers))
 
 
 class ResponsePad(Widget, can_focus=True):
@@ -33,6 +60,8 @@ class ResponsePad(Widget, can_focus=True):
         Which paradigm's answers to take.
     pin_count : int
         Most digits a pin number can have follow from it.
+    answers : sequence of str
+        Apparent motion: the answers offered (the directions the waves go, none, unsure).
     """
 
     DEFAULT_CSS = """
@@ -43,8 +72,10 @@ class ResponsePad(Widget, can_focus=True):
         &.-accepting { border: round $accent; }
         &:focus.-accepting { border: heavy $accent; }
         #entry { text-style: bold; }
-        #motion-buttons { height: auto; }
-        #motion-buttons Button { margin-right: 1; }
+        /* rows of four: a protocol's waves may go more ways than one row holds */
+        #motion-buttons { height: auto; layout: grid; grid-size: 4; grid-rows: 3;
+                          grid-gutter: 0 1; }
+        #motion-buttons Button { width: 100%; }
     }
     """
 
@@ -79,10 +110,13 @@ class ResponsePad(Widget, can_focus=True):
     entry: reactive[str] = reactive("")
     accepting: reactive[bool] = reactive(False)
 
-    def __init__(self, localisation: bool, pin_count: int = 16, **kwargs):
+    def __init__(self, localisation: bool, pin_count: int = 16,
+                 answers: Sequence[str] = ("left", "right", "none", "unsure"), **kwargs):
         super().__init__(**kwargs)
         self.localisation = localisation
         self.digits = len(str(pin_count))
+        self.answers = motion_answer_keys(answers)
+        self.motion_keys = {key: answer for answer, keys, _ in self.answers for key in keys}
 
     def compose(self) -> ComposeResult:
         if self.localisation:
@@ -91,7 +125,7 @@ class ResponsePad(Widget, can_focus=True):
                          "or click a pin", classes="hint")
         else:
             with Horizontal(id="motion-buttons"):
-                for answer, label in MOTION_BUTTONS:
+                for answer, _, label in self.answers:
                     yield Button(label, id=f"answer-{answer}", disabled=True)
 
     def on_mount(self) -> None:
@@ -141,9 +175,9 @@ class ResponsePad(Widget, can_focus=True):
         if not self.accepting:
             return
         if not self.localisation:
-            if key in MOTION_KEYS:
+            if key in self.motion_keys:
                 event.stop()
-                self._answer(MOTION_KEYS[key])
+                self._answer(self.motion_keys[key])
             return
         if key == "backspace":
             event.stop()

@@ -23,14 +23,14 @@ from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import LocalisationRecord
 from pinarray.player.playback import DEFAULT_LEAD_NS
-from pinarray.protocol import DIRECTION_OF_WAVE, Condition, LocalisationCondition, Paradigm
+from pinarray.protocol import Condition, Direction, LocalisationCondition, Paradigm, WaveKind
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.live import LiftTimeline, LiveCounts
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
-from pinarray.tui.response_pad import ANSWER_KEYS, ResponsePad
+from pinarray.tui.response_pad import ANSWER_KEYS, ResponsePad, motion_hint
 
 if TYPE_CHECKING:
     from pinarray.tui.app import PinArrayApp
@@ -100,7 +100,8 @@ class RunScreen(KeyNotices, Screen):
                 yield Static(id="trial")
                 yield ProgressBar(total=self.session.total, show_eta=False, id="progress")
                 yield Static(id="phase")
-                yield ResponsePad(self.localisation, self.session.grid.pin_count, id="pad")
+                yield ResponsePad(self.localisation, self.session.grid.pin_count,
+                                  self.session.protocol.design.motion_answers, id="pad")
                 yield Notice()
                 yield Static(id="counts")
         yield Footer()
@@ -172,7 +173,7 @@ class RunScreen(KeyNotices, Screen):
         if phase is Phase.RESPONSE:
             return ("not an answer: a pin number + Enter, 0 or n for nothing felt"
                     if self.localisation else
-                    "not an answer: l (left), r (right), n (no motion) or u (unsure)")
+                    "not an answer: " + motion_hint(self.session.protocol.design.motion_answers))
         if key not in ANSWER_KEYS and key != "enter":
             return ""
         if phase is Phase.STIMULUS:
@@ -229,7 +230,8 @@ class RunScreen(KeyNotices, Screen):
                 return "Stimulus playing…"
             case Phase.RESPONSE:
                 return ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
-                        else "Subject's answer: l / r / n (no motion) / u (unsure).")
+                        else "Subject's answer: "
+                        + motion_hint(self.session.protocol.design.motion_answers) + ".")
             case Phase.PAUSED:
                 return "PAUSED · p resumes."
             case Phase.FAULT:
@@ -277,10 +279,11 @@ class RunScreen(KeyNotices, Screen):
         if isinstance(condition, LocalisationCondition):
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
-        direction = DIRECTION_OF_WAVE[condition.direction]
-        if direction == "none":
+        if condition.direction == Direction.NONE:
             return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
-        return f"stimulus: {direction}wards wave on pins {pins}"
+        if condition.kind is WaveKind.SEQUENCE:
+            return f"stimulus: wave going {condition.direction} on pins {pins}"
+        return f"stimulus: {condition.kind} wave on pins {pins}"
 
     def _describe_last(self) -> str:
         if self.session.last is None:

@@ -11,7 +11,7 @@ from pinarray.clock import MonotonicClock
 from pinarray.imaging.lsl import STREAM_TYPE, MarkerOutlet
 from pinarray.imaging.markers import marker_text
 from pinarray.plan import make_plan
-from pinarray.protocol import DIRECTION_OF_WAVE, LocalisationCondition
+from pinarray.protocol import LocalisationCondition
 from pinarray.protocol.load import load_protocol
 from tests.imaging.lsl_inlet import MarkerInlet, unique_stream_name
 from tests.lsl_local import MACHINE_ONLY
@@ -74,5 +74,5 @@ def test_a_marker_names_the_trial_and_its_stimulus(path):
             assert "direction" not in data
         else:
             assert data["row"] == condition.row
-            assert data["direction"] == DIRECTION_OF_WAVE[condition.direction].value
+            assert data["direction"] == condition.direction.value
             assert data["frequency_hz"] > 0 and "pin" not in data

@@ -28,6 +28,7 @@ from pinarray.tui.outcome import Crashed
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.scanner_screen import ScannerScreen
 from pinarray.tui.start_screen import StartScreen
+from tests.many_ways import write_many_ways
 from tests.tui.conftest import (
     LOCALISATION,
     MOTION,
@@ -316,6 +317,27 @@ async def test_the_answer_awaited_shows_every_answer_the_last_one_and_the_notice
         answers = screen.query("#pad Button")
         assert len(answers) == (0 if protocol == LOCALISATION else 4)
         assert unseen(screen) == []
+
+
+@SIZES
+async def test_waves_going_every_way_offer_every_direction_as_an_answer_all_in_view(
+        results, tmp_path, size):
+    app = make_app(results, protocol=write_many_ways(tmp_path))
+    async with app.run_test(size=size) as pilot:
+        await to_run_screen(pilot)
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press("space")
+        await settle(pilot)
+        screen = app.screen
+        assert screen.session.phase is Phase.RESPONSE
+        answers = [str(b.id).removeprefix("answer-") for b in screen.query("#pad Button")]
+        assert answers == ["left", "right", "up", "down", "up-right", "none", "unsure"]
+        assert "↑ / ↓ / 1 (up-right)" in says(screen, "#phase")
+        assert unseen(screen) == []
+        await pilot.press("1")  # the first direction a sequence names
+        await settle(pilot)
+        assert screen.session.last.record.response == "up-right"
 
 
 @SIZES

@@ -5,7 +5,6 @@ import pytest
 from pinarray.grid import classify
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.records import read_trials
-from pinarray.protocol import DIRECTION_OF_WAVE
 from pinarray.session.trials import Phase
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.run_screen import RunScreen
@@ -69,7 +68,7 @@ async def test_a_whole_motion_session_by_keys_and_buttons(results):
             await pilot.press("enter")
             await settle(pilot)
             planned = session.current
-            truth = DIRECTION_OF_WAVE[planned.condition.direction]
+            truth = planned.condition.direction
             answer = truth if planned.trial % 4 else "unsure"
             given[planned.trial] = answer
             if planned.trial % 2:
