@@ -111,7 +111,8 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     ids : sequence of int, optional
         Sweep exactly these ids; when they are an array's worth or fewer (`LOOK_AGAIN_IDS`),
         look again, four times longer, at those that did not answer (a busy host can hold an
-        answer past a quiet host's wait). Default: a
+        answer past a quiet host's wait); a sweep of more looks again only at silent ids in
+        the gaps of those that answered and just beside them. Default: a
         broadcast ping, which finds a lone servo (a new one) at once; when nothing answers it
         or several answers collide, every id 0-252, once.
     timeout_ns : int
@@ -136,9 +137,14 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    if look_again:
-        for servo_id in [i for i, model in models.items() if model is None]:
-            models[servo_id] = bus.ping_within(servo_id, 4 * timeout_ns)
+    silent = [i for i, model in models.items() if model is None]
+    if not look_again:
+        # A full sweep looks again only beside what answered: an array's ids run together,
+        # so a gap in them, or the id just before or after, is where a busy host lost one.
+        answered = [i for i, model in models.items() if model is not None]
+        silent = [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
+    for servo_id in silent:
+        models[servo_id] = bus.ping_within(servo_id, 4 * timeout_ns)
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
 
