@@ -55,7 +55,7 @@ def test_no_pin_is_stimulated_twice_in_a_row(seed):
 def test_apparent_motion_presents_each_configuration_twice_per_block():
     plan = make_plan(load_protocol(PROTOCOLS / "apparent_motion.yaml"), 11)
     for block in (1, 2):
-        directions = Counter(t.condition.direction.value for t in plan.trials if t.block == block)
+        directions = Counter(t.condition.kind.value for t in plan.trials if t.block == block)
         assert directions == {"rightwards": 2, "leftwards": 2, "none": 2}
 
 
