@@ -66,8 +66,8 @@ def problems_of(text: str, protocol_path=MOTION) -> list[str]:
 def test_every_wrong_answer_is_named_by_its_line_before_any_trial_runs():
     text = motion_sheet().replace("4,left", "4,lefft").replace("9,left", "9,")
     assert problems_of(text) == [
-        "a.csv:5: trial 4: expected one of left, right, none, unsure, found 'lefft'",
-        "a.csv:10: trial 9: expected one of left, right, none, unsure, found nothing",
+        "a.csv:5: trial 4: expected one of none, left, right, unsure, found 'lefft'",
+        "a.csv:10: trial 9: expected one of none, left, right, unsure, found nothing",
     ]
 
 
@@ -107,8 +107,8 @@ def test_a_wrong_answer_leaves_no_run_behind(tmp_path):
     result = batch(str(MOTION), "--subject", "p2", "--responses", str(sheet),
                    "--results", str(tmp_path / "out"))
     assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert result.stderr == (f"pinarray: {sheet}:14: trial 13: expected one of left, right, "
-                             "none, unsure, found 'up'\n")
+    assert result.stderr == (f"pinarray: {sheet}:14: trial 13: expected one of none, left, "
+                             "right, unsure, found 'up'\n")
     assert not (tmp_path / "out").exists()
 
 

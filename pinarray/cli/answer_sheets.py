@@ -124,7 +124,7 @@ def check_answers(
                 continue
             expected = f"a pin number from 1 to {pins} or 'none'"
         else:
-            offered = protocol.design.motion_answers  # the directions waves go, none, unsure
+            offered = ("none", *protocol.design.directions, "unsure")  # the waves' directions
             if word in offered:
                 by_trial[answer.trial] = word
                 continue

@@ -419,7 +419,7 @@ class Session:
             if not 1 <= pin <= self.grid.pin_count:
                 raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
             return str(pin)
-        answers = self.protocol.design.motion_answers
+        answers = ("none", *self.protocol.design.directions, "unsure")  # the waves' directions
         if response not in answers:
             raise SessionError(f"expected one of {', '.join(answers)}, found {response!r}")
         return str(response)
