@@ -339,10 +339,7 @@ class PwmVerifier:
     lateness_ns: dict[int, int] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.lateness_ns = {}
-        deviations = self.trial.channel_deviation_ns
-        for index in range(len(self.trial.changes)):
-            self.lateness_ns[index] = deviations[index][1] if index < len(deviations) else 0
+        self.lateness_ns = dict(enumerate(self.trial.change_lateness_ns))
         first = self.trial.frames[0].first_change if self.trial.frames else len(self.trial.changes)
         self._initial = list(range(first))  # period-0 changes: written before the counter
 

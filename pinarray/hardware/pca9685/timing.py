@@ -126,7 +126,7 @@ class PwmTrial(PreparedTrial):
     frame_periods: tuple[int, ...] = ()
     first_blocks: tuple[LedBlock, ...] = ()
     predictions: tuple[Prediction, ...] = ()
-    channel_deviation_ns: tuple[tuple[int, int], ...] = ()  # per change: predicted lateness
+    change_lateness_ns: tuple[int, ...] = ()  # per change: its pulse's predicted lateness
 
     @property
     def worst_deviation_ns(self) -> int:
@@ -207,7 +207,8 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
                           for n, start in ((first_slot, first), (last_slot, last))]
             predictions.append(Prediction(pin, channel, on, first_slot, last_slot,
                                           ceil(max(deviations))))
-    by_period: dict[int, dict[int, int]] = {}
+    by_period: dict[int, dict[int, int]] = {}  # period -> channel -> width (us)
+    due: dict[int, list[tuple[Change, int]]] = {}  # period -> (change, predicted lateness)
     changes: list[tuple[int, Change]] = []  # (period, change)
     deviation: list[int] = []
     for t, pin, width in zip(targets.time_ns.tolist(), targets.pin.tolist(),
@@ -225,8 +226,10 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
                 f"ms, {rate.describe()}) at {t / 1e9:.4f} s: the board would never show the "
                 "first; lengthen the pulse or raise the board's pwm_hz")
         in_period[channel] = width
-        changes.append((n, Change(channel, pin, width, t)))
-        deviation.append(ceil(n * period + on * tick - t))
+        change, late_ns = Change(channel, pin, width, t), ceil(n * period + on * tick - t)
+        changes.append((n, change))
+        deviation.append(late_ns)
+        due.setdefault(n, []).append((change, late_ns))
     if rate.slot_ns is None:
         for pin in sorted({c.pin for _, c in changes}):
             mine_dev = [d for (_, c), d in zip(changes, deviation, strict=True) if c.pin == pin]
@@ -234,10 +237,6 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
             periods = [n for n, c in changes if c.pin == pin]
             predictions.append(Prediction(pin, channel, on_of_channel.get(channel, 0),
                                           min(periods), max(periods), max(mine_dev)))
-    for ch, w in widths.items():
-        if width_counts(w, tick) >= COUNTS:
-            raise PinArrayError(f"channel {ch}: a {w} us pulse does not fit the board's period "
-                                f"({rate.describe()})")
     worst = max(predictions, key=lambda p: p.worst_deviation_ns, default=None)
     if worst is not None and worst.worst_deviation_ns > setup.tolerance_ns:
         raise PinArrayError(_too_far(worst, rate, setup, targets.end_ns))
@@ -255,10 +254,9 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
                          for ch in range(CHANNELS))
     current = dict(at_start)
     frames: list[PreparedFrame] = []
-    ordered: list[Change] = [c for n, c in changes if n == 0]
+    ordered: list[Change] = [c for c, _ in due.get(0, [])]
     frame_periods: list[int] = []
-    lateness: list[tuple[int, int]] = [(c.servo_id, d) for (n, c), d in
-                                       zip(changes, deviation, strict=True) if n == 0]
+    lateness: list[int] = [d for _, d in due.get(0, [])]
     for n in sorted(by_period):
         current.update(by_period[n])
         low, high = min(by_period[n]), max(by_period[n])
@@ -266,13 +264,12 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
             (block(ch, current[ch]) if ch in current else FULL_OFF).encode()
             for ch in range(low, high + 1))
         goals = tuple(sorted(by_period[n].items()))
-        due = sorted(((c, d) for (m, c), d in zip(changes, deviation, strict=True) if m == n),
-                     key=lambda cd: cd[0].servo_id)
+        in_order = sorted(due[n], key=lambda cd: cd[0].servo_id)
         frames.append(PreparedFrame(ceil((n - 1) * period) + WINDOW_MARGIN_NS, data, goals,
                                     len(ordered)))
         frame_periods.append(n)
-        ordered.extend(c for c, _ in due)
-        lateness.extend((c.servo_id, d) for c, d in due)
+        ordered.extend(c for c, _ in in_order)
+        lateness.extend(d for _, d in in_order)
     return PwmTrial(tuple(frames), tuple(ordered), targets.end_ns,
                     {s.servo_id: s.pin for s in setup.servos}, rate, tuple(frame_periods),
                     first_blocks, tuple(predictions), tuple(lateness))
