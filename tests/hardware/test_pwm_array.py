@@ -113,8 +113,14 @@ def test_a_scan_of_a_bus_without_boards_says_what_to_check_and_exits_3(capsys):
 
 def _decode_log(lines, channel):
     """From a logic analyser's view alone: the prescale and the RESTART that start the trial's
-    counter, and the width (counts) the channel's registers hold for each period after it."""
+    counter, and the width (counts) the channel's registers hold for each period after it.
+
+    The board's registers are kept as the writes leave them (auto-increment from the first
+    byte's register), so a write of only a channel's OFF counts keeps the ON count before it.
+    """
     prescale, restart_ns, width, changes = None, None, None, []
+    registers = bytearray(256)
+    first = 0x06 + 4 * channel
     for line in lines:
         t_ns, address, rw, data, ack = line.split()
         raw = bytes.fromhex(data)
@@ -122,13 +128,13 @@ def _decode_log(lines, channel):
             continue
         t = int(t_ns)
         register, values = raw[0], raw[1:]
+        registers[register:register + len(values)] = values
         if register == 0xFE and values and t < 0:
             prescale = values[0]
         elif register == 0x00 and values and values[0] & 0x80 and t <= 1_000_000:
             restart_ns = t  # the counter's period 0 begins here
-        first = 0x06 + 4 * channel
-        if 0x06 <= register <= first and register + len(values) >= first + 4:
-            on_l, on_h, off_l, off_h = values[first - register:first - register + 4]
+        if 0x06 <= register < first + 4 and register + len(values) > first:
+            on_l, on_h, off_l, off_h = registers[first:first + 4]
             counts = ((off_h & 0x0F) << 8 | off_l) - ((on_h & 0x0F) << 8 | on_l)
             if restart_ns is None:
                 width = counts % 4096  # in place before the counter starts
@@ -161,3 +167,15 @@ def test_the_i2c_log_shows_each_pulse_of_the_schedule_on_its_channel_to_the_coun
             width = changes.pop(0)[1]
         wanted_us = protocol.device.calibration(pin).position_for_width(nominal)
         assert abs(width * tick - wanted_us * 1000) <= tick / 2, (k, width, wanted_us)
+
+
+def test_a_one_pin_train_changes_only_the_off_count_each_period_four_bytes_on_the_wire():
+    """The bus's minimum for a new width: address, register pointer, OFF_L, OFF_H. The ON
+    count (the pin's phase) goes to the board with the first registers and holds."""
+    protocol = load_protocol(PROTOCOL)
+    schedule = compile_trial(protocol, _trial(protocol, 10))
+    with Rig(protocol, None, "sim://pca9685?osc_hz=25300000", VirtualClock()) as rig:
+        trial = rig.bus.prepare(schedule.targets, schedule.pulses)
+        channel = protocol_channel(rig, _trial(protocol, 10).condition.pin)
+    assert trial.frames and {frame.packet[0] for frame in trial.frames} == {0x06 + 4 * channel + 2}
+    assert {1 + len(frame.packet) for frame in trial.frames} == {4}  # with the address byte

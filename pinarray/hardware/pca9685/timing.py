@@ -18,7 +18,8 @@ planned in periods of the board's own counter, started at the trial's onset:
 
 A change for period ``n`` is written in period ``n - 1`` (after the boundary that started it,
 so it cannot reach period ``n - 1`` itself, and before ``n`` begins); changes of period 0 are
-in place before the counter starts. A trial whose predicted drift exceeds the protocol's
+in place before the counter starts; a write begins at its first channel's OFF count (the ON
+counts, each pin's phase, are written with the first registers and hold for the trial). A trial whose predicted drift exceeds the protocol's
 tolerance, or that needs two changes of one pin in one period, is refused before anything is
 sent, saying what to change.
 """
@@ -48,6 +49,8 @@ from pinarray.hardware.pca9685.registers import (
     tick_ns,
 )
 from pinarray.units import NS_PER_MS, NS_PER_S, NS_PER_US
+
+ON_BYTES = 2  # LEDn_ON_L, LEDn_ON_H: the first half of a channel's block
 
 # A period's write goes out this long after the boundary that opens its window, so that the
 # host's clock and the board's counter, started together, cannot disagree about the period.
@@ -260,9 +263,11 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
     for n in sorted(by_period):
         current.update(by_period[n])
         low, high = min(by_period[n]), max(by_period[n])
-        data = bytes([led_register(low)]) + b"".join(
+        # From the first changed channel's OFF_L: its ON count (the pin's phase) is on the
+        # board since `begin` and stays for the trial, so a one-channel frame is 4 bytes.
+        data = bytes([led_register(low) + ON_BYTES]) + b"".join(
             (block(ch, current[ch]) if ch in current else FULL_OFF).encode()
-            for ch in range(low, high + 1))
+            for ch in range(low, high + 1))[ON_BYTES:]
         goals = tuple(sorted(by_period[n].items()))
         in_order = sorted(due[n], key=lambda cd: cd[0].servo_id)
         frames.append(PreparedFrame(ceil((n - 1) * period) + WINDOW_MARGIN_NS, data, goals,
