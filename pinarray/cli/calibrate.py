@@ -11,7 +11,7 @@ import argparse
 import os
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from pinarray.cli.output import say
 from pinarray.cli.servos import bus_options, open_bare
@@ -71,7 +71,10 @@ class JogWord(StrEnum):
     HELP = "help"
 
 
-JOG_HELP = ("+ / - one step, +N / -N N steps, =N go to N steps, empty line: where it is, "
+def jog_help(unit: str, shown: str = "where it is") -> str:
+    """The jog commands in one line, in the family's unit (``steps`` or ``us``); ``shown``:
+    what an empty line shows."""
+    return (f"+ / - one step, +N / -N N {unit}, =N go to N {unit}, empty line: {shown}, "
             "ok: this is it, q: stop without writing")
 
 
@@ -97,69 +100,159 @@ def parse_jog(line: str, step: int) -> _By | _To | JogWord:
     raise ValueError(f"expected +, -, +N, -N, =N, ok or q, found {line.strip()[:40]!r}")
 
 
+class Jogger(Protocol):
+    """One pin held and moved while a person watches, as the calibration dialogue needs it:
+    each call returns the line that says what happened (the families' readings differ)."""
+
+    unit: str  # "steps" or "us"
+    shown: str  # what an empty line shows
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def goal(self) -> int: ...
+
+    def start(self) -> str: ...
+
+    def move_by(self, amount: int) -> str: ...
+
+    def move_to(self, goal: int) -> str: ...
+
+    def show(self) -> str: ...
+
+    def release(self, rest: int) -> str:
+        """The pin to ``rest``, then let go (torque off, or no pulses); never raises."""
+        ...
+
+
+class _StsJogger:
+    """An STS servo's `pinarray.hardware.feetech.jog.Jog`: it says where the horn is."""
+
+    unit = "steps"
+    shown = "where it is"
+
+    def __init__(self, jog, bus, rest_steps: int, up_steps: int):
+        self.jog, self.bus = jog, bus
+        self.rest_steps, self.up_steps = rest_steps, up_steps
+
+    @property
+    def name(self) -> str:
+        return self.jog.name
+
+    @property
+    def goal(self) -> int:
+        return self.jog.goal_steps
+
+    def start(self) -> str:
+        reading = self.jog.start()
+        return (f"{self.name}: holding it at {reading.present_steps} steps (calibrated rest "
+                f"{self.rest_steps}, up {self.up_steps}; the servo allows {self.jog.bounds[0]}.."
+                f"{self.jog.bounds[1]}).")
+
+    def move_by(self, amount: int) -> str:
+        return self._said(self.jog.move_by(amount))
+
+    def move_to(self, goal: int) -> str:
+        return self._said(self.jog.move_to(goal))
+
+    def show(self) -> str:
+        return self._said(self.jog.read())
+
+    @staticmethod
+    def _said(reading) -> str:
+        arrived = "" if reading.arrived else " (still on its way: watch it, or type again)"
+        errors = "" if not reading.errors else f", error bits: {reading.errors.describe()}"
+        return f"  goal {reading.goal_steps}, at {reading.present_steps} steps{arrived}{errors}"
+
+    def release(self, rest: int) -> str:
+        try:
+            safe = self.jog.release(rest)
+        finally:
+            self.bus.close()
+        where = f"at rest ({rest} steps)" if safe.at_rest_ids else "NOT confirmed at rest"
+        torque = "torque off" if safe.released_ids else "torque NOT confirmed off"
+        return f"{self.name}: {where}, {torque}"
+
+
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from pinarray.cli.bus import chosen_bus
-    from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
-    from pinarray.errors import PinArrayError, ProtocolError
     from pinarray.hardware.feetech.jog import Jog
     from pinarray.player.families import bus_setup, sts_servos
-    from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
     from pinarray.stop import StoppableClock, StopRequest, stop_on_signals
 
-    protocol = load_protocol(args.protocol)
-    data = _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
+    protocol, data = protocol_to_calibrate(args)
     device = protocol.device
-    calibration = device.calibration(args.pin)
-    old_up = calibration.positions_by_width_ns[-1][1]
-
-    def edited(rest_steps: int, up_steps: int) -> tuple[NewCalibration, bytes]:
-        new = plan_calibration(data, protocol, args.pin, rest_steps, up_steps)
-        return new, rewrite_calibration(data, protocol, new)
-
-    try:
-        edited(calibration.rest_steps, old_up)  # a file that cannot be edited: say so first
-    except ProtocolError:
-        raise
-    except PinArrayError:
-        pass  # e.g. rest = up today: the new values decide
     setup = bus_setup(device)
     servo = next(s for s in setup.servos if s.pin == args.pin)
     url = chosen_bus(args, "servos calibrate", setup.servo_ids)
-    result: tuple[NewCalibration, bytes] | None = None
     with stop_on_signals(StopRequest()) as stop:
         bus = open_bare(url, args.baud or sts_servos(device).baud_rate)
         jog = Jog(bus, servo, setup.model_number, setup.speed_steps_per_s,
                   clock=StoppableClock(bus.clock, stop))
-        rest_steps = servo.rest_steps
-        try:
-            reading = jog.start()
-            say(f"{jog.name}: holding it at {reading.present_steps} steps (calibrated rest "
-                f"{servo.rest_steps}, up {old_up}; the servo allows {jog.bounds[0]}.."
-                f"{jog.bounds[1]}).")
-            say(f"Commands: {JOG_HELP}.")
-            found_rest = _jog_until_ok(jog, "rest", args.step, stop, lambda steps: None)
-            if found_rest is not None:
-                attempts: dict[int, tuple[NewCalibration, bytes]] = {}
+        up = device.calibration(args.pin).positions_by_width_ns[-1][1]
+        return calibrate_pin(args, protocol, data, _StsJogger(jog, bus, servo.rest_steps, up),
+                             stop)
 
-                def check(up_steps: int) -> str | None:
-                    if up_steps == found_rest:
-                        return f"up must differ from rest ({found_rest} steps): jog further"
-                    try:
-                        attempts[up_steps] = edited(found_rest, up_steps)
-                    except PinArrayError as problem:
-                        return f"{problem}; jog elsewhere, or q"
-                    return None
 
-                found_up = _jog_until_ok(jog, "up", args.step, stop, check)
-                if found_up is not None:
-                    result = attempts[found_up]
-                    rest_steps = found_rest
-        finally:
-            safe = jog.release(rest_steps)
-            bus.close()
-            where = f"at rest ({rest_steps} steps)" if safe.at_rest_ids else "NOT confirmed at rest"
-            torque = "torque off" if safe.released_ids else "torque NOT confirmed off"
-            say(f"{jog.name}: {where}, {torque}")
+def protocol_to_calibrate(args: argparse.Namespace):
+    """The protocol and its file's bytes, refused at once if the pin's calibration cannot be
+    edited in the file."""
+    from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
+    from pinarray.errors import PinArrayError, ProtocolError
+    from pinarray.protocol.load import MAX_PROTOCOL_BYTES, load_protocol
+
+    protocol = load_protocol(args.protocol)
+    data = _protocol_bytes(args.protocol, MAX_PROTOCOL_BYTES, protocol.sha256)
+    calibration = protocol.device.calibration(args.pin)
+    try:  # a file that cannot be edited: say so first
+        new = plan_calibration(data, protocol, args.pin, calibration.rest_steps,
+                               calibration.positions_by_width_ns[-1][1])
+        rewrite_calibration(data, protocol, new)
+    except ProtocolError:
+        raise
+    except PinArrayError:
+        pass  # e.g. rest = up today: the new values decide
+    return protocol, data
+
+
+def calibrate_pin(args: argparse.Namespace, protocol, data: bytes, jogger: Jogger, stop) -> int:
+    """Jog ``args.pin`` to rest, then up; write both into the protocol file; the pin let go
+    at rest (the new one if found) however it ends."""
+    from pinarray.cli.calibration_file import plan_calibration, rewrite_calibration
+    from pinarray.errors import PinArrayError
+    from pinarray.protocol.load import MAX_PROTOCOL_BYTES
+
+    device = protocol.device
+
+    def edited(rest: int, up: int) -> tuple[NewCalibration, bytes]:
+        new = plan_calibration(data, protocol, args.pin, rest, up)
+        return new, rewrite_calibration(data, protocol, new)
+
+    result: tuple[NewCalibration, bytes] | None = None
+    rest = device.calibration(args.pin).rest_steps
+    try:
+        say(jogger.start())
+        say(f"Commands: {jog_help(jogger.unit, jogger.shown)}.")
+        found_rest = _jog_until_ok(jogger, "rest", args.step, stop, lambda goal: None)
+        if found_rest is not None:
+            attempts: dict[int, tuple[NewCalibration, bytes]] = {}
+
+            def check(up: int) -> str | None:
+                if up == found_rest:
+                    return f"up must differ from rest ({found_rest} {jogger.unit}): jog further"
+                try:
+                    attempts[up] = edited(found_rest, up)
+                except PinArrayError as problem:
+                    return f"{problem}; jog elsewhere, or q"
+                return None
+
+            found_up = _jog_until_ok(jogger, "up", args.step, stop, check)
+            if found_up is not None:
+                result = attempts[found_up]
+                rest = found_rest
+    finally:
+        say(jogger.release(rest))
     if result is None:
         say(f"{args.protocol}: nothing written")
         return 0
@@ -175,31 +268,32 @@ def _describe(new: NewCalibration, device: Device, pin: int) -> str:
     """What was written, and the stroke it gives, in words."""
     import math
 
+    unit = new.unit
     positions = ", ".join(f"{w / 1e6:g} ms: {p}" for w, p in new.positions)
-    limits = (f", limits_steps [{new.limits_steps[0]}, {new.limits_steps[1]}] (widened)"
+    limits = (f", limits_{unit} [{new.limits_steps[0]}, {new.limits_steps[1]}] (widened)"
               if new.limits_widened else "")
     stroke = abs(new.up_steps - new.rest_steps)
     lever = device.calibration(pin).lever_mm
     degrees = device.servo.degrees(stroke)
-    return (f"device: pins: {pin}: rest_steps {new.rest_steps}, positions {{{positions}}}"
-            f"{limits}; stroke {stroke} steps ({degrees:.1f} deg, about "
+    return (f"device: pins: {pin}: rest_{unit} {new.rest_steps}, positions {{{positions}}}"
+            f"{limits}; stroke {stroke} {unit} ({degrees:.1f} deg, about "
             f"{lever * math.radians(degrees):.2f} mm on its {lever:g} mm lever)")
 
 
-def _jog_until_ok(jog, what: str, step: int, stop, check) -> int | None:
+def _jog_until_ok(jogger: Jogger, what: str, step: int, stop, check) -> int | None:
     """Jog until ``ok`` where ``check(goal)`` finds no problem (the goal), or ``q`` (None)."""
     from pinarray.errors import BusError
-    from pinarray.hardware.feetech.jog import GoalOutOfRange
+    from pinarray.hardware.driver import GoalOutOfRange
     from pinarray.stop import raise_on_signals
 
-    say(f"Jog {jog.name} to {what.upper()}, then type ok.")
+    say(f"Jog {jogger.name} to {what.upper()}, then type ok.")
     while True:
         stop.raise_if_requested()
         try:
             with raise_on_signals("calibration"):
                 line = input(f"{what}> ")
         except EOFError:
-            raise BusError(f"{jog.name}: input ended before the {what} position was chosen; "
+            raise BusError(f"{jogger.name}: input ended before the {what} position was chosen; "
                            "nothing written") from None
         try:
             command = parse_jog(line, step)
@@ -208,30 +302,28 @@ def _jog_until_ok(jog, what: str, step: int, stop, check) -> int | None:
             continue
         try:
             match command:
-                case _By(steps=steps):
-                    reading = jog.move_by(steps)
-                case _To(steps=steps):
-                    reading = jog.move_to(steps)
+                case _By(steps=amount):
+                    said = jogger.move_by(amount)
+                case _To(steps=goal):
+                    said = jogger.move_to(goal)
                 case JogWord.OK:
-                    refused = check(jog.goal_steps)
+                    refused = check(jogger.goal)
                     if refused is None:
-                        say(f"  {what} = {jog.goal_steps} steps")
-                        return jog.goal_steps
+                        say(f"  {what} = {jogger.goal} {jogger.unit}")
+                        return jogger.goal
                     say(f"  {refused}")
                     continue
                 case JogWord.QUIT:
                     return None
                 case JogWord.HELP:
-                    say(f"  {JOG_HELP}")
+                    say(f"  {jog_help(jogger.unit, jogger.shown)}")
                     continue
                 case JogWord.SHOW:
-                    reading = jog.read()
+                    said = jogger.show()
         except GoalOutOfRange as problem:
             say(f"  {problem}")
             continue
-        arrived = "" if reading.arrived else " (still on its way: watch it, or type again)"
-        errors = "" if not reading.errors else f", error bits: {reading.errors.describe()}"
-        say(f"  goal {reading.goal_steps}, at {reading.present_steps} steps{arrived}{errors}")
+        say(said)
 
 
 def _protocol_bytes(path: str, limit: int, sha256: str) -> bytes:

@@ -5,7 +5,8 @@ spellings (PyYAML does; ruamel.yaml keeps most, at the price of a dependency). A
 the lab's document, so the file is edited as text instead: the parser reports where each
 node starts and ends (`pinarray.protocol.yaml_tree` keeps libyaml's marks), and only the
 characters of the values that change are replaced (``rest_steps``, each ``positions`` value,
-``limits_steps`` if the new positions need wider limits). A key the pin does not have yet is
+``limits_steps`` if the new positions need wider limits; ``rest_us`` and ``limits_us`` on a PWM
+board, whose positions are pulse widths). A key the pin does not have yet is
 added after the pin's last entry, in the style of its mapping (flow ``{...}`` or block), and a
 pin with no entry gets one under ``device: pins:``. Line ends (LF, CRLF, CR), the byte-order
 mark and the encoding stay as they were.
@@ -30,15 +31,15 @@ from yaml import MappingNode, Node, ScalarNode, SequenceNode
 
 from pinarray.errors import PinArrayError, ProtocolError, ProtocolErrors
 from pinarray.protocol import PinCalibration, Protocol
-from pinarray.protocol.device import read_width_ns
+from pinarray.protocol.device import STEPS, WIDTH_US, read_width_ns
 from pinarray.protocol.load import parse_protocol
 from pinarray.protocol.yaml_nodes import Invalid, Reader
 from pinarray.protocol.yaml_tree import compose_tree
 from pinarray.text_files import decode_text
 from pinarray.units import NS_PER_MS
 
-# The encoder's range of an STS servo, in steps.
-MAX_STEPS = 4095
+# Each family's positions and their range: STS encoder steps, PWM pulse widths in us.
+_UNITS = {unit.suffix: unit for unit in (STEPS, WIDTH_US)}
 # Longest first: a UTF-32 LE mark begins with the UTF-16 LE one.
 _BOMS = (
     (codecs.BOM_UTF32_LE, "utf-32-le"), (codecs.BOM_UTF32_BE, "utf-32-be"),
@@ -49,7 +50,7 @@ _BOMS = (
 
 @dataclass(frozen=True)
 class NewCalibration:
-    """What calibrating one pin decided, in steps.
+    """What calibrating one pin decided, in its family's unit (steps, or us of pulse width).
 
     Attributes
     ----------
@@ -64,6 +65,8 @@ class NewCalibration:
         The pin's stroke limits: as before, or widened just enough to hold the new positions.
     limits_widened : bool
         Whether the limits had to change (then they are written to the pin's own entry).
+    unit : str
+        ``steps`` or ``us``: the keys' suffix (``rest_steps``, ``limits_us``).
     """
 
     pin: int
@@ -71,6 +74,7 @@ class NewCalibration:
     positions: tuple[tuple[int, int], ...]
     limits_steps: tuple[int, int]
     limits_widened: bool
+    unit: str
 
     @property
     def up_steps(self) -> int:
@@ -84,20 +88,22 @@ class NewCalibration:
 
 
 def new_calibration(old: PinCalibration, rest_steps: int, up_steps: int,
-                    limits_given: bool = True) -> NewCalibration:
+                    limits_given: bool = True, unit: str = STEPS.suffix) -> NewCalibration:
     """The pin's calibration with rest and "up" where they were found.
 
     The narrowest pulse width maps to ``rest_steps`` and the widest to ``up_steps``; widths in
     between keep their place between the two (linearly, rounded to a step). Limits the file
     gives (``limits_given``) are kept, or widened just enough to hold the new positions;
     without them a pin's limits are its positions' span, so they follow the new positions.
+    ``unit``: ``steps`` (STS servos) or ``us`` (pulse widths on a PWM board).
     """
+    bounds = _UNITS[unit]
     for name, value in (("rest", rest_steps), ("up", up_steps)):
-        if not 0 <= value <= MAX_STEPS:
-            raise PinArrayError(f"pin {old.pin}: {name} position {value} steps is outside "
-                                f"0..{MAX_STEPS}")
+        if not bounds.low <= value <= bounds.high:
+            raise PinArrayError(f"pin {old.pin}: {name} position {value} {unit} is outside "
+                                f"{bounds.low}..{bounds.high}")
     if rest_steps == up_steps:
-        raise PinArrayError(f"pin {old.pin}: rest and up are both {rest_steps} steps; the pin "
+        raise PinArrayError(f"pin {old.pin}: rest and up are both {rest_steps} {unit}; the pin "
                             "would not move")
     by_width = sorted(old.positions_by_width_ns)
     if len(by_width) < 2:
@@ -115,10 +121,10 @@ def new_calibration(old: PinCalibration, rest_steps: int, up_steps: int,
     span = [rest_steps, *(p for _, p in positions)]
     if not limits_given:
         return NewCalibration(old.pin, rest_steps, tuple(positions), (min(span), max(span)),
-                              False)
+                              False, unit)
     low, high = min(old.min_steps, *span), max(old.max_steps, *span)
     widened = (low, high) != (old.min_steps, old.max_steps)
-    return NewCalibration(old.pin, rest_steps, tuple(positions), (low, high), widened)
+    return NewCalibration(old.pin, rest_steps, tuple(positions), (low, high), widened, unit)
 
 
 def plan_calibration(data: bytes, protocol: Protocol, pin: int, rest_steps: int,
@@ -130,9 +136,10 @@ def plan_calibration(data: bytes, protocol: Protocol, pin: int, rest_steps: int,
     shared = None if device is None else _value(reader, device, "calibration")
     pins = None if device is None else _value(reader, device, "pins")
     own = None if pins is None else _pin_value(reader, pins, pin)
-    given = any(node is not None and _value(reader, node, "limits_steps") is not None
+    unit = protocol.device.servo.position_unit
+    given = any(node is not None and _value(reader, node, f"limits_{unit}") is not None
                 for node in (shared, own))
-    return new_calibration(protocol.device.calibration(pin), rest_steps, up_steps, given)
+    return new_calibration(protocol.device.calibration(pin), rest_steps, up_steps, given, unit)
 
 
 class Edit(NamedTuple):
@@ -246,9 +253,10 @@ def plan_edits(text: str, protocol: Protocol, new: NewCalibration) -> list[Edit]
         raise PinArrayError(f"{protocol.source}: expected a mapping for pin {pin}")
     edits = []
     missing: list[tuple[str, str]] = []
-    rest = _value(reader, own, "rest_steps")
+    rest_key, limits_key = f"rest_{new.unit}", f"limits_{new.unit}"
+    rest = _value(reader, own, rest_key)
     if rest is None:
-        missing.append(("rest_steps", str(new.rest_steps)))
+        missing.append((rest_key, str(new.rest_steps)))
     else:
         edits.append(_replace(rest, str(new.rest_steps)))
     positions = _value(reader, own, "positions")
@@ -262,9 +270,9 @@ def plan_edits(text: str, protocol: Protocol, new: NewCalibration) -> list[Edit]
             edits.append(_replace(steps_node, str(steps_by_width[width_ns])))
     if new.limits_widened:
         low, high = new.limits_steps
-        limits = _value(reader, own, "limits_steps")
+        limits = _value(reader, own, limits_key)
         if limits is None:
-            missing.append(("limits_steps", f"[{low}, {high}]"))
+            missing.append((limits_key, f"[{low}, {high}]"))
         else:
             edits.append(_replace(limits, f"[{low}, {high}]"))
     if missing:
@@ -415,9 +423,9 @@ def _positions_flow(new: NewCalibration, widths: dict[int, str]) -> str:
 
 
 def _pin_entry(new: NewCalibration, widths: dict[int, str]) -> str:
-    entry = f"rest_steps: {new.rest_steps}, positions: {_positions_flow(new, widths)}"
+    entry = f"rest_{new.unit}: {new.rest_steps}, positions: {_positions_flow(new, widths)}"
     if new.limits_widened:
-        entry += f", limits_steps: [{new.limits_steps[0]}, {new.limits_steps[1]}]"
+        entry += f", limits_{new.unit}: [{new.limits_steps[0]}, {new.limits_steps[1]}]"
     return f"{{{entry}}}"
 
 
@@ -434,7 +442,7 @@ def _check(edited: bytes, protocol: Protocol, new: NewCalibration) -> None:
         more = f" (and {len(problems.errors) - 1} more problem(s))" if len(problems.errors) > 1 else ""
         raise PinArrayError(
             f"{source}: not written: with pin {new.pin} at rest {new.rest_steps} and up "
-            f"{new.up_steps} steps the protocol would be invalid: {first}{more}") from None
+            f"{new.up_steps} {new.unit} the protocol would be invalid: {first}{more}") from None
     old = protocol.device
     expected = tuple(new.calibration(c) if c.pin == new.pin else c for c in old.pins)
     same = (reread.device.pins == expected and reread.name == protocol.name

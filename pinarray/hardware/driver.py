@@ -48,6 +48,10 @@ class PortLost(BusError):
     """The port to the servos vanished mid-run (USB unplugged, adapter reset)."""
 
 
+class GoalOutOfRange(BusError):
+    """A jogged pin's goal beyond what its servo may be sent: nothing was sent."""
+
+
 @dataclass(frozen=True)
 class ServoSetup:
     """One servo as playback needs it: where rest is and the calibrated limits, in steps."""

@@ -22,6 +22,7 @@ from pinarray.protocol import Device, HobbyServos, Pca9685Board, ServoSettings
 from pinarray.protocol.device import SIMULATED_BOARD_PORT
 
 if TYPE_CHECKING:
+    from pinarray.hardware.pca9685.driver import Pca9685Array
     from pinarray.hardware.pca9685.i2c import I2cLink
     from pinarray.hardware.pca9685.timing import PwmSetup
 
@@ -112,7 +113,7 @@ def open_array(device: Device, port: str | None, sim_url: str | None,
     handshake (`ArrayDriver.check_servos`, then `hold`) and closes the driver if it fails.
     """
     if isinstance(device.servo, HobbyServos):
-        return _open_board(device, device.servo, port, sim_url, clock, wire_log)
+        return open_board(device, port, sim_url, clock, wire_log)
     if wire_log is not None:
         raise PinArrayError("--i2c-log: this protocol's servos are STS bus servos (serial, no "
                             "I2C); the log is for a PCA9685 board's protocol")
@@ -129,9 +130,14 @@ def open_array(device: Device, port: str | None, sim_url: str | None,
     return bus
 
 
-def _open_board(device: Device, servos: HobbyServos, port: str | None, sim_url: str | None,
-                clock: Clock, wire_log: str | None) -> ArrayDriver:
+def open_board(device: Device, port: str | None, sim_url: str | None, clock: Clock,
+               wire_log: str | None = None) -> Pca9685Array:
+    """A PWM device's board on the I2C bus ``port`` (or simulated), not yet checked."""
     from pinarray.hardware.pca9685.driver import Pca9685Array
+
+    servos = device.servo
+    if not isinstance(servos, HobbyServos):
+        raise PinArrayError("this protocol's device is STS bus servos, not a PWM board")
 
     setup = pwm_setup(device)
     log = None

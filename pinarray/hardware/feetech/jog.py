@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from pinarray.clock import Clock
 from pinarray.errors import BusError
-from pinarray.hardware.driver import SafeStopReport, ServoSetup
+from pinarray.hardware.driver import GoalOutOfRange, SafeStopReport, ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import (
@@ -30,10 +30,6 @@ FULL_RANGE_STEPS = (0, 4095)
 JOG_SPEED_STEPS_PER_S = 600
 # Time a jog may take beyond its travel at jog speed before it is reported as not arrived.
 JOG_SLACK_NS = 1_000_000_000
-
-
-class GoalOutOfRange(BusError):
-    """A jog goal beyond the servo's angle limits: nothing was sent."""
 
 
 @dataclass(frozen=True)

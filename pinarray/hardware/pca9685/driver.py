@@ -247,6 +247,11 @@ class Pca9685Array:
             if held[(ch - low) * LED_STRIDE:(ch - low + 1) * LED_STRIDE]
             == packet[1 + (ch - low) * LED_STRIDE:1 + (ch - low + 1) * LED_STRIDE])
 
+    def holds(self, goals_us: Mapping[int, int]) -> bool:
+        """Whether the board's registers hold these widths (read back)."""
+        packet = self.goal_packet(goals_us)
+        return self._read(packet[0], len(packet) - 1) == packet[1:]
+
     def assume_goals(self, goals_steps: Mapping[int, int]) -> None:
         self.widths_us.update(goals_steps)
 
