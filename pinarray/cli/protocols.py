@@ -96,6 +96,12 @@ def _validate(args: argparse.Namespace) -> int:
                 print(line, file=sys.stderr)
         else:
             assert protocol is not None
+            refusals = _board_refusals(protocol)
+            if refusals:
+                status = 2
+                for line in refusals:
+                    print(f"{path}: {line}", file=sys.stderr)
+                continue
             design = protocol.design
             print(
                 f"{path}: ok ({design.paradigm.value}, {len(design.conditions) * design.repetitions * design.blocks}"
@@ -106,6 +112,17 @@ def _validate(args: argparse.Namespace) -> int:
             for warning in protocol_warnings(protocol):
                 print(f"{path}: warning: {warning}", file=sys.stderr)
     return status
+
+
+def _board_refusals(protocol) -> tuple[str, ...]:
+    """On a PWM board, each condition planned as playing it would (loads numpy: only then)."""
+    from pinarray.protocol import HobbyServos
+
+    if not isinstance(protocol.device.servo, HobbyServos):
+        return ()
+    from pinarray.player.families import board_refusals
+
+    return board_refusals(protocol)
 
 
 def _scaled_notes(protocol) -> list[str]:

@@ -18,7 +18,14 @@ from pinarray.hardware.driver import ArrayDriver, ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
 from pinarray.player.simulators import SimulatedArrays
-from pinarray.protocol import Device, HobbyServos, Pca9685Board, ServoSettings
+from pinarray.protocol import (
+    Device,
+    HobbyServos,
+    LocalisationCondition,
+    Pca9685Board,
+    Protocol,
+    ServoSettings,
+)
 from pinarray.protocol.device import SIMULATED_BOARD_PORT
 
 if TYPE_CHECKING:
@@ -80,6 +87,39 @@ def pwm_setup(device: Device) -> PwmSetup:
     board = servos.board
     return PwmSetup(servo_setups(device), board.address, board.osc_hz, board.pwm_hz,
                     device.delivery_tolerance_ns)
+
+
+def board_refusals(protocol: Protocol) -> tuple[str, ...]:
+    """What a PWM board would refuse to play of the protocol's conditions (none for bus
+    servos): each condition compiled and planned on the board as playing it would
+    (`pinarray.hardware.pca9685.timing.plan_trial`: drift past the tolerance, two changes of
+    a pin in one period, a width the period cannot hold). One line per stimulus refused, with
+    the pins it was refused on and the first pin's reason. Pure: no I/O."""
+    if not isinstance(protocol.device.servo, HobbyServos):
+        return ()
+    from pinarray.hardware.pca9685.timing import plan_trial
+    from pinarray.protocol.drives import trial_drives
+    from pinarray.schedule import compile_drives
+
+    setup = pwm_setup(protocol.device)
+    refused: dict[str, tuple[list[int], str]] = {}  # stimulus -> (pins, first reason)
+    for condition in protocol.design.conditions:
+        schedule = compile_drives(trial_drives(protocol, condition), protocol.device)
+        try:
+            plan_trial(setup, schedule.targets, schedule.pulses)
+        except PinArrayError as refusal:
+            if isinstance(condition, LocalisationCondition):
+                name = f"{condition.stimulus} at {float(condition.frequency_hz):g} Hz"
+                pins, _ = refused.setdefault(name, ([], str(refusal)))
+                pins.append(condition.pin)
+            else:
+                refused[f"{condition.stimulus} going {condition.direction}"] = ([], str(refusal))
+    return tuple(f"{name}{f' on pins {_pin_list(pins)}' if len(pins) > 1 else ''}: {reason}"
+                 for name, (pins, reason) in refused.items())
+
+
+def _pin_list(pins: list[int]) -> str:
+    return ", ".join(map(str, pins))
 
 
 def board_sim_url(url: str | None, board: Pca9685Board) -> str:

@@ -21,7 +21,7 @@ from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, Virtu
 from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import Presentation
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
-from pinarray.player.families import open_array
+from pinarray.player.families import board_refusals, open_array
 from pinarray.player.playback import (
     PlaybackReport,
     play_prepared,
@@ -100,6 +100,12 @@ class Rig:
         # plays in the simulator's own time (see `_present`), where the host's delays cost
         # nothing, at any --speed.
         self.tolerance_ns = protocol.device.delivery_tolerance_ns
+        refusals = board_refusals(protocol)  # before any port is opened: nothing touched
+        if refusals:
+            others = len(refusals) - 1
+            more = (f" (and {others} more {'stimulus' if others == 1 else 'stimuli'}: "
+                    "`pinarray validate` lists them)" if others else "")
+            raise PinArrayError(f"{protocol.source}: {refusals[0]}{more}")
         self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, wire_log,
                                            simulators)
         self.setup = self.bus.setup

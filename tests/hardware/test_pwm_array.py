@@ -63,13 +63,25 @@ def test_every_pulse_of_the_train_leaves_the_board_in_its_own_period_at_its_widt
     assert trial.delivery.confirmed == trial.delivery.scheduled
 
 
-def test_a_board_whose_period_drifts_past_the_tolerance_is_refused_with_what_to_change():
+def test_a_board_whose_period_drifts_past_the_tolerance_is_refused_up_front_with_what_to_change(
+        tmp_path, capsys):
+    from pinarray.cli import main
+
     text = PROTOCOL.read_text().replace("delivery_tolerance_ms: 40", "delivery_tolerance_ms: 10")
-    protocol = parse_protocol(text, "strict.yaml")
-    schedule = compile_trial(protocol, _trial(protocol, 10))
-    with Rig(protocol, None, None, VirtualClock()) as rig, \
-            pytest.raises(PinArrayError, match=r"37\.6 ms from the schedule.*at most 2\.6 s"):
-        rig.present(schedule)
+    strict = tmp_path / "strict.yaml"
+    strict.write_text(text)
+    # before the port is opened: one that vanishes at its first message would say so instead
+    with pytest.raises(PinArrayError, match=r"strict.yaml: seed_train at 5 Hz on pins 1, 4, 6, 7, "
+                       r"10, 11, 13, 16: .*37\.6 ms from the schedule.*at most 2\.6 s fit.*"
+                       r"and 1 more stimulus: `pinarray validate` lists them"):
+        Rig(parse_protocol(text, str(strict)), None, "sim://pca9685?vanish_after=0",
+            VirtualClock())
+    assert main(["validate", str(strict)]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert [line.split(": refusing to play: ")[0] for line in err.splitlines()] == [
+        f"{strict}: seed_train at {hz} Hz on pins 1, 4, 6, 7, 10, 11, 13, 16" for hz in (5, 10)]
+    assert main(["validate", str(PROTOCOL)]) == 0  # 40 ms holds the seed's 10 s trains
 
 
 def test_idle_pins_hold_rest_and_after_the_stop_no_channel_carries_pulses():
