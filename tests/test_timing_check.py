@@ -1,5 +1,7 @@
 """The timing check says in words whether a lost-then-healed goal still arrives in time."""
 
+from pathlib import Path
+
 from pinarray.player.timing import (
     Judgement,
     PortFigures,
@@ -81,3 +83,42 @@ def test_the_bound_of_a_rate_never_seen_is_about_three_over_the_count():
     for samples in (100, 3000, 60_000):
         assert 2.9 / samples < upper_bound(0, samples) < 3.1 / samples
     assert upper_bound(5, 3000) > 5 / 3000
+
+
+def test_on_a_pwm_board_a_write_window_shorter_than_the_tolerance_is_the_limit():
+    # 40 ms of tolerance, but a width written after its period began misses that pulse: at
+    # 100 Hz the write window is 9.8 ms. Wake-ups 12 ms late pass the tolerance, not the window.
+    late = busy_laptop(12_000 // 200, 12_000, 12 * MS)
+    assert judge(late, "", SEED_TRIAL, 40 * MS).judgement is Judgement.OK
+    verdict = judge(late, "", SEED_TRIAL, 40 * MS, window_ns=9_800_000)
+    assert verdict.judgement is Judgement.NOT_OK
+    assert "later than 6.8 ms (the write window of 9.8 ms: a board period less the write's " \
+           "margin, less the heal time)" in verdict.lines[2]
+    assert not any("delivery_tolerance_ms" in line for line in verdict.lines)
+    # a window wider than the tolerance changes nothing
+    assert judge(late, "", SEED_TRIAL, 10 * MS, window_ns=50 * MS).lines == \
+        judge(late, "", SEED_TRIAL, 10 * MS).lines
+
+
+def test_a_pwm_trial_allows_each_frame_until_its_period_begins_and_bus_servos_set_no_window():
+    from pinarray.clock import VirtualClock
+    from pinarray.plan import make_plan
+    from pinarray.player.families import open_array
+    from pinarray.player.playback import prepare_trial
+    from pinarray.protocol.load import load_protocol
+    from pinarray.schedule import compile_trial
+
+    protocols = Path(__file__).parent.parent / "protocols"
+    for name, window_ms in (("localisation_pwm.yaml", (9.8, 9.9)), ("localisation.yaml", None)):
+        protocol = load_protocol(protocols / name)
+        planned = next(t for t in make_plan(protocol, 0).trials if t.condition.frequency_hz == 10)
+        schedule = compile_trial(protocol, planned)
+        bus = open_array(protocol.device, None, None, VirtualClock())
+        try:
+            window = prepare_trial(bus, schedule.targets, schedule.pulses).write_window_ns()
+        finally:
+            bus.close()
+        if window_ms is None:
+            assert window is None
+        else:  # a 10.038 ms period less the write's 0.2 ms margin
+            assert window_ms[0] * MS < window < window_ms[1] * MS

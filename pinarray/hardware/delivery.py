@@ -58,6 +58,12 @@ class PreparedTrial:
     end_ns: int
     pin_of_servo: dict[int, int]
 
+    def write_window_ns(self) -> int | None:
+        """How late a frame may be written and still take effect as scheduled, when the
+        hardware sets such a limit (a PWM board's period); None: the protocol's tolerance
+        alone decides."""
+        return None
+
 
 @dataclass(frozen=True)
 class DeliveryRecord:

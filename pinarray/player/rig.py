@@ -230,7 +230,7 @@ class Rig:
     def _check_timing(self, duration_ns: int | None, period_ns: int) -> Verdict:
         from pinarray.player.process import PlayerProcess
 
-        busiest, frames = self._frames()
+        busiest, frames, window_ns = self._frames()
         if duration_ns is None:
             duration_ns = duration_for(frames, period_ns)
         player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
@@ -242,24 +242,30 @@ class Rig:
                 player.close()
         port = PortFigures(self.url, busiest, self.bus.heal_time_ns(busiest),
                            self.bus.latency_timer_ms, frames)
-        return judge(wake_ups, problem, port, self.tolerance_ns)
+        return judge(wake_ups, problem, port, self.tolerance_ns, window_ns)
 
-    def _frames(self) -> tuple[int, int]:
-        """The most goal changes one frame of this protocol's trials sends, and the most
-        frames one trial writes."""
+    def _frames(self) -> tuple[int, int, int | None]:
+        """The most goal changes one frame of this protocol's trials sends, the most frames
+        one trial writes, and the least time the hardware allows a frame's write (None: no
+        limit but the tolerance), as the trials are prepared for this array."""
         from pinarray.plan import make_plan
         from pinarray.schedule import compile_trial
 
         seen, busiest, frames = set(), 1, 1
+        windows: list[int] = []
         for planned in make_plan(self.protocol, 0).trials:
             if planned.condition in seen:
                 continue
             seen.add(planned.condition)
-            sizes = [len(frame.pins) for frame in compile_trial(self.protocol, planned)
-                     .targets.frames()]
+            schedule = compile_trial(self.protocol, planned)
+            trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
+            sizes = [len(frame.goals) for frame in trial.frames]
             busiest = max([busiest, *sizes])
             frames = max(frames, len(sizes))
-        return busiest, frames
+            window = trial.write_window_ns()
+            if window is not None:
+                windows.append(window)
+        return busiest, frames, min(windows, default=None)
 
     def telemetry(self) -> tuple[Telemetry, ...]:
         with self._port:

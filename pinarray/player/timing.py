@@ -120,8 +120,12 @@ def duration_for(frames_per_trial: int, period_ns: int = DEFAULT_PERIOD_NS) -> i
     return max(DEFAULT_DURATION_NS, min(LONGEST_CHECK_NS, wanted_ns))
 
 
-def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_ns: int) -> Verdict:
+def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_ns: int,
+          window_ns: int | None = None) -> Verdict:
     """Whether goal changes reach their servos within ``tolerance_ns``, trial after trial.
+
+    ``window_ns``: how late the hardware lets a frame be written at all (a PWM board's period
+    less the write's margin); the tighter of the two is the limit.
 
     A goal whose sync write is lost in the busiest frame goes out as late as the player woke,
     is read back and written again: it arrives within tolerance when the wake-up was no later
@@ -134,6 +138,12 @@ def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_
     `RETRY_SHARE`); NOT SURE, with how many to measure, when they were not.
     """
     worst_ns = wake_ups.max_ns + bus.heal_ns
+    limit = f"the tolerance of {tolerance_ns / NS_PER_MS:g} ms"
+    tolerance_limits = window_ns is None or tolerance_ns <= window_ns
+    if window_ns is not None and not tolerance_limits:
+        limit = (f"the write window of {window_ns / NS_PER_MS:.1f} ms: a board period less the "
+                 "write's margin")
+        tolerance_ns = window_ns
     budget_ns = tolerance_ns - bus.heal_ns
     late = wake_ups.later_than(budget_ns) if budget_ns > 0 else wake_ups.samples
     frames = max(1, bus.frames_per_trial)
@@ -151,8 +161,8 @@ def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_
     share = (f"at most {100 * (1 - (1 - upper_bound(0, wake_ups.samples)) ** frames):.1f} %"
              if not late else f"about {100 * seen:.1f} %")
     rate = (f"{late} of {wake_ups.samples} wake-ups later than "
-            f"{max(0, budget_ns) / NS_PER_MS:.1f} ms (the tolerance of "
-            f"{tolerance_ns / NS_PER_MS:g} ms less the heal time); with {frames} frame(s) a "
+            f"{max(0, budget_ns) / NS_PER_MS:.1f} ms ({limit}, less the heal time); with "
+            f"{frames} frame(s) a "
             f"trial, {share} of trials would be reported not delivered and presented again")
     if budget_ns > 0 and seen < RETRY_SHARE and wake_ups.samples >= needed:
         lines.append(f"OK: stimuli can be delivered as scheduled ({rate})")
@@ -169,6 +179,7 @@ def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_
         lines.append(f"to fix: set the adapter's latency timer to 1 ms (README: latency timer); "
                      f"it is {bus.latency_timer_ms} ms")
     if not realtime_problem and bus.heal_ns <= tolerance_ns:
-        lines.append("to fix: the machine itself is too busy; close other programs, or raise "
-                     "device: delivery_tolerance_ms if the experiment allows it")
+        lines.append("to fix: the machine itself is too busy; close other programs"
+                     + (", or raise device: delivery_tolerance_ms if the experiment allows it"
+                        if tolerance_limits else ""))
     return Verdict(Judgement.NOT_OK, worst_ns, tuple(lines))

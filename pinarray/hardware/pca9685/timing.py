@@ -139,6 +139,11 @@ class PwmTrial(PreparedTrial):
         """When frame ``frame_index``'s period begins (ns from onset): its write must be done."""
         return floor(self.frame_periods[frame_index] * self.rate.period_ns)
 
+    def write_window_ns(self) -> int | None:
+        """The least time any frame has from its scheduled write to its period's start."""
+        return min((self.window_end_ns(i) - frame.time_ns for i, frame in enumerate(self.frames)),
+                   default=None)
+
 
 def width_counts(width_us: int, tick: Fraction) -> int:
     """A width in whole counts of the board's tick, nearest (halves up)."""
