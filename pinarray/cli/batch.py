@@ -85,10 +85,10 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     # Each run connects on a clock of its own (`_run_clock`); this one is never asked for.
     with Sitting(Path(args.results), lambda port: choose_clock(port, args.time_scale, paced=True),
                  lsl_name=args.lsl) as sitting:
-        outlet = sitting.markers()  # open for every run of the command
-        if outlet is not None:
-            print(f"pinarray: LSL markers on stream {outlet.name!r} (type Markers, source "
-                  f"{outlet.source_id})", file=sys.stderr)
+        stream = sitting.markers()  # pylsl checked before any run
+        if stream is not None:
+            print(f"pinarray: LSL markers on stream {stream.name!r} (type Markers, source "
+                  f"{stream.source_id})", file=sys.stderr)
         for index, protocol in enumerate(protocols):
             request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
                                      args.sim, args.seed, resume=index in resumable)
@@ -184,7 +184,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
     answer = _answers(protocol, args, responses)
     with stop_on_signals(sitting.stop):
         try:
-            rig = sitting.connect(request, _run_clock(args, sync, sitting.outlet is not None))
+            rig = sitting.connect(request, _run_clock(args, sync, sitting.marker_stream is not None))
             for warning in rig.warnings:
                 print(f"pinarray: warning: {warning}", file=sys.stderr)
             if args.resume and not request.resume:
@@ -221,6 +221,10 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
                 print(f"scanner: {scanner.summary()}; every volume in "
                       f"{volume_log_path(writer.paths)}")
         finally:
+            problems = sitting.rig.marker_problems if sitting.rig is not None else []
+            if problems:  # a marker that could not go out never fails its trial: said here
+                print(f"pinarray: warning: LSL markers of {len(problems)} trial(s) not sent "
+                      f"(first: {problems[0]})", file=sys.stderr)
             safe = sitting.release("the run is over")
             if safe is not None and not safe.complete:
                 print(f"pinarray: warning: {safe.describe()}", file=sys.stderr)

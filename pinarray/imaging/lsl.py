@@ -6,6 +6,10 @@ the time it stands for, converted from the session's clock to LSL's: on Linux bo
 CLOCK_MONOTONIC (liblsl's clock is ``std::chrono::steady_clock``), so the conversion is the
 identity; any other clock gets its offset measured when the outlet opens.
 
+The outlet lives where trials play: `MarkerStream` is what the rig is given, a picklable
+recipe the player process (or the rig, when trials play in this process) opens once there, so
+each onset marker goes out from the player right after the onset frame's write.
+
 pylsl (and the liblsl inside its wheels) is imported only here and only when an outlet is
 asked for: ``pip install 'pinarray[lsl]'``. Which network LSL announces the stream on is
 liblsl's configuration: the default scope reaches the lab's network; a file named by the
@@ -15,6 +19,7 @@ liblsl's configuration: the default scope reaches the lab's network; a file name
 from __future__ import annotations
 
 import socket
+from dataclasses import dataclass
 
 from pinarray import __version__
 from pinarray.clock import Clock
@@ -33,6 +38,46 @@ class LslError(PinArrayError):
     """An LSL outlet cannot be opened (pylsl missing, or liblsl refused)."""
 
 
+def _pylsl():
+    try:
+        import pylsl
+    except ImportError as problem:
+        raise LslError(f"--lsl needs pylsl: pip install 'pinarray[lsl]' ({problem})") from None
+    except (OSError, RuntimeError) as problem:  # pylsl found no liblsl it could load
+        raise LslError(f"--lsl: pylsl cannot load its library: {problem}") from None
+    return pylsl
+
+
+def source_id() -> str:
+    """The stream's source id: the same from every process of this machine, so an inlet
+    picks the stream up again when a new player process opens it."""
+    return f"pinarray-markers@{socket.gethostname()}"
+
+
+@dataclass(frozen=True)
+class MarkerStream:
+    """A marker stream to open where trials play (`pinarray.player.markers.Announcers`).
+
+    Parameters
+    ----------
+    name : str
+        The stream's name (what LabRecorder lists).
+    """
+
+    name: str
+
+    @property
+    def source_id(self) -> str:
+        return source_id()
+
+    def check(self) -> None:
+        """Raise `LslError` now if pylsl cannot be loaded here (before anything connects)."""
+        _pylsl()
+
+    def open(self, clock: Clock) -> MarkerOutlet:
+        return MarkerOutlet(self.name, clock)
+
+
 class MarkerOutlet:
     """An LSL outlet of string markers stamped on LSL's clock.
 
@@ -45,15 +90,10 @@ class MarkerOutlet:
     """
 
     def __init__(self, name: str, clock: Clock):
-        try:
-            import pylsl
-        except ImportError as problem:
-            raise LslError(f"--lsl needs pylsl: pip install 'pinarray[lsl]' ({problem})") from None
-        except (OSError, RuntimeError) as problem:  # pylsl found no liblsl it could load
-            raise LslError(f"--lsl: pylsl cannot load its library: {problem}") from None
+        pylsl = _pylsl()
         self._pylsl = pylsl
         self.name = name
-        self.source_id = f"pinarray-markers@{socket.gethostname()}"
+        self.source_id = source_id()
         info = pylsl.StreamInfo(name, STREAM_TYPE, 1, pylsl.IRREGULAR_RATE, "string",
                                 self.source_id)
         description = info.desc()

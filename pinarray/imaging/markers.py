@@ -1,4 +1,4 @@
-"""What an LSL marker says about a stimulus, and the stimulator that sends one at each end.
+"""What an LSL marker says about a stimulus, and the stimulator that has one sent at each end.
 
 Each presented stimulus gives two markers, ``onset`` at its schedule's onset and ``offset``
 at its schedule's end, as compact JSON with sorted keys::
@@ -6,9 +6,10 @@ at its schedule's end, as compact JSON with sorted keys::
     {"block":1,"event":"onset","frequency_hz":5,"pin":10,"practice":false,"task":"demo","trial":3}
     {"block":1,"direction":"left","event":"onset","frequency_hz":10,"practice":false,"row":2,...}
 
-The player knows the onset only once the trial has played, so both markers are pushed when
-the stimulus ends, each stamped with the time it stands for (LabRecorder and every LSL
-reader use the stamp, not the arrival).
+The player that plays the trial pushes them (`pinarray.player.markers`): the onset marker
+right after the onset frame's write, the offset marker at the trial's end, each stamped with
+the schedule's time it stands for (LabRecorder and every LSL reader use the stamp; an online
+reader also learns of the stimulus as it starts).
 """
 
 from __future__ import annotations
@@ -19,16 +20,14 @@ from typing import Protocol as Interface
 
 from pinarray.hardware.delivery import Presentation
 from pinarray.plan import PlannedTrial
+from pinarray.player.markers import TrialMarkers
 from pinarray.protocol import LocalisationCondition, Protocol
 from pinarray.schedule import TrialSchedule
 
 
-class Outlet(Interface):
-    def push(self, marker: str, at_ns: int) -> None: ...
-
-
 class Presenter(Interface):
-    def present(self, schedule: TrialSchedule) -> Presentation: ...
+    def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None
+                ) -> Presentation: ...
 
 
 def _number(value) -> int | float:
@@ -51,33 +50,30 @@ def marker_text(event: str, planned: PlannedTrial, protocol: Protocol, task: str
 
 
 class MarkedStimulator:
-    """Presents through ``stimulator``, then pushes the onset and offset markers of the trial.
+    """Presents through ``stimulator``, handing it the trial's onset and offset markers.
 
     Parameters
     ----------
     stimulator
-        What really presents (the rig).
-    outlet
-        Where markers go (`pinarray.imaging.lsl.MarkerOutlet`).
+        What really presents (the rig, opened with a `pinarray.imaging.lsl.MarkerStream`):
+        its player sends the markers as the trial plays.
     protocol, task
         For the markers' payload.
     current : callable
         The trial being presented (the session's ``current``).
     """
 
-    def __init__(self, stimulator: Presenter, outlet: Outlet, protocol: Protocol, task: str,
+    def __init__(self, stimulator: Presenter, protocol: Protocol, task: str,
                  current: Callable[[], PlannedTrial | None]):
         self.stimulator = stimulator
-        self.outlet = outlet
         self.protocol = protocol
         self.task = task
         self.current = current
 
     def present(self, schedule: TrialSchedule) -> Presentation:
-        presentation = self.stimulator.present(schedule)
         planned = self.current()
+        markers = None
         if planned is not None:
-            for event, at_ns in (("onset", presentation.onset_ns),
-                                 ("offset", presentation.onset_ns + schedule.end_ns)):
-                self.outlet.push(marker_text(event, planned, self.protocol, self.task), at_ns)
-        return presentation
+            markers = TrialMarkers(*(marker_text(event, planned, self.protocol, self.task)
+                                     for event in ("onset", "offset")))
+        return self.stimulator.present(schedule, markers)

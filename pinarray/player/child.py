@@ -17,7 +17,9 @@ from functools import partial
 from multiprocessing.connection import Connection
 
 from pinarray.clock import MonotonicClock
+from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver
+from pinarray.player.markers import Announcer
 from pinarray.player.messages import (
     Answer,
     Hello,
@@ -117,11 +119,19 @@ def _serve(conn: Connection, port_fd: int) -> int:
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
     bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
+    announcer: Announcer | None = None
+    markers_problem = ""
+    if hello.markers is not None:
+        # Opened at real-time priority: the stream's own threads inherit it.
+        try:
+            announcer = hello.markers.open(clock)
+        except PinArrayError as error:
+            markers_problem = str(error)
     # From here on this process guards the servos: the parent turns torque on only once it
     # has heard Ready, and however either of us ends, `finally` rests the pins.
     try:
         try:
-            conn.send(Ready(problem))
+            conn.send(Ready(problem, markers_problem))
         except OSError:
             return 0  # the parent is gone
         while True:
@@ -131,7 +141,8 @@ def _serve(conn: Connection, port_fd: int) -> int:
                 return 0  # the parent is gone: `finally` makes the pins safe
             match message:
                 case Play(number=number) if bus is not None:
-                    conn.send(_working(clock, number, partial(_play, bus, message, clock)))
+                    conn.send(_working(clock, number,
+                                       partial(_play, bus, message, clock, announcer)))
                 case MeasureWakeUps(number=number, duration_ns=duration_ns, period_ns=period_ns):
                     conn.send(_working(clock, number,
                                        partial(_wake_ups, clock, duration_ns, period_ns)))
@@ -144,6 +155,8 @@ def _serve(conn: Connection, port_fd: int) -> int:
     finally:
         if bus is not None:
             bus.rest_and_release()
+        if announcer is not None:
+            announcer.close()
 
 
 def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) -> Answer:
@@ -157,10 +170,12 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
         clock.working = 0
 
 
-def _play(bus: ArrayDriver, play: Play, clock: ControlledClock) -> Played | PlayFailed:
+def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
+          announcer: Announcer | None) -> Played | PlayFailed:
     try:
         report = play_prepared(bus, play.trial, clock, lead_ns=play.lead_ns,
-                               tolerance_ns=play.tolerance_ns, release_at_end=False)
+                               tolerance_ns=play.tolerance_ns, release_at_end=False,
+                               markers=play.markers, announcer=announcer)
     except PlaybackAborted as aborted:
         return PlayFailed(str(aborted), aborted.safe_stop)
     return Played(report)

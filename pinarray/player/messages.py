@@ -9,21 +9,25 @@ from dataclasses import dataclass
 
 from pinarray.hardware.delivery import PreparedTrial
 from pinarray.hardware.driver import Handover, SafeStopReport
+from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.playback import PlaybackReport
 
 
 @dataclass(frozen=True)
 class Hello:
-    """The first message: the servos to drive (None: timing only), priority and spin."""
+    """The first message: the servos to drive (None: timing only), priority and spin, and
+    the marker stream the child opens once and announces on (None: no markers)."""
 
     handover: Handover | None  # None: no port, only timing measurements
     realtime_priority: int | None
     spin_ns: int
+    markers: Announcers | None = None
 
 
 @dataclass(frozen=True)
 class Ready:
     realtime_problem: str  # empty when real-time priority was granted (or not asked for)
+    markers_problem: str = ""  # empty unless the marker stream asked for could not be opened
 
 
 @dataclass(frozen=True)
@@ -32,6 +36,7 @@ class Play:
     trial: PreparedTrial
     lead_ns: int
     tolerance_ns: int
+    markers: TrialMarkers | None = None  # announced at the onset and the end, if any
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,10 @@ counted as healed with how late it arrived), never past the next frame's deadlin
 trial's `DeliveryRecord` says whether it was delivered as scheduled. Telemetry is read only
 after the trial's last frame.
 
+Given an `Announcer` and the trial's markers (`pinarray.player.markers`), the onset marker goes
+out right after the onset frame's write (in the slack, as the read-backs: never delaying a
+frame) and the offset marker at the trial's end, both stamped on the schedule's times.
+
 Safety: a schedule that would take any pin outside its calibrated limits is refused before
 anything is sent, and every way out of `play_prepared` (normal end, exception, a stop request,
 a lost port) first puts pins at rest and torque off where the hardware still answers.
@@ -44,6 +48,7 @@ from pinarray.hardware.driver import (
     Telemetry,
 )
 from pinarray.hardware.frames import check_limits
+from pinarray.player.markers import Announcer, MarkerPush, TrialMarkers
 from pinarray.schedule import PulseList, TargetList
 
 __all__ = ["check_limits", "play_prepared", "play_trial", "prepare_trial"]
@@ -90,6 +95,11 @@ class PlaybackReport:
         Readings taken right after the trial.
     safe_stop : SafeStopReport or None
         Result of resting and releasing the pins, when the trial ended with it.
+    markers_sent : int
+        Markers announced for the trial (0, 1 or 2; 0 when none were asked for).
+    marker_problem : str
+        Empty unless a marker asked for could not be sent: what went wrong (the trial is
+        played all the same).
     """
 
     onset_ns: int
@@ -102,6 +112,8 @@ class PlaybackReport:
     delivery: DeliveryRecord
     telemetry: tuple[Telemetry, ...] = ()
     safe_stop: SafeStopReport | None = None
+    markers_sent: int = 0
+    marker_problem: str = ""
     errors_ns: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
@@ -143,6 +155,8 @@ class PlaybackReport:
             retries=sum(r.retries for r in reports),
             delivery=delivery,
             telemetry=tuple(t for r in reports for t in r.telemetry),
+            markers_sent=sum(r.markers_sent for r in reports),
+            marker_problem=next((r.marker_problem for r in reports if r.marker_problem), ""),
         )
 
     def deadline_error_ns(self, percentile: float) -> int:
@@ -195,6 +209,8 @@ def play_prepared(
     tolerance_ns: int = DEFAULT_TOLERANCE_NS,
     guard_ns: int = GUARD_NS,
     release_at_end: bool = True,
+    markers: TrialMarkers | None = None,
+    announcer: Announcer | None = None,
 ) -> PlaybackReport:
     """Play a prepared trial against absolute deadlines, verifying every goal change.
 
@@ -217,6 +233,10 @@ def play_prepared(
     release_at_end : bool
         After a normal end, rest and release torque (True), or leave the pins holding rest
         for the next trial (False; the caller makes them safe at the end).
+    markers, announcer : TrialMarkers and Announcer, optional
+        Announce ``markers`` through ``announcer`` (opened on ``clock``): the onset marker
+        after the write of the first frame at or after onset, as soon as the slack before the
+        next frame allows (at once in practice), the offset marker at ``trial.end_ns``.
 
     Returns
     -------
@@ -230,6 +250,9 @@ def play_prepared(
     scheduled = np.fromiter((f.time_ns for f in frames), dtype=np.int64, count=count)
     sent = array("q", bytes(8 * count))
     ledger = DeliveryLedger(trial.changes, tolerance_ns)
+    push = MarkerPush(announcer, markers) if announcer is not None and markers is not None else None
+    # The onset frame: the first at or after time zero (none: the onset marker goes at the end).
+    onset_frame = next((k for k, f in enumerate(frames) if f.time_ns >= 0), count)
     before = bus.stats()
     index = 0
     with gc_paused():
@@ -245,10 +268,19 @@ def play_prepared(
                 bus.send_goals(frame.packet, frame.goals)
                 sent[index] = clock.now_ns() - onset_ns
                 verifier.sent(frame, sent[index])
+                if push is not None and not push.onset_sent and index >= onset_frame:
+                    next_ns = onset_ns + (frames[index + 1].time_ns if index + 1 < count
+                                          else trial.end_ns)
+                    if clock.now_ns() < next_ns - guard_ns:  # else after the next frame's write
+                        push.onset(onset_ns)
             index = count
             end_ns = onset_ns + trial.end_ns
             verifier.work_until(end_ns)
             clock.sleep_until_ns(end_ns)
+            if push is not None:
+                if not push.onset_sent:
+                    push.onset(onset_ns)
+                push.offset(end_ns)
             verifier.work_until(end_ns + SETTLE_NS)
             if verifier.pending:
                 # A change of the trial's end never confirmed may have left a pin up.
@@ -278,6 +310,8 @@ def play_prepared(
         delivery=ledger.record(),
         telemetry=readings,
         safe_stop=safe_stop,
+        markers_sent=push.sent if push is not None else 0,
+        marker_problem=push.problem if push is not None else "",
     )
 
 

@@ -32,8 +32,10 @@ from multiprocessing.connection import Connection
 from typing import NoReturn
 
 from pinarray.clock import MonotonicClock
+from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.player.child import REALTIME_PRIORITY
+from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.messages import (
     ANSWERS,
     Answer,
@@ -94,10 +96,14 @@ class PlayerProcess:
         Looked at while a trial plays; a request is passed on to the child.
     realtime : bool
         Ask the OS for SCHED_FIFO priority in the child.
+    markers : Announcers, optional
+        A marker stream the child opens once (a `PinArrayError` here if it cannot) and
+        announces each trial's markers on, from the child itself.
     """
 
     def __init__(self, bus: ArrayDriver | None, fd: int | None, stop: StopRequest,
-                 realtime: bool = True, spin_ns: int = SPIN_NS):
+                 realtime: bool = True, spin_ns: int = SPIN_NS,
+                 markers: Announcers | None = None):
         self.bus = bus
         self.fd = fd
         self.stop = stop
@@ -121,21 +127,26 @@ class PlayerProcess:
         child_end.close()
         self.conn = Connection(parent_end.detach())
         handover = bus.handover() if bus is not None else None
-        self.conn.send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns))
+        self.conn.send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
+                             markers))
         ready = self._answer("starting", START_TIMEOUT_NS)
         if not isinstance(ready, Ready):
             raise PlayerDied(f"the player process answered {ready!r} when starting",
                              SafeStopReport((), (), ()), time.monotonic_ns())
         self.realtime_problem = ready.realtime_problem
+        if ready.markers_problem:
+            self.close()  # torque is not on yet: nothing moves
+            raise PinArrayError(ready.markers_problem)
 
     @property
     def alive(self) -> bool:
         return self.process.poll() is None
 
     def play(self, trial: PreparedTrial, *, lead_ns: int = DEFAULT_LEAD_NS,
-             tolerance_ns: int) -> PlaybackReport:
-        """Play one trial in the child; raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
-        answer = self._ask(lambda number: Play(number, trial, lead_ns, tolerance_ns),
+             tolerance_ns: int, markers: TrialMarkers | None = None) -> PlaybackReport:
+        """Play one trial in the child, announcing ``markers`` there if its stream is open;
+        raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
+        answer = self._ask(lambda number: Play(number, trial, lead_ns, tolerance_ns, markers),
                            "playing a trial")
         match answer:
             case Played(report=report):

@@ -6,9 +6,10 @@ seen only through the `ArrayDriver` seam.
 One place decides hardware vs simulation, real vs virtual time, and where the deadline loop
 runs: on a serial device (real servos, or simulated ones behind a pseudo-terminal) it runs in
 a player process of its own at real-time priority (`pinarray.player.process`); on the
-in-process simulator, in virtual or scaled time, it runs here. However a `Rig` is left
-(normal close, exception, a stop request), pins go to rest and torque goes off where the bus
-still answers.
+in-process simulator, in virtual or scaled time, it runs here. Markers (LSL) are announced by
+whoever plays: the rig opens its marker stream once, in the player process or here. However a
+`Rig` is left (normal close, exception, a stop request), pins go to rest and torque goes off
+where the bus still answers.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import Presentation
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
 from pinarray.player.families import board_refusals, open_array
+from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
     PlaybackReport,
     play_prepared,
@@ -86,12 +88,16 @@ class Rig:
     simulators : SimulatedArrays, optional
         Simulated arrays kept from earlier connections in this program: the simulated servos
         are the ones the last connection to the same URL left (None: factory-new ones).
+    markers : Announcers, optional
+        A marker stream (LSL), opened once where trials play (the player process, or here)
+        and kept until the rig closes; each `present` given markers announces them at its
+        onset and end. Stimuli then play on the wall clock (`keep_wall_time`).
     """
 
     def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
                  stop: StopRequest | None = None, *, isolate: bool | None = None,
                  realtime: bool = True, wire_log: str | None = None,
-                 simulators: SimulatedArrays | None = None):
+                 simulators: SimulatedArrays | None = None, markers: Announcers | None = None):
         self.protocol = protocol
         self.stop = stop or StopRequest()
         self.bus_clock = clock
@@ -117,10 +123,14 @@ class Rig:
             raise
         self.warnings = list(self.bus.warnings)
         self.reports: list[PlaybackReport] = []
+        # What kept a trial's markers from going out, one entry per trial that had a problem.
+        self.marker_problems: list[str] = []
+        self.markers = markers
+        self._announcer: Announcer | None = None  # the stream, when trials play here
         # One user of the port at a time: the UI may test a pin while a timing check runs.
         self._port = threading.RLock()
         self._released = False
-        self._wall_time = False  # see `keep_wall_time`
+        self._wall_time = markers is not None  # see `keep_wall_time`
         self._fd = self.bus.descriptor
         self._isolate = self._fd is not None if isolate is None else isolate
         self._realtime = realtime
@@ -132,6 +142,8 @@ class Rig:
                 self._start_player()
                 if self.player is not None and self.player.realtime_problem:
                     self.warnings.append(self.player.realtime_problem)
+            elif markers is not None:
+                self._announcer = markers.open(clock)
             self.bus.hold()
             self.bus.move_to_rest()
         except BaseException:
@@ -148,18 +160,22 @@ class Rig:
 
         if self._fd is None:
             raise PinArrayError(f"{self.url}: a player process needs a serial device")
-        self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime)
+        self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime,
+                                    markers=self.markers)
 
-    def present(self, schedule: TrialSchedule) -> Presentation:
+    def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None
+                ) -> Presentation:
         """Play one trial; the pins then hold at rest.
 
         Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
-        scheduled is returned, not raised (the session marks the trial invalid).
+        scheduled is returned, not raised (the session marks the trial invalid). ``markers``
+        are announced on the rig's marker stream, if it has one; one that could not be sent
+        is added to `marker_problems`, never raised.
         """
         with self._port:
-            return self._present(schedule)
+            return self._present(schedule, markers)
 
-    def _present(self, schedule: TrialSchedule) -> Presentation:
+    def _present(self, schedule: TrialSchedule, markers: TrialMarkers | None) -> Presentation:
         if self.player is not None and not self.player.alive:
             # Started again before torque can come back on, so that it guards it.
             self.player.close()
@@ -171,15 +187,19 @@ class Rig:
         trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
         try:
             if self.player is not None:
-                report = self.player.play(trial, tolerance_ns=self.tolerance_ns)
+                report = self.player.play(trial, tolerance_ns=self.tolerance_ns,
+                                          markers=markers)
             else:
                 with self._own_time():
                     report = play_prepared(self.bus, trial, self.clock,
-                                           tolerance_ns=self.tolerance_ns, release_at_end=False)
+                                           tolerance_ns=self.tolerance_ns, release_at_end=False,
+                                           markers=markers, announcer=self._announcer)
         except PinArrayError:
             self._released = True
             raise
         self.reports.append(report)
+        if report.marker_problem:
+            self.marker_problems.append(report.marker_problem)
         return Presentation(report.onset_ns, report.delivery)
 
     def keep_wall_time(self) -> None:
@@ -290,6 +310,9 @@ class Rig:
                 safe = self.bus.rest_and_release()
         finally:
             self.bus.close()
+            announcer, self._announcer = self._announcer, None
+            if announcer is not None:
+                announcer.close()
         return safe
 
     def __enter__(self) -> Rig:

@@ -26,12 +26,12 @@ from pathlib import Path
 from types import TracebackType
 from typing import TypeVar
 
-from pinarray.clock import Clock, MonotonicClock
+from pinarray.clock import Clock
 from pinarray.errors import PinArrayError, ResultsError
 from pinarray.hardware.driver import SafeStopReport
 from pinarray.hardware.feetech.bringup import ReturnDelayChange, ServoFailure
-from pinarray.imaging.lsl import MarkerOutlet
-from pinarray.imaging.markers import MarkedStimulator
+from pinarray.imaging.lsl import MarkerStream
+from pinarray.imaging.markers import MarkedStimulator, Presenter
 from pinarray.imaging.scanner import Scanner
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
@@ -61,7 +61,8 @@ class RigFactory(typing.Protocol):
     """Makes the `Rig` of a connection: `Rig` itself, or a test's that injects faults."""
 
     def __call__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
-                 stop: StopRequest, *, simulators: SimulatedArrays) -> Rig: ...
+                 stop: StopRequest, *, simulators: SimulatedArrays,
+                 markers: MarkerStream | None = None) -> Rig: ...
 
 
 Answer = str | int | None  # a pin, a motion answer, or None: nothing felt
@@ -127,11 +128,11 @@ class Sitting:
         ``clock_factory(port)`` gives the clock of a new connection (virtual in tests) when
         `connect` is not given one.
     rig_factory : RigFactory
-        ``rig_factory(protocol, port, sim_url, clock, stop, simulators=...)``; `Rig` unless a
-        test injects faults.
+        ``rig_factory(protocol, port, sim_url, clock, stop, simulators=..., markers=...)``;
+        `Rig` unless a test injects faults.
     lsl_name : str or None
-        Send LSL markers on a stream of this name (opened by `markers` or at the first
-        connection, kept until the sitting ends); None: no outlet.
+        Send LSL markers on a stream of this name (each connection's rig opens it where its
+        trials play, and the player sends each marker as the trial plays); None: no markers.
     """
 
     def __init__(self, results_root: Path, clock_factory: Callable[[str | None], Clock],
@@ -152,7 +153,7 @@ class Sitting:
         self.last_safe: SafeStopReport | None = None  # how the last release left the pins
         self.failed: FailedAttempt | None = None  # the current trial's last failed attempt
         self.lsl_name = lsl_name
-        self.outlet: MarkerOutlet | None = None
+        self.marker_stream: MarkerStream | None = None
         self.scanner: Scanner | None = None
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
@@ -178,12 +179,14 @@ class Sitting:
 
     # -- hardware ---------------------------------------------------------------------------
 
-    def markers(self) -> MarkerOutlet | None:
-        """The LSL outlet, opened now (on this machine's clock until a connection) if the
-        sitting sends markers; None if it does not."""
-        if self.lsl_name is not None and self.outlet is None:
-            self.outlet = MarkerOutlet(self.lsl_name, MonotonicClock())
-        return self.outlet
+    def markers(self) -> MarkerStream | None:
+        """The LSL marker stream, pylsl checked now, if the sitting sends markers; None if it
+        does not. Each connection's rig opens it where its trials play."""
+        if self.lsl_name is not None and self.marker_stream is None:
+            stream = MarkerStream(self.lsl_name)
+            stream.check()
+            self.marker_stream = stream
+        return self.marker_stream
 
     def connect(self, request: SessionRequest, clock: Clock | None = None) -> Rig:
         """Open the bus and run the handshake (blocking: call it from a worker).
@@ -198,12 +201,12 @@ class Sitting:
             if self.stop.signal_number is None:
                 self.stop.clear()
         base = clock if clock is not None else self.clock_factory(request.port)
-        if self.lsl_name is not None:
-            self._open_outlet(self.lsl_name, base)
+        markers = self._marker_stream(base)
         # Counted as hardware at work, so that a sitting closed meanwhile waits for it...
         rig = self._working(lambda: self.rig_factory(request.protocol, request.port,
                                                      request.sim_url, base, self.stop,
-                                                     simulators=self.simulators))
+                                                     simulators=self.simulators,
+                                                     markers=markers))
         with self._jobs_done:
             closed = self._closing
             if not closed:
@@ -214,21 +217,19 @@ class Sitting:
         if closed:
             rig.close()  # ...and then finds it here: pins to rest, torque off, port closed
             raise Stopped(self.stop.reason or END_REASON, self.stop.signal_number)
-        if self.outlet is not None:
-            rig.keep_wall_time()  # LSL stamps the markers on this machine's clock
         return rig
 
-    def _open_outlet(self, name: str, clock: Clock) -> None:
+    def _marker_stream(self, clock: Clock) -> MarkerStream | None:
+        """The marker stream for a connection on ``clock``, if the sitting sends markers."""
         from pinarray.imaging.lsl import LslError
         from pinarray.imaging.triggers import follows_wall_clock
 
+        if self.lsl_name is None:
+            return None
         if not follows_wall_clock(clock):
             raise LslError("LSL markers are stamped on this machine's clock, and a simulated "
                            "one is not it: start the UI with --speed 1")
-        if self.outlet is None:
-            self.outlet = MarkerOutlet(name, clock)
-        else:
-            self.outlet.use_clock(clock)
+        return self.markers()
 
     def connected(self) -> Rig:
         """The connected rig (only asked for once `connect` has succeeded)."""
@@ -345,7 +346,8 @@ class Sitting:
             scanner=None if scanner is None else scanner.record(),
         )
         self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
-                                     scanner=scanner, outlet=self.outlet, on_change=on_change)
+                                     scanner=scanner, marked=self.marker_stream is not None,
+                                     on_change=on_change)
         self.failed = None
         self.runs.append((request, self.session))
         return self.session
@@ -453,7 +455,7 @@ class Sitting:
     def finish(self, reason: str = QUIT_REASON,
                status: RunStatus = RunStatus.ABORTED) -> SafeStopReport | None:
         """End the sitting: cut a stimulus short, mark an unfinished run ``status`` (aborted,
-        or crashed), pins to rest, the LSL outlet closed.
+        or crashed), pins to rest (the rig takes its LSL stream with it).
 
         Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
         if nothing was connected). The pins go to rest even if marking the run fails.
@@ -467,36 +469,34 @@ class Sitting:
                 session.abort(reason, status)
         finally:
             safe = self.release(reason)
-            outlet, self.outlet = self.outlet, None
-            if outlet is not None:
-                outlet.close()
         return safe
 
 
-def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
-                  clock: Clock, *, scanner: Scanner | None = None, outlet: MarkerOutlet | None = None,
+def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Presenter,
+                  clock: Clock, *, scanner: Scanner | None = None, marked: bool = False,
                   on_change: Callable[[Session], None] | None = None) -> Session:
-    """A `Session` on ``writer``'s run, timed from ``scanner`` and marked on ``outlet`` if given.
+    """A `Session` on ``writer``'s run, timed from ``scanner`` if given, its stimuli marked.
 
     With a scanner, the session's time zero is the first counted volume (the scanner has
     waited for it already), trials may be held for their volumes, and the run's volume log is
-    written with its rows. With an LSL outlet, every presentation sends its onset and offset
-    markers.
+    written with its rows. ``marked``: every presentation hands ``stimulator`` (a rig opened
+    with a marker stream) its onset and offset markers, which its player sends.
 
     ``writer`` must have been started with ``scanner.record()`` when there is a scanner, and
     ``scanner`` must be past `Scanner.wait_for_time_zero`.
     """
     session: Session | None = None
-    if outlet is not None:
-        stimulator = MarkedStimulator(stimulator, outlet, protocol, writer.paths.task,
-                                      lambda: session.current if session else None)
+    presenter: Stimulator = stimulator
+    if marked:
+        presenter = MarkedStimulator(stimulator, protocol, writer.paths.task,
+                                     lambda: session.current if session else None)
     if scanner is None:
-        session = Session(protocol, plan, writer, stimulator, clock, on_change)
+        session = Session(protocol, plan, writer, presenter, clock, on_change)
         return session
     zero_ns = scanner.timeline.zero_ns
     assert zero_ns is not None, "wait for the scanner's time zero first"
     writer.log_volumes(scanner.pending_rows)
-    session = Session(protocol, plan, writer, stimulator, clock, on_change,
+    session = Session(protocol, plan, writer, presenter, clock, on_change,
                       time_zero_ns=zero_ns, time_zero_event=scanner.zero_event,
                       gate=scanner.gate)
     return session

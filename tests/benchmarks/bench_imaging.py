@@ -1,8 +1,10 @@
 """Scanner triggers to onsets, and LSL markers against the schedule, beside bare references.
 
 Each round runs `pinarray batch` as a lab would (``--trigger serial:PTY --dummy-volumes 1
---lsl``, the simulator at --time-scale 1) on a short protocol, with `FakeScanner` writing one
-``5`` per volume on a pseudo-terminal and an independent LSL inlet in this process. In the
+--lsl``) on a short protocol, twice: on the simulator at --time-scale 1 (trials play in batch's
+own process) and on simulated servos behind a pseudo-terminal (``pinarray sim-serve``, then
+``--port``: trials play in the player process, as on real servos), with `FakeScanner` writing
+one ``5`` per volume on a pseudo-terminal and an independent LSL inlet in this process. In the
 same round, the references: a bare reader (a thread blocked in ``os.read`` on another pty,
 stamping each byte) for the same trigger bytes, and a bare pylsl outlet/inlet pair for marker
 delivery. All times are CLOCK_MONOTONIC, which is also LSL's clock on Linux.
@@ -14,8 +16,10 @@ Figures (ms unless said):
   write of the first counted volume's trigger: what the subject waits after time zero;
 - marker vs schedule (us): each marker's LSL stamp minus (time zero + the onset or end that
   events.tsv gives): how far the markers stray from the schedule's time base;
-- marker delivery: when the inlet got an offset marker minus its stamp (markers are pushed
-  when the stimulus ends, so this is what an online reader waits).
+- onset marker delivery: when the inlet got an onset marker minus its stamp, the schedule's
+  onset: how long after a stimulus starts an online reader knows of it (issue 27's target:
+  within 2 ms), in batch's process and from the player process;
+- offset marker delivery: the same for the offset markers, stamped at the stimulus's end.
 
 ``PINARRAY_BENCH_SECONDS`` (default 20) sets roughly how long the rounds take.
 """
@@ -103,15 +107,28 @@ def _bare_lsl_round(pylsl, count: int) -> list[float]:
     return delays
 
 
-def _pinarray_round(pylsl, protocol: Path, root: Path) -> dict[str, list[float]]:
+def _servos_on_a_pty() -> tuple[subprocess.Popen, str]:
+    """``pinarray sim-serve`` in a process of its own, and its pseudo-terminal's path."""
+    server = subprocess.Popen([sys.executable, "-m", "pinarray", "sim-serve"], cwd=REPO,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    line = server.stdout.readline()
+    if " on " not in line:
+        server.kill()
+        raise RuntimeError(f"sim-serve did not start: {line}{server.communicate()}")
+    return server, line.split(" on ", 1)[1].split()[0]
+
+
+def _pinarray_round(pylsl, protocol: Path, root: Path, port: str | None = None
+                    ) -> dict[str, list[float]]:
     from tests.imaging.fake_scanner import FakeScanner
     from tests.imaging.lsl_inlet import unique_stream_name
 
     name = unique_stream_name()
     scanner = FakeScanner(TR_S, delay_s=0.1)
+    bus = ["--port", port] if port else []
     process = subprocess.Popen(
         [sys.executable, "-m", "pinarray", "batch", str(protocol), "--subject", "bench",
-         "--observer", "default", "--results", str(root), "--time-scale", "1",
+         "--observer", "default", "--results", str(root), "--time-scale", "1", *bus,
          "--trigger", f"serial:{scanner.path}", "--dummy-volumes", "1", "--lsl", name],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO,
         env={**os.environ, "PYTHONUNBUFFERED": "1"})
@@ -155,7 +172,8 @@ def _pinarray_round(pylsl, protocol: Path, root: Path) -> dict[str, list[float]]
         "trigger -> first onset": [markers[0][1] - written[1] / NS],
         "marker vs schedule": [stamp - (zero_s + t)
                                for (_, stamp, _), t in zip(markers, scheduled, strict=True)],
-        "marker delivery": [got - stamp for _, stamp, got in markers[1::2]],
+        "onset marker delivery": [got - stamp for _, stamp, got in markers[0::2]],
+        "offset marker delivery": [got - stamp for _, stamp, got in markers[1::2]],
     }
 
 
@@ -174,7 +192,7 @@ def _row(name: str, rounds: list[list[float]], scale: float, reference: list[lis
     if reference is not None:
         ref = statistics.median(v for r in reference for v in r)
         ratio = f"{statistics.median(pooled) / ref:.1f}x" if ref > 0 else "-"
-    print(f"{name:<34} {cells} {ratio:>8}")
+    print(f"{name:<38} {cells} {ratio:>8}")
 
 
 def run() -> None:
@@ -185,24 +203,42 @@ def run() -> None:
     figures: dict[str, list[list[float]]] = {}
     bare_reader: list[list[float]] = []
     bare_lsl: list[list[float]] = []
-    with tempfile.TemporaryDirectory(prefix="pinarray-bench-sync-") as folder:
-        protocol = Path(folder) / "bench_imaging.yaml"
-        protocol.write_text(PROTOCOL)
-        root = Path(folder) / "results"
-        for _ in range(rounds):  # interleaved: a noisy neighbour slows both alike
-            for name, values in _pinarray_round(pylsl, protocol, root).items():
-                figures.setdefault(name, []).append(values)
-            bare_reader.append(_bare_reader_round(10))
-            bare_lsl.append(_bare_lsl_round(pylsl, 8))
+    player: dict[str, list[list[float]]] = {}
+    server, port = _servos_on_a_pty()
+    try:
+        with tempfile.TemporaryDirectory(prefix="pinarray-bench-sync-") as folder:
+            protocol = Path(folder) / "bench_imaging.yaml"
+            protocol.write_text(PROTOCOL)
+            root = Path(folder) / "results"
+            for _ in range(rounds):  # interleaved: a noisy neighbour slows all alike
+                for name, values in _pinarray_round(pylsl, protocol, root).items():
+                    figures.setdefault(name, []).append(values)
+                for name, values in _pinarray_round(pylsl, protocol, root, port).items():
+                    player.setdefault(name, []).append(values)
+                bare_reader.append(_bare_reader_round(10))
+                bare_lsl.append(_bare_lsl_round(pylsl, 8))
+    finally:
+        server.terminate()
+        server.communicate(timeout=30)
     print(f"{rounds} rounds of 4 trials, TR {TR_S} s, 1 dummy volume; min/median/max of the "
           "rounds' medians, p50/p99 of all samples")
-    print(f"{'':<34} {'min':>9} {'median':>9} {'max':>9} {'p50':>9} {'p99':>9} {'ratio':>8}")
+    print(f"{'':<38} {'min':>9} {'median':>9} {'max':>9} {'p50':>9} {'p99':>9} {'ratio':>8}")
     _row("bare reader: trigger -> read (ms)", bare_reader, 1e3, None)
     _row("pinarray: trigger -> stamp (ms)", figures["trigger -> stamp"], 1e3, bare_reader)
     _row("pinarray: trigger -> 1st onset (ms)", figures["trigger -> first onset"], 1e3,
          bare_reader)
     _row("pinarray: marker vs schedule (us)", figures["marker vs schedule"], 1e6, None)
+    _row("player process: marker vs sched (us)", player["marker vs schedule"], 1e6, None)
     _row("bare pylsl: marker delivery (ms)", bare_lsl, 1e3, None)
-    _row("pinarray: offset marker delivery (ms)", figures["marker delivery"], 1e3, bare_lsl)
+    _row("in process: onset -> inlet (ms)", figures["onset marker delivery"], 1e3, bare_lsl)
+    _row("player process: onset -> inlet (ms)", player["onset marker delivery"], 1e3, bare_lsl)
+    _row("in process: offset -> inlet (ms)", figures["offset marker delivery"], 1e3, bare_lsl)
+    _row("player process: offset -> inlet (ms)", player["offset marker delivery"], 1e3,
+         bare_lsl)
+    for where, found in (("in process", figures), ("player process", player)):
+        onsets = [v for r in found["onset marker delivery"] for v in r]
+        print(f"{where}: onset -> inlet over all {len(onsets)} markers: min "
+              f"{min(onsets) * 1e3:.3f}, median {statistics.median(onsets) * 1e3:.3f}, max "
+              f"{max(onsets) * 1e3:.3f} ms (target: within 2 ms of the onset)")
     print("ratio: pinarray's median over the bare reference's median in the same rounds; "
           "marker vs schedule is an error, its reference is 0")

@@ -15,12 +15,14 @@ def unique_stream_name() -> str:
 
 class MarkerInlet:
     """Resolves ``name`` in a thread and keeps ``(payload dict, timestamp s)`` until ``count``
-    markers came, or ``quiet_s`` passed with none after the first (then `join` says so)."""
+    markers came, or ``quiet_s`` passed with none after the first (then `join` says so);
+    ``arrivals`` holds when each came, on LSL's clock (s)."""
 
     def __init__(self, name: str, count: int, resolve_s: float = 60.0, quiet_s: float = 30.0):
         self.name, self.count = name, count
         self.resolve_s, self.quiet_s = resolve_s, quiet_s
         self.markers: list[tuple[dict, float]] = []
+        self.arrivals: list[float] = []
         self.info: pylsl.StreamInfo | None = None
         self.found = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -38,6 +40,7 @@ class MarkerInlet:
             sample, stamp = inlet.pull_sample(timeout=self.quiet_s)
             if sample is None:
                 break
+            self.arrivals.append(pylsl.local_clock())
             self.markers.append((json.loads(sample[0]), stamp))
         inlet.close_stream()
 
