@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
@@ -89,7 +90,7 @@ class QuestPlusRule:
         for name, values in (("intensities", self.intensities), ("thresholds", self.thresholds),
                              ("slopes", self.slopes), ("lapses", self.lapses)):
             if not values or not all(np.isfinite(v) for v in values) \
-                    or any(b <= a for a, b in zip(values, values[1:])):
+                    or any(b <= a for a, b in pairwise(values)):
                 raise PinArrayError(f"QUEST+ {name} must be one finite value or more, strictly "
                                     f"ascending, found {values}")
         if self.kind == "weibull" and self.thresholds[0] <= 0:

@@ -35,6 +35,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from dataclasses import dataclass
 from enum import StrEnum
+from itertools import pairwise
 
 import numpy as np
 
@@ -83,7 +84,7 @@ class StaircaseRule:
                 "domain every time")
         if len(domain) < 2:
             raise PinArrayError(f"a staircase's domain needs 2 intensities or more, found {len(domain)}")
-        if not all(np.isfinite(x) for x in domain) or any(b <= a for a, b in zip(domain, domain[1:])):
+        if not all(np.isfinite(x) for x in domain) or any(b <= a for a, b in pairwise(domain)):
             raise PinArrayError(f"a staircase's domain must be finite and strictly ascending, found {domain}")
         for name, value in (("down", self.down), ("up", self.up),
                             ("stop_after_trials", self.stop_after_trials),
@@ -98,7 +99,7 @@ class StaircaseRule:
         if not self.steps or self.steps[0].after_reversals != 0:
             raise PinArrayError("a staircase's step sizes must start after 0 reversals, found "
                                 f"{[s.after_reversals for s in self.steps]}")
-        for before, after in zip(self.steps, self.steps[1:]):
+        for before, after in pairwise(self.steps):
             if after.after_reversals <= before.after_reversals:
                 raise PinArrayError("a staircase's step sizes must change after strictly more "
                                     f"reversals each time, found {[s.after_reversals for s in self.steps]}")
