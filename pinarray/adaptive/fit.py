@@ -7,7 +7,7 @@ coefficients, so it is the log of the data's probability) is maximised over the 
 the slope and, when fitted, the lapse rate:
 
 - first over a coarse grid (30 thresholds x 20 slopes x 5 lapses spanning the bounds' middle),
-  then from the best grid point by L-BFGS-B (scipy) with the analytic gradient;
+  then from the best grid point by scipy's truncated Newton (TNC) with the analytic gradient;
 - bounds: a Weibull threshold within 1/100 of the lowest intensity to 100 times the highest,
   its slope (shape) 0.05 to 100; a logistic threshold within ten intensity ranges of the
   intensities, its slope 0.01 to 1000 per intensity range; the lapse rate 0 to 0.1;
@@ -134,7 +134,7 @@ class _Model:
 
     def maximise(self, start: NDArray[np.float64], k: NDArray[np.float64],
                  n: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
-        found = minimize(self.cost, start, args=(k, n), jac=True, method="L-BFGS-B",
+        found = minimize(self.cost, start, args=(k, n), jac=True, method="TNC",
                          bounds=self.bounds)
         return np.asarray(found.x, dtype=np.float64), float(found.fun)
 
