@@ -29,8 +29,8 @@ false-alarm rate for detection). Intensities are the procedure's discrete domain
 
 Memory: two (intensities x triples) float64 tables; 50 intensities x (40 thresholds x 10
 slopes x 5 lapses) = 100 000 cells each, 800 kB each, 1.6 MB together; a trial allocates a
-few vectors of the grid's size (16 kB) and of the domain's. Preparing takes a few times the
-tables' size while the logarithms are taken.
+few vectors of the grid's size (16 kB each, about 60 kB in all). Preparing peaks near 4 MB
+while the logarithms are taken (tests/benchmarks/bench_adaptive.py measures both).
 """
 
 from __future__ import annotations
