@@ -124,9 +124,9 @@ def test_quest_plus_stops_on_its_trial_limit_or_once_the_interval_is_narrow_enou
     by_trials = QuestPlus.prepare(rule(stop_after_trials=25))
     assert run(by_trials, subject, seed=1)[0].trials == 25
     narrow = QuestPlus.prepare(rule(stop_after_trials=400, stop_below_width=4.0))
-    state, _ = run(narrow, subject, seed=1)
+    state, outcomes = run(narrow, subject, seed=1)
     assert state.trials < 400 and narrow.summary(state).threshold_ci_width <= 4.0
-    before = narrow.replay(_[:-1])
+    before = narrow.replay(outcomes[:-1])
     assert narrow.summary(before).threshold_ci_width > 4.0
     with pytest.raises(PinArrayError, match="finished after 25 trials"):
         by_trials.update(run(by_trials, subject, seed=1)[0], INTENSITIES[0], True)
