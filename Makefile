@@ -34,7 +34,7 @@ test: $(STAMP)
 # The lowest versions pyproject.toml allows (.ci/floors.txt), in a second environment: the
 # numeric, protocol, analysis and bus tests (the UI's snapshots are drawn by today's Textual).
 FLOOR_VENV := .venv-floors
-FLOOR_TESTS := tests/softness tests/analysis tests/hardware tests/test_schedule.py tests/test_plan.py \
+FLOOR_TESTS := tests/softness tests/analysis tests/adaptive tests/hardware tests/test_schedule.py tests/test_plan.py \
 	tests/test_protocol_load.py tests/test_bad_input.py tests/test_observer.py tests/test_grid.py \
 	tests/test_compile_outputs.py tests/test_cues.py tests/test_calibration_file.py \
 	tests/test_packaging.py

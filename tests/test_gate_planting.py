@@ -63,6 +63,12 @@ PLANTED = {
         ["Analysis reads result files through the journal's reader: not its writer"]),
     "numpy in the protocol": (
         "protocol/planted.py", "import numpy\n", ["The protocol is pure data: no numpy"]),
+    "the pin grid in the adaptive procedures": (
+        "adaptive/planted.py", "from pinarray import grid\n",
+        ["Adaptive procedures are pure numbers: of the package, only the errors and the units"]),
+    "the adaptive procedures imported below them, by the units": (
+        "units.py", "\nimport pinarray.adaptive.staircase\n",
+        ["Dependencies point down the layers"]),
     "time.sleep in the hardware": (
         "hardware/planted.py", "import time\n\ntime.sleep(0.001)\n", ["TID251 `time.sleep`"]),
     "time.sleep in the commands": (
