@@ -184,9 +184,13 @@ def _cmd_play(args: argparse.Namespace) -> int:
                 f"(seed {plan.seed})")
             undelivered = []
             for planned in trials:
-                presentation = rig.present(compile_trial(protocol, planned))
+                schedule = compile_trial(protocol, planned)
+                presentation = rig.present(schedule)
                 kind = "practice" if planned.practice else f"block {planned.block}"
                 say(f"trial {planned.trial} ({kind}): {rig.reports[-1].summary()}")
+                horns = _simulated_horns(rig, schedule, presentation.onset_ns)
+                if horns:
+                    say(f"  {horns}")
                 if not presentation.delivery.delivered:
                     undelivered.append(planned.trial)
         except BaseException:
@@ -201,6 +205,37 @@ def _cmd_play(args: argparse.Namespace) -> int:
             "(see above)", error=True)
         return EXIT_NOT_DELIVERED
     return 0
+
+
+def _simulated_horns(rig, schedule, onset_ns: int) -> str:
+    """On a simulated PWM board: how far each driven pin's simulated hobby servo swung (its
+    speed and dead band the protocol's), beside the stroke commanded; empty otherwise."""
+    from fractions import Fraction
+
+    from pinarray.hardware.pca9685.sim import SimI2cLink
+
+    link = getattr(rig.bus, "link", None)
+    if not isinstance(link, SimI2cLink):
+        return ""
+    from pinarray.hardware.pca9685.servo_sim import HobbyServo, swing_us
+
+    servos = rig.protocol.device.servo
+    model = HobbyServo(Fraction(servos.dead_band_us), Fraction(servos.speed_us_per_s))
+    board = link.board(rig.bus.setup.address)
+    targets = schedule.targets
+    parts = []
+    for servo in rig.setup.servos:
+        mine = targets.position_steps[targets.pin == servo.pin]
+        if not len(mine):
+            continue
+        low, high = (min(int(mine.min()), servo.rest_steps), max(int(mine.max()), servo.rest_steps))
+        pulses = board.pulses(servo.servo_id, onset_ns, onset_ns + targets.end_ns)
+        reached_low, reached_high = swing_us(model, pulses, Fraction(servo.rest_steps))
+        reached = float(reached_high - reached_low)
+        short = "" if reached >= high - low - float(model.dead_band_us) else " (SHORT)"
+        parts.append(f"pin {servo.pin} {reached:.0f} of {high - low} us{short}")
+    return (f"simulated hobby servos ({servos.speed_us_per_s} us/s): swung "
+            + ", ".join(parts)) if parts else ""
 
 
 def chosen_array(args: argparse.Namespace, command: str, device) -> str:

@@ -191,3 +191,27 @@ def test_a_one_pin_train_changes_only_the_off_count_each_period_four_bytes_on_th
         channel = protocol_channel(rig, _trial(protocol, 10).condition.pin)
     assert trial.frames and {frame.packet[0] for frame in trial.frames} == {0x06 + 4 * channel + 2}
     assert {1 + len(frame.packet) for frame in trial.frames} == {4}  # with the address byte
+
+
+def test_play_on_the_simulated_board_says_how_far_each_simulated_servo_swung(capsys):
+    from pinarray.cli import main
+
+    protocol = load_protocol(PROTOCOL)
+    planned = _trial(protocol, 10)
+    assert main(["play", str(PROTOCOL), "--sim", "--seed", "0", "--trial", str(planned.trial),
+                 "--time-scale", "0.05"]) == 0
+    out = capsys.readouterr().out
+    # 20000 us/s: 500 us in 25 ms, inside the 50 ms of five pulses up
+    assert (f"simulated hobby servos (20000 us/s): swung pin {planned.condition.pin} 500 of "
+            "500 us\n") in out
+
+
+def test_a_simulated_hobby_servo_too_slow_for_the_train_swings_short():
+    from pinarray.hardware.pca9685.servo_sim import HobbyServo, swing_us
+
+    # the seed's 10 Hz cycle: five 2 ms pulses, five 1.5 ms, 10 ms apart
+    pulses = [(k * 10_000_000, (2000 if (k // 5) % 2 == 0 else 1500) * 1000) for k in range(40)]
+    low, high = swing_us(HobbyServo(speed_us_per_s=Fraction(6667)), pulses, Fraction(1500))
+    assert low == 1500 and 300 < high - low < 340  # 6667 us/s for ~50 ms: a third short
+    low, high = swing_us(HobbyServo(speed_us_per_s=Fraction(20000)), pulses, Fraction(1500))
+    assert (low, high) == (1500, 2000)

@@ -99,3 +99,12 @@ class HobbyServo:
             move_to(until_ns)
             points.append(ServoPoint(until_ns, position, target, limp))
         return points
+
+
+def swing_us(servo: HobbyServo, pulses: Sequence[tuple[int, int]],
+             start_us: Fraction) -> tuple[Fraction, Fraction]:
+    """The narrowest and widest position the servo reached following ``pulses`` from
+    ``start_us`` (it moves monotonically between the points `HobbyServo.follow` gives, so
+    its extremes are among them)."""
+    positions = [p.position_us for p in servo.follow(pulses, start_us)] or [Fraction(start_us)]
+    return min(positions), max(positions)
