@@ -122,3 +122,15 @@ def test_a_pwm_trial_allows_each_frame_until_its_period_begins_and_bus_servos_se
             assert window is None
         else:  # a 10.038 ms period less the write's 0.2 ms margin
             assert window_ms[0] * MS < window < window_ms[1] * MS
+
+
+def test_the_timing_check_of_a_pwm_protocol_judges_against_its_trials_write_window():
+    from pinarray.clock import VirtualClock
+    from pinarray.player.rig import Rig
+    from pinarray.protocol.load import load_protocol
+
+    protocol = load_protocol(Path(__file__).parent.parent / "protocols" / "localisation_pwm.yaml")
+    with Rig(protocol, None, None, VirtualClock()) as rig:
+        busiest, frames, window_ns = rig._frames()
+    # the 10 Hz trains: one pin a frame, 199 frames, 10.038 ms periods less 0.2 ms
+    assert (busiest, frames) == (1, 199) and 9.8 * MS < window_ns < 9.9 * MS

@@ -1,7 +1,9 @@
-"""`pinarray servos calibrate`: jog one pin to rest and up, then write them into its protocol.
+"""`pinarray servos calibrate` (and `pwm calibrate`): jog one pin to rest and up, then write
+them into its protocol.
 
-The jogging is `pinarray.hardware.feetech.jog`; the file is edited by `pinarray.cli.calibration_file`, which
-keeps its comments and layout. This module talks to the person: the line-by-line prompt, the
+The jogging is each family's (`pinarray.hardware.feetech.jog` here, `pinarray.hardware.pca9685.jog`
+for `pwm calibrate`, through a `Jogger`); the file is edited by `pinarray.cli.calibration_file`,
+which keeps its comments and layout. This module talks to the person: the line-by-line prompt, the
 confirmation of what was written, and the pin made safe on every way out.
 """
 
@@ -125,6 +127,10 @@ class Jogger(Protocol):
         """The pin to ``rest``, then let go (torque off, or no pulses); never raises."""
         ...
 
+    def refusal(self) -> str | None:
+        """Why the goal cannot be taken as a position now (None: it can)."""
+        ...
+
 
 class _StsJogger:
     """An STS servo's `pinarray.hardware.feetech.jog.Jog`: it says where the horn is."""
@@ -173,6 +179,9 @@ class _StsJogger:
         where = f"at rest ({rest} steps)" if safe.at_rest_ids else "NOT confirmed at rest"
         torque = "torque off" if safe.released_ids else "torque NOT confirmed off"
         return f"{self.name}: {where}, {torque}"
+
+    def refusal(self) -> str | None:
+        return None  # where the horn is shows in each reading: the person watches it
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
@@ -307,7 +316,7 @@ def _jog_until_ok(jogger: Jogger, what: str, step: int, stop, check) -> int | No
                 case _To(steps=goal):
                     said = jogger.move_to(goal)
                 case JogWord.OK:
-                    refused = check(jogger.goal)
+                    refused = jogger.refusal() or check(jogger.goal)
                     if refused is None:
                         say(f"  {what} = {jogger.goal} {jogger.unit}")
                         return jogger.goal

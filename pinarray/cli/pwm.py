@@ -4,8 +4,12 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from pinarray.cli.output import say
+
+if TYPE_CHECKING:
+    from pinarray.hardware.pca9685.jog import PwmJog, PwmJogReading
 
 SCAN_EPILOG = """\
 Reads MODE1 and PRE_SCALE at every address a PCA9685 can take (0x40-0x7f, set by its A0-A5
@@ -102,8 +106,9 @@ class _PwmJogger:
     unit = "us"
     shown = "what the board holds"
 
-    def __init__(self, jog, up_us: int):
+    def __init__(self, jog: PwmJog, up_us: int):
         self.jog, self.up_us = jog, up_us
+        self.held = False
 
     @property
     def name(self) -> str:
@@ -114,11 +119,14 @@ class _PwmJogger:
         return self.jog.goal_us
 
     def start(self) -> str:
-        self.jog.start()
+        self.held = self.jog.start().held
         low, high = self.jog.bounds
         return (f"{self.name}: pulses of {self.jog.goal_us} us, its calibrated rest (up "
-                f"{self.up_us} us; the jog allows {low}..{high} us). Hobby servos report "
-                "nothing: watch the pin.")
+                f"{self.up_us} us; the jog allows {low}..{high} us){self._not_held()}. Hobby "
+                "servos report nothing: watch the pin.")
+
+    def _not_held(self) -> str:
+        return "" if self.held else " (the board does NOT hold it: check its power)"
 
     def move_by(self, amount: int) -> str:
         return self._said(self.jog.move_by(amount))
@@ -129,10 +137,15 @@ class _PwmJogger:
     def show(self) -> str:
         return self._said(self.jog.read())
 
-    @staticmethod
-    def _said(reading) -> str:
-        held = "" if reading.held else " (the board does NOT hold it: check its power)"
-        return f"  {reading.goal_us} us{held}"
+    def _said(self, reading: PwmJogReading) -> str:
+        self.held = reading.held
+        return f"  {reading.goal_us} us{self._not_held()}"
+
+    def refusal(self) -> str | None:
+        if self.held:
+            return None
+        return (f"the board does not hold {self.jog.goal_us} us: check its power, then type "
+                "the width again (the board is started again), or q")
 
     def release(self, rest: int) -> str:
         try:

@@ -10,6 +10,7 @@ session, the journal and the UI stay as they are.
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock
@@ -27,6 +28,7 @@ from pinarray.protocol import (
     ServoSettings,
 )
 from pinarray.protocol.device import SIMULATED_BOARD_PORT
+from pinarray.units import NS_PER_US
 
 if TYPE_CHECKING:
     from pinarray.hardware.pca9685.driver import Pca9685Array
@@ -97,11 +99,19 @@ def board_refusals(protocol: Protocol) -> tuple[str, ...]:
     the pins it was refused on and the first pin's reason. Pure: no I/O."""
     if not isinstance(protocol.device.servo, HobbyServos):
         return ()
+    from pinarray.hardware.pca9685.registers import COUNTS, period_ns, prescale_for
     from pinarray.hardware.pca9685.timing import plan_trial
     from pinarray.protocol.drives import trial_drives
     from pinarray.schedule import compile_drives
 
     setup = pwm_setup(protocol.device)
+    hold_ns = period_ns(setup.osc_hz, prescale_for(setup.osc_hz, Fraction(setup.pwm_hz)))
+    too_wide = [s.pin for s in setup.servos
+                if max(s.max_steps, s.rest_steps) * NS_PER_US >= hold_ns * (COUNTS - 1) / COUNTS]
+    if too_wide:  # the board holds rest at pwm_hz between trials: no pulse may fill a period
+        return (f"device: board: pwm_hz {setup.pwm_hz} gives a period of "
+                f"{float(hold_ns) / 1e6:.3f} ms, too short for the widths of pins "
+                f"{_pin_list(too_wide)} (their rest or limits_us); lower pwm_hz",)
     refused: dict[str, tuple[list[int], str]] = {}  # stimulus -> (pins, first reason)
     for condition in protocol.design.conditions:
         schedule = compile_drives(trial_drives(protocol, condition), protocol.device)

@@ -77,10 +77,18 @@ def _play(protocol, schedule):
         bus.close()
     onset, end = report.onset_ns, report.onset_ns + trial.end_ns
     during = [m for m in heard.messages if onset < m.stop_ns <= end]
-    packets = {f.packet for f in trial.frames}
-    writes = [m for m in during if not m.read and bytes(m.data) in packets]
+    writes = []  # each frame's first write, in order: a rewrite that heals it comes after
+    position = 0
+    for frame in trial.frames:
+        while position < len(during) and (during[position].read
+                                          or bytes(during[position].data) != frame.packet):
+            position += 1
+        if position == len(during):
+            break  # written after the trial's end: its slack shows below zero
+        writes.append(during[position])
+        position += 1
     read = sum(len(m.data) for m in during if m.read)
-    return trial, onset, writes[:len(trial.frames)], read, report.delivery.missing
+    return trial, onset, writes, read, report.delivery.missing
 
 
 def _bare(trial: PwmTrial, address: int) -> list[int]:
@@ -100,7 +108,7 @@ def _bare(trial: PwmTrial, address: int) -> list[int]:
 
 def _lateness(trial, onset, writes, link_ns) -> list[int]:
     return [m.stop_ns - link_ns(len(m.data)) - (onset + f.time_ns)
-            for m, f in zip(writes, trial.frames, strict=True)]
+            for m, f in zip(writes, trial.frames, strict=False)]
 
 
 def _slack(trial, onset, writes) -> int:

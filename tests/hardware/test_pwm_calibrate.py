@@ -5,6 +5,7 @@ person jogged.
 """
 
 import io
+import math
 import os
 import select
 import signal
@@ -161,3 +162,42 @@ def test_ctrl_c_at_the_pwm_jog_prompt_rests_the_pin_stops_pulses_and_writes_noth
     assert b"pin 6 (channel 5): at rest (1500 us), then no pulses" in seen + out
     assert err.decode().strip().splitlines() == ["pinarray: calibration stopped by SIGINT"]
     assert protocol.read_bytes() == before
+
+
+def test_ok_is_refused_while_the_board_does_not_hold_the_width_and_a_board_that_lost_power_restarts(
+        capsys, monkeypatch, protocol):
+    # power lost while the jog starts: the board is back to its reset state, no pulses
+    status, out, _ = run(capsys, monkeypatch, "pwm", "calibrate", str(protocol), "--pin", "6",
+                         "--sim", "sim://pca9685?power_loss_at=12",
+                         stdin="ok\n=1600\nok\n+300\nok\n")
+    assert status == 0
+    assert "(the board does NOT hold it: check its power)" in out.splitlines()[1]
+    assert "rest>   the board does not hold 1500 us: check its power" in out
+    assert "rest>   1600 us\n" in out  # started again, then ramped: held
+    assert "6: {rest_us: 1600, positions: {1.5: 1600, 2.0: 1900}}" in protocol.read_text()
+
+
+def test_the_jog_never_asks_for_a_pulse_longer_than_the_boards_period(capsys, monkeypatch,
+                                                                     tmp_path):
+    fast = tmp_path / "fast.yaml"  # 400 Hz: a 2.43 ms period holds the seed's widths
+    fast.write_text(PROTOCOL.read_text().replace("    osc_hz: 25300000\n",
+                                                 "    osc_hz: 25300000\n    pwm_hz: 400\n"))
+    status, out, err = run(capsys, monkeypatch, "pwm", "calibrate", str(fast), "--pin", "6",
+                           "--sim", stdin="=2500\nq\n")
+    assert (status, err) == (0, "")
+    prescale = round(25_300_000 / (4096 * 400)) - 1  # the datasheet's formula: 14
+    period_us = 4096 * (prescale + 1) / 25_300_000 * 1e6  # 2428.5 us
+    widest = math.ceil(period_us * 4095 / 4096) - 1  # one count short of full on
+    assert f"the jog allows 500..{widest} us" in out
+    assert f"a 2500 us pulse is outside the jog's range 500..{widest} us" in out
+
+
+def test_a_board_rate_too_fast_for_the_pins_widths_is_refused_by_validate(capsys, tmp_path):
+    fast = tmp_path / "fast.yaml"
+    fast.write_text(PROTOCOL.read_text().replace("    osc_hz: 25300000\n",
+                                                 "    osc_hz: 25300000\n    pwm_hz: 1000\n"))
+    assert main(["validate", str(fast)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"{fast}: device: board: pwm_hz 1000 gives a period of 0.971 ms, too short "
+                   "for the widths of pins 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, "
+                   "16 (their rest or limits_us); lower pwm_hz\n")

@@ -42,7 +42,9 @@ from pinarray.hardware.pca9685.registers import (
     ALL_LED_ON_L,
     ALLCALL,
     CHANNELS,
+    COUNTS,
     FULL_BIT,
+    FULL_OFF,
     LED0_ON_L,
     LED_STRIDE,
     MODE1,
@@ -54,8 +56,8 @@ from pinarray.hardware.pca9685.registers import (
     SLEEP,
     LedBlock,
     led_register,
+    period_ns,
     prescale_for,
-    tick_ns,
 )
 from pinarray.hardware.pca9685.timing import PwmSetup, PwmTrial, plan_trial, width_counts
 from pinarray.units import NS_PER_MS, NS_PER_S
@@ -160,11 +162,19 @@ class Pca9685Array:
         return dict(self.widths_us)
 
     def _blocks(self, widths_us: Mapping[int, int]) -> tuple[LedBlock, ...]:
-        tick = tick_ns(self.setup.osc_hz, self.prescale)
-        return tuple(
-            LedBlock.pulse(self.on_counts.get(ch, 0), width_counts(widths_us[ch], tick))
-            if ch in widths_us else LedBlock(0, 0, full_off=True)
-            for ch in range(CHANNELS))
+        return tuple(self._pulse(ch, widths_us[ch]) if ch in widths_us else FULL_OFF
+                     for ch in range(CHANNELS))
+
+    def _pulse(self, channel: int, width_us: int) -> LedBlock:
+        """The channel's block for a ``width_us`` pulse at the current rate; a width the
+        board's period cannot hold is refused, naming both."""
+        period = period_ns(self.setup.osc_hz, self.prescale)
+        counts = width_counts(width_us, period / COUNTS)
+        if not 0 < counts < COUNTS:
+            raise PinArrayError(
+                f"channel {channel}: a {width_us} us pulse does not fit the board's period of "
+                f"{float(period) / 1e6:.3f} ms (prescale {self.prescale}); lower board: pwm_hz")
+        return LedBlock.pulse(self.on_counts.get(channel, 0), counts)
 
     def _start(self, prescale: int, blocks: tuple[LedBlock, ...], at_ns: int | None) -> None:
         """SLEEP, prescale, every channel's registers, wake, then RESTART (at ``at_ns``)."""
@@ -184,7 +194,6 @@ class Pca9685Array:
 
     def goal_packet(self, goals_steps: Mapping[int, int]) -> bytes:
         """The LED blocks of the channels ``goals_steps`` changes, at the current rate."""
-        tick = tick_ns(self.setup.osc_hz, self.prescale)
         by_channel = {s.servo_id: s for s in self.setup.servos}
         for channel, width in goals_steps.items():
             servo = by_channel[channel]
@@ -195,8 +204,7 @@ class Pca9685Array:
         low, high = min(goals_steps), max(goals_steps)
         widths = {**self.widths_us, **goals_steps}
         return bytes([led_register(low)]) + b"".join(
-            LedBlock.pulse(self.on_counts.get(ch, 0), width_counts(widths[ch], tick)).encode()
-            if ch in widths else LedBlock(0, 0, full_off=True).encode()
+            (self._pulse(ch, widths[ch]) if ch in widths else FULL_OFF).encode()
             for ch in range(low, high + 1))
 
     def prepare(self, targets: Targets, pulses: Pulses) -> PreparedTrial:
@@ -247,8 +255,15 @@ class Pca9685Array:
             if held[(ch - low) * LED_STRIDE:(ch - low + 1) * LED_STRIDE]
             == packet[1 + (ch - low) * LED_STRIDE:1 + (ch - low + 1) * LED_STRIDE])
 
+    def asleep(self) -> bool:
+        """Whether the board is asleep: as it powers up, so after a loss of power."""
+        return bool(self._read(MODE1, 1)[0] & SLEEP)
+
     def holds(self, goals_us: Mapping[int, int]) -> bool:
-        """Whether the board's registers hold these widths (read back)."""
+        """Whether the board runs at the rate it was given and its registers hold these
+        widths (read back): a board that lost power reads asleep, at its reset prescale."""
+        if self.asleep() or self._read(PRE_SCALE, 1)[0] != self.prescale:
+            return False
         packet = self.goal_packet(goals_us)
         return self._read(packet[0], len(packet) - 1) == packet[1:]
 
@@ -277,7 +292,7 @@ class Pca9685Array:
             return SafeStopReport(at_rest, channels, ())
         except PortLost:
             return SafeStopReport((), (), channels, port_lost=True)
-        except BusError:
+        except PinArrayError:  # the bus, or rest widths the board's period cannot hold
             try:
                 self._write(bytes([ALL_LED_ON_L, 0, 0, 0, FULL_BIT]))
                 return SafeStopReport((), channels, ())

@@ -5,23 +5,26 @@ the pin's channel carries pulses (the others stay full off: their servos limp, a
 a new width is approached in steps of one board period at `JOG_SPEED_US_PER_S` at most, since
 a hobby servo runs at its full speed to any width it is given; every width is read back from
 the board. Hobby servos say nothing, so a reading is what the board holds, not where the horn
-is. However jogging ends, `PwmJog.release` sends the pin to rest, holds it there for the
-servo's travel time, then turns every channel full off.
+is; a board found asleep (it lost power) is started again at the pin's rest width. However
+jogging ends, `PwmJog.release` sends the pin to rest, holds it there for the servo's travel
+time, then turns every channel full off.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from fractions import Fraction
 from math import ceil
 
 from pinarray.clock import Clock
 from pinarray.hardware.driver import GoalOutOfRange, SafeStopReport, ServoSetup
 from pinarray.hardware.pca9685.driver import Pca9685Array
-from pinarray.hardware.pca9685.registers import period_ns
-from pinarray.units import NS_PER_S
+from pinarray.hardware.pca9685.registers import COUNTS, period_ns, prescale_for
+from pinarray.units import NS_PER_S, NS_PER_US
 
 # The widths a jog may send: the usual hobby-servo range (many stop hard at its ends), widened
-# to hold the pin's own calibrated limits when they lie beyond it.
+# to hold the pin's own calibrated limits when they lie beyond it, and always a pulse shorter
+# than the board's period at its pwm_hz.
 JOG_RANGE_US = (500, 2500)
 # How fast a jogged width changes, at most: about 90 degrees a second on a 9/100 deg/us servo.
 JOG_SPEED_US_PER_S = 1000
@@ -54,9 +57,13 @@ class PwmJog:
         self.array = array
         self.clock = clock or array.clock
         self.servo = servo
+        setup = array.setup
+        period = period_ns(setup.osc_hz, prescale_for(setup.osc_hz, Fraction(setup.pwm_hz)))
+        widest = ceil(period * (COUNTS - 1) / COUNTS / NS_PER_US) - 1  # a pulse, not full on
         self.bounds = (min(JOG_RANGE_US[0], servo.min_steps),
-                       max(JOG_RANGE_US[1], servo.max_steps))
-        self.goal_us: int | None = None
+                       min(max(JOG_RANGE_US[1], servo.max_steps), widest))
+        self.goal_us = servo.rest_steps  # what the channel was last sent
+        self.started = False
         self._only(servo.rest_steps)
 
     @property
@@ -73,23 +80,26 @@ class PwmJog:
         """Check the board answers, then pulses of the pin's rest width on its channel alone."""
         self.array.check_servos()
         self.array.hold()
-        self.goal_us = self.servo.rest_steps
+        self.goal_us, self.started = self.servo.rest_steps, True
         return self._reading()
 
     def move_by(self, width_us: int) -> PwmJogReading:
         """Move the width by ``width_us`` (negative: narrower)."""
-        assert self.goal_us is not None, "start() first"
+        assert self.started, "start() first"
         return self.move_to(self.goal_us + width_us)
 
     def move_to(self, goal_us: int) -> PwmJogReading:
         """Ramp the channel's width to ``goal_us``, one board period at a time."""
-        assert self.goal_us is not None, "start() first"
+        assert self.started, "start() first"
         low, high = self.bounds
         if not low <= goal_us <= high:
             raise GoalOutOfRange(
                 f"{self.name}: a {goal_us} us pulse is outside the jog's range {low}..{high} "
                 "us (hobby servos' usual 500..2500, widened to the pin's calibrated limits)")
         board = self.array
+        if board.asleep():  # it lost power: its reset state, no pulses; start it again
+            board.hold()
+            self.goal_us = self.servo.rest_steps
         period = period_ns(board.setup.osc_hz, board.prescale)
         per_period = max(1, int(JOG_SPEED_US_PER_S * period / NS_PER_S))
         channel, width = self.servo.servo_id, self.goal_us
@@ -102,11 +112,10 @@ class PwmJog:
 
     def read(self) -> PwmJogReading:
         """What the board holds for the pin, without moving it."""
-        assert self.goal_us is not None, "start() first"
+        assert self.started, "start() first"
         return self._reading()
 
     def _reading(self) -> PwmJogReading:
-        assert self.goal_us is not None
         return PwmJogReading(self.goal_us, self.array.holds({self.servo.servo_id: self.goal_us}))
 
     def release(self, rest_us: int) -> SafeStopReport:
