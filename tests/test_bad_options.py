@@ -61,7 +61,7 @@ PARSE_ONLY = {
     ("analyse",): ["results"], ("power",): [DEMO], ("tui",): [],
     ("servos", "scan"): [], ("servos", "set-id"): ["1", "2"], ("servos", "return-delay"): [],
     ("servos", "calibrate"): [DEMO, "--pin", "1"], ("servos", "torque-off"): [],
-    ("servos", "rest"): [],
+    ("servos", "rest"): [], ("pwm", "calibrate"): [DEMO, "--pin", "1"],
 }
 
 numbers = st.one_of(
