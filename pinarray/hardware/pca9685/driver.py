@@ -217,7 +217,15 @@ class Pca9685Array:
 
     def send_goals(self, packet: bytes,
                    goals_steps: Mapping[int, int] | tuple[tuple[int, int], ...]) -> None:
-        self._write(packet)
+        try:
+            self._write(packet)
+        except PortLost:
+            raise
+        except I2cNack:
+            # Counted as it was heard; the verifier reads the block back in the slack and
+            # writes it again while its period has not begun, else names the change not
+            # delivered (as a lost sync write on the bus).
+            pass
         goals = dict(goals_steps)
         self.widths_us.update(goals)
         self.counters.frames += 1
@@ -397,8 +405,9 @@ class PwmVerifier:
                 continue
             if board._read(MODE1, 1)[0] & SLEEP:
                 board.counters.power_losses += 1
-                self._lose(frame_index, "the board lost power: its registers are back to "
-                                        "their reset values (SLEEP set, outputs off)")
+                self._lose(frame_index, f"board 0x{board.setup.address:02x} lost power: its "
+                                        "registers are back to their reset values (SLEEP set, "
+                                        "outputs off)")
                 continue
             rewrite_ns = board.link.message_ns(len(frame.packet))
             if clock.now_ns() + rewrite_ns <= min(limit_ns, window_end):
