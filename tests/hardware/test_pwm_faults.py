@@ -3,12 +3,16 @@ healed or named, and the pins still end at rest, then without pulses."""
 
 from pathlib import Path
 
+import pytest
+
 from pinarray.clock import VirtualClock
 from pinarray.hardware.pca9685.registers import FULL_BIT, MODE1, SLEEP, led_register
 from pinarray.plan import make_plan
 from pinarray.player.rig import Rig
 from pinarray.protocol.load import parse_protocol
 from pinarray.schedule import compile_trial
+
+from .lab import assert_rest_held_for_the_travel_time
 
 PROTOCOL = Path(__file__).parents[2] / "protocols" / "localisation_pwm.yaml"
 SIM = "sim://pca9685?osc_hz=25300000"
@@ -98,3 +102,19 @@ def test_an_adapter_lost_mid_trial_ends_play_with_one_line_naming_the_port_and_s
     lines = [line for line in err.splitlines() if line.startswith("pinarray: ")
              and "pins after the stop" not in line]
     assert len(lines) == 1 and "vanished" in lines[0] and "sim://pca9685" in lines[0], err
+
+
+@pytest.mark.parametrize("quarter", [0, 1, 2, 3])
+def test_the_safe_stop_holds_rest_widths_for_the_travel_time_from_the_first_rest_pulse(quarter):
+    # Wherever in a board period the stop comes: the rest widths take effect only at the next
+    # period boundary, and the servos must get them for their whole travel time from there.
+    protocol = short_protocol()
+    clock = VirtualClock()
+    rig = Rig(protocol, None, SIM, clock)
+    rig.present(ten_hz_schedule(protocol))
+    board = rig.bus.link.board(0x40)
+    rig.bus.send_goals(rig.bus.goal_packet({0: 2100}), {0: 2100})  # pin 1 up, as mid-trial
+    clock.sleep_until_ns(clock.now_ns() + 5 * round(board.period_ns()))
+    clock.sleep_until_ns(clock.now_ns() + round(board.period_ns() * quarter / 4))
+    assert rig.close().complete
+    assert_rest_held_for_the_travel_time(board, protocol, clock.now_ns())
