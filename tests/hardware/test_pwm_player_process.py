@@ -30,6 +30,9 @@ pytestmark = [pytest.mark.realtime, pytest.mark.xdist_group("pwm player process"
 
 PROTOCOL = Path(__file__).parents[2] / "protocols" / "localisation_pwm.yaml"
 PR_SET_CHILD_SUBREAPER = 36
+# Its first trial plays at 3 Hz, the board at 30 Hz: not the 50 Hz at which play holds rest,
+# so a safe stop that assumes its own rate writes widths the servos must not get.
+SEED = 1
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -53,11 +56,20 @@ def board_url(tmp_path, extra=""):
 
 def play(tmp_path, extra="", *, trial=None):
     command = [sys.executable, "-m", "pinarray", "play", str(protocol_file(tmp_path)),
-               "--sim", board_url(tmp_path, extra)]
+               "--sim", board_url(tmp_path, extra), "--seed", str(SEED)]
     if trial is not None:
         command += ["--trial", str(trial)]
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
+
+
+def test_the_first_trial_plays_the_board_at_another_rate_than_the_one_rest_is_held_at(tmp_path):
+    from pinarray.plan import make_plan
+    from pinarray.player.families import pwm_setup
+
+    protocol = load_protocol(protocol_file(tmp_path))
+    first = make_plan(protocol, SEED).trials[0]
+    assert first.condition.frequency_hz * 10 != pwm_setup(protocol.device).pwm_hz
 
 
 def wait_for_first_trial(process):
