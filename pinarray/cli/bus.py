@@ -172,7 +172,7 @@ def _cmd_play(args: argparse.Namespace) -> int:
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, seed=args.seed)
     trials = (plan.trial(args.trial),) if args.trial is not None else plan.trials
-    clock = choose_clock(args.port, args.time_scale, paced=True)
+    clock = choose_clock(args.port, args.time_scale, paced=True, sim_url=args.sim)
     with stop_on_signals(StopRequest()) as stop:
         rig = Rig(protocol, args.port, args.sim, clock, stop, wire_log=args.i2c_log)
         try:

@@ -46,16 +46,23 @@ if TYPE_CHECKING:
     from pinarray.player.process import PlayerProcess
 
 
-def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False) -> Clock:
+def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False,
+                 sim_url: str | None = None) -> Clock:
     """Real servos run in real time; simulated ones in virtual time (scale 0/None) or scaled.
+
+    ``sim_url``: simulated boards kept in a state file (``sim://pca9685?state=FILE``) are
+    shared with the player process as real ones are, so they run in real time too.
 
     ``paced``: a scaled simulation for a scripted run, in simulated time that only moves
     while something waits (`PacedClock`), so the host's own delays cannot make a stimulus
     late; without it (the UI, where a person answers), scaled wall-clock time.
     """
-    if port:
+    from pinarray.hardware.pca9685.sim import is_shared_board_url
+
+    if port or is_shared_board_url(sim_url):
         if time_scale not in (None, 1.0):
-            raise PinArrayError("real servos play in real time: --speed must be 1")
+            what = "real servos play" if port else "a board kept in a state file plays"
+            raise PinArrayError(f"{what} in real time: --speed must be 1")
         return MonotonicClock()
     if not time_scale:
         return VirtualClock()

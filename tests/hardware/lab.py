@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from math import ceil
+
 import numpy as np
 
 from pinarray.clock import VirtualClock
 from pinarray.hardware.driver import ServoSetup
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.transport import open_bus
+from pinarray.hardware.pca9685.driver import REST_SETTLE_NS
 from pinarray.schedule import TargetList
 
 REST_STEPS = 2048
@@ -55,3 +58,29 @@ def assert_safe(bus) -> None:
     for servo_id, servo in bus.sim.servos.items():
         assert not servo.torque_enabled, f"servo {servo_id} still has torque"
         assert abs(servo.position_steps - REST_STEPS) <= 4, f"servo {servo_id} not at rest"
+
+
+# -- PWM boards -------------------------------------------------------------------------------
+
+def assert_rest_held_for_the_travel_time(board, protocol, now_ns):
+    """The last pulses of every channel: its rest width, from the first of them to the period
+    after the last (where a servo would see the next), for the servos' travel time: their
+    whole calibrated range at their speed, and the settling time beyond it."""
+    device = protocol.device
+    span_us = max(c.max_steps - c.min_steps for c in (device.calibration(p) for p in range(1, 17)))
+    travel_ns = ceil(span_us * 10**9 / device.servo.speed_us_per_s) + REST_SETTLE_NS
+    for channel in range(16):
+        carried = board.pulses(channel, 0, now_ns)
+        if not carried:
+            continue  # never told to pulse
+        rest_ns = device.calibration(channel + 1).rest_steps * 1000
+        period_ns = board.period_ns()
+        held_until = carried[-1][0] + period_ns
+        held_from = held_until
+        for start, width in reversed(carried):
+            if abs(width - rest_ns) > 3_000 or held_from - start > period_ns + 1:
+                break  # another width, or a gap: the servo went limp before
+            held_from = start
+        assert held_until - held_from >= travel_ns, (
+            f"channel {channel}: rest width for {(held_until - held_from) / 1e6:.1f} ms before "
+            f"the pulses stopped, the servos need {travel_ns / 1e6:.1f} ms")

@@ -225,7 +225,15 @@ class Pca9685Array:
 
     def send_goals(self, packet: bytes,
                    goals_steps: Mapping[int, int] | tuple[tuple[int, int], ...]) -> None:
-        self._write(packet)
+        try:
+            self._write(packet)
+        except PortLost:
+            raise
+        except I2cNack:
+            # Counted as it was heard; the verifier reads the block back in the slack and
+            # writes it again while its period has not begun, else names the change not
+            # delivered (as a lost sync write on the bus).
+            pass
         goals = dict(goals_steps)
         self.widths_us.update(goals)
         self.counters.frames += 1
@@ -287,7 +295,10 @@ class Pca9685Array:
         channels = self.setup.servo_ids
         try:
             at_rest = self._rest_awake()
-            self.clock.sleep_until_ns(self.clock.now_ns() + self.travel_ns())
+            # The rest widths leave the board from the next period boundary on: the servos get
+            # them for their travel time counted from there.
+            period = ceil(period_ns(self.setup.osc_hz, self.prescale))
+            self.clock.sleep_until_ns(self.clock.now_ns() + period + self.travel_ns())
             self._write(bytes([ALL_LED_ON_L, 0, 0, 0, FULL_BIT]))  # every channel full off
             return SafeStopReport(at_rest, channels, ())
         except PortLost:
@@ -306,6 +317,9 @@ class Pca9685Array:
             self.counters.power_losses += 1
             self.hold()
             return self.setup.servo_ids
+        # Widths in counts of the rate the board runs at: a player process may have left it
+        # at a trial's rate that this process never set.
+        self.prescale = self._read(PRE_SCALE, 1)[0]
         return self.move_to_rest()
 
     def handover(self) -> Handover:
@@ -334,11 +348,16 @@ class Pca9685Handover:
 
     def attach(self, fd: int, clock: Clock) -> Pca9685Array:
         from pinarray.hardware.pca9685.i2c_log import I2cLog
+        from pinarray.hardware.pca9685.sim import SimI2cLink, is_pca9685_url
         from pinarray.hardware.pca9685.smbus_link import SmbusLink
 
+        link: I2cLink
+        if is_pca9685_url(self.port_name):
+            link = SimI2cLink(self.port_name, clock)  # boards kept in a file: opened again
+        else:
+            link = SmbusLink(fd, clock, fd=True)
         log = I2cLog(self.log_path, append=True) if self.log_path is not None else None
-        board = Pca9685Array(SmbusLink(fd, clock, fd=True), self.setup,
-                             clock, self.speed_us_per_s, log, self.log_path)
+        board = Pca9685Array(link, self.setup, clock, self.speed_us_per_s, log, self.log_path)
         board.warnings.clear()
         return board
 
@@ -417,8 +436,9 @@ class PwmVerifier:
                 continue
             if board._read(MODE1, 1)[0] & SLEEP:
                 board.counters.power_losses += 1
-                self._lose(frame_index, "the board lost power: its registers are back to "
-                                        "their reset values (SLEEP set, outputs off)")
+                self._lose(frame_index, f"board 0x{board.setup.address:02x} lost power: its "
+                                        "registers are back to their reset values (SLEEP set, "
+                                        "outputs off)")
                 continue
             rewrite_ns = board.link.message_ns(len(frame.packet))
             if clock.now_ns() + rewrite_ns <= min(limit_ns, window_end):

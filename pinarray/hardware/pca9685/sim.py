@@ -18,6 +18,17 @@ Every key is optional:
                     stretching, a slow adapter), 1 to 1000 (default 1)
 ``vanish_after``    the adapter disappears after this many messages (USB unplugged)
 ``seed``            random seed for ``nack`` (default 0), so runs are reproducible
+``state``           a file that holds the boards, written through after every message, so
+                    they outlive the program as real boards do: a player process opens them
+                    too (`play` hands the board to one, as for a real i2c-dev bus), and a test
+                    reads what the board was last told after the program was killed. A file
+                    that exists is taken as the boards were left (it is unpickled: name only
+                    files this simulator wrote). Message numbers (``nack_at``,
+                    ``power_loss_at``, ``vanish_after``, ``kill_at``) then count every message
+                    the boards heard, from every program. Shared boards run in real time.
+``kill_at``         (with ``state``) the program that sends message number ``kill_at`` is
+                    killed (SIGKILL) as that message begins: a crash, ``kill -9`` or a host
+                    losing power at that exact moment of its conversation with the board
 
 A message takes ``START + 9 bits per byte (the address byte included) + STOP`` bit times at
 ``bus_hz``; the link waits that long on its clock, so a `pinarray.clock.VirtualClock` advances.
@@ -25,11 +36,17 @@ A message takes ``START + 9 bits per byte (the address byte included) + STOP`` b
 
 from __future__ import annotations
 
+import fcntl
 import math
+import os
+import pickle
 import random
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
 from urllib.parse import parse_qsl, urlsplit
 
-from pinarray.clock import Clock
+from pinarray.clock import Clock, MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import PortLost
 from pinarray.hardware.pca9685 import registers as r
@@ -46,12 +63,18 @@ MAX_SEED = 2**63 - 1
 MIN_OSC_HZ, MAX_OSC_HZ = 1_000_000, 50_000_000  # EXTCLK accepts up to 50 MHz (7.3.5)
 
 _KNOWN_KEYS = ("osc_hz", "address", "bus_hz", "nack", "nack_at", "power_loss_at", "slow",
-               "vanish_after", "seed")
+               "vanish_after", "seed", "state", "kill_at")
 
 
 def is_pca9685_url(url: str) -> bool:
     """Whether ``url`` names simulated PCA9685 boards (``sim://pca9685?...``)."""
     return url == SCHEME_PREFIX or url.startswith(SCHEME_PREFIX + "?")
+
+
+def is_shared_board_url(url: str | None) -> bool:
+    """Whether ``url`` names simulated boards kept in a file (``state=``), shared by processes."""
+    return url is not None and is_pca9685_url(url) and "state" in dict(
+        parse_qsl(urlsplit(url).query, keep_blank_values=True))
 
 
 def _number(url: str, key: str, text: str, kind: type[int] | type[float], low: float,
@@ -120,10 +143,33 @@ class SimI2cLink:
         self._slow = number("slow", float, 1.0, MAX_SLOW, 1.0)
         self._vanish_after = int(number("vanish_after", int, 0, MAX_COUNT, -1))
         self._random = random.Random(int(number("seed", int, 0, MAX_SEED, 0)))
+        self._kill_at = int(number("kill_at", int, 1, MAX_COUNT, 0))
         addresses = _addresses(url, query.get("address", f"{r.FIRST_ADDRESS:#x}"))
         self._boards = {address: SimulatedBoard(osc_hz, address) for address in addresses}
         self._messages = 0
         self._closed = False
+        self._state = query.get("state") or None
+        self._lock_fd: int | None = None
+        self._handed_fd: int | None = None
+        self._in_message = False
+        if self._state is None:
+            if self._kill_at:
+                raise PinArrayError(f"{url}: sim URL key kill_at: expected state=FILE beside "
+                                    "it (a board that outlives the killed program)")
+            return
+        if not isinstance(clock, MonotonicClock):
+            raise PinArrayError(f"{url}: a board kept in a state file is shared by processes "
+                                "and runs in real time: play it at --speed 1")
+        try:
+            self._lock_fd = os.open(self._state + ".lock", os.O_RDWR | os.O_CREAT, 0o600)
+            # What a player process inherits: its own open file, never locked, so that a lock
+            # held by a program killed mid-message dies with it.
+            self._handed_fd = os.open(self._state + ".lock", os.O_RDONLY)
+        except OSError as error:
+            raise PinArrayError(f"{url}: sim URL key state: cannot use {self._state}.lock: "
+                                f"{error.strerror}") from None
+        with self._board_file():
+            pass  # taken as left, or written as powered up
 
     @property
     def name(self) -> str:
@@ -131,7 +177,9 @@ class SimI2cLink:
 
     @property
     def descriptor(self) -> int | None:
-        return None
+        """Boards kept in a state file can be handed to a player process (which opens the
+        file again by the URL); in-memory ones die with this program and cannot."""
+        return self._handed_fd
 
     @property
     def bus_hz(self) -> int:
@@ -139,7 +187,8 @@ class SimI2cLink:
 
     def board(self, address: int) -> SimulatedBoard:
         """The simulated board at ``address`` (for tests and the simulated servos)."""
-        return self._boards[address]
+        with self._board_file():
+            return self._boards[address]
 
     def message_ns(self, data_bytes: int) -> int:
         bits = 1 + 9 * (1 + data_bytes) + 1
@@ -147,10 +196,68 @@ class SimI2cLink:
 
     def close(self) -> None:
         self._closed = True
+        for fd in (self._lock_fd, self._handed_fd):
+            if fd is not None:
+                os.close(fd)
+        self._lock_fd = self._handed_fd = None
+
+    # -- boards kept in a file ----------------------------------------------------------------------
+
+    @contextmanager
+    def _board_file(self) -> Iterator[None]:
+        """One message at a time on boards kept in the state file: read them as the last
+        message left them, then write them through (replaced whole, so a program killed
+        mid-message leaves the state before it, as a message cut before its STOP would)."""
+        if self._state is None or self._in_message or self._lock_fd is None:
+            yield
+            return
+        fcntl.flock(self._lock_fd, fcntl.LOCK_EX)
+        self._in_message = True
+        try:
+            self._load()
+            yield
+        finally:
+            try:
+                self._save()
+            finally:
+                self._in_message = False
+                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+
+    def _load(self) -> None:
+        assert self._state is not None
+        try:
+            with open(self._state, "rb") as file:
+                messages, boards = pickle.load(file)
+        except FileNotFoundError:
+            return  # powered up now, as the URL says
+        except (OSError, EOFError, pickle.UnpicklingError, ValueError, TypeError) as error:
+            raise PinArrayError(f"{self._url}: sim URL key state: {self._state} does not hold "
+                                f"simulated boards ({error})") from None
+        if sorted(boards) != sorted(self._boards):
+            raise PinArrayError(
+                f"{self._url}: sim URL key state: {self._state} holds boards at "
+                f"{', '.join(f'0x{a:02x}' for a in sorted(boards))}, the URL names "
+                f"{', '.join(f'0x{a:02x}' for a in sorted(self._boards))}")
+        self._messages, self._boards = messages, boards
+
+    def _save(self) -> None:
+        assert self._state is not None
+        temporary = self._state + ".new"
+        try:
+            with open(temporary, "wb") as file:
+                pickle.dump((self._messages, self._boards), file)
+            os.replace(temporary, self._state)
+        except OSError as error:
+            raise PinArrayError(f"{self._url}: sim URL key state: cannot write {self._state}: "
+                                f"{error.strerror}") from None
 
     # -- messages ---------------------------------------------------------------------------------
 
     def write(self, address: int, data: bytes) -> I2cMessage:
+        with self._board_file():
+            return self._write(address, data)
+
+    def _write(self, address: int, data: bytes) -> I2cMessage:
         self._begin(address)
         general = address == r.SWRST_ADDRESS
         boards = [b for b in self._boards.values() if (b.powered if general else b.answers(address))]
@@ -181,7 +288,11 @@ class SimI2cLink:
         return message
 
     def write_read(self, address: int, data: bytes, count: int) -> bytes:
-        self.write(address, data)
+        with self._board_file():
+            return self._write_read(address, data, count)
+
+    def _write_read(self, address: int, data: bytes, count: int) -> bytes:
+        self._write(address, data)
         self._begin(address)
         board = self._boards.get(address)
         answered = board is not None and board.answers(address, read=True) and not self._fault()
@@ -201,6 +312,9 @@ class SimI2cLink:
             raise PortLost(f"{self._url}: the I2C adapter vanished after {self._messages} "
                            f"messages (talking to board 0x{address:02x})")
         self._messages += 1
+        if self._messages == self._kill_at:
+            self._save()  # counted: the next program's messages go on from here
+            os.kill(os.getpid(), signal.SIGKILL)
         if self._messages == self._power_loss_at:
             now = self._clock.now_ns()
             for board in self._boards.values():
