@@ -1,17 +1,13 @@
 """`pinarray servos ...` as a lab types it, on simulated servos (in-process, virtual time)."""
 
 import io
-import os
-import select
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from pinarray.cli import main
+from tests.prompts import interrupted_at_prompt
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 LOCALISATION = PROTOCOLS / "localisation.yaml"
@@ -334,24 +330,9 @@ def test_calibrate_refuses_a_pin_off_the_grid_and_a_broken_protocol(capsys, tmp_
 
 def test_ctrl_c_at_the_jog_prompt_rests_the_pin_and_writes_nothing(protocol):
     before = protocol.read_bytes()
-    process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "servos", "calibrate", str(protocol), "--pin", "6",
-         "--sim"],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        seen = b""
-        give_up = time.monotonic() + 60
-        while b"rest> " not in seen and time.monotonic() < give_up:
-            if select.select([process.stdout], [], [], 1)[0]:
-                seen += os.read(process.stdout.fileno(), 4096)
-        assert b"rest> " in seen, seen
-        process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, err
-    assert b"pin 6 (servo 6): at rest (2048 steps), torque off" in seen + out
+    status, out, err = interrupted_at_prompt(
+        ["servos", "calibrate", str(protocol), "--pin", "6", "--sim"], b"rest> ")
+    assert status == 130, err
+    assert b"pin 6 (servo 6): at rest (2048 steps), torque off" in out
     assert err.decode().strip().splitlines() == ["pinarray: calibration stopped by SIGINT"]
     assert protocol.read_bytes() == before

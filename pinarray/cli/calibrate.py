@@ -13,13 +13,15 @@ import argparse
 import os
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from pinarray.cli.output import say
 from pinarray.cli.servos import bus_options, open_bare
 
 if TYPE_CHECKING:
     from pinarray.cli.calibration_file import NewCalibration
+    from pinarray.hardware.feetech.feetech import FeetechBus
+    from pinarray.hardware.feetech.jog import Jog, JogReading
     from pinarray.protocol import Device
 
 CALIBRATE_EPILOG = """\
@@ -132,29 +134,15 @@ class Jogger(Protocol):
         ...
 
 
-class _StsJogger:
-    """An STS servo's `pinarray.hardware.feetech.jog.Jog`: it says where the horn is."""
+class JogDialogue:
+    """What each family's `Jogger` shares: the pin's name and its moves, delegated to its
+    jog (``jog``); each family says a reading its own way (``_said``)."""
 
-    unit = "steps"
-    shown = "where it is"
-
-    def __init__(self, jog, bus, rest_steps: int, up_steps: int):
-        self.jog, self.bus = jog, bus
-        self.rest_steps, self.up_steps = rest_steps, up_steps
+    jog: Any
 
     @property
     def name(self) -> str:
         return self.jog.name
-
-    @property
-    def goal(self) -> int:
-        return self.jog.goal_steps
-
-    def start(self) -> str:
-        reading = self.jog.start()
-        return (f"{self.name}: holding it at {reading.present_steps} steps (calibrated rest "
-                f"{self.rest_steps}, up {self.up_steps}; the servo allows {self.jog.bounds[0]}.."
-                f"{self.jog.bounds[1]}).")
 
     def move_by(self, amount: int) -> str:
         return self._said(self.jog.move_by(amount))
@@ -165,8 +153,32 @@ class _StsJogger:
     def show(self) -> str:
         return self._said(self.jog.read())
 
-    @staticmethod
-    def _said(reading) -> str:
+    def _said(self, reading: Any) -> str:
+        raise NotImplementedError
+
+
+class _StsJogger(JogDialogue):
+    """An STS servo's `pinarray.hardware.feetech.jog.Jog`: it says where the horn is."""
+
+    unit = "steps"
+    shown = "where it is"
+
+    def __init__(self, jog: Jog, bus: FeetechBus, rest_steps: int, up_steps: int):
+        self.jog, self.bus = jog, bus
+        self.rest_steps, self.up_steps = rest_steps, up_steps
+
+    @property
+    def goal(self) -> int:
+        assert self.jog.goal_steps is not None, "start() first"
+        return self.jog.goal_steps
+
+    def start(self) -> str:
+        reading = self.jog.start()
+        return (f"{self.name}: holding it at {reading.present_steps} steps (calibrated rest "
+                f"{self.rest_steps}, up {self.up_steps}; the servo allows {self.jog.bounds[0]}.."
+                f"{self.jog.bounds[1]}).")
+
+    def _said(self, reading: JogReading) -> str:
         arrived = "" if reading.arrived else " (still on its way: watch it, or type again)"
         errors = "" if not reading.errors else f", error bits: {reading.errors.describe()}"
         return f"  goal {reading.goal_steps}, at {reading.present_steps} steps{arrived}{errors}"

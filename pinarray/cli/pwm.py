@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from pinarray.cli.calibrate import JogDialogue
 from pinarray.cli.output import say
 
 if TYPE_CHECKING:
@@ -100,7 +101,7 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     return 0 if found else 3
 
 
-class _PwmJogger:
+class _PwmJogger(JogDialogue):
     """A hobby servo's `pinarray.hardware.pca9685.jog.PwmJog`: it says what the board holds."""
 
     unit = "us"
@@ -109,10 +110,6 @@ class _PwmJogger:
     def __init__(self, jog: PwmJog, up_us: int):
         self.jog, self.up_us = jog, up_us
         self.held = False
-
-    @property
-    def name(self) -> str:
-        return self.jog.name
 
     @property
     def goal(self) -> int:
@@ -127,15 +124,6 @@ class _PwmJogger:
 
     def _not_held(self) -> str:
         return "" if self.held else " (the board does NOT hold it: check its power)"
-
-    def move_by(self, amount: int) -> str:
-        return self._said(self.jog.move_by(amount))
-
-    def move_to(self, goal: int) -> str:
-        return self._said(self.jog.move_to(goal))
-
-    def show(self) -> str:
-        return self._said(self.jog.read())
 
     def _said(self, reading: PwmJogReading) -> str:
         self.held = reading.held

@@ -6,12 +6,7 @@ person jogged.
 
 import io
 import math
-import os
-import select
-import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -22,6 +17,7 @@ from pinarray.hardware.driver import GoalOutOfRange
 from pinarray.hardware.pca9685.jog import JOG_SPEED_US_PER_S, PwmJog
 from pinarray.player.families import open_board
 from pinarray.protocol.load import load_protocol
+from tests.prompts import interrupted_at_prompt
 
 PROTOCOL = Path(__file__).parents[2] / "protocols" / "localisation_pwm.yaml"
 BUS_SERVOS = Path(__file__).parents[2] / "protocols" / "localisation.yaml"
@@ -141,25 +137,10 @@ def test_a_jog_goal_outside_the_hobby_range_is_refused_before_anything_is_sent()
 
 def test_ctrl_c_at_the_pwm_jog_prompt_rests_the_pin_stops_pulses_and_writes_nothing(protocol):
     before = protocol.read_bytes()
-    process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "pwm", "calibrate", str(protocol), "--pin", "6",
-         "--sim"],
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    try:
-        seen = b""
-        give_up = time.monotonic() + 60
-        while b"rest> " not in seen and time.monotonic() < give_up:
-            if select.select([process.stdout], [], [], 1)[0]:
-                seen += os.read(process.stdout.fileno(), 4096)
-        assert b"rest> " in seen, seen
-        process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=60)
-    finally:
-        if process.poll() is None:
-            process.kill()
-    assert process.returncode == 130, err
-    assert b"pin 6 (channel 5): at rest (1500 us), then no pulses" in seen + out
+    status, out, err = interrupted_at_prompt(
+        ["pwm", "calibrate", str(protocol), "--pin", "6", "--sim"], b"rest> ")
+    assert status == 130, err
+    assert b"pin 6 (channel 5): at rest (1500 us), then no pulses" in out
     assert err.decode().strip().splitlines() == ["pinarray: calibration stopped by SIGINT"]
     assert protocol.read_bytes() == before
 
