@@ -6,6 +6,9 @@ when the servo holds it, *healed* when it had to be written again (acknowledged)
 held, and *missing* when neither happened before the servo's next change or the trial's end.
 A trial is delivered when nothing is missing and every change reached its servo within the
 protocol's tolerance; otherwise it is reported as not delivered, with the reason in words.
+Where the servos report their positions, the pins' measured motion joins the verdict: a trial
+whose pin moved less than the protocol's share of its commanded stroke
+(`pinarray.hardware.motion`) was not delivered as specified either.
 A `PreparedTrial` is what is to be delivered: every frame encoded for the wire before onset,
 and the goal changes in it. Pure values and bookkeeping: no I/O.
 """
@@ -14,8 +17,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import TYPE_CHECKING
 
 from pinarray.units import NS_PER_MS
+
+if TYPE_CHECKING:
+    from pinarray.hardware.motion import PinTrace, TrialStrokes
 
 # A goal change must reach its servo within this of its scheduled time unless the protocol
 # says otherwise (device: delivery: tolerance_ms).
@@ -81,6 +88,8 @@ class DeliveryRecord:
         How late a change may reach its servo and still count as delivered as scheduled.
     problem : str
         Empty when delivered; otherwise the first thing that went wrong, in plain words.
+    strokes : TrialStrokes or None
+        The moving pins' measured strokes; None where the servos report no position (PWM).
     """
 
     scheduled: int
@@ -90,6 +99,7 @@ class DeliveryRecord:
     worst_lateness_ns: int
     tolerance_ns: int
     problem: str = ""
+    strokes: TrialStrokes | None = None
 
     @property
     def delivered(self) -> bool:
@@ -100,6 +110,9 @@ class DeliveryRecord:
         text = (f"{self.confirmed + self.healed}/{self.scheduled} goal changes confirmed "
                 f"({self.healed} healed, {self.missing} missing), "
                 f"latest {self.worst_lateness_ns / NS_PER_MS:.1f} ms")
+        worst = self.strokes.worst if self.strokes is not None else None
+        if worst is not None:
+            text += f", stroke {worst.achieved_steps}/{worst.commanded_steps} steps"
         return text if self.delivered else f"{text}: NOT DELIVERED AS SCHEDULED: {self.problem}"
 
 
@@ -130,8 +143,12 @@ class DeliveryLedger:
         if self._first_missing is None:
             self._first_missing = (index, why)
 
-    def record(self) -> DeliveryRecord:
-        """The trial's verdict; changes still pending count as missing (never confirmed)."""
+    def record(self, strokes: TrialStrokes | None = None) -> DeliveryRecord:
+        """The trial's verdict; changes still pending count as missing (never confirmed).
+
+        ``strokes``: the pins' measured motion, when the servos report it; a pin that fell
+        short of the tolerance makes the trial not delivered as specified.
+        """
         for index, fate in enumerate(self.fates):
             if fate is Fate.PENDING:
                 self.lose(index, "no read-back confirmed it before the trial ended")
@@ -145,7 +162,9 @@ class DeliveryLedger:
             missing=counts[Fate.MISSING],
             worst_lateness_ns=worst,
             tolerance_ns=self.tolerance_ns,
-            problem=self._problem(delivered, worst),
+            problem=(self._problem(delivered, worst)
+                     or (strokes.problem() if strokes is not None else "")),
+            strokes=strokes,
         )
 
     def _problem(self, delivered: list[int], worst_ns: int) -> str:
@@ -174,3 +193,4 @@ class Presentation:
 
     onset_ns: int
     delivery: DeliveryRecord
+    trace: tuple[PinTrace, ...] = ()  # the moving pins' sampled positions (none: not sampled)

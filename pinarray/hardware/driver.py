@@ -23,7 +23,8 @@ What a driver does, in the order a sitting asks for it:
 5. **verify and heal**: `verifier` returns the driver's own way of confirming, in the slack
    between frames, that each change reached its servo, and of healing those that did not,
    recording each change's fate in the trial's `DeliveryLedger`; `heal_time_ns` says what
-   that takes, for the pre-flight's timing verdict.
+   that takes, for the pre-flight's timing verdict. With time left, the verifier samples
+   where the moving pins are (`sample_until`, `trace`), where the servos can say.
 6. **telemetry** after a trial (`read_telemetry`; a family without any returns none).
 7. **safe stop**: `rest_and_release` never raises: pins to rest, then torque off (PWM:
    pulses stop) wherever the hardware still answers, and a report of what it managed.
@@ -42,6 +43,7 @@ from pinarray.errors import BusError
 if TYPE_CHECKING:
     from pinarray.clock import Clock
     from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
+    from pinarray.hardware.motion import PinTrace
 
 
 class PortLost(BusError):
@@ -198,6 +200,15 @@ class FrameVerifier(Protocol):
 
     def work_until(self, limit_ns: int) -> None:
         """Confirm or heal pending changes while that still ends before ``limit_ns``."""
+        ...
+
+    def sample_until(self, limit_ns: int) -> None:
+        """With nothing pending: sample where the moving pins are while that still ends before
+        ``limit_ns`` (a family whose servos cannot say does nothing)."""
+        ...
+
+    def trace(self) -> tuple[PinTrace, ...]:
+        """The moving pins' samples so far (empty where the servos cannot say)."""
         ...
 
 

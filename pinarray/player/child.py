@@ -175,7 +175,8 @@ def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
     try:
         report = play_prepared(bus, play.trial, clock, lead_ns=play.lead_ns,
                                tolerance_ns=play.tolerance_ns, release_at_end=False,
-                               markers=play.markers, announcer=announcer)
+                               markers=play.markers, announcer=announcer,
+                               stroke_tolerance=play.stroke_tolerance)
     except PlaybackAborted as aborted:
         return PlayFailed(str(aborted), aborted.safe_stop)
     return Played(report)

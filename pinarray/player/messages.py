@@ -6,9 +6,11 @@ Requests are numbered, so a stop meant for one cannot stop the next.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from fractions import Fraction
 
 from pinarray.hardware.delivery import PreparedTrial
 from pinarray.hardware.driver import Handover, SafeStopReport
+from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.playback import PlaybackReport
 
@@ -37,6 +39,7 @@ class Play:
     lead_ns: int
     tolerance_ns: int
     markers: TrialMarkers | None = None  # announced at the onset and the end, if any
+    stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE
 
 
 @dataclass(frozen=True)

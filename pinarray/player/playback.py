@@ -10,7 +10,11 @@ garbage collector frozen and paused for the trial.
 In the slack between frames the driver's `FrameVerifier` confirms each goal change on its
 servo (Feetech: reads it back, and writes again, acknowledged, a goal the servo does not hold,
 counted as healed with how late it arrived), never past the next frame's deadline. The
-trial's `DeliveryRecord` says whether it was delivered as scheduled. Telemetry is read only
+trial's `DeliveryRecord` says whether it was delivered as scheduled. With the changes
+confirmed and time left before the next frame, the verifier samples where the moving pins are
+(`FrameVerifier.sample_until`: Feetech servos report it, PWM servos cannot); the samples give
+each pin's achieved stroke (`pinarray.hardware.motion`), and a pin that fell short of the
+protocol's stroke tolerance makes the trial not delivered as specified. Telemetry is read only
 after the trial's last frame.
 
 Given an `Announcer` and the trial's markers (`pinarray.player.markers`), the onset marker goes
@@ -29,6 +33,7 @@ from array import array
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 
@@ -48,6 +53,7 @@ from pinarray.hardware.driver import (
     Telemetry,
 )
 from pinarray.hardware.frames import check_limits
+from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE, PinTrace, measure_trial
 from pinarray.player.markers import Announcer, MarkerPush, TrialMarkers
 from pinarray.schedule import PulseList, TargetList
 
@@ -100,6 +106,8 @@ class PlaybackReport:
     marker_problem : str
         Empty unless a marker asked for could not be sent: what went wrong (the trial is
         played all the same).
+    trace : tuple of PinTrace
+        The moving pins' sampled positions (empty: not sampled, or the servos cannot say).
     """
 
     onset_ns: int
@@ -114,6 +122,7 @@ class PlaybackReport:
     safe_stop: SafeStopReport | None = None
     markers_sent: int = 0
     marker_problem: str = ""
+    trace: tuple[PinTrace, ...] = ()
     errors_ns: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
@@ -211,6 +220,8 @@ def play_prepared(
     release_at_end: bool = True,
     markers: TrialMarkers | None = None,
     announcer: Announcer | None = None,
+    stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE,
+    sample_motion: bool = True,
 ) -> PlaybackReport:
     """Play a prepared trial against absolute deadlines, verifying every goal change.
 
@@ -237,6 +248,12 @@ def play_prepared(
         Announce ``markers`` through ``announcer`` (opened on ``clock``): the onset marker
         after the write of the first frame at or after onset, as soon as the slack before the
         next frame allows (at once in practice), the offset marker at ``trial.end_ns``.
+    stroke_tolerance : Fraction
+        A moving pin whose achieved stroke is below this share of its commanded stroke
+        makes the trial not delivered as specified.
+    sample_motion : bool
+        Sample the moving pins' positions in the slack (False: read-backs only, as for a
+        benchmark's comparison; the delivery record then has no strokes).
 
     Returns
     -------
@@ -264,6 +281,8 @@ def play_prepared(
                 frame = frames[index]
                 deadline_ns = onset_ns + frame.time_ns
                 verifier.work_until(deadline_ns - guard_ns)
+                if sample_motion:
+                    verifier.sample_until(deadline_ns - guard_ns)
                 clock.sleep_until_ns(deadline_ns)
                 bus.send_goals(frame.packet, frame.goals)
                 sent[index] = clock.now_ns() - onset_ns
@@ -276,6 +295,8 @@ def play_prepared(
             index = count
             end_ns = onset_ns + trial.end_ns
             verifier.work_until(end_ns)
+            if sample_motion:
+                verifier.sample_until(end_ns)
             clock.sleep_until_ns(end_ns)
             if push is not None:
                 if not push.onset_sent:
@@ -286,6 +307,7 @@ def play_prepared(
                 # A change of the trial's end never confirmed may have left a pin up.
                 _rest(bus, tuple(verifier.pending))
             readings = _checked(_telemetry(bus, setup.servo_ids), setup)
+            trace = verifier.trace() if sample_motion else ()
         except Interrupted:
             bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
             raise
@@ -307,11 +329,13 @@ def play_prepared(
         bytes_written=after.bytes_written - before.bytes_written,
         bytes_read=after.bytes_read - before.bytes_read,
         retries=after.retries - before.retries,
-        delivery=ledger.record(),
+        delivery=ledger.record(
+            measure_trial(trace, trial.changes, trial.end_ns, stroke_tolerance) if trace else None),
         telemetry=readings,
         safe_stop=safe_stop,
         markers_sent=push.sent if push is not None else 0,
         marker_problem=push.problem if push is not None else "",
+        trace=trace,
     )
 
 

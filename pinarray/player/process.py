@@ -28,12 +28,14 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
+from fractions import Fraction
 from multiprocessing.connection import Connection
 from typing import NoReturn
 
 from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
+from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.child import REALTIME_PRIORITY
 from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.messages import (
@@ -143,10 +145,12 @@ class PlayerProcess:
         return self.process.poll() is None
 
     def play(self, trial: PreparedTrial, *, lead_ns: int = DEFAULT_LEAD_NS,
-             tolerance_ns: int, markers: TrialMarkers | None = None) -> PlaybackReport:
+             tolerance_ns: int, markers: TrialMarkers | None = None,
+             stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> PlaybackReport:
         """Play one trial in the child, announcing ``markers`` there if its stream is open;
         raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
-        answer = self._ask(lambda number: Play(number, trial, lead_ns, tolerance_ns, markers),
+        answer = self._ask(lambda number: Play(number, trial, lead_ns, tolerance_ns, markers,
+                                               stroke_tolerance),
                            "playing a trial")
         match answer:
             case Played(report=report):

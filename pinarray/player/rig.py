@@ -113,6 +113,7 @@ class Rig:
         # plays in the simulator's own time (see `_present`), where the host's delays cost
         # nothing, at any --speed.
         self.tolerance_ns = protocol.device.delivery_tolerance_ns
+        self.stroke_tolerance = protocol.device.stroke_tolerance
         refusals = board_refusals(protocol)  # before any port is opened: nothing touched
         if refusals:
             others = len(refusals) - 1
@@ -195,19 +196,20 @@ class Rig:
         try:
             if self.player is not None:
                 report = self.player.play(trial, tolerance_ns=self.tolerance_ns,
-                                          markers=markers)
+                                          markers=markers, stroke_tolerance=self.stroke_tolerance)
             else:
                 with self._own_time():
                     report = play_prepared(self.bus, trial, self.clock,
                                            tolerance_ns=self.tolerance_ns, release_at_end=False,
-                                           markers=markers, announcer=self._announcer)
+                                           markers=markers, announcer=self._announcer,
+                                           stroke_tolerance=self.stroke_tolerance)
         except PinArrayError:
             self._released = True
             raise
         self.reports.append(report)
         if report.marker_problem:
             self.marker_problems.append(report.marker_problem)
-        return Presentation(report.onset_ns, report.delivery)
+        return Presentation(report.onset_ns, report.delivery, report.trace)
 
     def keep_wall_time(self) -> None:
         """Play every stimulus on the wall clock (never in the simulator's own time): another

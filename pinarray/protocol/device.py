@@ -30,7 +30,7 @@ PCA9685_CHANNELS = 16
 # A servo maps a handful of pulse widths to positions; the map is copied to every pin.
 MAX_POSITIONS = 64
 DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility",
-               "delivery_tolerance_ms", "board", "channels"}
+               "delivery_tolerance_ms", "board", "channels", "stroke_tolerance_percent"}
 
 # The STS ids a servo can take (the vendor SDK's MAX_ID; 254 is broadcast). The bus says the
 # same in `pinarray.hardware.feetech.registers.MAX_SERVO_ID`, which the protocol may not import.
@@ -109,6 +109,12 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
         lambda n: round(reader.number(n, "the delivery tolerance", "ms", maximum=10_000) * MS),
         Device.delivery_tolerance_ns,
     )
+    stroke = reader.optional(
+        keys, "stroke_tolerance_percent",
+        lambda n: reader.number(n, "the stroke tolerance (the least share of a pin's commanded "
+                                "stroke it must achieve)", "%", maximum=100) / 100,
+        Device.stroke_tolerance,
+    )
     base = reader.optional(
         keys, "calibration", lambda n: _calibration(reader, n, "calibration", unit), _Given()
     )
@@ -135,7 +141,8 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get(ids_key), unit)
     if device is None:
         return None
-    return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns)
+    return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns,
+                   stroke_tolerance=stroke)
 
 
 def read_pin(reader: Reader, node: Node, grid: Grid) -> int:

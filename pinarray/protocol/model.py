@@ -152,6 +152,9 @@ class Device:
     scale_infeasible: bool = False  # scale strokes the servo cannot follow instead of refusing
     # A trial counts as delivered when every goal change reached its servo within this.
     delivery_tolerance_ns: int = 10_000_000
+    # ... and, where the servos report their position, every moving pin's achieved stroke
+    # was at least this share of its commanded stroke (device: stroke_tolerance_percent).
+    stroke_tolerance: Fraction = Fraction(8, 10)
 
     def calibration(self, pin: int) -> PinCalibration:
         self.grid.check_pin(pin)

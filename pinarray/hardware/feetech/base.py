@@ -72,6 +72,18 @@ class ReadBackBus(Protocol):
         """What `read_goals` of these servos should take on this bus."""
         ...
 
+    def read_positions(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, int]:
+        """Present Positions in steps (a servo missing: no reply by ``deadline_ns``)."""
+        ...
+
+    def read_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_positions` of these servos should take on this bus."""
+        ...
+
+    def read_request_bytes(self, servo_ids: tuple[int, ...]) -> int:
+        """The size of the request that reads these servos' registers."""
+        ...
+
     def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
         """Write one goal again, acknowledged (None: no acknowledgement by ``deadline_ns``)."""
         ...

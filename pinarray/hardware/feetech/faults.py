@@ -17,6 +17,8 @@ Every key is optional:
 ``backlash_deg``    free play of each horn in degrees (default: the model's, about 1 deg)
 ``load``            steady load as a fraction of stall torque, -1 to 1 (> 0 presses horns
                     toward lower step counts and slows motion against it)
+``speed``           the horns' top speed in steps/s, 1 to 10000 (default: the model's at the
+                    supply voltage): a worn, hot or under-volted servo, e.g. ``speed=1500``
 ``drop``            probability that an instruction packet is lost on the wire (no effect,
                     no answer)
 ``drop_writes``     probability that a WRITE, REG_WRITE or SYNC_WRITE is lost (reads still work)
@@ -50,6 +52,7 @@ MAX_VANISH_AFTER = 10**12
 MAX_SEED = 2**63 - 1
 MAX_SUPPLY_V = 25.4  # the present-voltage register holds 0-254 x 0.1 V
 MAX_BACKLASH_DEG = 10.0
+MAX_SPEED_STEPS_PER_S = 10_000.0
 
 _ERROR_KEYS = {
     "overload": StatusError.OVERLOAD,
@@ -139,6 +142,7 @@ class SimConfig:
     supply_v: float | None = None
     backlash_deg: float | None = None
     load_fraction: float = 0.0
+    speed_steps_per_s: float | None = None  # None: the model's at the supply voltage
 
     def __post_init__(self) -> None:
         if self.baud_rate is not None and self.baud_rate not in BAUD_RATE_BY_CODE:
@@ -156,6 +160,8 @@ class SimConfig:
         if self.backlash_deg is not None:
             _check("backlash_deg", self.backlash_deg, 0.0, MAX_BACKLASH_DEG, " deg")
         _check("load", self.load_fraction, -1.0, 1.0, " (a fraction of stall torque)")
+        if self.speed_steps_per_s is not None:
+            _check("speed", self.speed_steps_per_s, 1.0, MAX_SPEED_STEPS_PER_S, " steps/s")
 
     @property
     def answering_ids(self) -> tuple[int, ...]:
@@ -195,7 +201,7 @@ def is_sim_url(url: str) -> bool:
 _NUMBER_KEYS = {
     "baud": int, "return_delay_us": int, "supply_v": float, "backlash_deg": float,
     "load": float, "drop": float, "drop_writes": float, "corrupt": float, "late": float,
-    "late_ms": float, "vanish_after": int, "seed": int,
+    "late_ms": float, "vanish_after": int, "seed": int, "speed": float,
 }
 _KNOWN_KEYS = {"ids", "missing", "extra", "model", *_NUMBER_KEYS, *_ERROR_KEYS}
 
@@ -258,6 +264,7 @@ def parse_sim_url(url: str) -> SimConfig:
             supply_v=numbers.get("supply_v"),
             backlash_deg=numbers.get("backlash_deg"),
             load_fraction=float(numbers.get("load", 0.0)),
+            speed_steps_per_s=numbers.get("speed"),
         )
     except PinArrayError as error:
         raise PinArrayError(f"{url}: {error}") from None

@@ -365,7 +365,37 @@ class FeetechBus:
         costs only that servo's reading). One attempt: the player decides when to try again.
         A bus whose servos never answer a SYNC READ (some emulators) falls back to READs.
         """
-        register = Register.GOAL_POSITION
+        replies = self._read_words(Register.GOAL_POSITION, servo_ids, deadline_ns,
+                                   "reading back")
+        return {i: GoalReading(decode_position(from_bytes(r.params)), StatusError(r.error))
+                for i, r in replies.items()}
+
+    def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_goals` of these servos should take (to fit it between two frames)."""
+        return self._read_words_time_ns(Register.GOAL_POSITION, servo_ids)
+
+    def read_positions(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, int]:
+        """Where the horns are (Present Position, in steps), as `read_goals` reads goals.
+
+        Each servo samples its encoder when the request reaches it; a servo missing: no reply
+        by ``deadline_ns``. The replies' error bits are left to the read-backs and telemetry.
+        """
+        replies = self._read_words(Register.PRESENT_POSITION, servo_ids, deadline_ns,
+                                   "sampling")
+        return {i: decode_position(from_bytes(r.params)) for i, r in replies.items()}
+
+    def read_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_positions` of these servos should take on this bus."""
+        return self._read_words_time_ns(Register.PRESENT_POSITION, servo_ids)
+
+    def read_request_bytes(self, servo_ids: tuple[int, ...]) -> int:
+        """The size of the request `read_goals` or `read_positions` sends for these servos."""
+        if len(servo_ids) > 1 and self._sync_read_works:
+            return packets.INSTRUCTION_OVERHEAD_BYTES + 2 + len(servo_ids)
+        return READ_REQUEST_BYTES
+
+    def _read_words(self, register: Register, servo_ids: tuple[int, ...], deadline_ns: int,
+                    action: str) -> dict[int, StatusPacket]:
         expected = tuple(Expected(i, register.size) for i in servo_ids)
         if len(servo_ids) == 1 or not self._sync_read_works:
             packet = packets.read(servo_ids[0], register.address, register.size)
@@ -376,21 +406,18 @@ class FeetechBus:
             replies = self.link.exchange(packet, expected, deadline_ns)
         except WireLost as error:
             ids = ", ".join(str(e.servo_id) for e in expected)
-            raise self._lost(f"reading back GOAL_POSITION of servo(s) {ids}", error) from None
+            raise self._lost(f"{action} {register.name} of servo(s) {ids}", error) from None
         if len(expected) > 1:
             self._sync_reads_unanswered = 0 if replies else self._sync_reads_unanswered + 1
             if self._sync_reads_unanswered >= SYNC_READ_TRIES:
                 self._sync_read_works = False
-        return {i: GoalReading(decode_position(from_bytes(r.params)), StatusError(r.error))
-                for i, r in replies.items()}
+        return replies
 
-    def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
-        """What `read_goals` of these servos should take (to fit it between two frames)."""
+    def _read_words_time_ns(self, register: Register, servo_ids: tuple[int, ...]) -> int:
         ids = servo_ids if len(servo_ids) > 1 and self._sync_read_works else servo_ids[:1]
-        request = (packets.INSTRUCTION_OVERHEAD_BYTES + 2 + len(ids) if len(ids) > 1
-                   else READ_REQUEST_BYTES)
         return self.link.reply_time_ns(
-            request, tuple(Expected(i, Register.GOAL_POSITION.size) for i in ids), expected=True)
+            self.read_request_bytes(ids), tuple(Expected(i, register.size) for i in ids),
+            expected=True)
 
     def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
         """Write one goal again with an acknowledged WRITE; the error bits, or None: no ack."""

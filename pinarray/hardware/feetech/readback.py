@@ -5,15 +5,33 @@ many as fit before the next frame, oldest first, in one SYNC READ), confirms tho
 hold and writes again, acknowledged, those they do not; it records each change's fate in the
 trial's `DeliveryLedger`. It never starts an exchange that would not end before the next
 frame's deadline.
+
+With every change confirmed and time left before that deadline, `Verifier.sample_until`
+samples where the moving pins are (Present Position, register 56) for the trial's measured
+motion (`pinarray.hardware.motion`); servos the trial does not move are never asked.
+
+The rate this gives is bounded by one exchange per sample (all moving servos answer one
+SYNC READ, each sampling its encoder as the request reaches it): the request and the replies
+on the wire (8 + 8 bytes for one servo: 160 us at 1 Mbit/s, 1.4 ms at 115200), each servo's
+return delay (500 us from the factory, 100 us after `pinarray servos return-delay`) and the
+USB adapter's latency (1 ms with its latency timer at 1 ms; 16 ms at the FTDI default). So
+about 1.5 kHz per moving servo on a tuned adapter at 1 Mbit/s, about 60 Hz at the FTDI
+default; the time around each frame's write and read-back (the guard and the read-back
+itself) leaves gaps of a millisecond or two in the trace.
 """
 
 from __future__ import annotations
+
+from array import array
+
+import numpy as np
 
 from pinarray.clock import Clock
 from pinarray.errors import BusError
 from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
 from pinarray.hardware.feetech.base import ReadBackBus
 from pinarray.hardware.feetech.registers import StatusError
+from pinarray.hardware.motion import PinTrace
 
 # A WRITE of a 2-byte goal, in bytes.
 REWRITE_REQUEST_BYTES = 9
@@ -30,6 +48,10 @@ class Verifier:
         self.sent_lateness_ns = [0] * len(trial.changes)
         self.rewritten_at_ns: dict[int, int] = {}  # change index -> ns from onset
         self.wire_free_ns = 0  # when the last frame written will have left, ns from onset
+        # The servos the trial moves, and each one's samples: (ns after onset, steps).
+        self.moving = tuple(dict.fromkeys(change.servo_id for change in trial.changes))
+        self._sampled_ns = {servo_id: array("q") for servo_id in self.moving}
+        self._sampled_steps = {servo_id: array("i") for servo_id in self.moving}
 
     def sent(self, frame: PreparedFrame, sent_ns: int) -> None:
         """A frame's write returned ``sent_ns`` after onset: its changes await confirmation."""
@@ -82,6 +104,35 @@ class Verifier:
             for servo_id in lost:
                 if not self._write_again(servo_id, limit_ns):
                     return
+
+    def sample_until(self, limit_ns: int) -> None:
+        """Sample the moving pins' positions while an exchange still fits before ``limit_ns``,
+        once every change is confirmed (never at a read-back's expense) and from onset on."""
+        bus, clock, ids = self.bus, self.clock, self.moving
+        if not ids:
+            return
+        cost_ns = bus.read_positions_time_ns(ids)
+        while not self.pending:
+            now_ns = clock.now_ns()
+            if now_ns < self.onset_ns or now_ns + cost_ns > limit_ns:
+                return
+            # Each servo samples its encoder as the request's last byte reaches it.
+            at_ns = now_ns - self.onset_ns + bus.wire_ns(bus.read_request_bytes(ids))
+            for servo_id, steps in bus.read_positions(ids, limit_ns).items():
+                self._sampled_ns[servo_id].append(at_ns)
+                self._sampled_steps[servo_id].append(steps)
+            # Where SYNC READs gave way to READs (one servo each), the next one is the next servo.
+            ids = ids[1:] + ids[:1]
+            cost_ns = bus.read_positions_time_ns(ids)
+
+    def trace(self) -> tuple[PinTrace, ...]:
+        """The moving pins' samples so far."""
+        pins = self.trial.pin_of_servo
+        return tuple(
+            PinTrace(pins.get(servo_id, servo_id), servo_id,
+                     np.frombuffer(self._sampled_ns[servo_id], dtype=np.int64).copy(),
+                     np.frombuffer(self._sampled_steps[servo_id], dtype=np.int32).copy())
+            for servo_id in self.moving)
 
     def _write_again(self, servo_id: int, limit_ns: int) -> bool:
         """The servo does not hold its goal (its sync write was lost): say it again.

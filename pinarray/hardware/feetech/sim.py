@@ -237,6 +237,7 @@ class SimBus:
             supply_v=config.supply_v,
             backlash_steps=backlash,
             load_fraction=config.load_fraction,
+            top_speed_steps_per_s=config.speed_steps_per_s,
         )
 
     def plug_in(self, servo_id: int = 1) -> SimServo:

@@ -130,6 +130,8 @@ class SimServo:
     load_fraction : float
         Steady external load as a fraction of stall torque: > 0 presses the horn toward lower
         step counts (slowing motion up), < 0 toward higher ones.
+    top_speed_steps_per_s : float, optional
+        The horn's top speed in steps/s, below the model's (a worn, hot or under-volted servo).
     """
 
     def __init__(
@@ -145,6 +147,7 @@ class SimServo:
         supply_v: float | None = None,
         backlash_steps: float | None = None,
         load_fraction: float = 0.0,
+        top_speed_steps_per_s: float | None = None,
     ):
         self.model = model
         self.table = bytearray(TABLE_SIZE)
@@ -160,6 +163,7 @@ class SimServo:
         self.supply_v = supply_v or model.nominal_voltage_v
         self.backlash_steps = model.backlash_steps if backlash_steps is None else backlash_steps
         self.load_fraction = load_fraction
+        self.top_speed_steps_per_s = top_speed_steps_per_s
         self._max_accel = model.max_acceleration_steps_per_s2
         self._pending: tuple[int, bytes] | None = None  # a REG_WRITE awaiting ACTION
         start = MotionState(float(position_steps), 0.0, float(position_steps))
@@ -372,6 +376,8 @@ class SimServo:
 
     def _drive(self) -> Drive:
         top = self.model.speed_at(self.supply_v)
+        if self.top_speed_steps_per_s is not None:
+            top = min(top, self.top_speed_steps_per_s)
         phase = self.table[_PHASE]
         speed = self._word(_SPEED) & 0x7FFF
         if speed:

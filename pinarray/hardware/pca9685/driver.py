@@ -36,6 +36,7 @@ from pinarray.hardware.driver import (
     Targets,
     Telemetry,
 )
+from pinarray.hardware.motion import PinTrace
 from pinarray.hardware.pca9685.i2c import I2cLink, I2cMessage, I2cNack, MessageLog
 from pinarray.hardware.pca9685.registers import (
     AI,
@@ -449,6 +450,13 @@ class PwmVerifier:
                 continue  # read back again
             self._lose(frame_index, "the board did not hold its registers and its period "
                                     "began before they could be written again")
+
+    def sample_until(self, limit_ns: int) -> None:
+        """Hobby PWM servos report no position: nothing to sample (their trials' strokes are
+        not measured)."""
+
+    def trace(self) -> tuple[PinTrace, ...]:
+        return ()
 
     def _settle(self, frame_index: int) -> None:
         self.pending_frames.pop(0)

@@ -1,0 +1,197 @@
+"""What the pins did: a trial's sampled positions turned into strokes, lags and a verdict.
+
+Verified delivery proves that each goal reached its servo; it does not prove that the pin
+moved the whole way. A servo too slow for a train turns back before it arrives and the
+stroke shrinks. Where a family reads its servos' positions back (Feetech: Present Position,
+sampled in the slack between frames), each moving pin's samples give:
+
+commanded stroke
+    The span of the goals the trial sends the pin, in steps.
+achieved stroke
+    The smallest peak-to-peak of the pin's samples over the trial's cycles (a cycle runs
+    from one up-going goal change to the next; the last one to the trial's end), with the
+    median peak-to-peak beside it.
+lag
+    The median time from a goal change to the first sample within `ARRIVAL_STEPS` of it.
+short cycles
+    Cycles whose peak-to-peak fell below the tolerance (a fraction of the commanded stroke).
+
+A cycle is judged only when it holds at least `MIN_SAMPLES_PER_CYCLE` samples and no gap
+between them (or from its edges) longer than `MAX_GAP_FRACTION` of it: sparse samples miss
+the peaks and would make a good stroke look short, so such a cycle is *not measured* rather
+than failed. Pure values and arithmetic: no I/O.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from pinarray.hardware.delivery import Change
+
+# A trial delivers its stimulus as specified when every pin's achieved stroke is at least
+# this fraction of its commanded stroke, unless the protocol says otherwise
+# (device: stroke_tolerance_percent).
+DEFAULT_STROKE_TOLERANCE = Fraction(8, 10)
+# A pin has arrived at its goal when a sample is within this many steps of it.
+ARRIVAL_STEPS = 3
+MIN_SAMPLES_PER_CYCLE = 6
+MAX_GAP_FRACTION = Fraction(1, 8)
+
+
+@dataclass(frozen=True, eq=False)
+class PinTrace:
+    """One servo's sampled positions in a trial.
+
+    Attributes
+    ----------
+    pin, servo_id : int
+        Which pin, on which servo.
+    time_ns : numpy.ndarray
+        When each sample was taken, ns after the trial's onset (int64, rising).
+    position_steps : numpy.ndarray
+        The servo's Present Position at each sample, in steps (int32).
+    """
+
+    pin: int
+    servo_id: int
+    time_ns: np.ndarray
+    position_steps: np.ndarray
+
+
+@dataclass(frozen=True)
+class PinStroke:
+    """One pin's motion in a trial, measured from its samples (see the module docstring).
+
+    ``achieved_steps``, ``median_steps`` and ``lag_ns`` are None when not measured (too few
+    samples); ``cycles`` counts the cycles judged, ``short_cycles`` those that fell short.
+    """
+
+    pin: int
+    commanded_steps: int
+    achieved_steps: int | None
+    median_steps: float | None
+    lag_ns: int | None
+    cycles: int
+    short_cycles: int
+
+    @property
+    def measured(self) -> bool:
+        return self.achieved_steps is not None
+
+
+@dataclass(frozen=True)
+class TrialStrokes:
+    """Every moving pin's stroke in one trial, and the tolerance they were judged by."""
+
+    pins: tuple[PinStroke, ...]
+    tolerance: Fraction
+
+    @property
+    def worst(self) -> PinStroke | None:
+        """The measured pin whose achieved stroke is the smallest share of its commanded one."""
+        measured = [p for p in self.pins if p.measured and p.commanded_steps]
+        return min(measured, key=lambda p: Fraction(p.achieved_steps or 0, p.commanded_steps),
+                   default=None)
+
+    @property
+    def commanded_steps(self) -> int | None:
+        """The worst pin's commanded stroke (any pin's when none was measured)."""
+        pin = self.worst or (self.pins[0] if self.pins else None)
+        return None if pin is None else pin.commanded_steps
+
+    def problem(self) -> str:
+        """Empty when every measured pin moved enough; else which pin fell short, in words."""
+        short = [p for p in self.pins if p.measured and p.commanded_steps
+                 and Fraction(p.achieved_steps or 0, p.commanded_steps) < self.tolerance]
+        if not short:
+            return ""
+        worst = min(short, key=lambda p: Fraction(p.achieved_steps or 0, p.commanded_steps))
+        share = 100 * (worst.achieved_steps or 0) / worst.commanded_steps
+        others = f" (and {len(short) - 1} more pin(s))" if len(short) > 1 else ""
+        return (f"pin {worst.pin} moved {worst.achieved_steps} of {worst.commanded_steps} "
+                f"commanded steps ({share:.0f} %, below the tolerance of "
+                f"{float(self.tolerance) * 100:g} %) in {worst.short_cycles} of "
+                f"{worst.cycles} cycles{others}")
+
+
+def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
+                tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> PinStroke:
+    """One pin's stroke, lag and short cycles from its samples and its goal changes.
+
+    Parameters
+    ----------
+    trace : PinTrace
+        The pin's samples.
+    goals : sequence of (time_ns, goal_steps)
+        The pin's goal changes in the trial, in time order (ns after onset).
+    end_ns : int
+        The trial's end, ns after onset: where its last cycle ends.
+    tolerance : Fraction
+        A cycle whose peak-to-peak is below this share of the commanded stroke fell short.
+    """
+    values = [goal for _, goal in goals]
+    commanded = max(values) - min(values) if values else 0
+    times, positions = trace.time_ns, trace.position_steps
+    starts = [time_ns for k, (time_ns, goal) in enumerate(goals)
+              if goal > (goals[k - 1][1] if k else min(values))]
+    peaks: list[int] = []
+    for k, start_ns in enumerate(starts):
+        stop_ns = starts[k + 1] if k + 1 < len(starts) else end_ns
+        peak = _peak_to_peak(times, positions, start_ns, stop_ns)
+        if peak is not None:
+            peaks.append(peak)
+    lag_ns = _median_lag(times, positions, goals, end_ns)
+    if not peaks:
+        return PinStroke(trace.pin, commanded, None, None, lag_ns, 0, 0)
+    short = sum(1 for peak in peaks if commanded and Fraction(peak, commanded) < tolerance)
+    return PinStroke(trace.pin, commanded, min(peaks), float(np.median(peaks)), lag_ns,
+                     len(peaks), short)
+
+
+def measure_trial(traces: Sequence[PinTrace], changes: Sequence[Change], end_ns: int,
+                  tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> TrialStrokes:
+    """Every sampled pin of a trial measured against its goal changes (`measure_pin`)."""
+    pins = []
+    for trace in traces:
+        goals = [(c.time_ns, c.goal_steps) for c in changes if c.servo_id == trace.servo_id]
+        pins.append(measure_pin(trace, goals, end_ns, tolerance))
+    return TrialStrokes(tuple(pins), tolerance)
+
+
+def goal_at(goals: Sequence[tuple[int, int]], time_ns: np.ndarray) -> np.ndarray:
+    """The goal in force at each of ``time_ns`` (-1 before the first change), in steps."""
+    change_ns = np.array([t for t, _ in goals], dtype=np.int64)
+    value = np.array([-1, *(g for _, g in goals)], dtype=np.int64)
+    return value[np.searchsorted(change_ns, time_ns, side="right")]
+
+
+def _peak_to_peak(times: np.ndarray, positions: np.ndarray, start_ns: int,
+                  stop_ns: int) -> int | None:
+    """The cycle's peak-to-peak in steps; None when its samples are too few or too sparse."""
+    first, last = np.searchsorted(times, [start_ns, stop_ns])
+    if last - first < MIN_SAMPLES_PER_CYCLE:
+        return None
+    edges = np.concatenate(([start_ns], times[first:last], [stop_ns]))
+    if int(np.diff(edges).max()) > (stop_ns - start_ns) * MAX_GAP_FRACTION:
+        return None
+    window = positions[first:last]
+    return int(window.max()) - int(window.min())
+
+
+def _median_lag(times: np.ndarray, positions: np.ndarray, goals: Sequence[tuple[int, int]],
+                end_ns: int) -> int | None:
+    """Median time from a goal change to the first sample within `ARRIVAL_STEPS` of it,
+    before the pin's next change; None when the pin never arrived while sampled."""
+    lags = []
+    for k, (time_ns, goal) in enumerate(goals):
+        until_ns = goals[k + 1][0] if k + 1 < len(goals) else end_ns
+        first, last = np.searchsorted(times, [time_ns, until_ns])
+        near = np.flatnonzero(np.abs(positions[first:last].astype(np.int64) - goal)
+                              <= ARRIVAL_STEPS)
+        if len(near):
+            lags.append(int(times[first + near[0]]) - time_ns)
+    return int(np.median(lags)) if lags else None
