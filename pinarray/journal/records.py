@@ -50,6 +50,18 @@ class DeliveryCounts:
     lateness_ns: int
 
 
+@dataclass(frozen=True)
+class StrokeCounts:
+    """How far the trial's pins moved (see `pinarray.hardware.motion`), as the pin that moved
+    the smallest share of its commanded stroke did; None where not measured."""
+
+    commanded_steps: int
+    achieved_steps: int | None = None
+    median_steps: float | None = None
+    lag_ns: int | None = None
+    short_cycles: int | None = None
+
+
 def _coerce(record: object, name: str, kind: type[Enum], where: str) -> None:
     value = getattr(record, name)
     if value is None or isinstance(value, kind):
@@ -87,6 +99,7 @@ class _Trial:
     resumed: bool = False
     delivery: DeliveryCounts | None = None  # None: the stimulus never played (or older files)
     status_reason: str | None = None
+    stroke: StrokeCounts | None = None  # None: not measured (PWM servos, or older files)
 
     def __post_init__(self) -> None:
         check_label("task", self.task)
@@ -290,6 +303,22 @@ BEH_COLUMNS: tuple[Column, ...] = (
            "the protocol's delivery tolerance the trial is invalid.", units="s"),
     Column("status_reason", Cell.TEXT, "Why a trial is not ok: the bus fault, what was not "
            "delivered as scheduled, or who stopped it; n/a for ok rows."),
+    Column("stroke_commanded", Cell.INTEGER, "The stroke the schedule commanded of the pin that "
+           "moved the smallest share of it: the span of its goal positions, in servo steps; "
+           "n/a when the servos report no position (PWM) or the stimulus never played.",
+           units="steps"),
+    Column("stroke_achieved", Cell.INTEGER, "That pin's achieved stroke: the smallest "
+           "peak-to-peak of its sampled positions over the trial's cycles (a cycle runs from one "
+           "up-going goal change to the next); below the protocol's stroke tolerance the trial "
+           "is invalid. n/a when not measured (too few samples to judge a cycle).",
+           units="steps"),
+    Column("stroke_median", Cell.NUMBER, "That pin's median peak-to-peak over the cycles.",
+           units="steps"),
+    Column("motion_lag", Cell.SECONDS, "That pin's median time from a goal change to the first "
+           "sample within 3 steps of the goal; n/a when it never arrived while sampled.",
+           units="s"),
+    Column("cycles_short", Cell.INTEGER, "That pin's cycles whose peak-to-peak fell below the "
+           "stroke tolerance."),
 )
 BEH_NAMES = tuple(c.name for c in BEH_COLUMNS)
 COLUMN = {c.name: c for c in BEH_COLUMNS}
@@ -357,6 +386,11 @@ def _values(record: TrialRecord) -> dict[str, Any]:
             values |= {"row": record.row, "direction": record.direction,
                        "response": record.response, "perceived_motion": record.perceived_motion,
                        "direction_correct": record.direction_correct}
+    if record.stroke is not None:
+        s = record.stroke
+        values |= {"stroke_commanded": s.commanded_steps, "stroke_achieved": s.achieved_steps,
+                   "stroke_median": s.median_steps, "motion_lag": s.lag_ns,
+                   "cycles_short": s.short_cycles}
     if record.delivery is not None:
         d = record.delivery
         values |= {"goals_scheduled": d.scheduled, "goals_confirmed": d.confirmed,
@@ -471,6 +505,11 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
                         if values.get(name) is not None]
     if len(goals) == 5:
         delivery = DeliveryCounts(*goals)
+    stroke = None
+    if values.get("stroke_commanded") is not None:
+        stroke = StrokeCounts(values["stroke_commanded"], values.get("stroke_achieved"),
+                              values.get("stroke_median"), values.get("motion_lag"),
+                              values.get("cycles_short"))
     common: dict[str, Any] = {
         "trial": _required(values, "trial", where), "block": _required(values, "block", where),
         "task": _required(values, "task", where),
@@ -479,7 +518,7 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
         "status": _required(values, "status", where),
         "response_time_ns": values.get("response_time"),
         "practice": bool(values.get("practice")), "resumed": bool(values.get("resumed")),
-        "delivery": delivery, "status_reason": values.get("status_reason"),
+        "delivery": delivery, "status_reason": values.get("status_reason"), "stroke": stroke,
     }
     try:
         if values.get("pin") is not None:

@@ -1,7 +1,9 @@
 """Writing one run: the manifest before trial 1, then each trial row, fsync'd, the moment it ends.
 
 ``beh.tsv`` is the record of what happened; ``events.tsv`` is derived from it one row per
-trial (so it can always be rebuilt from ``beh.tsv`` after a crash). Every earlier row was on
+trial (so it can always be rebuilt from ``beh.tsv`` after a crash). The pins' sampled motion
+goes to the run's motion recording (`pinarray.journal.physio`) after the trial's rows, flushed
+and fsync'd per trial; a resume keeps every trial that reads back whole. Every earlier row was on
 disk before the trial after it began; a process killed while writing leaves at most one torn
 last row, which a resume drops.
 
@@ -49,6 +51,12 @@ from pinarray.journal.manifest import (
     write_manifest,
 )
 from pinarray.journal.paths import RunPaths, has_files, runs_of
+from pinarray.journal.physio import (
+    MotionRecording,
+    MotionSample,
+    motion_recording_path,
+    motion_sidecar,
+)
 from pinarray.journal.records import (
     BEH_NAMES,
     EVENT_NAMES,
@@ -208,6 +216,7 @@ class RunWriter:
         self._beh = _AppendOnlyTsv(paths.beh_tsv, BEH_NAMES)
         self._events = _AppendOnlyTsv(paths.events_tsv, EVENT_NAMES)
         self._volumes: _AppendOnlyTsv | None = None
+        self._motion: MotionRecording | None = None
         self._pending_volumes: Callable[[], Sequence[VolumeRow]] = tuple
 
     @classmethod
@@ -408,8 +417,10 @@ class RunWriter:
         """Plan entries still to run, in plan order."""
         return remaining_plan(self.manifest.plan, self.records)
 
-    def write_trial(self, record: TrialRecord) -> TrialRecord:
-        """Append ``record`` to beh.tsv and events.tsv, each fsync'd, and return it as written.
+    def write_trial(self, record: TrialRecord,
+                    motion: Sequence[MotionSample] = ()) -> TrialRecord:
+        """Append ``record`` to beh.tsv and events.tsv, each fsync'd, and return it as written;
+        then ``motion``, the trial's samples, to the run's motion recording, fsync'd.
 
         On a resumed run the row is marked ``resumed``. A second ``ok`` row for a trial is
         refused: a trial counts once.
@@ -430,8 +441,25 @@ class RunWriter:
                     self._finished.add(record.key)
         except OSError as problem:
             raise unwritable(problem, self.paths.beh_tsv, mid_run=True) from None
+        if motion:
+            self._write_motion(motion)
         self._flush_volumes()
         return record
+
+    def _write_motion(self, samples: Sequence[MotionSample]) -> None:
+        """A trial's samples onto the run's motion recording; its sidecar with the first."""
+        path = motion_recording_path(self.paths)
+        try:
+            if self._motion is None:
+                sidecar = path.with_name(path.name.removesuffix(".tsv.gz") + ".json")
+                if not sidecar.exists():
+                    write_atomically(sidecar,
+                                     json.dumps(motion_sidecar(samples), indent=2) + "\n")
+                self._motion = MotionRecording(path)
+                fsync_folder(path.parent)
+            self._motion.append(samples)
+        except OSError as problem:
+            raise unwritable(problem, path, mid_run=True) from None
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
         """Set the manifest's final status (completed / aborted / crashed), close, unlock."""
@@ -450,6 +478,10 @@ class RunWriter:
         finally:
             try:
                 volumes, self._volumes = self._volumes, None
+                motion, self._motion = self._motion, None
+                if motion is not None:
+                    with contextlib.suppress(OSError):
+                        motion.close()  # the stream's end: a whole gzip file
                 for tsv in (self._beh, self._events, *([volumes] if volumes else [])):
                     # Every row was fsync'd as it was written; closing can only fail on one
                     # whose write already failed and was reported.

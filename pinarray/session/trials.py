@@ -36,13 +36,16 @@ from pinarray.clock import Clock
 from pinarray.errors import Interrupted, PinArrayError
 from pinarray.grid import Grid
 from pinarray.hardware.delivery import DeliveryRecord, Presentation
+from pinarray.hardware.motion import PinTrace, TrialStrokes, goal_at
 from pinarray.journal.manifest import RunStatus
+from pinarray.journal.physio import MotionSample
 from pinarray.journal.records import (
     NOTHING_FELT,
     DeliveryCounts,
     LocalisationRecord,
     MotionAnswer,
     MotionRecord,
+    StrokeCounts,
     TrialRecord,
     TrialStatus,
 )
@@ -68,6 +71,32 @@ class _SharedFields(TypedDict):
     practice: bool
     delivery: DeliveryCounts | None
     status_reason: str | None
+    stroke: StrokeCounts | None
+
+
+def _stroke(strokes: TrialStrokes | None) -> StrokeCounts | None:
+    """What the results keep of the pins' measured motion: the pin that moved least, by share."""
+    if strokes is None or not strokes.pins:
+        return None
+    pin = strokes.worst or strokes.pins[0]
+    return StrokeCounts(pin.commanded_steps, pin.achieved_steps, pin.median_steps, pin.lag_ns,
+                        pin.short_cycles if pin.measured else None)
+
+
+def _samples(trial: int, onset_ns: int, traces: tuple[PinTrace, ...],
+             schedule: TrialSchedule) -> list[MotionSample]:
+    """A trial's sampled positions as rows of the run's motion recording, in time order."""
+    samples: list[MotionSample] = []
+    for trace in traces:
+        mine = schedule.targets.pin == trace.pin
+        goals = list(zip(schedule.targets.time_ns[mine].tolist(),
+                         schedule.targets.position_steps[mine].tolist(), strict=True))
+        in_force = goal_at(goals, trace.time_ns).tolist()
+        samples.extend(
+            MotionSample(onset_ns + t, trial, trace.pin, p, None if g < 0 else g)
+            for t, p, g in zip(trace.time_ns.tolist(), trace.position_steps.tolist(), in_force,
+                               strict=True))
+    return sorted(samples)
 
 
 def _counts(delivery: DeliveryRecord) -> DeliveryCounts:
@@ -197,6 +226,7 @@ class Session:
         self._onset_ns = 0
         self._duration_ns = 0
         self._delivery: DeliveryRecord | None = None
+        self._trace: tuple[PinTrace, ...] = ()  # written with the row that ends the presentation
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
         self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""
@@ -320,6 +350,7 @@ class Session:
         with self._state:
             self._onset_ns = presentation.onset_ns
             self._delivery = presentation.delivery
+            self._trace = presentation.trace
             self._duration_ns = schedule.end_ns
             if not presentation.delivery.delivered:
                 self.fault = f"the stimulus was not delivered as scheduled: {presentation.delivery.problem}"
@@ -443,6 +474,7 @@ class Session:
             "response_time_ns": response_time_ns, "practice": planned.practice,
             "delivery": None if delivery is None else _counts(delivery),
             "status_reason": None if reason is None else " ".join(reason.split()),  # one line
+            "stroke": None if delivery is None else _stroke(delivery.strokes),
         }
         condition = planned.condition
         record: TrialRecord
@@ -456,4 +488,7 @@ class Session:
             record = MotionRecord(**common, row=condition.row,
                                   direction=condition.direction,
                                   response=None if response is None else MotionAnswer(response))
-        return self.writer.write_trial(record)
+        traces, self._trace = self._trace, ()
+        samples = _samples(planned.trial, self._onset_ns - self._zero_ns, traces,
+                           self.current_schedule()) if traces else []
+        return self.writer.write_trial(record, samples)

@@ -1,0 +1,149 @@
+"""A run's measured pin motion as a BIDS continuous recording: ``..._recording-motion_physio``.
+
+Beside the run's ``beh.tsv``: a gzip-compressed TSV without a header (BIDS) holding every
+sample of every moving pin, trial after trial, and its JSON naming the columns. The samples
+are irregular (taken in the slack between frames, see
+`pinarray.hardware.feetech.readback`): each row carries its own ``timestamp``, on the run's
+time base as ``stimulus_onset`` in ``beh.tsv``. BIDS requires a number for
+``SamplingFrequency`` in a physio sidecar (only NIRS may write ``n/a``), so the sidecar gives
+the median rate of the first trial recorded and says that the timestamps are what count.
+
+One gzip stream for the whole run (BIDS validators refuse a file of several gzip members):
+`MotionRecording` compresses each trial's samples and flushes the stream to a whole block
+boundary, then fsyncs, so every trial on disk can be read back even before the run closes
+and writes the stream's end. A process killed meanwhile leaves a stream without its end (and
+at most one torn block): a resumed writer keeps what reads back whole and starts the stream
+again from it. The writer (`pinarray.journal.writer`) decides when.
+"""
+
+from __future__ import annotations
+
+import os
+import zlib
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from pinarray.journal.paths import RunPaths
+from pinarray.journal.timebase import ns_from_seconds, seconds_text
+from pinarray.units import NS_PER_S
+
+NA = "n/a"
+
+
+class MotionSample(NamedTuple):
+    """One pin's position at one instant of a trial; ``time_ns`` on the run's time base."""
+
+    time_ns: int
+    trial: int
+    pin: int
+    position_steps: int
+    goal_steps: int | None  # the goal in force (None: before the trial's first change)
+
+
+MOTION_NAMES = ("timestamp", "trial", "pin", "position", "goal")
+MOTION_COLUMNS: dict[str, dict[str, Any]] = {
+    "timestamp": {"Description": "When the servo sampled its position: seconds from the run's "
+                                 "time zero, as stimulus_onset in the run's beh.tsv. Samples are "
+                                 "irregular: this column, not SamplingFrequency, times them.",
+                  "Units": "s"},
+    "trial": {"Description": "The trial number (beh.tsv's trial column) the sample belongs to."},
+    "pin": {"Description": "The pin sampled, numbered as in beh.tsv."},
+    "position": {"Description": "The servo's Present Position (register 56): where its horn "
+                                "was, in encoder steps.", "Units": "steps"},
+    "goal": {"Description": "The goal position in force at that instant, in encoder steps; "
+                            "n/a before the trial's first goal change.", "Units": "steps"},
+}
+
+
+def motion_recording_path(paths: RunPaths) -> Path:
+    """Where a run's motion recording lives: beside its beh.tsv."""
+    return paths.beh_dir / f"{paths.stem}_recording-motion_physio.tsv.gz"
+
+
+def motion_sidecar(first: Sequence[MotionSample]) -> dict[str, Any]:
+    """The JSON that describes a run's motion recording, given its first trial's samples."""
+    return {"Description": "Where each moving pin was during each trial, sampled from its "
+                           "servo in the slack between the stimulus's frames by pinarray.",
+            "SamplingFrequency": median_rate_hz(first), "StartTime": 0,
+            "Columns": list(MOTION_NAMES), **MOTION_COLUMNS}
+
+
+def median_rate_hz(samples: Sequence[MotionSample]) -> float:
+    """The median rate at which one pin was sampled, Hz (0 with fewer than two samples)."""
+    by_pin: dict[int, list[int]] = {}
+    for sample in samples:
+        by_pin.setdefault(sample.pin, []).append(sample.time_ns)
+    gaps = sorted(b - a for times in by_pin.values()
+                  for a, b in zip(times, times[1:], strict=False) if b > a)
+    return round(NS_PER_S / gaps[len(gaps) // 2], 1) if gaps else 0
+
+
+def motion_lines(samples: Sequence[MotionSample]) -> bytes:
+    """The rows of ``samples``, tab-separated, as bytes."""
+    return "".join(
+        f"{seconds_text(s.time_ns)}\t{s.trial}\t{s.pin}\t{s.position_steps}\t"
+        f"{NA if s.goal_steps is None else s.goal_steps}\n" for s in samples).encode("ascii")
+
+
+class MotionRecording:
+    """A run's motion recording open for appending: one gzip stream, flushed per trial."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        kept = read_text(path) if path.exists() else b""
+        self._stream = zlib.compressobj(wbits=31)  # 31: a gzip header and trailer
+        start = self._stream.compress(kept) + self._stream.flush(zlib.Z_FULL_FLUSH)
+        temporary = path.with_name(path.name + ".tmp")
+        with open(temporary, "wb") as handle:
+            handle.write(start)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+        self._file = open(path, "ab")  # noqa: SIM115
+
+    def append(self, samples: Sequence[MotionSample]) -> None:
+        """The samples compressed onto the stream, flushed to a whole block and fsync'd."""
+        stream = self._stream
+        self._file.write(stream.compress(motion_lines(samples)) + stream.flush(zlib.Z_FULL_FLUSH))
+        self._file.flush()
+        os.fsync(self._file.fileno())
+
+    def close(self) -> None:
+        """End the stream (a whole gzip file from now on) and close it."""
+        try:
+            self._file.write(self._stream.flush(zlib.Z_FINISH))
+            self._file.flush()
+            os.fsync(self._file.fileno())
+        finally:
+            self._file.close()
+
+
+def read_text(path: Path | str) -> bytes:
+    """What a motion recording holds, uncompressed: all of it, or as far as it reads whole
+    (a stream a killed process left without its end, or with a torn last block)."""
+    data = Path(path).read_bytes()
+    stream = zlib.decompressobj(wbits=31)
+    try:
+        text = stream.decompress(data)
+    except zlib.error:
+        # A torn block: keep the blocks before it, each ending at a full flush's marker.
+        text, end = b"", data.rfind(b"\x00\x00\xff\xff")
+        while end > 0:
+            try:
+                text = zlib.decompressobj(wbits=31).decompress(data[:end + 4])
+                break
+            except zlib.error:
+                end = data.rfind(b"\x00\x00\xff\xff", 0, end)
+    return text[:text.rfind(b"\n") + 1]
+
+
+def read_motion(path: Path | str) -> list[MotionSample]:
+    """Every sample of a motion recording (one a killed process left: every whole trial's)."""
+    text = read_text(path).decode("ascii")
+    samples = []
+    for line in text.splitlines():
+        time, trial, pin, position, goal = line.split("\t")
+        samples.append(MotionSample(ns_from_seconds(time), int(trial), int(pin), int(position),
+                                    None if goal == NA else int(goal)))
+    return samples
