@@ -1,0 +1,131 @@
+"""The pins' measured motion on the simulated array: what the horns did, and a slow servo caught."""
+
+import subprocess
+import sys
+from fractions import Fraction
+
+import numpy as np
+
+from pinarray.clock import VirtualClock
+from pinarray.hardware.feetech.registers import Register
+from pinarray.journal.paths import RunPaths
+from pinarray.journal.physio import motion_recording_path, read_motion
+from pinarray.journal.records import TrialStatus, read_trials
+from pinarray.plan import PlannedTrial
+from pinarray.player.playback import play_prepared, play_trial, prepare_trial
+from pinarray.player.rig import Rig
+from pinarray.protocol import LocalisationCondition
+from pinarray.protocol.load import parse_protocol
+from pinarray.schedule import compile_trial
+from tests.runs import REPO
+
+from .lab import pulse_train, sim_bus
+
+MS = 1_000_000
+SEED = (REPO / "protocols" / "localisation.yaml").read_text()
+# The seed's localisation protocol with 1 s trains: 10 cycles at 10 Hz.
+SHORT = SEED.replace("duration_s: 10\n", "duration_s: 1\n")
+
+
+def trial_at_10_hz_on_pin_6():
+    return PlannedTrial(1, 1, False, LocalisationCondition("seed_train", 6, Fraction(10)))
+
+
+def horn_strokes(servo, onset_ns, starts_ns, end_ns):
+    """Peak-to-peak of the simulator's own horn over each cycle, sampled every 0.1 ms."""
+    peaks = []
+    for k, start in enumerate(starts_ns):
+        stop = starts_ns[k + 1] if k + 1 < len(starts_ns) else end_ns
+        horn = [servo.position_at_ns(onset_ns + t) for t in range(start, stop, 100_000)]
+        peaks.append(max(horn) - min(horn))
+    return peaks
+
+
+def test_a_read_of_present_position_answers_where_the_horn_is_when_the_servo_gets_it():
+    bus = sim_bus()
+    servo = bus.sim.servos[5]
+    servo.start_recording()
+    bus.write_goals({5: 2250})
+    for _ in range(60):
+        bus.clock.sleep_until_ns(bus.clock.now_ns() + 2 * MS)
+        sent_ns = bus.clock.now_ns()
+        heard_ns = sent_ns + bus.wire_ns(bus.read_request_bytes((5,)))
+        (steps,) = bus.read_positions((5,), sent_ns + 50 * MS).values()
+        assert abs(steps - servo.position_at_ns(heard_ns)) <= 0.5  # the encoder rounds
+    assert steps == 2250  # arrived: the last reads find it on its goal
+    assert Register.PRESENT_POSITION.address == 56
+
+
+def test_a_10_hz_localisation_trial_reports_the_stroke_the_simulated_horn_made_within_a_step():
+    protocol = parse_protocol(SHORT, "short.yaml")
+    schedule = compile_trial(protocol, trial_at_10_hz_on_pin_6())
+    with Rig(protocol, None, None, VirtualClock()) as rig:
+        servo = rig.bus.sim.servos[6]
+        servo.start_recording()
+        presentation = rig.present(schedule)
+    (stroke,) = presentation.delivery.strokes.pins
+    (trace,) = presentation.trace
+    assert stroke.pin == 6 and stroke.commanded_steps == 2162 - 2048
+    starts = [int(t) for t, p in zip(schedule.targets.time_ns, schedule.targets.position_steps,
+                                      strict=True) if p == 2162]
+    horn = horn_strokes(servo, presentation.onset_ns, starts, schedule.end_ns)
+    assert stroke.cycles == len(horn) == 10
+    assert abs(stroke.achieved_steps - min(horn)) <= 1
+    assert abs(stroke.median_steps - float(np.median(horn))) <= 1
+    # every sample is where the horn was (the encoder rounds to a step)
+    onset = presentation.onset_ns
+    assert max(abs(p - servo.position_at_ns(onset + int(t)))
+               for t, p in zip(trace.time_ns, trace.position_steps, strict=True)) <= 0.5
+    # and only the moving pin was asked: the other 15 servos cost nothing
+    assert [t.pin for t in presentation.trace] == [6]
+
+
+def test_a_train_too_fast_for_a_slow_servo_is_recorded_invalid_never_ok(tmp_path):
+    slow = SHORT.replace('port: "sim://"', 'port: "sim://?speed=1500"').replace(
+        "frequencies_hz: [3, 5, 10]", "frequencies_hz: [10]").replace(
+        "pins: [1, 4, 6, 7, 10, 11, 13, 16]", "pins: [6]").replace(
+        "practice_trials: 2", "practice_trials: 0")
+    assert "speed=1500" in slow and "frequencies_hz: [10]" in slow
+    protocol_file = tmp_path / "slow.yaml"
+    protocol_file.write_text(slow)
+    result = subprocess.run(
+        [sys.executable, "-m", "pinarray", "batch", str(protocol_file), "--subject", "S",
+         "--observer", "default", "--results", str(tmp_path / "results"), "--seed", "1"],
+        capture_output=True, text=True, timeout=300)
+    paths = RunPaths(tmp_path / "results", "S", "1", "localisation", 1)
+    rows = read_trials(paths.beh_tsv)
+    assert rows, result.stderr
+    assert all(r.status is TrialStatus.INVALID for r in rows), [r.status for r in rows]
+    assert "pin 6 moved" in rows[0].status_reason and "of 114 commanded steps" in rows[0].status_reason
+    assert rows[0].stroke.commanded_steps == 114 and rows[0].stroke.achieved_steps < 0.8 * 114
+    samples = read_motion(motion_recording_path(paths))
+    assert {s.pin for s in samples} == {6} and {s.trial for s in samples} == {rows[0].trial}
+
+
+def test_sampling_costs_no_verified_goal_on_the_simulator():
+    schedule = pulse_train([2, 7, 12], 10, 10, up_steps=2162)
+    counts = []
+    for sampling in (False, True):
+        bus = sim_bus("drop_writes=0.1&seed=3")
+        report = play_prepared(bus, prepare_trial(bus, schedule), bus.clock,
+                               sample_motion=sampling)
+        d = report.delivery
+        counts.append((d.scheduled, d.confirmed, d.healed, d.missing))
+        assert bool(report.trace) is sampling
+    assert counts[0] == counts[1]
+    assert counts[0][2] > 0 and counts[0][3] == 0  # some sync writes were lost, and healed
+
+
+def test_pwm_servos_report_no_position_and_their_trials_record_no_stroke():
+    protocol = parse_protocol((REPO / "protocols" / "localisation_pwm.yaml").read_text(),
+                              "pwm.yaml")
+    planned = PlannedTrial(1, 1, False, LocalisationCondition("seed_train", 6, Fraction(10)))
+    with Rig(protocol, None, None, VirtualClock()) as rig:
+        presentation = rig.present(compile_trial(protocol, planned))
+    assert presentation.trace == () and presentation.delivery.strokes is None
+
+
+def test_the_stroke_summary_names_the_commanded_and_achieved_steps():
+    bus = sim_bus()
+    report = play_trial(bus, pulse_train([4], 3, 3, up_steps=2162), bus.clock)
+    assert "stroke 114/114 steps" in report.delivery.summary()

@@ -1,0 +1,128 @@
+"""The pins' measured motion in the results: beh.tsv's stroke columns and the motion recording."""
+
+import gzip
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from fractions import Fraction
+
+import pytest
+
+from pinarray.errors import PinArrayError
+from pinarray.journal.physio import MotionSample, motion_recording_path, read_motion
+from pinarray.journal.records import (
+    BEH_NAMES,
+    LocalisationRecord,
+    StrokeCounts,
+    read_trials,
+    trial_row,
+    tsv_line,
+)
+from pinarray.journal.writer import RunWriter
+from pinarray.protocol.load import parse_protocol
+from tests.runs import REPO, localisation_plan, start_run
+
+S = 1_000_000_000
+
+
+def localisation(trial, **more):
+    return LocalisationRecord(trial=trial, block=1, task="localisation", onset_ns=12 * S * trial,
+                              duration_ns=10 * S, response="4", pin=4, frequency_hz=10.0,
+                              error_class="correct", **more)
+
+
+def samples(trial, count=50):
+    return [MotionSample(12 * S * trial + k * 1_000_000, trial, 4, 2048 + k, 2162)
+            for k in range(count)]
+
+
+def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_path):
+    writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10), (4, 3)))
+    writer.write_trial(localisation(1, stroke=StrokeCounts(114, 80, 80.5, 64_000_000, 9)))
+    writer.write_trial(localisation(2, stroke=StrokeCounts(114)))  # too few samples to judge
+    writer.close()
+    first, second = read_trials(writer.paths.beh_tsv)
+    assert first.stroke == StrokeCounts(114, 80, 80.5, 64_000_000, 9)
+    assert second.stroke == StrokeCounts(114)
+    header, row, _ = writer.paths.beh_tsv.read_text().split("\n", 2)
+    cells = dict(zip(header.split("\t"), row.split("\t"), strict=True))
+    assert [cells[c] for c in ("stroke_commanded", "stroke_achieved", "stroke_median",
+                               "motion_lag", "cycles_short")] == ["114", "80", "80.5", "0.064", "9"]
+    assert BEH_NAMES.index("stroke_commanded") == BEH_NAMES.index("status_reason") + 1
+    described = json.loads(writer.paths.beh_json.read_text())
+    assert described["stroke_achieved"]["Units"] == "steps" and "Description" in described["motion_lag"]
+
+
+def test_results_written_before_the_stroke_columns_still_read(tmp_path):
+    older = BEH_NAMES[: BEH_NAMES.index("status_reason") + 1]
+    row = trial_row(localisation(1))[: len(older)]
+    path = tmp_path / "sub-01_ses-1_task-localisation_run-1_beh.tsv"
+    path.write_text(tsv_line(older) + tsv_line(row))
+    (record,) = read_trials(path)
+    assert record.stroke is None and record.trial == 1
+
+
+def test_each_trial_s_samples_go_to_a_bids_motion_recording_beside_beh_tsv(tmp_path):
+    writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10), (4, 3)))
+    writer.write_trial(localisation(1), samples(1))
+    writer.write_trial(localisation(2), samples(2))
+    writer.close()
+    path = motion_recording_path(writer.paths)
+    assert path.parent == writer.paths.beh_tsv.parent
+    assert path.name == "sub-01_ses-1_task-localisation_run-1_recording-motion_physio.tsv.gz"
+    text = gzip.decompress(path.read_bytes()).decode()  # one whole gzip file, no header line
+    assert text.splitlines()[0] == "12\t1\t4\t2048\t2162"
+    assert read_motion(path) == samples(1) + samples(2)
+    sidecar = json.loads(path.with_name(path.name.replace(".tsv.gz", ".json")).read_text())
+    assert sidecar["Columns"] == ["timestamp", "trial", "pin", "position", "goal"]
+    assert sidecar["SamplingFrequency"] == 1000 and sidecar["StartTime"] == 0
+
+
+KILLED_MID_RUN = textwrap.dedent("""
+    import os, signal, sys
+    from pathlib import Path
+    from tests.runs import localisation_plan, start_run
+    from tests.test_motion_results import localisation, samples
+    writer = start_run(Path(sys.argv[1]), "01", "localisation", localisation_plan((4, 10), (4, 3), (4, 5)))
+    writer.write_trial(localisation(1), samples(1))
+    writer.write_trial(localisation(2), samples(2))
+    os.kill(os.getpid(), signal.SIGKILL)
+""")
+
+
+def test_a_run_killed_mid_run_keeps_every_trial_s_samples_and_resumes_the_recording(tmp_path):
+    subprocess.run([sys.executable, "-c", KILLED_MID_RUN, str(tmp_path)], cwd=REPO, check=False,
+                   env=os.environ | {"PYTHONPATH": str(REPO)}, timeout=120)
+    writer = RunWriter.resume(start_paths(tmp_path))
+    path = motion_recording_path(writer.paths)
+    assert read_motion(path) == samples(1) + samples(2)  # no end written, nothing lost
+    writer.write_trial(localisation(3), samples(3))
+    writer.close()
+    assert read_motion(path) == samples(1) + samples(2) + samples(3)
+    gzip.decompress(path.read_bytes())  # a whole gzip file again
+
+
+def start_paths(root):
+    from pinarray.journal.paths import RunPaths
+    return RunPaths(root, "01", "1", "localisation", 1)
+
+
+@pytest.mark.parametrize("value", ["120", "-5", "lots"])
+def test_a_stroke_tolerance_outside_0_to_100_percent_is_a_located_error(value):
+    text = (REPO / "protocols" / "localisation.yaml").read_text().replace(
+        '  port: "sim://"\n', f'  port: "sim://"\n  stroke_tolerance_percent: {value}\n')
+    with pytest.raises(PinArrayError) as refused:
+        parse_protocol(text, "p.yaml")
+    assert str(refused.value).startswith("p.yaml:10:")
+    assert "stroke tolerance" in str(refused.value)
+
+
+def test_a_protocol_sets_its_stroke_tolerance_in_percent():
+    text = (REPO / "protocols" / "localisation.yaml").read_text().replace(
+        '  port: "sim://"\n', '  port: "sim://"\n  stroke_tolerance_percent: 65\n')
+    assert parse_protocol(text, "p.yaml").device.stroke_tolerance == Fraction(65, 100)
+    assert parse_protocol((REPO / "protocols" / "localisation.yaml").read_text(),
+                          "p.yaml").device.stroke_tolerance == Fraction(8, 10)
+
