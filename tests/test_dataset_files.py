@@ -11,7 +11,7 @@ import pytest
 from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal import dataset
-from pinarray.journal.records import BEH_COLUMNS, EVENT_NAMES, Cell, read_trials
+from pinarray.journal.records import BEH_COLUMNS, BEH_NAMES, EVENT_NAMES, Cell, read_trials
 from pinarray.journal.writer import RunWriter
 from tests.runs import REPO, VIRTUAL, localisation_plan, start_run
 
@@ -147,9 +147,9 @@ def test_results_written_before_the_onset_columns_were_renamed_are_still_read(tm
 
 
 def test_resuming_a_run_with_the_old_column_names_renames_them_and_keeps_every_row(tmp_path):
-    header = OLD_HEADER.rstrip("\n") + "\tgoals_scheduled\tgoals_confirmed\tgoals_healed\t" \
-        "goals_missing\tdelivery_lateness\tstatus_reason\n"
-    row = OLD_ROW.rstrip("\n") + "\t4\t4\t0\t0\t0.001\tn/a\n"
+    later = BEH_NAMES[BEH_NAMES.index("goals_scheduled"):]  # today's columns after the old ones
+    header = OLD_HEADER.rstrip("\n") + "\t" + "\t".join(later) + "\n"
+    row = OLD_ROW.rstrip("\n") + "\t4\t4\t0\t0\t0.001" + "\tn/a" * (len(later) - 5) + "\n"
     writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10), (7, 3)))
     writer.close()
     writer.paths.beh_tsv.write_text(header + row)

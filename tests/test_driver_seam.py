@@ -51,6 +51,12 @@ class EchoVerifier:
             self.ledger.confirm(index, 0, healed=False)
             del self.pending[servo_id]
 
+    def sample_until(self, limit_ns):
+        pass  # this family cannot say where its pins are
+
+    def trace(self):
+        return ()
+
 
 @dataclass
 class Pulses:
