@@ -52,6 +52,8 @@ from pinarray.journal.paths import RunPaths, has_files, runs_of
 from pinarray.journal.records import (
     BEH_NAMES,
     EVENT_NAMES,
+    FIRST_NAMES,
+    NA,
     TrialRecord,
     TrialStatus,
     beh_header,
@@ -109,9 +111,13 @@ def repair_tail(path: Path, columns: int) -> str:
     return torn.decode("utf-8", errors="replace")
 
 
-def _rename_columns(path: Path) -> None:
-    """Give an earlier pinarray's ``beh.tsv`` today's column names; its rows stay as they are."""
+def _upgrade_columns(path: Path, added: int) -> None:
+    """Give an earlier pinarray's ``beh.tsv`` today's column names, its rows ``added`` n/a
+    cells for the columns appended since (its whole rows; a torn tail is already dropped)."""
     rows = path.read_text(encoding="utf-8").split("\n", 1)[1]
+    pad = "\t".join([NA] * added)
+    if added:
+        rows = "".join(f"{row}\t{pad}\n" for row in rows.split("\n") if row)
     write_atomically(path, tsv_line(BEH_NAMES) + rows)
 
 
@@ -303,7 +309,8 @@ class RunWriter:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
         header = beh_header(paths.beh_tsv)
-        if header and todays_names(header) != BEH_NAMES:
+        names = todays_names(header)
+        if header and (names != BEH_NAMES[: len(names)] or len(names) < len(FIRST_NAMES)):
             raise ResultsError(
                 f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
                 f"{', '.join(header)}; finish it with that version, or start a new run"
@@ -316,9 +323,9 @@ class RunWriter:
                 f"{', '.join(map(str, lines))}); a trial counts once: delete the row that should "
                 "not count, then resume"
             )
-        repaired = repair_tail(paths.beh_tsv, len(BEH_NAMES))
+        repaired = repair_tail(paths.beh_tsv, len(header) or len(BEH_NAMES))
         if header and tuple(header) != BEH_NAMES:
-            _rename_columns(paths.beh_tsv)
+            _upgrade_columns(paths.beh_tsv, len(BEH_NAMES) - len(header))
         _rebuild_events(paths.events_tsv, records)
         ensure_dataset(paths.root, paths.subject)
         now = wall()
