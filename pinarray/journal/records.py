@@ -72,9 +72,6 @@ def _coerce_name(record: object, name: str, kind: type[str], where: str) -> None
     object.__setattr__(record, name, kind(value))
 
 
-CATCH = "catch"  # the procedure cell of a catch trial: no procedure ran it
-
-
 @dataclass(frozen=True)
 class AdaptiveCells:
     """What a trial of an adaptive design adds to its row.

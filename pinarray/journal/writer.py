@@ -413,7 +413,7 @@ class RunWriter:
 
     def remaining(self) -> list[PlanEntry]:
         """Plan entries still to run, in plan order."""
-        return remaining_plan(self.manifest.plan, self.records)
+        return remaining_plan(self.manifest.needed, self.records)
 
     def write_trial(self, record: TrialRecord) -> TrialRecord:
         """Append ``record`` to beh.tsv and events.tsv, each fsync'd, and return it as written.
@@ -439,6 +439,15 @@ class RunWriter:
             raise unwritable(problem, self.paths.beh_tsv, mid_run=True) from None
         self._flush_volumes()
         return record
+
+    def not_needed_after(self, trial: int) -> None:
+        """The run's adaptive procedures have all finished at ``trial``: the later planned
+        trials are not needed (the manifest says so before the run is finished)."""
+        self.manifest = updated(self.manifest, needed_until=trial)
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
         """Set the manifest's final status (completed / aborted / crashed), close, unlock."""
