@@ -103,10 +103,18 @@ def _validate(args: argparse.Namespace) -> int:
                     print(f"{path}: {line}", file=sys.stderr)
                 continue
             design = protocol.design
-            print(
-                f"{path}: ok ({design.paradigm.value}, {len(design.conditions) * design.repetitions * design.blocks}"
-                f" trials in {design.blocks} block(s), {design.practice_trials} practice)"
-            )
+            adaptive = design.adaptive
+            if adaptive is None:
+                print(f"{path}: ok ({design.paradigm.value}, "
+                      f"{len(design.conditions) * design.repetitions * design.blocks} trials in "
+                      f"{design.blocks} block(s), {design.practice_trials} practice)")
+            else:
+                values = adaptive.values
+                print(f"{path}: ok ({design.paradigm.value}, adaptive: "
+                      f"{adaptive.parameter.value} over {len(values)} values "
+                      f"({float(values[0]):g}..{float(values[-1]):g} {adaptive.parameter.unit}), "
+                      f"{len(adaptive.procedures)} procedures, at most {design.trial_count} trials "
+                      f"with {adaptive.catch.count} catch and {design.practice_trials} practice)")
             for note in _scaled_notes(protocol):
                 print(f"{path}: note: {note}")
             for warning in protocol_warnings(protocol):
