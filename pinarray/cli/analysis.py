@@ -1,9 +1,16 @@
 """``pinarray analyse`` (results in, tables, figures and a page out) and ``pinarray power``
-(how many subjects a protocol needs, from simulated subjects)."""
+(how many subjects a protocol needs, from simulated subjects; for an adaptive design, how
+its procedures' estimates fall against a simulated subject's known threshold)."""
+
+from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from pinarray.cli import common
+
+if TYPE_CHECKING:
+    from pinarray.protocol import Protocol
 
 # The bootstrap draws resamples x subjects indices at once: 100 000 x 100 subjects is 80 MB.
 MAX_RESAMPLES = 100_000
@@ -151,6 +158,8 @@ def _cmd_power(args: argparse.Namespace) -> int:
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)
+    if protocol.design.adaptive is not None:
+        return _check_procedures(protocol, args)
     model = parse_observer(args.observer).for_protocol(protocol)
     print(f"{protocol.name}: {args.studies} simulated studies per number of subjects, "
           f"subject SD {model.subject_sd_logit:g} logit, seed {args.seed}")
@@ -163,4 +172,44 @@ def _cmd_power(args: argparse.Namespace) -> int:
     for line in curves.table_lines():
         print(line)
     print("written: " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _check_procedures(protocol: Protocol, args: argparse.Namespace) -> int:
+    """``pinarray power`` on an adaptive design: its procedures run by simulated subjects of
+    the --observer function, one per --studies; a table and procedure_check.csv."""
+    import csv
+    from pathlib import Path
+
+    from pinarray.analysis.adaptive_subject import parse_psychometric
+    from pinarray.analysis.procedure_check import check_procedures, check_table
+    from pinarray.errors import ResultsError
+
+    adaptive = protocol.design.adaptive
+    assert adaptive is not None
+    function = parse_psychometric(args.observer, adaptive)
+    unit = adaptive.parameter.unit
+    print(f"{protocol.name}: {len(adaptive.procedures)} procedure(s) adapting "
+          f"{adaptive.parameter.value}, each run by {args.studies} simulated subjects (--studies) "
+          f"of a {function.kind} with threshold {function.threshold:g} {unit}, slope "
+          f"{function.slope:g}, guess {function.guess:g}, lapse {function.lapse:g}; seed {args.seed}")
+    checks = check_procedures(adaptive, function, args.studies, args.seed)
+    out = Path(args.out) / "procedure_check.csv"
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with open(out, "w", newline="", encoding="utf-8") as handle:
+            table = csv.writer(handle)
+            table.writerow(["procedure", "truth", "truth_is", "unit", "bias", "sd", "low_2.5",
+                            "high_97.5", "subjects", "without_estimate", "trials_median",
+                            "trials_min", "trials_max"])
+            for c in checks:
+                t = sorted(c.trials)
+                table.writerow([c.name, c.truth, c.truth_is, unit, c.bias, c.sd, *c.interval(),
+                                len(t), c.no_estimate, t[len(t) // 2], t[0], t[-1]])
+    except OSError as problem:
+        raise ResultsError(f"{problem.filename or args.out}: cannot write there: "
+                           f"{problem.strerror}") from None
+    for line in check_table(checks, unit):
+        print(line)
+    print(f"written: {out}")
     return 0
