@@ -97,3 +97,16 @@ def test_validate_says_an_adaptive_design_runs_up_to_its_procedures_limits():
     assert done.returncode == 0, done.stderr
     assert "adaptive: soa_ms over 15 values (20..300 ms), 2 procedures" in done.stdout
     assert "at most 86 trials with 4 catch and 2 practice" in done.stdout
+
+
+@pytest.mark.parametrize("command", [["compile", "--out", "{out}"], ["preview", "--trial", "3"]])
+def test_compile_and_preview_refuse_an_adaptive_design_in_one_line_and_write_nothing(
+        tmp_path, command):
+    out = tmp_path / "schedules.json"
+    args = [part.format(out=out) for part in command]
+    done = subprocess.run([sys.executable, "-m", "pinarray", args[0],
+                           str(PROTOCOLS / "quest_stroke.yaml"), *args[1:]],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "adapts stroke_steps as the run goes" in done.stderr
+    assert not out.exists()
