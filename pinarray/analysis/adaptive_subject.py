@@ -12,12 +12,12 @@ nothing felt. A catch trial is answered rightly (nothing felt) unless the subjec
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
+from pinarray.analysis.observer import observer_number
 from pinarray.errors import PinArrayError
 from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Protocol
 from pinarray.protocol.model import NOTHING_FELT
@@ -50,13 +50,7 @@ def parse_psychometric(spec: str, adaptive: Adaptive) -> Psychometric:
         if name not in KEYS:
             raise PinArrayError(f"observer: unknown parameter {name!r} for an adaptive design; "
                                 f"expected one of {', '.join(KEYS)}")
-        try:
-            value = float(text)
-        except ValueError:
-            raise PinArrayError(f"observer: {item!r}: expected name=number") from None
-        if not math.isfinite(value):
-            raise PinArrayError(f"observer: {item!r}: expected a finite number")
-        changes[name] = value
+        changes[name] = observer_number(item, text)
     try:
         return replace(function, **changes)  # type: ignore[arg-type]
     except PinArrayError as problem:
