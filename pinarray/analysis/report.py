@@ -15,7 +15,13 @@ from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS, Proportion
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 from pinarray.analysis.tables import number, write_tables
-from pinarray.analysis.thresholds import ALL_SUBJECTS, NotFitted, Thresholds, parameter_and_unit
+from pinarray.analysis.thresholds import (
+    ALL_SUBJECTS,
+    NotFitted,
+    Thresholds,
+    interval_name,
+    parameter_and_unit,
+)
 
 
 @dataclass(frozen=True)
@@ -194,7 +200,7 @@ def _thresholds(found: Thresholds) -> list[str]:
              f"within 0-0.1; interval: 95 % parametric bootstrap ({found.fit_resamples} "
              f"resamples, seed {found.fit_seed}).",
              f"- **Across subjects** (subject `{ALL_SUBJECTS}` in thresholds.csv): the mean of "
-             f"the subjects' thresholds with the {settings.describe()}; a subject without an "
+             f"the subjects' thresholds with the {interval_name(settings)}; a subject without an "
              "estimate is left out, a subject with several runs of a procedure counts once "
              "(the mean of their estimates).", "",
              _row(["task", "parameter", "unit", "method", "procedure", "subjects", "trials",

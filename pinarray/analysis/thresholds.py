@@ -64,6 +64,18 @@ class ThresholdMethod(StrEnum):
     ML_LOGISTIC = "ml_logistic"
 
 
+def interval_name(settings: IntervalSettings) -> str:
+    """The across-subject interval of thresholds, named (in the threshold's unit, unbounded)."""
+    match settings.method:
+        case IntervalMethod.T:
+            return f"{settings.level_pct} t interval across subjects (mean ± t(N-1) · SD/√N)"
+        case IntervalMethod.BOOTSTRAP:
+            return (f"{settings.level_pct} subject bootstrap (percentile; "
+                    f"{settings.bootstrap_resamples} resamples of subjects, seed "
+                    f"{settings.bootstrap_seed})")
+    raise AssertionError(settings.method)
+
+
 def parameter_and_unit(adapted_parameter: str) -> tuple[str, str]:
     """``soa_ms`` -> (``soa``, ``ms``); a name without a known unit suffix keeps it, unit n/a."""
     name, _, suffix = adapted_parameter.rpartition("_")

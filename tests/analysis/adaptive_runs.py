@@ -35,7 +35,7 @@ class Written:
     estimates: dict = field(default_factory=dict)  # procedure -> its final estimate
 
 
-def _motion_row(trial, cells, correct, direction="left", **fields):
+def motion_row(trial, cells, correct, direction="left", **fields):
     response = direction if correct else ("right" if direction == "left" else "left")
     if direction == "none":
         response = "none" if correct else "left"
@@ -52,14 +52,14 @@ def motion_run(root: Path, subject: str, threshold_ms: float, seed: int) -> Writ
     written = Written()
     rows = written.rows
     for trial in (1, 2):  # practice: answered, but moving nothing
-        rows.append(_motion_row(trial, AdaptiveCells("ascending", "soa_ms", 100.0, 0.5, True),
+        rows.append(motion_row(trial, AdaptiveCells("ascending", "soa_ms", 100.0, 0.5, True),
                                 True, practice=True, block=0))
     states = {name: staircase.start(STAIRCASE, index) for name, index in STARTS.items()}
     trial = adaptive_trials = 0
     while any(not s.finished for s in states.values()):
         trial += 1
         if trial % CATCH_EVERY == 0:
-            rows.append(_motion_row(trial, AdaptiveCells(CATCH, "soa_ms", None, 0.5, True), True,
+            rows.append(motion_row(trial, AdaptiveCells(CATCH, "soa_ms", None, 0.5, True), True,
                                     direction="none"))
             continue
         adaptive_trials += 1
@@ -67,13 +67,13 @@ def motion_run(root: Path, subject: str, threshold_ms: float, seed: int) -> Writ
                               [n for n, s in states.items() if not s.finished])
         intensity = STAIRCASE.domain[states[name].index]
         if trial == 7:  # a bus fault: the row is invalid and the trial is presented again
-            rows.append(_motion_row(trial, AdaptiveCells(name, "soa_ms", intensity, 0.5), False,
+            rows.append(motion_row(trial, AdaptiveCells(name, "soa_ms", intensity, 0.5), False,
                                     status="invalid", status_reason="bus fault"))
         step = staircase.advance(STAIRCASE, states[name], observer.answer(trial, intensity))
         states[name] = step.state
         cells = AdaptiveCells(name, "soa_ms", intensity, 0.5, step.correct, step.reversal,
                               staircase.reversal_mean(STAIRCASE, step.state))
-        rows.append(_motion_row(trial, cells, step.correct))
+        rows.append(motion_row(trial, cells, step.correct))
     written.estimates = {n: staircase.reversal_mean(STAIRCASE, s) for n, s in states.items()}
     _write(root, subject, "motion", rows)
     return written
