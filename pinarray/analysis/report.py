@@ -207,16 +207,16 @@ def _thresholds(found: Thresholds) -> list[str]:
                    "subject mean", "interval"]), "|---" * 9 + "|"]
     for m in found.across:
         low, high = m.interval(settings.method)
-        interval = ("n/a (one subject)" if math.isnan(low)
+        interval = ("n/a (fewer than two subjects)" if math.isnan(low)
                     else f"[{number(low, 3)}, {number(high, 3)}]")
         lines.append(_row([m.task, *parameter_and_unit(m.adapted_parameter), f"`{m.method}`",
                            m.procedure, m.subjects, m.n_trials, number(m.mean, 3), interval]))
-    skipped = [s for s in found.per_subject if isinstance(s.fit, NotFitted)]
-    if skipped:
-        lines.append("")
-    for s in skipped:
-        assert isinstance(s.fit, NotFitted)
-        lines.append(f"- subject {s.subject}, task {s.task}: no fit: {s.fit.reason}")
+    notes = []
+    for s in found.per_subject:
+        match s.fit:
+            case NotFitted(reason=reason):
+                notes.append(f"- subject {s.subject}, task {s.task}: no fit: {reason}")
+    lines += ([""] + notes) if notes else []
     lines += ["", "Each subject's numbers: [thresholds.csv](thresholds.csv).", ""]
     return lines
 

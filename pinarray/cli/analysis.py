@@ -148,7 +148,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
               "(each subject's in thresholds.csv):")
         for t in result.thresholds.across:
             low, high = t.interval(method)
-            interval = ("n/a, one subject" if math.isnan(low)
+            interval = ("n/a, fewer than two subjects" if math.isnan(low)
                         else f"{low:.4g}-{high:.4g}")
             print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
                   f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
