@@ -28,7 +28,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "percentages, their across-subject mean with a subject bootstrap interval (a t "
         "interval on request), the trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
         "levels, a confusion matrix, per-pin accuracy, apparent motion, and a mixed-effects "
-        "logistic fit of the frequency effect when there are enough subjects. Runs whose "
+        "logistic fit of the frequency effect when there are enough subjects; for adaptive "
+        "designs, thresholds (each procedure's estimate and a maximum-likelihood "
+        "psychometric fit per subject, their across-subject means) in thresholds.csv with "
+        "staircase tracks and fitted functions. Runs whose "
         "manifest is not 'completed', or with no counted trial, are listed and left out. "
         "Writes CSV tables, PNG and PDF figures and summary.md.",
     )
@@ -80,6 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_analyse(args: argparse.Namespace) -> int:
+    import math
     import sys
     from pathlib import Path
 
@@ -92,6 +96,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         IntervalMethod,
         IntervalSettings,
     )
+    from pinarray.analysis.thresholds import interval_name
     from pinarray.errors import ResultsError
 
     settings = IntervalSettings(
@@ -145,6 +150,15 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
               f"{measure_text(motion.felt, method)}; direction right of those felt "
               f"{measure_text(motion.direction_right, method)} (chance 50 %); felt on no-wave "
               f"trials {measure_text(motion.no_wave_felt, method)}")
+    if result.thresholds.found:
+        print(f"thresholds, mean of per-subject thresholds [{interval_name(settings)}] "
+              "(each subject's in thresholds.csv):")
+        for t in result.thresholds.across:
+            low, high = t.interval(method)
+            interval = ("n/a, fewer than two subjects" if math.isnan(low)
+                        else f"{low:.4g}-{high:.4g}")
+            print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
+                  f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
     print(f"summary: {report.summary}")
     return 0
 
