@@ -45,7 +45,8 @@ from pinarray.analysis.subjects import (
     t_interval,
 )
 from pinarray.errors import PinArrayError, ResultsError
-from pinarray.journal.records import CATCH, NA
+from pinarray.journal.records import NA
+from pinarray.protocol.procedures import CATCH
 
 FIT_RESAMPLES = DEFAULT_RESAMPLES
 ALL_SUBJECTS = POOLED  # the subject cell of an across-subject row

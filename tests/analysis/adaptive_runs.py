@@ -10,7 +10,8 @@ from pinarray.adaptive.interleave import pick_procedure
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
 from pinarray.adaptive.questplus import QuestPlus, QuestPlusRule
-from pinarray.journal.records import CATCH, AdaptiveCells, LocalisationRecord, MotionRecord
+from pinarray.journal.records import AdaptiveCells, LocalisationRecord, MotionRecord
+from pinarray.protocol.procedures import CATCH
 from tests.runs import plan_of, start_run
 
 S = 1_000_000_000  # ns per s
