@@ -11,7 +11,7 @@ disk (`pinarray.session.procedures`); `pinarray power` feeds it simulated subjec
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 
 from pinarray.adaptive.interleave import pick_procedure
@@ -25,7 +25,12 @@ from pinarray.adaptive.staircase import (
     reversal_mean,
     start,
 )
-from pinarray.protocol.model import NOTHING_FELT, Condition, LocalisationCondition
+from pinarray.protocol.model import (
+    NOTHING_FELT,
+    Condition,
+    LocalisationCondition,
+    MotionCondition,
+)
 from pinarray.protocol.procedures import (
     CATCH,
     PRACTICE,
@@ -67,7 +72,7 @@ def counts_as_correct(task: Task, condition: Condition, catch: bool, response: s
         return not felt
     match task:
         case Task.DIRECTION:
-            return response == getattr(condition, "direction", None)
+            return isinstance(condition, MotionCondition) and response == condition.direction
         case Task.LOCALISATION:
             return isinstance(condition, LocalisationCondition) and response == str(condition.pin)
     return felt
@@ -93,10 +98,11 @@ class _Staircase:
     def estimate(self) -> AdaptiveFields:
         return AdaptiveFields(None, reversal_mean(self.rule, self.state), None, None)
 
-    def after(self, index: int, correct: bool) -> tuple[StaircaseState, AdaptiveFields]:
+    def take(self, index: int, correct: bool) -> AdaptiveFields:
+        """The answer to the trial at ``index`` (the staircase's own: it stands there)."""
         step = advance(self.rule, self.state, correct)
-        return step.state, AdaptiveFields(step.reversal, reversal_mean(self.rule, step.state),
-                                          None, None)
+        self.state = step.state
+        return replace(self.estimate(), reversal=step.reversal)
 
 
 class _QuestPlus:
@@ -128,11 +134,10 @@ class _QuestPlus:
         return AdaptiveFields(None, summary.threshold_mean, summary.threshold_ci_low,
                               summary.threshold_ci_high)
 
-    def after(self, index: int, correct: bool) -> tuple[QuestPlusState, AdaptiveFields]:
-        state = self.machine.update(self.state, self.machine.rule.intensities[index], correct)
-        summary = self.machine.summary(state)
-        return state, AdaptiveFields(None, summary.threshold_mean, summary.threshold_ci_low,
-                                     summary.threshold_ci_high)
+    def take(self, index: int, correct: bool) -> AdaptiveFields:
+        """The answer to a trial at the value of ``index``."""
+        self.state = self.machine.update(self.state, self.machine.rule.intensities[index], correct)
+        return self.estimate()
 
 
 class ProcedureSet:
@@ -173,7 +178,7 @@ class ProcedureSet:
     def take(self, name: str, value: Fraction, correct: bool) -> AdaptiveFields:
         """Procedure ``name`` presented ``value`` (what `next` said) and got ``correct``."""
         machine = self._running[name]
-        machine.state, fields = machine.after(self.adaptive.values.index(value), correct)  # type: ignore[assignment]
+        fields = machine.take(self.adaptive.values.index(value), correct)
         self.taken += 1
         return fields
 

@@ -61,7 +61,7 @@ from pinarray.protocol.procedures import (
     UniformPrior,
 )
 from pinarray.protocol.stimuli import check_period, check_train_on_pins
-from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
+from pinarray.protocol.yaml_nodes import Invalid, MappingNode, Node, Reader
 
 ADAPTIVE_KEYS = {"parameter", "values", "task", "guess_rate", "catch_trials", "procedures"}
 STAIRCASE_KEYS = {"method", "start", "down", "up", "step_sizes", "stop_after_trials",
@@ -139,7 +139,7 @@ def _values(reader: Reader, node: Node, unit: str, whole: bool,
             what: str = "the values") -> tuple[Fraction, ...]:
     """A list, or ``{from, to, step}`` (``to`` a whole number of steps from ``from``);
     ``whole``: each a whole number of ``unit``."""
-    if getattr(node, "id", "") == "mapping":
+    if isinstance(node, MappingNode):
         keys = reader.mapping(node, {"from", "to", "step"}, {"from", "to", "step"}, what)
         first, last, step = (reader.number(keys[k], f"{what}' {k}", unit)
                              for k in ("from", "to", "step"))
@@ -211,7 +211,7 @@ def _procedure(reader: Reader, node: Node, name: str, values: tuple[Fraction, ..
     keys = reader.mapping(node, STAIRCASE_KEYS | QUEST_KEYS, {"method"}, f"procedure {name!r}")
     method = reader.string(keys["method"], "the method", ("staircase", "quest_plus"))
     allowed = STAIRCASE_KEYS if method == "staircase" else QUEST_KEYS
-    for key in keys.keys() - allowed:
+    for key in sorted(keys.keys() - allowed):  # the first wrong key, the same every time
         raise reader.error(keys[key], f"expected the keys of a {method} ("
                                       f"{', '.join(sorted(allowed))}), found {key!r}")
     if "stop_after_trials" not in keys:
@@ -311,7 +311,7 @@ def _grid(reader: Reader, node: Node, what: str, zero: bool) -> tuple[Fraction, 
 
 
 def _prior(reader: Reader, node: Node) -> Prior:
-    if getattr(node, "id", "") != "mapping":
+    if not isinstance(node, MappingNode):
         reader.string(node, "the threshold prior", ("uniform",))
         return UniformPrior()
     keys = reader.mapping(node, {"mean", "sd"}, {"mean", "sd"}, "threshold prior")
@@ -332,6 +332,7 @@ def _check_values(reader: Reader, node: Node, device: Device, parameter: Paramet
     if len(distinct) * len(values) > MAX_CHECKS:
         raise reader.error(node, f"expected at most {MAX_CHECKS:,} values x stimuli, found "
                                  f"{len(values)} x {len(distinct)}")
+    # Here, not at the top: the design's reader imports this module.
     from pinarray.protocol.design import MAX_PULSES_PER_TRIAL
 
     for value in values:

@@ -51,7 +51,7 @@ from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol import Condition, LocalisationCondition, Paradigm, Protocol
-from pinarray.protocol.adapted import adapted
+from pinarray.protocol.adapted import adapted, adapted_condition
 from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
 from pinarray.session.procedures import Presented, Procedures
 
@@ -488,7 +488,11 @@ class Session:
             assert self.procedures is not None
             common["adaptive"] = (self.procedures.cells(presented) if response is None else
                                   self.procedures.answer(planned, presented, response, status))
-        condition = self._presenting()[1]
+        condition = planned.condition
+        adaptive = self.protocol.design.adaptive
+        if presented is not None and presented.value is not None and adaptive is not None:
+            # As the row tells it (a frequency adapted is the one played): no protocol rebuilt.
+            condition = adapted_condition(condition, adaptive.parameter, presented.value)
         record: TrialRecord
         if isinstance(condition, LocalisationCondition):
             named = None if response in (None, NOTHING_FELT) else int(str(response))
