@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol import Condition, LocalisationCondition, Ordering, Protocol
-from pinarray.protocol.design import MAX_SHUFFLE_WORK
-from pinarray.protocol.model import condition_value
+from pinarray.protocol.design import MAX_SHUFFLE_WORK, wave_condition
+from pinarray.protocol.model import WaveStimulus, condition_value
 
 if TYPE_CHECKING:
     import numpy as np
@@ -32,6 +32,9 @@ class PlannedTrial:
     block: int  # 0 for practice, then 1..blocks
     practice: bool
     condition: Condition
+    # A catch trial of an adaptive design: it presents no stimulus to judge and moves no
+    # procedure (its condition is the catch stimulus, or the adapted one at a stroke of 0).
+    catch: bool = False
 
     def record(self) -> dict:
         """JSON-safe description, as stored in manifests and compile outputs."""
@@ -41,8 +44,8 @@ class PlannedTrial:
             if isinstance(c, LocalisationCondition)
             else {"pin": None, "frequency_hz": None, "direction": c.kind.value, "row": c.row}
             | ({} if c.row is not None else {"pins": list(c.pins), "towards": c.direction.value}))
-        return {"trial": self.trial, "block": self.block, "practice": self.practice,
-                "stimulus": c.stimulus} | what
+        return ({"trial": self.trial, "block": self.block, "practice": self.practice,
+                 "stimulus": c.stimulus} | what | ({"catch": True} if self.catch else {}))
 
 
 @dataclass(frozen=True)
@@ -235,6 +238,8 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     import numpy as np
 
     rng = np.random.default_rng(seed)
+    if design.adaptive is not None:
+        return TrialPlan(seed, _adaptive_trials(protocol, rng))
     limits = design.constraints.limits()
     conditions = list(design.conditions)
     blocks: list[list[Condition]] = []
@@ -268,3 +273,28 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
         for condition in block:
             trials.append(PlannedTrial(len(trials) + 1, number, False, condition))
     return TrialPlan(seed, tuple(trials))
+
+
+def _adaptive_trials(protocol: Protocol, rng: np.random.Generator) -> tuple[PlannedTrial, ...]:
+    """An adaptive design's trials: practice, then as many as its procedures can take with its
+    catch trials among them at random places; each draws its condition at random. Which
+    procedure runs a trial, and at which value, is decided as the run goes (from its rows)."""
+    design = protocol.design
+    adaptive = design.adaptive
+    assert adaptive is not None
+    conditions = design.conditions
+    catch_condition: Condition | None = None
+    if adaptive.catch.stimulus:
+        stimulus = protocol.stimulus(adaptive.catch.stimulus)
+        assert isinstance(stimulus, WaveStimulus)
+        catch_condition = wave_condition(stimulus)
+    trials = [PlannedTrial(n, 0, True, conditions[int(rng.integers(len(conditions)))])
+              for n in range(1, design.practice_trials + 1)]
+    main = adaptive.procedure_trials + adaptive.catch.count
+    catches = set(rng.choice(main, size=adaptive.catch.count, replace=False).tolist())
+    for index in range(main):
+        drawn = conditions[int(rng.integers(len(conditions)))]
+        catch = index in catches
+        condition = catch_condition if catch and catch_condition is not None else drawn
+        trials.append(PlannedTrial(len(trials) + 1, 1, False, condition, catch))
+    return tuple(trials)

@@ -146,10 +146,11 @@ def test_results_written_before_the_onset_columns_were_renamed_are_still_read(tm
                                                                      1_500_000_000)
 
 
-def test_resuming_a_run_with_the_old_column_names_renames_them_and_keeps_every_row(tmp_path):
-    later = BEH_NAMES[BEH_NAMES.index("goals_scheduled"):]  # today's columns after the old ones
-    header = OLD_HEADER.rstrip("\n") + "\t" + "\t".join(later) + "\n"
-    row = OLD_ROW.rstrip("\n") + "\t4\t4\t0\t0\t0.001" + "\tn/a" * (len(later) - 5) + "\n"
+def test_resuming_a_run_with_the_old_column_names_renames_them_adds_todays_as_na_and_keeps_every_row(
+        tmp_path):
+    header = OLD_HEADER.rstrip("\n") + "\tgoals_scheduled\tgoals_confirmed\tgoals_healed\t" \
+        "goals_missing\tdelivery_lateness\tstatus_reason\n"
+    row = OLD_ROW.rstrip("\n") + "\t4\t4\t0\t0\t0.001\tn/a\n"
     writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10), (7, 3)))
     writer.close()
     writer.paths.beh_tsv.write_text(header + row)
@@ -158,7 +159,10 @@ def test_resuming_a_run_with_the_old_column_names_renames_them_and_keeps_every_r
     resumed.close()
     text = writer.paths.beh_tsv.read_text()
     assert text.splitlines()[0].split("\t")[11:13] == ["stimulus_onset", "stimulus_duration"]
-    assert text.splitlines()[1] == row.rstrip("\n")
+    lines = text.splitlines()
+    added = lines[1].split("\t")[len(row.split("\t")):]
+    assert lines[1].startswith(row.rstrip("\n") + "\t") and set(added) == {"n/a"}
+    assert len(lines[1].split("\t")) == len(lines[0].split("\t")) == len(BEH_NAMES)
     assert read_trials(writer.paths.beh_tsv) == before
     assert [e.trial for e in resumed.remaining()] == [2]
 

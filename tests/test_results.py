@@ -26,6 +26,7 @@ from pinarray.journal.paths import LabelError, RunPaths
 from pinarray.journal.records import (
     BEH_NAMES,
     EVENT_NAMES,
+    AdaptiveCells,
     LocalisationRecord,
     MotionRecord,
     read_trials,
@@ -241,6 +242,26 @@ def test_any_motion_row_reads_back_exactly_as_written(
     record = MotionRecord(trial=3, block=2, task="motion", onset_ns=onset, duration_ns=duration,
                           response=response, response_time_ns=response_time, row=row,
                           direction=direction, status_reason=reason)
+    writer = start(tmp_path_factory.mktemp("r"), task="motion")
+    writer.write_trial(record)
+    writer.close()
+    assert read_trials(writer.paths.beh_tsv) == [record]
+
+
+numbers = st.one_of(st.none(), st.floats(-1e6, 1e6, allow_nan=False))
+maybe = st.one_of(st.none(), st.booleans())
+
+
+@given(procedure=st.sampled_from(["descending", "q1", "catch"]), intensity=numbers,
+       guess=st.floats(0, 1), correct=maybe, reversal=maybe, estimate=numbers, low=numbers,
+       high=numbers)
+def test_any_adaptive_trial_reads_back_exactly_as_written(
+    tmp_path_factory, procedure, intensity, guess, correct, reversal, estimate, low, high
+):
+    cells = AdaptiveCells(procedure, "soa_ms", intensity, guess, correct, reversal, estimate,
+                          low, high)
+    record = MotionRecord(trial=3, block=1, task="motion", onset_ns=0, duration_ns=S,
+                          response="left", row=2, direction="left", adaptive=cells)
     writer = start(tmp_path_factory.mktemp("r"), task="motion")
     writer.write_trial(record)
     writer.close()

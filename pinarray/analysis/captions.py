@@ -9,6 +9,12 @@ from __future__ import annotations
 from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects
+from pinarray.analysis.thresholds import (
+    NotFitted,
+    SubjectThresholds,
+    ThresholdMethod,
+    Thresholds,
+)
 
 COUNTED = "Counted: main trials with status ok."
 
@@ -78,3 +84,39 @@ CAPTIONS = {
     "pin_accuracy": pin_accuracy,
     "motion": motion,
 }
+
+
+def threshold_track(found: SubjectThresholds) -> str:
+    unit = "" if found.unit == "n/a" else f" ({found.unit})"
+    return (f"Adaptive tracks of subject {found.subject}, task {found.task}: the "
+            f"{found.parameter}{unit} presented on each counted trial of each procedure, in "
+            f"the procedure's own order. Filled circles: answers counted correct; crosses: "
+            f"wrong; rings: staircase reversals. Dashed line: the procedure's final estimate "
+            f"(staircase: mean of its last reversals; QUEST+: posterior mean, shaded: its 95 % "
+            f"credible interval). Catch trials move no procedure and are not drawn. {COUNTED}")
+
+
+def threshold_fit(found: SubjectThresholds, thresholds: Thresholds) -> str:
+    unit = "" if found.unit == "n/a" else f" ({found.unit})"
+    match found.fit:
+        case NotFitted(reason=reason):
+            fitted = f"No function fitted: {reason}."
+        case fit:
+            kind = "Weibull" if found.fit_method is ThresholdMethod.ML_WEIBULL else "logistic"
+            fitted = (f"Line: the maximum-likelihood {kind} (guess rate {found.guess_rate:g} as "
+                      f"the rows state, lapse rate fitted: {fit.lapse:.3f}); vertical line: its "
+                      f"threshold, bar: its 95 % parametric bootstrap interval "
+                      f"({thresholds.fit_resamples} resamples, seed {thresholds.fit_seed}).")
+    return (f"Psychometric function of subject {found.subject}, task {found.task}: proportion "
+            f"of answers counted correct at each {found.parameter}{unit}, every procedure's "
+            f"counted trials pooled ({found.fit_trials} trials); marker area grows with the "
+            f"trials at that intensity. {fitted} Dashed line: the guess rate. {COUNTED}")
+
+
+def threshold_captions(thresholds: Thresholds) -> dict[str, str]:
+    """The caption of every threshold figure, by its file name without the extension."""
+    captions = {}
+    for found in thresholds.per_subject:
+        captions[f"track_{found.stem}"] = threshold_track(found)
+        captions[f"fit_{found.stem}"] = threshold_fit(found, thresholds)
+    return captions

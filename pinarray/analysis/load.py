@@ -217,7 +217,7 @@ def load_run(beh: Path) -> LoadedRun:
             status = manifest.status
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
-            unfinished = tuple(e.trial for e in remaining_plan(manifest.plan, records))
+            unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
     return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,

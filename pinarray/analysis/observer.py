@@ -491,6 +491,17 @@ class SimulatedObserver:
         return MotionAnswer.UNSURE
 
 
+def observer_number(item: str, text: str) -> float:
+    """The number of an ``--observer`` item ``name=text``, refused unless finite."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise PinArrayError(f"observer: {item!r}: expected name=number") from None
+    if not math.isfinite(value):
+        raise PinArrayError(f"observer: {item!r}: expected a finite number")
+    return value
+
+
 def parse_observer(spec: str) -> ObserverModel:
     """An `ObserverModel` from command-line text: ``default`` or ``name=value,...`` overrides.
 
@@ -506,12 +517,7 @@ def parse_observer(spec: str) -> ObserverModel:
     for item in spec.split(","):
         name, _, text = item.partition("=")
         name = name.strip()
-        try:
-            value = float(text)
-        except ValueError:
-            raise PinArrayError(f"observer: {item!r}: expected name=number") from None
-        if not math.isfinite(value):
-            raise PinArrayError(f"observer: {item!r}: expected a finite number")
+        value = observer_number(item, text)
         if name.startswith("correct_") and name.endswith("hz"):
             try:
                 anchors[float(name[len("correct_"):-2])] = value

@@ -27,6 +27,12 @@ from pinarray.analysis.chance import DIRECTION_CHANCE  # noqa: E402
 from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS  # noqa: E402
 from pinarray.analysis.study import Study  # noqa: E402
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod  # noqa: E402
+from pinarray.analysis.thresholds import (  # noqa: E402
+    NotFitted,
+    SubjectThresholds,
+    ThresholdMethod,
+    Thresholds,
+)
 
 DPI = 150
 FORMATS = ("png", "pdf")  # raster for a quick look, vector for the paper
@@ -244,6 +250,80 @@ def plot_power(curves, stem: Path, caption: str) -> list[Path]:
     axes.set_title(f"How many subjects? ({curves.protocol})")
     axes.legend(fontsize=7, loc="lower right")
     return _save(figure, stem, caption)
+
+
+def _parameter_label(found: SubjectThresholds) -> str:
+    return found.parameter + ("" if found.unit == "n/a" else f" ({found.unit})")
+
+
+def plot_track(found: SubjectThresholds, stem: Path) -> list[Path]:
+    """Each procedure's track: intensity by trial, correct and wrong, reversals, its estimate."""
+    procedures = found.procedures
+    figure, axes_list = plt.subplots(len(procedures), 1, squeeze=False,
+                                     figsize=(6.0, 1.2 + 1.9 * len(procedures)))
+    for axes, estimate in zip(axes_list[:, 0], procedures, strict=True):
+        trials = np.arange(1, estimate.n_trials + 1)
+        intensity = np.array([p.intensity for p in estimate.track])
+        correct = np.array([p.correct for p in estimate.track], dtype=bool)
+        reversal = np.array([p.reversal for p in estimate.track], dtype=bool)
+        axes.plot(trials, intensity, color="0.6", linewidth=0.8, zorder=1)
+        axes.scatter(trials[correct], intensity[correct], s=14, color=OKABE_ITO["blue"],
+                     label="correct", zorder=3)
+        axes.scatter(trials[~correct], intensity[~correct], s=18, marker="x",
+                     color=OKABE_ITO["vermillion"], label="wrong", zorder=3)
+        if reversal.any():
+            axes.scatter(trials[reversal], intensity[reversal], s=70, facecolors="none",
+                         edgecolors="black", linewidths=0.8, label="reversal", zorder=4)
+        if not math.isnan(estimate.threshold):
+            axes.axhline(estimate.threshold, color=OKABE_ITO["green"], linestyle="--",
+                         linewidth=1.2, label=f"estimate {estimate.threshold:.4g}", zorder=2)
+        if estimate.method is ThresholdMethod.QUESTPLUS_POSTERIOR \
+                and not math.isnan(estimate.ci_low):
+            axes.axhspan(estimate.ci_low, estimate.ci_high, color=OKABE_ITO["green"],
+                         alpha=0.12, linewidth=0, label="95 % credible interval")
+        kind = ("QUEST+" if estimate.method is ThresholdMethod.QUESTPLUS_POSTERIOR
+                else "staircase")
+        axes.set_title(f"{found.label(estimate)} ({kind}, {estimate.n_trials} trials)",
+                       fontsize=8)
+        axes.set_ylabel(_parameter_label(found), fontsize=8)
+        axes.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    axes_list[-1, 0].set_xlabel("trial of the procedure")
+    figure.suptitle(f"Adaptive tracks: subject {found.subject}, task {found.task}", fontsize=9)
+    return _save(figure, stem, captions.threshold_track(found))
+
+
+def plot_fit(found: SubjectThresholds, thresholds: Thresholds, stem: Path) -> list[Path]:
+    """The fitted psychometric function over the proportion correct at each intensity."""
+    x = np.array([b.intensity for b in found.bins])
+    counts = np.array([b.trials for b in found.bins])
+    figure, axes = plt.subplots(figsize=(5.4, 3.8))
+    axes.scatter(x, [b.proportion for b in found.bins], s=8 + 90 * counts / counts.max(),
+                 color=OKABE_ITO["blue"], alpha=0.75, linewidths=0, zorder=3,
+                 label="proportion correct")
+    axes.axhline(found.guess_rate, color=CHANCE_COLOUR, linestyle="--", linewidth=1.0,
+                 label=f"guess rate {found.guess_rate:g}")
+    match found.fit:
+        case NotFitted():
+            pass
+        case fit:
+            low = min(float(x.min()), fit.ci_low)
+            high = max(float(x.max()), fit.ci_high)
+            grid = np.linspace(max(low, 1e-9) if fit.kind == "weibull" else low, high, 300)
+            axes.plot(grid, fit.function.probability(grid), color="black", linewidth=1.2,
+                      label=f"{fit.kind} fit", zorder=2)
+            level = float(fit.function.probability(fit.threshold))
+            axes.axvline(fit.threshold, color=OKABE_ITO["green"], linewidth=1.0,
+                         label=f"threshold {fit.threshold:.4g}")
+            axes.errorbar([fit.threshold], [level],
+                          xerr=[[fit.threshold - fit.ci_low], [fit.ci_high - fit.threshold]],
+                          color=OKABE_ITO["green"], capsize=3, linewidth=1.0, fmt="none")
+    axes.set_ylim(-0.02, 1.02)
+    axes.set_xlabel(_parameter_label(found))
+    axes.set_ylabel("proportion counted correct")
+    axes.set_title(f"Psychometric function: subject {found.subject}, task {found.task}",
+                   fontsize=9)
+    axes.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return _save(figure, stem, captions.threshold_fit(found, thresholds))
 
 
 FIGURES: dict[str, Callable[[Study, Path], list[Path]]] = {

@@ -15,6 +15,13 @@ from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS, Proportion
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 from pinarray.analysis.tables import number, write_tables
+from pinarray.analysis.thresholds import (
+    ALL_SUBJECTS,
+    NotFitted,
+    Thresholds,
+    interval_name,
+    parameter_and_unit,
+)
 
 
 @dataclass(frozen=True)
@@ -180,6 +187,40 @@ def _motion(study: Study) -> list[str]:
     return lines + [""]
 
 
+def _thresholds(found: Thresholds) -> list[str]:
+    settings = found.settings
+    lines = ["## Thresholds (adaptive procedures)", "",
+             "- **Each procedure's own estimate**, from its last counted row: a staircase's "
+             "mean of its last reversals (`reversal_mean`; n/a before its first reversal, no "
+             "interval); QUEST+'s posterior mean with its 95 % credible interval "
+             "(`questplus_posterior`). Catch trials move no procedure and are left out.",
+             "- **Maximum-likelihood fit** per subject and task over every counted trial of "
+             "its procedures pooled (`ml_weibull`: a Weibull, or `ml_logistic` where an "
+             "intensity is 0 or below), guess rate as the rows state it, lapse rate fitted "
+             f"within 0-0.1; interval: 95 % parametric bootstrap ({found.fit_resamples} "
+             f"resamples, seed {found.fit_seed}).",
+             f"- **Across subjects** (subject `{ALL_SUBJECTS}` in thresholds.csv): the mean of "
+             f"the subjects' thresholds with the {interval_name(settings)}; a subject without an "
+             "estimate is left out, a subject with several runs of a procedure counts once "
+             "(the mean of their estimates).", "",
+             _row(["task", "parameter", "unit", "method", "procedure", "subjects", "trials",
+                   "subject mean", "interval"]), "|---" * 9 + "|"]
+    for m in found.across:
+        low, high = m.interval(settings.method)
+        interval = ("n/a (fewer than two subjects)" if math.isnan(low)
+                    else f"[{number(low, 3)}, {number(high, 3)}]")
+        lines.append(_row([m.task, *parameter_and_unit(m.adapted_parameter), f"`{m.method}`",
+                           m.procedure, m.subjects, m.n_trials, number(m.mean, 3), interval]))
+    notes = []
+    for s in found.per_subject:
+        match s.fit:
+            case NotFitted(reason=reason):
+                notes.append(f"- subject {s.subject}, task {s.task}: no fit: {reason}")
+    lines += ([""] + notes) if notes else []
+    lines += ["", "Each subject's numbers: [thresholds.csv](thresholds.csv).", ""]
+    return lines
+
+
 def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Path]) -> str:
     """The report page: runs, methods, subject-level tables, figures with captions, links."""
     subjects = study.subjects
@@ -198,11 +239,15 @@ def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Pat
         lines += _localisation(study)
     if study.motion_trials:
         lines += _motion(study)
+    if study.thresholds.found:
+        lines += _thresholds(study.thresholds)
     pngs = [p for p in figures if p.suffix == ".png"]
     if pngs:
         lines += ["## Figures", ""]
+        threshold_captions = captions.threshold_captions(study.thresholds)
         for n, png in enumerate(pngs, start=1):
-            caption = captions.CAPTIONS[png.stem](study)
+            caption = (captions.CAPTIONS[png.stem](study) if png.stem in captions.CAPTIONS
+                       else threshold_captions[png.stem])
             lines += [f"![{png.stem}]({png.name})", "",
                       f"*Figure {n}.* {caption} Vector: [{png.stem}.pdf]({png.stem}.pdf).", ""]
     lines += ["## Tables", ""] + [f"- [{p.name}]({p.name})" for p in tables] + [""]
@@ -219,6 +264,9 @@ def write_figures(study: Study, out: Path) -> list[Path]:
             drawn += plots.FIGURES[name](study, out / name)
     if study.motion_trials:
         drawn += plots.plot_motion(study, out / "motion")
+    for found in study.thresholds.per_subject:
+        drawn += plots.plot_track(found, out / f"track_{found.stem}")
+        drawn += plots.plot_fit(found, study.thresholds, out / f"fit_{found.stem}")
     return drawn
 
 

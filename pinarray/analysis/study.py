@@ -15,6 +15,7 @@ from pinarray.analysis.subjects import (
     SubjectLevel,
     subject_level,
 )
+from pinarray.analysis.thresholds import Thresholds, thresholds
 from pinarray.grid import DEFAULT_GRID, Grid
 
 
@@ -23,7 +24,8 @@ class Study:
     """Everything `pinarray analyse` reports about the runs that count.
 
     ``pooled`` and ``per_subject`` are trial counts (see `pinarray.analysis.stats`);
-    ``subject_level`` has subjects as the unit; ``chance`` is None without localisation trials.
+    ``subject_level`` has subjects as the unit; ``chance`` is None without localisation trials;
+    ``thresholds`` are those of the adaptive rows (empty without any).
     """
 
     runs: RunSelection
@@ -33,6 +35,7 @@ class Study:
     chance: LocalisationChance | None
     frequency_effect: FrequencyEffect | FitSkipped
     grid: Grid
+    thresholds: Thresholds
 
     @property
     def subjects(self) -> tuple[str, ...]:
@@ -62,4 +65,4 @@ def study(runs: RunSelection, settings: IntervalSettings = DEFAULT_SETTINGS,
     cells = [Cell(s.subjects[0], row.frequency_hz, row.correct.successes, row.trials)
              for s in per_subject for row in s.localisation]
     return Study(runs, pooled, tuple(per_subject), subject_level(per_subject, settings), chance,
-                 fit_frequency_effect(cells), grid)
+                 fit_frequency_effect(cells), grid, thresholds(runs, settings))

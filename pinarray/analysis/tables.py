@@ -21,6 +21,13 @@ from pinarray.analysis.mixed import FitSkipped, FrequencyEffect
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
+from pinarray.analysis.thresholds import (
+    ALL_SUBJECTS,
+    POOLED_PROCEDURES,
+    NotFitted,
+    Thresholds,
+    parameter_and_unit,
+)
 
 
 def number(value: float, digits: int = 1) -> str:
@@ -139,6 +146,35 @@ def frequency_effect_table(effect: FrequencyEffect | FitSkipped, out: Path) -> P
     return _write(out / "frequency_effect.csv", header, [row])
 
 
+THRESHOLD_COLUMNS = ("subject", "task", "parameter", "unit", "method", "threshold", "ci_low",
+                     "ci_high", "n_trials", "procedure")
+
+
+def thresholds_table(found: Thresholds, out: Path) -> Path:
+    """``thresholds.csv``: each subject's procedures and fit, then the across-subject means
+    (subject ``all``, the interval the settings name); thresholds in the parameter's unit."""
+    rows: list[list[object]] = []
+    for s in found.per_subject:
+        head = [s.subject, s.task, s.parameter, s.unit]
+        for estimate in s.procedures:
+            rows.append([*head, estimate.method, number(estimate.threshold, 3),
+                         number(estimate.ci_low, 3), number(estimate.ci_high, 3),
+                         estimate.n_trials, s.label(estimate)])
+        match s.fit:
+            case NotFitted():
+                fitted = [math.nan] * 3
+            case fit:
+                fitted = [fit.threshold, fit.ci_low, fit.ci_high]
+        rows.append([*head, s.fit_method, *(number(v, 3) for v in fitted), s.fit_trials,
+                     POOLED_PROCEDURES])
+    for m in found.across:
+        parameter, unit = parameter_and_unit(m.adapted_parameter)
+        rows.append([ALL_SUBJECTS, m.task, parameter, unit, m.method, number(m.mean, 3),
+                     *(number(v, 3) for v in m.interval(found.settings.method)), m.n_trials,
+                     m.procedure])
+    return _write(out / "thresholds.csv", THRESHOLD_COLUMNS, rows)
+
+
 def runs_table(runs: RunSelection, out: Path) -> Path:
     rows = []
     for run, included in ([(r, True) for r in runs.included]
@@ -162,5 +198,7 @@ def write_tables(study: Study, out: Path) -> list[Path]:
         tables.append(frequency_effect_table(study.frequency_effect, out))
     if study.motion_trials:
         tables += motion_tables(study, out)
+    if study.thresholds.found:
+        tables.append(thresholds_table(study.thresholds, out))
     tables.append(runs_table(study.runs, out))
     return tables

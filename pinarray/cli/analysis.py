@@ -1,9 +1,16 @@
 """``pinarray analyse`` (results in, tables, figures and a page out) and ``pinarray power``
-(how many subjects a protocol needs, from simulated subjects)."""
+(how many subjects a protocol needs, from simulated subjects; for an adaptive design, how
+its procedures' estimates fall against a simulated subject's known threshold)."""
+
+from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from pinarray.cli import common
+
+if TYPE_CHECKING:
+    from pinarray.protocol import Protocol
 
 # The bootstrap draws resamples x subjects indices at once: 100 000 x 100 subjects is 80 MB.
 MAX_RESAMPLES = 100_000
@@ -21,7 +28,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "percentages, their across-subject mean with a subject bootstrap interval (a t "
         "interval on request), the trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
         "levels, a confusion matrix, per-pin accuracy, apparent motion, and a mixed-effects "
-        "logistic fit of the frequency effect when there are enough subjects. Runs whose "
+        "logistic fit of the frequency effect when there are enough subjects; for adaptive "
+        "designs, thresholds (each procedure's estimate and a maximum-likelihood "
+        "psychometric fit per subject, their across-subject means) in thresholds.csv with "
+        "staircase tracks and fitted functions. Runs whose "
         "manifest is not 'completed', or with no counted trial, are listed and left out. "
         "Writes CSV tables, PNG and PDF figures and summary.md.",
     )
@@ -73,6 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _cmd_analyse(args: argparse.Namespace) -> int:
+    import math
     import sys
     from pathlib import Path
 
@@ -85,6 +96,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         IntervalMethod,
         IntervalSettings,
     )
+    from pinarray.analysis.thresholds import interval_name
     from pinarray.errors import ResultsError
 
     settings = IntervalSettings(
@@ -138,6 +150,15 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
               f"{measure_text(motion.felt, method)}; direction right of those felt "
               f"{measure_text(motion.direction_right, method)} (chance 50 %); felt on no-wave "
               f"trials {measure_text(motion.no_wave_felt, method)}")
+    if result.thresholds.found:
+        print(f"thresholds, mean of per-subject thresholds [{interval_name(settings)}] "
+              "(each subject's in thresholds.csv):")
+        for t in result.thresholds.across:
+            low, high = t.interval(method)
+            interval = ("n/a, fewer than two subjects" if math.isnan(low)
+                        else f"{low:.4g}-{high:.4g}")
+            print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
+                  f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
     print(f"summary: {report.summary}")
     return 0
 
@@ -151,6 +172,8 @@ def _cmd_power(args: argparse.Namespace) -> int:
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)
+    if protocol.design.adaptive is not None:
+        return _check_procedures(protocol, args)
     model = parse_observer(args.observer).for_protocol(protocol)
     print(f"{protocol.name}: {args.studies} simulated studies per number of subjects, "
           f"subject SD {model.subject_sd_logit:g} logit, seed {args.seed}")
@@ -163,4 +186,44 @@ def _cmd_power(args: argparse.Namespace) -> int:
     for line in curves.table_lines():
         print(line)
     print("written: " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _check_procedures(protocol: Protocol, args: argparse.Namespace) -> int:
+    """``pinarray power`` on an adaptive design: its procedures run by simulated subjects of
+    the --observer function, one per --studies; a table and procedure_check.csv."""
+    import csv
+    from pathlib import Path
+
+    from pinarray.analysis.adaptive_subject import parse_psychometric
+    from pinarray.analysis.procedure_check import check_procedures, check_table
+    from pinarray.errors import ResultsError
+
+    adaptive = protocol.design.adaptive
+    assert adaptive is not None
+    function = parse_psychometric(args.observer, adaptive)
+    unit = adaptive.parameter.unit
+    print(f"{protocol.name}: {len(adaptive.procedures)} procedure(s) adapting "
+          f"{adaptive.parameter.value}, each run by {args.studies} simulated subjects (--studies) "
+          f"of a {function.kind} with threshold {function.threshold:g} {unit}, slope "
+          f"{function.slope:g}, guess {function.guess:g}, lapse {function.lapse:g}; seed {args.seed}")
+    checks = check_procedures(adaptive, function, args.studies, args.seed)
+    out = Path(args.out) / "procedure_check.csv"
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with open(out, "w", newline="", encoding="utf-8") as handle:
+            table = csv.writer(handle)
+            table.writerow(["procedure", "truth", "truth_is", "unit", "bias", "sd", "low_2.5",
+                            "high_97.5", "subjects", "without_estimate", "trials_median",
+                            "trials_min", "trials_max"])
+            for c in checks:
+                t = sorted(c.trials)
+                table.writerow([c.name, c.truth, c.truth_is, unit, c.bias, c.sd, *c.interval(),
+                                len(t), c.no_estimate, t[len(t) // 2], t[0], t[-1]])
+    except OSError as problem:
+        raise ResultsError(f"{problem.filename or args.out}: cannot write there: "
+                           f"{problem.strerror}") from None
+    for line in check_table(checks, unit):
+        print(line)
+    print(f"written: {out}")
     return 0

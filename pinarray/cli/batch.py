@@ -181,7 +181,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
     from pinarray.stop import Stopped, stop_on_signals
 
     protocol, subject, session = request.protocol, request.subject, request.session
-    answer = _answers(protocol, args, responses)
+    answer = _answers(protocol, args, responses, lambda: sitting.session)
     with stop_on_signals(sitting.stop):
         try:
             rig = sitting.connect(request, _run_clock(args, sync, sitting.marker_stream is not None))
@@ -230,9 +230,10 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
                 print(f"pinarray: warning: {safe.describe()}", file=sys.stderr)
 
 
-def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, str] | None
-             ) -> Callable[[PlannedTrial], Answer]:
-    """Who answers each trial: the --responses file (checked complete) or a simulated subject."""
+def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, str] | None,
+             session: Callable[[], Session | None]) -> Callable[[PlannedTrial], Answer]:
+    """Who answers each trial: the --responses file (checked complete) or a simulated subject
+    (an adaptive design's answers the value ``session``'s current trial presents)."""
     from pinarray.errors import PinArrayError
     from pinarray.plan import make_plan
 
@@ -246,6 +247,21 @@ def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, 
                 + (" ..." if len(missing) > 10 else "")
             )
         return lambda planned: responses[planned.trial]
+    if protocol.design.adaptive is not None:
+        from pinarray.analysis.adaptive_subject import AdaptiveSubject, parse_psychometric
+
+        subject = AdaptiveSubject(protocol, parse_psychometric(args.observer,
+                                                               protocol.design.adaptive),
+                                  args.seed or 0)
+
+        def respond_adaptively(planned: PlannedTrial) -> Answer:
+            running = session()
+            presented = None if running is None else running.presented
+            assert presented is not None
+            return subject.respond(planned.trial, planned.condition, planned.catch,
+                                   presented.value)
+
+        return respond_adaptively
     from pinarray.analysis.observer import SimulatedObserver, parse_observer
     from pinarray.protocol import LocalisationCondition
 

@@ -8,8 +8,12 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from pinarray.cli import common
+
+if TYPE_CHECKING:
+    from pinarray.protocol import Protocol
 
 # Plans hold at most 20 000 trials (`pinarray.protocol.design.MAX_TRIALS`); a number past
 # them is refused by the plan with the plan's own range.
@@ -103,10 +107,18 @@ def _validate(args: argparse.Namespace) -> int:
                     print(f"{path}: {line}", file=sys.stderr)
                 continue
             design = protocol.design
-            print(
-                f"{path}: ok ({design.paradigm.value}, {len(design.conditions) * design.repetitions * design.blocks}"
-                f" trials in {design.blocks} block(s), {design.practice_trials} practice)"
-            )
+            adaptive = design.adaptive
+            if adaptive is None:
+                print(f"{path}: ok ({design.paradigm.value}, "
+                      f"{len(design.conditions) * design.repetitions * design.blocks} trials in "
+                      f"{design.blocks} block(s), {design.practice_trials} practice)")
+            else:
+                values = adaptive.values
+                print(f"{path}: ok ({design.paradigm.value}, adaptive: "
+                      f"{adaptive.parameter.value} over {len(values)} values "
+                      f"({float(values[0]):g}..{float(values[-1]):g} {adaptive.parameter.unit}), "
+                      f"{len(adaptive.procedures)} procedures, at most {design.trial_count} trials "
+                      f"with {adaptive.catch.count} catch and {design.practice_trials} practice)")
             for note in _scaled_notes(protocol):
                 print(f"{path}: note: {note}")
             for warning in protocol_warnings(protocol):
@@ -273,6 +285,18 @@ def _table(path: str, columns: tuple[tuple[str, str], ...]) -> _CsvTable | _NpzT
     return _CsvTable(path, tuple(name for name, _ in columns))
 
 
+def _refuse_adaptive(protocol: Protocol, command: str, does: str) -> None:
+    """An adaptive design's values are decided as its run goes: no schedule stands before."""
+    from pinarray.errors import PinArrayError
+
+    if protocol.design.adaptive is not None:
+        raise PinArrayError(
+            f"{protocol.source}: {command} {does}; this design adapts "
+            f"{protocol.design.adaptive.parameter.value} as the run goes (its values are chosen "
+            "from the answers): run it with pinarray batch or the UI, or rehearse its procedures "
+            "with pinarray power")
+
+
 def _compile(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
     from pinarray.protocol.load import load_protocol
@@ -283,6 +307,7 @@ def _compile(args: argparse.Namespace) -> int:
 
         check_out(args.out)
     protocol = load_protocol(args.file, long_trials=args.allow_long)
+    _refuse_adaptive(protocol, "compile", "writes a fixed plan's schedules")
     plan = make_plan(protocol, args.seed)
     tables: list[_CsvTable | _NpzTable] = []
     outputs: list[common.OutputFile] = []
@@ -340,6 +365,7 @@ def _preview(args: argparse.Namespace) -> int:
     from pinarray.schedule import compile_trial
 
     protocol = load_protocol(args.file)
+    _refuse_adaptive(protocol, "preview", "draws a trial of a fixed plan")
     plan = make_plan(protocol, args.seed)
     planned = plan.trial(args.trial)
     schedule = compile_trial(protocol, planned)

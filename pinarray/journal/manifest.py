@@ -56,6 +56,7 @@ class _Entry:
     block: int = 1  # 0 for practice
     practice: bool = False
     stimulus: str = ""
+    catch: bool = False  # a catch trial of an adaptive design
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -97,6 +98,8 @@ def entry_to_json(entry: PlanEntry) -> dict[str, Any]:
             data |= {"direction": entry.wave.value, "row": entry.row}
             if entry.row is None:
                 data |= {"pins": list(entry.pins), "towards": entry.direction.value}
+    if entry.catch:
+        data["catch"] = True
     return data
 
 
@@ -108,7 +111,8 @@ def entry_from_json(data: object, where: str) -> PlanEntry:
         raise ResultsError(f"{where}: a trial plan entry needs an integer 'trial', found {data!r}")
     common: dict[str, Any] = {"trial": trial, "block": int(data.get("block", 1)),
                               "practice": bool(data.get("practice", False)),
-                              "stimulus": str(data.get("stimulus") or "")}
+                              "stimulus": str(data.get("stimulus") or ""),
+                              "catch": data.get("catch") is True}
     try:
         if data.get("pin") is not None:
             return LocalisationEntry(**common, pin=int(data["pin"]),
@@ -184,6 +188,9 @@ class RunManifest:
     software_version: str = __version__
     scanner: ScannerRecord | None = None  # a run timed from scanner volumes
     machine: Mapping[str, str] = field(default_factory=dict)
+    # An adaptive run whose procedures all finished at this trial: the plan's later trials
+    # were not needed (0: every planned trial is).
+    needed_until: int = 0
 
     def __post_init__(self) -> None:
         try:
@@ -194,6 +201,14 @@ class RunManifest:
         keys = [entry_key(e) for e in self.plan]
         if len(set(keys)) != len(keys):
             raise ResultsError("trial plan numbers a trial twice: each 'trial' must be unique")
+
+    @property
+    def needed(self) -> tuple[PlanEntry, ...]:
+        """The planned trials the run needs: all of them, or, once its adaptive procedures
+        have finished, those up to the trial they finished at."""
+        if not self.needed_until:
+            return self.plan
+        return tuple(e for e in self.plan if e.practice or e.trial <= self.needed_until)
 
     @property
     def seed(self) -> int | None:
@@ -220,6 +235,7 @@ class RunManifest:
                 "event": self.time_zero.event, "at": self.time_zero.at},
             "sittings": [_sitting_to_json(s) for s in self.sittings],
             **({} if self.scanner is None else {"scanner": self.scanner.to_json()}),
+            **({"needed_until": self.needed_until} if self.needed_until else {}),
             "plan": [entry_to_json(e) for e in self.plan],
         }
 
@@ -249,6 +265,7 @@ class RunManifest:
                 machine={str(k): str(v) for k, v in dict(data.get("machine", {})).items()},
                 scanner=(ScannerRecord.from_json(data["scanner"]) if data.get("scanner")
                          else None),
+                needed_until=int(data.get("needed_until", 0)),
             )
         except (TypeError, KeyError, ValueError) as error:
             raise ResultsError(f"{where}: not a pinarray run manifest ({error!r})") from None

@@ -84,6 +84,30 @@ def _coerce_name(record: object, name: str, kind: type[str], where: str) -> None
     object.__setattr__(record, name, kind(value))
 
 
+@dataclass(frozen=True)
+class AdaptiveCells:
+    """What a trial of an adaptive design adds to its row.
+
+    ``procedure`` ran the trial (`CATCH` for a catch trial, which moves none); ``parameter``
+    is the adapted parameter with its unit as the protocol names it (``soa_ms``); ``intensity``
+    the value presented (None: a catch trial's own stimulus, not adapted). After the answer:
+    whether it counted as ``correct``, whether it made a staircase ``reversal`` (None: QUEST+,
+    a catch trial, or no answer), and the procedure's threshold ``estimate`` once the answer is
+    taken (staircase: the mean of its last reversals; QUEST+: the posterior mean, with its 95 %
+    credible interval).
+    """
+
+    procedure: str
+    parameter: str
+    intensity: float | None
+    guess_rate: float
+    correct: bool | None = None
+    reversal: bool | None = None
+    estimate: float | None = None
+    estimate_ci_low: float | None = None
+    estimate_ci_high: float | None = None
+
+
 @dataclass(frozen=True, kw_only=True)
 class _Trial:
     """What every trial row holds. Times in whole nanoseconds; ``onset_ns`` on the run's time base."""
@@ -100,6 +124,7 @@ class _Trial:
     delivery: DeliveryCounts | None = None  # None: the stimulus never played (or older files)
     status_reason: str | None = None
     stroke: StrokeCounts | None = None  # None: not measured (PWM servos, or older files)
+    adaptive: AdaptiveCells | None = None  # None: a trial of a fixed design
 
     def __post_init__(self) -> None:
         check_label("task", self.task)
@@ -303,6 +328,31 @@ BEH_COLUMNS: tuple[Column, ...] = (
            "the protocol's delivery tolerance the trial is invalid.", units="s"),
     Column("status_reason", Cell.TEXT, "Why a trial is not ok: the bus fault, what was not "
            "delivered as scheduled, or who stopped it; n/a for ok rows."),
+    Column("procedure", Cell.TEXT, "The adaptive procedure (staircase or QUEST+, named in the "
+           "protocol) whose trial this was, or catch for a catch trial (which moves none); n/a "
+           "in a fixed design."),
+    Column("adapted_parameter", Cell.TEXT, "The stimulus parameter the procedures adapt, with its "
+           "unit as the protocol names it (soa_ms, stroke_steps, frequency_hz...); n/a in a fixed "
+           "design."),
+    Column("intensity", Cell.NUMBER, "The adapted parameter's value presented, in the unit "
+           "adapted_parameter names; n/a for a catch trial's own stimulus and in a fixed design."),
+    Column("correct", Cell.BOOLEAN, "Whether the answer counted as correct for the task (the "
+           "wave's direction named; the moved pin named; something felt on a stimulus trial, "
+           "nothing on a catch trial); n/a without an answer.",
+           levels={"true": "counted as correct", "false": "counted as wrong"}),
+    Column("reversal", Cell.BOOLEAN, "Whether the answer made the staircase reverse (move the "
+           "other way from its previous move); n/a for QUEST+ and catch trials.",
+           levels={"true": "a reversal", "false": "not a reversal"}),
+    Column("threshold_estimate", Cell.NUMBER, "The procedure's threshold estimate once this "
+           "answer is taken, in the adapted parameter's unit: a staircase's mean of its last "
+           "reversals (n/a before its first), QUEST+'s posterior mean."),
+    Column("threshold_ci_low", Cell.NUMBER, "QUEST+: the 2.5 % point of the threshold's "
+           "posterior once this answer is taken; n/a for staircases."),
+    Column("threshold_ci_high", Cell.NUMBER, "QUEST+: the 97.5 % point of the threshold's "
+           "posterior once this answer is taken; n/a for staircases."),
+    Column("guess_rate", Cell.NUMBER, "The chance of a correct answer without feeling the "
+           "stimulus that the task implies (1/2 for two directions; 0 for detection), as the "
+           "procedures and the analysis's fits assume."),
     Column("stroke_commanded", Cell.INTEGER, "The stroke the schedule commanded of the pin that "
            "moved the smallest share of it: the span of its goal positions, in servo steps; "
            "n/a when the servos report no position (PWM) or the stimulus never played.",
@@ -339,7 +389,7 @@ EVENT_NAMES = ("onset", "duration", "trial_type", "trial", "pin", "row", "direct
 # beh.tsv columns that had another name in files written by an earlier pinarray: read as today's.
 RENAMED = {"onset": "stimulus_onset", "duration": "stimulus_duration"}
 # The columns of the first release; later ones were appended after them.
-_FIRST_NAMES = BEH_NAMES[: BEH_NAMES.index("resumed") + 1]
+FIRST_NAMES = BEH_NAMES[: BEH_NAMES.index("resumed") + 1]
 
 
 def number_text(value: float) -> str:
@@ -396,6 +446,12 @@ def _values(record: TrialRecord) -> dict[str, Any]:
         values |= {"goals_scheduled": d.scheduled, "goals_confirmed": d.confirmed,
                    "goals_healed": d.healed, "goals_missing": d.missing,
                    "delivery_lateness": d.lateness_ns}
+    if record.adaptive is not None:
+        a = record.adaptive
+        values |= {"procedure": a.procedure, "adapted_parameter": a.parameter,
+                   "intensity": a.intensity, "correct": a.correct, "reversal": a.reversal,
+                   "threshold_estimate": a.estimate, "threshold_ci_low": a.estimate_ci_low,
+                   "threshold_ci_high": a.estimate_ci_high, "guess_rate": a.guess_rate}
     return values
 
 
@@ -510,6 +566,13 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
         stroke = StrokeCounts(values["stroke_commanded"], values.get("stroke_achieved"),
                               values.get("stroke_median"), values.get("motion_lag"),
                               values.get("cycles_short"))
+    adaptive = None
+    if values.get("procedure") is not None:
+        adaptive = AdaptiveCells(
+            values["procedure"], _required(values, "adapted_parameter", where),
+            values.get("intensity"), _required(values, "guess_rate", where),
+            values.get("correct"), values.get("reversal"), values.get("threshold_estimate"),
+            values.get("threshold_ci_low"), values.get("threshold_ci_high"))
     common: dict[str, Any] = {
         "trial": _required(values, "trial", where), "block": _required(values, "block", where),
         "task": _required(values, "task", where),
@@ -519,6 +582,7 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
         "response_time_ns": values.get("response_time"),
         "practice": bool(values.get("practice")), "resumed": bool(values.get("resumed")),
         "delivery": delivery, "status_reason": values.get("status_reason"), "stroke": stroke,
+        "adaptive": adaptive,
     }
     try:
         if values.get("pin") is not None:
@@ -551,7 +615,7 @@ def read_trials(path: Path | str) -> list[TrialRecord]:
     if not rows:
         return []
     header = todays_names(rows[0])
-    if header != BEH_NAMES[: len(header)] or len(header) < len(_FIRST_NAMES):
+    if header != BEH_NAMES[: len(header)] or len(header) < len(FIRST_NAMES):
         raise ResultsError(f"{path}:1: expected the columns {list(BEH_NAMES)}, found {rows[0]}")
     # Files written before the delivery columns existed end at `resumed`: read what they hold.
     records = []

@@ -38,7 +38,8 @@ def plan_entry(planned: PlannedTrial) -> PlanEntry:
     """The journal's record of one planned trial."""
     c = planned.condition
     common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
-                              "practice": planned.practice, "stimulus": c.stimulus}
+                              "practice": planned.practice, "stimulus": c.stimulus,
+                              "catch": planned.catch}
     if isinstance(c, LocalisationCondition):
         return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
     return MotionEntry(**common, row=c.row, wave=c.kind, direction=c.direction, pins=c.pins)
@@ -114,7 +115,7 @@ def unfinished_run(root: Path | str, subject: str, session: str, task: str) -> U
         return None
     paths, manifest = found[-1]
     rows = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
-    left = remaining_plan(manifest.plan, rows)
+    left = remaining_plan(manifest.needed, rows)
 
     def finished(practice: bool) -> tuple[int, int]:
         planned = sum(1 for e in manifest.plan if e.practice is practice)

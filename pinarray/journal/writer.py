@@ -60,6 +60,8 @@ from pinarray.journal.physio import (
 from pinarray.journal.records import (
     BEH_NAMES,
     EVENT_NAMES,
+    FIRST_NAMES,
+    NA,
     TrialRecord,
     TrialStatus,
     beh_header,
@@ -117,9 +119,13 @@ def repair_tail(path: Path, columns: int) -> str:
     return torn.decode("utf-8", errors="replace")
 
 
-def _rename_columns(path: Path) -> None:
-    """Give an earlier pinarray's ``beh.tsv`` today's column names; its rows stay as they are."""
+def _upgrade_columns(path: Path, added: int) -> None:
+    """Give an earlier pinarray's ``beh.tsv`` today's column names, its rows ``added`` n/a
+    cells for the columns appended since (its whole rows; a torn tail is already dropped)."""
     rows = path.read_text(encoding="utf-8").split("\n", 1)[1]
+    pad = "\t".join([NA] * added)
+    if added:
+        rows = "".join(f"{row}\t{pad}\n" for row in rows.split("\n") if row)
     write_atomically(path, tsv_line(BEH_NAMES) + rows)
 
 
@@ -312,7 +318,8 @@ class RunWriter:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
         header = beh_header(paths.beh_tsv)
-        if header and todays_names(header) != BEH_NAMES:
+        names = todays_names(header)
+        if header and (names != BEH_NAMES[: len(names)] or len(names) < len(FIRST_NAMES)):
             raise ResultsError(
                 f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
                 f"{', '.join(header)}; finish it with that version, or start a new run"
@@ -325,9 +332,9 @@ class RunWriter:
                 f"{', '.join(map(str, lines))}); a trial counts once: delete the row that should "
                 "not count, then resume"
             )
-        repaired = repair_tail(paths.beh_tsv, len(BEH_NAMES))
+        repaired = repair_tail(paths.beh_tsv, len(header) or len(BEH_NAMES))
         if header and tuple(header) != BEH_NAMES:
-            _rename_columns(paths.beh_tsv)
+            _upgrade_columns(paths.beh_tsv, len(BEH_NAMES) - len(header))
         _rebuild_events(paths.events_tsv, records)
         ensure_dataset(paths.root, paths.subject)
         now = wall()
@@ -415,7 +422,7 @@ class RunWriter:
 
     def remaining(self) -> list[PlanEntry]:
         """Plan entries still to run, in plan order."""
-        return remaining_plan(self.manifest.plan, self.records)
+        return remaining_plan(self.manifest.needed, self.records)
 
     def write_trial(self, record: TrialRecord,
                     motion: Sequence[MotionSample] = ()) -> TrialRecord:
@@ -460,6 +467,15 @@ class RunWriter:
             self._motion.append(samples)
         except OSError as problem:
             raise unwritable(problem, path, mid_run=True) from None
+
+    def not_needed_after(self, trial: int) -> None:
+        """The run's adaptive procedures have all finished at ``trial``: the later planned
+        trials are not needed (the manifest says so before the run is finished)."""
+        self.manifest = updated(self.manifest, needed_until=trial)
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
 
     def finish(self, status: RunStatus = RunStatus.COMPLETED, reason: str = "") -> None:
         """Set the manifest's final status (completed / aborted / crashed), close, unlock."""

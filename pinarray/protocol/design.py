@@ -12,10 +12,17 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from fractions import Fraction
 from functools import partial
 from typing import NamedTuple
 
+from pinarray.protocol.adaptive_design import (
+    adaptive_keys,
+    read_adaptive,
+    read_parameter,
+    read_values,
+)
 from pinarray.protocol.device import read_pin
 from pinarray.protocol.drives import pulse_slots
 from pinarray.protocol.model import (
@@ -36,6 +43,7 @@ from pinarray.protocol.model import (
     WaveStimulus,
     condition_value,
 )
+from pinarray.protocol.procedures import Parameter
 from pinarray.protocol.stimuli import (
     MAX_FREQUENCY_HZ,
     check_period,
@@ -67,7 +75,10 @@ DESIGN_KEYS = {
     "seed",
     "inter_trial_interval_s",
     "practice_trials",
+    "adaptive",
 }
+# What an adaptive design's procedures decide instead.
+FIXED_ONLY = ("repetitions", "blocks", "order", "constraints")
 
 # (conditions, pulse slots of each) of one block's worth, before repetitions
 _Conditions = tuple[tuple[Condition, ...], tuple[int, ...]]
@@ -82,6 +93,8 @@ class _Section(NamedTuple):
     by_name: Mapping[str, Stimulus]
     declared: Mapping[str, Node]  # every stimulus name written (broken ones too), where
     long_trials: bool  # read for a file only: a trial may hold up to `MAX_PULSES`
+    # An adaptive design's frequencies (the values it adapts), where the values are written.
+    adapted_frequencies: tuple[Node, tuple[Fraction, ...]] | None = None
 
 
 def read_design(
@@ -103,8 +116,18 @@ def read_design(
         reader.string(keys["paradigm"], "the paradigm", tuple(p.value for p in Paradigm))
     )
     by_name = {s.name: s for s in stimuli}
+    adaptive_node = keys.get("adaptive")
+    adapting = None
+    if adaptive_node is not None:
+        adapting = reader.attempt(lambda: _adapting(reader, keys, adaptive_node, paradigm, device),
+                                  None)
+        if adapting is None:
+            raise Invalid("adaptive")
+    frequencies = None
+    if adapting is not None and adapting[1] is Parameter.FREQUENCY_HZ:
+        frequencies = (adapting[0]["values"], adapting[2])
     read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
-    section = _Section(node, keys, device, by_name, declared, long_trials)
+    section = _Section(node, keys, device, by_name, declared, long_trials, frequencies)
     read = reader.attempt(lambda: read_conditions(reader, section), None)
     _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
@@ -136,6 +159,16 @@ def read_design(
         # or configuration, so none left means every one was wrong).
         raise Invalid("conditions")
     conditions, slots = read
+    adaptive = None
+    if adapting is not None:
+        conditions = tuple(dict.fromkeys(
+            replace(c, frequency_hz=frequencies[1][0])
+            if frequencies is not None and isinstance(c, LocalisationCondition) else c
+            for c in conditions))
+        slots = (max(slots),) * len(conditions)
+        adaptive_keys_, parameter, values = adapting
+        adaptive = read_adaptive(reader, adaptive_keys_, paradigm, device, parameter, values,
+                                 conditions, by_name)
     design = Design(
         paradigm,
         conditions,
@@ -146,6 +179,7 @@ def read_design(
         seed,
         round(iti * NS_PER_S),
         practice,
+        adaptive,
     )
     _check_size(reader, node, design, slots)
     problem = ordering_problem(design)
@@ -154,16 +188,37 @@ def read_design(
     return design
 
 
+def _adapting(reader: Reader, keys: Mapping[str, Node], node: Node, paradigm: Paradigm,
+              device: Device) -> tuple[dict[str, Node], Parameter, tuple[Fraction, ...]]:
+    """An adaptive design's keys, parameter and values (read before its conditions: a
+    localisation design adapting the frequency takes its frequencies from the values)."""
+    for key in FIXED_ONLY:
+        if key in keys:
+            raise reader.error(keys[key], f"expected no {key!r} in an adaptive design (its "
+                                          f"procedures decide its trials), found one")
+    adaptive = adaptive_keys(reader, node)
+    parameter = read_parameter(reader, adaptive["parameter"], paradigm, device)
+    if parameter is Parameter.FREQUENCY_HZ and "frequencies_hz" in keys:
+        raise reader.error(keys["frequencies_hz"], "expected no 'frequencies_hz' in a design "
+                                                   "that adapts the frequency (its values are "
+                                                   "the frequencies), found one")
+    return adaptive, parameter, read_values(reader, adaptive, parameter)
+
+
 def _check_size(reader: Reader, node: Node, design: Design, slots: Sequence[int]) -> None:
     """The plan fits `MAX_TRIALS` and its pulses `MAX_PULSES` (each trial was checked alone)."""
     trials = design.trial_count
     if trials > MAX_TRIALS:
         raise reader.error(
             node,
-            f"expected a design of at most {MAX_TRIALS:,} trials, found {trials:,} "
-            f"({len(design.conditions)} conditions x {design.repetitions} repetitions x "
-            f"{design.blocks} blocks + {design.practice_trials} practice)",
+            f"expected a design of at most {MAX_TRIALS:,} trials, found {trials:,} ("
+            + (f"{len(design.conditions)} conditions x {design.repetitions} repetitions x "
+               f"{design.blocks} blocks" if design.adaptive is None else
+               "the procedures' trial limits and the catch trials")
+            + f" + {design.practice_trials} practice)",
         )
+    if design.adaptive is not None:
+        return  # each trial at each value was checked alone; no plan is compiled whole
     pulses = sum(slots) * design.repetitions * design.blocks
     pulses += design.practice_trials * max(slots, default=0)
     if pulses > MAX_PULSES:
@@ -175,8 +230,8 @@ def _check_size(reader: Reader, node: Node, design: Design, slots: Sequence[int]
 
 
 def _localisation(reader: Reader, section: _Section) -> _Conditions:
-    node, keys, device, by_name, declared, long_trials = section
-    for key in ("stimulus", "pins", "frequencies_hz"):
+    node, keys, device, by_name, declared, long_trials, adapted = section
+    for key in ("stimulus", "pins", *(() if adapted else ("frequencies_hz",))):
         if key not in keys:
             raise reader.error(node, f"a localisation design needs a {key!r} key, found none")
     pin_nodes = reader.sequence(keys["pins"], "the pins")
@@ -187,17 +242,24 @@ def _localisation(reader: Reader, section: _Section) -> _Conditions:
     if len(set(pins)) != len(pins):
         raise reader.error(keys["pins"], f"expected each pin once, found {pins}")
     stimulus = stimulus_named(reader, keys["stimulus"], by_name, declared, TrainStimulus)
-    frequency_nodes = reader.sequence(keys["frequencies_hz"], "the frequencies")
-    if len(pin_nodes) * len(frequency_nodes) > MAX_TRIALS:
+    if adapted is None:
+        frequency_nodes = reader.sequence(keys["frequencies_hz"], "the frequencies")
+        frequencies = [(n, reader.number(n, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ))
+                       for n in frequency_nodes]
+    else:
+        frequencies = [(adapted[0], value) for value in adapted[1]]
+        if adapted[1][-1] > MAX_FREQUENCY_HZ:
+            raise reader.error(adapted[0], f"expected frequencies of at most {MAX_FREQUENCY_HZ} "
+                                           f"Hz, found {float(adapted[1][-1]):g}")
+    if len(pin_nodes) * len(frequencies) > MAX_TRIALS:
         raise reader.error(
-            keys["frequencies_hz"],
+            keys.get("frequencies_hz", node),
             f"expected at most {MAX_TRIALS:,} conditions (pins x frequencies), found "
-            f"{len(pin_nodes)} x {len(frequency_nodes)}",
+            f"{len(pin_nodes)} x {len(frequencies)}",
         )
     conditions: list[Condition] = []
     slots: list[int] = []
-    for frequency_node in frequency_nodes:
-        frequency = reader.number(frequency_node, "a frequency", "Hz", maximum=MAX_FREQUENCY_HZ)
+    for frequency_node, frequency in frequencies:
         train = stimulus.train.with_frequency(frequency)
         if isinstance(stimulus.train, TrainShape):  # a train with a frequency was checked alone
             check_period(reader, frequency_node, frequency_node, train)
@@ -224,7 +286,7 @@ def _check_shapes_completed(reader: Reader, section: _Section, paradigm: Paradig
 
 
 def _motion(reader: Reader, section: _Section) -> _Conditions:
-    node, keys, _, by_name, declared, long_trials = section
+    node, keys, _, by_name, declared, long_trials, _ = section
     if "configurations" not in keys:
         raise reader.error(
             node,
@@ -243,15 +305,20 @@ def _motion(reader: Reader, section: _Section) -> _Conditions:
         wave = stimulus.wave
         count = sum(pulse_slots(drive.train) for drive in wave.drives())
         _check_pulses(reader, item, count, long_trials)
-        match wave:
-            case Wave():
-                condition = MotionCondition(stimulus.name, wave.kind, wave.direction, wave.row)
-            case PathWave():
-                condition = MotionCondition(stimulus.name, wave.kind, wave.direction, None,
-                                            wave.pins)
-        conditions.append(condition)
+        conditions.append(wave_condition(stimulus))
         slots.append(count)
     return tuple(conditions), tuple(slots)
+
+
+def wave_condition(stimulus: WaveStimulus) -> MotionCondition:
+    """What a trial presenting the wave ``stimulus`` is."""
+    wave = stimulus.wave
+    match wave:
+        case Wave():
+            return MotionCondition(stimulus.name, wave.kind, wave.direction, wave.row)
+        case PathWave():
+            return MotionCondition(stimulus.name, wave.kind, wave.direction, None, wave.pins)
+    raise AssertionError(wave)
 
 
 def _check_pulses(reader: Reader, node: Node, count: int, long_trials: bool) -> None:

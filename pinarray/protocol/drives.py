@@ -16,6 +16,7 @@ from pinarray.protocol.model import (
     MotionCondition,
     PinDrive,
     Protocol,
+    Stimulus,
     Train,
     TrainStimulus,
     WaveStimulus,
@@ -43,15 +44,20 @@ def check_no_overlap(drives: Sequence[PinDrive]) -> None:
 
 def trial_drives(protocol: Protocol, condition: Condition) -> tuple[PinDrive, ...]:
     """The pin drives a design condition asks for."""
-    stimulus = protocol.stimulus(condition.stimulus)
+    try:
+        return stimulus_drives(protocol.stimulus(condition.stimulus), condition)
+    except PinArrayError as problem:
+        raise PinArrayError(f"{protocol.source}: {problem}") from None
+
+
+def stimulus_drives(stimulus: Stimulus, condition: Condition) -> tuple[PinDrive, ...]:
+    """The pin drives ``stimulus`` plays for ``condition``."""
     match stimulus, condition:
         case WaveStimulus(wave=wave), MotionCondition():
             return wave.drives()
         case TrainStimulus(train=train), LocalisationCondition(pin=pin, frequency_hz=frequency_hz):
             return (PinDrive(pin, train.with_frequency(frequency_hz), 0),)
-    raise PinArrayError(
-        f"{protocol.source}: stimulus {stimulus.name!r} cannot present a "
-        f"{type(condition).__name__}")
+    raise PinArrayError(f"stimulus {stimulus.name!r} cannot present a {type(condition).__name__}")
 
 
 def pulse_slots(train: Train) -> int:

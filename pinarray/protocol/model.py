@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
+from pinarray.protocol.procedures import Adaptive
 from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
@@ -458,6 +459,9 @@ class Design:
     seed: int | None
     inter_trial_interval_ns: int
     practice_trials: int
+    # An adaptive design: each trial's value of one parameter is chosen by its procedures
+    # (``conditions`` are then what a trial draws from at random); None: a fixed design.
+    adaptive: Adaptive | None = None
 
     @property
     def directions(self) -> tuple[Direction, ...]:
@@ -472,7 +476,11 @@ class Design:
 
     @property
     def trial_count(self) -> int:
-        """Trials in every plan of this design, practice included (numbered 1..this)."""
+        """Trials in every plan of this design, practice included (numbered 1..this); an
+        adaptive design's, the most its procedures can take (they may finish earlier)."""
+        if self.adaptive is not None:
+            return (self.adaptive.procedure_trials + self.adaptive.catch.count
+                    + self.practice_trials)
         return len(self.conditions) * self.repetitions * self.blocks + self.practice_trials
 
 

@@ -29,7 +29,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple, TypedDict
+from typing import NamedTuple, NotRequired, TypedDict
 from typing import Protocol as Interface
 
 from pinarray.clock import Clock
@@ -41,6 +41,7 @@ from pinarray.journal.manifest import RunStatus
 from pinarray.journal.physio import MotionSample
 from pinarray.journal.records import (
     NOTHING_FELT,
+    AdaptiveCells,
     DeliveryCounts,
     LocalisationRecord,
     MotionAnswer,
@@ -52,8 +53,10 @@ from pinarray.journal.records import (
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import LocalisationCondition, Paradigm, Protocol
-from pinarray.schedule import TrialSchedule, compile_trial
+from pinarray.protocol import Condition, LocalisationCondition, Paradigm, Protocol
+from pinarray.protocol.adapted import adapted, adapted_condition
+from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
+from pinarray.session.procedures import Presented, Procedures
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
 
@@ -71,6 +74,7 @@ class _SharedFields(TypedDict):
     practice: bool
     delivery: DeliveryCounts | None
     status_reason: str | None
+    adaptive: NotRequired[AdaptiveCells]
     stroke: StrokeCounts | None
 
 
@@ -228,6 +232,11 @@ class Session:
         self._delivery: DeliveryRecord | None = None
         self._trace: tuple[PinTrace, ...] = ()  # written with the row that ends the presentation
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
+        adaptive = protocol.design.adaptive
+        # An adaptive design's procedures, where the rows on disk leave them.
+        self.procedures = (None if adaptive is None
+                           else Procedures(adaptive, plan.seed, writer.records))
+        self._presented: tuple[PlannedTrial, Presented] | None = None
         self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""
         self.last: TrialOutcome | None = None
@@ -281,6 +290,13 @@ class Session:
         self._advance()
 
     def _advance(self) -> None:
+        if self.procedures is not None and self.procedures.finished and self.queue and any(
+                not t.practice for t in self.queue):
+            # Every procedure has stopped: the plan's later trials are not needed.
+            done = [r.trial for r in self.writer.records
+                    if r.status is TrialStatus.OK and not r.practice]
+            self.writer.not_needed_after(max(done, default=0))
+            self.queue = [t for t in self.queue if t.practice]
         if self.queue:
             self.current = self.queue.pop(0)
             self._set(Phase.READY)
@@ -308,8 +324,31 @@ class Session:
         """The current trial compiled, once per trial (the UI shows it while it plays)."""
         assert self.current is not None
         if self._compiled is None or self._compiled[0] is not self.current:
-            self._compiled = (self.current, compile_trial(self.protocol, self.current))
+            protocol, condition = self._presenting()
+            self._compiled = (self.current, compile_drives(trial_drives(protocol, condition),
+                                                           protocol.device))
         return self._compiled[1]
+
+    @property
+    def presented(self) -> Presented | None:
+        """What the current trial of an adaptive design presents: whose trial, at which value
+        (decided once per trial, from the procedures as the rows leave them); None: a fixed
+        design, or no current trial."""
+        if self.procedures is None or self.current is None:
+            return None
+        if self._presented is None or self._presented[0] is not self.current:
+            self._presented = (self.current, self.procedures.presented(self.current))
+        return self._presented[1]
+
+    def _presenting(self) -> tuple[Protocol, Condition]:
+        """The protocol and condition the current trial plays: an adaptive design's at the
+        value its procedure chose."""
+        assert self.current is not None
+        presented = self.presented
+        adaptive = self.protocol.design.adaptive
+        if presented is None or presented.value is None or adaptive is None:
+            return self.protocol, self.current.condition
+        return adapted(self.protocol, self.current.condition, adaptive.parameter, presented.value)
 
     def _present(self) -> None:
         schedule = self.current_schedule()
@@ -476,7 +515,16 @@ class Session:
             "status_reason": None if reason is None else " ".join(reason.split()),  # one line
             "stroke": None if delivery is None else _stroke(delivery.strokes),
         }
+        presented = self.presented
+        if presented is not None:
+            assert self.procedures is not None
+            common["adaptive"] = (self.procedures.cells(presented) if response is None else
+                                  self.procedures.answer(planned, presented, response, status))
         condition = planned.condition
+        adaptive = self.protocol.design.adaptive
+        if presented is not None and presented.value is not None and adaptive is not None:
+            # As the row tells it (a frequency adapted is the one played): no protocol rebuilt.
+            condition = adapted_condition(condition, adaptive.parameter, presented.value)
         record: TrialRecord
         if isinstance(condition, LocalisationCondition):
             named = None if response in (None, NOTHING_FELT) else int(str(response))

@@ -7,6 +7,7 @@ without a terminal.
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +19,7 @@ from pinarray.journal.records import (
     TrialRecord,
     TrialStatus,
 )
+from pinarray.protocol.procedures import CATCH, PRACTICE
 from pinarray.schedule import TargetList
 
 
@@ -101,3 +103,27 @@ class LiveCounts:
         if self.practice_done:
             lines.append(f"practice done {self.practice_done} (not counted)")
         return lines
+
+
+TRACK_LENGTH = 8  # the last values of each procedure the run screen shows
+
+
+def track_lines(records: Sequence[TrialRecord]) -> list[str]:
+    """Each adaptive procedure's track as it runs: its last values (✓ right, ✗ wrong, ↺ a
+    reversal) and its estimate, one line each, e.g. ``from_above 300✓ 260✓↺ 280✗ · est 240``."""
+    tracks: dict[str, list[str]] = {}
+    estimates: dict[str, float | None] = {}
+    for record in records:
+        cells = record.adaptive
+        if not record.counts or cells is None or cells.intensity is None \
+                or cells.procedure in (CATCH, PRACTICE):
+            continue
+        mark = ("✓" if cells.correct else "✗") + ("↺" if cells.reversal else "")
+        tracks.setdefault(cells.procedure, []).append(f"{cells.intensity:g}{mark}")
+        estimates[cells.procedure] = cells.estimate
+    lines = []
+    for name, track in tracks.items():
+        estimate = estimates[name]
+        shown = " ".join(track[-TRACK_LENGTH:])
+        lines.append(f"{name} {shown}" + ("" if estimate is None else f" · est {estimate:.4g}"))
+    return lines

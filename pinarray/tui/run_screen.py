@@ -27,7 +27,7 @@ from pinarray.protocol import Condition, Direction, LocalisationCondition, Parad
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
-from pinarray.tui.live import LiftTimeline, LiveCounts
+from pinarray.tui.live import LiftTimeline, LiveCounts, track_lines
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
 from pinarray.tui.response_pad import ANSWER_KEYS, ResponsePad, motion_hint
@@ -206,6 +206,8 @@ class RunScreen(KeyNotices, Screen):
         pad = self.query_one(ResponsePad)
         pad.accepting = phase is Phase.RESPONSE
         counts = LiveCounts.of(session.records).lines(self.localisation)
+        if session.procedures is not None:
+            counts = [*counts, *track_lines(session.records)]
         self.query_one("#counts", Static).update("\n".join(counts))
         self.query_one("#last", Static).update(self._describe_last())
         self._draw_grid(frozenset())
@@ -275,7 +277,16 @@ class RunScreen(KeyNotices, Screen):
         current = self.session.current
         if current is None:
             return ""
-        condition = current.condition
+        presented = self.session.presented
+        adaptive = self.session.protocol.design.adaptive
+        if presented is not None and adaptive is not None:
+            value = ("its own stimulus" if presented.value is None else
+                     f"{adaptive.parameter.quantity} {float(presented.value):g} "
+                     f"{adaptive.parameter.unit}")
+            return f"{self._condition_text(current.condition)} · {presented.procedure}: {value}"
+        return self._condition_text(current.condition)
+
+    def _condition_text(self, condition: Condition) -> str:
         if isinstance(condition, LocalisationCondition):
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
@@ -482,3 +493,4 @@ def _pins_of(session: Session, condition: Condition) -> tuple[int, ...]:
         return (condition.pin,)
     wave = session.protocol.wave(condition.stimulus)
     return tuple(sorted({d.pin for d in wave.drives()}))
+

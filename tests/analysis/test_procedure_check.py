@@ -1,0 +1,58 @@
+"""Checking a protocol's procedures on simulated subjects before running people."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pinarray.adaptive.psychometric import Psychometric
+from pinarray.analysis.procedure_check import check_procedures, target_probability
+from pinarray.protocol.load import load_protocol
+
+PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
+
+
+def test_a_one_up_two_down_staircase_aims_at_seventy_point_seven_percent_correct():
+    adaptive = load_protocol(PROTOCOLS / "staircase_motion.yaml").design.adaptive
+    assert [target_probability(p) for p in adaptive.procedures] == \
+        [pytest.approx(0.5 ** 0.5)] * 2
+
+
+@pytest.mark.parametrize("name", ["quest_stroke.yaml", "staircase_motion.yaml"])
+def test_doubling_the_simulated_threshold_doubles_the_mean_estimate(name):
+    adaptive = load_protocol(PROTOCOLS / name).design.adaptive
+    low = float(adaptive.values[len(adaptive.values) // 4])
+    means = []
+    for threshold in (low, 2 * low):
+        function = Psychometric("weibull", threshold, 3.0, float(adaptive.guess_rate), 0.02)
+        checks = check_procedures(adaptive, function, 60, seed=3)
+        means.append([c.bias + c.truth for c in checks])
+        for check in checks:
+            # Unbiased within what 60 subjects can tell: 4 standard errors, plus one value's step.
+            step = float(adaptive.values[1] - adaptive.values[0])
+            assert abs(check.bias) < 4 * check.sd / 60 ** 0.5 + step, check.name
+            assert max(check.trials) <= next(p.stop_after_trials for p in adaptive.procedures
+                                              if p.name == check.name)
+    for before, after in zip(*means, strict=True):
+        assert after / before == pytest.approx(2, rel=0.15)
+
+
+def test_power_on_an_adaptive_protocol_prints_each_procedures_bias_and_writes_a_table(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "pinarray", "power",
+                           str(PROTOCOLS / "quest_stroke.yaml"), "--studies", "20",
+                           "--observer", "threshold=40", "--out", str(tmp_path)],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert "each run by 20 simulated subjects" in done.stdout
+    assert any(line.startswith("quest ") for line in done.stdout.splitlines())
+    rows = (tmp_path / "procedure_check.csv").read_text().splitlines()
+    assert rows[0].startswith("procedure,truth,truth_is,unit,bias") and len(rows) == 2
+
+
+def test_power_refuses_an_observer_key_an_adaptive_design_does_not_have(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "pinarray", "power",
+                           str(PROTOCOLS / "quest_stroke.yaml"), "--observer", "correct_5hz=0.5",
+                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2
+    assert done.stderr.count("\n") == 1 and "unknown parameter 'correct_5hz'" in done.stderr

@@ -1,0 +1,112 @@
+"""An adaptive design as a lab writes it: what is accepted, and every mistake located in the file."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pinarray.errors import ProtocolErrors
+from pinarray.protocol.load import load_protocol
+from pinarray.protocol.procedures import Parameter, QuestPlus, Staircase, Task
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+STAIRCASES = (PROTOCOLS / "staircase_motion.yaml").read_text()
+QUEST = (PROTOCOLS / "quest_stroke.yaml").read_text()
+
+
+def test_the_shipped_staircase_protocol_reads_as_its_comments_say():
+    design = load_protocol(PROTOCOLS / "staircase_motion.yaml").design
+    adaptive = design.adaptive
+    assert adaptive.parameter is Parameter.SOA_MS and adaptive.task is Task.DIRECTION
+    assert [float(v) for v in adaptive.values] == list(range(20, 301, 20))
+    assert adaptive.guess_rate == 0.5  # two directions
+    assert [type(p) for p in adaptive.procedures] == [Staircase, Staircase]
+    assert design.trial_count == 40 + 40 + 4 + 2
+
+
+def test_the_shipped_quest_protocol_reads_as_its_comments_say():
+    adaptive = load_protocol(PROTOCOLS / "quest_stroke.yaml").design.adaptive
+    (quest,) = adaptive.procedures
+    assert isinstance(quest, QuestPlus) and quest.stop_after_trials == 60
+    assert adaptive.parameter is Parameter.STROKE_STEPS and adaptive.catch.count == 6
+    assert adaptive.catch.stimulus == ""  # a stroke of 0
+
+
+def line_of(text, fragment):
+    return next(n for n, line in enumerate(text.splitlines(), start=1) if fragment in line)
+
+
+MISTAKES = [
+    (STAIRCASES, "        stop_after_trials: 40               # every procedure needs a trial limit\n",
+     "", "method: staircase", "needs a 'stop_after_trials' key, found none"),
+    (STAIRCASES, "start: 300", "start: 310", "start: 310",
+     "expected the start to be one of the values (20, 40, 60, ..., 280, 300), found 310"),
+    (STAIRCASES, "{from: 20, to: 300, step: 20}", "[20, 60, 40]", "values:",
+     "expected the values in ascending order"),
+    (STAIRCASES, "{from: 20, to: 300, step: 20}", "{from: 20, to: 310, step: 20}", "values:",
+     "a whole number of 20 ms steps"),
+    (STAIRCASES, "  adaptive:\n", "  blocks: 2\n  adaptive:\n", "blocks: 2",
+     "expected no 'blocks' in an adaptive design"),
+    (STAIRCASES, "task: direction ", "task: localisation ", "task: localisation",
+     "expected the task of a apparent_motion design to be one of direction, detection"),
+    (STAIRCASES, "      from_below:", "      catch:", "      catch:",
+     "expected a procedure name"),
+    (STAIRCASES, "{count: 4, stimulus: no_wave}", "{count: 4}", "catch_trials:",
+     "only a stroke can be presented at 0"),
+    (QUEST, "{from: 4, to: 120, step: 4}", "{from: 4, to: 160, step: 4}", "values:",
+     "at stroke_steps 156: pin 6: a stroke of 156 steps lifts it to 2204, outside its "
+     "calibrated limits 2000..2200"),
+    (QUEST, "parameter: stroke_steps", "parameter: stroke_us", "parameter:",
+     "expected stroke_steps (this device's positions are in steps)"),
+    (QUEST, "lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0, 0.6]", "lapse_rates:",
+     "expected each of the lapse rates of at most 0.5"),
+]
+
+
+@pytest.mark.parametrize("text, old, new, where, message", MISTAKES,
+                         ids=[m[-1][:40] for m in MISTAKES])
+def test_a_mistake_in_an_adaptive_design_is_one_located_line(tmp_path, text, old, new, where,
+                                                             message):
+    assert old in text
+    bad = text.replace(old, new, 1)
+    path = tmp_path / "bad.yaml"
+    path.write_text(bad)
+    with pytest.raises(ProtocolErrors) as caught:
+        load_protocol(path)
+    (error,) = caught.value.errors
+    assert message in error.message
+    assert error.line == line_of(bad, where)
+
+
+def test_a_soa_that_drives_a_pin_twice_at_once_is_refused_at_that_value(tmp_path):
+    # The no-wave control taps the centre pin at 0 and 2 x SOA: below 200 ms, its two 400 ms
+    # taps overlap.
+    bad = STAIRCASES.replace("configurations: [rightwards, leftwards]",
+                             "configurations: [rightwards, leftwards, no_wave]")
+    path = tmp_path / "bad.yaml"
+    path.write_text(bad)
+    with pytest.raises(ProtocolErrors, match="at soa_ms 20: pin 6 is driven twice at once"):
+        load_protocol(path)
+
+
+def test_validate_says_an_adaptive_design_runs_up_to_its_procedures_limits():
+    done = subprocess.run([sys.executable, "-m", "pinarray", "validate",
+                           str(PROTOCOLS / "staircase_motion.yaml")],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "adaptive: soa_ms over 15 values (20..300 ms), 2 procedures" in done.stdout
+    assert "at most 86 trials with 4 catch and 2 practice" in done.stdout
+
+
+@pytest.mark.parametrize("command", [["compile", "--out", "{out}"], ["preview", "--trial", "3"]])
+def test_compile_and_preview_refuse_an_adaptive_design_in_one_line_and_write_nothing(
+        tmp_path, command):
+    out = tmp_path / "schedules.json"
+    args = [part.format(out=out) for part in command]
+    done = subprocess.run([sys.executable, "-m", "pinarray", args[0],
+                           str(PROTOCOLS / "quest_stroke.yaml"), *args[1:]],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "adapts stroke_steps as the run goes" in done.stderr
+    assert not out.exists()
