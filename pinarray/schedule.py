@@ -365,7 +365,7 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
         down = calibration.position_for_width(drive.train.down_width_ns)
         if device.scale_infeasible:
             # The protocol asked for strokes the servo cannot follow to shrink, not fail.
-            fraction = check_train(drive.train, calibration, device.servo).amplitude_fraction
+            fraction = check_train(drive.train, calibration, device).amplitude_fraction
             up = down + int((up - down) * fraction)
         own_targets.setdefault(drive.pin, []).append(
             _drive_targets(

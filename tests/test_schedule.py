@@ -239,7 +239,7 @@ def reference_schedule(drives, dev: Device):
         up = calibration.position_for_width(train.up_width_ns)
         down = calibration.position_for_width(train.down_width_ns)
         if dev.scale_infeasible:
-            fraction = check_train(train, calibration, dev.servo).amplitude_fraction
+            fraction = check_train(train, calibration, dev).amplitude_fraction
             up = down + int((up - down) * fraction)
         k = -math.floor(train.phase * train.pulses_per_cycle)
         while (start := exact_start_ns(k, train)) <= train.duration_ns:

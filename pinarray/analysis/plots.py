@@ -33,6 +33,7 @@ from pinarray.analysis.thresholds import (  # noqa: E402
     ThresholdMethod,
     Thresholds,
 )
+from pinarray.protocol.response import MeasuredResponse  # noqa: E402
 
 DPI = 150
 FORMATS = ("png", "pdf")  # raster for a quick look, vector for the paper
@@ -333,3 +334,33 @@ FIGURES: dict[str, Callable[[Study, Path], list[Path]]] = {
     "pin_accuracy": plot_pin_map,
     "motion": plot_motion,
 }
+
+
+def plot_response(response: MeasuredResponse, stem: Path, title: str) -> list[Path]:
+    """A servo's measured response: the achieved stroke (smallest over the cycles, median
+    dotted) against frequency, one line per commanded stroke, the commanded one dashed."""
+    colours = [OKABE_ITO[c] for c in ("blue", "orange", "green", "purple", "vermillion", "sky")]
+    figure, axes = plt.subplots(figsize=(6.0, 4.0))
+    strokes = sorted({p.commanded_steps for p in response.points})
+    for i, stroke in enumerate(strokes):
+        points = sorted((p for p in response.points if p.commanded_steps == stroke),
+                        key=lambda p: p.frequency_hz)
+        colour = colours[i % len(colours)]
+        hz = [p.frequency_hz for p in points]
+        axes.plot(hz, [p.achieved_steps for p in points], marker="o", markersize=4,
+                  color=colour, label=f"{stroke} steps commanded")
+        axes.plot(hz, [p.median_steps for p in points], linestyle=":", color=colour,
+                  linewidth=0.8)
+        axes.axhline(stroke, color=colour, linestyle="--", linewidth=0.6)
+    axes.set_xlabel("frequency (Hz)")
+    axes.set_ylabel("achieved stroke (steps)")
+    axes.set_ylim(bottom=0)
+    axes.set_title(title, fontsize=9)
+    axes.legend(fontsize=7, loc="lower left")
+    caption = (f"Measured response of pin {response.pin}'s {response.servo} servo (speed "
+               f"{response.speed_steps_per_s} steps/s, acceleration register "
+               f"{response.acceleration_register}, duty cycle {float(response.duty_cycle):g}, "
+               f"{response.cycles} cycles a train): the smallest peak-to-peak of its sampled "
+               "position over the cycles (solid), the median (dotted), the commanded stroke "
+               "(dashed).")
+    return _save(figure, stem, caption)

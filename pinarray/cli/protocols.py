@@ -152,7 +152,7 @@ def _scaled_notes(protocol) -> list[str]:
                 continue
             seen.add(key)
             calibration = protocol.device.calibration(drive.pin)
-            result = check_train(drive.train, calibration, protocol.device.servo)
+            result = check_train(drive.train, calibration, protocol.device)
             if not result.feasible:
                 notes.append(
                     f"scaled to {result.amplitude_fraction:.0%}: "

@@ -69,7 +69,7 @@ named servo must answer and do its part, else exit status 2.
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``servos`` and its subcommands to the `pinarray` parser."""
-    from pinarray.cli import calibrate, common
+    from pinarray.cli import calibrate, common, response
 
     group = subparsers.add_parser(
         "servos", help="bring-up: find, renumber, tune and calibrate new servos",
@@ -104,6 +104,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_return_delay)
 
     calibrate.register(commands)
+    response.register(commands)
 
     p = commands.add_parser("torque-off", help="switch torque off on every servo of a device, "
                             "saying which answered", epilog=WHO_ANSWERS_EPILOG,

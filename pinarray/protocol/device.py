@@ -5,11 +5,14 @@ from __future__ import annotations
 from dataclasses import dataclass, fields, replace
 from fractions import Fraction
 from functools import partial
+from pathlib import Path
 
 from pinarray.grid import Grid
 from pinarray.protocol.model import (
     BAUD_RATES,
+    DATASHEET,
     SIMULATED_PORT,
+    Bandwidth,
     Device,
     HobbyServos,
     Pca9685Board,
@@ -17,6 +20,7 @@ from pinarray.protocol.model import (
     Servos,
     ServoSettings,
 )
+from pinarray.protocol.response import read_response
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 
 MS = Fraction(1_000_000)  # ns per ms
@@ -30,7 +34,8 @@ PCA9685_CHANNELS = 16
 # A servo maps a handful of pulse widths to positions; the map is copied to every pin.
 MAX_POSITIONS = 64
 DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "feasibility",
-               "delivery_tolerance_ms", "board", "channels", "stroke_tolerance_percent"}
+               "delivery_tolerance_ms", "board", "channels", "stroke_tolerance_percent",
+               "response"}
 
 # The STS ids a servo can take (the vendor SDK's MAX_ID; 254 is broadcast). The bus says the
 # same in `pinarray.hardware.feetech.registers.MAX_SERVO_ID`, which the protocol may not import.
@@ -141,8 +146,32 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     device = _pin_calibrations(reader, grid, servo, base, overrides, ids, keys.get(ids_key), unit)
     if device is None:
         return None
+    datasheet: Bandwidth = DATASHEET
+    bandwidth = reader.optional(keys, "response", lambda n: _response(reader, n, servo), datasheet)
     return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns,
-                   stroke_tolerance=stroke)
+                   stroke_tolerance=stroke, bandwidth=bandwidth)
+
+
+def _response(reader: Reader, node: Node, servo: Servos) -> Bandwidth:
+    """The measured servo response a protocol names, a path relative to the protocol's file,
+    refused when it was measured with other settings than the protocol's."""
+    if not isinstance(servo, ServoSettings):
+        raise reader.error(node, "expected no response: for hobby servos on a PWM board (their "
+                                 "position is not read back), found one")
+    name = reader.string(node, "the servo response file")
+    response = read_response(Path(reader.source).parent / name, reader, node)
+    if response.servo.lower() != servo.model.lower():
+        raise reader.error(node, f"expected a response measured on {servo.model} servos, found "
+                                 f"one of {response.servo} ({name})")
+    measured = (response.speed_steps_per_s, response.acceleration_register)
+    settings = (servo.speed_steps_per_s, servo.acceleration_register)
+    if measured != settings:
+        raise reader.error(
+            node, f"expected a response measured at the protocol's speed {settings[0]} steps/s "
+                  f"and acceleration {settings[1]}, found one at {measured[0]} steps/s and "
+                  f"acceleration {measured[1]} ({name}): measure it again with "
+                  "`pinarray servos response`")
+    return response
 
 
 def read_pin(reader: Reader, node: Node, grid: Grid) -> int:

@@ -1,6 +1,8 @@
-"""Can the servo follow a train? Travel reachable in each half-cycle from speed and acceleration.
+"""Can the servo follow a train? Travel reachable in each half-cycle: measured, when the
+protocol names a servo response (`pinarray.protocol.response`), else from the datasheet's speed
+and acceleration.
 
-A servo that must stop at each end of its stroke covers, in time ``T`` from standstill to
+From the datasheet, a servo that must stop at each end of its stroke covers, in time ``T`` from standstill to
 standstill, ``v*T`` steps when acceleration is unlimited, ``a*T^2/4`` when it never reaches
 top speed (``T <= 2v/a``), and ``v*T - v^2/a`` otherwise (trapezoidal profile).
 """
@@ -10,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from pinarray.protocol.model import NS_PER_S, PinCalibration, Servos, Train
+from pinarray.protocol.model import NS_PER_S, Datasheet, Device, PinCalibration, Servos, Train
 
 
 def reachable_steps(
@@ -48,11 +50,13 @@ class Feasibility:
     frequency_hz: float
     stroke_steps: int  # |up - down| as calibrated
     reachable_steps: float  # in the shorter half-cycle
-    max_frequency_hz: float  # highest frequency at which the full stroke is reachable
+    max_frequency_hz: float  # highest frequency at which ``needed_steps`` are reachable
+    needed_steps: float  # the least travel that follows the train (see `check_train`)
+    basis: str  # what the reach rests on: datasheet figures or a measured response
 
     @property
     def feasible(self) -> bool:
-        return self.reachable_steps >= self.stroke_steps
+        return self.reachable_steps >= self.needed_steps
 
     @property
     def amplitude_fraction(self) -> float:
@@ -68,24 +72,51 @@ class Feasibility:
             return lever_mm * math.radians(angle(steps))
 
         return (
-            f"pin {self.pin} cannot follow {self.frequency_hz:g} Hz: its stroke of "
+            f"pin {self.pin} cannot follow {self.frequency_hz:g} Hz ({self.basis}): its stroke of "
             f"{self.stroke_steps} {unit} ({angle(self.stroke_steps):.1f} deg, "
-            f"{travel_mm(self.stroke_steps):.2f} mm) needs at most {self.max_frequency_hz:.2f} Hz; "
+            f"{travel_mm(self.stroke_steps):.2f} mm) {self._needs()} at most "
+            f"{self.max_frequency_hz:.2f} Hz; "
             f"at {self.frequency_hz:g} Hz only {self.reachable_steps:.0f} {unit} "
             f"({angle(self.reachable_steps):.1f} deg, {travel_mm(self.reachable_steps):.2f} mm, "
             f"{self.amplitude_fraction:.0%} of the stroke) are reachable"
         )
 
 
-def check_train(train: Train, calibration: PinCalibration, servo: Servos) -> Feasibility:
-    """Feasibility of ``train`` on the pin ``calibration`` describes, with ``servo``'s limits."""
+    def _needs(self) -> str:
+        if self.needed_steps >= self.stroke_steps:
+            return "needs"
+        return f"needs, to move {self.needed_steps / self.stroke_steps:.0%} of it,"
+
+
+def check_train(train: Train, calibration: PinCalibration, device: Device) -> Feasibility:
+    """Feasibility of ``train`` on the pin ``calibration`` describes, on ``device``.
+
+    From the datasheet the whole stroke must be reachable; from a measured response, the
+    share of it the protocol's stroke tolerance asks of a delivered trial (what a played trial
+    is judged by).
+    """
     up = calibration.position_for_width(train.up_width_ns)
     down = calibration.position_for_width(train.down_width_ns)
     stroke = abs(up - down)
     shorter_share = min(train.duty_cycle, 1 - train.duty_cycle)
-    half_ns = float(shorter_share / train.frequency_hz) * NS_PER_S
+    half_s = float(shorter_share / train.frequency_hz)
+    bandwidth = device.bandwidth
+    if isinstance(bandwidth, Datasheet):
+        return _from_datasheet(calibration.pin, train, stroke, half_s, float(shorter_share),
+                               device.servo)
+    needed = math.ceil(stroke * device.stroke_tolerance)
+    reach = bandwidth.reach_steps(half_s)
+    longest_s = bandwidth.longest_half_cycle_s(needed)
+    max_hz = float(shorter_share) / longest_s if needed > 0 else math.inf
+    return Feasibility(calibration.pin, float(train.frequency_hz), stroke,
+                       0.0 if reach is None else reach, max_hz, needed, bandwidth.describe())
+
+
+def _from_datasheet(pin: int, train: Train, stroke: int, half_s: float, shorter_share: float,
+                    servo: Servos) -> Feasibility:
     accel = servo.acceleration_steps_per_s2
-    reachable = reachable_steps(half_ns, servo.speed_steps_per_s, accel)
+    reachable = reachable_steps(half_s * NS_PER_S, servo.speed_steps_per_s, accel)
     needed_s = travel_time_s(stroke, servo.speed_steps_per_s, accel)
-    max_hz = float(shorter_share) / needed_s if needed_s > 0 else math.inf
-    return Feasibility(calibration.pin, float(train.frequency_hz), stroke, reachable, max_hz)
+    max_hz = shorter_share / needed_s if needed_s > 0 else math.inf
+    return Feasibility(pin, float(train.frequency_hz), stroke, reachable, max_hz, stroke,
+                       "datasheet figures")

@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from enum import StrEnum
 from fractions import Fraction
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, TypeAlias
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
@@ -21,6 +21,7 @@ from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
     from pinarray.protocol.imaging import ScannerSync
+    from pinarray.protocol.response import MeasuredResponse
 
 # Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
 BAUD_RATES = (38_400, 57_600, 115_200, 128_000, 250_000, 500_000, 1_000_000)
@@ -138,6 +139,17 @@ SIMULATED_PORT = "sim://"  # a protocol without a port plays on the simulated ar
 
 
 @dataclass(frozen=True)
+class Datasheet:
+    """Whether a pin can follow a train is judged from the servo settings' speed and
+    acceleration (the protocol names no measured response)."""
+
+
+DATASHEET = Datasheet()
+# What the feasibility check rests on: datasheet figures, or a servo's measured response.
+Bandwidth: TypeAlias = "Datasheet | MeasuredResponse"
+
+
+@dataclass(frozen=True)
 class Device:
     """The stimulator: grid, servo settings and one calibration per pin.
 
@@ -156,6 +168,15 @@ class Device:
     # ... and, where the servos report their position, every moving pin's achieved stroke
     # was at least this share of its commanded stroke (device: stroke_tolerance_percent).
     stroke_tolerance: Fraction = Fraction(8, 10)
+    bandwidth: Bandwidth = DATASHEET  # device: response: names a measured one
+
+    def feasibility_basis(self) -> str:
+        """What the feasibility check rests on, as the pre-flight says it."""
+        if isinstance(self.bandwidth, Datasheet):
+            accel = self.servo.acceleration_steps_per_s2
+            return (f"datasheet figures ({self.servo.speed_steps_per_s} {self.servo.position_unit}/s"
+                    f", acceleration {'unlimited' if accel is None else f'{accel}/s^2'})")
+        return self.bandwidth.describe()
 
     def calibration(self, pin: int) -> PinCalibration:
         self.grid.check_pin(pin)

@@ -229,7 +229,7 @@ def check_train_on_pins(
     for pin in pins:
         calibration = device.calibration(pin)
         try:
-            result = check_train(train, calibration, device.servo)
+            result = check_train(train, calibration, device)
         except PinArrayError as problem:
             raise reader.error(node, str(problem)) from None
         if not result.feasible and not device.scale_infeasible:
