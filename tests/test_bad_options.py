@@ -60,7 +60,8 @@ PARSE_ONLY = {
     ("batch",): [DEMO, "--subject", "s1", "--observer", "default"],
     ("analyse",): ["results"], ("power",): [DEMO], ("tui",): [],
     ("servos", "scan"): [], ("servos", "set-id"): ["1", "2"], ("servos", "return-delay"): [],
-    ("servos", "calibrate"): [DEMO, "--pin", "1"], ("servos", "torque-off"): [],
+    ("servos", "calibrate"): [DEMO, "--pin", "1"],
+    ("servos", "response"): [DEMO, "--pin", "1"], ("servos", "torque-off"): [],
     ("servos", "rest"): [], ("pwm", "calibrate"): [DEMO, "--pin", "1"],
 }
 

@@ -119,6 +119,7 @@ def _validate(args: argparse.Namespace) -> int:
                       f"({float(values[0]):g}..{float(values[-1]):g} {adaptive.parameter.unit}), "
                       f"{len(adaptive.procedures)} procedures, at most {design.trial_count} trials "
                       f"with {adaptive.catch.count} catch and {design.practice_trials} practice)")
+            print(f"{path}: feasibility: {protocol.device.feasibility_basis()}")
             for note in _scaled_notes(protocol):
                 print(f"{path}: note: {note}")
             for warning in protocol_warnings(protocol):

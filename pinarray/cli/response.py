@@ -95,6 +95,8 @@ def _cmd_response(args: argparse.Namespace) -> int:
                                                              integer=False))
     strokes = (measuring.default_strokes(protocol, args.pin, train) if args.strokes is None
                else _numbers(args.strokes, "--strokes", integer=True))
+    trains = measuring.response_trains(protocol, args.pin, train, frequencies, strokes,
+                                       args.cycles)  # refused before anything moves
     out = Path(args.out) if args.out else Path(args.protocol).with_name(
         f"{Path(args.protocol).stem}_response_pin{args.pin}.yaml")
     figure = out.with_suffix("")
@@ -122,8 +124,7 @@ def _cmd_response(args: argparse.Namespace) -> int:
         try:
             for warning in rig.warnings:
                 say(f"pinarray: warning: {warning}", error=True)
-            results = measuring.measure_response(rig, args.pin, train, frequencies, strokes,
-                                                 args.cycles, show)
+            results = measuring.measure_response(rig, args.pin, trains, show)
         except BaseException:
             say(f"pinarray: pins after the stop: {rig.close().describe()}", error=True)
             raise

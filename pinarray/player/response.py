@@ -25,7 +25,7 @@ from pinarray.protocol.model import (
     WaveStimulus,
 )
 from pinarray.protocol.response import MeasuredResponse, ResponsePoint
-from pinarray.schedule import compile_drives
+from pinarray.schedule import TrialSchedule, compile_drives
 from pinarray.units import NS_PER_MS, NS_PER_S
 
 if TYPE_CHECKING:
@@ -74,29 +74,46 @@ def default_strokes(protocol: Protocol, pin: int, train: Train | TrainShape) -> 
     return tuple(sorted({max(1, round(full * share)) for share in DEFAULT_STROKE_SHARES}))
 
 
-def measure_response(rig: Rig, pin: int, train: Train | TrainShape,
-                     frequencies_hz: Sequence[Fraction], strokes_steps: Sequence[int],
-                     cycles: int, measured: Callable[[Measured], object] = lambda m: None,
-                     ) -> list[Measured]:
-    """Play ``train`` on ``pin`` at each frequency and stroke (on ``rig``'s bus servos) and measure what the pin did; ``measured`` hears
-    of each as it comes. A stroke outside the pin's calibrated limits is refused before
-    anything moves."""
-    device = replace(rig.protocol.device, scale_infeasible=False)  # measure, never shrink
+@dataclass(frozen=True)
+class ResponseTrain:
+    """One train of a measurement, compiled before anything moves."""
+
+    frequency_hz: Fraction
+    stroke_steps: int
+    schedule: TrialSchedule
+
+
+def response_trains(protocol: Protocol, pin: int, train: Train | TrainShape,
+                    frequencies_hz: Sequence[Fraction], strokes_steps: Sequence[int],
+                    cycles: int) -> list[ResponseTrain]:
+    """``train`` on ``pin`` at each frequency and stroke, ``cycles`` cycles each, compiled; a
+    stroke outside the pin's calibrated limits is refused, naming the pin."""
+    device = replace(protocol.device, scale_infeasible=False)  # measure, never shrink
     if not isinstance(device.servo, ServoSettings):
         raise PinArrayError("servos response: hobby servos on a PWM board do not report their "
-                            "position; measure bus servos")
+                            "position; it measures bus servos")
     devices = {stroke: stroke_device(device, {pin}, train.with_frequency(Fraction(1)),
                                      Fraction(stroke)) for stroke in strokes_steps}
-    results = []
+    trains = []
     for frequency in frequencies_hz:
         duration_ns = -(-cycles * NS_PER_S // frequency)  # whole cycles, ceiling to the ns
         played = replace(train.with_frequency(frequency), duration_ns=int(duration_ns))
         for stroke in strokes_steps:
-            schedule = compile_drives([PinDrive(pin, played)], devices[stroke])
-            presentation = rig.present(schedule)
-            rig.clock.sleep_until_ns(rig.clock.now_ns() + SETTLE_NS)
-            results.append(_measured(pin, frequency, stroke, presentation))
-            measured(results[-1])
+            trains.append(ResponseTrain(frequency, stroke,
+                                        compile_drives([PinDrive(pin, played)], devices[stroke])))
+    return trains
+
+
+def measure_response(rig: Rig, pin: int, trains: Sequence[ResponseTrain],
+                     measured: Callable[[Measured], object] = lambda m: None) -> list[Measured]:
+    """Play each of ``trains`` on ``rig`` and measure what ``pin`` did, resting `SETTLE_NS`
+    between two; ``measured`` hears of each as it comes."""
+    results = []
+    for train in trains:
+        presentation = rig.present(train.schedule)
+        rig.clock.sleep_until_ns(rig.clock.now_ns() + SETTLE_NS)
+        results.append(_measured(pin, train.frequency_hz, train.stroke_steps, presentation))
+        measured(results[-1])
     return results
 
 

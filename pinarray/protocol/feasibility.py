@@ -85,7 +85,7 @@ class Feasibility:
     def _needs(self) -> str:
         if self.needed_steps >= self.stroke_steps:
             return "needs"
-        return f"needs, to move {self.needed_steps / self.stroke_steps:.0%} of it,"
+        return f"needs, to move {self.needed_steps:.0f} of them (the stroke tolerance),"
 
 
 def check_train(train: Train, calibration: PinCalibration, device: Device) -> Feasibility:

@@ -194,6 +194,8 @@ class PreflightScreen(KeyNotices, Screen):
                 f"servos answer, all {model} (checked at connect).")
         if faulty:
             text += f" Servo(s) {', '.join(map(str, faulty))} report errors."
+        text += (f" Which trains the pins can follow: "
+                 f"{self.request.protocol.device.feasibility_basis()}.")
         # A servo that waits longer before answering than the read-back itself takes on the
         # wire slows every delivery check more than the wire does.
         wire_ns = bus.wire_ns(READBACK_BYTES) if isinstance(bus, FeetechBus) else 0

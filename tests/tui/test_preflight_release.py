@@ -63,3 +63,17 @@ async def test_connect_again_after_a_release_shows_the_return_delay_lowered_befo
         assert "wait longer" not in text(app, "#preflight-status")
         await pilot.press("escape")
         await settle(pilot)
+
+
+async def test_the_pre_flight_says_which_basis_feasibility_used(results):
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await settle(pilot)
+        assert isinstance(app.screen, PreflightScreen)
+        status = str(app.screen.query_one("#preflight-status").render())
+        assert "Which trains the pins can follow: datasheet figures (3000 steps/s, " \
+               "acceleration unlimited)." in " ".join(status.split())
+        await pilot.press("escape")
+        await settle(pilot)

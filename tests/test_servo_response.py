@@ -1,0 +1,175 @@
+"""`pinarray servos response`: what one servo really does, and feasibility that follows it."""
+
+import math
+from fractions import Fraction
+from pathlib import Path
+
+import pytest
+
+from pinarray.cli import main
+from pinarray.protocol.feasibility import check_train
+from pinarray.protocol.load import load_protocol
+from pinarray.protocol.model import Train
+from pinarray.protocol.response import MeasuredResponse, ResponsePoint
+
+SEED = Path(__file__).resolve().parent.parent / "protocols" / "localisation.yaml"
+
+# The seed's protocol on a 6 mm horn: 1 mm of travel is 114 steps, more than the simulated
+# STS3215 makes in the 50 ms half-cycle of 10 Hz, though the datasheet speed allows it.
+SHORT_HORN = SEED.read_text().replace("2.0: 2113", "2.0: 2162").replace("lever_mm: 10 ", "lever_mm: 6  ")
+
+RESPONSE = """\
+pin: 4
+servo: STS3215
+speed_steps_per_s: 3000
+acceleration: 0
+duty_cycle: 1/2
+points:
+  - {frequency_hz: 5, stroke_commanded_steps: 114, stroke_achieved_steps: 114, stroke_median_steps: 114, lag_ms: 52, cycles_short: 0}
+  - {frequency_hz: 10, stroke_commanded_steps: 114, stroke_achieved_steps: 80, stroke_median_steps: 81, cycles_short: 10}
+"""
+
+
+def run(capsys, *argv):
+    status = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def measured(points, duty=Fraction(1, 2)) -> MeasuredResponse:
+    return MeasuredResponse("r.yaml", 4, "STS3215", "sim://", 3000, 0, duty,
+                            tuple(ResponsePoint(f, c, a, a, None, 0) for f, c, a in points), 10)
+
+
+def test_between_two_measured_frequencies_the_reach_is_interpolated_and_nothing_faster_is_judged():
+    response = measured([(5, 100, 100), (10, 100, 60)])  # half-cycles of 100 and 50 ms
+    assert response.reach_steps(0.100) == 100
+    assert response.reach_steps(0.050) == 60
+    assert response.reach_steps(0.075) == pytest.approx(80)
+    assert response.reach_steps(1.0) == 100  # slower than the slowest measured: no worse
+    assert response.reach_steps(0.049) is None  # faster than anything measured
+    assert response.longest_half_cycle_s(80) == pytest.approx(0.075)
+    assert response.longest_half_cycle_s(101) == math.inf
+
+
+def test_a_stroke_short_by_one_encoder_step_counts_as_achieved_in_full():
+    assert measured([(10, 100, 99)]).reach_steps(0.05) == 100
+    assert measured([(10, 100, 98)]).reach_steps(0.05) == 98
+
+
+def test_a_train_of_another_duty_cycle_is_judged_by_its_shorter_half_cycle(tmp_path):
+    (tmp_path / "r.yaml").write_text(RESPONSE)
+    (tmp_path / "p.yaml").write_text(SHORT_HORN.replace("frequencies_hz: [3, 5, 10]",
+                                                        "frequencies_hz: [3, 5]").replace(
+        "  port: \"sim://\"\n", "  port: \"sim://\"\n  response: r.yaml\n"))
+    device = load_protocol(tmp_path / "p.yaml").device
+    # 5 Hz at a duty cycle of 1/4: its shorter half-cycle is 50 ms, as 10 Hz's at 1/2.
+    quarter = Train(Fraction(5), 10**9, pulses_per_cycle=4, up_pulses=1)
+    result = check_train(quarter, device.calibration(4), device)
+    assert result.reachable_steps == 80 and not result.feasible
+    assert result.needed_steps == math.ceil(114 * Fraction(8, 10))
+
+
+def test_the_datasheet_lets_a_10_hz_train_of_114_steps_pass_and_validate_says_so(tmp_path, capsys):
+    (tmp_path / "p.yaml").write_text(SHORT_HORN)
+    status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
+    assert status == 0, err
+    assert f"{tmp_path / 'p.yaml'}: feasibility: datasheet figures (3000 steps/s, acceleration " \
+           "unlimited)\n" in out
+
+
+def test_a_measured_response_named_by_the_protocol_refuses_the_train_the_servo_did_not_follow(
+        tmp_path, capsys):
+    (tmp_path / "r.yaml").write_text(RESPONSE)
+    text = SHORT_HORN.replace("  port: \"sim://\"\n", "  port: \"sim://\"\n  response: r.yaml\n")
+    (tmp_path / "p.yaml").write_text(text)
+    status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
+    assert (status, out) == (2, "")
+    line = text.splitlines().index("  frequencies_hz: [3, 5, 10]") + 1
+    assert err.startswith(f"{tmp_path / 'p.yaml'}:{line}:")
+    assert "pin 1 cannot follow 10 Hz (measured response of pin 4 (r.yaml))" in err
+    assert "only 80 steps" in err and "needs, to move 92 of them (the stroke tolerance), at most 7.39 Hz" in err
+    # Without the 10 Hz condition it passes, and says which basis it used.
+    (tmp_path / "p.yaml").write_text(text.replace("[3, 5, 10]", "[3, 5]"))
+    status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
+    assert status == 0, err
+    assert "feasibility: measured response of pin 4 (r.yaml)" in out
+
+
+@pytest.mark.parametrize(("change", "where", "expected"), [
+    (("stroke_achieved_steps: 80", "stroke_achieved_steps: lots"), 8,
+     "expected a whole number for a stroke (steps), found"),
+    (("duty_cycle: 1/2\n", ""), 1, "the servo response needs a 'duty_cycle' key, found none"),
+    (("points:", "ponts:"), 6, "unknown key 'ponts' in the servo response; did you mean 'points'?"),
+])
+def test_a_broken_response_file_is_refused_with_its_own_line_and_column(tmp_path, capsys, change,
+                                                                        where, expected):
+    (tmp_path / "r.yaml").write_text(RESPONSE.replace(*change))
+    (tmp_path / "p.yaml").write_text(SHORT_HORN.replace("  port: \"sim://\"\n",
+                                                        "  port: \"sim://\"\n  response: r.yaml\n"))
+    status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
+    assert (status, out) == (2, "")
+    assert f"{tmp_path / 'r.yaml'}:{where}:" in err and expected in err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(("response", "expected"), [
+    (None, "expected a servo response file (pinarray servos response writes one), found no such "
+           "servo response file"),
+    (RESPONSE.replace("speed_steps_per_s: 3000", "speed_steps_per_s: 1500"),
+     "expected a response measured at the protocol's speed 3000 steps/s and acceleration 0, "
+     "found one at 1500 steps/s and acceleration 0 (r.yaml): measure it again"),
+    (RESPONSE.replace("servo: STS3215", "servo: STS3250"),
+     "expected a response measured on STS3215 servos, found one of STS3250 (r.yaml)"),
+])
+def test_a_response_that_is_missing_or_was_measured_otherwise_is_refused_where_the_protocol_names_it(
+        tmp_path, capsys, response, expected):
+    if response is not None:
+        (tmp_path / "r.yaml").write_text(response)
+    text = SHORT_HORN.replace("  port: \"sim://\"\n", "  port: \"sim://\"\n  response: r.yaml\n")
+    (tmp_path / "p.yaml").write_text(text)
+    status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
+    line = text.splitlines().index("  response: r.yaml") + 1
+    assert (status, out) == (2, "")
+    assert err.startswith(f"{tmp_path / 'p.yaml'}:{line}:13: {expected}")
+
+
+def test_servos_response_measures_the_simulated_servo_and_feasibility_then_follows_it(
+        tmp_path, capsys):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(SHORT_HORN.replace("frequencies_hz: [3, 5, 10]", "frequencies_hz: [3, 5]"))
+    status, out, err = run(capsys, "servos", "response", protocol, "--pin", 4, "--sim",
+                           "--frequencies", "3,10", "--strokes", "57,114", "--cycles", 4)
+    assert status == 0, err
+    written = tmp_path / "p_response_pin4.yaml"
+    assert f"wrote {written} and {written.with_suffix('.png')}, {written.with_suffix('.pdf')}" in out
+    assert "to follow it: device: response: p_response_pin4.yaml" in out
+    rows = [r for r in map(str.split, out.splitlines()) if len(r) == 7 and r[1].isdigit()]
+    table = {(float(r[0]), int(r[1])): (int(r[2]), r[5]) for r in rows}
+    assert set(table) == {(3.0, 57), (3.0, 114), (10.0, 57), (10.0, 114)}
+    assert table[(3.0, 114)][0] == 114 and table[(10.0, 57)][0] == 57  # in time: in full
+    # At 10 Hz the simulated servo turns back before it arrives: the datasheet says it would not.
+    assert table[(10.0, 114)][0] < 0.8 * 114
+    # Named in the protocol, the measurement refuses 10 Hz before anything plays.
+    protocol.write_text(SHORT_HORN.replace("  port: \"sim://\"\n",
+                                           "  port: \"sim://\"\n  response: p_response_pin4.yaml\n"))
+    status, out, err = run(capsys, "validate", protocol)
+    assert status == 2 and "cannot follow 10 Hz (measured response of pin 4" in err
+
+
+def test_servos_response_refuses_strokes_past_the_pins_limits_before_anything_moves(tmp_path,
+                                                                                   capsys):
+    protocol = tmp_path / "p.yaml"
+    protocol.write_text(SEED.read_text())
+    status, out, err = run(capsys, "servos", "response", protocol, "--pin", 4, "--sim",
+                           "--strokes", "500")
+    assert status == 2 and err.count("\n") == 1
+    assert "pin 4: a stroke of 500 steps lifts it to 2548, outside its calibrated limits" in err
+    assert not (tmp_path / "p_response_pin4.yaml").exists()
+
+
+@pytest.mark.parametrize(("option", "value"), [("--frequencies", "3,fast"), ("--strokes", "0"),
+                                               ("--frequencies", "2000")])
+def test_servos_response_refuses_a_bad_list_on_one_line(tmp_path, capsys, option, value):
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim", option, value)
+    assert status == 2 and err.count("\n") == 1 and err.startswith(f"pinarray: {option}: expected")
