@@ -50,13 +50,15 @@ def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_
     cells = dict(zip(header.split("\t"), row.split("\t"), strict=True))
     assert [cells[c] for c in ("stroke_commanded", "stroke_achieved", "stroke_median",
                                "motion_lag", "cycles_short")] == ["114", "80", "80.5", "0.064", "9"]
-    assert BEH_NAMES.index("stroke_commanded") == BEH_NAMES.index("status_reason") + 1
+    # Appended after every earlier column: an older run resumed gets them as n/a cells.
+    assert BEH_NAMES[-5:] == ("stroke_commanded", "stroke_achieved", "stroke_median",
+                              "motion_lag", "cycles_short")
     described = json.loads(writer.paths.beh_json.read_text())
     assert described["stroke_achieved"]["Units"] == "steps" and "Description" in described["motion_lag"]
 
 
 def test_results_written_before_the_stroke_columns_still_read(tmp_path):
-    older = BEH_NAMES[: BEH_NAMES.index("status_reason") + 1]
+    older = BEH_NAMES[: BEH_NAMES.index("stroke_commanded")]
     row = trial_row(localisation(1))[: len(older)]
     path = tmp_path / "sub-01_ses-1_task-localisation_run-1_beh.tsv"
     path.write_text(tsv_line(older) + tsv_line(row))

@@ -16,7 +16,7 @@ SEED = Path(__file__).resolve().parent.parent / "protocols" / "localisation.yaml
 
 # The seed's protocol on a 6 mm horn: 1 mm of travel is 114 steps, more than the simulated
 # STS3215 makes in the 50 ms half-cycle of 10 Hz, though the datasheet speed allows it.
-SHORT_HORN = SEED.read_text().replace("2.0: 2113", "2.0: 2162").replace("lever_mm: 10 ", "lever_mm: 6  ")
+SHORT_HORN = SEED.read_text().replace("2.0: 2113", "2.0: 2162").replace("lever_mm: 10\n", "lever_mm: 6\n")
 
 RESPONSE = """\
 pin: 4

@@ -248,8 +248,8 @@ def test_calibrating_a_pin_writes_rest_and_up_into_the_protocol_keeping_its_comm
         "stroke 127 steps (11.2 deg")
     after = protocol.read_text()
     assert after == before.replace(
-        "    lever_mm: 6\n",
-        "    lever_mm: 6\n  pins:\n    6: {rest_steps: 2028, positions: {1.5: 2028, 2.0: 2155}}\n")
+        "    lever_mm: 10\n",
+        "    lever_mm: 10\n  pins:\n    6: {rest_steps: 2028, positions: {1.5: 2028, 2.0: 2155}}\n")
 
 
 def test_calibrating_again_changes_the_numbers_in_place(capsys, monkeypatch, protocol):
@@ -267,8 +267,8 @@ def test_calibrating_again_changes_the_numbers_in_place(capsys, monkeypatch, pro
 @pytest.mark.parametrize("typed, status, said", [
     ("+\nq\n", 0, "nothing written"),
     ("+\nok\n", 2, "input ended before the up position was chosen; nothing written"),
-    ("=1990\nok\n=2400\nok\n", 2, "the protocol would be invalid: pin 6 cannot follow 5 Hz: "
-                                  "its stroke of 410 steps"),
+    ("=1990\nok\n=2400\nok\n", 2, "the protocol would be invalid: pin 6 cannot follow 5 Hz "
+                                  "(datasheet figures): its stroke of 410 steps"),
 ])
 def test_a_calibration_not_finished_or_not_valid_leaves_the_file_as_it_was(
         capsys, monkeypatch, protocol, typed, status, said):

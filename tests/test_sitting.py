@@ -278,7 +278,7 @@ def test_servos_connected_again_on_a_clock_of_its_own_move_on_it_and_deliver_eve
         # The horn went to and fro on the new clock, while the pin test played.
         wiggle = [abs(servo.position_at_ns(t) - pin.rest_steps)
                   for t in range(start_ns, again.clock.now_ns(), 1_000_000)]
-        assert max(wiggle) > 100
+        assert max(wiggle) > 60  # up and down the seed's stroke of 65 steps
         session = sitting.open_session()
         sitting.run_scripted(answer_pin_one)
     assert session.phase is Phase.DONE

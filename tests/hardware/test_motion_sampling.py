@@ -24,7 +24,10 @@ from .lab import pulse_train, sim_bus
 MS = 1_000_000
 SEED = (REPO / "protocols" / "localisation.yaml").read_text()
 # The seed's localisation protocol with 1 s trains: 10 cycles at 10 Hz.
-SHORT = SEED.replace("duration_s: 10\n", "duration_s: 1\n")
+# The seed on a 6 mm horn: a stroke of 114 steps, which the simulated servo cannot make in
+# full at 10 Hz (it turns back before it arrives).
+SHORT = SEED.replace("duration_s: 10\n", "duration_s: 1\n").replace(
+    "2.0: 2113", "2.0: 2162").replace("lever_mm: 10\n", "lever_mm: 6\n")
 
 
 def trial_at_10_hz_on_pin_6():

@@ -16,7 +16,7 @@ on the wire (8 + 8 bytes for one servo: 160 us at 1 Mbit/s, 1.4 ms at 115200), e
 return delay (500 us from the factory, 100 us after `pinarray servos return-delay`) and the
 USB adapter's latency (1 ms with its latency timer at 1 ms; 16 ms at the FTDI default). So
 about 1.5 kHz per moving servo on a tuned adapter at 1 Mbit/s, about 60 Hz at the FTDI
-default; the time around each frame's write and read-back (the guard and the read-back
+default, of which at most `SAMPLE_PERIOD_NS` is used; the time around each frame's write and read-back (the guard and the read-back
 itself) leaves gaps of a millisecond or two in the trace.
 """
 
@@ -33,6 +33,12 @@ from pinarray.hardware.feetech.base import ReadBackBus
 from pinarray.hardware.feetech.registers import StatusError
 from pinarray.hardware.motion import PinTrace
 
+# The moving pins' positions are sampled at most this often (250 Hz per moving servo): a horn
+# turning back (at the simulated STS3215's 150 000 steps/s^2, or less) is within 0.3 step of
+# its peak for 2 ms either side, and the lag from a goal change to arrival is known to 4 ms.
+# Faster would only cost the host's processor: on a simulated bus every sample is a whole
+# exchange simulated byte by byte (2 ms made a 24-trial batch 7 times slower).
+SAMPLE_PERIOD_NS = 4_000_000
 # A WRITE of a 2-byte goal, in bytes.
 REWRITE_REQUEST_BYTES = 9
 
@@ -52,6 +58,7 @@ class Verifier:
         self.moving = tuple(dict.fromkeys(change.servo_id for change in trial.changes))
         self._sampled_ns = {servo_id: array("q") for servo_id in self.moving}
         self._sampled_steps = {servo_id: array("i") for servo_id in self.moving}
+        self._next_sample_ns = 0  # clock ns: the earliest the next sample is taken
 
     def sent(self, frame: PreparedFrame, sent_ns: int) -> None:
         """A frame's write returned ``sent_ns`` after onset: its changes await confirmation."""
@@ -116,6 +123,12 @@ class Verifier:
             now_ns = clock.now_ns()
             if now_ns < self.onset_ns or now_ns + cost_ns > limit_ns:
                 return
+            if now_ns < self._next_sample_ns:  # at most one sample a SAMPLE_PERIOD_NS
+                if self._next_sample_ns + cost_ns > limit_ns:
+                    return
+                clock.doze_until_ns(self._next_sample_ns)
+                continue
+            self._next_sample_ns = now_ns + SAMPLE_PERIOD_NS
             # Each servo samples its encoder as the request's last byte reaches it.
             at_ns = now_ns - self.onset_ns + bus.wire_ns(bus.read_request_bytes(ids))
             for servo_id, steps in bus.read_positions(ids, limit_ns).items():
