@@ -173,3 +173,11 @@ def test_servos_response_refuses_strokes_past_the_pins_limits_before_anything_mo
 def test_servos_response_refuses_a_bad_list_on_one_line(tmp_path, capsys, option, value):
     status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim", option, value)
     assert status == 2 and err.count("\n") == 1 and err.startswith(f"pinarray: {option}: expected")
+
+
+def test_servos_response_says_hobby_pwm_servos_report_no_position_and_moves_nothing(capsys):
+    pwm = SEED.with_name("localisation_pwm.yaml")
+    status, out, err = run(capsys, "servos", "response", pwm, "--pin", 1, "--sim")
+    assert (status, out) == (2, "")
+    assert err == ("pinarray: servos response: hobby servos on a PWM board do not report their "
+                   "position; it measures bus servos\n")

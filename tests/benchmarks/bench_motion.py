@@ -4,7 +4,8 @@ The seed's localisation train at 10 Hz on one pin, and a wave over three pins, p
 in-process simulator in real time (the host's own write times: what sampling could delay),
 alternately with and without sampling, in one run, ``ROUNDS`` times each. Per setting: the
 frames' write lateness (p99 of each trial; min, median, max over the rounds, in ms), the goal
-changes confirmed of those scheduled, and the samples taken per moving pin per second.
+changes confirmed of those scheduled, the samples taken per moving pin per second, and the
+ratio of each round's lateness with sampling to the one without (the reference, same run).
 ``PINARRAY_BENCH_SECONDS`` (default 20) sets the seconds of stimulus per setting.
 """
 
@@ -50,6 +51,8 @@ def run() -> None:
             print(_row(f"p99 write lateness, ms, {what}", lateness[sampling]))
             print(_row(f"goals confirmed (share), {what}", delivered[sampling]))
         print(_row("samples per moving pin per s", rates))
+        ratios = [w / max(wo, 1e-3) for w, wo in zip(lateness[True], lateness[False], strict=True)]
+        print(_row("ratio: p99 lateness with / without", ratios))
     bus.rest_and_release()
     bus.close()
 
