@@ -48,8 +48,8 @@ def test_between_two_measured_frequencies_the_reach_is_interpolated_and_nothing_
     assert response.reach_steps(0.075) == pytest.approx(80)
     assert response.reach_steps(1.0) == 100  # slower than the slowest measured: no worse
     assert response.reach_steps(0.049) is None  # faster than anything measured
-    assert response.longest_half_cycle_s(80) == pytest.approx(0.075)
-    assert response.longest_half_cycle_s(101) == math.inf
+    assert response.shortest_half_cycle_s(80) == pytest.approx(0.075)
+    assert response.shortest_half_cycle_s(101) == math.inf
 
 
 def test_a_stroke_short_by_one_encoder_step_counts_as_achieved_in_full():

@@ -106,8 +106,8 @@ def check_train(train: Train, calibration: PinCalibration, device: Device) -> Fe
                                device.servo)
     needed = math.ceil(stroke * device.stroke_tolerance)
     reach = bandwidth.reach_steps(half_s)
-    longest_s = bandwidth.longest_half_cycle_s(needed)
-    max_hz = float(shorter_share) / longest_s if needed > 0 else math.inf
+    shortest_s = bandwidth.shortest_half_cycle_s(needed)
+    max_hz = float(shorter_share) / shortest_s if needed > 0 else math.inf
     return Feasibility(calibration.pin, float(train.frequency_hz), stroke,
                        0.0 if reach is None else reach, max_hz, needed, bandwidth.describe())
 

@@ -96,7 +96,7 @@ class MeasuredResponse:
                 return fast_reach + share * (slow_reach - fast_reach)
         raise AssertionError(half_cycle_s)
 
-    def longest_half_cycle_s(self, steps: float) -> float:
+    def shortest_half_cycle_s(self, steps: float) -> float:
         """The shortest half-cycle in which ``steps`` are measured to be reachable (inf if
         none is)."""
         table = self._reach_by_half_cycle()
