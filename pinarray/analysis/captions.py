@@ -6,6 +6,8 @@ out of the report still says what it shows.
 
 from __future__ import annotations
 
+import math
+
 from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects
@@ -77,12 +79,27 @@ def motion(study: Study) -> str:
             f"({_n(level.no_wave_felt)}). {COUNTED}")
 
 
+def stroke_by_frequency(study: Study) -> str:
+    rows = study.strokes.rows
+    commanded = ", ".join(
+        f"{steps} steps" + ("" if math.isnan(mm) else f" ({mm:.2f} mm)")
+        for steps, mm in sorted({(r.commanded_steps, r.mm(r.commanded_steps)) for r in rows}))
+    return (f"Achieved stroke by frequency, each pin its own line: a trial's achieved stroke is "
+            f"the smallest peak-to-peak of the pin's sampled position over the trial's cycles. "
+            f"Points: the median over trials as a percentage of the commanded stroke "
+            f"({commanded}); bars: the smallest and largest trial; dashed: 100 %. "
+            f"N = {sum(r.n_trials for r in rows)} trials of {len({r.pin for r in rows})} "
+            f"pin(s): every localisation row of the counted runs whose stroke was measured, "
+            f"practice and invalid rows included.")
+
+
 CAPTIONS = {
     "correct_by_frequency": correct_by_frequency,
     "error_types": error_types,
     "confusion_matrix": confusion_matrix,
     "pin_accuracy": pin_accuracy,
     "motion": motion,
+    "stroke_by_frequency": stroke_by_frequency,
 }
 
 

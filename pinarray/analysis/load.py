@@ -85,7 +85,8 @@ class LoadedRun:
     `ManifestState` text when there is none to read; ``duplicates`` are the trial numbers
     that had more than one ``ok`` row (only the first is kept in ``records``); ``torn`` is
     the text of a last row cut short by an interrupted write (left out); ``unfinished`` the
-    planned trials with no finished row.
+    planned trials with no finished row; ``mm_per_step`` each pin's travel per step as the
+    manifest records it (empty where it does not).
     """
 
     paths: RunPaths
@@ -96,6 +97,7 @@ class LoadedRun:
     duplicates: tuple[int, ...] = ()
     torn: str = ""
     unfinished: tuple[int, ...] = ()
+    mm_per_step: tuple[float, ...] = ()
 
     @property
     def label(self) -> str:
@@ -208,6 +210,7 @@ def load_run(beh: Path) -> LoadedRun:
         raise DamagedResults([DamagedRun(beh, reason)]) from None
     records, duplicates = first_ok_rows(all_records)
     unfinished: tuple[int, ...] = ()
+    mm_per_step: tuple[float, ...] = ()
     manifest_path = paths.manifest_on_disk()
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
@@ -218,10 +221,11 @@ def load_run(beh: Path) -> LoadedRun:
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
             unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
+            mm_per_step = manifest.task_info.mm_per_step
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
     return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
-                     unfinished)
+                     unfinished, mm_per_step)
 
 
 def _check_table(beh: Path) -> str:

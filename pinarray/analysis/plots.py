@@ -364,3 +364,38 @@ def plot_response(response: MeasuredResponse, stem: Path, title: str) -> list[Pa
                "position over the cycles (solid), the median (dotted), the commanded stroke "
                "(dashed).")
     return _save(figure, stem, caption)
+
+
+def plot_stroke_by_frequency(study: Study, stem: Path) -> list[Path]:
+    """Each pin's achieved stroke by frequency, as % of the commanded one: the median over the
+    trials, bars from the smallest to the largest, one line per pin and commanded stroke."""
+    colours = list(OKABE_ITO.values())[1:] + [OKABE_ITO["black"]]
+    markers = ["o", "s", "^", "D", "v", "P", "X", "*"]
+    rows = study.strokes.rows
+    lines = sorted({(r.pin, r.commanded_steps) for r in rows})
+    figure, axes = plt.subplots(figsize=(6.4, 4.0))
+    for i, (pin, commanded) in enumerate(lines):
+        mine = sorted((r for r in rows if (r.pin, r.commanded_steps) == (pin, commanded)),
+                      key=lambda r: r.frequency_hz)
+        # Side by side within a frequency, so that the pins' bars do not hide each other.
+        hz = [r.frequency_hz * 2 ** ((i - (len(lines) - 1) / 2) * 0.02) for r in mine]
+        middle = np.array([r.share_pct(r.achieved_median_steps) for r in mine])
+        spread = np.array([[m - r.share_pct(r.achieved_min_steps) for m, r in zip(middle, mine,
+                                                                               strict=True)],
+                           [r.share_pct(r.achieved_max_steps) - m for m, r in zip(middle, mine,
+                                                                               strict=True)]])
+        label = f"pin {pin}" + (f", {commanded} steps" if len({c for _, c in lines}) > 1 else "")
+        axes.errorbar(hz, middle, yerr=spread, color=colours[i % len(colours)],
+                      marker=markers[(i // len(colours)) % len(markers)], markersize=4,
+                      capsize=2, linewidth=0.9, label=label)
+    axes.axhline(100, color="black", linestyle="--", linewidth=0.8)
+    axes.set_xscale("log", base=2)
+    frequencies = sorted({r.frequency_hz for r in rows})
+    axes.set_xticks(frequencies, [f"{f:g}" for f in frequencies])
+    axes.minorticks_off()
+    axes.set_xlabel("frequency (Hz)")
+    axes.set_ylabel("achieved stroke (% of commanded)")
+    axes.set_ylim(0, 110)
+    axes.set_title("Achieved stroke by frequency")
+    axes.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), ncol=1 + len(lines) // 16)
+    return _save(figure, stem, captions.stroke_by_frequency(study))

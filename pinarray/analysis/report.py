@@ -12,6 +12,7 @@ from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import FrequencyEffect
 from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS, Proportion
+from pinarray.analysis.strokes import StrokeTable
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 from pinarray.analysis.tables import number, write_tables
@@ -221,6 +222,38 @@ def _thresholds(found: Thresholds) -> list[str]:
     return lines
 
 
+def _strokes(strokes: StrokeTable) -> list[str]:
+    """The stimulus delivered: each pin's achieved stroke by frequency, or why there is none."""
+    lines = ["## Stroke delivered", ""]
+    if not strokes.measured:
+        return lines + ["No stroke table: nothing was measured (results written before the "
+                        "pins' motion was measured, or servos that report no position).", ""]
+    if strokes.rows:
+        lines += ["Each pin's achieved stroke (a trial's smallest peak-to-peak over its cycles) "
+                  "over the trials at each frequency, every measured localisation row of the "
+                  "counted runs (practice and invalid rows included):", "",
+                  _row(["pin", "frequency", "commanded", "achieved min / median / max",
+                        "median % of commanded", "trials", "short"]), "|---" * 7 + "|"]
+        for r in strokes.rows:
+            mm = "" if r.mm_per_step is None else f" ({r.mm(r.commanded_steps):.2f} mm)"
+            lines.append(_row([r.pin, f"{r.frequency_hz:g} Hz", f"{r.commanded_steps} steps{mm}",
+                               f"{r.achieved_min_steps} / {r.achieved_median_steps:g} / "
+                               f"{r.achieved_max_steps} steps",
+                               f"{number(r.share_pct(r.achieved_median_steps))} %", r.n_trials,
+                               r.n_short]))
+        lines += ["", "In steps and mm: [stroke_by_frequency.csv](stroke_by_frequency.csv)."]
+    notes = []
+    if strokes.motion_trials:
+        notes.append(f"{strokes.motion_trials} motion trial(s) with a measured stroke are not "
+                     "in the table: a wave has no single frequency (their strokes are in "
+                     "beh.tsv).")
+    if strokes.not_measured:
+        notes.append(f"{strokes.not_measured} localisation trial(s) sampled too sparsely to "
+                     "judge a cycle are left out.")
+    lines += ([""] + [f"- {note}" for note in notes]) if notes else []
+    return lines + [""]
+
+
 def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Path]) -> str:
     """The report page: runs, methods, subject-level tables, figures with captions, links."""
     subjects = study.subjects
@@ -241,6 +274,7 @@ def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Pat
         lines += _motion(study)
     if study.thresholds.found:
         lines += _thresholds(study.thresholds)
+    lines += _strokes(study.strokes)
     pngs = [p for p in figures if p.suffix == ".png"]
     if pngs:
         lines += ["## Figures", ""]
@@ -264,6 +298,8 @@ def write_figures(study: Study, out: Path) -> list[Path]:
             drawn += plots.FIGURES[name](study, out / name)
     if study.motion_trials:
         drawn += plots.plot_motion(study, out / "motion")
+    if study.strokes.rows:
+        drawn += plots.plot_stroke_by_frequency(study, out / "stroke_by_frequency")
     for found in study.thresholds.per_subject:
         drawn += plots.plot_track(found, out / f"track_{found.stem}")
         drawn += plots.plot_fit(found, study.thresholds, out / f"fit_{found.stem}")

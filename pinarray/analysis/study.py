@@ -9,6 +9,7 @@ from pinarray.analysis.chance import LocalisationChance, localisation_chance
 from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import Cell, FitSkipped, FrequencyEffect, fit_frequency_effect
 from pinarray.analysis.stats import Summary, summarise_subjects
+from pinarray.analysis.strokes import StrokeTable, stroke_table
 from pinarray.analysis.subjects import (
     DEFAULT_SETTINGS,
     IntervalSettings,
@@ -25,7 +26,8 @@ class Study:
 
     ``pooled`` and ``per_subject`` are trial counts (see `pinarray.analysis.stats`);
     ``subject_level`` has subjects as the unit; ``chance`` is None without localisation trials;
-    ``thresholds`` are those of the adaptive rows (empty without any).
+    ``thresholds`` are those of the adaptive rows (empty without any); ``strokes`` each pin's
+    achieved stroke by frequency (empty where nothing was measured).
     """
 
     runs: RunSelection
@@ -36,6 +38,7 @@ class Study:
     frequency_effect: FrequencyEffect | FitSkipped
     grid: Grid
     thresholds: Thresholds
+    strokes: StrokeTable
 
     @property
     def subjects(self) -> tuple[str, ...]:
@@ -65,4 +68,6 @@ def study(runs: RunSelection, settings: IntervalSettings = DEFAULT_SETTINGS,
     cells = [Cell(s.subjects[0], row.frequency_hz, row.correct.successes, row.trials)
              for s in per_subject for row in s.localisation]
     return Study(runs, pooled, tuple(per_subject), subject_level(per_subject, settings), chance,
-                 fit_frequency_effect(cells), grid, thresholds(runs, settings))
+                 fit_frequency_effect(cells), grid, thresholds(runs, settings),
+                 stroke_table((record, run.mm_per_step) for run in runs.included
+                              for record in run.records))

@@ -19,6 +19,7 @@ from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import FitSkipped, FrequencyEffect
 from pinarray.analysis.stats import CATEGORIES, Proportion
+from pinarray.analysis.strokes import StrokeTable
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 from pinarray.analysis.thresholds import (
@@ -175,6 +176,29 @@ def thresholds_table(found: Thresholds, out: Path) -> Path:
     return _write(out / "thresholds.csv", THRESHOLD_COLUMNS, rows)
 
 
+STROKE_COLUMNS = ("pin", "frequency_hz", "stroke_commanded_steps", "stroke_commanded_mm",
+                  "achieved_min_steps", "achieved_median_steps", "achieved_max_steps",
+                  "achieved_min_mm", "achieved_median_mm", "achieved_max_mm",
+                  "achieved_min_pct_of_commanded", "achieved_median_pct_of_commanded",
+                  "n_trials", "n_short")
+
+
+def stroke_table(strokes: StrokeTable, out: Path) -> Path:
+    """``stroke_by_frequency.csv``: each pin's achieved stroke (each trial's smallest
+    peak-to-peak over its cycles) over the trials at each frequency, in steps, mm and % of
+    the commanded stroke; ``n_short``: trials with a cycle below the stroke tolerance."""
+    rows = []
+    for r in strokes.rows:
+        achieved = (r.achieved_min_steps, r.achieved_median_steps, r.achieved_max_steps)
+        rows.append([r.pin, f"{r.frequency_hz:g}", r.commanded_steps,
+                     number(r.mm(r.commanded_steps), 3), r.achieved_min_steps,
+                     f"{r.achieved_median_steps:g}", r.achieved_max_steps,
+                     *(number(r.mm(steps), 3) for steps in achieved),
+                     number(r.share_pct(r.achieved_min_steps)),
+                     number(r.share_pct(r.achieved_median_steps)), r.n_trials, r.n_short])
+    return _write(out / "stroke_by_frequency.csv", STROKE_COLUMNS, rows)
+
+
 def runs_table(runs: RunSelection, out: Path) -> Path:
     rows = []
     for run, included in ([(r, True) for r in runs.included]
@@ -200,5 +224,7 @@ def write_tables(study: Study, out: Path) -> list[Path]:
         tables += motion_tables(study, out)
     if study.thresholds.found:
         tables.append(thresholds_table(study.thresholds, out))
+    if study.strokes.rows:
+        tables.append(stroke_table(study.strokes, out))
     tables.append(runs_table(study.runs, out))
     return tables

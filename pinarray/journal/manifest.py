@@ -162,6 +162,9 @@ class TaskInfo:
     grid_rows: int = 4
     grid_columns: int = 4
     pitch_mm: float = 2.0
+    # Each pin's travel for one position unit (servo step; us on a PWM board), mm, pin 1
+    # first: what turns a stroke in the rows into millimetres. Empty in older manifests.
+    mm_per_step: tuple[float, ...] = ()
 
     @property
     def pins(self) -> range:
@@ -230,7 +233,7 @@ class RunManifest:
             "task_info": {"name": t.name, "paradigm": t.paradigm.value,
                           "description": t.description, "instructions": t.instructions,
                           "grid_rows": t.grid_rows, "grid_columns": t.grid_columns,
-                          "pitch_mm": t.pitch_mm},
+                          "pitch_mm": t.pitch_mm, "mm_per_step": list(t.mm_per_step)},
             "time_zero": None if self.time_zero is None else {
                 "event": self.time_zero.event, "at": self.time_zero.at},
             "sittings": [_sitting_to_json(s) for s in self.sittings],
@@ -305,7 +308,8 @@ def _task_info(data: Any, task: str, plan: Sequence[PlanEntry]) -> TaskInfo:
                     instructions=str(data.get("instructions", "")),
                     grid_rows=int(data.get("grid_rows", 4)),
                     grid_columns=int(data.get("grid_columns", 4)),
-                    pitch_mm=float(data.get("pitch_mm", 2.0)))
+                    pitch_mm=float(data.get("pitch_mm", 2.0)),
+                    mm_per_step=tuple(float(mm) for mm in data.get("mm_per_step", ())))
 
 
 def write_manifest(path: Path, manifest: RunManifest) -> None:

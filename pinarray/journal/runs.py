@@ -55,7 +55,8 @@ def task_info(protocol: Protocol) -> TaskInfo:
     paradigm = protocol.design.paradigm
     return TaskInfo(name=protocol.name, paradigm=paradigm, description=protocol.description,
                     instructions=INSTRUCTIONS[paradigm], grid_rows=grid.rows,
-                    grid_columns=grid.columns, pitch_mm=grid.pitch_mm)
+                    grid_columns=grid.columns, pitch_mm=grid.pitch_mm,
+                    mm_per_step=tuple(protocol.device.mm_per_step(pin) for pin in grid.pins))
 
 
 def time_scale_of(clock: Clock) -> TimeScale:

@@ -7,6 +7,7 @@ compiler and the player never see a bad number. Frequencies and durations are ex
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
@@ -181,6 +182,11 @@ class Device:
     def calibration(self, pin: int) -> PinCalibration:
         self.grid.check_pin(pin)
         return self.pins[pin - 1]
+
+    def mm_per_step(self, pin: int) -> float:
+        """How far ``pin`` travels for one position unit (a step; us on a PWM board), mm:
+        the horn's angle on its lever, as the feasibility check describes a stroke."""
+        return self.calibration(pin).lever_mm * math.radians(self.servo.degrees(1))
 
 
 @dataclass(frozen=True)

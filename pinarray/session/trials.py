@@ -340,6 +340,17 @@ class Session:
             self._presented = (self.current, self.procedures.presented(self.current))
         return self._presented[1]
 
+    @property
+    def played_stroke(self) -> StrokeCounts | None:
+        """How far the pins moved in the current trial's stimulus, once it has played (awaiting
+        the answer, or not delivered), as its row keeps it; None before or while it plays,
+        and where not measured (PWM servos)."""
+        awaiting = self.phase in (Phase.RESPONSE, Phase.FAULT) or (
+            self.phase is Phase.PAUSED and self._paused_from is Phase.RESPONSE)
+        if not awaiting or self._delivery is None:
+            return None
+        return _stroke(self._delivery.strokes)
+
     def _presenting(self) -> tuple[Protocol, Condition]:
         """The protocol and condition the current trial plays: an adaptive design's at the
         value its procedure chose."""

@@ -21,7 +21,7 @@ from textual.screen import Screen
 from textual.widgets import Footer, ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
-from pinarray.journal.records import LocalisationRecord
+from pinarray.journal.records import LocalisationRecord, StrokeCounts
 from pinarray.player.playback import DEFAULT_LEAD_NS
 from pinarray.protocol import Condition, Direction, LocalisationCondition, Paradigm, WaveKind
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
@@ -95,6 +95,7 @@ class RunScreen(KeyNotices, Screen):
                 yield Static("the array as the subject feels it", classes="caption")
                 yield PinGrid(self.session.grid, used, id="pins")
                 yield Static(id="stimulus")
+                yield Static(id="stroke")  # how far the pins moved, once the stimulus played
                 yield Static(id="last")  # beside the array: the other side is full at 80x24
             with Vertical(id="control-side"):
                 yield Static(id="trial")
@@ -199,6 +200,10 @@ class RunScreen(KeyNotices, Screen):
         trial.set_class(current is not None and current.practice, "-practice")
         self.query_one(ProgressBar).update(total=session.total, progress=session.done_count)
         self.query_one("#stimulus", Static).update(self._describe_stimulus())
+        stroke = session.played_stroke
+        stroke_line = self.query_one("#stroke", Static)
+        stroke_line.update(self._describe_stroke(stroke))
+        stroke_line.set_class(stroke is not None and bool(stroke.short_cycles), "-short")
         phase_line = self.query_one("#phase", Static)
         phase_line.update(self._hint())
         phase_line.set_class(phase is Phase.FAULT, "-fault")
@@ -295,6 +300,26 @@ class RunScreen(KeyNotices, Screen):
         if condition.kind is WaveKind.SEQUENCE:
             return f"stimulus: wave going {condition.direction} on pins {pins}"
         return f"stimulus: {condition.kind} wave on pins {pins}"
+
+    def _describe_stroke(self, stroke: StrokeCounts | None) -> str:
+        """``stroke 65/65 steps (1.00 mm)``: achieved of commanded, in mm through the pins'
+        lever (when the moving pins share one); '' where not measured (PWM servos)."""
+        current = self.session.current
+        if stroke is None or current is None:
+            return ""
+        device = self.session.protocol.device
+        unit = device.servo.position_unit
+        commanded, achieved = stroke.commanded_steps, stroke.achieved_steps
+        if achieved is None:
+            return f"stroke n/a of {commanded} {unit} (too few samples to measure)"
+        per_step = {device.mm_per_step(pin) for pin in _pins_of(self.session, current.condition)}
+        mm = ""
+        if len(per_step) == 1:
+            (factor,) = per_step
+            mm = (f" ({achieved * factor:.2f} mm)" if achieved == commanded else
+                  f" ({achieved * factor:.2f} of {commanded * factor:.2f} mm)")
+        short = f" · SHORT in {stroke.short_cycles} cycles" if stroke.short_cycles else ""
+        return f"stroke {achieved}/{commanded} {unit}{mm}{short}"
 
     def _describe_last(self) -> str:
         if self.session.last is None:
