@@ -287,8 +287,6 @@ def calibrate_pin(args: argparse.Namespace, protocol, data: bytes, jogger: Jogge
 
 def _describe(new: NewCalibration, device: Device, pin: int) -> str:
     """What was written, and the stroke it gives, in words."""
-    import math
-
     unit = new.unit
     positions = ", ".join(f"{w / 1e6:g} ms: {p}" for w, p in new.positions)
     limits = (f", limits_{unit} [{new.limits_steps[0]}, {new.limits_steps[1]}] (widened)"
@@ -298,7 +296,7 @@ def _describe(new: NewCalibration, device: Device, pin: int) -> str:
     degrees = device.servo.degrees(stroke)
     return (f"device: pins: {pin}: rest_{unit} {new.rest_steps}, positions {{{positions}}}"
             f"{limits}; stroke {stroke} {unit} ({degrees:.1f} deg, about "
-            f"{lever * math.radians(degrees):.2f} mm on its {lever:g} mm lever)")
+            f"{stroke * device.mm_per_step(pin):.2f} mm on its {lever:g} mm lever)")
 
 
 def _jog_until_ok(jogger: Jogger, what: str, step: int, stop, check) -> int | None:

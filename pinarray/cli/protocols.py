@@ -157,7 +157,7 @@ def _scaled_notes(protocol) -> list[str]:
             if not result.feasible:
                 notes.append(
                     f"scaled to {result.amplitude_fraction:.0%}: "
-                    + result.describe(protocol.device.servo, calibration.lever_mm)
+                    + result.describe(protocol.device.servo, protocol.device.mm_per_step(drive.pin))
                 )
     return notes
 

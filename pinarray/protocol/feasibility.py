@@ -62,14 +62,16 @@ class Feasibility:
     def amplitude_fraction(self) -> float:
         return 1.0 if self.feasible else self.reachable_steps / self.stroke_steps
 
-    def describe(self, servo: Servos, lever_mm: float) -> str:
+    def describe(self, servo: Servos, mm_per_step: float) -> str:
+        """Why the pin cannot follow, in position units, degrees and mm (``mm_per_step``:
+        `Device.mm_per_step`)."""
         unit = servo.position_unit
 
         def angle(steps: float) -> float:
             return servo.degrees(steps)
 
         def travel_mm(steps: float) -> float:
-            return lever_mm * math.radians(angle(steps))
+            return steps * mm_per_step
 
         return (
             f"pin {self.pin} cannot follow {self.frequency_hz:g} Hz ({self.basis}): its stroke of "

@@ -235,7 +235,7 @@ def check_train_on_pins(
         if not result.feasible and not device.scale_infeasible:
             raise reader.error(
                 node,
-                result.describe(device.servo, calibration.lever_mm)
+                result.describe(device.servo, device.mm_per_step(pin))
                 + "; lower the frequency or the stroke, or set device: feasibility: scale",
             )
 
