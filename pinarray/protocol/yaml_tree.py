@@ -22,7 +22,15 @@ _Parser = getattr(yaml, "CSafeLoader", yaml.SafeLoader)  # libyaml's parser when
 
 def compose_tree(text: str) -> Node | None:
     """The tree of the one document in ``text``; None for a file with no document."""
-    return _compose(yaml.parse(text, Loader=_Parser))
+    try:
+        return _compose(yaml.parse(text, Loader=_Parser))
+    except yaml.MarkedYAMLError as problem:
+        # libyaml from PyYAML 6.0.4 stops at 1000 levels of flow nesting while it looks ahead
+        # for a key, before this composer has seen the 33rd: the Python parser (lazy,
+        # iterative) reaches the limit here, where it is, as on every PyYAML.
+        if _Parser is yaml.SafeLoader or "nesting depth" not in str(problem.problem):
+            raise
+        return _compose(yaml.parse(text, Loader=yaml.SafeLoader))
 
 
 def _compose(events: Iterator[yaml.Event]) -> Node | None:
