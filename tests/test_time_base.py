@@ -193,3 +193,30 @@ def test_a_resumed_sitting_never_starts_before_the_end_of_the_last_trial(last_en
     else:
         assert start == last_end
     assert resumed_start_ns(None, T0, now, clock) is None  # nothing on file: a fresh zero
+
+
+class _WallClock:
+    """A wall clock that records each sleep and oversleeps each by ``late_ns``."""
+
+    def __init__(self, late_ns=0):
+        self.now, self.late_ns, self.sleeps = 0, late_ns, []
+
+    def now_ns(self):
+        return self.now
+
+    def doze_until_ns(self, deadline_ns):
+        self.sleeps.append(deadline_ns - self.now)
+        self.now = deadline_ns + self.late_ns
+
+
+def test_a_paced_rehearsal_sleeps_its_many_short_waits_together_and_keeps_the_pace():
+    # A simulated bus waits for every exchange: 20 000 waits of 20 us, paced at 50x, owe
+    # 8 ms of wall time; slept one by one they cost the host a sleep each.
+    wall = _WallClock(late_ns=60_000)
+    clock = PacedClock(50.0, base=wall)
+    for step in range(1, 20_001):
+        clock.sleep_until_ns(step * 20_000)
+    assert clock.now_ns() == 400_000_000
+    assert len(wall.sleeps) <= 8  # each sleep at least MIN_WALL_SLEEP_NS of the 8 ms owed
+    # the OS's oversleeping is owed back by the following waits, not added to the pace
+    assert 8_000_000 - 1_000_000 <= wall.now <= 8_000_000 + 1_000_000
