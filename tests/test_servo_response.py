@@ -1,6 +1,7 @@
 """`pinarray servos response`: what one servo really does, and feasibility that follows it."""
 
 import math
+import tempfile
 from fractions import Fraction
 from pathlib import Path
 
@@ -10,7 +11,13 @@ from pinarray.cli import main
 from pinarray.protocol.feasibility import check_train
 from pinarray.protocol.load import load_protocol
 from pinarray.protocol.model import Train
-from pinarray.protocol.response import MeasuredResponse, ResponsePoint
+from pinarray.protocol.response import (
+    MeasuredResponse,
+    ResponsePoint,
+    read_response,
+    response_text,
+)
+from pinarray.protocol.yaml_nodes import Reader
 
 SEED = Path(__file__).resolve().parent.parent / "protocols" / "localisation.yaml"
 
@@ -55,6 +62,91 @@ def test_between_two_measured_frequencies_the_reach_is_interpolated_and_nothing_
 def test_a_stroke_short_by_one_encoder_step_counts_as_achieved_in_full():
     assert measured([(10, 100, 99)]).reach_steps(0.05) == 100
     assert measured([(10, 100, 98)]).reach_steps(0.05) == 98
+
+
+def test_a_stroke_made_in_full_is_within_reach_though_a_larger_one_fell_further_short():
+    # Measured on the simulated STS3215 at 15 Hz: 32 steps in full, 49 fell to 21 in its worst
+    # cycle. A 32-step train at 15 Hz is followed; the reach is not the short stroke's 21.
+    response = measured([(15, 16, 16), (15, 32, 32), (15, 49, 21), (15, 65, 24)])
+    assert response.reach_steps(1 / 30) == 32
+    assert measured([(15, 49, 21), (15, 65, 24)]).reach_steps(1 / 30) == 21
+
+
+def _with_response(tmp_path, points, protocol=None):
+    """The short-horn seed naming a response of ``points`` (frequency, commanded, achieved)."""
+    lines = "".join(f"  - {{frequency_hz: {f}, stroke_commanded_steps: {c}, stroke_achieved_"
+                    f"steps: {a}, stroke_median_steps: {a}, cycles_short: 0}}\n"
+                    for f, c, a in points)
+    (tmp_path / "r.yaml").write_text(RESPONSE.split("points:")[0] + "points:\n" + lines)
+    text = (protocol or SHORT_HORN).replace("  port: \"sim://\"\n",
+                                            "  port: \"sim://\"\n  response: r.yaml\n")
+    (tmp_path / "p.yaml").write_text(text)
+    return tmp_path / "p.yaml", text
+
+
+@pytest.mark.parametrize("feasibility", ["refuse", "scale"])
+def test_a_train_faster_than_every_one_measured_is_refused_not_scaled_to_nothing(
+        tmp_path, capsys, feasibility):
+    protocol, text = _with_response(tmp_path, [(1, 114, 114), (5, 114, 114)])
+    if feasibility == "scale":
+        protocol.write_text(text.replace("  response: r.yaml\n",
+                                         "  response: r.yaml\n  feasibility: scale\n"))
+    status, out, err = run(capsys, "validate", protocol)
+    assert (status, out) == (2, "") and err.count("\n") == 1
+    line = protocol.read_text().splitlines().index("  frequencies_hz: [3, 5, 10]") + 1
+    assert err.startswith(f"{protocol}:{line}:")
+    assert ("pin 1: 10 Hz is faster than every train of the measured response of pin 4 (r.yaml):"
+            " its shorter half-cycle of 50.0 ms is below the 100.0 ms measured") in err
+
+
+def test_a_stroke_larger_than_every_one_measured_is_refused_asking_for_a_measurement(
+        tmp_path, capsys):
+    # 114 steps, 92 of them needed (80 %), against a measurement of 65-step trains only.
+    protocol, _ = _with_response(tmp_path, [(1, 65, 65), (20, 65, 65)])
+    status, out, err = run(capsys, "validate", protocol)
+    assert (status, out) == (2, "") and err.count("\n") == 1
+    assert ("pin 1: a stroke of 114 steps is larger than every stroke of the measured response "
+            "of pin 4 (r.yaml) (largest 65 steps); measure it (`pinarray servos response "
+            "--strokes`)") in err
+
+
+def test_a_response_measured_on_the_simulator_is_refused_for_a_protocol_on_real_servos(
+        tmp_path, capsys):
+    protocol, text = _with_response(tmp_path, [(1, 114, 114), (20, 114, 114)])
+    (tmp_path / "r.yaml").write_text((tmp_path / "r.yaml").read_text().replace(
+        "pin: 4\n", "pin: 4\nport: \"sim://?speed=1500\"\n"))
+    protocol.write_text(text.replace('port: "sim://"', 'port: "/dev/ttyUSB0"'))
+    status, out, err = run(capsys, "validate", protocol)
+    assert (status, out) == (2, "")
+    assert ("expected a response measured on the servos of /dev/ttyUSB0, found one measured on "
+            "the simulator (sim://?speed=1500, r.yaml)") in err
+
+
+def test_two_points_for_one_frequency_and_stroke_are_refused_at_the_second(tmp_path, capsys):
+    protocol, _ = _with_response(tmp_path, [(5, 16, 16), (5, 32, 32), (5, 16, 4)])
+    status, out, err = run(capsys, "validate", protocol)
+    assert (status, out) == (2, "")
+    assert err.startswith(f"{tmp_path / 'r.yaml'}:9:5: expected one point per frequency and "
+                          "stroke, found a second at 5 Hz and 16 steps")
+
+
+def test_a_response_file_that_is_not_text_is_refused_where_it_is_not(tmp_path, capsys):
+    protocol, _ = _with_response(tmp_path, [(5, 16, 16)])
+    (tmp_path / "r.yaml").write_bytes(b"pin: 4\nservo: \x00STS3215\n")
+    status, out, err = run(capsys, "validate", protocol)
+    assert (status, out) == (2, "") and err.count("\n") == 1
+    assert err.startswith(f"{tmp_path / 'r.yaml'}:2:")
+    assert err.count("expected") == 1
+
+
+def test_a_measured_frequency_of_a_third_of_a_hertz_is_read_back_as_it_was():
+    third = measured([(1 / 3, 100, 100), (10, 100, 60)])
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "r.yaml"
+        path.write_text(response_text(third, "now"))
+        reader = Reader("p.yaml")
+        again = read_response(path, reader, reader.compose("response: r.yaml\n"))
+    assert again.points == third.points
 
 
 def test_a_train_of_another_duty_cycle_is_judged_by_its_shorter_half_cycle(tmp_path):
@@ -114,8 +206,7 @@ def test_a_broken_response_file_is_refused_with_its_own_line_and_column(tmp_path
 
 
 @pytest.mark.parametrize(("response", "expected"), [
-    (None, "expected a servo response file (pinarray servos response writes one), found no such "
-           "servo response file"),
+    (None, "no such servo response file ("),
     (RESPONSE.replace("speed_steps_per_s: 3000", "speed_steps_per_s: 1500"),
      "expected a response measured at the protocol's speed 3000 steps/s and acceleration 0, "
      "found one at 1500 steps/s and acceleration 0 (r.yaml): measure it again"),
@@ -181,3 +272,26 @@ def test_servos_response_says_hobby_pwm_servos_report_no_position_and_moves_noth
     assert (status, out) == (2, "")
     assert err == ("pinarray: servos response: hobby servos on a PWM board do not report their "
                    "position; it measures bus servos\n")
+
+
+def test_servos_response_refuses_an_out_file_the_figure_would_overwrite(tmp_path, capsys):
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim",
+                           "--out", tmp_path / "r.png")
+    assert (status, out) == (2, "")
+    assert err == f"pinarray: --out: expected a response file ending in .yaml, found {tmp_path / 'r.png'}\n"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_rig_other_than_the_one_measured_is_warned_of(tmp_path):
+    from pinarray.clock import VirtualClock
+    from pinarray.player.rig import Rig
+
+    protocol, _ = _with_response(tmp_path, [(1, 114, 114), (20, 114, 114)])
+    (tmp_path / "r.yaml").write_text((tmp_path / "r.yaml").read_text().replace(
+        "pin: 4\n", "pin: 4\nport: \"/dev/ttyUSB0\"\n"))
+    rig = Rig(load_protocol(protocol), None, "sim://", VirtualClock())
+    try:
+        assert ("feasibility follows the measured response of pin 4 (r.yaml), measured on "
+                "/dev/ttyUSB0, not on the simulator (sim://") in "\n".join(rig.warnings)
+    finally:
+        rig.close()

@@ -178,6 +178,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
     """One protocol's run on ``sitting``, answered from ``responses`` or ``--observer``; says
     what happens on stderr and where the rows went on stdout. The rig is closed after it."""
     from pinarray.journal.volumes import volume_log_path
+    from pinarray.protocol.response import MeasuredResponse
     from pinarray.stop import Stopped, stop_on_signals
 
     protocol, subject, session = request.protocol, request.subject, request.session
@@ -187,6 +188,9 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
             rig = sitting.connect(request, _run_clock(args, sync, sitting.marker_stream is not None))
             for warning in rig.warnings:
                 print(f"pinarray: warning: {warning}", file=sys.stderr)
+            if isinstance(protocol.device.bandwidth, MeasuredResponse):
+                print(f"pinarray: feasibility: {protocol.device.feasibility_basis()}",
+                      file=sys.stderr)
             if args.resume and not request.resume:
                 print(f"pinarray: no unfinished {request.task} run for subject {subject}, "
                       f"session {session}; starting a new run", file=sys.stderr)

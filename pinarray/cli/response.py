@@ -99,6 +99,8 @@ def _cmd_response(args: argparse.Namespace) -> int:
                                        args.cycles)  # refused before anything moves
     out = Path(args.out) if args.out else Path(args.protocol).with_name(
         f"{Path(args.protocol).stem}_response_pin{args.pin}.yaml")
+    if out.suffix.lower() not in (".yaml", ".yml"):  # the figure's .png and .pdf go beside it
+        raise PinArrayError(f"--out: expected a response file ending in .yaml, found {out}")
     figure = out.with_suffix("")
     url = chosen_bus(args, "servos response", bus_setup(device).servo_ids)
     port = args.port if args.port else None

@@ -39,6 +39,8 @@ from pinarray.player.timing import (
     judge,
 )
 from pinarray.protocol import NS_PER_S, Protocol
+from pinarray.protocol.model import is_simulated
+from pinarray.protocol.response import MeasuredResponse
 from pinarray.schedule import TrialSchedule
 from pinarray.stop import StoppableClock, StopRequest
 
@@ -130,6 +132,16 @@ class Rig:
             self.bus.close()
             raise
         self.warnings = list(self.bus.warnings)
+        bandwidth = protocol.device.bandwidth
+        if isinstance(bandwidth, MeasuredResponse) and (
+                is_simulated(bandwidth.port) != is_simulated(self.url)):
+            def where(port: str) -> str:
+                return f"the simulator ({port})" if is_simulated(port) else port
+
+            self.warnings.append(
+                f"feasibility follows the {bandwidth.describe()}, measured on "
+                f"{where(bandwidth.port)}, not on {where(self.url)}: measure these servos "
+                "(`pinarray servos response`)")
         self.reports: list[PlaybackReport] = []
         # What kept a trial's markers from going out, one entry per trial that had a problem.
         self.marker_problems: list[str] = []

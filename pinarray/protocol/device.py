@@ -19,6 +19,7 @@ from pinarray.protocol.model import (
     PinCalibration,
     Servos,
     ServoSettings,
+    is_simulated,
 )
 from pinarray.protocol.response import read_response
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
@@ -147,14 +148,16 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     if device is None:
         return None
     datasheet: Bandwidth = DATASHEET
-    bandwidth = reader.optional(keys, "response", lambda n: _response(reader, n, servo), datasheet)
+    bandwidth = reader.optional(keys, "response", lambda n: _response(reader, n, servo, port),
+                                datasheet)
     return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns,
                    stroke_tolerance=stroke, bandwidth=bandwidth)
 
 
-def _response(reader: Reader, node: Node, servo: Servos) -> Bandwidth:
+def _response(reader: Reader, node: Node, servo: Servos, port: str) -> Bandwidth:
     """The measured servo response a protocol names, a path relative to the protocol's file,
-    refused when it was measured with other settings than the protocol's."""
+    refused when it was measured with other settings than the protocol's, or on the simulator
+    for a protocol that drives real servos."""
     if not isinstance(servo, ServoSettings):
         raise reader.error(node, "expected no response: for hobby servos on a PWM board (their "
                                  "position is not read back), found one")
@@ -171,6 +174,11 @@ def _response(reader: Reader, node: Node, servo: Servos) -> Bandwidth:
                   f"and acceleration {settings[1]}, found one at {measured[0]} steps/s and "
                   f"acceleration {measured[1]} ({name}): measure it again with "
                   "`pinarray servos response`")
+    if is_simulated(response.port) and not is_simulated(port):
+        raise reader.error(
+            node, f"expected a response measured on the servos of {port}, found one measured on "
+                  f"the simulator ({response.port}, {name}): measure the real servos with "
+                  "`pinarray servos response --port`")
     return response
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pinarray.errors import PinArrayError
 from pinarray.protocol.model import NS_PER_S, Datasheet, Device, PinCalibration, Servos, Train
 
 
@@ -107,11 +108,30 @@ def check_train(train: Train, calibration: PinCalibration, device: Device) -> Fe
         return _from_datasheet(calibration.pin, train, stroke, half_s, float(shorter_share),
                                device.servo)
     needed = math.ceil(stroke * device.stroke_tolerance)
+    pin, frequency_hz = calibration.pin, float(train.frequency_hz)
     reach = bandwidth.reach_steps(half_s)
+    if reach is None:
+        fastest_s = min(float(min(bandwidth.duty_cycle, 1 - bandwidth.duty_cycle)) / f
+                        for f in bandwidth.frequencies_hz)
+        raise NotMeasured(
+            f"pin {pin}: {frequency_hz:g} Hz is faster than every train of the "
+            f"{bandwidth.describe()}: its shorter half-cycle of {half_s * 1e3:.1f} ms is below "
+            f"the {fastest_s * 1e3:.1f} ms measured; measure it (`pinarray servos response "
+            f"--frequencies`) or lower the frequency")
+    largest = max(p.commanded_steps for p in bandwidth.points)
+    if needed > largest:
+        raise NotMeasured(
+            f"pin {pin}: a stroke of {stroke} steps is larger than every stroke of the "
+            f"{bandwidth.describe()} (largest {largest} steps); measure it (`pinarray servos "
+            f"response --strokes`)")
     shortest_s = bandwidth.shortest_half_cycle_s(needed)
     max_hz = float(shorter_share) / shortest_s if needed > 0 else math.inf
-    return Feasibility(calibration.pin, float(train.frequency_hz), stroke,
-                       0.0 if reach is None else reach, max_hz, needed, bandwidth.describe())
+    return Feasibility(pin, frequency_hz, stroke, reach, max_hz, needed, bandwidth.describe())
+
+
+class NotMeasured(PinArrayError):
+    """A train the protocol's measured response says nothing about (faster, or a larger
+    stroke, than every train measured): refused, ``device: feasibility: scale`` or not."""
 
 
 def _from_datasheet(pin: int, train: Train, stroke: int, half_s: float, shorter_share: float,

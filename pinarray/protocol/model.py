@@ -139,6 +139,12 @@ class PinCalibration:
 SIMULATED_PORT = "sim://"  # a protocol without a port plays on the simulated array
 
 
+def is_simulated(port: str) -> bool:
+    """Whether ``port`` names the in-process simulated array (``sim://``, with settings or
+    not) rather than a serial device."""
+    return port.startswith(SIMULATED_PORT)
+
+
 @dataclass(frozen=True)
 class Datasheet:
     """Whether a pin can follow a train is judged from the servo settings' speed and

@@ -4,13 +4,14 @@ feasibility check uses it when a protocol names it (``device: response: FILE``).
 The file holds, for each frequency and commanded stroke played on one pin, the stroke the pin
 achieved (the smallest peak-to-peak over the cycles), its median, the lag from a goal change
 to the pin's arrival and the cycles that fell short. A servo that turns back before it
-arrives makes the same travel whatever it was asked for, so what a frequency allows is read as
-a *reach*: the smallest stroke achieved where a commanded stroke fell short, or, where none
-did, the largest stroke commanded (a lower bound). The reach depends on how long the pin has
-to travel, the shorter half-cycle, so a train of another duty cycle is judged at the
-frequency whose shorter half-cycle is as long; between two measured frequencies the reach is
-interpolated linearly, below the slowest one it is the slowest one's, and a train faster than
-every measured one is not judged to follow.
+arrives makes about the same travel whatever it was asked for, so what a frequency allows is
+read as a *reach*: the larger of the largest stroke made in full and the smallest stroke
+achieved where a commanded stroke fell short (where none did, the reach is a lower bound).
+The reach depends on how long the pin has to travel, the shorter half-cycle, so a train of
+another duty cycle is judged at the frequency whose shorter half-cycle is as long; between two
+measured frequencies the reach is interpolated linearly, below the slowest one it is the
+slowest one's. A train faster than every measured one, or a stroke larger than every measured
+one, is not judged at all: the feasibility check refuses it, asking for a measurement.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
-from pinarray.errors import ProtocolErrors
+from pinarray.errors import ProtocolError, ProtocolErrors
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader
 from pinarray.text_files import NotText, decode_text, read_bounded
 
@@ -77,9 +78,9 @@ class MeasuredResponse:
             by_frequency.setdefault(point.frequency_hz, []).append(point)
         reach = []
         for frequency, points in by_frequency.items():
-            short = [p.achieved_steps for p in points if p.short]
-            reach.append((share / frequency,
-                          float(min(short) if short else max(p.commanded_steps for p in points))))
+            full = max((p.commanded_steps for p in points if not p.short), default=0)
+            short = min((p.achieved_steps for p in points if p.short), default=0)
+            reach.append((share / frequency, float(max(full, short))))
         return sorted(reach, reverse=True)
 
     def reach_steps(self, half_cycle_s: float) -> float | None:
@@ -121,13 +122,15 @@ class MeasuredResponse:
 def read_response(path: Path, reader: Reader, node: Node) -> MeasuredResponse:
     """The response file at ``path``; its problems located in it (``FILE:LINE:COL``), and a
     file that cannot be read located at ``node`` of the protocol."""
-    expected = "expected a servo response file (pinarray servos response writes one), found"
     try:
         text = decode_text(read_bounded(path, MAX_RESPONSE_BYTES, "servo response"))
     except NotText as problem:
-        raise reader.error(node, f"{expected} {problem.message}") from None
-    except OSError as problem:
-        raise reader.error(node, f"{expected} {problem.strerror or problem}: {path}") from None
+        if problem.line:  # not text, at a place in it
+            reader.errors.append(ProtocolError(problem.message, str(path), problem.line,
+                                               problem.col))
+            raise Invalid("servo response") from None
+        raise reader.error(node, f"{problem.message} ({path}; `pinarray servos response` "
+                                 "writes one)") from None
     own = Reader(str(path))
     response = None
     try:
@@ -151,7 +154,7 @@ def _parse(reader: Reader, text: str) -> MeasuredResponse:
     port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"), "")
     speed = reader.integer(keys["speed_steps_per_s"], "the servo speed (steps/s)", 0, 32767)
     acceleration = reader.integer(keys["acceleration"], "the acceleration register", 0, 254)
-    duty = reader.number(keys["duty_cycle"], "the duty cycle", "of a cycle", maximum=1)
+    duty = reader.number(keys["duty_cycle"], "the duty cycle", "(fraction)", maximum=1)
     if duty == 1:
         raise reader.error(keys["duty_cycle"], "expected a duty cycle below 1, found 1")
     items = reader.sequence(keys["points"], "the measured points")
@@ -159,6 +162,14 @@ def _parse(reader: Reader, text: str) -> MeasuredResponse:
         raise reader.error(keys["points"], f"expected at most {MAX_POINTS} measured points, "
                                            f"found {len(items)}")
     points = tuple(_point(reader, item) for item in items)
+    seen: set[tuple[float, int]] = set()
+    for item, point in zip(items, points, strict=True):
+        key = (point.frequency_hz, point.commanded_steps)
+        if key in seen:
+            raise reader.error(item, f"expected one point per frequency and stroke, found a "
+                                     f"second at {point.frequency_hz:g} Hz and "
+                                     f"{point.commanded_steps} steps")
+        seen.add(key)
     cycles = reader.optional(keys, "cycles", lambda n: reader.integer(n, "cycles", 1, 10_000), 0)
     return MeasuredResponse(reader.source, pin, servo, port, speed, acceleration, duty, points,
                             cycles)
@@ -197,7 +208,7 @@ def response_text(response: MeasuredResponse, measured_at: str) -> str:
     for p in response.points:
         lag = "" if p.lag_ms is None else f", lag_ms: {p.lag_ms:.3f}"
         lines.append(
-            f"  - {{frequency_hz: {p.frequency_hz:g}, stroke_commanded_steps: {p.commanded_steps}, "
+            f"  - {{frequency_hz: {p.frequency_hz!r}, stroke_commanded_steps: {p.commanded_steps}, "
             f"stroke_achieved_steps: {p.achieved_steps}, stroke_median_steps: "
             f"{p.median_steps:g}{lag}, cycles_short: {p.cycles_short}}}")
     return "\n".join(lines) + "\n"
