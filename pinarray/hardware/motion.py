@@ -12,7 +12,8 @@ achieved stroke
     from one up-going goal change to the next; the last one to the trial's end), with the
     median peak-to-peak beside it.
 lag
-    The median time from a goal change to the first sample within `ARRIVAL_STEPS` of it.
+    The median time from a goal change to the first sample within `ARRIVAL_STEPS` of it
+    (a change never reached counts as longer than any: none when at most half were reached).
 short cycles
     Cycles whose peak-to-peak fell below the tolerance (a fraction of the commanded stroke).
 
@@ -185,7 +186,9 @@ def _peak_to_peak(times: np.ndarray, positions: np.ndarray, start_ns: int,
 def _median_lag(times: np.ndarray, positions: np.ndarray, goals: Sequence[tuple[int, int]],
                 end_ns: int) -> int | None:
     """Median time from a goal change to the first sample within `ARRIVAL_STEPS` of it,
-    before the pin's next change; None when the pin never arrived while sampled."""
+    before the pin's next change, a change the pin never reached counting as longer than any;
+    None when it reached half of them or fewer (a median of those it reached would flatter a
+    servo that mostly turns back early)."""
     lags = []
     for k, (time_ns, goal) in enumerate(goals):
         until_ns = goals[k + 1][0] if k + 1 < len(goals) else end_ns
@@ -194,4 +197,10 @@ def _median_lag(times: np.ndarray, positions: np.ndarray, goals: Sequence[tuple[
                               <= ARRIVAL_STEPS)
         if len(near):
             lags.append(int(times[first + near[0]]) - time_ns)
-    return int(np.median(lags)) if lags else None
+    lags.sort()
+    # The unreached changes sort after every reached one: the median of all the changes is
+    # known only while its middle falls among the reached ones.
+    low, high = (len(goals) - 1) // 2, len(goals) // 2
+    if high >= len(lags):
+        return None
+    return (lags[low] + lags[high]) // 2

@@ -365,7 +365,8 @@ BEH_COLUMNS: tuple[Column, ...] = (
     Column("stroke_median", Cell.NUMBER, "That pin's median peak-to-peak over the cycles.",
            units="steps"),
     Column("motion_lag", Cell.SECONDS, "That pin's median time from a goal change to the first "
-           "sample within 3 steps of the goal; n/a when it never arrived while sampled.",
+           "sample within 3 steps of the goal, a change never reached counting as longer than any; "
+           "n/a when it reached no more than half of them.",
            units="s"),
     Column("cycles_short", Cell.INTEGER, "That pin's cycles whose peak-to-peak fell below the "
            "stroke tolerance."),

@@ -48,6 +48,9 @@ def test_a_pin_that_turns_back_early_is_short_by_what_it_missed():
     stroke = measure_pin(horn(goals, 75, 0, MS, 500 * MS), goals, 500 * MS)
     assert (stroke.commanded_steps, stroke.achieved_steps) == (114, 75)
     assert (stroke.cycles, stroke.short_cycles) == (5, 5)
+    # It reached its goal only on the way down, half the changes: no median lag to speak of
+    # (the way-down changes' lag alone would say it keeps up).
+    assert stroke.lag_ns is None
     strokes = TrialStrokes((stroke,), Fraction(8, 10))
     assert "pin 6 moved 75 of 114 commanded steps (66 %" in strokes.problem()
 
