@@ -28,6 +28,8 @@ SHORT_HORN = SEED.read_text().replace("2.0: 2113", "2.0: 2162").replace("lever_m
 RESPONSE = """\
 pin: 4
 servo: STS3215
+port: "sim://"
+cycles: 10
 speed_steps_per_s: 3000
 acceleration: 0
 duty_cycle: 1/2
@@ -114,7 +116,7 @@ def test_a_response_measured_on_the_simulator_is_refused_for_a_protocol_on_real_
         tmp_path, capsys):
     protocol, text = _with_response(tmp_path, [(1, 114, 114), (20, 114, 114)])
     (tmp_path / "r.yaml").write_text((tmp_path / "r.yaml").read_text().replace(
-        "pin: 4\n", "pin: 4\nport: \"sim://?speed=1500\"\n"))
+        'port: "sim://"', 'port: "sim://?speed=1500"'))
     protocol.write_text(text.replace('port: "sim://"', 'port: "/dev/ttyUSB0"'))
     status, out, err = run(capsys, "validate", protocol)
     assert (status, out) == (2, "")
@@ -126,7 +128,7 @@ def test_two_points_for_one_frequency_and_stroke_are_refused_at_the_second(tmp_p
     protocol, _ = _with_response(tmp_path, [(5, 16, 16), (5, 32, 32), (5, 16, 4)])
     status, out, err = run(capsys, "validate", protocol)
     assert (status, out) == (2, "")
-    assert err.startswith(f"{tmp_path / 'r.yaml'}:9:5: expected one point per frequency and "
+    assert err.startswith(f"{tmp_path / 'r.yaml'}:11:5: expected one point per frequency and "
                           "stroke, found a second at 5 Hz and 16 steps")
 
 
@@ -189,10 +191,10 @@ def test_a_measured_response_named_by_the_protocol_refuses_the_train_the_servo_d
 
 
 @pytest.mark.parametrize(("change", "where", "expected"), [
-    (("stroke_achieved_steps: 80", "stroke_achieved_steps: lots"), 8,
+    (("stroke_achieved_steps: 80", "stroke_achieved_steps: lots"), 10,
      "expected a whole number for a stroke (steps), found"),
     (("duty_cycle: 1/2\n", ""), 1, "the servo response needs a 'duty_cycle' key, found none"),
-    (("points:", "ponts:"), 6, "unknown key 'ponts' in the servo response; did you mean 'points'?"),
+    (("points:", "ponts:"), 8, "unknown key 'ponts' in the servo response; did you mean 'points'?"),
 ])
 def test_a_broken_response_file_is_refused_with_its_own_line_and_column(tmp_path, capsys, change,
                                                                         where, expected):
@@ -288,7 +290,7 @@ def test_a_rig_other_than_the_one_measured_is_warned_of(tmp_path):
 
     protocol, _ = _with_response(tmp_path, [(1, 114, 114), (20, 114, 114)])
     (tmp_path / "r.yaml").write_text((tmp_path / "r.yaml").read_text().replace(
-        "pin: 4\n", "pin: 4\nport: \"/dev/ttyUSB0\"\n"))
+        'port: "sim://"', 'port: "/dev/ttyUSB0"'))
     rig = Rig(load_protocol(protocol), None, "sim://", VirtualClock())
     try:
         assert ("feasibility follows the measured response of pin 4 (r.yaml), measured on "

@@ -109,11 +109,10 @@ def _cmd_response(args: argparse.Namespace) -> int:
     say(f"{'Hz':>7} {'stroke':>7} {'achieved':>9} {'median':>7} {'share':>6} {'lag ms':>7} "
         f"{'short':>6}")
 
-    def show(measured: measuring.Measured) -> None:
-        point = measured.point
-        if point is None:
-            say(f"{float(measured.frequency_hz):7g} {measured.stroke_steps:7d}  not measured: "
-                f"{measured.problem}")
+    def show(point: measuring.Measured) -> None:
+        if isinstance(point, measuring.NotMeasured):
+            say(f"{float(point.frequency_hz):7g} {point.stroke_steps:7d}  not measured: "
+                f"{point.problem}")
             return
         lag = "-" if point.lag_ms is None else f"{point.lag_ms:.1f}"
         say(f"{point.frequency_hz:7g} {point.commanded_steps:7d} {point.achieved_steps:9d} "

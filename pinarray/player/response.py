@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol import PinDrive
@@ -39,14 +39,16 @@ SETTLE_NS = 300 * NS_PER_MS  # at rest between two trains: the pin back at stand
 
 
 @dataclass(frozen=True)
-class Measured:
-    """One train played: its frequency and stroke, and the point measured (None: the pin's
-    position was sampled too seldom to judge a cycle; ``problem`` says why)."""
+class NotMeasured:
+    """A train played that taught nothing: not delivered as scheduled, or the pin's position
+    sampled too seldom to judge a cycle (``problem`` says which)."""
 
     frequency_hz: Fraction
     stroke_steps: int
-    point: ResponsePoint | None
     problem: str
+
+
+Measured: TypeAlias = "ResponsePoint | NotMeasured"  # one train played
 
 
 def protocol_train(protocol: Protocol, name: str | None) -> tuple[str, Train | TrainShape]:
@@ -121,17 +123,16 @@ def _measured(pin: int, frequency: Fraction, stroke: int, presentation: Presenta
     delivery = presentation.delivery
     if delivery.missing or delivery.worst_lateness_ns > delivery.tolerance_ns:
         # The servo was not told what the schedule says: nothing to learn of its response.
-        return Measured(frequency, stroke, None, delivery.problem)
+        return NotMeasured(frequency, stroke, delivery.problem)
     strokes = delivery.strokes
     mine = None if strokes is None else next((p for p in strokes.pins if p.pin == pin), None)
     if mine is None or mine.achieved_steps is None or mine.median_steps is None:
-        return Measured(frequency, stroke, None,
-                        "too few position samples to judge a cycle (the adapter's latency "
-                        "timer: see `pinarray timing --help`)")
+        return NotMeasured(frequency, stroke,
+                           "too few position samples to judge a cycle (the adapter's latency "
+                           "timer: see `pinarray timing --help`)")
     lag_ms = None if mine.lag_ns is None else mine.lag_ns / NS_PER_MS
-    point = ResponsePoint(float(frequency), stroke, mine.achieved_steps, mine.median_steps,
-                          lag_ms, mine.short_cycles)
-    return Measured(frequency, stroke, point, "")
+    return ResponsePoint(float(frequency), stroke, mine.achieved_steps, mine.median_steps,
+                         lag_ms, mine.short_cycles)
 
 
 def response_of(protocol: Protocol, pin: int, train: Train | TrainShape, port: str,
@@ -142,4 +143,4 @@ def response_of(protocol: Protocol, pin: int, train: Train | TrainShape, port: s
     duty = Fraction(train.up_pulses, train.pulses_per_cycle)
     return MeasuredResponse("", pin, servo.model, port, servo.speed_steps_per_s,
                             servo.acceleration_register, duty,
-                            tuple(m.point for m in results if m.point is not None), cycles)
+                            tuple(m for m in results if isinstance(m, ResponsePoint)), cycles)

@@ -147,11 +147,10 @@ def read_response(path: Path, reader: Reader, node: Node) -> MeasuredResponse:
 
 def _parse(reader: Reader, text: str) -> MeasuredResponse:
     root = reader.compose(text)
-    keys = reader.mapping(root, RESPONSE_KEYS, RESPONSE_KEYS - {"port", "cycles"},
-                          "servo response")
+    keys = reader.mapping(root, RESPONSE_KEYS, RESPONSE_KEYS, "servo response")
     pin = reader.integer(keys["pin"], "a pin", 1, 1024)
     servo = reader.string(keys["servo"], "the servo model")
-    port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"), "")
+    port = reader.string(keys["port"], "the port")
     speed = reader.integer(keys["speed_steps_per_s"], "the servo speed (steps/s)", 0, 32767)
     acceleration = reader.integer(keys["acceleration"], "the acceleration register", 0, 254)
     duty = reader.number(keys["duty_cycle"], "the duty cycle", "(fraction)", maximum=1)
@@ -170,7 +169,7 @@ def _parse(reader: Reader, text: str) -> MeasuredResponse:
                                      f"second at {point.frequency_hz:g} Hz and "
                                      f"{point.commanded_steps} steps")
         seen.add(key)
-    cycles = reader.optional(keys, "cycles", lambda n: reader.integer(n, "cycles", 1, 10_000), 0)
+    cycles = reader.integer(keys["cycles"], "cycles", 2, 1000)
     return MeasuredResponse(reader.source, pin, servo, port, speed, acceleration, duty, points,
                             cycles)
 
