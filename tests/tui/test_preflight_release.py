@@ -72,8 +72,7 @@ async def test_the_pre_flight_says_which_basis_feasibility_used(results):
         await pilot.click("#start")
         await settle(pilot)
         assert isinstance(app.screen, PreflightScreen)
-        status = str(app.screen.query_one("#preflight-status").render())
         assert "Which trains the pins can follow: datasheet figures (3000 steps/s, " \
-               "acceleration unlimited)." in " ".join(status.split())
+               "acceleration unlimited)." in " ".join(text(app, "#preflight-status").split())
         await pilot.press("escape")
         await settle(pilot)
