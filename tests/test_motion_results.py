@@ -80,6 +80,9 @@ def test_each_trial_s_samples_go_to_a_bids_motion_recording_beside_beh_tsv(tmp_p
     sidecar = json.loads(path.with_name(path.name.replace(".tsv.gz", ".json")).read_text())
     assert sidecar["Columns"] == ["timestamp", "trial", "pin", "position", "goal"]
     assert sidecar["SamplingFrequency"] == 1000 and sidecar["StartTime"] == 0
+    # recommended by BIDS for a physio recording: the task's name as beh.json gives it
+    manifest = json.loads(writer.paths.manifest.read_text())
+    assert (sidecar["TaskName"], sidecar["PhysioType"]) == (manifest["task_info"]["name"], "generic")
 
 
 KILLED_MID_RUN = textwrap.dedent("""

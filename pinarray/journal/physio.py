@@ -61,9 +61,11 @@ def motion_recording_path(paths: RunPaths) -> Path:
     return paths.beh_dir / f"{paths.stem}_recording-motion_physio.tsv.gz"
 
 
-def motion_sidecar(first: Sequence[MotionSample]) -> dict[str, Any]:
-    """The JSON that describes a run's motion recording, given its first trial's samples."""
-    return {"Description": "Where each moving pin was during each trial, sampled from its "
+def motion_sidecar(first: Sequence[MotionSample], task_name: str) -> dict[str, Any]:
+    """The JSON that describes a run's motion recording, given its first trial's samples and
+    the task's name (as the run's other sidecars give it)."""
+    return {"TaskName": task_name, "PhysioType": "generic",
+            "Description": "Where each moving pin was during each trial, sampled from its "
                            "servo in the slack between the stimulus's frames by pinarray.",
             "SamplingFrequency": median_rate_hz(first), "StartTime": 0,
             "Columns": list(MOTION_NAMES), **MOTION_COLUMNS}

@@ -460,8 +460,8 @@ class RunWriter:
             if self._motion is None:
                 sidecar = path.with_name(path.name.removesuffix(".tsv.gz") + ".json")
                 if not sidecar.exists():
-                    write_atomically(sidecar,
-                                     json.dumps(motion_sidecar(samples), indent=2) + "\n")
+                    described = motion_sidecar(samples, self.manifest.task_info.name)
+                    write_atomically(sidecar, json.dumps(described, indent=2) + "\n")
                 self._motion = MotionRecording(path)
                 fsync_folder(path.parent)
             self._motion.append(samples)
