@@ -51,11 +51,16 @@ async def fill_start(pilot, subject="01", session=None):
     await settle(pilot)
 
 
-async def to_run_screen(pilot, subject="01", resume=False):
-    """Start screen -> pre-flight (connected) -> run screen, with instructions showing."""
+async def to_preflight(pilot, subject="01", resume=False):
+    """Start screen -> pre-flight, connected."""
     await fill_start(pilot, subject)
     await pilot.click("#resume" if resume else "#start")
     await settle(pilot)
+
+
+async def to_run_screen(pilot, subject="01", resume=False):
+    """Start screen -> pre-flight (connected) -> run screen, with instructions showing."""
+    await to_preflight(pilot, subject, resume)
     await pilot.press("b")
     await settle(pilot)
 

@@ -3,7 +3,7 @@
 from pinarray.player.rig import Rig
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
-from tests.tui.conftest import SIZE, delay_column, fill_start, make_app, settle
+from tests.tui.conftest import SIZE, delay_column, fill_start, make_app, settle, to_preflight
 
 
 def text(app, selector):
@@ -68,9 +68,7 @@ async def test_connect_again_after_a_release_shows_the_return_delay_lowered_befo
 async def test_the_pre_flight_says_which_basis_feasibility_used(results):
     app = make_app(results)
     async with app.run_test(size=SIZE) as pilot:
-        await fill_start(pilot)
-        await pilot.click("#start")
-        await settle(pilot)
+        await to_preflight(pilot)
         assert isinstance(app.screen, PreflightScreen)
         assert "Which trains the pins can follow: datasheet figures (3000 steps/s, " \
                "acceleration unlimited)." in " ".join(text(app, "#preflight-status").split())
