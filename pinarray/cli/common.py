@@ -152,12 +152,14 @@ def png_path(text: str) -> str:
 
 
 def new_file(text: str) -> str:
-    """A file a command will write as it goes (a log): not a folder, in a folder that exists."""
+    """A file a command will write as it goes (a log): not a folder, in a folder that exists
+    (an argparse ``type=``: refused with the option's name and usage, exit status 2)."""
     if os.path.isdir(text):
-        raise PinArrayError(f"{text}: cannot write: it is a folder, expected a file name")
+        raise argparse.ArgumentTypeError(f"{text}: cannot write: it is a folder, expected a "
+                                         "file name")
     folder = os.path.dirname(text) or "."
     if not os.path.isdir(folder):
-        raise PinArrayError(f"{text}: cannot write: no folder {folder!r}")
+        raise argparse.ArgumentTypeError(f"{text}: cannot write: no folder {folder!r}")
     return text
 
 
