@@ -268,6 +268,37 @@ def test_servos_response_refuses_a_bad_list_on_one_line(tmp_path, capsys, option
     assert status == 2 and err.count("\n") == 1 and err.startswith(f"pinarray: {option}: expected")
 
 
+@pytest.mark.parametrize("value", ["1e-400", "1e-99999999999", "１０", "1_0", "3,5,3"])
+def test_servos_response_refuses_frequencies_written_past_a_protocols_rules_on_one_line(
+        capsys, value):
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim",
+                           "--frequencies", value)
+    assert (status, out) == (2, "")
+    assert err.count("\n") == 1 and err.startswith("pinarray: --frequencies: ")
+
+
+@pytest.mark.parametrize(("options", "lowest"), [
+    (["--frequencies", "0.001"], "0.001 Hz"),
+    (["--frequencies", "0.1,5", "--cycles", "1000"], "0.1 Hz"),
+])
+def test_servos_response_refuses_trains_that_would_play_for_hours_with_the_estimate_and_what_to_change(
+        tmp_path, capsys, options, lowest):
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim", *options)
+    assert (status, out) == (2, "")
+    assert err.count("\n") == 1 and "would play for about" in err and lowest in err
+    assert "at most 1 h: raise the lowest --frequencies, or play fewer --cycles or --strokes" in err
+
+
+@pytest.mark.parametrize("taken", ["r.yaml", "r.png", "r.pdf"])
+def test_servos_response_refuses_an_output_it_could_not_write_before_measuring(
+        tmp_path, capsys, taken):
+    (tmp_path / taken).mkdir()
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim",
+                           "--frequencies", "5", "--strokes", "65", "--out", tmp_path / "r.yaml")
+    assert (status, out) == (2, "")  # nothing played: no table
+    assert err == f"pinarray: {tmp_path / taken}: cannot write: it is a folder, expected a file name\n"
+
+
 def test_servos_response_says_hobby_pwm_servos_report_no_position_and_moves_nothing(capsys):
     pwm = SEED.with_name("localisation_pwm.yaml")
     status, out, err = run(capsys, "servos", "response", pwm, "--pin", 1, "--sim")

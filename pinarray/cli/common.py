@@ -154,13 +154,46 @@ def png_path(text: str) -> str:
 def new_file(text: str) -> str:
     """A file a command will write as it goes (a log): not a folder, in a folder that exists
     (an argparse ``type=``: refused with the option's name and usage, exit status 2)."""
+    problem = _unwritable(text)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
+def check_new_file(text: str) -> None:
+    """Refuse, before any work, a file a command will write that it could not: a folder, in
+    a folder that does not exist or cannot be written."""
+    problem = _unwritable(text)
+    if problem:
+        raise PinArrayError(problem)
+
+
+def check_output_folder(text: str, names: tuple[str, ...]) -> None:
+    """Refuse, before any work, a folder of outputs that could not be written: a file where
+    the folder or one of ``names`` in it should be, or a place where it cannot be made."""
+    if os.path.exists(text) and not os.path.isdir(text):
+        raise PinArrayError(f"{text}: cannot write there: it is a file, expected a folder")
+    made = text
+    while not os.path.exists(made):  # the nearest folder that exists must take the new one
+        made = os.path.dirname(os.path.abspath(made))
+    if not os.path.isdir(made):
+        raise PinArrayError(f"{text}: cannot write there: {made} is a file, not a folder")
+    if not os.access(made, os.W_OK | os.X_OK):
+        raise PinArrayError(f"{text}: cannot write there: {made}: permission denied")
     if os.path.isdir(text):
-        raise argparse.ArgumentTypeError(f"{text}: cannot write: it is a folder, expected a "
-                                         "file name")
+        for name in names:
+            check_new_file(os.path.join(text, name))
+
+
+def _unwritable(text: str) -> str | None:
+    if os.path.isdir(text):
+        return f"{text}: cannot write: it is a folder, expected a file name"
     folder = os.path.dirname(text) or "."
     if not os.path.isdir(folder):
-        raise argparse.ArgumentTypeError(f"{text}: cannot write: no folder {folder!r}")
-    return text
+        return f"{text}: cannot write: no folder {folder!r}"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{text}: cannot write: permission denied in {folder!r}"
+    return None
 
 
 class OutputFile:

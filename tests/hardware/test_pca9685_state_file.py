@@ -90,10 +90,15 @@ def test_a_file_the_simulator_did_not_write_is_refused_in_one_line_and_left_as_i
     assert sorted(p.name for p in tmp_path.iterdir()) == ["board"]  # no lock, no temporary
 
 
-def test_a_device_named_as_the_state_file_is_refused_without_being_opened():
+def test_a_device_named_as_the_state_file_is_refused_without_being_opened(tmp_path):
+    # Named through a link in tmp_path: should the refusal ever break, the link is what gets
+    # replaced, never the machine's /dev/full.
+    state = tmp_path / "board"
+    state.symlink_to("/dev/full")
     with refused_within_seconds(5), pytest.raises(PinArrayError, match="character device"):
-        SimI2cLink(state_url("/dev/full"), MonotonicClock())
-    assert stat.S_ISCHR(os.stat("/dev/full").st_mode)
+        SimI2cLink(state_url(state), MonotonicClock())
+    assert os.readlink(state) == "/dev/full" and stat.S_ISCHR(os.stat("/dev/full").st_mode)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["board"]
 
 
 def test_the_boards_come_back_from_their_file_as_they_were_left(tmp_path):
