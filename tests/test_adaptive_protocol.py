@@ -61,6 +61,19 @@ MISTAKES = [
      "expected stroke_steps (this device's positions are in steps)"),
     (QUEST, "lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0, 0.6]", "lapse_rates:",
      "expected each of the lapse rates of at most 0.5"),
+    # A prior no run can use: it weighs one threshold, 1e90, where no value is ever felt.
+    (QUEST, "threshold_prior: {mean: 40, sd: 30}",
+     "thresholds: [1e90, 2e90]\n        threshold_prior: {mean: 1, sd: 1e-90}",
+     "threshold_prior:", "procedure 'quest': at every value (4 to 120) a correct answer has "
+     "less than a 1e-12 chance under every threshold its prior weighs (1e+90 to 1e+90, 1 of 2)"),
+    (QUEST, "threshold_prior: {mean: 40, sd: 30}", "thresholds: [1e90, 2e90]", "thresholds:",
+     "under every threshold of its grid (1e+90 to 2e+90)"),
+    # Far below every value, with no lapse: nothing but a correct answer can come.
+    (QUEST.replace("lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0]"),
+     "threshold_prior: {mean: 40, sd: 30}", "thresholds: [1e-90, 2e-90]", "thresholds:",
+     "a wrong answer has less than a 1e-12 chance under every threshold of its grid (1e-90 to "
+     "2e-90): no answer can move it, and a run would stop at the first such answer; bring the "
+     "thresholds and the prior near the values, or state a lapse rate above 0"),
 ]
 
 

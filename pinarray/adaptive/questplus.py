@@ -52,12 +52,19 @@ _MATCH_RELATIVE = 1e-9  # an intensity read back from disk matches a domain valu
 
 def normal_weights(values: tuple[float, ...], mean: float, sd: float) -> tuple[float, ...]:
     """Prior weights proportional to a normal density with ``mean`` and ``sd`` (the values'
-    unit) at each value, scaled so the largest is 1 (a prior's weights need not sum to 1)."""
+    unit) at each value, scaled so the largest is 1 (a prior's weights need not sum to 1).
+
+    Each is taken relative to the value nearest the mean, ``exp(-(d**2 - d0**2) / (2 sd**2))``
+    with ``d**2 - d0**2`` factored as ``(d - d0)(d + d0)``: a normal far narrower than the
+    values' spacing, or far from them, gives the nearest value all the weight, never NaN."""
     if not (np.isfinite(mean) and np.isfinite(sd) and sd > 0):
         raise PinArrayError(f"a normal prior needs a finite mean and an sd above 0, found {mean}, {sd}")
-    z = (np.asarray(values, dtype=np.float64) - mean) / sd
-    log_density = -0.5 * z * z
-    return tuple(float(w) for w in np.exp(log_density - log_density.max()))
+    d = np.asarray(values, dtype=np.float64) - mean
+    nearest = d[np.argmin(np.abs(d))]
+    with np.errstate(over="ignore"):  # an overflow is an exponent of -inf: a weight of 0
+        apart, beside = (d - nearest) / sd, (d + nearest) / sd
+        exponent = np.where((apart == 0) | (beside == 0), 0.0, apart * beside)
+    return tuple(float(w) for w in np.exp(-0.5 * exponent))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -15,7 +15,6 @@ blocks, never the samples of a trial, let alone of the file.
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Iterable
 from fractions import Fraction
 from typing import TYPE_CHECKING
@@ -32,8 +31,8 @@ if TYPE_CHECKING:
 # minute here (an hour of the seed train at 100 kHz, 360 000 000 samples, takes 2 s). A 48 h
 # train at 10 MHz would be 1.7e12 samples, 3.5 TB: refused with what to change.
 MAX_DAQ_SAMPLES = 10_000_000_000
+SAMPLES_PER_S = MAX_DAQ_SAMPLES / 60  # written here, about
 SAMPLE_BYTES = 2
-PROGRESS_SAMPLES = 1_000_000_000  # files this large say how far they are, a line per tenth
 
 # A trial's condition as columns of the archive: (name, dtype, value when it does not apply).
 _CONDITION_COLUMNS = (
@@ -121,16 +120,15 @@ class DaqSamples:
         from pinarray.schedule import daq_words
 
         written = 0
-        tenth = self.total // 10 if self.total >= PROGRESS_SAMPLES else 0
+        tell = common.progress("compile: samples written", self.total,
+                               self.total / SAMPLES_PER_S)
         for planned, schedule in trials:
             index = planned.trial - 1
             assert written == self.firsts[index], "trials come in plan order"
             for words in daq_words(schedule.pulses, self.rate_hz, int(self.counts[index])):
                 member.write(words)
-                if tenth and (written + len(words)) // tenth > written // tenth:
-                    print(f"compile: {100 * (written + len(words)) // self.total} % of "
-                          f"{self.total:,} samples written", file=sys.stderr, flush=True)
                 written += len(words)
+                tell(written)
         assert written == self.total
 
     def _layout(self) -> dict:
@@ -163,7 +161,7 @@ def _check_work(path: str, total: int, rate_hz: int) -> None:
         fits = max(1, rate_hz * MAX_DAQ_SAMPLES // total)
         raise PinArrayError(
             f"--daq-rate: {total:,} samples at {rate_hz:,} Hz, a file of {_bytes(size)} (about "
-            f"{duration_words(total / (MAX_DAQ_SAMPLES / 60))} to write); at most "
+            f"{duration_words(total / SAMPLES_PER_S)} to write); at most "
             f"{MAX_DAQ_SAMPLES:,} samples: lower --daq-rate (at most {fits:,} Hz for this plan) "
             "or compile fewer or shorter trials")
     if os.path.exists(path) and not os.path.isfile(path):

@@ -60,6 +60,7 @@ from pinarray.protocol.procedures import (
     Task,
     UniformPrior,
 )
+from pinarray.protocol.quest_grid import uninformative
 from pinarray.protocol.stimuli import check_period, check_train_on_pins
 from pinarray.protocol.yaml_nodes import Invalid, MappingNode, Node, Reader
 
@@ -71,7 +72,9 @@ QUEST_KEYS = {"method", "function", "thresholds", "slopes", "lapse_rates", "thre
 MAX_VALUES = 1000  # values a parameter may take, and thresholds a QUEST+ grid may hold
 MAX_PROCEDURES = 16
 MAX_PROCEDURE_TRIALS = 2000
-# QUEST+'s grid: values x thresholds x slopes x lapse rates, what its tables hold (8 B each).
+# QUEST+'s grid: values x thresholds x slopes x lapse rates, what its two tables hold (8 B
+# each), summed over a design's procedures: a run holds them all (64 MB at most), and a trial
+# computes over its procedure's (about 60 ms at the limit).
 MAX_GRID = 4_000_000
 MAX_CHECKS = 20_000  # (value, stimulus) pairs checked as they would play
 RESERVED = (CATCH, PRACTICE)
@@ -203,7 +206,18 @@ def _procedures(reader: Reader, node: Node, values: tuple[Fraction, ...],
                 partial(_procedure, reader, value_node, name, values, guess), None)
             if procedure is not None:
                 procedures.append(procedure)
+    # A run holds every procedure's tables at once, and power computes over them all.
+    size = sum(_grid_size(p, values) for p in procedures if isinstance(p, QuestPlus))
+    if size > MAX_GRID:
+        raise reader.error(node, f"expected QUEST+ grids of at most {MAX_GRID:,} points in all "
+                                 "(values x thresholds x slopes x lapse rates, summed over the "
+                                 f"procedures), found {size:,}")
     return tuple(procedures)
+
+
+def _grid_size(procedure: QuestPlus, values: tuple[Fraction, ...]) -> int:
+    return (len(values) * len(procedure.thresholds) * len(procedure.slopes)
+            * len(procedure.lapse_rates))
 
 
 def _procedure(reader: Reader, node: Node, name: str, values: tuple[Fraction, ...],
@@ -288,7 +302,7 @@ def _quest_plus(reader: Reader, node: Node, keys: dict[str, Node], name: str,
                                                            f"{float(1 - guess):g} (1 - the guess "
                                                            f"rate), found {float(max(lapses)):g}")
     size = len(values) * len(thresholds) * len(slopes) * len(lapses)
-    if size > MAX_GRID:
+    if size > MAX_GRID:  # this one alone; `_procedures` adds them up
         raise reader.error(node, f"expected a QUEST+ grid of at most {MAX_GRID:,} points (values "
                                  f"x thresholds x slopes x lapse rates), found {size:,}")
     prior = reader.optional(keys, "threshold_prior", lambda n: _prior(reader, n),
@@ -296,7 +310,12 @@ def _quest_plus(reader: Reader, node: Node, keys: dict[str, Node], name: str,
     width = reader.optional(keys, "stop_below_width",
                             lambda n: reader.number(n, "the credible interval's width", ""),
                             Fraction(0))
-    return QuestPlus(name, function, thresholds, slopes, lapses, prior, trials, width)
+    procedure = QuestPlus(name, function, thresholds, slopes, lapses, prior, trials, width)
+    problem = uninformative(procedure, values, guess)
+    if problem:
+        where = next((keys[k] for k in ("threshold_prior", "thresholds") if k in keys), node)
+        raise reader.error(where, problem)
+    return procedure
 
 
 def _grid(reader: Reader, node: Node, what: str, zero: bool) -> tuple[Fraction, ...]:

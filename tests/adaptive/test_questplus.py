@@ -1,8 +1,12 @@
 """QUEST+: the expected-entropy shortcut against the entropy computed directly, the threshold
 recovered by simulated subjects, replay, stability, stopping and refusals."""
 
+import warnings
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
@@ -141,6 +145,25 @@ def test_a_stated_prior_shapes_the_starting_posterior():
     assert 7.0 < summary.threshold_mean < 9.0
     assert summary.lapse_mean == 0.0
     assert summary.slope_mean == pytest.approx(np.mean(SLOPES), rel=1e-12)
+
+
+magnitudes = st.floats(1e-100, 1e100)
+
+
+@settings(max_examples=200, deadline=None)
+@given(values=st.lists(magnitudes, min_size=1, max_size=8, unique=True).map(sorted),
+       mean=magnitudes, sd=magnitudes)
+def test_a_normal_prior_weighs_the_value_nearest_its_mean_1_and_the_rest_0_to_1_never_nan(
+        values, mean, sd):
+    # However far the values lie from the mean and however narrow the normal: the weights a
+    # protocol may state (numbers within 1e±100) stay usable, and nothing warns on stderr.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        weights = np.asarray(normal_weights(tuple(values), mean, sd))
+        QuestPlus.prepare(rule(thresholds=tuple(values), threshold_prior=tuple(weights)))
+    assert np.all((weights >= 0) & (weights <= 1))
+    nearest = int(np.argmin(np.abs(np.asarray(values) - mean)))
+    assert weights[nearest] == 1.0
 
 
 def test_the_credible_interval_is_read_from_the_threshold_marginal():
