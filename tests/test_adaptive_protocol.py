@@ -70,6 +70,10 @@ MISTAKES = [
      "values: {from: 4, to: 120, step: 4}", "values: {from: 200, to: 1000, step: 20}", "values:",
      "at duration_ms 220: pin 6 cannot follow its train at 5 Hz (datasheet figures): the "
      "signal's length (or its phase) cuts a cycle, leaving a lift of 20.0 ms"),
+    # A catch trial's right answer is "no motion": a wave that moves cannot be its stimulus.
+    (STAIRCASES, "{count: 4, stimulus: no_wave}", "{count: 4, stimulus: rightwards}",
+     "catch_trials:", "expected a no-wave control (wave: none) for catch trials, whose right "
+     "answer is no motion; found 'rightwards', a wave going right"),
     # A prior no run can use: it weighs one threshold, 1e90, where no value is ever felt.
     (QUEST, "threshold_prior: {mean: 40, sd: 30}",
      "thresholds: [1e90, 2e90]\n        threshold_prior: {mean: 1, sd: 1e-90}",

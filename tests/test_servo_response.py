@@ -195,15 +195,22 @@ def test_a_measured_response_named_by_the_protocol_refuses_the_train_the_servo_d
      "expected a whole number for a stroke (steps), found"),
     (("duty_cycle: 1/2\n", ""), 1, "the servo response needs a 'duty_cycle' key, found none"),
     (("points:", "ponts:"), 8, "unknown key 'ponts' in the servo response; did you mean 'points'?"),
+    (("pin: 4", "pin: 99"), 1, "expected a pin from 1 to 16 (the protocol's grid), found 99"),
+    (("stroke_achieved_steps: 80", "stroke_achieved_steps: 800"), 10,
+     "expected a stroke achieved of at most 125 steps (114 commanded, and a tenth of it for an "
+     "overshoot), found 800"),
+    (("", ""), 0, "expected a servo response (`pinarray servos response` writes one), found an "
+     "empty file"),
 ])
 def test_a_broken_response_file_is_refused_with_its_own_line_and_column(tmp_path, capsys, change,
                                                                         where, expected):
-    (tmp_path / "r.yaml").write_text(RESPONSE.replace(*change))
+    (tmp_path / "r.yaml").write_text(RESPONSE.replace(*change) if change[0] else "")
     (tmp_path / "p.yaml").write_text(SHORT_HORN.replace("  port: \"sim://\"\n",
                                                         "  port: \"sim://\"\n  response: r.yaml\n"))
     status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
     assert (status, out) == (2, "")
-    assert f"{tmp_path / 'r.yaml'}:{where}:" in err and expected in err
+    located = f"{tmp_path / 'r.yaml'}:{where}:" if where else f"{tmp_path / 'r.yaml'}: "
+    assert located in err and expected in err
     assert "Traceback" not in err
 
 

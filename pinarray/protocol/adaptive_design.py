@@ -36,6 +36,7 @@ from pinarray.protocol.drives import check_no_overlap, pulse_slots
 from pinarray.protocol.model import (
     Condition,
     Device,
+    Direction,
     LocalisationCondition,
     MotionCondition,
     Paradigm,
@@ -182,9 +183,15 @@ def _catch(reader: Reader, node: Node, paradigm: Paradigm, parameter: Parameter,
                                      "can be presented at 0 (nothing lifts)")
         return CatchTrials(count)
     name = reader.string(keys["stimulus"], "the catch trials' stimulus", tuple(by_name))
-    if paradigm is not Paradigm.APPARENT_MOTION or not isinstance(by_name[name], WaveStimulus):
+    stimulus = by_name[name]
+    if paradigm is not Paradigm.APPARENT_MOTION or not isinstance(stimulus, WaveStimulus):
         raise reader.error(keys["stimulus"], f"expected a wave stimulus of an apparent_motion "
                                              f"design for catch trials, found {name!r}")
+    if stimulus.wave.direction != Direction.NONE:
+        # A catch trial's right answer is that nothing moved: a moving wave has a direction.
+        raise reader.error(keys["stimulus"], f"expected a no-wave control (wave: none) for catch "
+                                             f"trials, whose right answer is no motion; found "
+                                             f"{name!r}, a wave going {stimulus.wave.direction}")
     return CatchTrials(count, name)
 
 

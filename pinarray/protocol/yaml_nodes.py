@@ -169,8 +169,9 @@ class Reader:
 
     # -- structure ---------------------------------------------------------------------------
 
-    def compose(self, text: str) -> Node:
-        """The node tree of ``text``: one document, bounded in depth and aliases."""
+    def compose(self, text: str, what: str = "a protocol") -> Node:
+        """The node tree of ``text``: one document, bounded in depth and aliases (``what``
+        the file should hold, for an empty one)."""
         bad = _NOT_PRINTABLE.search(text)
         if bad:
             line = text.count("\n", 0, bad.start()) + 1
@@ -190,7 +191,7 @@ class Reader:
         except yaml.YAMLError as problem:
             self._fail(f"malformed YAML: {' '.join(str(problem).split())}")
         if root is None:
-            self._fail("expected a protocol, found an empty file")
+            self._fail(f"expected {what}, found an empty file")
         return root
 
     def _fail(self, message: str, line: int = 0, col: int = 0) -> NoReturn:

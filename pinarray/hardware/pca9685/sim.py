@@ -54,6 +54,7 @@ from pinarray.hardware.pca9685 import board_file
 from pinarray.hardware.pca9685 import registers as r
 from pinarray.hardware.pca9685.board_sim import SimulatedBoard
 from pinarray.hardware.pca9685.i2c import I2cMessage, I2cNack, Listener
+from pinarray.hardware.sim_urls import sim_query
 from pinarray.units import NS_PER_S
 
 SCHEME_PREFIX = "sim://pca9685"
@@ -125,7 +126,7 @@ class SimI2cLink:
     def __init__(self, url: str, clock: Clock):
         if not is_pca9685_url(url):
             raise PinArrayError(f"expected a sim://pca9685?... URL, found {url!r}")
-        query = dict(parse_qsl(urlsplit(url).query, keep_blank_values=True))
+        query = sim_query(url, urlsplit(url).query)
         unknown = sorted(set(query) - set(_KNOWN_KEYS))
         if unknown:
             raise PinArrayError(f"{url}: unknown key(s) {', '.join(unknown)}; "
