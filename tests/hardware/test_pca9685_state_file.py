@@ -136,3 +136,22 @@ def test_a_board_kept_in_a_file_asks_for_real_time_in_words_that_fit_the_command
     assert main(words) == 2
     assert "--speed must be 1" in capsys.readouterr().err
     assert not (tmp_path / "results").exists()
+
+
+@pytest.mark.parametrize("command", [["pwm", "scan"], ["play", "localisation_pwm.yaml"]])
+def test_play_and_pwm_scan_refuse_a_fifo_named_as_the_state_file_at_once(tmp_path, capsys,
+                                                                         command):
+    from pathlib import Path
+
+    from pinarray.cli import main
+
+    state = tmp_path / "board"
+    os.mkfifo(state)
+    words = [str(Path(__file__).parents[2] / "protocols" / word) if word.endswith(".yaml")
+             else word for word in command]
+    with refused_within_seconds(10):  # it used to wait on the FIFO, deaf to SIGTERM
+        status = main([*words, "--sim", state_url(state)])
+    assert status == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "found a FIFO (named pipe)" in err
+    assert stat.S_ISFIFO(state.lstat().st_mode)
