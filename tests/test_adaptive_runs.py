@@ -239,10 +239,10 @@ def test_a_localisation_row_names_the_frequency_an_adaptive_design_played(tmp_pa
 
 
 def edited_run(root, trial_index=2):
-    """A staircase run of 23 answers, killed, whose ``trial_index``-th counted row had its
+    """A staircase run of 8 answers, killed, whose ``trial_index``-th counted row had its
     ``correct`` cell flipped by hand; returns (beh.tsv, that row's line, its trial)."""
     first, _ = open_session(root, STAIRCASES)
-    answer_all(first, subject_for(STAIRCASES, threshold=120), stop_after=23)
+    answer_all(first, subject_for(STAIRCASES, threshold=120), stop_after=8)
     first.writer.close()  # killed
     beh = first.writer.paths.beh_tsv
     lines = beh.read_text().splitlines(keepends=True)

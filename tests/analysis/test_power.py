@@ -183,13 +183,19 @@ def test_power_refuses_an_out_it_could_not_write_before_simulating_anything(tmp_
     assert err == f"pinarray: {tmp_path / 'power'}: cannot write there: it is a file, expected a folder\n"
 
 
+def test_power_hears_of_each_study_by_the_simulated_subjects_done():
+    heard = []
+    power_study(MOTION, ObserverModel(), [2, 3], 10, seed=1, progress=heard.append)
+    assert heard == [2 * k for k in range(1, 11)] + [20 + 3 * k for k in range(1, 11)]
+
+
 def test_power_that_may_take_a_while_says_how_far_it_is(tmp_path, capsys, monkeypatch):
     from pinarray.cli import common
 
-    monkeypatch.setattr(common, "PROGRESS_AFTER_S", 0.0)
-    status, out, err = run_power(capsys, PROTOCOLS / "apparent_motion.yaml", "--studies", 10,
-                                 "--subjects", "2,3", "--out", tmp_path / "power")
+    monkeypatch.setattr(common, "PROGRESS_AFTER_S", 0.0)  # an adaptive design: no figures
+    status, out, err = run_power(capsys, PROTOCOLS / "staircase_motion.yaml", "--studies", 10,
+                                 "--out", tmp_path / "power")
     assert status == 0
     lines = [line for line in err.splitlines() if line.startswith("power: simulated subjects: ")]
-    assert lines[-1] == "power: simulated subjects: 50 of 50 (100 %)"
-    assert 2 <= len(lines) <= 10
+    assert lines[0].startswith("power: simulated subjects: 1 of 10 (10 %), about ")
+    assert lines[-1] == "power: simulated subjects: 10 of 10 (100 %)" and len(lines) == 10
