@@ -191,3 +191,36 @@ def test_a_read_is_answered_the_moment_its_last_byte_arrives_in_virtual_time(que
     request, reply = bus.read_request_bytes((5,)), 6 + 2
     return_delay_ns = bus.sim.servos[5].return_delay_ns
     assert bus.clock.now_ns() - start_ns == bus.wire_ns(request + reply) + return_delay_ns
+
+
+class PolledOnly:
+    """The simulated port without `readable_at_ns`: its reader polls, as for a pyserial URL."""
+
+    def __init__(self, port):
+        self._port = port
+
+    def __getattr__(self, name):
+        if name == "readable_at_ns":
+            raise AttributeError(name)
+        return getattr(self._port, name)
+
+
+@pytest.mark.parametrize("query", ["", "drop_writes=0.1&seed=4", "late=0.05&late_ms=3&seed=2"])
+def test_waiting_for_the_ports_bytes_or_polling_for_them_delivers_and_measures_the_same(query):
+    reports = []
+    for polled in (False, True):
+        bus = sim_bus(query)
+        if polled:
+            bus.link.wire.port = PolledOnly(bus.link.wire.port)
+            bus.link.wire._readable_at_ns = None
+        reports.append(play_prepared(bus, prepare_trial(bus, pulse_train([4, 9], 5, 4, 2162)),
+                                     bus.clock))
+    waited, polled = reports
+    assert waited.delivery.missing == polled.delivery.missing == 0
+    assert (waited.delivery.confirmed, waited.delivery.healed) == (
+        polled.delivery.confirmed, polled.delivery.healed)
+    for a, b in zip(waited.delivery.strokes.pins, polled.delivery.strokes.pins, strict=True):
+        assert (a.commanded_steps, a.achieved_steps, a.cycles, a.short_cycles) == (
+            b.commanded_steps, b.achieved_steps, b.cycles, b.short_cycles)
+        # polling every 20 us finds a reply up to 20 us after it arrived; waiting, at once
+        assert abs(a.lag_ns - b.lag_ns) <= 20_000
