@@ -389,6 +389,15 @@ class RunWriter:
         except OSError as problem:
             raise unwritable(problem, self.paths.manifest, mid_run=True) from None
 
+    def note_timing_check(self, said: str) -> None:
+        """Record what the pre-flight's timing check said before this sitting (in words)."""
+        sittings = (*self.manifest.sittings[:-1], replace(self.sitting, timing_check=said))
+        self.manifest = updated(self.manifest, sittings=sittings)
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
+
     # -- scanner volumes ---------------------------------------------------------------------
 
     def log_volumes(self, pending: Callable[[], Sequence[VolumeRow]]) -> None:

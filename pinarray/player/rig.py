@@ -15,8 +15,9 @@ where the bus still answers.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.errors import PinArrayError
@@ -31,7 +32,9 @@ from pinarray.player.playback import (
 )
 from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import (
+    CHECK_SLICE_NS,
     DEFAULT_PERIOD_NS,
+    CheckSkipped,
     PortFigures,
     Verdict,
     WakeUps,
@@ -256,27 +259,48 @@ class Rig:
                       up_width_ns=widths[-1], down_width_ns=widths[0])
         return self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
 
+    @overload
     def check_timing(self, duration_ns: int | None = None,
-                     period_ns: int = DEFAULT_PERIOD_NS) -> Verdict:
+                     period_ns: int = DEFAULT_PERIOD_NS) -> Verdict: ...
+
+    @overload
+    def check_timing(self, duration_ns: int | None, period_ns: int = DEFAULT_PERIOD_NS, *,
+                     progress: Callable[[int, int], bool]) -> Verdict | CheckSkipped: ...
+
+    def check_timing(self, duration_ns: int | None = None, period_ns: int = DEFAULT_PERIOD_NS,
+                     progress: Callable[[int, int], bool] | None = None
+                     ) -> Verdict | CheckSkipped:
         """Measure this machine's wake-ups in a player process and judge the protocol's timing.
 
         ``duration_ns`` None: as long as the protocol's trials need for a verdict that holds
         from one try to the next (`pinarray.player.timing.duration_for`). On the in-process
         simulator a player process is started just for the measurement: the question is
-        whether this machine could play real servos in time.
+        whether this machine could play real servos in time. ``progress(measured_ns,
+        duration_ns)`` is told after every `CHECK_SLICE_NS` measured; when it returns False the
+        check ends there, `CheckSkipped`.
         """
         with self._port:
-            return self._check_timing(duration_ns, period_ns)
+            return self._check_timing(duration_ns, period_ns, progress)
 
-    def _check_timing(self, duration_ns: int | None, period_ns: int) -> Verdict:
+    def _check_timing(self, duration_ns: int | None, period_ns: int,
+                      progress: Callable[[int, int], bool] | None) -> Verdict | CheckSkipped:
         from pinarray.player.process import PlayerProcess
 
         busiest, frames, window_ns = self._frames()
         if duration_ns is None:
             duration_ns = duration_for(frames, period_ns)
         player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
+        lateness_ns: list[int] = []
         try:
-            wake_ups = WakeUps.of(player.measure_wake_ups(duration_ns, period_ns))
+            measured_ns = 0
+            while measured_ns < duration_ns:
+                slice_ns = min(CHECK_SLICE_NS, duration_ns - measured_ns)
+                lateness_ns += player.measure_wake_ups(slice_ns, period_ns)
+                measured_ns += slice_ns
+                if progress is not None and not progress(measured_ns, duration_ns):
+                    if measured_ns < duration_ns:
+                        return CheckSkipped(measured_ns, duration_ns)
+            wake_ups = WakeUps.of(lateness_ns)
             problem = player.realtime_problem
         finally:
             if player is not self.player:

@@ -39,7 +39,7 @@ from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.player.rig import Rig
 from pinarray.player.simulators import SimulatedArrays
-from pinarray.player.timing import Verdict
+from pinarray.player.timing import CheckSkipped, Verdict
 from pinarray.protocol import Protocol
 from pinarray.protocol.imaging import EmulatedTrigger, ScannerSync
 from pinarray.session.trials import Phase, Session, Stimulator, task_label
@@ -155,6 +155,8 @@ class Sitting:
         self.lsl_name = lsl_name
         self.marker_stream: MarkerStream | None = None
         self.scanner: Scanner | None = None
+        # What the last timing check on this connection said, for the run's manifest.
+        self.timing_check = ""
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
         # Set while the rig is being closed: a pause must not clear the stop a close relies on.
@@ -196,6 +198,7 @@ class Sitting:
         """
         self.release("connecting again")
         self.request = request
+        self.timing_check = ""
         with self._jobs_done:
             self._closing = False
             if self.stop.signal_number is None:
@@ -243,11 +246,20 @@ class Sitting:
         request.protocol.device.grid.check_pin(pin)
         self._busy(lambda: rig.test_pin(pin))
 
-    def check_timing(self, duration_ns: int | None) -> Verdict | None:
+    def check_timing(self, duration_ns: int | None,
+                     progress: Callable[[int, int], bool] = lambda done_ns, total_ns: True
+                     ) -> Verdict | CheckSkipped | None:
         """This machine's timing verdict (blocking: call it from a worker), None if stopped;
-        see `Rig.check_timing`."""
+        see `Rig.check_timing`. What it said goes into the next run's manifest."""
         rig = self.connected()
-        return self._busy(lambda: rig.check_timing(duration_ns))
+        outcome = self._busy(lambda: rig.check_timing(duration_ns, progress=progress))
+        match outcome:
+            case Verdict(judgement=judgement, lines=lines):
+                said = [line for line in lines if line.startswith(f"{judgement.value}:")]
+                self.timing_check = said[0] if said else judgement.value
+            case CheckSkipped():
+                self.timing_check = "timing check " + outcome.describe()
+        return outcome
 
     def lower_return_delay(self, delay_us: int = 0
                            ) -> tuple[tuple[ReturnDelayChange, ...], tuple[ServoFailure, ...]] | None:
@@ -345,6 +357,8 @@ class Sitting:
             clock=self.rig.bus_clock, experimenter=request.experimenter,
             scanner=None if scanner is None else scanner.record(),
         )
+        if self.timing_check:
+            writer.note_timing_check(self.timing_check)
         self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
                                      scanner=scanner, marked=self.marker_stream is not None,
                                      on_change=on_change)
