@@ -17,7 +17,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 from tests.benchmarks._timing import SPREAD_HEADER, interleaved_seconds, median, ratio, spread
 from tests.runs import REPO
