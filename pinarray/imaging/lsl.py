@@ -21,10 +21,10 @@ from __future__ import annotations
 import socket
 from dataclasses import dataclass
 
-from pinarray import __version__
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.units import NS_PER_S
+from pinarray.version import __version__
 
 STREAM_TYPE = "Markers"
 DEFAULT_STREAM_NAME = "pinarray"

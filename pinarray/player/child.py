@@ -173,7 +173,7 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
 def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
           announcer: Announcer | None) -> Played | PlayFailed:
     try:
-        report = play_prepared(bus, play.trial, clock, lead_ns=play.lead_ns,
+        report = play_prepared(bus, play.trial, clock, onset=play.onset,
                                tolerance_ns=play.tolerance_ns, release_at_end=False,
                                markers=play.markers, announcer=announcer,
                                stroke_tolerance=play.stroke_tolerance)
