@@ -13,7 +13,7 @@ each onset marker goes out from the player right after the onset frame's write.
 pylsl (and the liblsl inside its wheels) is imported only here and only when an outlet is
 asked for: ``pip install 'pinarray[lsl]'``. Which network LSL announces the stream on is
 liblsl's configuration: the default scope reaches the lab's network; a file named by the
-``LSLAPICFG`` environment variable can keep it on this machine (see the README).
+``LSLAPICFG`` environment variable can keep it on this machine (docs/experimenters/scanner-eeg.md).
 """
 
 from __future__ import annotations

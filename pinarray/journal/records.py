@@ -254,6 +254,7 @@ class MotionRecord(_Trial):
 
 
 TrialRecord: TypeAlias = LocalisationRecord | MotionRecord
+"""One row of a run's ``beh.tsv``: a localisation or an apparent-motion trial."""
 
 
 # -- the columns ---------------------------------------------------------------------------------

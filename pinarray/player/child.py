@@ -41,7 +41,7 @@ from pinarray.stop import Stopped, raise_on_signals
 REALTIME_PRIORITY = 20
 PR_SET_TIMERSLACK = 29
 REALTIME_HOWTO = ("grant it with `sudo setcap cap_sys_nice+ep \"$(readlink -f .venv/bin/python)\"` "
-                  "or an rtprio limit in /etc/security/limits.conf (README: real-time priority)")
+                  "or an rtprio limit in /etc/security/limits.conf (docs/rig/timing.md: real-time priority)")
 
 
 class _AskedToStop(Stopped):

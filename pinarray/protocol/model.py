@@ -62,7 +62,7 @@ class Pca9685Board:
     """A PCA9685 16-channel PWM board on an I2C bus (the device's ``port``).
 
     ``osc_hz`` is this board's oscillator as measured (nominally 25 MHz, boards are off by up
-    to several percent; README: "Measuring a board's oscillator"); ``pwm_hz`` is the pulse
+    to several percent; docs/rig/pwm.md: "Measuring a board's oscillator"); ``pwm_hz`` is the pulse
     rate used when a trial's pulses do not set one (trains of different rates at once).
     """
 
@@ -443,6 +443,7 @@ class MotionCondition:
 
 
 Condition = LocalisationCondition | MotionCondition
+"""What one trial presents: a train on a pin at a frequency, or a wave going a direction."""
 
 
 def condition_value(condition: Condition, attribute: str) -> object:

@@ -66,7 +66,9 @@ class RigFactory(typing.Protocol):
                  markers: MarkerStream | None = None) -> Rig: ...
 
 
-Answer = str | int | None  # a pin, a motion answer, or None: nothing felt
+Answer = str | int | None
+"""A subject's answer: a pin (its number, or the number as text), ``"none"`` (nothing felt),
+a direction's name or ``"unsure"`` (apparent motion); None counts as nothing felt."""
 
 
 @dataclass(frozen=True)
