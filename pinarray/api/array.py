@@ -222,8 +222,8 @@ class PinArray:
         ------
         PinArrayError
             A stimulus the protocol does not hold, an onset too soon, another stimulus still
-            armed, a closed array, or the bus failing mid-stimulus (`BusError`: the pins were
-            put to rest first).
+            armed, a closed array, or the bus failing mid-stimulus (the message says at which
+            frame it stopped and how the pins were left: they were put to rest first).
         """
         schedule = self._schedule(stimulus)
         onset = self._onset(at_ns)
