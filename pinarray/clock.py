@@ -16,9 +16,13 @@ from typing import Protocol
 class Clock(Protocol):
     """A monotonic nanosecond clock that can wait for an absolute deadline."""
 
-    def now_ns(self) -> int: ...
+    def now_ns(self) -> int:
+        """The time now, in ns (only differences and deadlines on the same clock mean anything)."""
+        ...
 
-    def sleep_until_ns(self, deadline_ns: int) -> None: ...
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        """Return at ``deadline_ns`` (a time on this clock), as close to it as it can."""
+        ...
 
     def doze_until_ns(self, deadline_ns: int) -> None:
         """Wait without spinning: may wake a little late (for waits that are not deadlines)."""
@@ -45,9 +49,11 @@ class MonotonicClock:
         self._sleep = sleep
 
     def now_ns(self) -> int:
+        """``time.monotonic_ns()``: CLOCK_MONOTONIC on Linux."""
         return time.monotonic_ns()
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        """Sleep, then spin the last `spin_ns`: returns at the deadline, not after."""
         while True:
             remaining_ns = deadline_ns - time.monotonic_ns()
             if remaining_ns <= 0:
@@ -56,6 +62,7 @@ class MonotonicClock:
                 self._sleep((remaining_ns - self.spin_ns) / 1e9)
 
     def doze_until_ns(self, deadline_ns: int) -> None:
+        """Sleep until about ``deadline_ns`` (no spin: may wake a little late)."""
         remaining_ns = deadline_ns - time.monotonic_ns()
         if remaining_ns > 0:
             time.sleep(remaining_ns / 1e9)
@@ -187,15 +194,18 @@ class VirtualClock:
         self._now_ns = start_ns
 
     def now_ns(self) -> int:
+        """Virtual time: moves only when something waits or a simulated device advances it."""
         return self._now_ns
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        """Jump to ``deadline_ns`` at once (never back)."""
         if deadline_ns > self._now_ns:
             self._now_ns = deadline_ns
 
     doze_until_ns = sleep_until_ns
 
     def advance(self, duration_ns: int) -> None:
+        """Move time on by ``duration_ns`` (a simulated packet's time on the wire)."""
         if duration_ns < 0:
             raise ValueError(f"virtual time cannot go backwards ({duration_ns} ns)")
         self._now_ns += duration_ns

@@ -18,7 +18,6 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any, TypeAlias
 
-from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.files import now_iso, write_atomically
 from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
@@ -34,6 +33,7 @@ from pinarray.journal.timebase import (
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
 from pinarray.protocol.model import is_motion_answer
+from pinarray.version import __version__
 
 
 class RunStatus(StrEnum):

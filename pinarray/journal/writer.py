@@ -27,7 +27,6 @@ from datetime import datetime
 from pathlib import Path
 from types import TracebackType
 
-from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.dataset import ensure_dataset, write_sidecars
 from pinarray.journal.files import (
@@ -92,6 +91,7 @@ from pinarray.journal.volumes import (
     volume_sidecar,
 )
 from pinarray.stop import deferred_signals
+from pinarray.version import __version__
 
 Wall = Callable[[], datetime]
 

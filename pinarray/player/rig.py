@@ -26,6 +26,8 @@ from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
 from pinarray.player.families import board_refusals, open_array
 from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
+    SOON,
+    Onset,
     PlaybackReport,
     play_prepared,
     prepare_trial,
@@ -186,19 +188,21 @@ class Rig:
         self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime,
                                     markers=self.markers)
 
-    def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None
-                ) -> Presentation:
+    def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None, *,
+                onset: Onset = SOON) -> Presentation:
         """Play one trial; the pins then hold at rest.
 
         Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
         scheduled is returned, not raised (the session marks the trial invalid). ``markers``
         are announced on the rig's marker stream, if it has one; one that could not be sent
-        is added to `marker_problems`, never raised.
+        is added to `marker_problems`, never raised. ``onset``: the trial's time zero, a lead
+        after the call or a time on the rig's clock (a stimulus a script armed).
         """
         with self._port:
-            return self._present(schedule, markers)
+            return self._present(schedule, markers, onset)
 
-    def _present(self, schedule: TrialSchedule, markers: TrialMarkers | None) -> Presentation:
+    def _present(self, schedule: TrialSchedule, markers: TrialMarkers | None,
+                 onset: Onset) -> Presentation:
         if self.player is not None and not self.player.alive:
             # Started again before torque can come back on, so that it guards it.
             self.player.close()
@@ -210,11 +214,11 @@ class Rig:
         trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
         try:
             if self.player is not None:
-                report = self.player.play(trial, tolerance_ns=self.tolerance_ns,
+                report = self.player.play(trial, onset=onset, tolerance_ns=self.tolerance_ns,
                                           markers=markers, stroke_tolerance=self.stroke_tolerance)
             else:
                 with self._own_time():
-                    report = play_prepared(self.bus, trial, self.clock,
+                    report = play_prepared(self.bus, trial, self.clock, onset=onset,
                                            tolerance_ns=self.tolerance_ns, release_at_end=False,
                                            markers=markers, announcer=self._announcer,
                                            stroke_tolerance=self.stroke_tolerance)

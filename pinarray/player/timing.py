@@ -191,7 +191,7 @@ def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_
     if realtime_problem:
         lines.append(f"to fix: {realtime_problem}")
     if bus.latency_timer_ms is not None and bus.latency_timer_ms > 1:
-        lines.append(f"to fix: set the adapter's latency timer to 1 ms (README: latency timer); "
+        lines.append(f"to fix: set the adapter's latency timer to 1 ms (docs/rig/timing.md: the USB adapter's latency timer); "
                      f"it is {bus.latency_timer_ms} ms")
     if not realtime_problem and bus.heal_ns <= tolerance_ns:
         lines.append("to fix: the machine itself is too busy; close other programs"

@@ -22,6 +22,7 @@ import threading
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from types import TracebackType
 from typing import TypeVar
@@ -65,7 +66,27 @@ class RigFactory(typing.Protocol):
                  markers: MarkerStream | None = None) -> Rig: ...
 
 
-Answer = str | int | None  # a pin, a motion answer, or None: nothing felt
+Answer = str | int | None
+"""A subject's answer: a pin (its number, or the number as text), ``"none"`` (nothing felt),
+a direction's name or ``"unsure"`` (apparent motion); None counts as nothing felt."""
+
+
+@dataclass(frozen=True)
+class Question:
+    """What a scripted answer source is asked once a trial's stimulus has played.
+
+    Attributes
+    ----------
+    trial : PlannedTrial
+        The trial of the plan that was presented (its number, block, condition, catch).
+    adapted_value : Fraction or None
+        An adaptive design's trial: the value of the adapted parameter it presented, in the
+        unit the protocol names it in (``soa_ms``: milliseconds); None in a fixed design and
+        on a catch trial that plays its own stimulus.
+    """
+
+    trial: PlannedTrial
+    adapted_value: Fraction | None = None
 
 
 @dataclass(frozen=True)
@@ -394,7 +415,7 @@ class Sitting:
             session.abort(self.failed.reason)
         return self.failed
 
-    def run_scripted(self, answer: Callable[[PlannedTrial], Answer], *,
+    def run_scripted(self, answer: Callable[[Question], Answer], *,
                      failed: Callable[[FailedAttempt], object] = lambda attempt: None,
                      answered: Callable[[Session], object] = lambda session: None) -> Session:
         """Every remaining trial of the open run, answered by ``answer`` (no response times).
@@ -417,7 +438,10 @@ class Sitting:
                         session.retry()
                         continue
                     assert session.current is not None  # READY -> RESPONSE keeps the trial
-                    session.respond(answer(session.current), response_time_ns=None)
+                    presented = session.presented
+                    question = Question(session.current,
+                                        None if presented is None else presented.value)
+                    session.respond(answer(question), response_time_ns=None)
                     answered(session)
             except (Stopped, KeyboardInterrupt) as stopped:
                 session.abort(str(stopped) or INTERRUPTED_REASON)
