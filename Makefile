@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-floors bench lint clean
+.PHONY: run test test-floors bench lint examples docs clean
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "pinarray needs Python 3.11 or newer")'
@@ -55,9 +55,30 @@ bench: $(STAMP)
 	$(BIN)/python -m tests.benchmarks
 
 lint: $(STAMP)
-	$(BIN)/ruff check pinarray tests
+	$(BIN)/ruff check pinarray tests examples
 	$(BIN)/mypy pinarray
 	$(BIN)/lint-imports --no-cache
 
+# The example experiment as a lab runs it: the script against the simulated array, its own
+# tests through pinarray's pytest fixture (the plugin pytest finds by entry point), and the
+# strictest type check a lab might run on it (from inside examples/, pinarray is seen as an
+# installed package, as a lab's checker sees it).
+examples: $(STAMP)
+	results=$$(mktemp -d) && $(BIN)/python examples/which_pin.py --subject ci --seed 1 \
+		--results $$results && rm -rf $$results
+	cd examples && ../$(BIN)/python -m pytest -q -p no:cacheprovider .
+	cd examples && ../$(BIN)/mypy --strict --no-incremental .
+
+# The documentation site (docs/, mkdocs.yml) built strictly: a broken link, a reference that
+# does not resolve or a public name without a docstring fails it. Its tools are an extra of
+# their own, so `make test` does not install them.
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP)
+	PYTHONWARNINGS=ignore::UserWarning $(BIN)/python -m pip install --quiet --no-compile -e '.[docs]'
+	touch $@
+
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+
 clean:
-	rm -rf $(VENV) $(FLOOR_VENV) build *.egg-info
+	rm -rf $(VENV) $(FLOOR_VENV) build site *.egg-info

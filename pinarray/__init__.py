@@ -1,3 +1,146 @@
-"""pinarray: drive a servo pin-array tactile stimulator and run experiments on it."""
+"""pinarray: drive a servo pin-array tactile stimulator and run experiments on it.
 
-__version__ = "0.1.0"
+The names below are the library's public face, for a lab's own scripts and tests::
+
+    import pinarray
+
+    protocol = pinarray.load_protocol("protocols/localisation.yaml")
+    with pinarray.open_array(protocol, sim="sim://") as array:
+        delivery = array.present(pinarray.find_condition(protocol, pin=6, frequency_hz=10))
+
+Each is imported on first use (PEP 562), so ``import pinarray`` loads nothing else and the
+commands start as fast as they did. What ``__all__`` lists is a promise kept by semantic
+versioning (CHANGELOG.md); everything else in the package may move. ``pinarray.testing`` is
+the simulated array and assertions for a lab's own tests (a pytest plugin).
+"""
+
+import importlib
+
+from pinarray.version import __version__ as __version__
+
+# typing.TYPE_CHECKING without importing typing: type checkers take this name as true.
+TYPE_CHECKING = False
+
+__all__ = [
+    "Answer",
+    "AnswerSource",
+    "Armed",
+    "BusError",
+    "Clock",
+    "Condition",
+    "Delivery",
+    "DeliveryRecord",
+    "LoadedRun",
+    "LocalisationCondition",
+    "LocalisationRecord",
+    "ManifestState",
+    "MonotonicClock",
+    "MotionCondition",
+    "MotionRecord",
+    "NotDelivered",
+    "PinArray",
+    "PinArrayError",
+    "PinStroke",
+    "PlannedTrial",
+    "Presentable",
+    "Protocol",
+    "ProtocolError",
+    "ProtocolErrors",
+    "Question",
+    "ResultsError",
+    "RunPaths",
+    "SafeStopReport",
+    "TrialPlan",
+    "TrialRecord",
+    "TrialStatus",
+    "VirtualClock",
+    "find_condition",
+    "load_protocol",
+    "open_array",
+    "plan_trials",
+    "read_results",
+    "run_session",
+    "simulated_observer",
+]
+
+# The module of `pinarray.api` each public name lives in, imported when the name is first used.
+_HOMES = {
+    "pinarray.api.protocols": ("Condition", "LocalisationCondition", "MotionCondition",
+                               "PlannedTrial", "Protocol", "TrialPlan", "find_condition",
+                               "load_protocol", "plan_trials"),
+    "pinarray.api.array": ("Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock",
+                           "PinArray", "PinStroke", "Presentable", "SafeStopReport",
+                           "VirtualClock", "open_array"),
+    "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
+                              "run_session", "simulated_observer"),
+    "pinarray.api.results": ("LoadedRun", "LocalisationRecord", "ManifestState", "MotionRecord",
+                             "RunPaths", "TrialRecord", "TrialStatus", "read_results"),
+    "pinarray.api.errors": ("BusError", "PinArrayError", "ProtocolError", "ProtocolErrors",
+                            "ResultsError"),
+}
+_HOME_OF = {name: module for module, names in _HOMES.items() for name in names}
+
+
+def __getattr__(name: str) -> object:
+    module = _HOME_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pinarray' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # found directly from now on
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
+
+if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
+    from pinarray.api.array import (
+        Armed,
+        Clock,
+        Delivery,
+        DeliveryRecord,
+        MonotonicClock,
+        PinArray,
+        PinStroke,
+        Presentable,
+        SafeStopReport,
+        VirtualClock,
+        open_array,
+    )
+    from pinarray.api.errors import (
+        BusError,
+        PinArrayError,
+        ProtocolError,
+        ProtocolErrors,
+        ResultsError,
+    )
+    from pinarray.api.protocols import (
+        Condition,
+        LocalisationCondition,
+        MotionCondition,
+        PlannedTrial,
+        Protocol,
+        TrialPlan,
+        find_condition,
+        load_protocol,
+        plan_trials,
+    )
+    from pinarray.api.results import (
+        LoadedRun,
+        LocalisationRecord,
+        ManifestState,
+        MotionRecord,
+        RunPaths,
+        TrialRecord,
+        TrialStatus,
+        read_results,
+    )
+    from pinarray.api.sessions import (
+        Answer,
+        AnswerSource,
+        NotDelivered,
+        Question,
+        run_session,
+        simulated_observer,
+    )

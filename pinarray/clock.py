@@ -16,9 +16,13 @@ from typing import Protocol
 class Clock(Protocol):
     """A monotonic nanosecond clock that can wait for an absolute deadline."""
 
-    def now_ns(self) -> int: ...
+    def now_ns(self) -> int:
+        """The time now, in ns (only differences and deadlines on the same clock mean anything)."""
+        ...
 
-    def sleep_until_ns(self, deadline_ns: int) -> None: ...
+    def sleep_until_ns(self, deadline_ns: int) -> None:
+        """Return at ``deadline_ns`` (a time on this clock), as close to it as it can."""
+        ...
 
     def doze_until_ns(self, deadline_ns: int) -> None:
         """Wait without spinning: may wake a little late (for waits that are not deadlines)."""
@@ -45,9 +49,11 @@ class MonotonicClock:
         self._sleep = sleep
 
     def now_ns(self) -> int:
+        """``time.monotonic_ns()``: CLOCK_MONOTONIC on Linux."""
         return time.monotonic_ns()
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        """Sleep, then spin the last `spin_ns`: returns at the deadline, not after."""
         while True:
             remaining_ns = deadline_ns - time.monotonic_ns()
             if remaining_ns <= 0:
@@ -56,6 +62,7 @@ class MonotonicClock:
                 self._sleep((remaining_ns - self.spin_ns) / 1e9)
 
     def doze_until_ns(self, deadline_ns: int) -> None:
+        """Sleep until about ``deadline_ns`` (no spin: may wake a little late)."""
         remaining_ns = deadline_ns - time.monotonic_ns()
         if remaining_ns > 0:
             time.sleep(remaining_ns / 1e9)
@@ -123,11 +130,15 @@ class ScaledClock:
             self._own = None
 
 
-# A PacedClock's waits shorter than this on the wall clock are owed and slept together once
-# they add up: a sleep costs the host about 0.1 ms however short it is, and a simulated bus
-# waits for every exchange (a few hundred us of wire, 1/pace of it on the wall), which slept
-# one by one made a batch at 50x with its pins' positions sampled run 50 times slower.
+# A PacedClock sleeps only once its simulated time is this far ahead of the wall clock's pace:
+# a sleep costs the host about 0.1 ms however short it is, and a simulated bus waits for every
+# exchange (a few hundred us of wire, 1/pace of it on the wall), which slept one by one made a
+# batch at 50x with its pins' positions sampled run 50 times slower.
 MIN_WALL_SLEEP_NS = 1_000_000
+# How far behind its pace a PacedClock may fall and still catch up (by not sleeping until it
+# has): the host's computing between waits is absorbed by the sleeps after it. Further behind
+# (a suspended laptop, a long stall) it starts its pace again from now, rather than racing.
+MAX_CATCH_UP_NS = 100_000_000
 
 
 class PacedClock:
@@ -135,9 +146,12 @@ class PacedClock:
 
     Like `VirtualClock`, time moves only when something waits, so the host's own computing
     costs no simulated time and a simulated stimulus is delivered exactly as scheduled; unlike
-    it, the waits also sleep ``1/pace`` of their length, so a rehearsal runs at a watchable
-    speed (and can be interrupted). Short waits are slept together (`MIN_WALL_SLEEP_NS`).
-    For scripted runs, where nobody answers in real time.
+    it, a wait also sleeps until the wall clock has reached the waited-for time at that pace
+    (counted from where the pace started), so a rehearsal runs at a watchable speed (and can
+    be interrupted). The host's computing between waits is paid from those sleeps, not added
+    to them: a stimulus takes its scheduled time on the wall clock unless the host needs more
+    than that to compute it. Short waits are slept together (`MIN_WALL_SLEEP_NS`). For
+    scripted runs, where nobody answers in real time.
     """
 
     def __init__(self, pace: float, start_ns: int = 0, base: MonotonicClock | None = None):
@@ -148,7 +162,9 @@ class PacedClock:
         self.pace = pace
         self._now_ns = start_ns
         self._base = base or MonotonicClock()
-        self._owed_wall_ns = 0  # wall time the waits so far still owe (negative: overslept)
+        # Where the pace started: simulated time here was the wall clock's there.
+        self._paced_from_ns = start_ns
+        self._wall_from_ns = self._base.now_ns()
 
     def now_ns(self) -> int:
         return self._now_ns
@@ -156,16 +172,14 @@ class PacedClock:
     def sleep_until_ns(self, deadline_ns: int) -> None:
         if deadline_ns <= self._now_ns:
             return
-        self._owed_wall_ns += int((deadline_ns - self._now_ns) / self.pace)
         self._now_ns = deadline_ns
-        if self._owed_wall_ns >= MIN_WALL_SLEEP_NS:
-            base = self._base
-            start_ns = base.now_ns()
-            base.doze_until_ns(start_ns + self._owed_wall_ns)
-            # What the OS overslept is owed back by the next waits (a suspended laptop's
-            # hours are not: at most one sleep's worth).
-            slept_ns = base.now_ns() - start_ns
-            self._owed_wall_ns = max(self._owed_wall_ns - slept_ns, -MIN_WALL_SLEEP_NS)
+        base = self._base
+        wall_ns = self._wall_from_ns + int((deadline_ns - self._paced_from_ns) / self.pace)
+        ahead_ns = wall_ns - base.now_ns()
+        if ahead_ns >= MIN_WALL_SLEEP_NS:
+            base.doze_until_ns(wall_ns)  # what the OS oversleeps, the next waits pay back
+        elif ahead_ns < -MAX_CATCH_UP_NS:
+            self._paced_from_ns, self._wall_from_ns = deadline_ns, base.now_ns()
 
     doze_until_ns = sleep_until_ns
 
@@ -180,15 +194,18 @@ class VirtualClock:
         self._now_ns = start_ns
 
     def now_ns(self) -> int:
+        """Virtual time: moves only when something waits or a simulated device advances it."""
         return self._now_ns
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        """Jump to ``deadline_ns`` at once (never back)."""
         if deadline_ns > self._now_ns:
             self._now_ns = deadline_ns
 
     doze_until_ns = sleep_until_ns
 
     def advance(self, duration_ns: int) -> None:
+        """Move time on by ``duration_ns`` (a simulated packet's time on the wire)."""
         if duration_ns < 0:
             raise ValueError(f"virtual time cannot go backwards ({duration_ns} ns)")
         self._now_ns += duration_ns

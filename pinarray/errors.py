@@ -21,6 +21,7 @@ class ProtocolError(PinArrayError):
         super().__init__(self.located())
 
     def located(self) -> str:
+        """``file:line:col: message`` (``file: message`` when no line is known)."""
         if self.line:
             return f"{self.file}:{self.line}:{self.col}: {self.message}"
         return f"{self.file}: {self.message}"

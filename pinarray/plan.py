@@ -28,6 +28,10 @@ SEARCH_BUDGET_STEPS = 200_000
 
 @dataclass(frozen=True)
 class PlannedTrial:
+    """One trial of a plan: its ``trial`` number (1..N in plan order, the number every output
+    uses), its ``block`` (0 for practice), whether it is ``practice``, the ``condition`` it
+    presents, and whether it is a ``catch`` trial of an adaptive design."""
+
     trial: int  # 1..N in plan order, the number every output uses
     block: int  # 0 for practice, then 1..blocks
     practice: bool
@@ -50,6 +54,8 @@ class PlannedTrial:
 
 @dataclass(frozen=True)
 class TrialPlan:
+    """A seeded plan: the ``seed`` it was drawn with and its ``trials`` in plan order."""
+
     seed: int
     trials: tuple[PlannedTrial, ...]
 
@@ -57,6 +63,7 @@ class TrialPlan:
         return len(self.trials)
 
     def trial(self, number: int) -> PlannedTrial:
+        """Trial ``number`` (1-based), or a `PinArrayError` saying the plan's range."""
         if not 1 <= number <= len(self.trials):
             raise PinArrayError(
                 f"trial {number} is not in the plan: expected 1 to {len(self.trials)}"
@@ -64,6 +71,7 @@ class TrialPlan:
         return self.trials[number - 1]
 
     def to_json(self) -> str:
+        """The plan as JSON, as a run's manifest stores it."""
         return json.dumps(
             {"seed": self.seed, "trials": [t.record() for t in self.trials]}, indent=1
         )

@@ -1,7 +1,7 @@
 """The rules of the house that no tool checks; the rest of the gate runs in `make lint`.
 
 The gate: import-linter's contracts (pyproject.toml, ``[tool.importlinter]``: the layering
-ARCHITECTURE.md draws), ruff's banned calls, relative imports and print rules
+docs/programmers/architecture.md draws), ruff's banned calls, relative imports and print rules
 (``[tool.ruff.lint]``, with the places each is allowed), and the syntax-tree checks below, for
 what neither tool sees: an import spelled as a string, a signal handler installed through an
 event loop, a call to `input`, and sleeping or installing signal handlers in the files ruff lets
@@ -115,7 +115,7 @@ def test_one_module_talks_to_the_vendor_sdk_if_any_does():
 
 def test_architecture_md_has_a_row_for_every_package_and_top_level_module_and_none_for_the_gone():
     rows = [line.split("|")[1:-1] for line in
-            (PACKAGE.parent / "ARCHITECTURE.md").read_text(encoding="utf-8").splitlines()
+            (PACKAGE.parent / "docs" / "programmers" / "architecture.md").read_text(encoding="utf-8").splitlines()
             if line.startswith("| `")]
     named = {name for row in rows for name in re.findall(r"`([^`]+)`", row[0])}
     paths = {name for row in rows for cell in row for name in re.findall(r"`([^`]+)`", cell)

@@ -105,10 +105,10 @@ PLANTED = {
         ["analysis/planted.py:1 imports pinarray.cli by name"]),
     "an import of a part in the package's __init__": (
         "__init__.py", "\nimport pinarray.grid\n",
-        ["The package's __init__ and the units import none of the package's parts"]),
+        ["The package's __init__ imports no part but the version and, lazily, the public face; the units import none"]),
     "a relative import of a part in the package's __init__": (
         "__init__.py", "\nfrom . import errors\n",
-        ["The package's __init__ and the units import none of the package's parts"]),
+        ["The package's __init__ imports no part but the version and, lazily, the public face; the units import none"]),
 }
 
 

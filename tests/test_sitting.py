@@ -58,7 +58,7 @@ def sitting_on(results: Path, rig_factory=Rig) -> tuple[Sitting, SessionRequest]
     return sitting, request
 
 
-def answer_pin_one(planned):
+def answer_pin_one(question):
     return 1
 
 
@@ -110,8 +110,8 @@ def test_a_stop_asked_for_mid_run_aborts_the_run_with_its_reason_and_rests_the_p
     sitting, request = sitting_on(tmp_path)
     answered = []
 
-    def answer(planned):
-        answered.append(planned.trial)
+    def answer(question):
+        answered.append(question.trial.trial)
         if len(answered) == 2:
             sitting.stop.request("stopped by SIGTERM", 15)  # as the signal handler does
         return 1
@@ -147,7 +147,7 @@ def test_a_sitting_closed_by_a_stop_request_cuts_the_stimulus_short_and_leaves_t
 def test_an_error_inside_a_sitting_marks_the_run_crashed_and_rests_the_pins(tmp_path):
     sitting, request = sitting_on(tmp_path)
 
-    def answer(planned):
+    def answer(question):
         raise RuntimeError("a bug in the answers")
 
     with pytest.raises(RuntimeError), sitting:

@@ -22,7 +22,7 @@ SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip ins
 
 HEAVY = ("numpy", "scipy", "matplotlib", "textual", "serial", "scservo_sdk")
 # What validating needs of pinarray: the reader of protocol files and the validate command.
-NEEDED = ("pinarray", "pinarray.cli", "pinarray.cli.common", "pinarray.cli.protocols",
+NEEDED = ("pinarray", "pinarray.version", "pinarray.cli", "pinarray.cli.common", "pinarray.cli.protocols",
           "pinarray.errors", "pinarray.units", "pinarray.grid", "pinarray.text_files",
           "pinarray.protocol")
 
@@ -67,6 +67,21 @@ def test_validate_loads_the_protocol_reader_and_nothing_else_of_pinarray_nor_hea
     others = {m for m in modules if m.split(".")[0] == "pinarray"
               and not any(m == n or m.startswith("pinarray.protocol.") for n in NEEDED)}
     assert sorted(others) == []
+
+
+def parts_loaded_by(code: str) -> list[str]:
+    """pinarray's modules loaded once ``code`` has run (a public name's home is imported by
+    `importlib.import_module`, which ``-X importtime`` does not list)."""
+    shown = "import sys; print(*sorted(m for m in sys.modules if m.split('.')[0] == 'pinarray'))"
+    result = subprocess.run([sys.executable, "-c", f"{code}; {shown}"], capture_output=True,
+                            text=True, timeout=60, check=True)
+    return result.stdout.split()
+
+
+def test_importing_pinarray_loads_its_version_and_no_other_part_until_a_public_name_is_used():
+    assert parts_loaded_by("import pinarray") == ["pinarray", "pinarray.version"]
+    used = parts_loaded_by("import pinarray; pinarray.load_protocol")
+    assert "pinarray.api.protocols" in used and "pinarray.api.array" not in used
 
 
 def test_the_command_table_names_the_module_that_registers_each_command():

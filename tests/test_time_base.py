@@ -209,6 +209,26 @@ class _WallClock:
         self.now = deadline_ns + self.late_ns
 
 
+def test_the_hosts_computing_between_paced_waits_is_paid_from_the_sleeps_not_added():
+    # A simulated trial at 20x: every 4 ms of simulated time the host computes 0.1 ms (a
+    # motion sample); 10 s of stimulus take their 0.5 s of wall time, not 0.5 s + 0.25 s.
+    wall = _WallClock(late_ns=60_000)
+    clock = PacedClock(20.0, base=wall)
+    for step in range(1, 2_501):
+        wall.now += 100_000  # computing
+        clock.sleep_until_ns(step * 4_000_000)
+    assert clock.now_ns() == 10_000_000_000
+    assert abs(wall.now - 500_000_000) <= 1_000_000 + 100_000  # a sleep's worth, a step's
+    # A host slower than the pace (2 ms a step at 20x: 0.2 ms allowed) is as late as its
+    # computing, and does not sleep on top of it.
+    wall = _WallClock()
+    clock = PacedClock(20.0, base=wall)
+    for step in range(1, 101):
+        wall.now += 2_000_000
+        clock.sleep_until_ns(step * 4_000_000)
+    assert wall.now == 200_000_000 and wall.sleeps == []
+
+
 def test_a_paced_rehearsal_sleeps_its_many_short_waits_together_and_keeps_the_pace():
     # A simulated bus waits for every exchange: 20 000 waits of 20 us, paced at 50x, owe
     # 8 ms of wall time; slept one by one they cost the host a sleep each.

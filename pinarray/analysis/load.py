@@ -81,7 +81,9 @@ class LoadedTrial:
 class LoadedRun:
     """One run's rows and what its manifest says.
 
-    ``status`` is the manifest's own word (``completed``, ``aborted``...) or the
+    ``paths`` are the run's files (`RunPaths`: ``beh_tsv``, ``events_tsv``, ``manifest``),
+    ``source`` the rows' file as found; ``state`` is the manifest's verdict for the analysis
+    (`ManifestState`). ``status`` is the manifest's own word (``completed``, ``aborted``...) or the
     `ManifestState` text when there is none to read; ``duplicates`` are the trial numbers
     that had more than one ``ok`` row (only the first is kept in ``records``); ``torn`` is
     the text of a last row cut short by an interrupted write (left out); ``unfinished`` the
@@ -101,6 +103,7 @@ class LoadedRun:
 
     @property
     def label(self) -> str:
+        """The run in words: ``sub-01 ses-1 task-localisation run-2``."""
         p = self.paths
         return f"sub-{p.subject} ses-{p.session} task-{p.task} run-{p.run}"
 
@@ -126,6 +129,7 @@ class LoadedRun:
         return None
 
     def trials(self) -> list[LoadedTrial]:
+        """Each row with the run it came from (subject, session, run, file)."""
         return [LoadedTrial(self.paths.subject, self.paths.session, self.paths.run, self.source,
                             record) for record in self.records]
 

@@ -16,8 +16,8 @@ from collections.abc import Sequence
 from importlib import import_module
 from typing import TYPE_CHECKING
 
-from pinarray import __version__
 from pinarray.errors import PinArrayError
+from pinarray.version import __version__
 
 if TYPE_CHECKING:
     from pinarray.stop import Stopped

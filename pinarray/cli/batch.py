@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -12,11 +11,11 @@ from pinarray.cli.bus import add_bus_choice
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
 
 if TYPE_CHECKING:  # the command imports what it runs when it runs
+    from pinarray.api.sessions import AnswerSource
     from pinarray.clock import Clock
-    from pinarray.plan import PlannedTrial
     from pinarray.protocol import Protocol
     from pinarray.protocol.imaging import ScannerSync
-    from pinarray.session.sitting import Answer, FailedAttempt, SessionRequest, Sitting
+    from pinarray.session.sitting import FailedAttempt, SessionRequest, Sitting
     from pinarray.session.trials import Session
 
 BATCH_EPILOG = """\
@@ -184,7 +183,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
     from pinarray.stop import Stopped, stop_on_signals
 
     protocol, subject, session = request.protocol, request.subject, request.session
-    answer = _answers(protocol, args, responses, lambda: sitting.session)
+    answer = _answers(protocol, args, responses)
     with stop_on_signals(sitting.stop):
         try:
             rig = sitting.connect(request, _run_clock(args, sync, sitting.marker_stream is not None))
@@ -236,10 +235,10 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
                 print(f"pinarray: warning: {safe.describe()}", file=sys.stderr)
 
 
-def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, str] | None,
-             session: Callable[[], Session | None]) -> Callable[[PlannedTrial], Answer]:
-    """Who answers each trial: the --responses file (checked complete) or a simulated subject
-    (an adaptive design's answers the value ``session``'s current trial presents)."""
+def _answers(protocol: Protocol, args: argparse.Namespace,
+             responses: dict[int, str] | None) -> AnswerSource:
+    """Who answers each trial: the --responses file (checked complete) or a simulated subject."""
+    from pinarray.api.sessions import simulated_observer
     from pinarray.errors import PinArrayError
     from pinarray.plan import make_plan
 
@@ -252,34 +251,8 @@ def _answers(protocol: Protocol, args: argparse.Namespace, responses: dict[int, 
                 f"{args.responses}: no response for trial(s) {', '.join(map(str, missing[:10]))}"
                 + (" ..." if len(missing) > 10 else "")
             )
-        return lambda planned: responses[planned.trial]
-    if protocol.design.adaptive is not None:
-        from pinarray.analysis.adaptive_subject import AdaptiveSubject, parse_psychometric
-
-        subject = AdaptiveSubject(protocol, parse_psychometric(args.observer,
-                                                               protocol.design.adaptive),
-                                  args.seed or 0)
-
-        def respond_adaptively(planned: PlannedTrial) -> Answer:
-            running = session()
-            presented = None if running is None else running.presented
-            assert presented is not None
-            return subject.respond(planned.trial, planned.condition, planned.catch,
-                                   presented.value)
-
-        return respond_adaptively
-    from pinarray.analysis.observer import SimulatedObserver, parse_observer
-    from pinarray.protocol import LocalisationCondition
-
-    observer = SimulatedObserver(parse_observer(args.observer).for_protocol(protocol), seed=args.seed)
-
-    def respond(planned: PlannedTrial) -> Answer:
-        condition = planned.condition
-        if isinstance(condition, LocalisationCondition):
-            return observer.respond_localisation(condition.pin, float(condition.frequency_hz))
-        return observer.respond_motion(condition.direction, protocol.design.directions)
-
-    return respond
+        return lambda question: responses[question.trial.trial]
+    return simulated_observer(protocol, args.observer, seed=args.seed)
 
 
 def _run_clock(args: argparse.Namespace, sync: ScannerSync | None, markers: bool) -> Clock:

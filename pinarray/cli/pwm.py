@@ -16,7 +16,7 @@ SCAN_EPILOG = """\
 Reads MODE1 and PRE_SCALE at every address a PCA9685 can take (0x40-0x7f, set by its A0-A5
 jumpers), leaving the all-call address 0x70 alone (every board answers it). A board is listed
 with its state: asleep (its power-up state: no pulses) or running, and the rate its prescale
-gives at the nominal 25 MHz (boards are off by up to several percent: measure it, README).
+gives at the nominal 25 MHz (boards are off by up to several percent: measure it: docs/rig/pwm.md).
 Nothing is written. Needs --port PATH (the I2C bus, e.g. /dev/i2c-1) or --sim [URL] to
 rehearse (then its first line says SIMULATED).
 """

@@ -103,6 +103,7 @@ class DeliveryRecord:
 
     @property
     def delivered(self) -> bool:
+        """Delivered as scheduled (and, where measured, as specified): no problem found."""
         return not self.problem
 
     def summary(self) -> str:

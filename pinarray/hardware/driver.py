@@ -161,7 +161,9 @@ class BusStats:
 
 @dataclass(frozen=True)
 class SafeStopReport:
-    """What `ArrayDriver.rest_and_release` managed: ids confirmed at rest, released, silent."""
+    """What `ArrayDriver.rest_and_release` managed: the servo ids confirmed at rest
+    (``at_rest_ids``), released (``released_ids``: torque off) and ``silent_ids`` (no answer);
+    ``port_lost`` when the port itself had gone."""
 
     at_rest_ids: tuple[int, ...]
     released_ids: tuple[int, ...]
@@ -170,6 +172,7 @@ class SafeStopReport:
 
     @property
     def complete(self) -> bool:
+        """Every servo answered the safe stop (none silent, the port still there)."""
         return not self.silent_ids and not self.port_lost
 
     def describe(self) -> str:

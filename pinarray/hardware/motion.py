@@ -67,7 +67,7 @@ class PinTrace:
 class PinStroke:
     """One pin's motion in a trial, measured from its samples (see the module docstring).
 
-    ``achieved_steps``, ``median_steps`` and ``lag_ns`` are None when not measured (too few
+    ``commanded_steps`` is the span of the goals the trial sent the pin; ``achieved_steps``, ``median_steps`` and ``lag_ns`` are None when not measured (too few
     samples); ``cycles`` counts the cycles judged, ``short_cycles`` those that fell short.
     """
 
@@ -81,6 +81,7 @@ class PinStroke:
 
     @property
     def measured(self) -> bool:
+        """Whether enough samples were taken to judge the pin's cycles."""
         return self.achieved_steps is not None
 
 

@@ -13,7 +13,7 @@ each onset marker goes out from the player right after the onset frame's write.
 pylsl (and the liblsl inside its wheels) is imported only here and only when an outlet is
 asked for: ``pip install 'pinarray[lsl]'``. Which network LSL announces the stream on is
 liblsl's configuration: the default scope reaches the lab's network; a file named by the
-``LSLAPICFG`` environment variable can keep it on this machine (see the README).
+``LSLAPICFG`` environment variable can keep it on this machine (docs/experimenters/scanner-eeg.md).
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ from __future__ import annotations
 import socket
 from dataclasses import dataclass
 
-from pinarray import __version__
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.units import NS_PER_S
+from pinarray.version import __version__
 
 STREAM_TYPE = "Markers"
 DEFAULT_STREAM_NAME = "pinarray"

@@ -24,7 +24,6 @@ import platform
 from pathlib import Path
 from typing import Any
 
-from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.files import write_atomically
 from pinarray.journal.lock import held
@@ -43,6 +42,7 @@ from pinarray.journal.records import (
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
 from pinarray.protocol import Direction, MotionAnswer, Paradigm
 from pinarray.protocol.model import answered_directions
+from pinarray.version import __version__
 
 BIDS_VERSION = "1.10.0"
 NAME = "pinarray results"

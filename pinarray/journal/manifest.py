@@ -18,7 +18,6 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any, TypeAlias
 
-from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.files import now_iso, write_atomically
 from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
@@ -34,6 +33,7 @@ from pinarray.journal.timebase import (
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
 from pinarray.protocol.model import is_motion_answer
+from pinarray.version import __version__
 
 
 class RunStatus(StrEnum):
@@ -279,7 +279,8 @@ def _sitting_to_json(sitting: Sitting) -> dict[str, Any]:
             "clock": sitting.clock.kind.value, "time_scale": sitting.clock.factor,
             "start_s": None if sitting.start_ns is None else float(seconds_text(sitting.start_ns)),
             "pid": sitting.pid, "host": sitting.host,
-            "software_version": sitting.software_version}
+            "software_version": sitting.software_version,
+            **({"timing_check": sitting.timing_check} if sitting.timing_check else {})}
 
 
 def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
@@ -289,7 +290,8 @@ def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
                     clock=TimeScale(ClockKind(s["clock"]), s.get("time_scale")),
                     start_ns=None if s.get("start_s") is None else ns_from_seconds(str(s["start_s"])),
                     pid=int(s.get("pid", 0)), host=str(s.get("host", "")),
-                    software_version=str(s.get("software_version", "")))
+                    software_version=str(s.get("software_version", "")),
+                    timing_check=str(s.get("timing_check", "")))
             for s in data["sittings"])
     # Written before sittings were recorded: a start time and a pid, then one time per resume.
     unknown = TimeScale(ClockKind.UNKNOWN, None)

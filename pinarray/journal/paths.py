@@ -59,7 +59,8 @@ def check_label(kind: str, label: object) -> str:
 
 @dataclass(frozen=True)
 class RunPaths:
-    """The files of one run under a results root; labels are checked on construction."""
+    """The files of one run under a results ``root``: the ``subject``, ``session`` and ``task``
+    labels (checked on construction) and the ``run`` number."""
 
     root: Path
     subject: str
@@ -82,10 +83,12 @@ class RunPaths:
 
     @property
     def relative_dir(self) -> Path:
+        """``sub-<id>/ses-<n>/beh``: the run's folder below the results root."""
         return Path(f"sub-{self.subject}", f"ses-{self.session}", "beh")
 
     @property
     def beh_dir(self) -> Path:
+        """The folder of the run's data files."""
         return self.root / self.relative_dir
 
     @property
@@ -95,29 +98,36 @@ class RunPaths:
 
     @property
     def stem(self) -> str:
+        """``sub-<id>_ses-<n>_task-<task>_run-<k>``: what every file name of the run starts with."""
         return f"sub-{self.subject}_ses-{self.session}_task-{self.task}_run-{self.run}"
 
     def file(self, suffix: str, ext: str) -> Path:
+        """The run's data file ``<stem>_<suffix>.<ext>``."""
         return self.beh_dir / f"{self.stem}_{suffix}.{ext}"
 
     @property
     def beh_tsv(self) -> Path:
+        """The trial rows (``_beh.tsv``)."""
         return self.file("beh", "tsv")
 
     @property
     def events_tsv(self) -> Path:
+        """The stimulus events for imaging analyses (``_events.tsv``)."""
         return self.file("events", "tsv")
 
     @property
     def beh_json(self) -> Path:
+        """The rows' sidecar: every column described."""
         return self.file("beh", "json")
 
     @property
     def events_json(self) -> Path:
+        """The events' sidecar."""
         return self.file("events", "json")
 
     @property
     def manifest(self) -> Path:
+        """The run's manifest in ``sourcedata/``: plan, seed, provenance, sittings, status."""
         return self.source_dir / f"{self.stem}_manifest.json"
 
     @property
@@ -127,6 +137,7 @@ class RunPaths:
 
     @property
     def lock(self) -> Path:
+        """The lock file held while a process writes the run."""
         return self.source_dir / f"{self.stem}.lock"
 
     def manifest_on_disk(self) -> Path | None:

@@ -110,7 +110,33 @@ class AdaptiveCells:
 
 @dataclass(frozen=True, kw_only=True)
 class _Trial:
-    """What every trial row holds. Times in whole nanoseconds; ``onset_ns`` on the run's time base."""
+    """What every trial row holds. Times in whole nanoseconds; ``onset_ns`` on the run's time base.
+
+    Attributes
+    ----------
+    trial, block : int
+        The trial's number in plan order (1..N) and its block (0: practice).
+    task : str
+        The BIDS task label.
+    onset_ns, duration_ns : int
+        The stimulus's onset on the run's time base and its length.
+    status : TrialStatus
+        ok, or redone, aborted, invalid (presented again); ``status_reason`` says why.
+    response_time_ns : int or None
+        From the stimulus's onset to the answer; None when not measured (scripted answers).
+    practice, resumed : bool
+        A practice trial; the first trial of a resumed sitting.
+    delivery : DeliveryCounts or None
+        What reached the servos (None: the stimulus never played).
+    stroke : StrokeCounts or None
+        How far the pins moved, as the pin that moved the smallest share did (None: not
+        measured).
+    adaptive : AdaptiveCells or None
+        An adaptive design's cells (procedure, value, correct, estimate); None: a fixed design.
+    motion_samples : int or None
+        How many position samples of this presentation the run's motion recording holds, on
+        disk before the row was (0: none taken); None in files written before it was counted.
+    """
 
     trial: int
     block: int
@@ -125,9 +151,7 @@ class _Trial:
     status_reason: str | None = None
     stroke: StrokeCounts | None = None  # None: not measured (PWM servos, or older files)
     adaptive: AdaptiveCells | None = None  # None: a trial of a fixed design
-    # The presentation's samples the run's motion recording holds, on disk before this row
-    # (0: none taken); None: not known (files written before the count was kept).
-    motion_samples: int | None = None
+    motion_samples: int | None = None  # None: a file written before the count was kept
 
     def __post_init__(self) -> None:
         check_label("task", self.task)
@@ -192,10 +216,12 @@ class LocalisationRecord(_Trial):
 
     @property
     def reported_pin(self) -> int | None:
+        """The pin the subject named; None for nothing felt or no answer."""
         return int(self.response) if self.response and self.response.isdigit() else None
 
     @property
     def nothing_felt(self) -> bool:
+        """Whether the subject said nothing was felt."""
         return self.response == NOTHING_FELT
 
     @property
@@ -209,7 +235,8 @@ class LocalisationRecord(_Trial):
 @dataclass(frozen=True, kw_only=True)
 class MotionRecord(_Trial):
     """An apparent-motion trial: a wave going ``direction`` (or no wave), along ``row`` or,
-    with ``row`` None, up or down a column or along a sequence of pins."""
+    with ``row`` None, up or down a column or along a sequence of pins; the subject's
+    ``response`` (a direction, none or unsure; None when the trial got no answer)."""
 
     row: int | None
     direction: Direction
@@ -235,6 +262,7 @@ class MotionRecord(_Trial):
 
 
 TrialRecord: TypeAlias = LocalisationRecord | MotionRecord
+"""One row of a run's ``beh.tsv``: a localisation or an apparent-motion trial."""
 
 
 # -- the columns ---------------------------------------------------------------------------------

@@ -96,6 +96,9 @@ class Sitting:
         The computer it ran on.
     software_version : str
         The pinarray that wrote it.
+    timing_check : str
+        What the pre-flight's timing check said before the sitting began, in words (its
+        verdict, or that the experimenter skipped it); empty where none ran (batch).
     """
 
     number: int
@@ -105,6 +108,7 @@ class Sitting:
     pid: int = 0
     host: str = ""
     software_version: str = ""
+    timing_check: str = ""
 
 
 @dataclass(frozen=True)

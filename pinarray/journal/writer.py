@@ -27,7 +27,6 @@ from datetime import datetime
 from pathlib import Path
 from types import TracebackType
 
-from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal.dataset import ensure_dataset, write_sidecars
 from pinarray.journal.files import (
@@ -93,6 +92,7 @@ from pinarray.journal.volumes import (
     volume_sidecar,
 )
 from pinarray.stop import deferred_signals
+from pinarray.version import __version__
 
 Wall = Callable[[], datetime]
 
@@ -394,6 +394,15 @@ class RunWriter:
         try:
             write_manifest(self.paths.manifest, self.manifest)
             write_sidecars(self.paths, self.manifest)  # they say what the zero is, and when
+        except OSError as problem:
+            raise unwritable(problem, self.paths.manifest, mid_run=True) from None
+
+    def note_timing_check(self, said: str) -> None:
+        """Record what the pre-flight's timing check said before this sitting (in words)."""
+        sittings = (*self.manifest.sittings[:-1], replace(self.sitting, timing_check=said))
+        self.manifest = updated(self.manifest, sittings=sittings)
+        try:
+            write_manifest(self.paths.manifest, self.manifest)
         except OSError as problem:
             raise unwritable(problem, self.paths.manifest, mid_run=True) from None
 

@@ -41,7 +41,7 @@ from pinarray.stop import Stopped, raise_on_signals
 REALTIME_PRIORITY = 20
 PR_SET_TIMERSLACK = 29
 REALTIME_HOWTO = ("grant it with `sudo setcap cap_sys_nice+ep \"$(readlink -f .venv/bin/python)\"` "
-                  "or an rtprio limit in /etc/security/limits.conf (README: real-time priority)")
+                  "or an rtprio limit in /etc/security/limits.conf (docs/rig/timing.md: real-time priority)")
 
 
 class _AskedToStop(Stopped):
@@ -173,7 +173,7 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
 def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
           announcer: Announcer | None) -> Played | PlayFailed:
     try:
-        report = play_prepared(bus, play.trial, clock, lead_ns=play.lead_ns,
+        report = play_prepared(bus, play.trial, clock, onset=play.onset,
                                tolerance_ns=play.tolerance_ns, release_at_end=False,
                                markers=play.markers, announcer=announcer,
                                stroke_tolerance=play.stroke_tolerance)

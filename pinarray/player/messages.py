@@ -12,7 +12,7 @@ from pinarray.hardware.delivery import PreparedTrial
 from pinarray.hardware.driver import Handover, SafeStopReport
 from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.markers import Announcers, TrialMarkers
-from pinarray.player.playback import PlaybackReport
+from pinarray.player.playback import Onset, PlaybackReport
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class Ready:
 class Play:
     number: int  # a stop request names the trial it is for: a late one must not stop the next
     trial: PreparedTrial
-    lead_ns: int
+    onset: Onset
     tolerance_ns: int
     markers: TrialMarkers | None = None  # announced at the onset and the end, if any
     stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE

@@ -57,7 +57,8 @@ from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE, PinTrace, measure
 from pinarray.player.markers import Announcer, MarkerPush, TrialMarkers
 from pinarray.schedule import PulseList, TargetList
 
-__all__ = ["check_limits", "play_prepared", "play_trial", "prepare_trial"]
+__all__ = ["SOON", "Onset", "OnsetAfter", "OnsetAt", "check_limits", "play_prepared", "play_trial",
+           "prepare_trial"]
 
 NO_PULSES = PulseList(np.zeros(0, dtype=np.int16), np.zeros(0, dtype=np.int64),
                       np.zeros(0, dtype=np.int64))
@@ -68,6 +69,28 @@ DEFAULT_LEAD_NS = 20_000_000
 GUARD_NS = 300_000
 # After the trial's end, read-backs may go on this long to confirm the last changes.
 SETTLE_NS = 200_000_000
+# Generations 0 and 1 (`gc.collect`'s argument): what a trial leaves behind, not the process.
+YOUNG_GENERATIONS = 1
+
+
+@dataclass(frozen=True)
+class OnsetAfter:
+    """The trial's time zero ``lead_ns`` after playback is asked for (a session's trials)."""
+
+    lead_ns: int = DEFAULT_LEAD_NS
+
+
+@dataclass(frozen=True)
+class OnsetAt:
+    """The trial's time zero at ``onset_ns`` on the player's clock: a stimulus armed by a
+    script for a moment of its choosing (a screen flip). Frames are played from there, so a
+    script's visual and tactile onsets share one time line."""
+
+    onset_ns: int
+
+
+Onset = OnsetAfter | OnsetAt
+SOON = OnsetAfter()  # the default: a session's trial, `DEFAULT_LEAD_NS` after it is asked for
 
 
 class PlaybackAborted(PinArrayError):
@@ -196,15 +219,18 @@ def prepare_trial(bus: ArrayDriver, targets: TargetList,
 
 @contextmanager
 def gc_paused() -> Iterator[None]:
-    """Collect now, then keep the garbage collector out of the trial (a pass can take ms)."""
+    """Keep the garbage collector out of the trial (a pass can take milliseconds).
+
+    Only the young generations are collected first: a full pass over a process that holds the
+    UI took 100 ms before every trial, and the old objects it walks are not the trial's. The
+    collector's own thresholds see to the rest between trials.
+    """
     enabled = gc.isenabled()
-    gc.collect()
-    gc.freeze()
+    gc.collect(YOUNG_GENERATIONS)
     gc.disable()
     try:
         yield
     finally:
-        gc.unfreeze()
         if enabled:
             gc.enable()
 
@@ -214,7 +240,7 @@ def play_prepared(
     trial: PreparedTrial,
     clock: Clock,
     *,
-    lead_ns: int = DEFAULT_LEAD_NS,
+    onset: Onset = SOON,
     tolerance_ns: int = DEFAULT_TOLERANCE_NS,
     guard_ns: int = GUARD_NS,
     release_at_end: bool = True,
@@ -235,8 +261,10 @@ def play_prepared(
     clock : Clock
         The clock the bus uses too, or one that wraps it and raises `Interrupted` when a
         stop is requested (`pinarray.stop.StoppableClock`).
-    lead_ns : int
-        Delay from the call to the trial onset, in nanoseconds.
+    onset : Onset
+        When the trial's time zero is: a lead after the call (`OnsetAfter`, in ns), or a
+        time on ``clock`` (`OnsetAt`). One that has passed by the time playback can begin is
+        refused before anything is sent (`PlaybackAborted`, nothing touched).
     tolerance_ns : int
         How late a goal change may reach its servo and still count as delivered.
     guard_ns : int
@@ -273,7 +301,7 @@ def play_prepared(
     before = bus.stats()
     index = 0
     with gc_paused():
-        onset_ns = clock.now_ns() + lead_ns
+        onset_ns = _onset_ns(onset, clock)
         verifier = bus.verifier(clock, trial, onset_ns, ledger)
         try:
             bus.begin(trial, onset_ns)
@@ -337,6 +365,22 @@ def play_prepared(
         marker_problem=push.problem if push is not None else "",
         trace=trace,
     )
+
+
+def _onset_ns(onset: Onset, clock: Clock) -> int:
+    """The trial's time zero on ``clock``; an armed one that has passed is refused."""
+    match onset:
+        case OnsetAfter(lead_ns=lead_ns):
+            return clock.now_ns() + lead_ns
+        case OnsetAt(onset_ns=onset_ns):
+            late_ns = clock.now_ns() - onset_ns
+            if late_ns > 0:
+                raise PlaybackAborted(
+                    f"the onset asked for had passed {late_ns / 1e6:.1f} ms before playback "
+                    f"could begin: arm a stimulus at least {DEFAULT_LEAD_NS / 1e6:g} ms ahead",
+                    SafeStopReport((), (), ()))
+            return onset_ns
+    raise AssertionError(onset)
 
 
 def play_trial(bus: ArrayDriver, targets: TargetList, clock: Clock, *,

@@ -54,7 +54,8 @@ from pinarray.player.messages import (
     WakeUpsMeasured,
 )
 from pinarray.player.playback import (
-    DEFAULT_LEAD_NS,
+    SOON,
+    Onset,
     PlaybackAborted,
     PlaybackReport,
     PreparedTrial,
@@ -144,12 +145,12 @@ class PlayerProcess:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def play(self, trial: PreparedTrial, *, lead_ns: int = DEFAULT_LEAD_NS,
+    def play(self, trial: PreparedTrial, *, onset: Onset = SOON,
              tolerance_ns: int, markers: TrialMarkers | None = None,
              stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> PlaybackReport:
         """Play one trial in the child, announcing ``markers`` there if its stream is open;
         raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
-        answer = self._ask(lambda number: Play(number, trial, lead_ns, tolerance_ns, markers,
+        answer = self._ask(lambda number: Play(number, trial, onset, tolerance_ns, markers,
                                                stroke_tolerance),
                            "playing a trial")
         match answer:

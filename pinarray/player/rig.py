@@ -15,8 +15,9 @@ where the bus still answers.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from contextlib import AbstractContextManager, nullcontext
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, overload
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.errors import PinArrayError
@@ -25,13 +26,17 @@ from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
 from pinarray.player.families import board_refusals, open_array
 from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
+    SOON,
+    Onset,
     PlaybackReport,
     play_prepared,
     prepare_trial,
 )
 from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import (
+    CHECK_SLICE_NS,
     DEFAULT_PERIOD_NS,
+    CheckSkipped,
     PortFigures,
     Verdict,
     WakeUps,
@@ -183,19 +188,21 @@ class Rig:
         self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime,
                                     markers=self.markers)
 
-    def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None
-                ) -> Presentation:
+    def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None, *,
+                onset: Onset = SOON) -> Presentation:
         """Play one trial; the pins then hold at rest.
 
         Returns its onset (clock ns) and `DeliveryRecord`; a stimulus not delivered as
         scheduled is returned, not raised (the session marks the trial invalid). ``markers``
         are announced on the rig's marker stream, if it has one; one that could not be sent
-        is added to `marker_problems`, never raised.
+        is added to `marker_problems`, never raised. ``onset``: the trial's time zero, a lead
+        after the call or a time on the rig's clock (a stimulus a script armed).
         """
         with self._port:
-            return self._present(schedule, markers)
+            return self._present(schedule, markers, onset)
 
-    def _present(self, schedule: TrialSchedule, markers: TrialMarkers | None) -> Presentation:
+    def _present(self, schedule: TrialSchedule, markers: TrialMarkers | None,
+                 onset: Onset) -> Presentation:
         if self.player is not None and not self.player.alive:
             # Started again before torque can come back on, so that it guards it.
             self.player.close()
@@ -207,11 +214,11 @@ class Rig:
         trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
         try:
             if self.player is not None:
-                report = self.player.play(trial, tolerance_ns=self.tolerance_ns,
+                report = self.player.play(trial, onset=onset, tolerance_ns=self.tolerance_ns,
                                           markers=markers, stroke_tolerance=self.stroke_tolerance)
             else:
                 with self._own_time():
-                    report = play_prepared(self.bus, trial, self.clock,
+                    report = play_prepared(self.bus, trial, self.clock, onset=onset,
                                            tolerance_ns=self.tolerance_ns, release_at_end=False,
                                            markers=markers, announcer=self._announcer,
                                            stroke_tolerance=self.stroke_tolerance)
@@ -256,27 +263,48 @@ class Rig:
                       up_width_ns=widths[-1], down_width_ns=widths[0])
         return self.present(compile_drives([PinDrive(pin, train)], self.protocol.device))
 
+    @overload
     def check_timing(self, duration_ns: int | None = None,
-                     period_ns: int = DEFAULT_PERIOD_NS) -> Verdict:
+                     period_ns: int = DEFAULT_PERIOD_NS) -> Verdict: ...
+
+    @overload
+    def check_timing(self, duration_ns: int | None, period_ns: int = DEFAULT_PERIOD_NS, *,
+                     progress: Callable[[int, int], bool]) -> Verdict | CheckSkipped: ...
+
+    def check_timing(self, duration_ns: int | None = None, period_ns: int = DEFAULT_PERIOD_NS,
+                     progress: Callable[[int, int], bool] | None = None
+                     ) -> Verdict | CheckSkipped:
         """Measure this machine's wake-ups in a player process and judge the protocol's timing.
 
         ``duration_ns`` None: as long as the protocol's trials need for a verdict that holds
         from one try to the next (`pinarray.player.timing.duration_for`). On the in-process
         simulator a player process is started just for the measurement: the question is
-        whether this machine could play real servos in time.
+        whether this machine could play real servos in time. ``progress(measured_ns,
+        duration_ns)`` is told after every `CHECK_SLICE_NS` measured; when it returns False the
+        check ends there, `CheckSkipped`.
         """
         with self._port:
-            return self._check_timing(duration_ns, period_ns)
+            return self._check_timing(duration_ns, period_ns, progress)
 
-    def _check_timing(self, duration_ns: int | None, period_ns: int) -> Verdict:
+    def _check_timing(self, duration_ns: int | None, period_ns: int,
+                      progress: Callable[[int, int], bool] | None) -> Verdict | CheckSkipped:
         from pinarray.player.process import PlayerProcess
 
         busiest, frames, window_ns = self._frames()
         if duration_ns is None:
             duration_ns = duration_for(frames, period_ns)
         player = self.player or PlayerProcess(None, None, self.stop, realtime=self._realtime)
+        lateness_ns: list[int] = []
         try:
-            wake_ups = WakeUps.of(player.measure_wake_ups(duration_ns, period_ns))
+            measured_ns = 0
+            while measured_ns < duration_ns:
+                slice_ns = min(CHECK_SLICE_NS, duration_ns - measured_ns)
+                lateness_ns += player.measure_wake_ups(slice_ns, period_ns)
+                measured_ns += slice_ns
+                if progress is not None and not progress(measured_ns, duration_ns):
+                    if measured_ns < duration_ns:
+                        return CheckSkipped(measured_ns, duration_ns)
+            wake_ups = WakeUps.of(lateness_ns)
             problem = player.realtime_problem
         finally:
             if player is not self.player:

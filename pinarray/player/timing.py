@@ -27,6 +27,9 @@ RETRY_SHARE = 0.05
 # Measurements the pre-flight takes at most (a protocol of very long trials says "measure
 # longer" and how long).
 LONGEST_CHECK_NS = 15_000 * NS_PER_MS
+# The check measures in slices this long, saying how far it got after each: whoever waits
+# sees the seconds left, and may go on without the verdict (`CheckSkipped`).
+CHECK_SLICE_NS = 1_000 * NS_PER_MS
 
 
 @dataclass(frozen=True)
@@ -90,6 +93,18 @@ class Verdict:
     @property
     def deliverable(self) -> bool:
         return self.judgement is Judgement.OK
+
+
+@dataclass(frozen=True)
+class CheckSkipped:
+    """The check was not finished: whoever waited for it went on without a verdict."""
+
+    measured_ns: int
+    duration_ns: int
+
+    def describe(self) -> str:
+        return (f"skipped by the experimenter after {self.measured_ns / 1e9:.0f} of "
+                f"{self.duration_ns / 1e9:.0f} s: no verdict")
 
 
 def upper_bound(late: int, samples: int, confidence: float = 0.95) -> float:
@@ -176,7 +191,7 @@ def judge(wake_ups: WakeUps, realtime_problem: str, bus: PortFigures, tolerance_
     if realtime_problem:
         lines.append(f"to fix: {realtime_problem}")
     if bus.latency_timer_ms is not None and bus.latency_timer_ms > 1:
-        lines.append(f"to fix: set the adapter's latency timer to 1 ms (README: latency timer); "
+        lines.append(f"to fix: set the adapter's latency timer to 1 ms (docs/rig/timing.md: the USB adapter's latency timer); "
                      f"it is {bus.latency_timer_ms} ms")
     if not realtime_problem and bus.heal_ns <= tolerance_ns:
         lines.append("to fix: the machine itself is too busy; close other programs"

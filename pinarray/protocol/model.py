@@ -62,7 +62,7 @@ class Pca9685Board:
     """A PCA9685 16-channel PWM board on an I2C bus (the device's ``port``).
 
     ``osc_hz`` is this board's oscillator as measured (nominally 25 MHz, boards are off by up
-    to several percent; README: "Measuring a board's oscillator"); ``pwm_hz`` is the pulse
+    to several percent; docs/rig/pwm.md: "Measuring a board's oscillator"); ``pwm_hz`` is the pulse
     rate used when a trial's pulses do not set one (trains of different rates at once).
     """
 
@@ -409,7 +409,8 @@ class Ordering(StrEnum):
 
 @dataclass(frozen=True)
 class LocalisationCondition:
-    """What one localisation trial presents: the stimulus's train on one pin, at one frequency."""
+    """What one localisation trial presents: the ``stimulus``'s train on one ``pin``, at one
+    frequency (``frequency_hz``, exact)."""
 
     stimulus: str
     pin: int
@@ -417,6 +418,7 @@ class LocalisationCondition:
 
     @property
     def key(self) -> tuple:
+        """(stimulus, pin, frequency, direction): what tells conditions of a design apart."""
         return (self.stimulus, self.pin, self.frequency_hz, None)
 
 
@@ -436,10 +438,12 @@ class MotionCondition:
 
     @property
     def key(self) -> tuple:
+        """(stimulus, pin, frequency, direction): what tells conditions of a design apart."""
         return (self.stimulus, None, None, self.direction)
 
 
 Condition = LocalisationCondition | MotionCondition
+"""What one trial presents: a train on a pin at a frequency, or a wave going a direction."""
 
 
 def condition_value(condition: Condition, attribute: str) -> object:
@@ -519,6 +523,26 @@ class Design:
 
 @dataclass(frozen=True)
 class Protocol:
+    """A validated protocol file: the device, the named stimuli and the design, frozen.
+
+    Attributes
+    ----------
+    name, description : str
+        As the file gives them (the name is the results' task label, letters and digits kept).
+    device : Device
+        The pins' servos, calibration, limits and tolerances.
+    stimuli : tuple of TrainStimulus or WaveStimulus
+        The named pulse trains and travelling waves.
+    design : Design
+        The paradigm, its conditions, blocks, order, seed and adaptive procedures, if any.
+    source : str
+        The file it was read from (every located error names it).
+    sha256 : str
+        The file's SHA-256: a resumed run must have started with the same file.
+    sync : ScannerSync or None
+        The scanner section (``sync:``), if the protocol has one.
+    """
+
     name: str
     description: str
     device: Device
@@ -529,6 +553,7 @@ class Protocol:
     sync: ScannerSync | None = None  # the scanner section, if the protocol has one
 
     def stimulus(self, name: str) -> Stimulus:
+        """The stimulus called ``name`` (a `PinArrayError` naming the file if none is)."""
         for stimulus in self.stimuli:
             if stimulus.name == name:
                 return stimulus

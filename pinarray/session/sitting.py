@@ -22,6 +22,7 @@ import threading
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, TypeVar
@@ -39,7 +40,7 @@ from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.player.rig import Rig
 from pinarray.player.simulators import SimulatedArrays
-from pinarray.player.timing import Verdict
+from pinarray.player.timing import CheckSkipped, Verdict
 from pinarray.procedures import prepare_quest_plus
 from pinarray.protocol import Protocol
 from pinarray.protocol.imaging import EmulatedTrigger, ScannerSync
@@ -69,7 +70,27 @@ class RigFactory(typing.Protocol):
                  markers: MarkerStream | None = None) -> Rig: ...
 
 
-Answer = str | int | None  # a pin, a motion answer, or None: nothing felt
+Answer = str | int | None
+"""A subject's answer: a pin (its number, or the number as text), ``"none"`` (nothing felt),
+a direction's name or ``"unsure"`` (apparent motion); None counts as nothing felt."""
+
+
+@dataclass(frozen=True)
+class Question:
+    """What a scripted answer source is asked once a trial's stimulus has played.
+
+    Attributes
+    ----------
+    trial : PlannedTrial
+        The trial of the plan that was presented (its number, block, condition, catch).
+    adapted_value : Fraction or None
+        An adaptive design's trial: the value of the adapted parameter it presented, in the
+        unit the protocol names it in (``soa_ms``: milliseconds); None in a fixed design and
+        on a catch trial that plays its own stimulus.
+    """
+
+    trial: PlannedTrial
+    adapted_value: Fraction | None = None
 
 
 @dataclass(frozen=True)
@@ -159,6 +180,8 @@ class Sitting:
         self.lsl_name = lsl_name
         self.marker_stream: MarkerStream | None = None
         self.scanner: Scanner | None = None
+        # What the last timing check on this connection said, for the run's manifest.
+        self.timing_check = ""
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
         # Set while the rig is being closed: a pause must not clear the stop a close relies on.
@@ -200,6 +223,7 @@ class Sitting:
         """
         self.release("connecting again")
         self.request = request
+        self.timing_check = ""
         with self._jobs_done:
             self._closing = False
             if self.stop.signal_number is None:
@@ -247,11 +271,20 @@ class Sitting:
         request.protocol.device.grid.check_pin(pin)
         self._busy(lambda: rig.test_pin(pin))
 
-    def check_timing(self, duration_ns: int | None) -> Verdict | None:
+    def check_timing(self, duration_ns: int | None,
+                     progress: Callable[[int, int], bool] = lambda done_ns, total_ns: True
+                     ) -> Verdict | CheckSkipped | None:
         """This machine's timing verdict (blocking: call it from a worker), None if stopped;
-        see `Rig.check_timing`."""
+        see `Rig.check_timing`. What it said goes into the next run's manifest."""
         rig = self.connected()
-        return self._busy(lambda: rig.check_timing(duration_ns))
+        outcome = self._busy(lambda: rig.check_timing(duration_ns, progress=progress))
+        match outcome:
+            case Verdict(judgement=judgement, lines=lines):
+                said = [line for line in lines if line.startswith(f"{judgement.value}:")]
+                self.timing_check = said[0] if said else judgement.value
+            case CheckSkipped():
+                self.timing_check = "timing check " + outcome.describe()
+        return outcome
 
     def lower_return_delay(self, delay_us: int = 0
                            ) -> tuple[tuple[ReturnDelayChange, ...], tuple[ServoFailure, ...]] | None:
@@ -357,6 +390,8 @@ class Sitting:
             # A session that cannot start on it (its rows refused) marks the run and gives up
             # its lock: the next try, or another process, finds it free.
             opened.enter_context(writer)
+            if self.timing_check:
+                writer.note_timing_check(self.timing_check)
             self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
                                          scanner=scanner, marked=self.marker_stream is not None,
                                          on_change=on_change, prepared=prepared)
@@ -393,7 +428,7 @@ class Sitting:
             session.abort(self.failed.reason)
         return self.failed
 
-    def run_scripted(self, answer: Callable[[PlannedTrial], Answer], *,
+    def run_scripted(self, answer: Callable[[Question], Answer], *,
                      failed: Callable[[FailedAttempt], object] = lambda attempt: None,
                      answered: Callable[[Session], object] = lambda session: None) -> Session:
         """Every remaining trial of the open run, answered by ``answer`` (no response times).
@@ -416,7 +451,10 @@ class Sitting:
                         session.retry()
                         continue
                     assert session.current is not None  # READY -> RESPONSE keeps the trial
-                    session.respond(answer(session.current), response_time_ns=None)
+                    presented = session.presented
+                    question = Question(session.current,
+                                        None if presented is None else presented.value)
+                    session.respond(answer(question), response_time_ns=None)
                     answered(session)
             except (Stopped, KeyboardInterrupt) as stopped:
                 session.abort(str(stopped) or INTERRUPTED_REASON)

@@ -22,7 +22,6 @@ from textual.binding import Binding
 from textual.message_pump import active_message_pump
 from textual.worker import WorkerFailed
 
-from pinarray import __version__
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.journal.manifest import RunStatus
@@ -42,6 +41,7 @@ from pinarray.tui.outcome import (
     farewell,
     resume_command,
 )
+from pinarray.version import __version__
 
 TERMINAL_FD = 0  # the terminal Textual reads keys from (standard input)
 TERMINAL_CHECK_S = 1.0  # how often the UI looks whether its terminal is still there

@@ -1,4 +1,4 @@
-"""How the UI was left, as one line and an exit status (README: "Exit status").
+"""How the UI was left, as one line and an exit status (docs/experimenters/commands.md: the exit statuses).
 
 Pure: built from the runs the sitting opened and how it ended, so it is tested without a
 terminal. The command line prints the line once the terminal is restored.

@@ -3,6 +3,9 @@ run."""
 
 from __future__ import annotations
 
+import math
+import threading
+
 from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -15,6 +18,7 @@ from pinarray.hardware.feetech import packets
 from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import Register
 from pinarray.hardware.pca9685.driver import Pca9685Array
+from pinarray.player.timing import CheckSkipped, Verdict
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
 from pinarray.tui.confirm import Confirm
@@ -26,6 +30,7 @@ COLUMNS = ("servo", "pin", "answers", "model", "position\n(steps)", "volts", "te
 # A goal's read-back on the wire: the READ request and the status packet carrying the goal.
 GOAL = Register.GOAL_POSITION
 READBACK_BYTES = len(packets.read(1, GOAL.address, GOAL.size)) + packets.status_size(GOAL.size)
+BEGIN_LABEL = "Begin run (b)"
 
 
 class PreflightScreen(KeyNotices, Screen):
@@ -41,7 +46,8 @@ class PreflightScreen(KeyNotices, Screen):
 
     # b and Escape whatever has focus: the pin field takes only digits anyway.
     BINDINGS = [Binding("escape", "back", "back", priority=True),
-                Binding("b", "begin", "begin run", priority=True)]
+                Binding("b", "begin", "begin run", priority=True),
+                Binding("s", "skip_timing", "skip timing check", priority=True)]
 
     def __init__(self, sitting: Sitting, request: SessionRequest):
         super().__init__()
@@ -52,6 +58,10 @@ class PreflightScreen(KeyNotices, Screen):
         self._good = ""  # the last status that was not a complaint
         # What the last timing check said when it was not OK (NOT OK, NOT SURE): Begin asks first.
         self._timing_doubt = ""
+        # While the check measures: Begin waits for it (it holds the array), s skips it.
+        self._measuring = False
+        self._skip = threading.Event()
+        self._begin_after_check = False
 
     def compose(self) -> ComposeResult:
         r = self.request
@@ -69,7 +79,7 @@ class PreflightScreen(KeyNotices, Screen):
             yield Button("Test pin", id="test", disabled=True)
             yield Static("wiggles one pin 3 times so you can feel or see it move", classes="hint")
         with Horizontal(id="preflight-buttons"):
-            yield Button("Begin run (b)", id="begin", variant="primary", disabled=True)
+            yield Button(BEGIN_LABEL, id="begin", variant="primary", disabled=True)
             yield Button("Connect again", id="reconnect", disabled=True)
             yield Button("Rest + torque off", id="release", disabled=True)
             yield Button("Lower return delay", id="lower-delay", disabled=True)
@@ -82,6 +92,8 @@ class PreflightScreen(KeyNotices, Screen):
             return self.connected and not self._leaving
         if action == "back":
             return not self._leaving
+        if action == "skip_timing":
+            return self._measuring and not self._skip.is_set()
         return True
 
     def refusal(self, actions: tuple[str, ...]) -> str:
@@ -130,20 +142,55 @@ class PreflightScreen(KeyNotices, Screen):
         if duration_ns != 0:
             self._timing_line("Timing: measuring this machine" + (
                 "…" if duration_ns is None else f" for {duration_ns / 1e9:g} s…"))
+            self._measuring = True
+            self._skip.clear()
+            self.refresh_bindings()
             self._timing(duration_ns)
 
     @work(thread=True, exclusive=True, group="timing")
     def _timing(self, duration_ns: int | None) -> None:
+        def measured(done_ns: int, total_ns: int) -> bool:
+            self.app.call_from_thread(self._measured, done_ns, total_ns)
+            return not self._skip.is_set()
+
         try:
-            verdict = self.sitting.check_timing(duration_ns)
+            verdict = self.sitting.check_timing(duration_ns, measured)
         except (PinArrayError, AssertionError) as problem:  # not connected any more
             self.app.call_from_thread(self._timing_line, f"Timing: not checked ({problem})", True)
+            verdict = None
+        self.app.call_from_thread(self._timing_done, verdict)
+
+    def _measured(self, done_ns: int, total_ns: int) -> None:
+        """A slice of the check measured: the seconds left, and what Begin and s do now."""
+        if not self._measuring or self._skip.is_set():
             return
-        if verdict is None:
-            return  # stopped: the screen is being left
-        self._timing_doubt = "" if verdict.deliverable else verdict.judgement.value
-        self.app.call_from_thread(self._timing_line, "Timing: " + "\n".join(verdict.lines),
-                                  not verdict.deliverable)
+        left_s = math.ceil((total_ns - done_ns) / 1e9)
+        text = f"Timing: measuring this machine, {left_s} s left (s skips the check)"
+        if self._begin_after_check:
+            text += "\nThe run begins when the check ends."
+        self._timing_line(text)
+
+    def _timing_done(self, outcome: Verdict | CheckSkipped | None) -> None:
+        self._measuring = False
+        self.refresh_bindings()
+        match outcome:
+            case Verdict():
+                self._timing_doubt = "" if outcome.deliverable else outcome.judgement.value
+                self._timing_line("Timing: " + "\n".join(outcome.lines), not outcome.deliverable)
+            case CheckSkipped():
+                self._timing_doubt = ""
+                self._timing_line(f"Timing: {outcome.describe()} (written in the run's records)")
+        if self._begin_after_check:
+            self._begin_after_check = False
+            self.query_one("#begin", Button).label = BEGIN_LABEL
+            if outcome is not None:  # None: stopped, the screen is being left
+                self.action_begin()
+
+    def action_skip_timing(self) -> None:
+        if self._measuring:
+            self._skip.set()
+            self.refresh_bindings()
+            self._timing_line("Timing: skipping the check…")
 
     def _timing_line(self, text: str, problem: bool = False) -> None:
         line = self.query_one("#timing", Static)
@@ -310,6 +357,13 @@ class PreflightScreen(KeyNotices, Screen):
     @on(Button.Pressed, "#begin")
     def action_begin(self) -> None:
         if not self.connected or self._leaving:
+            return
+        if self._measuring:
+            # The check holds the array: a stimulus now would wait for it in silence.
+            self._begin_after_check = True
+            self.query_one("#begin", Button).label = "After check…"
+            self._timing_line("Timing: measuring this machine; the run begins when the check "
+                              "ends (s skips the check: written in the run's records)")
             return
         if not self._timing_doubt:
             self._begin()

@@ -80,6 +80,7 @@ class RunScreen(KeyNotices, Screen):
         self._timeline: LiftTimeline | None = None
         self._active: frozenset[int] = frozenset()
         self._onset_ns = 0
+        self._stimulus_ns = 0  # the length of the stimulus presented last
         self._presenting = False  # a present worker runs (the interval, then the stimulus)
         self._cutting = False  # a pause is cutting the stimulus short
         self._ending = False
@@ -234,7 +235,7 @@ class RunScreen(KeyNotices, Screen):
             case Phase.READY:
                 return "Space (or Enter) presents the trial."
             case Phase.STIMULUS:
-                return "Stimulus playing…"
+                return self._playing()
             case Phase.RESPONSE:
                 return ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
                         else "Subject's answer: "
@@ -336,6 +337,14 @@ class RunScreen(KeyNotices, Screen):
         if self._timeline is not None:
             elapsed_ns = self.clock.now_ns() - self._onset_ns
             self._draw_grid(self._timeline.lifted_at(elapsed_ns))
+        if self.session.phase is Phase.STIMULUS and not (self.session.pausing or self._cutting):
+            self.query_one("#phase", Static).update(self._playing())
+
+    def _playing(self) -> str:
+        """The stimulus's own progress: seconds played of its length."""
+        length_ns = self._stimulus_ns
+        played_ns = min(length_ns, max(0, self.clock.now_ns() - self._onset_ns))
+        return f"Stimulus playing: {played_ns / 1e9:.1f} of {length_ns / 1e9:.1f} s"
 
     # -- session changes ----------------------------------------------------------------------
 
@@ -389,6 +398,7 @@ class RunScreen(KeyNotices, Screen):
         device = session.protocol.device
         rest = {pin: device.calibration(pin).rest_steps for pin in schedule.active_pins}
         self._timeline = LiftTimeline.from_targets(schedule.targets, rest)
+        self._stimulus_ns = schedule.end_ns
         self._active = frozenset(schedule.active_pins)
         self.query_one(ResponsePad).clear()
         self._presenting = True

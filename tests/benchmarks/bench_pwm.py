@@ -27,7 +27,7 @@ from pinarray.hardware.pca9685.sim import SimI2cLink
 from pinarray.hardware.pca9685.timing import PwmTrial
 from pinarray.plan import make_plan
 from pinarray.player.families import open_array
-from pinarray.player.playback import play_prepared, prepare_trial
+from pinarray.player.playback import OnsetAfter, play_prepared, prepare_trial
 from pinarray.protocol.load import parse_protocol
 from pinarray.schedule import compile_trial
 from tests.benchmarks._timing import SPREAD_HEADER
@@ -71,7 +71,7 @@ def _play(protocol, schedule):
         bus.hold()
         trial = prepare_trial(bus, schedule.targets, schedule.pulses)
         heard = _Heard(bus.link)
-        report = play_prepared(bus, trial, clock, lead_ns=LEAD_NS,
+        report = play_prepared(bus, trial, clock, onset=OnsetAfter(LEAD_NS),
                                tolerance_ns=protocol.device.delivery_tolerance_ns)
     finally:
         bus.close()

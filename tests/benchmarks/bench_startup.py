@@ -39,6 +39,8 @@ def run() -> None:
         f"python -m pinarray validate {PROTOCOL}": [python, "-m", "pinarray", "validate",
                                                    PROTOCOL],
         "python -m pinarray --help (every command)": [python, "-m", "pinarray", "--help"],
+        "python -c 'import pinarray' (the public face, lazily)": [python, "-c",
+                                                                   "import pinarray"],
     }
     if SCRIPT.exists():
         commands[f"pinarray validate {PROTOCOL}"] = [str(SCRIPT), "validate", PROTOCOL]

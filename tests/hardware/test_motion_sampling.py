@@ -5,9 +5,11 @@ import sys
 from fractions import Fraction
 
 import numpy as np
+import pytest
 
 from pinarray.clock import VirtualClock
 from pinarray.hardware.feetech.registers import Register
+from pinarray.hardware.motion import PinTrace, measure_trial
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.physio import motion_recording_path, read_motion
 from pinarray.journal.records import TrialStatus, read_trials
@@ -134,3 +136,91 @@ def test_the_stroke_summary_names_the_commanded_and_achieved_steps():
     bus = sim_bus()
     report = play_trial(bus, pulse_train([4], 3, 3, up_steps=2162), bus.clock)
     assert "stroke 114/114 steps" in report.delivery.summary()
+
+
+def test_a_pin_holding_its_goal_is_sampled_only_as_often_as_its_cycles_need():
+    # 3 Hz, 114 steps: the horn arrives within about 60 ms and holds for about 100 ms of
+    # every half cycle.
+    bus = sim_bus()
+    schedule = pulse_train([4], 3, 6, up_steps=2162)
+    report = play_prepared(bus, prepare_trial(bus, schedule), bus.clock)
+    (trace,) = report.trace
+    gaps_ms = np.diff(trace.time_ns) / MS
+    trial_s = schedule.end_ns / 1e9
+    # fewer than one sample every 4 ms ...
+    assert len(trace.time_ns) < 0.75 * trial_s * 1000 / 4
+    # ... none more than an eighth of a 333 ms cycle apart (the last cycle runs on to the
+    # trial's end, 200 ms later), and every 4 ms while it moves
+    last_cycle_ns = 5 * round(1e9 / 3)
+    assert gaps_ms[trace.time_ns[1:] <= last_cycle_ns].max() <= 333.4 / 8
+    assert gaps_ms.max() <= (schedule.end_ns - last_cycle_ns) / MS / 8
+    assert np.median(gaps_ms) == pytest.approx(4, abs=0.1)
+    (stroke,) = report.delivery.strokes.pins
+    assert stroke.cycles == 6 and stroke.achieved_steps == 114 and stroke.lag_ns is not None
+
+
+@pytest.mark.parametrize("rate_hz, up_steps", [(3, 2162), (5, 2113), (2, 2300)])
+def test_the_samples_held_back_would_not_have_changed_the_pins_measured_motion(rate_hz, up_steps):
+    """Where the trace skips (a pin holding its goal), the simulator's horn at every 0.5 ms
+    put back into the trace changes no stroke, no lag and no short cycle."""
+    bus = sim_bus()
+    servo = bus.sim.servos[4]
+    servo.start_recording()
+    schedule = pulse_train([4], rate_hz, 5, up_steps=up_steps)
+    trial = prepare_trial(bus, schedule)
+    report = play_prepared(bus, trial, bus.clock)
+    (trace,) = report.trace
+    skipped = [t for start, stop in zip(trace.time_ns[:-1], trace.time_ns[1:], strict=True)
+               if stop - start > 4 * MS + MS // 2
+               for t in range(int(start) + MS // 2, int(stop), MS // 2)]
+    assert skipped, "nothing was held back"
+    times = np.concatenate((trace.time_ns, np.array(skipped, dtype=np.int64)))
+    horn = [servo.position_at_ns(report.onset_ns + int(t)) for t in skipped]
+    positions = np.concatenate((trace.position_steps, np.rint(horn).astype(np.int32)))
+    order = np.argsort(times, kind="stable")
+    dense = PinTrace(trace.pin, trace.servo_id, times[order], positions[order])
+    assert measure_trial([dense], trial.changes, trial.end_ns) == report.delivery.strokes
+
+
+@pytest.mark.parametrize("query", ["return_delay_us=250", "baud=115200&return_delay_us=2"])
+def test_a_read_is_answered_the_moment_its_last_byte_arrives_in_virtual_time(query):
+    # No polling: a request costs its bytes on the wire and the servo's return delay, exactly.
+    bus = sim_bus(query)
+    start_ns = bus.clock.now_ns()
+    bus.read_positions((5,), start_ns + 50 * MS)
+    request, reply = bus.read_request_bytes((5,)), 6 + 2
+    return_delay_ns = bus.sim.servos[5].return_delay_ns
+    assert bus.clock.now_ns() - start_ns == bus.wire_ns(request + reply) + return_delay_ns
+
+
+class PolledOnly:
+    """The simulated port without `readable_at_ns`: its reader polls, as for a pyserial URL."""
+
+    def __init__(self, port):
+        self._port = port
+
+    def __getattr__(self, name):
+        if name == "readable_at_ns":
+            raise AttributeError(name)
+        return getattr(self._port, name)
+
+
+@pytest.mark.parametrize("query", ["", "drop_writes=0.1&seed=4", "late=0.05&late_ms=3&seed=2"])
+def test_waiting_for_the_ports_bytes_or_polling_for_them_delivers_and_measures_the_same(query):
+    reports = []
+    for polled in (False, True):
+        bus = sim_bus(query)
+        if polled:
+            bus.link.wire.port = PolledOnly(bus.link.wire.port)
+            bus.link.wire._readable_at_ns = None
+        reports.append(play_prepared(bus, prepare_trial(bus, pulse_train([4, 9], 5, 4, 2162)),
+                                     bus.clock))
+    waited, polled = reports
+    assert waited.delivery.missing == polled.delivery.missing == 0
+    assert (waited.delivery.confirmed, waited.delivery.healed) == (
+        polled.delivery.confirmed, polled.delivery.healed)
+    for a, b in zip(waited.delivery.strokes.pins, polled.delivery.strokes.pins, strict=True):
+        assert (a.commanded_steps, a.achieved_steps, a.cycles, a.short_cycles) == (
+            b.commanded_steps, b.achieved_steps, b.cycles, b.short_cycles)
+        # polling every 20 us finds a reply up to 20 us after it arrived; waiting, at once
+        assert abs(a.lag_ns - b.lag_ns) <= 20_000

@@ -1,6 +1,8 @@
 """A simulated STS3215 as a client that only sends bytes sees it: table, instructions, bring-up."""
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pinarray.hardware.feetech.models import STS3215_C001
 from pinarray.hardware.feetech.registers import (
@@ -247,3 +249,21 @@ def test_a_torn_packet_split_across_writes_is_still_understood():
 
 def test_the_default_model_is_the_7v4_sts3215():
     assert RawBus().sim.servos[1].model is STS3215_C001
+
+
+@given(start=st.integers(56, 70), length=st.integers(1, 15), after_ms=st.integers(0, 80),
+       faults=st.sampled_from(["", "&overload=1", "&voltage=1", "&overheat=1&load=0.3"]))
+@settings(max_examples=60)
+def test_any_part_of_the_feedback_block_reads_as_the_whole_block_does(start, length, after_ms,
+                                                                       faults):
+    """The simulator works out only the feedback registers a read asks for; what it answers
+    is the same slice as a read of the whole block at that instant."""
+    length = min(length, 71 - start)
+    reads = []
+    for part in ((start, length), (56, 15)):
+        bus = RawBus("ids=1" + faults)
+        bus.write(1, *reg(Register.GOAL_POSITION, 2400))
+        bus.clock.sleep_until_ns(bus.clock.now_ns() + after_ms * 1_000_000)
+        reads.append(bus.read(1, *part))
+    part, whole = reads
+    assert part == whole[start - 56 : start - 56 + length]

@@ -20,9 +20,9 @@ class CountingRig(ArrayRig):
 
     checks = 0
 
-    def check_timing(self, duration_ns=0, period_ns=0):
+    def check_timing(self, duration_ns=0, period_ns=0, progress=None):
         CountingRig.checks += 1
-        return super().check_timing(duration_ns, period_ns)
+        return super().check_timing(duration_ns, period_ns, progress)
 
 
 async def test_beginning_after_a_not_ok_timing_check_asks_first(results):

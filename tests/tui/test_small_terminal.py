@@ -128,7 +128,7 @@ class ArrayRig(Rig):
                            "the servo's power may have come loose")
         return super().present(schedule)
 
-    def check_timing(self, duration_ns=0, period_ns=0):
+    def check_timing(self, duration_ns=0, period_ns=0, progress=None):
         # A busy laptop's verdict: the longest the pre-flight has to show.
         return judge(WakeUps(2000, 1_200_000, 9_800_000, 32_100_000),
                      "no real-time priority (run `pinarray setup-realtime` once, then log in "
@@ -319,23 +319,43 @@ async def test_a_trial_ready_to_present_shows_the_last_answer_and_the_notice(res
         assert unseen(screen) == []
 
 
+async def holding_a_stimulus(pilot, protocol):
+    """The second trial's stimulus begun and held (`ArrayRig.hold`) until the test sets it."""
+    await to_run_screen(pilot)
+    await answer_one(pilot, protocol)
+    ArrayRig.hold = threading.Event()
+    await pilot.press("space")
+    while pilot.app.screen.session.phase is not Phase.STIMULUS:
+        await pilot.pause(0.01)
+
+
 @SIZES
 @PARADIGMS
 async def test_a_stimulus_playing_shows_every_key_and_answer(results, size, protocol):
     app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
     async with app.run_test(size=size) as pilot:
-        await to_run_screen(pilot)
-        await answer_one(pilot, protocol)
-        ArrayRig.hold = threading.Event()
-        await pilot.press("space")
-        session = app.screen.session
-        while session.phase is not Phase.STIMULUS:
-            await pilot.pause(0.01)
+        await holding_a_stimulus(pilot, protocol)
         await pilot.press("x")
         try:
             assert app.screen.notice.text.startswith("x does nothing here")
             assert says(app.screen, "#last").startswith("last: practice 1")
             assert unseen(app.screen) == []
+        finally:
+            ArrayRig.hold.set()
+            await settle(pilot)
+
+
+@SIZES
+async def test_a_stimulus_playing_shows_how_far_it_has_played_of_its_length(results, size):
+    app = make_app(results, rig_factory=ArrayRig)
+    async with app.run_test(size=size) as pilot:
+        await holding_a_stimulus(pilot, LOCALISATION)
+        try:
+            clock = app.sitting.clock.clock  # the sitting's virtual clock, under its stop
+            clock.sleep_until_ns(clock.now_ns() + 3_250_000_000)
+            await pilot.pause(0.2)  # a few frames of the grid's animation
+            assert says(app.screen, "#phase") == "Stimulus playing: 3.2 of 10.0 s"
+            assert "Stimulus playing: 3.2 of 10.0 s" in on_screen(app)
         finally:
             ArrayRig.hold.set()
             await settle(pilot)

@@ -56,10 +56,10 @@ if TYPE_CHECKING:
 # Present position .. present temperature, read in one instruction.
 TELEMETRY_START = Register.PRESENT_POSITION
 TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.address
-# A READ instruction packet, in bytes.
-READ_REQUEST_BYTES = 8
 # Sync reads that get no answer at all, in a row, before read-backs use READs instead.
 SYNC_READ_TRIES = 3
+# Read requests kept made (a trial asks the same few again and again; a bring-up, many once).
+READ_REQUESTS_KEPT = 64
 # A retry after a silence waits this many times longer than the attempt before it.
 PATIENCE_GROWTH = 4
 
@@ -110,6 +110,8 @@ class FeetechBus:
         self.sim: SimBus | None = None  # behind a simulated port; for tests and benchmarks
         self._last_goals: dict[int, int] = {}
         self._sync_read_works = True
+        self._read_requests: dict[tuple[Register, tuple[int, ...], bool],
+                                  tuple[bytes, tuple[Expected, ...]]] = {}
         self._sync_reads_unanswered = 0
         self._sync_writes = 0
         self._goals_written = 0
@@ -392,16 +394,30 @@ class FeetechBus:
         """The size of the request `read_goals` or `read_positions` sends for these servos."""
         if len(servo_ids) > 1 and self._sync_read_works:
             return packets.INSTRUCTION_OVERHEAD_BYTES + 2 + len(servo_ids)
-        return READ_REQUEST_BYTES
+        return packets.READ_REQUEST_BYTES
+
+    def _read_request(self, register: Register,
+                      servo_ids: tuple[int, ...]) -> tuple[bytes, tuple[Expected, ...]]:
+        """The packet that reads ``register`` of these servos, and the replies it asks for:
+        one READ, or one SYNC READ of several (made once: a sampled bus sends it every few
+        milliseconds)."""
+        key = (register, servo_ids, self._sync_read_works)
+        request = self._read_requests.get(key)
+        if request is None:
+            if len(servo_ids) == 1 or not self._sync_read_works:
+                packet = packets.read(servo_ids[0], register.address, register.size)
+                servo_ids = servo_ids[:1]
+            else:
+                packet = packets.sync_read(register.address, register.size, servo_ids)
+            request = packet, tuple(Expected(i, register.size) for i in servo_ids)
+            if len(self._read_requests) >= READ_REQUESTS_KEPT:
+                self._read_requests.clear()
+            self._read_requests[key] = request
+        return request
 
     def _read_words(self, register: Register, servo_ids: tuple[int, ...], deadline_ns: int,
                     action: str) -> dict[int, StatusPacket]:
-        expected = tuple(Expected(i, register.size) for i in servo_ids)
-        if len(servo_ids) == 1 or not self._sync_read_works:
-            packet = packets.read(servo_ids[0], register.address, register.size)
-            expected = expected[:1]
-        else:
-            packet = packets.sync_read(register.address, register.size, servo_ids)
+        packet, expected = self._read_request(register, servo_ids)
         try:
             replies = self.link.exchange(packet, expected, deadline_ns)
         except WireLost as error:
@@ -414,10 +430,8 @@ class FeetechBus:
         return replies
 
     def _read_words_time_ns(self, register: Register, servo_ids: tuple[int, ...]) -> int:
-        ids = servo_ids if len(servo_ids) > 1 and self._sync_read_works else servo_ids[:1]
-        return self.link.reply_time_ns(
-            self.read_request_bytes(ids), tuple(Expected(i, register.size) for i in ids),
-            expected=True)
+        packet, expected = self._read_request(register, servo_ids)
+        return self.link.reply_time_ns(len(packet), expected, expected=True)
 
     def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:
         """Write one goal again with an acknowledged WRITE; the error bits, or None: no ack."""

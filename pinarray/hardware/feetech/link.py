@@ -35,7 +35,8 @@ from pinarray.units import NS_PER_MS
 BITS_PER_BYTE = 10
 # The longest return delay the register can hold (254 x 2 us), assumed until read.
 MAX_RETURN_DELAY_NS = 508_000
-# How often a polled wire looks for bytes while it waits, in clock nanoseconds.
+# How often a polled wire looks for bytes while it waits, in clock nanoseconds (a port that
+# says when its bytes arrive, the in-process simulator, is not polled).
 POLL_NS = 20_000
 # A device that takes no bytes for this long is treated as gone (a full queue nobody drains).
 WRITE_TIMEOUT_NS = 500_000_000
@@ -185,14 +186,19 @@ class FdWire:
 class PolledWire:
     """Any object with pyserial's ``write`` / ``in_waiting`` / ``read`` / ``close``.
 
-    The in-process simulator (`pinarray.hardware.feetech.sim.SimSerial`) is one: its bytes arrive on the
-    clock, so waiting here moves virtual time instead of sleeping.
+    The in-process simulator (`pinarray.hardware.feetech.sim.SimSerial`) is one: its bytes
+    arrive on the clock, and it says when the next ones will have arrived
+    (``readable_at_ns``), so a read waits on the clock until then: in virtual time one jump,
+    whatever the wire's speed. A port that cannot say (a pyserial URL handler) is polled every
+    `POLL_NS` of clock time.
     """
 
     def __init__(self, port: SerialPort, clock: Clock, name: str):
         self.port = port
         self.clock = clock
         self.name = name
+        self._readable_at_ns: Callable[[], int | None] | None = getattr(
+            port, "readable_at_ns", None)
 
     def write(self, data: bytes) -> None:
         try:
@@ -201,15 +207,20 @@ class PolledWire:
             raise WireLost(errno.EIO, str(error)) from None
 
     def read_some(self, deadline_ns: int) -> bytes:
+        port, clock, readable_at_ns = self.port, self.clock, self._readable_at_ns
         try:
             while True:
-                waiting = self.port.in_waiting
+                waiting = port.in_waiting
                 if waiting:
-                    return bytes(self.port.read(waiting))
-                now_ns = self.clock.now_ns()
+                    return bytes(port.read(waiting))
+                now_ns = clock.now_ns()
                 if now_ns >= deadline_ns:
                     return b""
-                self.clock.sleep_until_ns(min(deadline_ns, now_ns + POLL_NS))
+                if readable_at_ns is None:
+                    clock.sleep_until_ns(min(deadline_ns, now_ns + POLL_NS))
+                    continue
+                next_ns = readable_at_ns()
+                clock.sleep_until_ns(deadline_ns if next_ns is None else min(deadline_ns, next_ns))
         except OSError as error:
             raise WireLost(errno.EIO, str(error)) from None
 
@@ -357,8 +368,11 @@ class Link:
         allowance (a retry after a silence waits longer: a busy host can hold a reply, or the
         simulator serving it, for more than the allowance learnt while it was quiet).
         """
-        reply_bytes = sum(6 + r.params_length for r in replies)
-        delays = sum(self.return_delay_ns.get(r.servo_id, MAX_RETURN_DELAY_NS) for r in replies)
+        reply_bytes = delays = 0
+        return_delay_ns = self.return_delay_ns
+        for reply in replies:
+            reply_bytes += 6 + reply.params_length
+            delays += return_delay_ns.get(reply.servo_id, MAX_RETURN_DELAY_NS)
         latency = self.latency.expected_ns if expected else patience * self.latency.allowance_ns
         return self.wire_ns(request_bytes + reply_bytes) + delays + latency
 
@@ -396,29 +410,30 @@ class Link:
             The replies that arrived and fit; a missing id means no fitting reply in time.
         """
         self.drain()
-        self.reader.longest_params = max((e.params_length for e in expected), default=0)
+        wire, reader, counters = self.wire, self.reader, self.counters
+        wanted = {e.servo_id: e.params_length for e in expected}
+        reader.longest_params = max(wanted.values(), default=0)
         start_ns = self.clock.now_ns()
         limit_ns = start_ns + self.reply_time_ns(len(packet), expected, patience=patience)
-        if deadline_ns is not None:
-            limit_ns = min(limit_ns, deadline_ns)
-        self.wire.write(packet)
-        self.counters.bytes_written += len(packet)
-        self.counters.exchanges += 1
-        wanted = {e.servo_id: e.params_length for e in expected}
+        if deadline_ns is not None and deadline_ns < limit_ns:
+            limit_ns = deadline_ns
+        wire.write(packet)
+        counters.bytes_written += len(packet)
+        counters.exchanges += 1
         replies: dict[int, StatusPacket] = {}
         while len(replies) < len(wanted):
-            data = self.wire.read_some(limit_ns)
+            data = wire.read_some(limit_ns)
             if not data:
-                self.counters.timeouts += 1
+                counters.timeouts += 1
                 break
-            self.counters.bytes_read += len(data)
-            for status in self.reader.feed(data):
+            counters.bytes_read += len(data)
+            for status in reader.feed(data):
                 length = wanted.get(status.servo_id)
                 if length is None or length != len(status.params) or status.servo_id in replies:
-                    self.counters.mismatched_replies += 1
+                    counters.mismatched_replies += 1
                     continue
                 replies[status.servo_id] = status
-        if replies and len(replies) == len(wanted):
+        if self.latency.learns and replies and len(replies) == len(wanted):
             # The adapter's part of the exchange: what it took beyond the wire and the servos'
             # return delays.
             used_ns = self.clock.now_ns() - start_ns

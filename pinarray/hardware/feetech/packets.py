@@ -16,7 +16,7 @@ stream of bytes, noise and stale replies included, and checks each one's checksu
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from pinarray.hardware.feetech.registers import BROADCAST_ID, Instruction, checksum
 
@@ -29,6 +29,8 @@ MAX_ERROR_BYTE = 0x7F
 STATUS_OVERHEAD_BYTES = 6
 # FF FF id len instruction checksum, before the parameters.
 INSTRUCTION_OVERHEAD_BYTES = 6
+# A READ instruction packet (address and length), in bytes.
+READ_REQUEST_BYTES = INSTRUCTION_OVERHEAD_BYTES + 2
 
 
 def instruction_packet(servo_id: int, instruction: Instruction, params: bytes = b"") -> bytes:
@@ -76,8 +78,7 @@ def status_size(params_length: int) -> int:
     return STATUS_OVERHEAD_BYTES + params_length
 
 
-@dataclass(frozen=True)
-class StatusPacket:
+class StatusPacket(NamedTuple):
     """One status packet a servo sent: its id, error byte and data."""
 
     servo_id: int

@@ -30,8 +30,10 @@ from pinarray.clock import Clock
 from pinarray.errors import BusError
 from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
 from pinarray.hardware.feetech.base import ReadBackBus
+from pinarray.hardware.feetech.packets import READ_REQUEST_BYTES
 from pinarray.hardware.feetech.registers import StatusError
 from pinarray.hardware.motion import PinTrace
+from pinarray.hardware.sampling import Holds
 
 # The moving pins' positions are sampled at most this often (250 Hz per moving servo): a horn
 # turning back (at the simulated STS3215's 150 000 steps/s^2, or less) is within 0.3 step of
@@ -59,6 +61,8 @@ class Verifier:
         self._sampled_ns = {servo_id: array("q") for servo_id in self.moving}
         self._sampled_steps = {servo_id: array("i") for servo_id in self.moving}
         self._next_sample_ns = 0  # clock ns: the earliest the next sample is taken
+        self._last_sample_ns = 0  # clock ns: when the last one was
+        self._holds = Holds(trial.changes, self.moving, trial.end_ns, SAMPLE_PERIOD_NS)
 
     def sent(self, frame: PreparedFrame, sent_ns: int) -> None:
         """A frame's write returned ``sent_ns`` after onset: its changes await confirmation."""
@@ -73,6 +77,9 @@ class Verifier:
                                            "could confirm it")
             self.pending[servo_id] = index
             self.sent_lateness_ns[index] = arrival_ns - frame.time_ns
+            self._holds.moved(servo_id)
+        # Sampling goes back to every period from the change on (if it was holding back).
+        self._next_sample_ns = min(self._next_sample_ns, self._last_sample_ns + SAMPLE_PERIOD_NS)
 
     def work_until(self, limit_ns: int) -> None:
         """Confirm or heal pending changes while an exchange still fits before ``limit_ns``.
@@ -119,6 +126,11 @@ class Verifier:
         if not ids:
             return
         cost_ns = bus.read_positions_time_ns(ids)
+        request_ns = bus.wire_ns(bus.read_request_bytes(ids))
+        sampled_ns, sampled_steps, holds = self._sampled_ns, self._sampled_steps, self._holds
+        # Samples held back while the pins hold (`pinarray.hardware.sampling`) only where one
+        # request reads them all: a bus that reads one servo a time samples each less often.
+        thinning = len(ids) == 1 or bus.read_request_bytes(ids) != READ_REQUEST_BYTES
         while not self.pending:
             now_ns = clock.now_ns()
             if now_ns < self.onset_ns or now_ns + cost_ns > limit_ns:
@@ -128,15 +140,21 @@ class Verifier:
                     return
                 clock.doze_until_ns(self._next_sample_ns)
                 continue
-            self._next_sample_ns = now_ns + SAMPLE_PERIOD_NS
             # Each servo samples its encoder as the request's last byte reaches it.
-            at_ns = now_ns - self.onset_ns + bus.wire_ns(bus.read_request_bytes(ids))
+            at_ns = now_ns - self.onset_ns + request_ns
             for servo_id, steps in bus.read_positions(ids, limit_ns).items():
-                self._sampled_ns[servo_id].append(at_ns)
-                self._sampled_steps[servo_id].append(steps)
-            # Where SYNC READs gave way to READs (one servo each), the next one is the next servo.
-            ids = ids[1:] + ids[:1]
-            cost_ns = bus.read_positions_time_ns(ids)
+                sampled_ns[servo_id].append(at_ns)
+                sampled_steps[servo_id].append(steps)
+                holds.sampled(servo_id, at_ns, steps)
+            self._last_sample_ns = now_ns
+            self._next_sample_ns = now_ns + (
+                holds.next_sample_ns(at_ns) - at_ns if thinning else SAMPLE_PERIOD_NS)
+            if len(ids) > 1:
+                # Where SYNC READs gave way to READs (one servo each), the next one is the
+                # next servo.
+                ids = ids[1:] + ids[:1]
+                cost_ns = bus.read_positions_time_ns(ids)
+                request_ns = bus.wire_ns(bus.read_request_bytes(ids))
 
     def trace(self) -> tuple[PinTrace, ...]:
         """The moving pins' samples so far."""

@@ -31,9 +31,11 @@ pyserial face are one device as a client sees it.
 from __future__ import annotations
 
 import random
+from bisect import bisect_right, insort
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from operator import itemgetter
 
 import serial
 
@@ -50,10 +52,22 @@ from pinarray.hardware.feetech.registers import (
     checksum,
 )
 from pinarray.hardware.feetech.sim_servo import SimServo
-from pinarray.hardware.feetech.sim_wire import StatusReply, byte_time_ns, schedule
+from pinarray.hardware.feetech.sim_wire import (
+    StatusReply,
+    Transmission,
+    byte_time_ns,
+    schedule,
+)
 
+# Instructions that only ask: no servo's id can change by them.
+ASKING = frozenset({Instruction.PING, Instruction.READ, Instruction.SYNC_READ})
 # How long a read on an empty line waits before returning nothing; the SDK polls in a loop.
 POLL_NS = 500_000
+# The port keeps the last this many writes for a test to look at (a log, bounded: a long
+# batch writes hundreds of thousands of packets).
+WRITE_LOG = 1024
+# Bytes read are dropped from the incoming queue once there are this many.
+COMPACT_BYTES = 4096
 
 __all__ = ["InstructionPacket", "SimBus", "SimSerial", "StatusReply", "status_packet"]
 
@@ -176,7 +190,8 @@ class SimBus:
                 )
             if delivered:
                 replies.extend(self._execute(servo_id, instruction, params, end_ns, baud_rate))
-                self._renumber()
+                if instruction not in ASKING:
+                    self._renumber()
         return replies
 
     def _lost(self, instruction: int) -> bool:
@@ -413,11 +428,17 @@ class SimSerial:
         self.is_open = True
         self.bytes_written = 0
         self.bytes_read = 0
-        self.writes: deque[bytes] = deque(maxlen=100_000)
+        self.writes: deque[bytes] = deque(maxlen=WRITE_LOG)
         self._tx_done_ns = 0
         self._wire_free_ns = 0
-        self._order = 0
-        self._incoming: deque[tuple[int, int, int]] = deque()  # (arrival_ns, order, byte)
+        # Bytes on their way to the host, in arrival order: each byte's arrival time (rising)
+        # and value; everything before `_head` has been read.
+        self._arrival_ns: list[int] = []
+        self._data = bytearray()
+        self._head = 0
+        # When each transmission queued (a status packet, or garbled ones merged) is whole at
+        # the host, rising: what `readable_at_ns` tells a reader that waits for bytes.
+        self._ends_ns: list[int] = []
 
     @property
     def baudrate(self) -> int:
@@ -449,43 +470,69 @@ class SimSerial:
         replies = self.bus.receive(data, end_ns)
         if replies:
             arriving, self._wire_free_ns = schedule(replies, self._wire_free_ns, self._byte_ns)
-            in_order = not self._incoming or self._incoming[-1][0] <= arriving[0].arrival_ns(0)
-            for sent in arriving:
-                for index, byte in enumerate(sent.data):
-                    self._order += 1
-                    self._incoming.append((sent.arrival_ns(index), self._order, byte))
-            if not in_order or any(reply.late_ns for reply in replies):
-                self._incoming = deque(sorted(self._incoming))
+            self._queue(arriving, any(reply.late_ns for reply in replies))
         return len(data)
 
+    def _queue(self, arriving: list[Transmission], late: bool) -> None:
+        """Put transmissions on their way to the host, every byte at its own arrival time
+        (``late``: one of them was made late, and may overlap or overtake the others)."""
+        times, data, head = self._arrival_ns, self._data, self._head
+        if head > COMPACT_BYTES and 2 * head > len(times):
+            del times[:head], data[:head]
+            self._head = head = 0
+        in_order = len(times) == head or times[-1] <= arriving[0].arrival_ns(0)
+        for sent in arriving:
+            start_ns, byte_ns = sent.start_ns, sent.byte_ns  # `Transmission.arrival_ns`, inline
+            times.extend([start_ns + round(index * byte_ns) for index in range(1, len(sent.data) + 1)])
+            data += sent.data
+            insort(self._ends_ns, times[-1])
+        if late or not in_order:
+            # Bytes reach the host in time order; of two arriving together, the one queued
+            # first is read first.
+            pending = sorted(zip(times[head:], data[head:], strict=True), key=itemgetter(0))
+            times[head:] = [arrival_ns for arrival_ns, _ in pending]
+            data[head:] = bytes(byte for _, byte in pending)
+        ends, now_ns = self._ends_ns, self.clock.now_ns()
+        if ends[0] <= now_ns:
+            del ends[: bisect_right(ends, now_ns)]
+
     def _arrived(self, now_ns: int) -> int:
-        count = 0
-        for arrival_ns, _, _ in self._incoming:
-            if arrival_ns > now_ns:
-                break
-            count += 1
-        return count
+        return bisect_right(self._arrival_ns, now_ns, self._head) - self._head
 
     @property
     def in_waiting(self) -> int:
-        self._check_alive("read")
-        return self._arrived(self.clock.now_ns())
+        if not self.is_open or self.bus.vanished:
+            self._check_alive("read")
+        return bisect_right(self._arrival_ns, self.clock.now_ns(), self._head) - self._head
+
+    def readable_at_ns(self) -> int | None:
+        """When the next transmission still on its way is whole at the host (None: none is).
+
+        A reader waiting for bytes waits on the clock until then (in virtual time, one jump)
+        instead of polling; the bytes and their arrival times are the same either way.
+        """
+        ends = self._ends_ns
+        index = bisect_right(ends, self.clock.now_ns())
+        return ends[index] if index < len(ends) else None
 
     def read(self, size: int = 1) -> bytes:
         self._check_alive("read")
         now_ns = self.clock.now_ns()
+        pending = len(self._arrival_ns) - self._head
         if size > 0 and self._arrived(now_ns) == 0:
             # Nothing yet: wait for the bytes asked for, but at most one poll period, so a
             # late answer stays late and the host's own timeout decides.
             wait_until_ns = now_ns + POLL_NS
-            if self._incoming:
-                wanted = min(size, len(self._incoming))
-                wait_until_ns = min(wait_until_ns, self._incoming[wanted - 1][0])
+            if pending:
+                wanted = min(size, pending)
+                wait_until_ns = min(wait_until_ns, self._arrival_ns[self._head + wanted - 1])
             self.clock.sleep_until_ns(wait_until_ns)
             now_ns = self.clock.now_ns()
         count = min(size, self._arrived(now_ns))
-        data = bytes(self._incoming.popleft()[2] for _ in range(count))
-        self.bytes_read += len(data)
+        head = self._head
+        data = bytes(self._data[head : head + count])
+        self._head = head + count
+        self.bytes_read += count
         return data
 
     def flush(self) -> None:
@@ -493,9 +540,7 @@ class SimSerial:
         self.clock.sleep_until_ns(self._tx_done_ns)
 
     def reset_input_buffer(self) -> None:
-        now_ns = self.clock.now_ns()
-        for _ in range(self._arrived(now_ns)):
-            self._incoming.popleft()
+        self._head += self._arrived(self.clock.now_ns())
 
     def close(self) -> None:
         self.is_open = False

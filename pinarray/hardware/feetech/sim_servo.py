@@ -251,9 +251,10 @@ class SimServo:
     def read(self, address: int, length: int, now_ns: int) -> bytes:
         """Answer a READ: ``length`` bytes of the table from ``address``."""
         self._touch(now_ns)
-        if address < FEEDBACK_END and address + length > FEEDBACK_START:
-            self._refresh_feedback(now_ns)  # only then does the horn's motion matter
-        data = bytes(self.table[address : address + length])
+        end = address + length
+        if address < FEEDBACK_END and end > FEEDBACK_START:
+            self._refresh_feedback(now_ns, address, end)  # only then does the motion matter
+        data = bytes(self.table[address:end])
         return data + bytes(length - len(data))
 
     def write(self, address: int, data: bytes, now_ns: int) -> None:
@@ -410,16 +411,24 @@ class SimServo:
         self._set(Register.POSITION_OFFSET, encode_sign_magnitude(offset, OFFSET_SIGN_BIT))
         self._set(Register.GOAL_POSITION, 2048)  # hold still: the goal follows the new frame
 
-    def _refresh_feedback(self, now_ns: int) -> None:
+    def _refresh_feedback(self, now_ns: int, start: int = FEEDBACK_START,
+                          end: int = FEEDBACK_END) -> None:
+        """Bring the feedback registers within ``start .. end - 1`` up to ``now_ns`` (the
+        others are not read: working them out would cost a sampled bus its every exchange)."""
         table, move = self.table, self._move
-        present = round(move.state_at(now_ns).horn_steps) - self.offset_steps
-        if not table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK:
-            present %= 4096
-        present = max(-32767, min(32767, present))
-        self._put_word(_PRESENT_POSITION, encode_sign_magnitude(present, 15))
-        speed = max(-32767, min(32767, round(move.horn_speed_at(now_ns))))
-        self._put_word(_PRESENT_SPEED, encode_sign_magnitude(speed, 15))
-        table[_MOVING] = 1 if table[_TORQUE] and now_ns < move.end_ns else 0
+        if start < _PRESENT_POSITION + 2 and end > _PRESENT_POSITION:
+            present = round(move.state_at(now_ns).horn_steps) - self.offset_steps
+            if not table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK:
+                present %= 4096
+            present = max(-32767, min(32767, present))
+            self._put_word(_PRESENT_POSITION, encode_sign_magnitude(present, 15))
+        if start < _PRESENT_SPEED + 2 and end > _PRESENT_SPEED:
+            speed = max(-32767, min(32767, round(move.horn_speed_at(now_ns))))
+            self._put_word(_PRESENT_SPEED, encode_sign_magnitude(speed, 15))
+        if start <= _MOVING < end:
+            table[_MOVING] = 1 if table[_TORQUE] and now_ns < move.end_ns else 0
+        if end <= _PRESENT_LOAD:
+            return
         # Faults show in the telemetry as they would on the bench.
         injected = self.error_bits
         if StatusError.OVERLOAD in injected:

@@ -11,8 +11,8 @@ the host receives the wired-AND of the bytes on the line in each byte slot.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from dataclasses import dataclass
+from collections.abc import Sequence
+from typing import NamedTuple
 
 BITS_PER_BYTE = 10
 
@@ -22,8 +22,7 @@ def byte_time_ns(baud_rate: float) -> float:
     return BITS_PER_BYTE * 1e9 / baud_rate
 
 
-@dataclass(frozen=True)
-class StatusReply:
+class StatusReply(NamedTuple):
     """A status packet a servo sends ``delay_ns`` after the instruction finished arriving.
 
     Attributes
@@ -47,8 +46,7 @@ class StatusReply:
     late_ns: int = 0
 
 
-@dataclass(frozen=True)
-class Transmission:
+class Transmission(NamedTuple):
     """Bytes arriving at the host one every ``byte_ns`` from ``start_ns`` (first start bit)."""
 
     start_ns: int
@@ -66,19 +64,24 @@ class Transmission:
 
 
 def schedule(
-    replies: Iterable[StatusReply], line_free_ns: int, byte_ns: float
+    replies: Sequence[StatusReply], line_free_ns: int, byte_ns: float
 ) -> tuple[list[Transmission], int]:
     """Place ``replies`` on the wire; returns them in arrival order and when the line is free.
 
     Parameters
     ----------
-    replies : iterable of StatusReply
+    replies : sequence of StatusReply
         In the order the servos would send them.
     line_free_ns : int
         When the line stops being busy with earlier traffic, in nanoseconds.
     byte_ns : float
         Wire time of one byte, in nanoseconds.
     """
+    if len(replies) == 1 and not replies[0].late_ns:  # the usual answer: nothing to collide
+        reply = replies[0]
+        after_ns = max(line_free_ns, reply.instruction_end_ns) if reply.chained else reply.instruction_end_ns
+        sent = Transmission(after_ns + reply.delay_ns, reply.packet, byte_ns)
+        return [sent], max(line_free_ns, sent.end_ns)
     on_time: list[Transmission] = []
     late: list[Transmission] = []
     free_ns = line_free_ns

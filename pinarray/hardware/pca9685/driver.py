@@ -105,7 +105,7 @@ class Pca9685Array:
         if setup.osc_hz == 25_000_000:
             self.warnings.append(
                 f"board 0x{setup.address:02x}: osc_hz is the nominal 25 MHz; boards are off by "
-                "up to several percent: measure it (README: measuring a board's oscillator) "
+                "up to several percent: measure it (docs/rig/pwm.md: measuring a board's oscillator) "
                 "or pulses drift from the schedule")
 
     # -- the wire ----------------------------------------------------------------------

@@ -295,6 +295,6 @@ def _too_far(worst: Prediction, rate: BoardRate, setup: PwmSetup, end_ns: int) -
             tenths = floor(setup.tolerance_ns / drift / (NS_PER_S // 10))  # at most: down
             text += (f"the period is {float(drift) * 100:.2f} % off the schedule's, so "
                      f"stimuli of at most {tenths / 10:.1f} s fit; ")
-    return text + ("shorten the stimulus, measure the board's osc_hz (README: measuring a "
-                   "board's oscillator), clock it from EXTCLK, or raise "
+    return text + ("shorten the stimulus, measure the board's osc_hz (docs/rig/pwm.md: "
+                   "measuring a board's oscillator), clock it from EXTCLK, or raise "
                    "device: delivery_tolerance_ms")

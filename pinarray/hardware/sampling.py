@@ -1,0 +1,112 @@
+"""Which samples of the moving pins a trial's measured motion needs, and which decide nothing.
+
+`pinarray.hardware.motion` measures each pin from its samples: per cycle the peak-to-peak
+(judged only with at least `MIN_SAMPLES_PER_CYCLE` samples and no gap longer than
+`MAX_GAP_FRACTION` of the cycle), per goal change the lag to the first sample within
+`ARRIVAL_STEPS` of the goal. Sampled every `period_ns` throughout, a pin that has arrived
+and holds its goal gives the same reading again and again until its next goal change: those
+readings change no peak (the held position is already among the samples), no lag (the
+arrival is already seen) and no count that matters. So while *every* moving pin holds, the
+next sample is taken only when the cycle's gap rule needs it, a sampling period early; from
+a pin's next goal change on, every period again.
+
+A pin holds when its last two samples read the same position within `ARRIVAL_STEPS` of the
+goal in force. A horn pushed off its goal between two sparse samples (a finger pressing
+down, say) shows at the next one, at most a gap of the cycle rule later.
+
+Pure arithmetic on the trial's goal changes and the samples: no I/O, no clock.
+"""
+
+from __future__ import annotations
+
+from bisect import bisect_right
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from pinarray.hardware.delivery import Change
+from pinarray.hardware.motion import ARRIVAL_STEPS, MAX_GAP_FRACTION
+
+
+@dataclass(frozen=True)
+class PinGoals:
+    """One servo's goal changes in a trial, and where its cycles start (ns after onset)."""
+
+    change_ns: tuple[int, ...]
+    goal_steps: tuple[int, ...]
+    cycle_start_ns: tuple[int, ...]  # its up-going changes, as `motion.measure_pin` cuts cycles
+
+    @classmethod
+    def of(cls, changes: Sequence[Change]) -> PinGoals:
+        """From one servo's changes, in time order."""
+        goals = [c.goal_steps for c in changes]
+        lowest = min(goals, default=0)
+        starts = tuple(c.time_ns for k, c in enumerate(changes)
+                       if c.goal_steps > (goals[k - 1] if k else lowest))
+        return cls(tuple(c.time_ns for c in changes), tuple(goals), starts)
+
+    def goal_at(self, time_ns: int) -> int | None:
+        """The goal in force at ``time_ns`` (None before the first change)."""
+        index = bisect_right(self.change_ns, time_ns)
+        return self.goal_steps[index - 1] if index else None
+
+    def gap_allowed_ns(self, time_ns: int, end_ns: int) -> int | None:
+        """The longest gap between samples the cycle holding ``time_ns`` allows (None
+        outside every cycle: before the first one starts)."""
+        index = bisect_right(self.cycle_start_ns, time_ns)
+        if not index:
+            return None
+        start_ns = self.cycle_start_ns[index - 1]
+        stop_ns = self.cycle_start_ns[index] if index < len(self.cycle_start_ns) else end_ns
+        return int((stop_ns - start_ns) * MAX_GAP_FRACTION)
+
+
+class Holds:
+    """Which moving pins hold their goal, and when the next sample is needed.
+
+    Parameters
+    ----------
+    changes : sequence of Change
+        The trial's goal changes, in time order.
+    servo_ids : tuple of int
+        The moving servos, sampled together.
+    end_ns : int
+        The trial's end, ns after onset (where its last cycle ends).
+    period_ns : int
+        The sampling period while any pin moves.
+    """
+
+    def __init__(self, changes: Sequence[Change], servo_ids: tuple[int, ...], end_ns: int,
+                 period_ns: int):
+        self.end_ns = end_ns
+        self.period_ns = period_ns
+        self._goals = {servo_id: PinGoals.of([c for c in changes if c.servo_id == servo_id])
+                       for servo_id in servo_ids}
+        self._last_steps: dict[int, int] = {}
+        self._holding: set[int] = set()
+
+    def moved(self, servo_id: int) -> None:
+        """A frame changed the servo's goal: it no longer holds."""
+        self._holding.discard(servo_id)
+        self._last_steps.pop(servo_id, None)
+
+    def sampled(self, servo_id: int, at_ns: int, steps: int) -> None:
+        """The servo read ``steps`` at ``at_ns`` (ns after onset)."""
+        goal = self._goals[servo_id].goal_at(at_ns)
+        if (self._last_steps.get(servo_id) == steps and goal is not None
+                and abs(steps - goal) <= ARRIVAL_STEPS):
+            self._holding.add(servo_id)
+        else:
+            self._holding.discard(servo_id)
+        self._last_steps[servo_id] = steps
+
+    def next_sample_ns(self, last_ns: int) -> int:
+        """When, after a sample at ``last_ns`` (ns after onset), the next one is needed."""
+        dense_ns = last_ns + self.period_ns
+        if len(self._holding) < len(self._goals):
+            return dense_ns
+        allowed = [goals.gap_allowed_ns(last_ns, self.end_ns) for goals in self._goals.values()]
+        if None in allowed:
+            return dense_ns
+        # A period early: the first sample after the pins' next goal change comes up to a
+        # read-back and a period after it, and that gap must fit the rule too.
+        return max(dense_ns, last_ns + min(a for a in allowed if a is not None) - self.period_ns)

@@ -1,0 +1,148 @@
+"""A simulated pin array for a lab's own tests, and the assertions such a test needs.
+
+With pinarray installed, pytest loads its plugin (`pinarray.testing.plugin`, registered by
+entry point) and every test may ask for the ``simulated_array`` fixture: an `ArrayOpener`
+that opens a protocol's array on simulated servos, in virtual time (a 10 s stimulus plays in
+a fraction of a second), with faults as ``sim://`` URLs say (``drop=0.1``, ``speed=1500``,
+``vanish_after=400``, ``missing=6``), and closes it after the test::
+
+    from pinarray import find_condition
+    from pinarray.testing import assert_every_goal_confirmed, assert_pin_moved
+
+    def test_pin_6_makes_its_stroke_at_10_hz(simulated_array):
+        array = simulated_array("protocols/localisation.yaml")
+        delivery = array.present(find_condition(array.protocol, pin=6, frequency_hz=10))
+        assert_every_goal_confirmed(delivery)
+        assert_pin_moved(delivery, pin=6, steps=65)
+
+Outside pytest, `ArrayOpener` works as a context manager. Loading this module (as pytest does
+at start-up) imports nothing heavy: the array is imported when one is opened.
+"""
+
+from __future__ import annotations
+
+from os import PathLike
+from types import TracebackType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pinarray.api.array import Clock, Delivery, PinArray
+    from pinarray.api.protocols import Protocol
+
+__all__ = ["ArrayOpener", "assert_delivered", "assert_every_goal_confirmed", "assert_left_safe",
+           "assert_not_delivered", "assert_pin_moved"]
+
+# How far a measured stroke may lie from the one a test expects, in steps: a pin has arrived
+# at its goal within this many steps (pinarray.hardware.motion.ARRIVAL_STEPS).
+STROKE_TOLERANCE_STEPS = 3
+
+
+class ArrayOpener:
+    """Opens protocols' arrays on simulated servos and closes every one it opened.
+
+    The ``simulated_array`` fixture is one, closed after its test; elsewhere use it as a
+    context manager.
+    """
+
+    def __init__(self) -> None:
+        self._opened: list[PinArray] = []
+
+    def __call__(self, protocol: Protocol | str | PathLike[str], url: str | None = None, *,
+                 clock: Clock | None = None) -> PinArray:
+        """Open ``protocol``'s array on simulated servos, pins at rest.
+
+        Parameters
+        ----------
+        protocol : Protocol, str or path-like
+            A protocol, or the path of its file.
+        url : str or None
+            A ``sim://`` URL with faults (``sim://?drop_writes=0.1&seed=3``: a tenth of the
+            goal writes lost; ``sim://?speed=1500``: slow servos; ``sim://?vanish_after=400``:
+            the adapter pulled out after 400 packets; ``sim://pca9685?nack_at=20`` for a PWM
+            board). None: the protocol's simulated array without faults.
+        clock : Clock or None
+            None: virtual time.
+
+        Returns
+        -------
+        PinArray
+            Closed (pins to rest, torque off) when the opener closes.
+        """
+        from pinarray.api.array import VirtualClock, open_array
+        from pinarray.api.protocols import load_protocol
+
+        if isinstance(protocol, str | PathLike):
+            protocol = load_protocol(protocol)
+        url = url if url is not None else None
+        array = open_array(protocol, sim=url, clock=clock if clock is not None else VirtualClock())
+        self._opened.append(array)
+        return array
+
+    def close(self) -> None:
+        """Close every array opened, last first (each rests its pins, however the test went)."""
+        while self._opened:
+            self._opened.pop().close()
+
+    def __enter__(self) -> ArrayOpener:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()
+
+
+def assert_delivered(delivery: Delivery) -> None:
+    """The stimulus was delivered as scheduled and specified (else: what went wrong)."""
+    __tracebackhide__ = True  # pytest shows the test's line, not this one
+    if not delivery.delivered:
+        raise AssertionError(f"expected the stimulus delivered as scheduled, found "
+                             f"{delivery.record.summary()}")
+
+
+def assert_every_goal_confirmed(delivery: Delivery) -> None:
+    """Every goal change of the stimulus was confirmed on its servo (as sent, or healed)."""
+    __tracebackhide__ = True
+    record = delivery.record
+    if record.missing or record.confirmed + record.healed != record.scheduled:
+        raise AssertionError(f"expected all {record.scheduled} goal changes confirmed, found "
+                             f"{record.missing} missing: {record.problem}")
+
+
+def assert_not_delivered(delivery: Delivery, because: str = "") -> None:
+    """The stimulus was not delivered as scheduled, for a reason whose words hold ``because``."""
+    __tracebackhide__ = True
+    if delivery.delivered:
+        raise AssertionError(f"expected the stimulus not delivered, found "
+                             f"{delivery.record.summary()}")
+    if because not in delivery.problem:
+        raise AssertionError(f"expected the stimulus not delivered because {because!r}, found: "
+                             f"{delivery.problem}")
+
+
+def assert_pin_moved(delivery: Delivery, pin: int, steps: int, *,
+                     tolerance_steps: int = STROKE_TOLERANCE_STEPS) -> None:
+    """``pin`` made a stroke of ``steps`` (its smallest cycle's, as measured), within
+    ``tolerance_steps``."""
+    __tracebackhide__ = True
+    measured = [s for s in delivery.strokes if s.pin == pin]
+    if not measured or measured[0].achieved_steps is None:
+        moved = ", ".join(str(s.pin) for s in delivery.strokes if s.measured) or "none"
+        raise AssertionError(f"expected pin {pin} to move {steps} steps, found no stroke "
+                             f"measured for it (pins measured: {moved})")
+    stroke = measured[0]
+    achieved = stroke.achieved_steps
+    if achieved is None or abs(achieved - steps) > tolerance_steps:
+        raise AssertionError(
+            f"expected pin {pin} to move {steps} steps (within {tolerance_steps}), found "
+            f"{achieved} of {stroke.commanded_steps} commanded (median {stroke.median_steps}, "
+            f"{stroke.short_cycles} of {stroke.cycles} cycles short)")
+
+
+def assert_left_safe(array: PinArray) -> None:
+    """Closing ``array`` (or its having been closed) left every servo confirmed at rest and
+    released (torque off)."""
+    __tracebackhide__ = True
+    report = array.close()
+    if not report.complete or sorted(report.at_rest_ids) != sorted(report.released_ids):
+        raise AssertionError(f"expected every servo at rest and released, found "
+                             f"{report.describe()}")

@@ -1,0 +1,27 @@
+"""The documentation holds what the README used to: every command line the old one-page README
+gave (tests/readme_commands.txt, taken from it when it became a front page) is on some page of
+docs/, and the README stays a front page. The site itself is built strictly by `make docs`."""
+
+import re
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def words(text: str) -> str:
+    """Text with shell line continuations joined and every run of whitespace one space."""
+    return " ".join(re.sub(r"\\\n", " ", text).split())
+
+
+def test_every_command_line_of_the_old_readme_is_found_in_the_docs():
+    site = " ".join(words(page.read_text(encoding="utf-8")) for page in (REPO / "docs").rglob("*.md"))
+    commands = (REPO / "tests" / "readme_commands.txt").read_text(encoding="utf-8").splitlines()
+    assert [c for c in commands if words(c) not in site] == []
+
+
+def test_the_readme_is_a_front_page_that_links_to_pages_that_exist():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 150
+    assert "make run" in readme and "make test" in readme
+    targets = re.findall(r"\]\(((?!https?:)[^)#]+)", readme)
+    assert targets and [t for t in targets if not (REPO / t).exists()] == []
