@@ -183,13 +183,14 @@ def progress(what: str, total: int, estimate_s: float) -> Callable[[int], None]:
 
     if estimate_s < PROGRESS_AFTER_S or total <= 0:
         return lambda done: None
-    started, said = time.monotonic(), [0]
+    started, said = time.monotonic(), 0  # tenths said so far
 
     def tell(done: int) -> None:
+        nonlocal said
         tenth = 10 * done // total
-        if tenth <= said[0]:
+        if tenth <= said:
             return
-        said[0] = tenth
+        said = tenth
         left = (time.monotonic() - started) * (total - done) / done
         print(f"{what}: {done:,} of {total:,} ({100 * done // total} %)"
               + (f", about {duration_words(left)} left" if done < total else ""),
