@@ -26,11 +26,12 @@ optimiser: nothing to stop short of an optimum):
   rate are their marginals' medians (the function drawn through the data).
 
 Where the data cannot place the threshold, its `ThresholdStatus` says so in words instead of
-a number: more than half the posterior mass below the lowest intensity tested (a subject who
-got everything right) is ``below the lowest value tested`` (``ci_high`` then bounds it from
-above); above the highest, ``above the highest value tested`` (``ci_low`` bounds it from
-below); an interval reaching past both ends of the tested range (answers flat at chance, or
-too few) is ``not estimable``.
+a number. The likelihood of each threshold (slope and lapse rate integrated out over their
+priors) tells: where it is still within `OPEN_END` of its best at the grid's lowest threshold,
+the answers do not bound the threshold from below (a subject who got everything right), and
+it is ``below the lowest value tested``, with ``ci_high`` its one-sided 95 % upper bound;
+likewise ``above the highest value tested`` (answers at chance), ``ci_low`` its one-sided
+95 % lower bound; open at both ends (too few answers), ``not estimable``.
 
 Measured calibration (`make bench`, bench_thresholds): on simulated subjects running
 ``protocols/staircase_motion.yaml`` and ``protocols/quest_stroke.yaml`` with thresholds across
@@ -102,6 +103,19 @@ class ThresholdPosterior:
     def function(self) -> Psychometric:
         """The function at the marginal medians: the curve drawn through the data."""
         return Psychometric(self.kind, self.threshold, self.slope, self.guess, self.lapse)
+
+    def holds(self, threshold: float) -> bool:
+        """Whether what this fit states holds ``threshold``: within the interval (estimated),
+        at most ``ci_high`` (below), at least ``ci_low`` (above); not estimable states nothing,
+        so nothing it states is wrong."""
+        match self.status:
+            case ThresholdStatus.ESTIMATED:
+                return self.ci_low <= threshold <= self.ci_high
+            case ThresholdStatus.BELOW:
+                return threshold <= self.ci_high
+            case ThresholdStatus.ABOVE:
+                return threshold >= self.ci_low
+        return True
 
     @property
     def rise_at_threshold(self) -> float:
@@ -220,12 +234,18 @@ def threshold_posterior(kind: PsychometricKind, intensities: Sequence[float],
     # their priors; times the threshold's prior, the threshold's marginal posterior.
     likelihood = weights.sum(axis=(1, 2))
     by_threshold = likelihood * np.exp(grid.log_threshold_prior)
-    median, low, high = _quantiles(grid.first, by_threshold,
-                                   [0.5, (1 - CREDIBLE_MASS) / 2, (1 + CREDIBLE_MASS) / 2])
+    tail = (1 - CREDIBLE_MASS) / 2
+    median, low, high, low_bound, high_bound = _quantiles(
+        grid.first, by_threshold, [0.5, tail, 1 - tail, 1 - CREDIBLE_MASS, CREDIBLE_MASS])
     open_low, open_high = likelihood[[0, -1]] >= OPEN_END * likelihood.max()
     status = (ThresholdStatus.NOT_ESTIMABLE if open_low and open_high
               else ThresholdStatus.BELOW if open_low else ThresholdStatus.ABOVE if open_high
               else ThresholdStatus.ESTIMATED)
+    # Words with one bound: the bound is one-sided at the credible mass (95 %).
+    if status is ThresholdStatus.BELOW:
+        high = high_bound
+    if status is ThresholdStatus.ABOVE:
+        low = low_bound
     shape = weights * np.exp(grid.log_threshold_prior)[:, None, None]
     back = np.exp if kind == "weibull" else float
     return ThresholdPosterior(

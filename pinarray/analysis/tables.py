@@ -224,10 +224,10 @@ def thresholds_sidecar(found: Thresholds, out: Path) -> Path:
             for guess in guesses) + "; n/a where the status gives words instead",
             "Units": intensity},
         "ci_low": {"Description": "the 2.5 % point of the 95 % interval (for status 'above the "
-                   "highest value tested': the threshold is above it with 97.5 % posterior "
+                   "highest value tested': the threshold is above it with 95 % posterior "
                    "probability); n/a where there is none", "Units": intensity},
         "ci_high": {"Description": "the 97.5 % point of the 95 % interval (for status 'below "
-                    "the lowest value tested': the threshold is below it with 97.5 % "
+                    "the lowest value tested': the threshold is below it with 95 % "
                     "posterior probability); n/a where there is none", "Units": intensity},
         "n_trials": {"Description": "the counted trials behind the number"},
         "procedure": {"Description": f"the procedure; {POOLED_PROCEDURES}: the fit over all of "
