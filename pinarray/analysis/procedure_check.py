@@ -74,6 +74,38 @@ class ProcedureCheck:
         return float(low), float(high)
 
 
+@dataclass(frozen=True)
+class SimulatedAnswer:
+    """One procedure trial of a simulated run: which procedure presented which value (the
+    adapted parameter's unit), and whether the answer was correct."""
+
+    procedure: str
+    intensity: float
+    correct: bool
+
+
+def subject_seed(seed: int, subject: int) -> int:
+    """The run seed of simulated subject ``subject`` (0-based) of a check seeded ``seed``."""
+    return (seed * 1_000_003 + subject) % 2**63
+
+
+def simulated_run(adaptive: Adaptive, function: Psychometric,
+                  run_seed: int) -> tuple[ProcedureSet, tuple[SimulatedAnswer, ...]]:
+    """One simulated subject of ``function`` through every procedure of ``adaptive``, as a run
+    interleaves them (catch and practice trials left out): the procedures as they finished and
+    the answers in order."""
+    procedures = ProcedureSet(adaptive, run_seed)
+    observer = PsychometricObserver(function, run_seed)
+    answers = []
+    while not procedures.finished:
+        presented = procedures.next()
+        assert presented.value is not None
+        correct = observer.answer(procedures.taken + 1, float(presented.value))
+        procedures.take(presented.procedure, presented.value, correct)
+        answers.append(SimulatedAnswer(presented.procedure, float(presented.value), correct))
+    return procedures, tuple(answers)
+
+
 def check_procedures(adaptive: Adaptive, function: Psychometric, subjects: int,
                      seed: int) -> tuple[ProcedureCheck, ...]:
     """Every procedure of ``adaptive`` run by ``subjects`` simulated subjects of ``function``."""
@@ -84,16 +116,10 @@ def check_procedures(adaptive: Adaptive, function: Psychometric, subjects: int,
     trials: dict[str, list[int]] = {n: [] for n in names}
     missing = dict.fromkeys(names, 0)
     for subject in range(subjects):
-        run_seed = (seed * 1_000_003 + subject) % 2**63
-        procedures = ProcedureSet(adaptive, run_seed)
-        observer = PsychometricObserver(function, run_seed)
+        procedures, answers = simulated_run(adaptive, function, subject_seed(seed, subject))
         taken = dict.fromkeys(names, 0)
-        while not procedures.finished:
-            presented = procedures.next()
-            assert presented.value is not None
-            correct = observer.answer(procedures.taken + 1, float(presented.value))
-            procedures.take(presented.procedure, presented.value, correct)
-            taken[presented.procedure] += 1
+        for answer in answers:
+            taken[answer.procedure] += 1
         for name in names:
             estimate = procedures.estimate(name).estimate
             trials[name].append(taken[name])
