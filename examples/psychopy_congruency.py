@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> Path:
         stimulus.draw()
     win.flip()
 
+    # --8<-- [start:run]
     device_settings = {"port": args.port} if args.port else {"sim": args.sim or "sim://"}
     tactile = DeviceManager.addDevice("pinarray", "touch", protocol=args.protocol,
                                       **device_settings)
@@ -105,6 +106,7 @@ def run(args: argparse.Namespace) -> Path:
             experiment.nextEntry()
     finally:
         DeviceManager.removeDevice("touch")  # pins to rest, torque off, however the loop ended
+    # --8<-- [end:run]
         win.close()
     experiment.saveAsWideText(str(data_file) + ".csv", delim=",")
     return Path(str(data_file) + ".csv")

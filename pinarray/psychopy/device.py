@@ -63,6 +63,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
             protocol = pinarray.load_protocol(protocol)
         if port is None and sim is None:
             sim = SIMULATED
+        self._asked_for = port if port is not None else sim  # as a profile names it
         self._clock = pinarray.MonotonicClock()
         self.array: pinarray.PinArray = pinarray.open_array(protocol, port=port, sim=sim,
                                                             clock=self._clock)
@@ -92,7 +93,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         if isinstance(other, PinArrayDevice):
             return other.url == self.url
         if isinstance(other, dict):
-            return self.url in (other.get("port"), other.get("sim"))
+            return bool({self.url, self._asked_for} & {other.get("port"), other.get("sim")})
         return False
 
     @staticmethod
@@ -194,7 +195,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         """Wait for a stimulus still playing, then pins to rest, torque off, port closed.
         Safe to call more than once (PsychoPy's device manager calls it at exit)."""
         report = self.array.close()
-        PinArrayDevice._ports_in_use.discard(self.url)
+        PinArrayDevice._ports_in_use.discard(self._asked_for or "")
         logging.exp(f"pinarray {self.url}: closed: {report.describe()}")
         return report
 
