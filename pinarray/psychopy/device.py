@@ -136,7 +136,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         delivery = self.array.present(stimulus)
         return Touch(stimulus, delivery.onset_ns, timeline, delivery, _clock_zero_s())
 
-    def armOnFlip(self, stimulus: Any, win: Any) -> Touch:
+    def armOnFlip(self, stimulus: pinarray.Presentable, win: Any) -> Touch:
         """Arm ``stimulus`` to start on the window's next flip, and return just before it.
 
         The pins need the stimulus `pinarray.PinArray.lead_ns` (20 ms) ahead, more than a
@@ -181,7 +181,8 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
             except pinarray.PinArrayError:
                 # The host stalled between choosing the flip and arming for it (a busy
                 # machine): choose again; any other refusal is raised as it is.
-                if attempt == ARMING_ATTEMPTS or flip_ns - self.array.now_ns() >= self.array.lead_ns:
+                still_reachable = flip_ns - self.array.now_ns() >= self.array.lead_ns
+                if attempt == ARMING_ATTEMPTS or still_reachable:
                     raise
         touch = Touch(stimulus, flip_ns, timeline, armed, _clock_zero_s())
         win.timeOnFlip(touch._flip_stamp, "flip")
