@@ -50,11 +50,13 @@ __all__ = [
     "ResultsError",
     "RunPaths",
     "SafeStopReport",
+    "ServoPort",
     "TrialPlan",
     "TrialRecord",
     "TrialStatus",
     "VirtualClock",
     "find_condition",
+    "find_servo_ports",
     "load_protocol",
     "open_array",
     "plan_trials",
@@ -71,6 +73,7 @@ _HOMES = {
     "pinarray.api.array": ("Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock",
                            "PinArray", "PinStroke", "Presentable", "SafeStopReport",
                            "VirtualClock", "open_array"),
+    "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
     "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
                               "run_session", "simulated_observer"),
     "pinarray.api.results": ("LoadedRun", "LocalisationRecord", "ManifestState", "MotionRecord",
@@ -115,6 +118,7 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         ProtocolErrors,
         ResultsError,
     )
+    from pinarray.api.ports import ServoPort, find_servo_ports
     from pinarray.api.protocols import (
         Condition,
         LocalisationCondition,

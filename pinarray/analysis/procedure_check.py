@@ -17,8 +17,9 @@ weighted 1-up/1-down: p = u / (d + u)); its truth is the function's value at tha
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,9 @@ from pinarray.adaptive.psychometric import Psychometric
 from pinarray.errors import PinArrayError
 from pinarray.procedures import ProcedureSet, prepare_quest_plus
 from pinarray.protocol.procedures import Adaptive, Procedure, QuestPlus, Staircase
+
+if TYPE_CHECKING:
+    from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
 
 MAX_SUBJECTS = 10_000
 # The work of a check, measured on the 2-core machine this was written on: any procedure's
@@ -101,6 +105,40 @@ def check_seconds(adaptive: Adaptive, subjects: int) -> float:
     return work_ns / 1e9
 
 
+@dataclass(frozen=True)
+class SimulatedAnswer:
+    """One procedure trial of a simulated run: which procedure presented which value (the
+    adapted parameter's unit), and whether the answer was correct."""
+
+    procedure: str
+    intensity: float
+    correct: bool
+
+
+def subject_seed(seed: int, subject: int) -> int:
+    """The run seed of simulated subject ``subject`` (0-based) of a check seeded ``seed``."""
+    return (seed * 1_000_003 + subject) % 2**63
+
+
+def simulated_run(adaptive: Adaptive, function: Psychometric, run_seed: int,
+                  prepared: Mapping[str, QuestPlusMachine] | None = None,
+                  ) -> tuple[ProcedureSet, tuple[SimulatedAnswer, ...]]:
+    """One simulated subject of ``function`` through every procedure of ``adaptive``, as a run
+    interleaves them (catch and practice trials left out): the procedures as they finished and
+    the answers in order. ``prepared``: the QUEST+ tables, computed once for many subjects
+    (`pinarray.procedures.prepare_quest_plus`)."""
+    procedures = ProcedureSet(adaptive, run_seed, prepared)
+    observer = PsychometricObserver(function, run_seed)
+    answers = []
+    while not procedures.finished:
+        presented = procedures.next()
+        assert presented.value is not None
+        correct = observer.answer(procedures.taken + 1, float(presented.value))
+        procedures.take(presented.procedure, presented.value, correct)
+        answers.append(SimulatedAnswer(presented.procedure, float(presented.value), correct))
+    return procedures, tuple(answers)
+
+
 def check_procedures(adaptive: Adaptive, function: Psychometric, subjects: int,
                      seed: int, progress: Callable[[int], object] = lambda done: None,
                      ) -> tuple[ProcedureCheck, ...]:
@@ -114,16 +152,11 @@ def check_procedures(adaptive: Adaptive, function: Psychometric, subjects: int,
     missing = dict.fromkeys(names, 0)
     prepared = prepare_quest_plus(adaptive)  # once: every subject's procedures share the tables
     for subject in range(subjects):
-        run_seed = (seed * 1_000_003 + subject) % 2**63
-        procedures = ProcedureSet(adaptive, run_seed, prepared)
-        observer = PsychometricObserver(function, run_seed)
+        procedures, answers = simulated_run(adaptive, function, subject_seed(seed, subject),
+                                            prepared)
         taken = dict.fromkeys(names, 0)
-        while not procedures.finished:
-            presented = procedures.next()
-            assert presented.value is not None
-            correct = observer.answer(procedures.taken + 1, float(presented.value))
-            procedures.take(presented.procedure, presented.value, correct)
-            taken[presented.procedure] += 1
+        for answer in answers:
+            taken[answer.procedure] += 1
         for name in names:
             estimate = procedures.estimate(name).estimate
             trials[name].append(taken[name])

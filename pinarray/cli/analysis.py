@@ -34,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "interval on request), the trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
         "levels, a confusion matrix, per-pin accuracy, apparent motion, and a mixed-effects "
         "logistic fit of the frequency effect when there are enough subjects; for adaptive "
-        "designs, thresholds (each procedure's estimate and a maximum-likelihood "
+        "designs, thresholds (each procedure's estimate and a Bayesian "
         "psychometric fit per subject, their across-subject means) in thresholds.csv with "
         "staircase tracks and fitted functions. Runs whose "
         "manifest is not 'completed', or with no counted trial, are listed and left out. "
