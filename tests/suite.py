@@ -23,20 +23,25 @@ REALTIME_WORKERS = 1
 BULK_NICENESS = 10
 
 
-def pytest_command(marker: str, workers: int, args: list[str]) -> list[str]:
+def pytest_command(marker: str, workers: int, args: list[str], basetemp: str) -> list[str]:
+    # A temporary folder of this run's own: pytest's default one is cleaned of older runs' folders
+    # by every worker as it starts, a walk over thousands of results files on a busy machine.
     return [sys.executable, "-m", "pytest", "-m", marker, "-n", str(workers), "--dist", "loadgroup",
-            *args]
+            f"--basetemp={basetemp}", *args]
 
 
 def main(argv: list[str]) -> int:
     workers = 2 * len(os.sched_getaffinity(0))
     if argv[:1] == ["-n"]:
         workers, argv = int(argv[1]), argv[2:]
-    with tempfile.TemporaryFile("w+") as realtime_log:
+    with tempfile.TemporaryFile("w+") as realtime_log, \
+            tempfile.TemporaryDirectory(prefix="pinarray-tests-") as temporary:
         realtime = subprocess.Popen(
-            pytest_command("realtime", min(REALTIME_WORKERS, workers), argv),
+            pytest_command("realtime", min(REALTIME_WORKERS, workers), argv,
+                           os.path.join(temporary, "realtime")),
             stdout=realtime_log, stderr=subprocess.STDOUT)
-        bulk = subprocess.Popen(pytest_command("not realtime", workers, argv),
+        bulk = subprocess.Popen(pytest_command("not realtime", workers, argv,
+                                               os.path.join(temporary, "bulk")),
                                 preexec_fn=lambda: os.nice(BULK_NICENESS))
         statuses = [bulk.wait(), realtime.wait()]
         realtime_log.seek(0)
