@@ -61,7 +61,7 @@ class ErrorScreen(KeyNotices, Screen):
         self.done = True
         self.query_one("#error-pins", Static).update(f"Pins: {pins}.")
         self.notice.clear()
-        self.refresh_bindings()
+        self.refresh_keys()
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action in ("leave", "quit"):

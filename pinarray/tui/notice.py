@@ -7,11 +7,15 @@ possible at this moment (the screen's `refusal` explains), or the key means noth
 
 from __future__ import annotations
 
+import typing
 from typing import ClassVar
 
 from textual import events
 from textual.binding import Binding, BindingType
 from textual.widgets import Static
+
+if typing.TYPE_CHECKING:
+    from textual.screen import Screen
 
 
 class Notice(Static):
@@ -81,6 +85,20 @@ class KeyNotices:
     @property
     def notice(self) -> Notice:
         return self.query_one(Notice)  # type: ignore[attr-defined]
+
+    def refresh_keys(self) -> None:
+        """Have the footer show which keys act now, if that changed.
+
+        The footer redraws every key it shows when told the bindings changed (the costliest
+        update a screen makes), so it is told only when one of this screen's actions became
+        possible or impossible.
+        """
+        screen = typing.cast("Screen[object]", self)
+        now = tuple(screen.check_action(action, ()) for actions in
+                    actions_by_key(self.BINDINGS).values() for action in actions)
+        if now != getattr(self, "_keys_shown", None):
+            self._keys_shown = now
+            screen.refresh_bindings()
 
     def refusal(self, actions: tuple[str, ...]) -> str:
         """Why none of ``actions`` is possible now ('' for the generic notice)."""

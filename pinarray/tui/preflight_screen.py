@@ -121,7 +121,7 @@ class PreflightScreen(KeyNotices, Screen):
         self.query_one("#reconnect", Button).disabled = connected
         self.query_one("#release", Button).disabled = not connected
         self.query_one("#lower-delay", Button).disabled = not connected
-        self.refresh_bindings()
+        self.refresh_keys()
 
     # -- hardware work, in threads -----------------------------------------------------------
 
@@ -144,7 +144,7 @@ class PreflightScreen(KeyNotices, Screen):
                 "…" if duration_ns is None else f" for {duration_ns / 1e9:g} s…"))
             self._measuring = True
             self._skip.clear()
-            self.refresh_bindings()
+            self.refresh_keys()
             self._timing(duration_ns)
 
     @work(thread=True, exclusive=True, group="timing")
@@ -172,7 +172,7 @@ class PreflightScreen(KeyNotices, Screen):
 
     def _timing_done(self, outcome: Verdict | CheckSkipped | None) -> None:
         self._measuring = False
-        self.refresh_bindings()
+        self.refresh_keys()
         match outcome:
             case Verdict():
                 self._timing_doubt = "" if outcome.deliverable else outcome.judgement.value
@@ -189,7 +189,7 @@ class PreflightScreen(KeyNotices, Screen):
     def action_skip_timing(self) -> None:
         if self._measuring:
             self._skip.set()
-            self.refresh_bindings()
+            self.refresh_keys()
             self._timing_line("Timing: skipping the check…")
 
     def _timing_line(self, text: str, problem: bool = False) -> None:
@@ -406,7 +406,7 @@ class PreflightScreen(KeyNotices, Screen):
 
         if session is None:
             self._leaving = False  # back on this screen: b may begin again
-            self.refresh_bindings()
+            self.refresh_keys()
             self._status("Stopped waiting for the scanner; no run was started.")
         else:
             self.app.switch_screen(RunScreen(self.sitting, session))
@@ -416,7 +416,7 @@ class PreflightScreen(KeyNotices, Screen):
         if self._leaving:
             return
         self._leaving = True
-        self.refresh_bindings()
+        self.refresh_keys()
         self._status("Leaving: pins to rest, torque off…")
         self._leave()
 

@@ -221,7 +221,7 @@ class RunScreen(KeyNotices, Screen):
         self.query_one("#counts", Static).update("\n".join(counts))
         self.query_one("#last", Static).update(self._describe_last())
         self._draw_grid(frozenset())
-        self.refresh_bindings()
+        self.refresh_keys()
 
     def _hint(self) -> str:
         session, phase = self.session, self.session.phase
@@ -533,7 +533,7 @@ class RunScreen(KeyNotices, Screen):
         self._ending = True
         self._ticker.pause()
         self.query_one("#phase", Static).update("Closing the run; pins to rest…")
-        self.refresh_bindings()
+        self.refresh_keys()
         cast("PinArrayApp", self.app).finish_run(self.session, reason)
 
 
