@@ -31,8 +31,15 @@ import numpy as np
 from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.subjects import t_interval
+from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
-from pinarray.protocol import Direction, LocalisationCondition, MotionAnswer, Protocol
+from pinarray.protocol import (
+    Direction,
+    LocalisationCondition,
+    MotionAnswer,
+    MotionCondition,
+    Protocol,
+)
 
 ALPHA = 0.05
 TARGET_POWER = 0.8
@@ -96,10 +103,15 @@ def protocol_design(protocol: Protocol) -> Design:
         if trial.practice:
             continue
         condition = trial.condition
-        if isinstance(condition, LocalisationCondition):
-            localisation.append((condition.pin, float(condition.frequency_hz)))
-        else:
-            motion.append(condition.direction)
+        match condition:
+            case LocalisationCondition():
+                localisation.append((condition.pin, float(condition.frequency_hz)))
+            case MotionCondition():
+                motion.append(condition.direction)
+            case _:
+                raise PinArrayError(f"{protocol.source}: power simulates localisation and "
+                                    f"apparent-motion designs (and adaptive ones), not a "
+                                    f"{protocol.design.paradigm.value} design")
     return Design(tuple(localisation), tuple(motion), protocol.device.grid,
                   protocol.design.directions)
 

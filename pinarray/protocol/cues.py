@@ -8,7 +8,8 @@ warns about it without refusing the protocol: the lab may have reasons. Pure; no
 from __future__ import annotations
 
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import Condition, LocalisationCondition, Protocol
+from pinarray.protocol.model import Condition, LocalisationCondition, Paradigm, Protocol
+from pinarray.protocol.paradigms import IdentificationCondition, correct_answer
 from pinarray.units import NS_PER_S
 
 
@@ -19,8 +20,14 @@ def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:
 
 
 def _answer(condition: Condition) -> object:
-    """What a correct answer names: the pin (localisation) or the wave's direction (motion)."""
-    return condition.pin if isinstance(condition, LocalisationCondition) else condition.direction
+    """What a correct answer names: the pin (localisation), the wave's direction (motion), the
+    pattern or its count (identification)."""
+    match condition:
+        case LocalisationCondition():
+            return condition.pin
+        case IdentificationCondition():
+            return condition.pattern
+    return getattr(condition, "direction", None)
 
 
 def duration_cues(protocol: Protocol) -> list[str]:
@@ -29,11 +36,17 @@ def duration_cues(protocol: Protocol) -> list[str]:
     Conditions with the same correct answer may differ (a pin at several frequencies); those
     with different answers must not, or the duration tells them apart.
     """
+    design = protocol.design
+    if design.paradigm in (Paradigm.TWO_INTERVAL, Paradigm.TEMPORAL_ORDER):
+        return []  # both intervals, or both pins, play in every trial: the answer is in neither
     durations: dict[object, set[int]] = {}
     names: dict[int, list[str]] = {}
-    for condition in protocol.design.conditions:
+    for condition in design.conditions:
         duration_ns = stimulus_duration_ns(protocol, condition)
-        durations.setdefault(_answer(condition), set()).add(duration_ns)
+        answer = (correct_answer(condition, design.judgement)
+                  if isinstance(condition, IdentificationCondition) and design.judgement
+                  else _answer(condition))
+        durations.setdefault(answer, set()).add(duration_ns)
         label = (f"pin {condition.pin}" if isinstance(condition, LocalisationCondition)
                  else condition.stimulus)
         if label not in names.setdefault(duration_ns, []):
