@@ -25,9 +25,10 @@ from pinarray.protocol.paradigms import (
 )
 from pinarray.tui.response_pad import COUNT_ENTRY, PIN_ENTRY, Choice, motion_hint
 
-# Keys of the pin-first answers, by the pins' places (`pinarray.protocol.judgements.places`).
-PLACE_KEYS = {"left": (("l", "left"), "←", "l"), "right": (("r", "right"), "→", "r"),
-              "lower": (("down",), "↓", "↓"), "upper": (("up",), "↑", "↑")}
+# Keys and labels of the pin-first answers, by the pins' places
+# (`pinarray.protocol.judgements.places`): short enough for two buttons in 80 columns.
+PLACE_KEYS = {"left": (("l", "left"), "← left (l)"), "right": (("r", "right"), "right (r) →"),
+              "lower": (("down",), "↓ lower"), "upper": (("up",), "↑ upper")}
 
 
 class PadAnswers(NamedTuple):
@@ -64,22 +65,25 @@ def pad_answers(protocol: Protocol) -> PadAnswers:
             choices = tuple(_pin_first(pin, place, n)
                             for n, (pin, place) in enumerate(zip(pins, places, strict=True),
                                                              start=1))
+            hint = " / ".join(f"{_key_name(c.keys[0])} ({place} pin {c.answer})"
+                              for c, place in zip(choices, places, strict=True))
+            return PadAnswers(False, choices, PIN_ENTRY, f"which came first? {hint}")
     return PadAnswers(False, choices, PIN_ENTRY, choices_hint(choices))
 
 
 def _pin_first(pin: int, place: str, number: int) -> Choice:
     if place in PLACE_KEYS:
-        keys, arrow, key = PLACE_KEYS[place]
-        return Choice(str(pin), keys, f"{arrow} {place} pin {pin} first ({key})")
-    return Choice(str(pin), (str(number),), f"pin {pin} first ({number})")
+        keys, label = PLACE_KEYS[place]
+        return Choice(str(pin), keys, label)
+    return Choice(str(pin), (str(number),), f"pin {pin} ({number})")
 
 
 def pattern_choice(grid: Grid, number: int, name: str, pins: Sequence[int]) -> Choice:
     """A pattern as a card: a small drawing of the grid (two rows of pins to a line), its key
-    and its name."""
-    drawing = mini_grid(grid, pins)
-    lines = drawing.split("\n")
-    lines[0] += f" [b]{number}[/b] {name}"
+    beside the drawing's first line and its name beside the second."""
+    lines = mini_grid(grid, pins).split("\n")
+    lines[0] += f" [b]{number}[/b]"
+    lines[min(1, len(lines) - 1)] += f" {name}"
     return Choice(name, (str(number),), f"{number} {name}", "\n".join(lines))
 
 

@@ -171,11 +171,13 @@ class ResponsePad(Widget, can_focus=True):
         elif any(choice.drawing for choice in self.answers):
             with Horizontal(id="pattern-cards"):
                 for choice in self.answers:
-                    yield ChoiceCard(choice, id=f"answer-{choice.answer}", classes="-off")
+                    yield ChoiceCard(choice, id=f"answer-{choice.answer}",
+                                     classes="answer -off")
         else:
             with Horizontal(id="motion-buttons"):
                 for choice in self.answers:
-                    yield Button(choice.label, id=f"answer-{choice.answer}", disabled=True)
+                    yield Button(choice.label, id=f"answer-{choice.answer}", classes="answer",
+                                 disabled=True)
 
     def on_mount(self) -> None:
         self._draw()
