@@ -77,7 +77,7 @@ class LabObserverModel:
         """One subject of the population, its offsets drawn from ``rng``."""
         if self.subject_sd == 0:
             return self
-        u = rng.normal(0.0, self.subject_sd, 4)
+        u = [float(x) for x in rng.normal(0.0, self.subject_sd, 4)]
         right = self.identify_correct
         if 0 < right < 1:
             right = 1 / (1 + math.exp(-(math.log(right / (1 - right)) + u[0])))
