@@ -9,11 +9,12 @@ PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
 SHORTER = {
     "shapes": (("duration_s: 2", "duration_s: 0.2"), ("repetitions: 4", "repetitions: 2"),
                ("practice_trials: 3", "practice_trials: 1")),
-    "flutter_2ifc": (("duration_s: 1\n", "duration_s: 0.3\n"),
+    "flutter_2ifc": (("duration_s: 1\n", "duration_s: 0.5\n"),
                      ("repetitions: 4", "repetitions: 1"), ("blocks: 2", "blocks: 1"),
                      ("interval_gap_ms: 500 ", "interval_gap_ms: 200 "),
                      ("practice_trials: 4", "practice_trials: 1")),
-    "toj": (("repetitions: 6", "repetitions: 1"), ("practice_trials: 4", "practice_trials: 1")),
+    "toj": (("repetitions: 6", "repetitions: 1"), ("blocks: 2", "blocks: 1"),
+            ("practice_trials: 4", "practice_trials: 1")),
 }
 
 

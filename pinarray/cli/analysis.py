@@ -168,12 +168,16 @@ def _cmd_power(args: argparse.Namespace) -> int:
 
     from pinarray.analysis.observer import parse_observer
     from pinarray.analysis.power import power_study, write_power
-    from pinarray.errors import ResultsError
+    from pinarray.errors import PinArrayError, ResultsError
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)
     if protocol.design.adaptive is not None:
         return _check_procedures(protocol, args)
+    if protocol.design.judgement is not None:
+        raise PinArrayError(f"{protocol.source}: power simulates localisation and apparent-motion "
+                            f"designs, and adaptive ones; not a fixed "
+                            f"{protocol.design.paradigm.value} design")
     model = parse_observer(args.observer).for_protocol(protocol)
     print(f"{protocol.name}: {args.studies} simulated studies per number of subjects, "
           f"subject SD {model.subject_sd_logit:g} logit, seed {args.seed}")

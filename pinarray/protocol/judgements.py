@@ -96,7 +96,7 @@ def read_lab_design(reader: Reader, node: Node, keys: Mapping[str, Node], paradi
     design, each checked as it would play."""
     allowed = COMMON_KEYS | KEYS_OF[paradigm]
     for key in sorted(keys.keys() - allowed):  # the first stray key, the same every time
-        raise reader.error(keys[key], f"expected the keys of a {paradigm.value} design "
+        raise reader.error(keys[key], f"expected the keys of {paradigm.value} designs "
                                       f"({', '.join(sorted(KEYS_OF[paradigm]))} beside every "
                                       f"design's), found {key!r}")
     match paradigm:
