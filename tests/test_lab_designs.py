@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from pinarray.plan import make_plan
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.load import load_protocol, parse_protocol, validate_file
+from pinarray.protocol.load import load_protocol, parse_protocol, protocol_warnings, validate_file
 from pinarray.protocol.paradigms import (
     AnswerKind,
     IntervalOrder,
@@ -184,3 +184,17 @@ def test_a_temporal_order_trial_starts_pin_b_an_soa_after_pin_a():
 def test_temporal_order_needs_two_different_pins():
     text = TOJ.read_text().replace("pins: [6, 7] ", "pins: [6, 6] ")
     assert problems(text) == ["p.yaml:25:9: expected two different pins, found [6, 6]"]
+
+
+def test_patterns_that_last_different_times_are_warned_of_as_a_cue():
+    text = LAB.replace("design:", "  sweep: {{frames: [row, column], soa_ms: 300}}\ndesign:")
+    protocol = parse_protocol(lab_text(text, "paradigm: identification\npatterns: [row, sweep]"))
+    (warning,) = protocol_warnings(protocol)
+    assert warning.startswith("the stimuli a subject must tell apart last different times "
+                              "(sweep 0.500 s; row 0.200 s)")
+    # Two intervals play both values in every trial: their lengths tell nothing.
+    assert protocol_warnings(FLUTTER_PROTOCOL) == []
+
+
+def lab_text(template: str, design: str) -> str:
+    return template.format(design="\n".join("  " + line for line in design.splitlines()))

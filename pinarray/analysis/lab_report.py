@@ -167,6 +167,26 @@ def lab_sections(identification: Identifications, judgements: Judgements,
     return lines
 
 
+def lab_lines(identification: Identifications, judgements: Judgements) -> list[str]:
+    """What `pinarray analyse` prints of the lab's paradigms: each task's across-subject means
+    (the tables and summary.md give the intervals)."""
+    lines = []
+    for a in identification.across:
+        means = {m: mean for m, mean, _ in a.means}
+        lines.append(f"identification {a.task}: {_n(means['percent_correct'], 1)} % correct, "
+                     f"information transferred {_n(means['it_bits'])} bits (corrected for its "
+                     f"small-sample bias {_n(means['it_corrected_bits'])}) of "
+                     f"{_n(a.pooled.it_max_bits)}, mean of {a.subjects} subject(s)")
+    for m in judgements.across:
+        if m.measure == "threshold":
+            continue
+        name = {"weber_fraction": "two intervals", "pss_ms": "temporal order",
+                "jnd_ms": "temporal order"}[m.measure]
+        lines.append(f"{name} {m.task}: mean {m.measure} {_n(m.mean)} over "
+                     f"{len(m.per_subject)} subject(s)")
+    return lines
+
+
 def _not_fitted(fits: Sequence) -> list[str]:
     return ([""] + [f"- subject {f.subject}, task {f.task}: no fit: {f.fit.reason}"
                     for f in fits if isinstance(f.fit, NotFitted)]

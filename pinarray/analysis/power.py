@@ -31,7 +31,6 @@ import numpy as np
 from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.subjects import t_interval
-from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
 from pinarray.protocol import (
     Direction,
@@ -103,15 +102,10 @@ def protocol_design(protocol: Protocol) -> Design:
         if trial.practice:
             continue
         condition = trial.condition
-        match condition:
-            case LocalisationCondition():
-                localisation.append((condition.pin, float(condition.frequency_hz)))
-            case MotionCondition():
-                motion.append(condition.direction)
-            case _:
-                raise PinArrayError(f"{protocol.source}: power simulates localisation and "
-                                    f"apparent-motion designs (and adaptive ones), not a "
-                                    f"{protocol.design.paradigm.value} design")
+        if isinstance(condition, LocalisationCondition):
+            localisation.append((condition.pin, float(condition.frequency_hz)))
+        elif isinstance(condition, MotionCondition):
+            motion.append(condition.direction)
     return Design(tuple(localisation), tuple(motion), protocol.device.grid,
                   protocol.design.directions)
 

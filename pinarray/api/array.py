@@ -32,18 +32,7 @@ from pinarray.plan import PlannedTrial
 from pinarray.player.playback import DEFAULT_LEAD_NS, Onset, OnsetAfter, OnsetAt, PlaybackReport
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import (
-    Condition,
-    LocalisationCondition,
-    MotionCondition,
-    Protocol,
-    is_simulated,
-)
-from pinarray.protocol.paradigms import (
-    IdentificationCondition,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-)
+from pinarray.protocol.model import Condition, Protocol, is_simulated
 from pinarray.schedule import TrialSchedule, compile_drives
 
 __all__ = ["Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock", "PinArray",
@@ -305,8 +294,7 @@ class PinArray:
                                     "of an adaptive design: run_session presents those")
             case PlannedTrial(condition=condition):
                 pass
-            case (LocalisationCondition() | MotionCondition() | IdentificationCondition()
-                  | TwoIntervalCondition() | TemporalOrderCondition()):
+            case _ if isinstance(stimulus, Condition):
                 condition = stimulus
             case _:
                 raise PinArrayError(f"expected a planned trial or a condition of the protocol, "

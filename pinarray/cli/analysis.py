@@ -122,6 +122,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     except OSError as problem:
         raise ResultsError(f"{problem.filename or args.out}: cannot write the report there: "
                            f"{problem.strerror}") from None
+    from pinarray.analysis.lab_report import lab_lines
+
     print(f"counted {len(runs.included)} run(s): {len(result.subjects)} subject(s), "
           f"{result.localisation_trials} localisation and {result.motion_trials} motion trials "
           "(main trials with status ok)")
@@ -159,6 +161,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
                         else f"{low:.4g}-{high:.4g}")
             print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
                   f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
+    for line in lab_lines(result.identification, result.judgements):
+        print(line)
     print(f"summary: {report.summary}")
     return 0
 

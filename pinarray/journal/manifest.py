@@ -6,6 +6,9 @@ values crossing modules are frozen: `PlanEntry` (one trial of the plan), `Proven
 the run was made from), `TaskInfo` (what the sidecars say about the task); JSON only at the
 file boundary. Manifests written before the time base and the sum-typed plan (a ``pid`` and
 ``resumed_at`` list instead of sittings) are still read.
+
+Past 400 lines on purpose: the manifest's values and their JSON, written and read back by the
+same code (a plan entry per paradigm included); apart, they drift.
 """
 
 from __future__ import annotations

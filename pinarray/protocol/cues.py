@@ -8,8 +8,14 @@ warns about it without refusing the protocol: the lab may have reasons. Pure; no
 from __future__ import annotations
 
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import Condition, LocalisationCondition, Paradigm, Protocol
-from pinarray.protocol.paradigms import IdentificationCondition, correct_answer
+from pinarray.protocol.model import (
+    Condition,
+    LocalisationCondition,
+    MotionCondition,
+    Paradigm,
+    Protocol,
+)
+from pinarray.protocol.paradigms import correct_answer
 from pinarray.units import NS_PER_S
 
 
@@ -19,15 +25,17 @@ def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:
                default=0)
 
 
-def _answer(condition: Condition) -> object:
+def _answer(condition: Condition, protocol: Protocol) -> object:
     """What a correct answer names: the pin (localisation), the wave's direction (motion), the
     pattern or its count (identification)."""
     match condition:
         case LocalisationCondition():
             return condition.pin
-        case IdentificationCondition():
-            return condition.pattern
-    return getattr(condition, "direction", None)
+        case MotionCondition():
+            return condition.direction
+    judgement = protocol.design.judgement
+    assert judgement is not None
+    return correct_answer(condition, judgement)
 
 
 def duration_cues(protocol: Protocol) -> list[str]:
@@ -43,10 +51,7 @@ def duration_cues(protocol: Protocol) -> list[str]:
     names: dict[int, list[str]] = {}
     for condition in design.conditions:
         duration_ns = stimulus_duration_ns(protocol, condition)
-        answer = (correct_answer(condition, design.judgement)
-                  if isinstance(condition, IdentificationCondition) and design.judgement
-                  else _answer(condition))
-        durations.setdefault(answer, set()).add(duration_ns)
+        durations.setdefault(_answer(condition, protocol), set()).add(duration_ns)
         label = (f"pin {condition.pin}" if isinstance(condition, LocalisationCondition)
                  else condition.stimulus)
         if label not in names.setdefault(duration_ns, []):

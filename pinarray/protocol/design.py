@@ -5,7 +5,11 @@ constraint) or would not fit in a bounded time and memory: at most `MAX_TRIALS` 
 most `MAX_PULSES_PER_TRIAL` pulse slots in one trial (what a trial may play) and `MAX_PULSES` in
 the whole plan (what `pinarray compile` writes and holds in memory). A design read for a file
 only (``long_trials``: ``pinarray compile --allow-long``) may put the whole plan's pulses in one
-trial. Pure Python: `pinarray validate` runs it without numpy.
+trial. Pure Python: `pinarray validate` runs it without numpy. The lab's paradigms' conditions
+are read by `pinarray.protocol.judgements`; blocks, order, constraints and bounds here, for all.
+
+Past 400 lines on purpose: the section's reading and its bounds are one job (every paradigm's
+conditions end in the same checks of size and order).
 """
 
 from __future__ import annotations

@@ -1,4 +1,8 @@
-"""The ``device`` section: grid, servo settings and one calibration per pin, each problem located."""
+"""The ``device`` section: grid, servo settings and one calibration per pin, each problem located.
+
+Past 400 lines on purpose: one section, read key by key, both servo families' settings and
+their calibrations in one place so that each key is refused the same way.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,10 @@
-"""The ``stimuli`` section: pulse trains and waves, each checked against the device it plays on."""
+"""The ``stimuli`` section: pulse trains and waves, each checked against the device it plays on.
+
+Patterns are read in `pinarray.protocol.patterns`, with the checks kept here (`check_drives`:
+trains on their pins, no pin driven twice at once, the servo bus), so that every kind of
+stimulus is judged by the same code. Past 400 lines on purpose: one section's reading and the
+checks every stimulus shares; apart, a wave and a pattern could be judged differently.
+"""
 
 from __future__ import annotations
 
