@@ -59,6 +59,8 @@ from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Paradigm, Protocol
 from pinarray.protocol.adapted import adapted, adapted_condition
 from pinarray.protocol.paradigms import (
+    AnswerKind,
+    Identification,
     IdentificationCondition,
     TemporalOrderCondition,
     TwoIntervalCondition,
@@ -515,8 +517,9 @@ class Session:
             answers = design.answers(self.grid.pin_count)
             text = str(response).strip()
             if text not in answers:
-                shown = (f"a count from 1 to {self.grid.pin_count}"
-                         if len(answers) == self.grid.pin_count and answers[0] == "1"
+                counts = (isinstance(design.judgement, Identification)
+                          and design.judgement.answers is AnswerKind.COUNTS)
+                shown = (f"a count from 1 to {self.grid.pin_count}" if counts
                          else f"one of {', '.join(answers)}")
                 raise SessionError(f"expected {shown}, found {response!r}")
             return text
