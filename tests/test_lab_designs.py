@@ -198,3 +198,11 @@ def test_patterns_that_last_different_times_are_warned_of_as_a_cue():
 
 def lab_text(template: str, design: str) -> str:
     return template.format(design="\n".join("  " + line for line in design.splitlines()))
+
+
+def test_a_train_cut_inside_a_lift_is_warned_of():
+    assert protocol_warnings(FLUTTER_PROTOCOL) == []  # 1 s: a whole number of half cycles
+    cut = parse_protocol(FLUTTER.read_text().replace("duration_s: 1\n", "duration_s: 0.3\n"))
+    assert protocol_warnings(cut)[0] == (
+        "flutter at 7 Hz ends 14.3 ms into a lift of 71.4 ms: the pin is lowered before it may "
+        "finish its stroke; give the signal a whole number of half cycles")
