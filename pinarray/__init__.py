@@ -52,6 +52,7 @@ __all__ = [
     "ResultsError",
     "RunPaths",
     "SafeStopReport",
+    "ServoPort",
     "TemporalOrderCondition",
     "TemporalOrderRecord",
     "TrialPlan",
@@ -61,6 +62,7 @@ __all__ = [
     "TwoIntervalRecord",
     "VirtualClock",
     "find_condition",
+    "find_servo_ports",
     "load_protocol",
     "open_array",
     "plan_trials",
@@ -78,6 +80,7 @@ _HOMES = {
     "pinarray.api.array": ("Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock",
                            "PinArray", "PinStroke", "Presentable", "SafeStopReport",
                            "VirtualClock", "open_array"),
+    "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
     "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
                               "run_session", "simulated_observer"),
     "pinarray.api.results": ("IdentificationRecord", "LoadedRun", "LocalisationRecord",
@@ -123,6 +126,7 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         ProtocolErrors,
         ResultsError,
     )
+    from pinarray.api.ports import ServoPort, find_servo_ports
     from pinarray.api.protocols import (
         Condition,
         IdentificationCondition,

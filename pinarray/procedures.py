@@ -11,6 +11,7 @@ disk (`pinarray.session.procedures`); `pinarray power` feeds it simulated subjec
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
@@ -113,18 +114,29 @@ class _Staircase:
         return replace(self.estimate(), reversal=step.reversal)
 
 
-class _QuestPlus:
-    def __init__(self, procedure: QuestPlus, values: tuple[Fraction, ...], guess: Fraction):
+def prepare_quest_plus(adaptive: Adaptive) -> dict[str, QuestPlusMachine]:
+    """Each QUEST+ procedure of ``adaptive``, its tables computed (they never change: one
+    preparation serves every `ProcedureSet` of the design, e.g. each simulated subject's)."""
+    prepared = {}
+    for procedure in adaptive.procedures:
+        if not isinstance(procedure, QuestPlus):
+            continue
         thresholds = tuple(map(float, procedure.thresholds))
         prior = procedure.threshold_prior
-        self.machine = QuestPlusMachine.prepare(QuestPlusRule(
-            kind=procedure.function.value, intensities=tuple(map(float, values)),
+        prepared[procedure.name] = QuestPlusMachine.prepare(QuestPlusRule(
+            kind=procedure.function.value, intensities=tuple(map(float, adaptive.values)),
             thresholds=thresholds, slopes=tuple(map(float, procedure.slopes)),
-            lapses=tuple(map(float, procedure.lapse_rates)), guess=float(guess),
+            lapses=tuple(map(float, procedure.lapse_rates)), guess=float(adaptive.guess_rate),
             stop_after_trials=procedure.stop_after_trials,
             stop_below_width=float(procedure.stop_below_width) or None,
             threshold_prior=(normal_weights(thresholds, float(prior.mean), float(prior.sd))
                              if isinstance(prior, NormalPrior) else None)))
+    return prepared
+
+
+class _QuestPlus:
+    def __init__(self, machine: QuestPlusMachine):
+        self.machine = machine
         self.state: QuestPlusState = self.machine.start()
         self._next: tuple[int, int] | None = None  # (trials, index): chosen once per state
 
@@ -151,17 +163,20 @@ class _QuestPlus:
 class ProcedureSet:
     """Every procedure of an adaptive design, from its first trial on."""
 
-    def __init__(self, adaptive: Adaptive, seed: int):
+    def __init__(self, adaptive: Adaptive, seed: int,
+                 prepared: Mapping[str, QuestPlusMachine] | None = None):
         self.adaptive = adaptive
         self.seed = seed
+        prepared = prepare_quest_plus(adaptive) if prepared is None else prepared
         self._running: dict[str, _Staircase | _QuestPlus] = {
-            p.name: self._machine(p) for p in adaptive.procedures}
+            p.name: self._machine(p, prepared) for p in adaptive.procedures}
         self.taken = 0  # procedure trials answered so far
 
-    def _machine(self, procedure: Procedure) -> _Staircase | _QuestPlus:
+    def _machine(self, procedure: Procedure,
+                 prepared: Mapping[str, QuestPlusMachine]) -> _Staircase | _QuestPlus:
         if isinstance(procedure, Staircase):
             return _Staircase(procedure, self.adaptive.values)
-        return _QuestPlus(procedure, self.adaptive.values, self.adaptive.guess_rate)
+        return _QuestPlus(prepared[procedure.name])
 
     @property
     def unfinished(self) -> tuple[str, ...]:

@@ -7,6 +7,9 @@ from hypothesis import settings
 
 from tests.lsl_local import keep_lsl_on_this_machine
 
+# The PsychoPy plugin's tests run in PsychoPy's environment (`make psychopy`), not here.
+collect_ignore = ["psychopy"]
+
 settings.register_profile("pinarray", deadline=None)
 settings.load_profile("pinarray")
 

@@ -61,6 +61,32 @@ MISTAKES = [
      "expected stroke_steps (this device's positions are in steps)"),
     (QUEST, "lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0, 0.6]", "lapse_rates:",
      "expected each of the lapse rates of at most 0.5"),
+    # How long the train plays: at 220 ms its second cycle is cut to a 20 ms lift, which a
+    # 114-step stroke cannot make (it needs 38 ms): refused before a run fails on it.
+    (QUEST.replace("parameter: stroke_steps", "parameter: duration_ms").replace(
+        "threshold_prior: {mean: 40, sd: 30}", "threshold_prior: {mean: 500, sd: 300}").replace(
+        "stop_below_width: 12", "stop_below_width: 100").replace(
+        "    catch_trials: {count: 6}                # a stroke of 0: nothing lifts\n", ""),
+     "values: {from: 4, to: 120, step: 4}", "values: {from: 200, to: 1000, step: 20}", "values:",
+     "at duration_ms 220: pin 6 cannot follow its train at 5 Hz (datasheet figures): the "
+     "signal's length (or its phase) cuts a cycle, leaving a lift of 20.0 ms"),
+    # A catch trial's right answer is "no motion": a wave that moves cannot be its stimulus.
+    (STAIRCASES, "{count: 4, stimulus: no_wave}", "{count: 4, stimulus: rightwards}",
+     "catch_trials:", "expected a no-wave control (wave: none) for catch trials, whose right "
+     "answer is no motion; found 'rightwards', a wave going right"),
+    # A prior no run can use: it weighs one threshold, 1e90, where no value is ever felt.
+    (QUEST, "threshold_prior: {mean: 40, sd: 30}",
+     "thresholds: [1e90, 2e90]\n        threshold_prior: {mean: 1, sd: 1e-90}",
+     "threshold_prior:", "procedure 'quest': at every value (4 to 120) a correct answer has "
+     "less than a 1e-12 chance under every threshold its prior weighs (1e+90 to 1e+90, 1 of 2)"),
+    (QUEST, "threshold_prior: {mean: 40, sd: 30}", "thresholds: [1e90, 2e90]", "thresholds:",
+     "under every threshold of its grid (1e+90 to 2e+90)"),
+    # Far below every value, with no lapse: nothing but a correct answer can come.
+    (QUEST.replace("lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0]"),
+     "threshold_prior: {mean: 40, sd: 30}", "thresholds: [1e-90, 2e-90]", "thresholds:",
+     "a wrong answer has less than a 1e-12 chance under every threshold of its grid (1e-90 to "
+     "2e-90): no answer can move it, and a run would stop at the first such answer; bring the "
+     "thresholds and the prior near the values, or state a lapse rate above 0"),
 ]
 
 

@@ -236,3 +236,32 @@ def test_a_localisation_row_names_the_frequency_an_adaptive_design_played(tmp_pa
     answer_all(session, subject_for(path, threshold=3), stop_after=8)
     rows = [r for r in read_trials(session.writer.paths.beh_tsv) if not r.practice]
     assert rows and all(r.frequency_hz == r.adaptive.intensity for r in rows)
+
+
+def edited_run(root, trial_index=2):
+    """A staircase run of 8 answers, killed, whose ``trial_index``-th counted row had its
+    ``correct`` cell flipped by hand; returns (beh.tsv, that row's line, its trial)."""
+    first, _ = open_session(root, STAIRCASES)
+    answer_all(first, subject_for(STAIRCASES, threshold=120), stop_after=8)
+    first.writer.close()  # killed
+    beh = first.writer.paths.beh_tsv
+    lines = beh.read_text().splitlines(keepends=True)
+    header = lines[0].rstrip("\n").split("\t")
+    column = header.index("correct")
+    counted = [n for n, row in enumerate(read_trials(beh), start=1)
+               if row.counts and row.adaptive.procedure not in ("catch", "practice")]
+    line = counted[trial_index] + 1  # the header is line 1
+    cells = lines[line - 1].rstrip("\n").split("\t")
+    cells[column] = {"true": "false", "false": "true"}[cells[column]]
+    lines[line - 1] = "\t".join(cells) + "\n"
+    beh.write_text("".join(lines))
+    return beh, line, read_trials(beh)[line - 2].trial
+
+
+def test_a_correct_cell_edited_by_hand_is_named_on_its_own_line_with_the_files_path(tmp_path):
+    beh, line, trial = edited_run(tmp_path)
+    with pytest.raises(PinArrayError) as refused:
+        open_session(tmp_path, STAIRCASES, resume=True)
+    message = str(refused.value)
+    assert message.startswith(f"{beh}:{line}: trial {trial}: correct is ")
+    assert "(edited by hand?); put the row back as it was, then resume" in message

@@ -222,3 +222,27 @@ def test_sim_serve_refuses_an_arrivals_log_it_could_not_write_before_serving(whe
     assert served.stderr.startswith(f"pinarray: --arrivals {path}: ")
     assert len(served.stderr.splitlines()) == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plain"]
+
+
+@pytest.mark.parametrize("where", ["folder", "no-folder"])
+def test_an_i2c_log_play_could_not_write_is_refused_by_its_option_before_anything_plays(
+        where, tmp_path):
+    path = tmp_path if where == "folder" else tmp_path / "missing" / "log.txt"
+    status, err = run(["play", str(PROTOCOLS / "localisation_pwm.yaml"), "--sim",
+                       "sim://pca9685", "--i2c-log", str(path)])
+    assert status == 2 and "Traceback" not in err
+    assert err.splitlines()[-1].startswith("pinarray play: error: argument --i2c-log: ")
+    assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("option", "value", "expected"), [
+    ("--subjects", "2,2", "expected each number once, found 2 more than once in '2,2'"),
+    ("--subjects", "2,,4", "expected comma-separated numbers, found an empty one in '2,,4'"),
+    ("--subjects", "4,８", "expected a whole number, found '８'"),
+    ("--studies", "1_000", "expected a whole number, found '1_000'"),
+    ("--seed", "１２", "expected a whole number, found '１２'"),
+])
+def test_numbers_a_list_repeats_skips_or_writes_in_other_digits_are_refused(option, value,
+                                                                              expected):
+    status, err = run(["power", DEMO, option, value])
+    assert status == 2 and err.splitlines()[-1].endswith(expected)

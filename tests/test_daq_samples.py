@@ -210,3 +210,38 @@ def test_a_protocol_driving_a_pin_past_the_16_lines_is_refused_before_any_file(t
         f"pinarray: {protocol}: trial 2 drives pin 20: expected pins 1 to 16, one per line of "
         "the DAQ's uint16 samples\n")
     assert not out.exists()
+
+
+def test_samples_that_would_take_hours_and_terabytes_are_refused_with_the_rate_that_fits(
+        tmp_path, capsys):
+    protocol = tmp_path / "two_days.yaml"
+    protocol.write_text(long_protocol(48, frequency_hz=3))  # a 48 h train, inside every input limit
+    out = tmp_path / "s.npz"
+    assert main(["compile", str(protocol), "--allow-long", "--daq-rate", "10000000",
+                 "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "1,728,000,000,001 samples at 10,000,000 Hz" in err
+    assert "3.46 TB" in err and "lower --daq-rate (at most 57,870 Hz for this plan)" in err
+    assert sorted(tmp_path.iterdir()) == [protocol]
+
+
+def test_samples_that_would_not_fit_on_the_disk_are_refused_before_a_byte_is_written(
+        tmp_path, capsys, monkeypatch):
+    class AlmostFull:
+        f_bavail, f_frsize = 10, 4096
+
+    monkeypatch.setattr("pinarray.cli.daq_samples.os.statvfs", lambda folder: AlmostFull)
+    out = tmp_path / "s.npz"
+    assert main(["compile", str(corners(tmp_path)), "--daq-rate", "100000", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"pinarray: {out}: cannot write: 800,004 samples take 1.6 MB, the disk has "
+                   "41 kB free; lower --daq-rate or make room\n")
+    assert not out.exists()
+
+
+def test_a_large_samples_file_says_how_far_it_is_a_line_per_tenth(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr("pinarray.cli.common.PROGRESS_AFTER_S", 0.0)
+    compile_daq(tmp_path, corners(tmp_path), 100_000)
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("compile:")]
+    assert lines[-1] == "compile: samples written: 800,004 of 800,004 (100 %)"
+    assert 2 <= len(lines) <= 10

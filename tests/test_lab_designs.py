@@ -130,7 +130,7 @@ def test_every_block_of_a_two_interval_plan_holds_each_comparison_in_both_orders
 ADAPTIVE_2IFC = """\
 protocol: flutter_up
 stimuli:
-  vibration: {frequency_hz: 10, duration_s: 0.3}
+  vibration: {frequency_hz: 10, duration_s: 1}
   flutter: {pattern: [6, 7], train: vibration}
 design:
   paradigm: two_interval

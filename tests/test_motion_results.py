@@ -1,5 +1,6 @@
 """The pins' measured motion in the results: beh.tsv's stroke columns and the motion recording."""
 
+import errno
 import gzip
 import json
 import os
@@ -10,7 +11,8 @@ from fractions import Fraction
 
 import pytest
 
-from pinarray.errors import PinArrayError
+from pinarray.errors import PinArrayError, ResultsError
+from pinarray.journal.manifest import read_manifest
 from pinarray.journal.physio import MotionSample, motion_recording_path, read_motion
 from pinarray.journal.records import (
     BEH_NAMES,
@@ -50,12 +52,13 @@ def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_
     cells = dict(zip(header.split("\t"), row.split("\t"), strict=True))
     assert [cells[c] for c in ("stroke_commanded", "stroke_achieved", "stroke_median",
                                "motion_lag", "cycles_short")] == ["114", "80", "80.5", "0.064", "9"]
-    # Appended after every earlier column (later ones after them): an older run resumed gets
-    # them as n/a cells.
+    # Appended after every earlier column (later ones, motion_samples and the lab's
+    # paradigms', after them): an older run resumed gets them as n/a cells.
     start = BEH_NAMES.index("stroke_commanded")
     assert start > BEH_NAMES.index("guess_rate")
-    assert BEH_NAMES[start:start + 5] == ("stroke_commanded", "stroke_achieved",
-                                          "stroke_median", "motion_lag", "cycles_short")
+    assert BEH_NAMES[start:start + 6] == ("stroke_commanded", "stroke_achieved",
+                                          "stroke_median", "motion_lag", "cycles_short",
+                                          "motion_samples")
     described = json.loads(writer.paths.beh_json.read_text())
     assert described["stroke_achieved"]["Units"] == "steps" and "Description" in described["motion_lag"]
 
@@ -115,6 +118,75 @@ def test_a_run_killed_mid_run_keeps_every_trial_s_samples_and_resumes_the_record
 def start_paths(root):
     from pinarray.journal.paths import RunPaths
     return RunPaths(root, "01", "1", "localisation", 1)
+
+
+# -- a row is ok only when its samples are on disk ----------------------------------------------
+
+def three_trials(root):
+    return start_run(root, "01", "localisation", localisation_plan((4, 10), (4, 3), (4, 5)))
+
+
+def test_each_row_says_how_many_samples_of_its_presentation_the_recording_holds(tmp_path):
+    writer = three_trials(tmp_path)
+    writer.write_trial(localisation(1), samples(1, 30))
+    writer.write_trial(localisation(2))  # none taken (a PWM array, a stimulus that never played)
+    writer.close()
+    assert [r.motion_samples for r in read_trials(writer.paths.beh_tsv)] == [30, 0]
+
+
+def test_a_disk_that_fills_as_a_trials_samples_are_synced_leaves_no_ok_row_and_resume_plays_it_again(
+        tmp_path, monkeypatch):
+    writer = three_trials(tmp_path)
+    writer.write_trial(localisation(1), samples(1))
+    recording = motion_recording_path(writer.paths)
+    sync = os.fsync
+
+    def full_for_the_recording(fd):  # ext4 says ENOSPC at fsync, the data never on disk
+        if os.readlink(f"/proc/self/fd/{fd}") == str(recording):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        sync(fd)
+
+    monkeypatch.setattr(os, "fsync", full_for_the_recording)
+    with pytest.raises(ResultsError, match=f"{recording}.*No space left on device"):
+        writer.write_trial(localisation(2), samples(2))
+    monkeypatch.setattr(os, "fsync", sync)  # space freed
+    writer.close()
+    assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1]  # no row claims trial 2
+    again = RunWriter.resume(start_paths(tmp_path))
+    assert [entry.trial for entry in again.remaining()] == [2, 3]  # played again
+    again.write_trial(localisation(2), samples(2))
+    again.close()
+    assert read_motion(recording) == samples(1) + samples(2)  # the failed attempt's dropped
+
+
+def test_a_recording_deleted_mid_run_ends_the_sitting_before_the_row_and_resume_refuses_honestly(
+        tmp_path):
+    writer = three_trials(tmp_path)
+    writer.write_trial(localisation(1), samples(1))
+    recording = motion_recording_path(writer.paths)
+    recording.unlink()  # a tidy-minded colleague, mid-run
+    with pytest.raises(ResultsError, match="the run's motion recording was deleted or replaced"):
+        writer.write_trial(localisation(2), samples(2))
+    writer.close()
+    assert [r.trial for r in read_trials(writer.paths.beh_tsv)] == [1]
+    with pytest.raises(ResultsError) as refused:
+        RunWriter.resume(start_paths(tmp_path))
+    assert str(refused.value) == (
+        f"{recording}: is missing, but the rows of the run's beh.tsv claim 50 (trial 1's are "
+        "not all there): the motion recording was deleted, cut or replaced; put it back as it "
+        "was to resume this run, or start a new run (this one is left as it is)")
+    assert len(read_manifest(writer.paths.manifest).sittings) == 1  # nothing changed
+
+
+def test_a_recording_cut_short_while_the_run_was_stopped_is_refused_on_resume(tmp_path):
+    writer = three_trials(tmp_path)
+    writer.write_trial(localisation(1), samples(1))
+    writer.write_trial(localisation(2), samples(2))
+    writer.close()
+    recording = motion_recording_path(writer.paths)
+    recording.write_bytes(gzip.compress(gzip.decompress(recording.read_bytes())[:1500]))
+    with pytest.raises(ResultsError, match="trial 2's are not all there"):
+        RunWriter.resume(start_paths(tmp_path))
 
 
 @pytest.mark.parametrize("value", ["120", "-5", "lots"])

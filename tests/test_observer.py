@@ -1,6 +1,7 @@
 """The simulated subject: a population that matches the seed on average, and subjects who differ."""
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -226,10 +227,25 @@ def test_a_model_can_be_written_on_the_command_line():
     assert parse_observer("default") == DEFAULT
     with pytest.raises(PinArrayError, match="unknown parameter 'speed'"):
         parse_observer("speed=3")
-    with pytest.raises(PinArrayError, match="name=number"):
+    with pytest.raises(PinArrayError, match="'motion_felt=lots': expected a decimal number"):
         parse_observer("motion_felt=lots")
-    with pytest.raises(PinArrayError, match="finite"):
+    with pytest.raises(PinArrayError, match="expected a decimal number, found 'nan'"):
         parse_observer("subject_sd_logit=nan")
+
+
+@pytest.mark.parametrize(("spec", "message"), [
+    ("motion_felt=0.5,motion_felt=0.9", "'motion_felt' is given twice; give each parameter once"),
+    ("correct_10hz=0.7, correct_10hz =0.8", "'correct_10hz' is given twice"),
+    ("subject_sd_logit=1_000", "expected a decimal number, found '1_000'"),
+    ("motion_felt=０.９", "expected a decimal number, found '０.９'"),
+    ("correct_infhz=0.9", "'correct_infhz': expected correct_<Hz>hz with a frequency above 0"),
+    ("correct_0hz=0.9", "expected correct_<Hz>hz with a frequency above 0"),
+    ("motion_felt", "'motion_felt': expected name=number"),
+])
+def test_a_model_written_twice_over_or_in_numbers_a_protocol_would_refuse_is_refused(spec,
+                                                                                      message):
+    with pytest.raises(PinArrayError, match=re.escape(message)):
+        parse_observer(spec)
 
 
 def test_an_off_grid_pin_or_unknown_direction_is_refused():

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from dataclasses import replace
 
 import pytest
 from hypothesis import given
@@ -243,9 +244,10 @@ def test_any_motion_row_reads_back_exactly_as_written(
                           response=response, response_time_ns=response_time, row=row,
                           direction=direction, status_reason=reason)
     writer = start(tmp_path_factory.mktemp("r"), task="motion")
-    writer.write_trial(record)
+    written = writer.write_trial(record)
     writer.close()
-    assert read_trials(writer.paths.beh_tsv) == [record]
+    assert written == replace(record, motion_samples=0)  # no samples: none claimed
+    assert read_trials(writer.paths.beh_tsv) == [written]
 
 
 numbers = st.one_of(st.none(), st.floats(-1e6, 1e6, allow_nan=False))
@@ -263,9 +265,10 @@ def test_any_adaptive_trial_reads_back_exactly_as_written(
     record = MotionRecord(trial=3, block=1, task="motion", onset_ns=0, duration_ns=S,
                           response="left", row=2, direction="left", adaptive=cells)
     writer = start(tmp_path_factory.mktemp("r"), task="motion")
-    writer.write_trial(record)
+    written = writer.write_trial(record)
     writer.close()
-    assert read_trials(writer.paths.beh_tsv) == [record]
+    assert written == replace(record, motion_samples=0)  # no samples: none claimed
+    assert read_trials(writer.paths.beh_tsv) == [written]
 
 
 CHILD = textwrap.dedent("""

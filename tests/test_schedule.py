@@ -406,3 +406,48 @@ def test_an_hour_long_train_holds_little_more_than_its_own_pulses_in_memory():
         tracemalloc.stop()
     assert len(schedule.pulses) == 360_000 and len(schedule.targets) == 72_000
     assert peak_bytes / len(schedule.pulses) < 24  # the outputs alone are 20.8 bytes a pulse
+
+
+def lifts_played_ns(train: Train) -> list[int]:
+    """How long each run of up pulses holds the pin up as the schedule plays it: until the
+    next (down) pulse starts, or the signal's end sends it to rest."""
+    starts, _, is_up = train_pulses(train)
+    lifts, begun = [], None
+    for start, up in zip(starts.tolist(), is_up.tolist(), strict=True):
+        if up and begun is None:
+            begun = start
+        elif not up and begun is not None:
+            lifts.append(start - begun)
+            begun = None
+    if begun is not None:
+        lifts.append(train.duration_ns - begun)
+    return lifts
+
+
+@settings(max_examples=300, deadline=None)
+@given(frequency=st.integers(1, 40), per_cycle=st.integers(2, 12), up=st.integers(1, 11),
+       phase=st.fractions(0, 1).filter(lambda p: p < 1), duration_ms=st.integers(1, 2000))
+def test_the_shortest_lift_feasibility_judges_is_the_shortest_the_schedule_plays(
+        frequency, per_cycle, up, phase, duration_ms):
+    from pinarray.protocol.feasibility import shortest_lift_ns
+
+    train = Train(Fraction(frequency), duration_ms * 1_000_000, per_cycle, min(up, per_cycle - 1),
+                  2_000_000 // per_cycle, 1_500_000 // per_cycle, phase)
+    played = lifts_played_ns(train)
+    judged = shortest_lift_ns(train)
+    if not played:
+        assert judged is None
+    else:  # the schedule rounds each pulse to the ns
+        assert abs(judged - min(played)) <= 1
+
+
+def test_a_signal_that_cuts_a_cycle_short_is_judged_on_that_lift_not_on_the_half_cycle():
+    # 5 Hz for 220 ms: a whole cycle, then 20 ms up before rest; 114 steps need 38 ms.
+    whole, cut = seed_train(5, Fraction(200, 1000)), seed_train(5, Fraction(220, 1000))
+    calibration = device().calibration(6)
+    assert check_train(whole, calibration, device()).feasible
+    refused = check_train(cut, calibration, device())
+    assert not refused.feasible and refused.cut_lift_ms == 20.0
+    assert round(refused.reachable_steps) == 60
+    assert "leaving a lift of 20.0 ms, in which only 60 of the 114 steps" in refused.describe(
+        device().servo, 0.01)

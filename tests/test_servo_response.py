@@ -195,15 +195,22 @@ def test_a_measured_response_named_by_the_protocol_refuses_the_train_the_servo_d
      "expected a whole number for a stroke (steps), found"),
     (("duty_cycle: 1/2\n", ""), 1, "the servo response needs a 'duty_cycle' key, found none"),
     (("points:", "ponts:"), 8, "unknown key 'ponts' in the servo response; did you mean 'points'?"),
+    (("pin: 4", "pin: 99"), 1, "expected a pin from 1 to 16 (the protocol's grid), found 99"),
+    (("stroke_achieved_steps: 80", "stroke_achieved_steps: 800"), 10,
+     "expected a stroke achieved of at most 125 steps (114 commanded, and a tenth of it for an "
+     "overshoot), found 800"),
+    (("", ""), 0, "expected a servo response (`pinarray servos response` writes one), found an "
+     "empty file"),
 ])
 def test_a_broken_response_file_is_refused_with_its_own_line_and_column(tmp_path, capsys, change,
                                                                         where, expected):
-    (tmp_path / "r.yaml").write_text(RESPONSE.replace(*change))
+    (tmp_path / "r.yaml").write_text(RESPONSE.replace(*change) if change[0] else "")
     (tmp_path / "p.yaml").write_text(SHORT_HORN.replace("  port: \"sim://\"\n",
                                                         "  port: \"sim://\"\n  response: r.yaml\n"))
     status, out, err = run(capsys, "validate", tmp_path / "p.yaml")
     assert (status, out) == (2, "")
-    assert f"{tmp_path / 'r.yaml'}:{where}:" in err and expected in err
+    located = f"{tmp_path / 'r.yaml'}:{where}:" if where else f"{tmp_path / 'r.yaml'}: "
+    assert located in err and expected in err
     assert "Traceback" not in err
 
 
@@ -266,6 +273,37 @@ def test_servos_response_refuses_strokes_past_the_pins_limits_before_anything_mo
 def test_servos_response_refuses_a_bad_list_on_one_line(tmp_path, capsys, option, value):
     status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim", option, value)
     assert status == 2 and err.count("\n") == 1 and err.startswith(f"pinarray: {option}: expected")
+
+
+@pytest.mark.parametrize("value", ["1e-400", "1e-99999999999", "１０", "1_0", "3,5,3"])
+def test_servos_response_refuses_frequencies_written_past_a_protocols_rules_on_one_line(
+        capsys, value):
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim",
+                           "--frequencies", value)
+    assert (status, out) == (2, "")
+    assert err.count("\n") == 1 and err.startswith("pinarray: --frequencies: ")
+
+
+@pytest.mark.parametrize(("options", "lowest"), [
+    (["--frequencies", "0.001"], "0.001 Hz"),
+    (["--frequencies", "0.1,5", "--cycles", "1000"], "0.1 Hz"),
+])
+def test_servos_response_refuses_trains_that_would_play_for_hours_with_the_estimate_and_what_to_change(
+        tmp_path, capsys, options, lowest):
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim", *options)
+    assert (status, out) == (2, "")
+    assert err.count("\n") == 1 and "would play for about" in err and lowest in err
+    assert "at most 1 h: raise the lowest --frequencies, or play fewer --cycles or --strokes" in err
+
+
+@pytest.mark.parametrize("taken", ["r.yaml", "r.png", "r.pdf"])
+def test_servos_response_refuses_an_output_it_could_not_write_before_measuring(
+        tmp_path, capsys, taken):
+    (tmp_path / taken).mkdir()
+    status, out, err = run(capsys, "servos", "response", SEED, "--pin", 4, "--sim",
+                           "--frequencies", "5", "--strokes", "65", "--out", tmp_path / "r.yaml")
+    assert (status, out) == (2, "")  # nothing played: no table
+    assert err == f"pinarray: {tmp_path / taken}: cannot write: it is a folder, expected a file name\n"
 
 
 def test_servos_response_says_hobby_pwm_servos_report_no_position_and_moves_nothing(capsys):

@@ -35,9 +35,12 @@ def rise(kind: PsychometricKind, intensity: ArrayLike, threshold: ArrayLike,
     s = np.asarray(slope, dtype=np.float64)
     if kind == "weibull":
         positive = x > 0
-        ratio = np.where(positive, x, 1.0) / t
-        # -expm1(-z) keeps the small rises near x = 0 exact where 1 - exp(-z) would round to 0.
-        return np.where(positive, -np.expm1(-(ratio**s)), 0.0)
+        # An overflow is a power of +inf, a rise of exactly 1: nothing to warn anyone about.
+        with np.errstate(over="ignore"):
+            ratio = np.where(positive, x, 1.0) / t
+            # -expm1(-z) keeps the small rises near x = 0 exact where 1 - exp(-z) would
+            # round to 0.
+            return np.where(positive, -np.expm1(-(ratio**s)), 0.0)
     if kind == "logistic":
         # 1 / (1 + exp(-u)) written through tanh: no overflow warning for large |u|.
         return 0.5 * (1.0 + np.tanh(0.5 * s * (x - t)))

@@ -17,9 +17,17 @@ false-alarm rate for detection). Intensities are the procedure's discrete domain
   ``I[i] = h(P_i) - sum_k w_k h(p[i, k])``, ``P_i = sum_k w_k p[i, k]`` and ``h`` the entropy of
   a correct/wrong answer. That is exactly the expected entropy of the updated posterior; the
   sums ``sum_k w_k h(p[i, k])`` for every intensity are one matrix-vector product with a table
-  also computed once. Intensities whose expected entropy is within `TIE_NATS` of the least are
-  tied, and the lowest of them is chosen: the choice is deterministic and does not hang on the
-  last bits of a sum (which differ between machines' vector units).
+  also computed once. Intensities whose expected entropies differ by no more than the
+  rounding error their sums can carry are tied, and the lowest of them is chosen: the choice
+  is deterministic and does not hang on the last bits of a sum (which differ between
+  machines' vector units), yet a real difference, however small, is never taken for a tie.
+  The bound (`rounding_bound`) is the classic one for a sum of K nonnegative products in any
+  order, ``K eps`` times the sum (Higham, Accuracy and Stability of Numerical Algorithms,
+  2nd ed., section 4.2; eps the float64 machine epsilon, twice the unit roundoff: a factor
+  2 of margin), applied to both sums and carried through ``h`` by its slope; ``H(w)`` is the
+  same for every intensity and cancels. With the issue's grid (2000 triples) it is about
+  1e-12 nats, where rounding measured 1.7e-14 (issue 37: the former fixed window of 1e-9
+  nats tied real differences and chose otherwise than the reference `questplus` package).
 - Stop: after ``stop_after_trials`` trials, or earlier once the threshold's 95 % credible
   interval is at most ``stop_below_width`` wide (when stated). Every procedure has a trial
   limit: the interval of a discrete grid need never narrow below a stated width.
@@ -45,19 +53,26 @@ from numpy.typing import NDArray
 from pinarray.adaptive.psychometric import KINDS, PsychometricKind, probability_correct
 from pinarray.errors import PinArrayError
 
-TIE_NATS = 1e-9  # expected entropies closer than this are tied (rounding is ~1e-13 nats)
+_EPS = float(np.finfo(np.float64).eps)
 CREDIBLE_MASS = 0.95
 _MATCH_RELATIVE = 1e-9  # an intensity read back from disk matches a domain value this closely
 
 
 def normal_weights(values: tuple[float, ...], mean: float, sd: float) -> tuple[float, ...]:
     """Prior weights proportional to a normal density with ``mean`` and ``sd`` (the values'
-    unit) at each value, scaled so the largest is 1 (a prior's weights need not sum to 1)."""
+    unit) at each value, scaled so the largest is 1 (a prior's weights need not sum to 1).
+
+    Each is taken relative to the value nearest the mean, ``exp(-(d**2 - d0**2) / (2 sd**2))``
+    with ``d**2 - d0**2`` factored as ``(d - d0)(d + d0)``: a normal far narrower than the
+    values' spacing, or far from them, gives the nearest value all the weight, never NaN."""
     if not (np.isfinite(mean) and np.isfinite(sd) and sd > 0):
         raise PinArrayError(f"a normal prior needs a finite mean and an sd above 0, found {mean}, {sd}")
-    z = (np.asarray(values, dtype=np.float64) - mean) / sd
-    log_density = -0.5 * z * z
-    return tuple(float(w) for w in np.exp(log_density - log_density.max()))
+    d = np.asarray(values, dtype=np.float64) - mean
+    nearest = d[np.argmin(np.abs(d))]
+    with np.errstate(over="ignore"):  # an overflow is an exponent of -inf: a weight of 0
+        apart, beside = (d - nearest) / sd, (d + nearest) / sd
+        exponent = np.where((apart == 0) | (beside == 0), 0.0, apart * beside)
+    return tuple(float(w) for w in np.exp(-0.5 * exponent))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -236,10 +251,23 @@ class QuestPlus:
         entropy_now = float(-(nonzero * np.log(nonzero)).sum())
         return entropy_now - (_entropy_of_answer(p_correct) - self.answer_entropy @ w)
 
+    def rounding_bound(self, state: QuestPlusState) -> NDArray[np.float64]:
+        """How far rounding can move each intensity's expected entropy (nats) relative to the
+        others' (the module docstring's bound)."""
+        w = state.posterior
+        p_correct = np.clip(self.probability @ w, 0.0, 1.0)
+        inside = np.clip(p_correct, _EPS, 1.0 - _EPS)
+        slope_of_h = np.abs(np.log(inside / (1.0 - inside)))
+        scale = self.answer_entropy @ w + _entropy_of_answer(p_correct) + p_correct * slope_of_h
+        return (w.size + 4) * _EPS * scale
+
     def next_index(self, state: QuestPlusState) -> int:
-        """The domain index of the next intensity: least expected entropy, ties to the lowest."""
+        """The domain index of the next intensity: least expected entropy, ties (differences
+        within rounding, `rounding_bound`) to the lowest."""
         expected = self.expected_entropies(state)
-        return int(np.flatnonzero(expected <= expected.min() + TIE_NATS)[0])
+        bound = self.rounding_bound(state)
+        best = int(np.argmin(expected))
+        return int(np.flatnonzero(expected <= expected[best] + bound[best] + bound)[0])
 
     def next_intensity(self, state: QuestPlusState) -> float:
         return self.rule.intensities[self.next_index(state)]

@@ -18,7 +18,7 @@ from fractions import Fraction
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
-from pinarray.analysis.observer import observer_number
+from pinarray.analysis.observer import observer_items, observer_number
 from pinarray.errors import PinArrayError
 from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Protocol
 from pinarray.protocol.model import NOTHING_FELT
@@ -41,8 +41,7 @@ def parse_psychometric(spec: str, adaptive: Adaptive) -> Psychometric:
     if spec.strip() in ("", "default"):
         return function
     changes: dict[str, object] = {}
-    for item in spec.split(","):
-        name, _, text = (part.strip() for part in item.partition("="))
+    for item, name, text in observer_items(spec):
         if name == "function":
             if text not in tuple(Function):
                 raise PinArrayError(f"observer: {item!r}: expected function=weibull or "

@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import math
 
+from pinarray.adaptive.posterior import ThresholdStatus
 from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import AcrossSubjects
 from pinarray.analysis.thresholds import (
     NotFitted,
     SubjectThresholds,
-    ThresholdMethod,
     Thresholds,
+    fit_method_text,
+    threshold_definition,
 )
 
 COUNTED = "Counted: main trials with status ok."
@@ -113,17 +115,19 @@ def threshold_track(found: SubjectThresholds) -> str:
             f"credible interval). Catch trials move no procedure and are not drawn. {COUNTED}")
 
 
-def threshold_fit(found: SubjectThresholds, thresholds: Thresholds) -> str:
+def threshold_fit(found: SubjectThresholds) -> str:
     unit = "" if found.unit == "n/a" else f" ({found.unit})"
     match found.fit:
         case NotFitted(reason=reason):
             fitted = f"No function fitted: {reason}."
         case fit:
-            kind = "Weibull" if found.fit_method is ThresholdMethod.ML_WEIBULL else "logistic"
-            fitted = (f"Line: the maximum-likelihood {kind} (guess rate {found.guess_rate:g} as "
-                      f"the rows state, lapse rate fitted: {fit.lapse:.3f}); vertical line: its "
-                      f"threshold, bar: its 95 % parametric bootstrap interval "
-                      f"({thresholds.fit_resamples} resamples, seed {thresholds.fit_seed}).")
+            where = ("vertical line: the threshold, bar: its 95 % credible interval"
+                     if fit.status is ThresholdStatus.ESTIMATED
+                     else f"no threshold drawn: {fit.status.value}")
+            fitted = (f"Line: the {fit.kind} at the posterior medians of threshold, slope and "
+                      f"lapse rate ({fit.lapse:.2f}); {where}. Threshold: "
+                      f"{threshold_definition(fit.kind, fit.guess)}. Method: "
+                      f"{fit_method_text(fit.kind)}.")
     return (f"Psychometric function of subject {found.subject}, task {found.task}: proportion "
             f"of answers counted correct at each {found.parameter}{unit}, every procedure's "
             f"counted trials pooled ({found.fit_trials} trials); marker area grows with the "
@@ -135,5 +139,5 @@ def threshold_captions(thresholds: Thresholds) -> dict[str, str]:
     captions = {}
     for found in thresholds.per_subject:
         captions[f"track_{found.stem}"] = threshold_track(found)
-        captions[f"fit_{found.stem}"] = threshold_fit(found, thresholds)
+        captions[f"fit_{found.stem}"] = threshold_fit(found)
     return captions

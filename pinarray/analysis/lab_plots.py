@@ -4,11 +4,13 @@ proportions and fitted function."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from pinarray.adaptive.posterior import ThresholdPosterior
 from pinarray.analysis.identification import AcrossIdentification
 from pinarray.analysis.judgements import IntervalFit, Judgements, OrderFit
 from pinarray.analysis.lab_report import (
@@ -18,7 +20,6 @@ from pinarray.analysis.lab_report import (
 )
 from pinarray.analysis.plots import OKABE_ITO, _save, plt
 from pinarray.analysis.subjects import IntervalSettings
-from pinarray.analysis.thresholds import NotFitted
 
 _COLOURS = [OKABE_ITO[c] for c in ("blue", "orange", "green", "purple", "sky", "vermillion")]
 
@@ -52,9 +53,13 @@ def _curves(axes, fits: Sequence[IntervalFit | OrderFit], grid: np.ndarray) -> N
         trials = np.array([p.trials for p in found.points])
         axes.scatter(x, [p.proportion for p in found.points], s=8 + 60 * trials / trials.max(),
                      color=colour, alpha=0.7, linewidths=0)
-        if not isinstance(found.fit, NotFitted):
+        placed = found.threshold if isinstance(found, IntervalFit) else found.pss
+        if isinstance(found.fit, ThresholdPosterior) and not math.isnan(placed.value):
             axes.plot(grid, found.fit.function.probability(grid), color=colour, linewidth=1.1,
                       label=f"subject {found.subject}")
+        else:  # no curve where the answers place no threshold: the legend says why
+            axes.plot([], [], color=colour, linewidth=1.1,
+                      label=f"subject {found.subject}: {placed.words}")
     axes.set_ylim(-0.02, 1.02)
     axes.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
 

@@ -4,24 +4,40 @@
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from pinarray.adaptive.posterior import ThresholdStatus
 from pinarray.analysis.identification import AcrossIdentification, Identifications
-from pinarray.analysis.judgements import IntervalFit, Judgements, OrderFit
+from pinarray.analysis.judgements import (
+    NOT_FITTED,
+    Estimate,
+    IntervalFit,
+    JndStatus,
+    Judgements,
+    OrderFit,
+    method_text,
+)
 from pinarray.analysis.subjects import IntervalSettings
 from pinarray.analysis.tables import number, write_csv
-from pinarray.analysis.thresholds import ALL_SUBJECTS, NotFitted, parameter_and_unit
+from pinarray.analysis.thresholds import (
+    ALL_SUBJECTS,
+    NotFitted,
+    interval_name,
+    parameter_and_unit,
+)
 
 IDENTIFICATION_COLUMNS = ("subject", "task", "n_trials", "percent_correct", "it_bits",
                           "it_bias_bits", "it_corrected_bits", "it_max_bits", "ci_low", "ci_high")
 CONFUSION_COLUMNS = ("task", "presented", "answered", "n_trials", "percent_of_presented")
 TWO_INTERVAL_COLUMNS = ("subject", "task", "parameter", "unit", "standard", "threshold",
-                        "ci_low", "ci_high", "weber_fraction", "weber_ci_low", "weber_ci_high",
-                        "difference_75pct", "n_trials")
+                        "ci_low", "ci_high", "status", "weber_fraction", "weber_ci_low",
+                        "weber_ci_high", "difference_75pct", "n_trials")
 TEMPORAL_ORDER_COLUMNS = ("subject", "task", "pins", "pss_ms", "pss_ci_low", "pss_ci_high",
-                          "jnd_ms", "n_trials")
+                          "pss_status", "jnd_ms", "jnd_ci_low", "jnd_ci_high", "jnd_status",
+                          "n_trials")
 
 
 def _n(value: float, digits: int = 3) -> str:
@@ -31,8 +47,9 @@ def _n(value: float, digits: int = 3) -> str:
 def lab_tables(identification: Identifications, judgements: Judgements,
                settings: IntervalSettings, out: Path) -> list[Path]:
     """``identification.csv`` and ``identification_confusion.csv``, ``two_interval.csv``,
-    ``temporal_order.csv``: each subject's row, then the across-subject means (subject
-    ``all``, with the interval the settings name in ``ci_low``/``ci_high``)."""
+    ``temporal_order.csv`` (each of the last two with its sidecar, `judgement_sidecar`): each
+    subject's row, then the across-subject means (subject ``all``, with the interval the
+    settings name in ``ci_low``/``ci_high``)."""
     tables = []
     if identification.found:
         rows: list[list[object]] = []
@@ -58,23 +75,102 @@ def lab_tables(identification: Identifications, judgements: Judgements,
         tables.append(write_csv(out / "identification_confusion.csv", CONFUSION_COLUMNS, cells))
     if judgements.intervals:
         rows = [[f.subject, f.task, *parameter_and_unit(f.compared), f"{f.standard:g}",
-                 *map(_n, f.threshold), *map(_n, f.weber), _n(f.difference_75), f.trials]
-                for f in judgements.intervals]
+                 *map(_n, f.threshold.numbers), f.threshold.words,
+                 *map(_n, f.weber.numbers), _n(f.difference_75),
+                 f.trials] for f in judgements.intervals]
         for m in judgements.across:
             if m.measure == "weber_fraction":
-                rows.append([ALL_SUBJECTS, m.task, "", "", "", "", "", "", _n(m.mean),
+                rows.append([ALL_SUBJECTS, m.task, "", "", "", "", "", "", "n/a", _n(m.mean),
                              *map(_n, m.interval), "", _trials(judgements, m.task)])
         tables.append(write_csv(out / "two_interval.csv", TWO_INTERVAL_COLUMNS, rows))
+        tables.append(judgement_sidecar("two_interval", out))
     if judgements.orders:
-        rows = [[f.subject, f.task, " ".join(map(str, f.pins)), *map(_n, f.pss), _n(f.jnd_ms),
-                 f.trials] for f in judgements.orders]
+        rows = [[f.subject, f.task, " ".join(map(str, f.pins)), *map(_n, f.pss.numbers),
+                 f.pss.words, *map(_n, f.jnd.numbers), f.jnd.words, f.trials]
+                for f in judgements.orders]
         across = {(m.task, m.measure): m for m in judgements.across}
         for task in sorted({f.task for f in judgements.orders}):
             pss, jnd = across[(task, "pss_ms")], across[(task, "jnd_ms")]
-            rows.append([ALL_SUBJECTS, task, "", _n(pss.mean), *map(_n, pss.interval),
-                         _n(jnd.mean), _trials(judgements, task)])
+            rows.append([ALL_SUBJECTS, task, "", _n(pss.mean), *map(_n, pss.interval), "n/a",
+                         _n(jnd.mean), *map(_n, jnd.interval), "n/a",
+                         _trials(judgements, task)])
         tables.append(write_csv(out / "temporal_order.csv", TEMPORAL_ORDER_COLUMNS, rows))
+        tables.append(judgement_sidecar("temporal_order", out))
     return tables
+
+
+_ACROSS = (f"; for subject {ALL_SUBJECTS}, the mean over the subjects whose value is a number, "
+           "with the across-subject interval the summary names")
+_THRESHOLD_WORDS = {
+    ThresholdStatus.ESTIMATED.value: "a value and its 95 % credible interval",
+    ThresholdStatus.BELOW.value: "the answers cannot bound it from below (e.g. every answer "
+    "right): only its upper bound, one-sided 95 %",
+    ThresholdStatus.ABOVE.value: "the answers cannot bound it from above (e.g. every answer "
+    "at chance): only its lower bound, one-sided 95 %",
+    ThresholdStatus.NOT_ESTIMABLE.value: "the answers bound it neither from below nor from "
+    "above", NOT_FITTED: "no fit (summary.md says why)", "n/a": "an across-subject mean"}
+
+
+def _bounds(name: str, unit: str) -> dict[str, dict[str, object]]:
+    return {f"{name}ci_low": {"Description": "the 2.5 % point of the 95 % credible interval "
+                              "(one-sided 95 % lower bound where the status says 'above'); "
+                              "n/a where there is none" + _ACROSS, "Units": unit},
+            f"{name}ci_high": {"Description": "the 97.5 % point of the 95 % credible interval "
+                               "(one-sided 95 % upper bound where the status says 'below'); "
+                               "n/a where there is none" + _ACROSS, "Units": unit}}
+
+
+def judgement_sidecar(paradigm: str, out: Path) -> Path:
+    """``two_interval.json`` or ``temporal_order.json``: each column of its table described
+    (BIDS style: Description, Units, Levels), with the fit's method."""
+    method = method_text(paradigm)
+    columns: dict[str, dict[str, object]] = {
+        "subject": {"Description": f"the subject; {ALL_SUBJECTS}: the across-subject mean"},
+        "task": {"Description": "the task"}}
+    if paradigm == "two_interval":
+        unit = "the compared parameter's unit (column unit)"
+        columns |= {
+            "parameter": {"Description": "the parameter the intervals differ in"},
+            "unit": {"Description": "its unit"},
+            "standard": {"Description": "the standard's value", "Units": unit},
+            "threshold": {"Description": "the difference threshold: " + method + "; n/a where "
+                          "the status gives words instead", "Units": unit},
+            **_bounds("", unit),
+            "status": {"Description": "whether the answers place the threshold (and so the "
+                       "Weber fraction)", "Levels": _THRESHOLD_WORDS},
+            "weber_fraction": {"Description": "the threshold over the standard" + _ACROSS},
+            **_bounds("weber_", "fraction of the standard"),
+            "difference_75pct": {"Description": "the difference answered right 75 % of the "
+                                 "time by the function at the posterior medians; n/a where "
+                                 "the threshold is in words", "Units": unit}}
+    else:
+        jnd_words = {JndStatus.ESTIMATED.value: _THRESHOLD_WORDS["estimated"],
+                     JndStatus.BELOW.value: "the answers do not bound the slope from above "
+                     "(e.g. every answer right at every SOA tested): only jnd_ci_high",
+                     JndStatus.ABOVE.value: "the answers do not bound the slope from below "
+                     "(e.g. answers at chance): only jnd_ci_low",
+                     **{k: v for k, v in _THRESHOLD_WORDS.items()
+                        if k in (ThresholdStatus.NOT_ESTIMABLE.value, NOT_FITTED, "n/a")}}
+        columns |= {
+            "pins": {"Description": "pin A then pin B, as the protocol lists them"},
+            "pss_ms": {"Description": "the point of subjective simultaneity, the SOA (B's "
+                       "onset minus A's) at which pin A is named first half the time: "
+                       + method + "; n/a where pss_status gives words instead" + _ACROSS,
+                       "Units": "ms"},
+            **_bounds("pss_", "ms"),
+            "pss_status": {"Description": "whether the answers place the PSS",
+                           "Levels": _THRESHOLD_WORDS},
+            "jnd_ms": {"Description": "the just noticeable difference: half the distance "
+                       "between the SOAs at which pin A is named first 25 % and 75 % of the "
+                       "time; n/a where jnd_status gives words instead" + _ACROSS,
+                       "Units": "ms"},
+            **_bounds("jnd_", "ms"),
+            "jnd_status": {"Description": "whether the answers place the JND",
+                           "Levels": jnd_words}}
+    columns["n_trials"] = {"Description": "the counted trials behind the numbers"}
+    path = out / f"{paradigm}.json"
+    path.write_text(json.dumps(columns, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    return path
 
 
 def _trials(judgements: Judgements, task: str) -> int:
@@ -88,6 +184,17 @@ def _row(cells: Sequence[object]) -> str:
 
 def _interval(low: float, high: float) -> str:
     return "n/a (one subject)" if math.isnan(low) else f"[{_n(low)}, {_n(high)}]"
+
+
+def _estimate(e: Estimate, digits: int = 3) -> str:
+    """A subject's value with its credible interval, or its words with the bound they state."""
+    if e.status is None:
+        return NOT_FITTED
+    if not math.isnan(e.value):
+        return f"{_n(e.value, digits)} [{_n(e.ci_low, digits)}, {_n(e.ci_high, digits)}]"
+    bound = (f" (< {_n(e.ci_high, digits)})" if not math.isnan(e.ci_high)
+             else f" (> {_n(e.ci_low, digits)})" if not math.isnan(e.ci_low) else "")
+    return f"*{e.words}*{bound}"
 
 
 def lab_sections(identification: Identifications, judgements: Judgements,
@@ -116,22 +223,17 @@ def lab_sections(identification: Identifications, judgements: Judgements,
                   "[identification_confusion.csv](identification_confusion.csv).", ""]
     if judgements.intervals:
         lines += ["## Two intervals", "",
-                  "Per subject and standard: a Weibull fit (guess rate 1/2, lapse fitted within "
-                  "0-0.1) of the proportion naming the interval with the higher value against "
-                  "the difference from the standard, through the adaptive designs' fitting; its "
-                  "threshold (81.6 % correct without lapses) with a "
-                  f"{judgements.resamples}-resample parametric bootstrap interval (seed "
-                  f"{judgements.seed}); the Weber fraction is the threshold over the standard. "
-                  f"Across subjects: the mean with the {settings.describe()}.", "",
+                  f"Per subject and standard: a {method_text('two_interval')}. Where a "
+                  "subject's answers cannot place the threshold, the table gives words (*below "
+                  "the lowest value tested*, *above the highest value tested*, *not "
+                  "estimable*) with the one bound they state. Across subjects: the mean of the "
+                  f"subjects with a number, with the {interval_name(settings)}.", "",
                   _row(["subject", "task", "standard", "threshold", "Weber fraction",
                         "75 % difference", "trials"]), "|---" * 7 + "|"]
         for f in judgements.intervals:
             name, unit = parameter_and_unit(f.compared)
-            threshold, low, high = f.threshold
-            weber = f.weber
             lines.append(_row([f.subject, f.task, f"{name} {f.standard:g} {unit}",
-                               f"{_n(threshold)} {_interval(low, high)}",
-                               f"{_n(weber[0])} {_interval(*weber[1:])}",
+                               _estimate(f.threshold), _estimate(f.weber),
                                _n(f.difference_75), f.trials]))
         for m in judgements.across:
             if m.measure == "weber_fraction":
@@ -139,21 +241,19 @@ def lab_sections(identification: Identifications, judgements: Judgements,
                                    f"{_n(m.mean)} {_interval(*m.interval)}", "",
                                    _trials(judgements, m.task)]))
         lines += [*_not_fitted(judgements.intervals), "",
-                  "[two_interval.csv](two_interval.csv).", ""]
+                  "[two_interval.csv](two_interval.csv); its columns and the method: "
+                  "[two_interval.json](two_interval.json).", ""]
     if judgements.orders:
         lines += ["## Temporal order", "",
-                  "Per subject: a logistic fit (guess and lapse rates 0) of the proportion "
-                  "naming pin A (the first the protocol lists) first against the SOA (B's onset "
-                  "minus A's), through the adaptive designs' fitting. PSS: its 50 % point, "
-                  f"with a {judgements.resamples}-resample parametric bootstrap interval; JND: "
-                  "half the distance between its 25 % and 75 % points. Across subjects: the "
-                  f"mean with the {settings.describe()}.", "",
+                  f"Per subject: a {method_text('temporal_order')}. Pin A is the first the "
+                  "protocol lists. Where a subject's answers cannot place the PSS or the JND, "
+                  "the table gives words with the one bound they state. Across subjects: the "
+                  f"mean of the subjects with a number, with the {interval_name(settings)}.", "",
                   _row(["subject", "task", "pins (A B)", "PSS (ms)", "JND (ms)", "trials"]),
                   "|---" * 6 + "|"]
         for order in judgements.orders:
-            pss, low, high = order.pss
             lines.append(_row([order.subject, order.task, " ".join(map(str, order.pins)),
-                               f"{_n(pss, 1)} {_interval(low, high)}", _n(order.jnd_ms, 1),
+                               _estimate(order.pss, 1), _estimate(order.jnd, 1),
                                order.trials]))
         across = {(m.task, m.measure): m for m in judgements.across}
         for task in sorted({f.task for f in judgements.orders}):
@@ -163,7 +263,8 @@ def lab_sections(identification: Identifications, judgements: Judgements,
                                f"{_n(jnd_m.mean, 1)} {_interval(*jnd_m.interval)}",
                                _trials(judgements, task)]))
         lines += [*_not_fitted(judgements.orders), "",
-                  "[temporal_order.csv](temporal_order.csv).", ""]
+                  "[temporal_order.csv](temporal_order.csv); its columns and the method: "
+                  "[temporal_order.json](temporal_order.json).", ""]
     return lines
 
 
@@ -187,10 +288,22 @@ def lab_lines(identification: Identifications, judgements: Judgements) -> list[s
     return lines
 
 
-def _not_fitted(fits: Sequence) -> list[str]:
-    return ([""] + [f"- subject {f.subject}, task {f.task}: no fit: {f.fit.reason}"
-                    for f in fits if isinstance(f.fit, NotFitted)]
-            if any(isinstance(f.fit, NotFitted) for f in fits) else [])
+def _not_fitted(fits: Sequence[IntervalFit | OrderFit]) -> list[str]:
+    """A note for each subject without a fit, and each whose value is in words (left out of
+    the across-subject mean)."""
+    notes = []
+    for f in fits:
+        if isinstance(f.fit, NotFitted):
+            notes.append(f"- subject {f.subject}, task {f.task}: no fit: {f.fit.reason}")
+            continue
+        said = ([("threshold", f.threshold)] if isinstance(f, IntervalFit)
+                else [("PSS", f.pss), ("JND", f.jnd)])
+        for name, e in said:
+            if e.status is not None and math.isnan(e.value):
+                notes.append(f"- subject {f.subject}, task {f.task}: {name} {_estimate(e)}, "
+                             f"tested {f.fit.lowest_tested:g} to {f.fit.highest_tested:g}; left "
+                             "out of the across-subject mean")
+    return [""] + notes if notes else []
 
 
 # -- captions ----------------------------------------------------------------------------
@@ -212,9 +325,10 @@ def two_interval_caption(task: str, judgements: Judgements, settings: IntervalSe
     weber = next(m for m in judgements.across if m.task == task and m.measure == "weber_fraction")
     return (f"Two-interval discrimination, task {task}: per subject, the proportion of "
             f"trials naming the interval with the higher value at each difference from the "
-            f"standard (dot area: trials) and its Weibull fit (guess rate 1/2, dashed). "
+            f"standard (dot area: trials) and its Bayesian Weibull fit at the posterior "
+            f"medians, drawn where the answers place the threshold (guess rate 1/2, dashed). "
             f"Mean Weber fraction {weber.mean:.3f} over {len(weber.per_subject)} subject(s) "
-            f"({settings.describe()} in summary.md); "
+            f"({interval_name(settings)} in summary.md); "
             f"{sum(f.trials for f in fits)} trials. Counted: main trials with status ok.")
 
 
@@ -223,11 +337,12 @@ def temporal_order_caption(task: str, judgements: Judgements, settings: Interval
     measures = {m.measure: m for m in judgements.across if m.task == task}
     return (f"Temporal-order judgement, task {task}: per subject, the proportion of trials "
             f"naming pin A ({fits[0].pins[0]}) first at each SOA (dot area: trials) and its "
-            f"logistic fit (guess and lapse rates 0). Mean PSS {measures['pss_ms'].mean:.1f} "
-            f"ms, mean JND {measures['jnd_ms'].mean:.1f} ms over "
-            f"{len(measures['pss_ms'].per_subject)} subject(s) ({settings.describe()} in "
-            f"summary.md); {sum(f.trials for f in fits)} trials. Counted: main trials with "
-            "status ok.")
+            f"Bayesian logistic fit (guess and lapse rates 0) at the posterior medians, drawn "
+            f"where the answers place the PSS. Mean PSS {measures['pss_ms'].mean:.1f} ms over "
+            f"{len(measures['pss_ms'].per_subject)} subject(s), mean JND "
+            f"{measures['jnd_ms'].mean:.1f} ms over {len(measures['jnd_ms'].per_subject)} "
+            f"subject(s) ({interval_name(settings)} in summary.md); {sum(f.trials for f in fits)} trials. "
+            "Counted: main trials with status ok.")
 
 
 def lab_captions(identification: Sequence[AcrossIdentification], judgements: Judgements,

@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, fields, replace
+from fractions import Fraction
 from functools import cache, lru_cache
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -50,6 +51,7 @@ import numpy as np
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
 from pinarray.protocol.model import Direction, LocalisationCondition, MotionAnswer
+from pinarray.protocol.yaml_nodes import exact_number
 
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
@@ -494,14 +496,25 @@ class SimulatedObserver:
 
 
 def observer_number(item: str, text: str) -> float:
-    """The number of an ``--observer`` item ``name=text``, refused unless finite."""
+    """The number of an ``--observer`` item ``name=text``, written as a protocol writes its
+    numbers (ASCII decimal, ``1/3``; not ``1_000``, ``inf`` or ``1e400``)."""
     try:
-        value = float(text)
-    except ValueError:
-        raise PinArrayError(f"observer: {item!r}: expected name=number") from None
-    if not math.isfinite(value):
-        raise PinArrayError(f"observer: {item!r}: expected a finite number")
-    return value
+        return float(exact_number(text))
+    except ValueError as problem:
+        raise PinArrayError(f"observer: {item.strip()!r}: {problem}") from None
+
+
+def observer_items(spec: str) -> list[tuple[str, str, str]]:
+    """``name=value,...`` as (item, name, value text), each name once."""
+    found: list[tuple[str, str, str]] = []
+    for item in spec.split(","):
+        name, equals, text = (part.strip() for part in item.partition("="))
+        if not equals:
+            raise PinArrayError(f"observer: {item.strip()!r}: expected name=number")
+        if any(name == seen for _, seen, _ in found):
+            raise PinArrayError(f"observer: {name!r} is given twice; give each parameter once")
+        found.append((item, name, text))
+    return found
 
 
 def parse_observer(spec: str) -> ObserverModel:
@@ -516,15 +529,17 @@ def parse_observer(spec: str) -> ObserverModel:
     scalars = {f.name for f in fields(ObserverModel) if f.type == "float"}
     anchors = dict(model.correct_by_frequency)
     changes: dict[str, Any] = {}
-    for item in spec.split(","):
-        name, _, text = item.partition("=")
-        name = name.strip()
+    for item, name, text in observer_items(spec):
         value = observer_number(item, text)
         if name.startswith("correct_") and name.endswith("hz"):
             try:
-                anchors[float(name[len("correct_"):-2])] = value
+                frequency = exact_number(name[len("correct_"):-2])
             except ValueError:
-                raise PinArrayError(f"observer: {name!r}: expected correct_<Hz>hz") from None
+                frequency = Fraction(0)
+            if not 0 < frequency <= 1000:
+                raise PinArrayError(f"observer: {name!r}: expected correct_<Hz>hz with a "
+                                    "frequency above 0 and at most 1000 Hz")
+            anchors[float(frequency)] = value
         elif name in scalars:
             changes[name] = value
         else:

@@ -5,7 +5,8 @@ The first three mirror the seed's figures: 9.13 (correct localisation by frequen
 direction right). Bars are means of per-subject percentages with the across-subject interval
 the settings name; chance levels are drawn. Colours are the Okabe-Ito palette, which stays
 distinguishable with the common colour-vision deficiencies; colour maps are viridis. Each
-figure carries its caption (`pinarray.analysis.captions`) under the axes.
+figure carries its caption (`pinarray.analysis.captions`) under the axes. Past 400 lines:
+the figures share one style (palette, sizes, saving), which a split would have to repeat.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ matplotlib.use("Agg")  # before pyplot: a lab PC over SSH, or CI, has no display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from pinarray.adaptive.posterior import ThresholdStatus  # noqa: E402
 from pinarray.analysis import captions  # noqa: E402
 from pinarray.analysis.chance import DIRECTION_CHANCE  # noqa: E402
 from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS  # noqa: E402
@@ -31,7 +33,6 @@ from pinarray.analysis.thresholds import (  # noqa: E402
     NotFitted,
     SubjectThresholds,
     ThresholdMethod,
-    Thresholds,
 )
 from pinarray.protocol.response import MeasuredResponse  # noqa: E402
 
@@ -293,8 +294,9 @@ def plot_track(found: SubjectThresholds, stem: Path) -> list[Path]:
     return _save(figure, stem, captions.threshold_track(found))
 
 
-def plot_fit(found: SubjectThresholds, thresholds: Thresholds, stem: Path) -> list[Path]:
-    """The fitted psychometric function over the proportion correct at each intensity."""
+def plot_fit(found: SubjectThresholds, stem: Path) -> list[Path]:
+    """The fitted psychometric function over the proportion correct at each intensity, its
+    threshold with the credible interval, and the threshold's definition."""
     x = np.array([b.intensity for b in found.bins])
     counts = np.array([b.trials for b in found.bins])
     figure, axes = plt.subplots(figsize=(5.4, 3.8))
@@ -307,24 +309,36 @@ def plot_fit(found: SubjectThresholds, thresholds: Thresholds, stem: Path) -> li
         case NotFitted():
             pass
         case fit:
-            low = min(float(x.min()), fit.ci_low)
-            high = max(float(x.max()), fit.ci_high)
+            estimated = fit.status is ThresholdStatus.ESTIMATED
+            low = min(float(x.min()), fit.ci_low) if estimated else float(x.min())
+            high = max(float(x.max()), fit.ci_high) if estimated else float(x.max())
             grid = np.linspace(max(low, 1e-9) if fit.kind == "weibull" else low, high, 300)
             axes.plot(grid, fit.function.probability(grid), color="black", linewidth=1.2,
-                      label=f"{fit.kind} fit", zorder=2)
-            level = float(fit.function.probability(fit.threshold))
-            axes.axvline(fit.threshold, color=OKABE_ITO["green"], linewidth=1.0,
-                         label=f"threshold {fit.threshold:.4g}")
-            axes.errorbar([fit.threshold], [level],
-                          xerr=[[fit.threshold - fit.ci_low], [fit.ci_high - fit.threshold]],
-                          color=OKABE_ITO["green"], capsize=3, linewidth=1.0, fmt="none")
+                      label=f"{fit.kind} (posterior medians)", zorder=2)
+            level = fit.probability_at_threshold
+            if estimated:
+                axes.axvline(fit.threshold, color=OKABE_ITO["green"], linewidth=1.0,
+                             label=f"threshold {fit.threshold:.4g} ({100 * level:.1f} % correct)")
+                axes.errorbar([fit.threshold], [level],
+                              xerr=[[fit.threshold - fit.ci_low], [fit.ci_high - fit.threshold]],
+                              color=OKABE_ITO["green"], capsize=3, linewidth=1.0, fmt="none",
+                              label="95 % credible interval")
+            else:
+                bound = {ThresholdStatus.BELOW: f"\n(below {fit.ci_high:.4g}: 95 % upper bound)",
+                         ThresholdStatus.ABOVE: f"\n(above {fit.ci_low:.4g}: 95 % lower bound)"}
+                axes.text(0.02, 0.02, f"threshold {fit.status.value}{bound.get(fit.status, '')}",
+                          transform=axes.transAxes, fontsize=7, color=OKABE_ITO["vermillion"])
+            share = "63.2 %" if fit.kind == "weibull" else "50 %"
+            axes.text(1.03, 0.0, f"threshold: {share} of the way\nfrom guess rate {fit.guess:g} "
+                      f"to\n1 - lapse rate ({1 - fit.lapse:.2f}):\n{100 * level:.1f} % correct",
+                      transform=axes.transAxes, fontsize=6, va="bottom")
     axes.set_ylim(-0.02, 1.02)
     axes.set_xlabel(_parameter_label(found))
     axes.set_ylabel("proportion counted correct")
     axes.set_title(f"Psychometric function: subject {found.subject}, task {found.task}",
                    fontsize=9)
     axes.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return _save(figure, stem, captions.threshold_fit(found, thresholds))
+    return _save(figure, stem, captions.threshold_fit(found))
 
 
 FIGURES: dict[str, Callable[[Study, Path], list[Path]]] = {

@@ -17,18 +17,29 @@ weighted 1-up/1-down: p = u / (d + u)); its truth is the function's value at tha
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
 from pinarray.errors import PinArrayError
-from pinarray.procedures import ProcedureSet
-from pinarray.protocol.procedures import Adaptive, Procedure, Staircase
+from pinarray.procedures import ProcedureSet, prepare_quest_plus
+from pinarray.protocol.procedures import Adaptive, Procedure, QuestPlus, Staircase
+
+if TYPE_CHECKING:
+    from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
 
 MAX_SUBJECTS = 10_000
+# The work of a check, measured on the 2-core machine this was written on: any procedure's
+# trial takes about 80 us (choosing, answering, the estimate); a QUEST+ trial also computes
+# over its grid (the next value, the update), 10-15 ns a point; preparing its tables once,
+# 50-120 ns a point. An upper bound: QUEST+ may stop before its trial limit.
+TRIAL_NS = 80_000
+QUEST_NS_PER_POINT = 15
+PREPARE_NS_PER_POINT = 120
 
 
 def target_probability(procedure: Procedure) -> float | None:
@@ -74,26 +85,78 @@ class ProcedureCheck:
         return float(low), float(high)
 
 
+def grid_points(adaptive: Adaptive, procedure: Procedure) -> int:
+    """The cells of a QUEST+ procedure's tables (values x thresholds x slopes x lapse rates;
+    0 for a staircase): what each of its trials computes over."""
+    if not isinstance(procedure, QuestPlus):
+        return 0
+    return (len(adaptive.values) * len(procedure.thresholds) * len(procedure.slopes)
+            * len(procedure.lapse_rates))
+
+
+def check_seconds(adaptive: Adaptive, subjects: int) -> float:
+    """About how long `check_procedures` takes at most, s: each procedure's trial limit for
+    each subject, a QUEST+ trial `QUEST_NS_PER_POINT` per grid point, preparing its tables once
+    (`PREPARE_NS_PER_POINT`); any trial, `TRIAL_NS` besides."""
+    work_ns = sum(subjects * p.stop_after_trials
+                  * (TRIAL_NS + QUEST_NS_PER_POINT * grid_points(adaptive, p))
+                  + PREPARE_NS_PER_POINT * grid_points(adaptive, p)
+                  for p in adaptive.procedures)
+    return work_ns / 1e9
+
+
+@dataclass(frozen=True)
+class SimulatedAnswer:
+    """One procedure trial of a simulated run: which procedure presented which value (the
+    adapted parameter's unit), and whether the answer was correct."""
+
+    procedure: str
+    intensity: float
+    correct: bool
+
+
+def subject_seed(seed: int, subject: int) -> int:
+    """The run seed of simulated subject ``subject`` (0-based) of a check seeded ``seed``."""
+    return (seed * 1_000_003 + subject) % 2**63
+
+
+def simulated_run(adaptive: Adaptive, function: Psychometric, run_seed: int,
+                  prepared: Mapping[str, QuestPlusMachine] | None = None,
+                  ) -> tuple[ProcedureSet, tuple[SimulatedAnswer, ...]]:
+    """One simulated subject of ``function`` through every procedure of ``adaptive``, as a run
+    interleaves them (catch and practice trials left out): the procedures as they finished and
+    the answers in order. ``prepared``: the QUEST+ tables, computed once for many subjects
+    (`pinarray.procedures.prepare_quest_plus`)."""
+    procedures = ProcedureSet(adaptive, run_seed, prepared)
+    observer = PsychometricObserver(function, run_seed)
+    answers = []
+    while not procedures.finished:
+        presented = procedures.next()
+        assert presented.value is not None
+        correct = observer.answer(procedures.taken + 1, float(presented.value))
+        procedures.take(presented.procedure, presented.value, correct)
+        answers.append(SimulatedAnswer(presented.procedure, float(presented.value), correct))
+    return procedures, tuple(answers)
+
+
 def check_procedures(adaptive: Adaptive, function: Psychometric, subjects: int,
-                     seed: int) -> tuple[ProcedureCheck, ...]:
-    """Every procedure of ``adaptive`` run by ``subjects`` simulated subjects of ``function``."""
+                     seed: int, progress: Callable[[int], object] = lambda done: None,
+                     ) -> tuple[ProcedureCheck, ...]:
+    """Every procedure of ``adaptive`` run by ``subjects`` simulated subjects of ``function``;
+    ``progress`` hears how many subjects are done after each."""
     if not 1 <= subjects <= MAX_SUBJECTS:
         raise PinArrayError(f"expected 1 to {MAX_SUBJECTS:,} simulated subjects, found {subjects}")
     names = [p.name for p in adaptive.procedures]
     estimates: dict[str, list[float]] = {n: [] for n in names}
     trials: dict[str, list[int]] = {n: [] for n in names}
     missing = dict.fromkeys(names, 0)
+    prepared = prepare_quest_plus(adaptive)  # once: every subject's procedures share the tables
     for subject in range(subjects):
-        run_seed = (seed * 1_000_003 + subject) % 2**63
-        procedures = ProcedureSet(adaptive, run_seed)
-        observer = PsychometricObserver(function, run_seed)
+        procedures, answers = simulated_run(adaptive, function, subject_seed(seed, subject),
+                                            prepared)
         taken = dict.fromkeys(names, 0)
-        while not procedures.finished:
-            presented = procedures.next()
-            assert presented.value is not None
-            correct = observer.answer(procedures.taken + 1, float(presented.value))
-            procedures.take(presented.procedure, presented.value, correct)
-            taken[presented.procedure] += 1
+        for answer in answers:
+            taken[answer.procedure] += 1
         for name in names:
             estimate = procedures.estimate(name).estimate
             trials[name].append(taken[name])
@@ -101,6 +164,7 @@ def check_procedures(adaptive: Adaptive, function: Psychometric, subjects: int,
                 missing[name] += 1
             else:
                 estimates[name].append(estimate)
+        progress(subject + 1)
     checks = []
     for procedure in adaptive.procedures:
         truth, what = truth_for(procedure, function)

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from pinarray.adaptive.posterior import ThresholdPosterior, ThresholdStatus
 from pinarray.analysis import captions
 from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.lab_report import lab_captions, lab_sections, lab_tables
@@ -21,8 +22,10 @@ from pinarray.analysis.thresholds import (
     ALL_SUBJECTS,
     NotFitted,
     Thresholds,
+    fit_method_text,
     interval_name,
     parameter_and_unit,
+    threshold_definition,
 )
 
 
@@ -196,11 +199,14 @@ def _thresholds(found: Thresholds) -> list[str]:
              "mean of its last reversals (`reversal_mean`; n/a before its first reversal, no "
              "interval); QUEST+'s posterior mean with its 95 % credible interval "
              "(`questplus_posterior`). Catch trials move no procedure and are left out.",
-             "- **Maximum-likelihood fit** per subject and task over every counted trial of "
-             "its procedures pooled (`ml_weibull`: a Weibull, or `ml_logistic` where an "
-             "intensity is 0 or below), guess rate as the rows state it, lapse rate fitted "
-             f"within 0-0.1; interval: 95 % parametric bootstrap ({found.fit_resamples} "
-             f"resamples, seed {found.fit_seed}).",
+             "- **Fit** per subject and task over every counted trial of its procedures "
+             "pooled (`bayes_weibull`, or `bayes_logistic` where an intensity is 0 or below), "
+             f"guess rate as the rows state it: a {fit_method_text()}. The threshold is "
+             f"{threshold_definition('weibull', found.per_subject[0].guess_rate)} (each "
+             "subject's lapse rate and percent correct at the threshold are in "
+             "thresholds.csv). Where a subject's answers cannot place the threshold, the "
+             "table gives words instead of a number: *below the lowest value tested*, *above "
+             "the highest value tested* or *not estimable*.",
              f"- **Across subjects** (subject `{ALL_SUBJECTS}` in thresholds.csv): the mean of "
              f"the subjects' thresholds with the {interval_name(settings)}; a subject without an "
              "estimate is left out, a subject with several runs of a procedure counts once "
@@ -218,8 +224,18 @@ def _thresholds(found: Thresholds) -> list[str]:
         match s.fit:
             case NotFitted(reason=reason):
                 notes.append(f"- subject {s.subject}, task {s.task}: no fit: {reason}")
+            case ThresholdPosterior(status=ThresholdStatus.ESTIMATED):
+                pass
+            case fit:
+                bound = {ThresholdStatus.BELOW: f" (below {number(fit.ci_high, 3)})",
+                         ThresholdStatus.ABOVE: f" (above {number(fit.ci_low, 3)})"}
+                notes.append(f"- subject {s.subject}, task {s.task}: threshold "
+                             f"**{fit.status.value}**{bound.get(fit.status, '')}, tested "
+                             f"{fit.lowest_tested:g}-{fit.highest_tested:g} {s.unit}; left out "
+                             "of the across-subject mean")
     lines += ([""] + notes) if notes else []
-    lines += ["", "Each subject's numbers: [thresholds.csv](thresholds.csv).", ""]
+    lines += ["", "Each subject's numbers: [thresholds.csv](thresholds.csv); its columns and "
+              "the threshold's definition: [thresholds.json](thresholds.json).", ""]
     return lines
 
 
@@ -315,7 +331,7 @@ def write_figures(study: Study, out: Path) -> list[Path]:
         drawn += plots.plot_stroke_by_frequency(study, out / "stroke_by_frequency")
     for found in study.thresholds.per_subject:
         drawn += plots.plot_track(found, out / f"track_{found.stem}")
-        drawn += plots.plot_fit(found, study.thresholds, out / f"fit_{found.stem}")
+        drawn += plots.plot_fit(found, out / f"fit_{found.stem}")
     if study.identification.found or study.judgements.found:
         from pinarray.analysis.lab_plots import lab_figures
 

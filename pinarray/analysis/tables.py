@@ -11,10 +11,12 @@ columns are numbered from 1 (row 1 at the bottom, column 1 on the left), as the 
 from __future__ import annotations
 
 import csv
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
 
+from pinarray.adaptive.posterior import ThresholdStatus
 from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import FitSkipped, FrequencyEffect
@@ -26,8 +28,12 @@ from pinarray.analysis.thresholds import (
     ALL_SUBJECTS,
     POOLED_PROCEDURES,
     NotFitted,
+    SubjectThresholds,
+    ThresholdMethod,
     Thresholds,
+    fit_method_text,
     parameter_and_unit,
+    threshold_definition,
 )
 
 
@@ -151,32 +157,105 @@ def frequency_effect_table(effect: FrequencyEffect | FitSkipped, out: Path) -> P
 
 
 THRESHOLD_COLUMNS = ("subject", "task", "parameter", "unit", "method", "threshold", "ci_low",
-                     "ci_high", "n_trials", "procedure")
+                     "ci_high", "n_trials", "procedure", "status", "guess_rate", "lapse_rate",
+                     "pct_correct_at_threshold")
+
+
+def _fit_cells(s: SubjectThresholds) -> list[str]:
+    """The fit's threshold, interval, status, guess and lapse rates and the percent correct at
+    the threshold: numbers only where the answers place them (`ThresholdStatus`)."""
+    match s.fit:
+        case NotFitted():
+            return ["n/a"] * 3 + ["not fitted", number(s.guess_rate, 3), "n/a", "n/a"]
+        case fit:
+            estimated = fit.status is ThresholdStatus.ESTIMATED
+            low = estimated or fit.status is ThresholdStatus.ABOVE
+            high = estimated or fit.status is ThresholdStatus.BELOW
+            return [number(fit.threshold if estimated else math.nan, 3),
+                    number(fit.ci_low if low else math.nan, 3),
+                    number(fit.ci_high if high else math.nan, 3), fit.status.value,
+                    number(fit.guess, 3), number(fit.lapse, 3),
+                    number(100 * fit.probability_at_threshold, 1)]
 
 
 def thresholds_table(found: Thresholds, out: Path) -> Path:
     """``thresholds.csv``: each subject's procedures and fit, then the across-subject means
-    (subject ``all``, the interval the settings name); thresholds in the parameter's unit."""
+    (subject ``all``, the interval the settings name); thresholds in the parameter's unit.
+    Its sidecar ``thresholds.json`` (`thresholds_sidecar`) says what each column is."""
     rows: list[list[object]] = []
     for s in found.per_subject:
         head = [s.subject, s.task, s.parameter, s.unit]
         for estimate in s.procedures:
             rows.append([*head, estimate.method, number(estimate.threshold, 3),
                          number(estimate.ci_low, 3), number(estimate.ci_high, 3),
-                         estimate.n_trials, s.label(estimate)])
-        match s.fit:
-            case NotFitted():
-                fitted = [math.nan] * 3
-            case fit:
-                fitted = [fit.threshold, fit.ci_low, fit.ci_high]
-        rows.append([*head, s.fit_method, *(number(v, 3) for v in fitted), s.fit_trials,
-                     POOLED_PROCEDURES])
+                         estimate.n_trials, s.label(estimate), "n/a", number(s.guess_rate, 3),
+                         "n/a", "n/a"])
+        fitted = _fit_cells(s)
+        rows.append([*head, s.fit_method, *fitted[:3], s.fit_trials, POOLED_PROCEDURES,
+                     *fitted[3:]])
     for m in found.across:
         parameter, unit = parameter_and_unit(m.adapted_parameter)
         rows.append([ALL_SUBJECTS, m.task, parameter, unit, m.method, number(m.mean, 3),
                      *(number(v, 3) for v in m.interval(found.settings.method)), m.n_trials,
-                     m.procedure])
+                     m.procedure, "n/a", "n/a", "n/a", "n/a"])
     return _write(out / "thresholds.csv", THRESHOLD_COLUMNS, rows)
+
+
+def thresholds_sidecar(found: Thresholds, out: Path) -> Path:
+    """``thresholds.json``: each column of thresholds.csv described (BIDS style:
+    Description, Units, Levels), the fit's method and the threshold's definition."""
+    units = sorted({s.unit for s in found.per_subject})
+    guesses = sorted({s.guess_rate for s in found.per_subject})
+    kinds = sorted({s.fit.kind for s in found.per_subject if not isinstance(s.fit, NotFitted)})
+    intensity = "the adapted parameter's unit (column unit)"
+    columns = {
+        "subject": {"Description": f"the subject; {ALL_SUBJECTS}: the across-subject mean"},
+        "task": {"Description": "the task of the adaptive design"},
+        "parameter": {"Description": "the adapted parameter, without its unit"},
+        "unit": {"Description": "the adapted parameter's unit", "Levels": units},
+        "method": {"Description": "where the threshold comes from", "Levels": {
+            ThresholdMethod.REVERSAL_MEAN.value: "a staircase's mean of its last reversals: the "
+            "intensity its rule converges on (1-up/2-down: 70.7 % correct), not the fit's "
+            "threshold",
+            ThresholdMethod.QUESTPLUS_POSTERIOR.value: "QUEST+'s posterior mean over its own "
+            "grid, with its 95 % credible interval",
+            ThresholdMethod.BAYES_WEIBULL.value: fit_method_text("weibull"),
+            ThresholdMethod.BAYES_LOGISTIC.value: fit_method_text("logistic") + " (where an "
+            "intensity is 0 or below)"}},
+        "threshold": {"Description": "the threshold; for the fit, " + "; ".join(
+            threshold_definition(kind, guess) for kind in kinds or ["weibull"]
+            for guess in guesses) + "; n/a where the status gives words instead",
+            "Units": intensity},
+        "ci_low": {"Description": "the 2.5 % point of the 95 % interval (for status 'above the "
+                   "highest value tested': the threshold is above it with 95 % posterior "
+                   "probability); n/a where there is none", "Units": intensity},
+        "ci_high": {"Description": "the 97.5 % point of the 95 % interval (for status 'below "
+                    "the lowest value tested': the threshold is below it with 95 % "
+                    "posterior probability); n/a where there is none", "Units": intensity},
+        "n_trials": {"Description": "the counted trials behind the number"},
+        "procedure": {"Description": f"the procedure; {POOLED_PROCEDURES}: the fit over all of "
+                      "the subject's procedures"},
+        "status": {"Description": "whether the subject's answers place the fit's threshold",
+                   "Levels": {
+                       ThresholdStatus.ESTIMATED.value: "a threshold and its 95 % interval",
+                       ThresholdStatus.BELOW.value: "the answers cannot bound it from below "
+                       "(e.g. every answer right): only ci_high, an upper bound",
+                       ThresholdStatus.ABOVE.value: "the answers cannot bound it from above "
+                       "(e.g. every answer at chance or wrong): only ci_low, a lower bound",
+                       ThresholdStatus.NOT_ESTIMABLE.value: "the answers bound it neither "
+                       "from below nor from above",
+                       "not fitted": "no fit (the report says why)",
+                       "n/a": "a procedure's own estimate or an across-subject mean"}},
+        "guess_rate": {"Description": "the guess rate as the rows state it (0 to 1)"},
+        "lapse_rate": {"Description": "the fit's lapse rate, the median of its posterior (0 "
+                       "to 1)"},
+        "pct_correct_at_threshold": {"Description": "the fitted function's percent correct "
+                                     "at its threshold (guess rate and fitted lapse rate)",
+                                     "Units": "%"},
+    }
+    path = out / "thresholds.json"
+    path.write_text(json.dumps(columns, indent=2, ensure_ascii=False) + "\n", encoding="utf-8")
+    return path
 
 
 STROKE_COLUMNS = ("pin", "frequency_hz", "stroke_commanded_steps", "stroke_commanded_mm",
@@ -227,6 +306,7 @@ def write_tables(study: Study, out: Path) -> list[Path]:
         tables += motion_tables(study, out)
     if study.thresholds.found:
         tables.append(thresholds_table(study.thresholds, out))
+        tables.append(thresholds_sidecar(study.thresholds, out))
     if study.strokes.rows:
         tables.append(stroke_table(study.strokes, out))
     tables.append(runs_table(study.runs, out))

@@ -5,6 +5,7 @@ so the commands start as fast as before. What `pinarray.__all__` lists is the pr
 (semantic versioning, CHANGELOG.md, tests/test_public_api.py); these modules may move.
 
 `protocols` (reading a protocol, its plan and its conditions), `array` (an open array that
-presents stimuli, now or armed for a time), `sessions` (a whole run from a script, answered by
-the script), `results` (runs read back) and `errors` (the one exception family).
+presents stimuli, now or armed for a time), `ports` (the serial ports where servos answer),
+`sessions` (a whole run from a script, answered by the script), `results` (runs read back)
+and `errors` (the one exception family).
 """

@@ -57,7 +57,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     # Only the first word can name the command: the parser's own options (-h, --version) come
     # before it and end the run, so they get every command.
     parser = build_parser(argv[0] if argv else None)
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except PinArrayError as error:  # an option's type= that said so in our words: still one line
+        print(f"pinarray: {error}", file=sys.stderr)
+        return 2
     if not getattr(args, "func", None):
         parser.print_help()
         return 0

@@ -16,6 +16,11 @@ if TYPE_CHECKING:
 MAX_RESAMPLES = 100_000
 # A power study simulates studies x subjects whole sessions for each number of subjects.
 MAX_STUDIES, MAX_SUBJECTS, MAX_SUBJECT_COUNTS = 10_000, 1000, 20
+# Each input is bounded; their product is the work: refused past half an hour (estimated
+# before it starts), said as it goes past `common.PROGRESS_AFTER_S`.
+MAX_POWER_S = 1800
+POWER_FILES = ("power.md", "power.csv", "precision.csv", "power_curves.png",
+               "power_curves.pdf")
 MAX_PINS = 64 * 64  # the largest grid a protocol may describe
 
 
@@ -29,7 +34,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "interval on request), the trial-pooled Wilson interval beside them, answer types A-D and nothing felt, chance "
         "levels, a confusion matrix, per-pin accuracy, apparent motion, and a mixed-effects "
         "logistic fit of the frequency effect when there are enough subjects; for adaptive "
-        "designs, thresholds (each procedure's estimate and a maximum-likelihood "
+        "designs, thresholds (each procedure's estimate and a Bayesian "
         "psychometric fit per subject, their across-subject means) in thresholds.csv with "
         "staircase tracks and fitted functions. Runs whose "
         "manifest is not 'completed', or with no counted trial, are listed and left out. "
@@ -171,7 +176,7 @@ def _cmd_power(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from pinarray.analysis.observer import parse_observer
-    from pinarray.analysis.power import power_study, write_power
+    from pinarray.analysis.power import power_seconds, power_study, protocol_design, write_power
     from pinarray.errors import PinArrayError, ResultsError
     from pinarray.protocol.load import load_protocol
 
@@ -183,9 +188,18 @@ def _cmd_power(args: argparse.Namespace) -> int:
                             f"designs, and adaptive ones; not a fixed "
                             f"{protocol.design.paradigm.value} design")
     model = parse_observer(args.observer).for_protocol(protocol)
+    common.check_output_folder(args.out, POWER_FILES)  # before the work, not after
+    counts = sorted(args.subjects)
+    seconds = power_seconds(protocol_design(protocol), counts, args.studies)
+    common.refuse_long_work(
+        f"power: {args.studies:,} studies for each of {len(counts)} numbers of subjects "
+        f"({sum(counts):,} simulated subjects a round)", seconds, MAX_POWER_S,
+        "fewer --studies, fewer or smaller --subjects")
     print(f"{protocol.name}: {args.studies} simulated studies per number of subjects, "
           f"subject SD {model.subject_sd_logit:g} logit, seed {args.seed}")
-    curves = power_study(protocol, model, sorted(set(args.subjects)), args.studies, args.seed)
+    curves = power_study(protocol, model, counts, args.studies, args.seed,
+                         common.progress("power: simulated subjects",
+                                         args.studies * sum(counts), seconds))
     try:
         paths = write_power(curves, Path(args.out))
     except OSError as problem:
@@ -204,18 +218,26 @@ def _check_procedures(protocol: Protocol, args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from pinarray.analysis.adaptive_subject import parse_psychometric
-    from pinarray.analysis.procedure_check import check_procedures, check_table
+    from pinarray.analysis.procedure_check import check_procedures, check_seconds, check_table
     from pinarray.errors import ResultsError
 
     adaptive = protocol.design.adaptive
     assert adaptive is not None
     function = parse_psychometric(args.observer, adaptive)
+    common.check_output_folder(args.out, ("procedure_check.csv",))  # before the work
+    seconds = check_seconds(adaptive, args.studies)
+    common.refuse_long_work(
+        f"power: {args.studies:,} simulated subjects (--studies) running {len(adaptive.procedures)} "
+        f"procedure(s) to their trial limits", seconds, MAX_POWER_S,
+        "fewer --studies, or a design with smaller QUEST+ grids (values, thresholds, slopes, "
+        "lapse_rates) or lower stop_after_trials")
     unit = adaptive.parameter.unit
     print(f"{protocol.name}: {len(adaptive.procedures)} procedure(s) adapting "
           f"{adaptive.parameter.value}, each run by {args.studies} simulated subjects (--studies) "
           f"of a {function.kind} with threshold {function.threshold:g} {unit}, slope "
           f"{function.slope:g}, guess {function.guess:g}, lapse {function.lapse:g}; seed {args.seed}")
-    checks = check_procedures(adaptive, function, args.studies, args.seed)
+    checks = check_procedures(adaptive, function, args.studies, args.seed,
+                              common.progress("power: simulated subjects", args.studies, seconds))
     out = Path(args.out) / "procedure_check.csv"
     try:
         out.parent.mkdir(parents=True, exist_ok=True)

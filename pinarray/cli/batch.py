@@ -82,8 +82,10 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     _refuse_resumed_scans(protocols, syncs, resumable)
     _check_markers(args)
     # Each run connects on a clock of its own (`_run_clock`); this one is never asked for.
-    with Sitting(Path(args.results), lambda port: choose_clock(port, args.time_scale, paced=True),
-                 lsl_name=args.lsl) as sitting:
+    def any_clock(port: str | None) -> Clock:
+        return choose_clock(port, args.time_scale, paced=True, sim_url=args.sim)
+
+    with Sitting(Path(args.results), any_clock, lsl_name=args.lsl) as sitting:
         stream = sitting.markers()  # pylsl checked before any run
         if stream is not None:
             print(f"pinarray: LSL markers on stream {stream.name!r} (type Markers, source "
@@ -261,7 +263,7 @@ def _run_clock(args: argparse.Namespace, sync: ScannerSync | None, markers: bool
     # Triggers and markers are stamped on the wall clock: then the simulator keeps wall-clock
     # time (at --speed 1) instead of a paced one.
     wall_clock = markers or (sync is not None and not isinstance(sync.trigger, EmulatedTrigger))
-    return choose_clock(args.port, args.time_scale, paced=not wall_clock)
+    return choose_clock(args.port, args.time_scale, paced=not wall_clock, sim_url=args.sim)
 
 
 def _say_how_the_run_opened(run: Session, args: argparse.Namespace) -> None:

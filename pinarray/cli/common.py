@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import math
 import os
+import re
 import stat
 import sys
 from collections.abc import Callable
@@ -25,8 +26,16 @@ MAX_SEED = 2**63 - 1  # what a plan and numpy's generators accept
 MIN_TIME_SCALE, MAX_TIME_SCALE = 0.01, 10_000.0
 
 
+# ASCII decimal only: int() and float() also read 1_000 and other scripts' digits (１２).
+_WHOLE = re.compile(r"[+-]?[0-9]+", re.ASCII)
+_REAL = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:e[+-]?[0-9]+)?|inf(?:inity)?|nan)",
+                   re.ASCII | re.IGNORECASE)
+
+
 def _whole(text: str) -> int:
     try:
+        if not _WHOLE.fullmatch(text.strip()):
+            raise ValueError(text)
         return int(text.strip())
     except ValueError:
         raise argparse.ArgumentTypeError(
@@ -35,6 +44,8 @@ def _whole(text: str) -> int:
 
 def _real(text: str) -> float:
     try:
+        if not _REAL.fullmatch(text.strip()):
+            raise ValueError(text)
         return float(text) + 0.0  # -0.0 becomes 0.0, which numpy's generators accept as a scale
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a number, found {_short(text)}") from None
@@ -90,12 +101,23 @@ def counts(minimum: int, maximum: int, most: int) -> Callable[[str], list[int]]:
     one = count(minimum, maximum)
 
     def parse(text: str) -> list[int]:
-        values = [one(item) for item in text.split(",") if item.strip()]
+        items = text.split(",")
+        if items[-1].strip() == "" and len(items) > 1:
+            items.pop()  # "4,8," as a spreadsheet copies a row: the last comma ends it
+        if any(not item.strip() for item in items):
+            raise argparse.ArgumentTypeError(
+                f"expected comma-separated numbers, found an empty one in {_short(text)}")
+        values = [one(item) for item in items]
         if not 1 <= len(values) <= most:
             raise argparse.ArgumentTypeError(
                 f"expected 1 to {most} comma-separated numbers, found {len(values)} in "
                 f"{_short(text)}"
             )
+        twice = sorted({v for v in values if values.count(v) > 1})
+        if twice:
+            raise argparse.ArgumentTypeError(
+                f"expected each number once, found {', '.join(map(str, twice))} more than once "
+                f"in {_short(text)}")
         return values
 
     return parse
@@ -135,6 +157,48 @@ def servo_ids(text: str) -> tuple[int, ...]:
         raise PinArrayError(f"--ids: {problem}") from None
 
 
+# -- work that may take minutes -------------------------------------------------------------
+
+# Work estimated at this or longer says how far it is, a line on stderr per tenth.
+PROGRESS_AFTER_S = 10.0
+
+
+def refuse_long_work(what: str, estimate_s: float, limit_s: float, change: str) -> None:
+    """Refuse, before it starts, work estimated to take more than ``limit_s``: one line with
+    the estimate and ``change`` (what to change)."""
+    from pinarray.units import duration_words
+
+    if estimate_s > limit_s:
+        raise PinArrayError(f"{what} would take about {duration_words(estimate_s)}; at most "
+                            f"{duration_words(limit_s)}: {change}")
+
+
+def progress(what: str, total: int, estimate_s: float) -> Callable[[int], None]:
+    """What to call with the units of work done so far (of ``total``): a line on stderr at each
+    tenth, with the time left at the pace so far, when the work is estimated to take
+    `PROGRESS_AFTER_S` or longer; nothing otherwise."""
+    import time
+
+    from pinarray.units import duration_words
+
+    if estimate_s < PROGRESS_AFTER_S or total <= 0:
+        return lambda done: None
+    started, said = time.monotonic(), 0  # tenths said so far
+
+    def tell(done: int) -> None:
+        nonlocal said
+        tenth = 10 * done // total
+        if tenth <= said:
+            return
+        said = tenth
+        left = (time.monotonic() - started) * (total - done) / done
+        print(f"{what}: {done:,} of {total:,} ({100 * done // total} %)"
+              + (f", about {duration_words(left)} left" if done < total else ""),
+              file=sys.stderr, flush=True)
+
+    return tell
+
+
 def _short(text: str) -> str:
     return repr(text) if len(text) <= 30 else f"{text[:30]!r}... ({len(text)} characters)"
 
@@ -152,13 +216,48 @@ def png_path(text: str) -> str:
 
 
 def new_file(text: str) -> str:
-    """A file a command will write as it goes (a log): not a folder, in a folder that exists."""
+    """A file a command will write as it goes (a log): not a folder, in a folder that exists
+    (an argparse ``type=``: refused with the option's name and usage, exit status 2)."""
+    problem = _unwritable(text)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
+def check_new_file(text: str) -> None:
+    """Refuse, before any work, a file a command will write that it could not: a folder, in
+    a folder that does not exist or cannot be written."""
+    problem = _unwritable(text)
+    if problem:
+        raise PinArrayError(problem)
+
+
+def check_output_folder(text: str, names: tuple[str, ...]) -> None:
+    """Refuse, before any work, a folder of outputs that could not be written: a file where
+    the folder or one of ``names`` in it should be, or a place where it cannot be made."""
+    if os.path.exists(text) and not os.path.isdir(text):
+        raise PinArrayError(f"{text}: cannot write there: it is a file, expected a folder")
+    made = text
+    while not os.path.exists(made):  # the nearest folder that exists must take the new one
+        made = os.path.dirname(os.path.abspath(made))
+    if not os.path.isdir(made):
+        raise PinArrayError(f"{text}: cannot write there: {made} is a file, not a folder")
+    if not os.access(made, os.W_OK | os.X_OK):
+        raise PinArrayError(f"{text}: cannot write there: {made}: permission denied")
     if os.path.isdir(text):
-        raise PinArrayError(f"{text}: cannot write: it is a folder, expected a file name")
+        for name in names:
+            check_new_file(os.path.join(text, name))
+
+
+def _unwritable(text: str) -> str | None:
+    if os.path.isdir(text):
+        return f"{text}: cannot write: it is a folder, expected a file name"
     folder = os.path.dirname(text) or "."
     if not os.path.isdir(folder):
-        raise PinArrayError(f"{text}: cannot write: no folder {folder!r}")
-    return text
+        return f"{text}: cannot write: no folder {folder!r}"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"{text}: cannot write: permission denied in {folder!r}"
+    return None
 
 
 class OutputFile:

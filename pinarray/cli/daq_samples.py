@@ -14,6 +14,7 @@ blocks, never the samples of a trial, let alone of the file.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
 from fractions import Fraction
 from typing import TYPE_CHECKING
@@ -25,6 +26,13 @@ if TYPE_CHECKING:
     from pinarray.plan import PlannedTrial, TrialPlan
     from pinarray.protocol import Protocol
     from pinarray.schedule import TrialSchedule
+
+# The work a samples file may take: 10 000 000 000 samples are 20 GB, written in about a
+# minute here (an hour of the seed train at 100 kHz, 360 000 000 samples, takes 2 s). A 48 h
+# train at 10 MHz would be 1.7e12 samples, 3.5 TB: refused with what to change.
+MAX_DAQ_SAMPLES = 10_000_000_000
+SAMPLES_PER_S = MAX_DAQ_SAMPLES / 60  # written here, about
+SAMPLE_BYTES = 2
 
 # A trial's condition as columns of the archive: (name, dtype, value when it does not apply).
 _CONDITION_COLUMNS = (
@@ -76,6 +84,7 @@ class DaqSamples:
             counts.append(daq_sample_count(end_ns, rate_hz))
         self.counts = np.array(counts, dtype=np.int64)
         self.firsts = np.concatenate(([0], np.cumsum(self.counts)[:-1])).astype(np.int64)
+        _check_work(path, self.total, rate_hz)
         self.output = common.OutputFile(path, binary=True)
 
     @property
@@ -111,12 +120,15 @@ class DaqSamples:
         from pinarray.schedule import daq_words
 
         written = 0
+        tell = common.progress("compile: samples written", self.total,
+                               self.total / SAMPLES_PER_S)
         for planned, schedule in trials:
             index = planned.trial - 1
             assert written == self.firsts[index], "trials come in plan order"
             for words in daq_words(schedule.pulses, self.rate_hz, int(self.counts[index])):
                 member.write(words)
                 written += len(words)
+                tell(written)
         assert written == self.total
 
     def _layout(self) -> dict:
@@ -137,3 +149,36 @@ class DaqSamples:
                for name, dtype, default in _CONDITION_COLUMNS},
             "plan": np.array(self.plan.to_json()),  # the seed, and the exact frequencies
         }
+
+
+def _check_work(path: str, total: int, rate_hz: int) -> None:
+    """Refuse, before anything is written, samples that would take too long or not fit on the
+    disk: one line with the size and what to change."""
+    from pinarray.units import duration_words
+
+    size = total * SAMPLE_BYTES
+    if total > MAX_DAQ_SAMPLES:
+        fits = max(1, rate_hz * MAX_DAQ_SAMPLES // total)
+        raise PinArrayError(
+            f"--daq-rate: {total:,} samples at {rate_hz:,} Hz, a file of {_bytes(size)} (about "
+            f"{duration_words(total / SAMPLES_PER_S)} to write); at most "
+            f"{MAX_DAQ_SAMPLES:,} samples: lower --daq-rate (at most {fits:,} Hz for this plan) "
+            "or compile fewer or shorter trials")
+    if os.path.exists(path) and not os.path.isfile(path):
+        return  # a device such as /dev/null: no disk to fill
+    folder = os.path.dirname(os.path.realpath(path))
+    try:
+        info = os.statvfs(folder)
+    except OSError:
+        return  # the output's own open says what is wrong with the folder
+    free = info.f_bavail * info.f_frsize
+    if size > free:
+        raise PinArrayError(f"{path}: cannot write: {total:,} samples take {_bytes(size)}, the "
+                            f"disk has {_bytes(free)} free; lower --daq-rate or make room")
+
+
+def _bytes(size: int) -> str:
+    for unit, scale in (("TB", 10**12), ("GB", 10**9), ("MB", 10**6), ("kB", 10**3)):
+        if size >= scale:
+            return f"{size / scale:.3g} {unit}"
+    return f"{size} bytes"

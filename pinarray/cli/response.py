@@ -48,22 +48,26 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _numbers(text: str, option: str, integer: bool) -> list:
-    from fractions import Fraction
-
+    """Comma-separated numbers above 0 (at most 1000 unless whole), each once, written as a
+    protocol writes them (``0.5``, ``1/3``; ``1e-400`` is refused, not made 0 or exact)."""
     from pinarray.errors import PinArrayError
+    from pinarray.protocol.yaml_nodes import exact_number
 
     values = []
     for part in text.split(","):
         try:
-            value = int(part) if integer else Fraction(part.strip())
-        except (ValueError, ZeroDivisionError):
-            raise PinArrayError(f"{option}: expected {'whole numbers' if integer else 'numbers'} "
-                                f"separated by commas, found {part.strip()!r}") from None
-        if value <= 0 or (not integer and value > 1000):
-            raise PinArrayError(f"{option}: expected values above 0"
-                                f"{'' if integer else ' and at most 1000'}, found {part.strip()}")
-        values.append(value)
-    return sorted(set(values))
+            value = exact_number(part)
+            if integer and value.denominator != 1:
+                raise ValueError(f"expected whole numbers, found {part.strip()!r}")
+        except ValueError as problem:
+            raise PinArrayError(f"{option}: {problem} (numbers separated by commas)") from None
+        if value <= 0 or (not integer and value > 1000) or (integer and value > 10**6):
+            raise PinArrayError(f"{option}: expected values above 0 and at most "
+                                f"{'1000000' if integer else '1000'}, found {part.strip()}")
+        if value in values:
+            raise PinArrayError(f"{option}: {part.strip()} is given twice")
+        values.append(int(value) if integer else value)
+    return sorted(values)
 
 
 def _cmd_response(args: argparse.Namespace) -> int:
@@ -72,6 +76,7 @@ def _cmd_response(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from pinarray.analysis.plots import plot_response
+    from pinarray.cli import common
     from pinarray.cli.bus import chosen_bus
     from pinarray.errors import PinArrayError
     from pinarray.journal.files import write_atomically
@@ -95,6 +100,7 @@ def _cmd_response(args: argparse.Namespace) -> int:
                                                              integer=False))
     strokes = (measuring.default_strokes(protocol, args.pin, train) if args.strokes is None
                else _numbers(args.strokes, "--strokes", integer=True))
+    playing = measuring.check_playing_time(frequencies, len(strokes), args.cycles)
     trains = measuring.response_trains(protocol, args.pin, train, frequencies, strokes,
                                        args.cycles)  # refused before anything moves
     out = Path(args.out) if args.out else Path(args.protocol).with_name(
@@ -102,10 +108,12 @@ def _cmd_response(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in (".yaml", ".yml"):  # the figure's .png and .pdf go beside it
         raise PinArrayError(f"--out: expected a response file ending in .yaml, found {out}")
     figure = out.with_suffix("")
+    for written in (out, figure.with_suffix(".png"), figure.with_suffix(".pdf")):
+        common.check_new_file(str(written))  # before measuring, not after
     url = chosen_bus(args, "servos response", bus_setup(device).servo_ids)
     port = args.port if args.port else None
     say(f"pin {args.pin}: {name}'s train at {len(frequencies)} frequencies x {len(strokes)} "
-        f"strokes, {args.cycles} cycles each")
+        f"strokes, {args.cycles} cycles each: about {playing} of playing, a line per train")
     say(f"{'Hz':>7} {'stroke':>7} {'achieved':>9} {'median':>7} {'share':>6} {'lag ms':>7} "
         f"{'short':>6}")
 

@@ -69,7 +69,8 @@ def _cmd_tui(args: argparse.Namespace) -> int:
 
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
-    choose_clock(args.port, args.time_scale)  # refuses --speed with real servos, up front
+    choose_clock(args.port, args.time_scale, sim_url=args.sim)  # refuses --speed up front
+    # with real servos, and with a simulated board kept in a state file
     from pinarray.protocol.imaging import EmulatedTrigger, SyncOverrides
 
     sync = common.sync_overrides(args)  # put over the chosen protocol's sync: at Begin run

@@ -22,11 +22,15 @@ import os
 import zlib
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
+from pinarray.errors import ResultsError
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
 from pinarray.units import NS_PER_S
+
+if TYPE_CHECKING:
+    from pinarray.journal.records import TrialRecord
 
 NA = "n/a"
 
@@ -89,11 +93,18 @@ def motion_lines(samples: Sequence[MotionSample]) -> bytes:
 
 
 class MotionRecording:
-    """A run's motion recording open for appending: one gzip stream, flushed per trial."""
+    """A run's motion recording open for appending: one gzip stream, flushed per trial.
 
-    def __init__(self, path: Path):
+    ``keep``: how many samples of what is on disk to keep (those the run's rows claim: a
+    presentation whose row was never written, cut by a crash or a full disk, is played again
+    and its samples dropped); None: every whole line.
+    """
+
+    def __init__(self, path: Path, keep: int | None = None):
         self.path = path
         kept = read_text(path) if path.exists() else b""
+        if keep is not None:
+            kept = b"".join(kept.splitlines(keepends=True)[:keep])
         self._stream = zlib.compressobj(wbits=31)  # 31: a gzip header and trailer
         start = self._stream.compress(kept) + self._stream.flush(zlib.Z_FULL_FLUSH)
         temporary = path.with_name(path.name + ".tmp")
@@ -103,6 +114,17 @@ class MotionRecording:
             os.fsync(handle.fileno())
         os.replace(temporary, path)
         self._file = open(path, "ab")  # noqa: SIM115
+
+    @property
+    def in_place(self) -> bool:
+        """Whether the file this writes is still the one at its path (not deleted, moved or
+        replaced meanwhile: samples appended to it would be lost with it)."""
+        try:
+            there = os.stat(self.path)
+        except FileNotFoundError:
+            return False
+        mine = os.fstat(self._file.fileno())
+        return (there.st_dev, there.st_ino) == (mine.st_dev, mine.st_ino)
 
     def append(self, samples: Sequence[MotionSample]) -> None:
         """The samples compressed onto the stream, flushed to a whole block and fsync'd."""
@@ -149,3 +171,34 @@ def read_motion(path: Path | str) -> list[MotionSample]:
         samples.append(MotionSample(ns_from_seconds(time), int(trial), int(pin), int(position),
                                     None if goal == NA else int(goal)))
     return samples
+
+
+def claimed_samples(path: Path, records: Sequence[TrialRecord]) -> int | None:
+    """How many samples of the recording at ``path`` the rows ``records`` claim (each row's
+    ``motion_samples``, in row order), checked against what it holds; None when some row does
+    not say (written before the count was kept: nothing to check). `ResultsError` naming
+    both files when the recording holds fewer, or other trials' samples, than the rows say: it
+    was deleted, cut or replaced, and resuming would lose their samples in silence."""
+    counts = [r.motion_samples for r in records if r.motion_samples is not None]
+    if len(counts) != len(records):
+        return None
+    claimed = sum(counts)
+    if not claimed:
+        return 0
+    try:
+        held = read_motion(path) if path.exists() else []
+    except (OSError, ValueError) as problem:  # not a recording any more (UnicodeError too)
+        raise ResultsError(f"{path}: cannot be read as the run's motion recording ({problem}); "
+                           "put it back as it was to resume this run, or start a new run") from None
+    at = 0
+    for record, count in zip(records, counts, strict=True):
+        mine = held[at:at + count]
+        if len(mine) < count or any(s.trial != record.trial for s in mine):
+            found = "is missing" if not path.exists() else f"holds {len(held):,} samples"
+            raise ResultsError(
+                f"{path}: {found}, but the rows of the run's beh.tsv claim {claimed:,} (trial "
+                f"{record.trial}'s are not all there): the motion recording was deleted, cut or "
+                "replaced; put it back as it was to resume this run, or start a new run (this "
+                "one is left as it is)")
+        at += count
+    return claimed

@@ -138,6 +138,9 @@ class _Trial:
         measured).
     adaptive : AdaptiveCells or None
         An adaptive design's cells (procedure, value, correct, estimate); None: a fixed design.
+    motion_samples : int or None
+        How many position samples of this presentation the run's motion recording holds, on
+        disk before the row was (0: none taken); None in files written before it was counted.
     """
 
     trial: int
@@ -153,6 +156,7 @@ class _Trial:
     status_reason: str | None = None
     stroke: StrokeCounts | None = None  # None: not measured (PWM servos, or older files)
     adaptive: AdaptiveCells | None = None  # None: a trial of a fixed design
+    motion_samples: int | None = None  # None: a file written before the count was kept
 
     def __post_init__(self) -> None:
         check_label("task", self.task)
@@ -164,6 +168,10 @@ class _Trial:
             value = getattr(self, name)
             if value is not None and (isinstance(value, bool) or not isinstance(value, int)):
                 raise ResultsError(f"{where}: {name} must be whole nanoseconds, found {value!r}")
+        count = self.motion_samples
+        if count is not None and (isinstance(count, bool) or not isinstance(count, int)
+                                  or count < 0):
+            raise ResultsError(f"{where}: motion_samples must be a count, found {count!r}")
         for name in ("response", "status_reason"):
             text = getattr(self, name, None)
             if isinstance(text, str) and ("\n" in text or "\r" in text):
@@ -512,8 +520,12 @@ BEH_COLUMNS: tuple[Column, ...] = (
            units="s"),
     Column("cycles_short", Cell.INTEGER, "That pin's cycles whose peak-to-peak fell below the "
            "stroke tolerance."),
+    Column("motion_samples", Cell.INTEGER, "How many position samples of this presentation the "
+           "run's motion recording (its _recording-motion_physio.tsv.gz) holds: written and "
+           "synced to disk before this row, in the order of the rows; 0 when none were taken "
+           "(PWM servos, a stimulus that never played)."),
     # The lab's paradigms (identification, two intervals, temporal order), appended after the
-    # columns files written before them hold.
+    # columns files written before them hold (0.2.2's motion_samples the last of those).
     Column("pattern", Cell.TEXT, "Identification: the pattern presented, by its name in the "
            "protocol; n/a for the other paradigms."),
     Column("pins", Cell.TEXT, "The pins the stimulus moved, numbered as the subject sees them "
@@ -592,7 +604,7 @@ def _values(record: TrialRecord) -> dict[str, Any]:
         "stimulus_onset": record.onset_ns, "stimulus_duration": record.duration_ns,
         "response_time": record.response_time_ns, "status": record.status,
         "practice": record.practice, "resumed": record.resumed,
-        "status_reason": record.status_reason,
+        "status_reason": record.status_reason, "motion_samples": record.motion_samples,
     }
     match record:
         case LocalisationRecord():
@@ -779,7 +791,7 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
         "response_time_ns": values.get("response_time"),
         "practice": bool(values.get("practice")), "resumed": bool(values.get("resumed")),
         "delivery": delivery, "status_reason": values.get("status_reason"), "stroke": stroke,
-        "adaptive": adaptive,
+        "adaptive": adaptive, "motion_samples": values.get("motion_samples"),
     }
     try:
         if values.get("pattern") is not None:

@@ -53,6 +53,7 @@ from pinarray.journal.paths import RunPaths, has_files, runs_of
 from pinarray.journal.physio import (
     MotionRecording,
     MotionSample,
+    claimed_samples,
     motion_recording_path,
     motion_sidecar,
 )
@@ -207,7 +208,8 @@ class RunWriter:
     """
 
     def __init__(self, paths: RunPaths, manifest: RunManifest, records: list[TrialRecord],
-                 lock: RunLock, *, resumed: bool, repaired: str = "", wall: Wall = wall_now):
+                 lock: RunLock, *, resumed: bool, repaired: str = "", wall: Wall = wall_now,
+                 claimed: int | None = 0):
         self.paths = paths
         self.manifest = manifest
         self.records = records
@@ -223,6 +225,9 @@ class RunWriter:
         self._events = _AppendOnlyTsv(paths.events_tsv, EVENT_NAMES)
         self._volumes: _AppendOnlyTsv | None = None
         self._motion: MotionRecording | None = None
+        # The samples the rows on disk claim of the motion recording (None: some row does not
+        # say: written before the count was kept), checked against the file on resume.
+        self._claimed = claimed
         self._pending_volumes: Callable[[], Sequence[VolumeRow]] = tuple
 
     @classmethod
@@ -332,6 +337,8 @@ class RunWriter:
                 f"{', '.join(map(str, lines))}); a trial counts once: delete the row that should "
                 "not count, then resume"
             )
+        # Every sample the rows claim must be in the recording, before anything is changed.
+        claimed = claimed_samples(motion_recording_path(paths), records)
         repaired = repair_tail(paths.beh_tsv, len(header) or len(BEH_NAMES))
         if header and tuple(header) != BEH_NAMES:
             _upgrade_columns(paths.beh_tsv, len(BEH_NAMES) - len(header))
@@ -350,7 +357,8 @@ class RunWriter:
         if source != paths.manifest:
             source.unlink()  # an older run's manifest, now moved to sourcedata/
         write_sidecars(paths, manifest)
-        return cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall)
+        return cls(paths, manifest, records, lock, resumed=True, repaired=repaired, wall=wall,
+                   claimed=claimed)
 
     # -- the run's time base -----------------------------------------------------------------
 
@@ -448,6 +456,11 @@ class RunWriter:
                                "a trial counts once")
         if self.resumed and not record.resumed:
             record = replace(record, resumed=True)
+        # The samples first: a row says how many of them are on disk, and is written only once
+        # they are (a full disk or a deleted recording leaves no row: the trial is played again).
+        record = replace(record, motion_samples=len(motion))
+        if motion:
+            self._write_motion(motion)
         try:
             with deferred_signals():  # a Ctrl-C must not fall between the two files
                 self._beh.append(trial_row(record))
@@ -455,26 +468,42 @@ class RunWriter:
                 self.records.append(record)
                 if record.status is TrialStatus.OK:
                     self._finished.add(record.key)
+                if self._claimed is not None:
+                    self._claimed += len(motion)
         except OSError as problem:
             raise unwritable(problem, self.paths.beh_tsv, mid_run=True) from None
-        if motion:
-            self._write_motion(motion)
         self._flush_volumes()
         return record
 
     def _write_motion(self, samples: Sequence[MotionSample]) -> None:
-        """A trial's samples onto the run's motion recording; its sidecar with the first."""
+        """A trial's samples onto the run's motion recording; its sidecar with the first.
+
+        The recording is opened keeping the samples the rows claim (those of a presentation
+        whose row never came are dropped); one deleted or replaced since it was opened is
+        refused, as its earlier samples went with it."""
         path = motion_recording_path(self.paths)
+        if self._motion is not None and not self._motion.in_place:
+            raise ResultsError(
+                f"{path}: the run's motion recording was deleted or replaced while the run "
+                "wrote it, and the samples of its earlier trials with it; this trial's row is "
+                "not written (the run is left resumable: put the recording back to resume it, "
+                "or start a new run)")
         try:
             if self._motion is None:
                 sidecar = path.with_name(path.name.removesuffix(".tsv.gz") + ".json")
                 if not sidecar.exists():
                     described = motion_sidecar(samples, self.manifest.task_info.name)
                     write_atomically(sidecar, json.dumps(described, indent=2) + "\n")
-                self._motion = MotionRecording(path)
+                self._motion = MotionRecording(path, keep=self._claimed)
                 fsync_folder(path.parent)
             self._motion.append(samples)
         except OSError as problem:
+            # A stream cut mid-block cannot be continued: the next write opens it again from
+            # the samples the rows claim.
+            motion, self._motion = self._motion, None
+            if motion is not None:
+                with contextlib.suppress(OSError):
+                    motion.close()
             raise unwritable(problem, path, mid_run=True) from None
 
     def not_needed_after(self, trial: int) -> None:

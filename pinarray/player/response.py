@@ -26,7 +26,7 @@ from pinarray.protocol.model import (
 )
 from pinarray.protocol.response import MeasuredResponse, ResponsePoint
 from pinarray.schedule import TrialSchedule, compile_drives
-from pinarray.units import NS_PER_MS, NS_PER_S
+from pinarray.units import NS_PER_MS, NS_PER_S, duration_words
 
 if TYPE_CHECKING:
     from pinarray.hardware.delivery import Presentation
@@ -36,6 +36,9 @@ DEFAULT_FREQUENCIES_HZ = (1, 2, 3, 5, 7, 10, 12, 15, 20)
 DEFAULT_STROKE_SHARES = (Fraction(1, 4), Fraction(1, 2), Fraction(3, 4), Fraction(1))
 DEFAULT_CYCLES = 10
 SETTLE_NS = 300 * NS_PER_MS  # at rest between two trains: the pin back at standstill
+# A measurement, not an endurance run: what the trains may play in all (and the simulator
+# computes in virtual time, about 20 times faster here).
+MAX_PLAYING_S = 3600
 
 
 @dataclass(frozen=True)
@@ -74,6 +77,28 @@ def default_strokes(protocol: Protocol, pin: int, train: Train | TrainShape) -> 
     full = abs(calibration.position_for_width(train.up_width_ns)
                - calibration.position_for_width(train.down_width_ns))
     return tuple(sorted({max(1, round(full * share)) for share in DEFAULT_STROKE_SHARES}))
+
+
+def playing_s(frequencies_hz: Sequence[Fraction], strokes: int, cycles: int) -> Fraction:
+    """How long the trains play in all, s: ``cycles`` cycles at each frequency for each of
+    ``strokes`` strokes, `SETTLE_NS` at rest after each."""
+    settle = Fraction(SETTLE_NS, NS_PER_S)
+    return strokes * sum((cycles / f + settle for f in frequencies_hz), Fraction(0))
+
+
+def check_playing_time(frequencies_hz: Sequence[Fraction], strokes: int, cycles: int) -> str:
+    """The trains' playing time in words; refused above `MAX_PLAYING_S`, with what to change,
+    before anything is compiled or moves."""
+    total = playing_s(frequencies_hz, strokes, cycles)
+    if total <= MAX_PLAYING_S:
+        return duration_words(float(total))
+    lowest = min(frequencies_hz)
+    raise PinArrayError(
+        f"servos response: {len(frequencies_hz) * strokes} trains would play for about "
+        f"{duration_words(float(total))} ({cycles} cycles each; the lowest frequency, "
+        f"{float(lowest):g} Hz, alone {duration_words(float(strokes * cycles / lowest))}); at "
+        f"most {duration_words(MAX_PLAYING_S)}: raise the lowest --frequencies, or play fewer "
+        "--cycles or --strokes")
 
 
 @dataclass(frozen=True)

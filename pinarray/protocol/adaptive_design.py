@@ -36,6 +36,7 @@ from pinarray.protocol.drives import check_no_overlap, pulse_slots
 from pinarray.protocol.model import (
     Condition,
     Device,
+    Direction,
     LocalisationCondition,
     MotionCondition,
     Paradigm,
@@ -60,6 +61,7 @@ from pinarray.protocol.procedures import (
     Task,
     UniformPrior,
 )
+from pinarray.protocol.quest_grid import uninformative
 from pinarray.protocol.stimuli import check_bus, check_period, check_train_on_pins
 from pinarray.protocol.yaml_nodes import Invalid, MappingNode, Node, Reader
 
@@ -71,7 +73,9 @@ QUEST_KEYS = {"method", "function", "thresholds", "slopes", "lapse_rates", "thre
 MAX_VALUES = 1000  # values a parameter may take, and thresholds a QUEST+ grid may hold
 MAX_PROCEDURES = 16
 MAX_PROCEDURE_TRIALS = 2000
-# QUEST+'s grid: values x thresholds x slopes x lapse rates, what its tables hold (8 B each).
+# QUEST+'s grid: values x thresholds x slopes x lapse rates, what its two tables hold (8 B
+# each), summed over a design's procedures: a run holds them all (64 MB at most), and a trial
+# computes over its procedure's (about 60 ms at the limit).
 MAX_GRID = 4_000_000
 MAX_CHECKS = 20_000  # (value, stimulus) pairs checked as they would play
 RESERVED = (CATCH, PRACTICE)
@@ -187,9 +191,15 @@ def _catch(reader: Reader, node: Node, paradigm: Paradigm, parameter: Parameter,
                                      "can be presented at 0 (nothing lifts)")
         return CatchTrials(count)
     name = reader.string(keys["stimulus"], "the catch trials' stimulus", tuple(by_name))
-    if paradigm is not Paradigm.APPARENT_MOTION or not isinstance(by_name[name], WaveStimulus):
+    stimulus = by_name[name]
+    if paradigm is not Paradigm.APPARENT_MOTION or not isinstance(stimulus, WaveStimulus):
         raise reader.error(keys["stimulus"], f"expected a wave stimulus of an apparent_motion "
                                              f"design for catch trials, found {name!r}")
+    if stimulus.wave.direction != Direction.NONE:
+        # A catch trial's right answer is that nothing moved: a moving wave has a direction.
+        raise reader.error(keys["stimulus"], f"expected a no-wave control (wave: none) for catch "
+                                             f"trials, whose right answer is no motion; found "
+                                             f"{name!r}, a wave going {stimulus.wave.direction}")
     return CatchTrials(count, name)
 
 
@@ -211,7 +221,18 @@ def _procedures(reader: Reader, node: Node, values: tuple[Fraction, ...],
                 partial(_procedure, reader, value_node, name, values, guess), None)
             if procedure is not None:
                 procedures.append(procedure)
+    # A run holds every procedure's tables at once, and power computes over them all.
+    size = sum(_grid_size(p, values) for p in procedures if isinstance(p, QuestPlus))
+    if size > MAX_GRID:
+        raise reader.error(node, f"expected QUEST+ grids of at most {MAX_GRID:,} points in all "
+                                 "(values x thresholds x slopes x lapse rates, summed over the "
+                                 f"procedures), found {size:,}")
     return tuple(procedures)
+
+
+def _grid_size(procedure: QuestPlus, values: tuple[Fraction, ...]) -> int:
+    return (len(values) * len(procedure.thresholds) * len(procedure.slopes)
+            * len(procedure.lapse_rates))
 
 
 def _procedure(reader: Reader, node: Node, name: str, values: tuple[Fraction, ...],
@@ -296,7 +317,7 @@ def _quest_plus(reader: Reader, node: Node, keys: dict[str, Node], name: str,
                                                            f"{float(1 - guess):g} (1 - the guess "
                                                            f"rate), found {float(max(lapses)):g}")
     size = len(values) * len(thresholds) * len(slopes) * len(lapses)
-    if size > MAX_GRID:
+    if size > MAX_GRID:  # this one alone; `_procedures` adds them up
         raise reader.error(node, f"expected a QUEST+ grid of at most {MAX_GRID:,} points (values "
                                  f"x thresholds x slopes x lapse rates), found {size:,}")
     prior = reader.optional(keys, "threshold_prior", lambda n: _prior(reader, n),
@@ -304,7 +325,12 @@ def _quest_plus(reader: Reader, node: Node, keys: dict[str, Node], name: str,
     width = reader.optional(keys, "stop_below_width",
                             lambda n: reader.number(n, "the credible interval's width", ""),
                             Fraction(0))
-    return QuestPlus(name, function, thresholds, slopes, lapses, prior, trials, width)
+    procedure = QuestPlus(name, function, thresholds, slopes, lapses, prior, trials, width)
+    problem = uninformative(procedure, values, guess)
+    if problem:
+        where = next((keys[k] for k in ("threshold_prior", "thresholds") if k in keys), node)
+        raise reader.error(where, problem)
+    return procedure
 
 
 def _grid(reader: Reader, node: Node, what: str, zero: bool) -> tuple[Fraction, ...]:

@@ -152,13 +152,14 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     if device is None:
         return None
     datasheet: Bandwidth = DATASHEET
-    bandwidth = reader.optional(keys, "response", lambda n: _response(reader, n, servo, port),
+    bandwidth = reader.optional(keys, "response",
+                                lambda n: _response(reader, n, servo, port, device.grid),
                                 datasheet)
     return replace(device, port=port, scale_infeasible=scale, delivery_tolerance_ns=tolerance_ns,
                    stroke_tolerance=stroke, bandwidth=bandwidth)
 
 
-def _response(reader: Reader, node: Node, servo: Servos, port: str) -> Bandwidth:
+def _response(reader: Reader, node: Node, servo: Servos, port: str, grid: Grid) -> Bandwidth:
     """The measured servo response a protocol names, a path relative to the protocol's file,
     refused when it was measured with other settings than the protocol's, or on the simulator
     for a protocol that drives real servos."""
@@ -166,7 +167,7 @@ def _response(reader: Reader, node: Node, servo: Servos, port: str) -> Bandwidth
         raise reader.error(node, "expected no response: for hobby servos on a PWM board (their "
                                  "position is not read back), found one")
     name = reader.string(node, "the servo response file")
-    response = read_response(Path(reader.source).parent / name, reader, node)
+    response = read_response(Path(reader.source).parent / name, reader, node, grid.pin_count)
     if response.servo.lower() != servo.model.lower():
         raise reader.error(node, f"expected a response measured on {servo.model} servos, found "
                                  f"one of {response.servo} ({name})")

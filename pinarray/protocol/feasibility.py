@@ -10,7 +10,8 @@ top speed (``T <= 2v/a``), and ``v*T - v^2/a`` otherwise (trapezoidal profile).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from fractions import Fraction
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.model import NS_PER_S, Datasheet, Device, PinCalibration, Servos, Train
@@ -43,6 +44,43 @@ def travel_time_s(
     return steps / v + v / a
 
 
+def shortest_lift_ns(train: Train) -> int | None:
+    """The shortest time ``train`` holds a pin up, as it plays: an up half-cycle
+    (``duty / frequency``), or less where its phase starts the first cycle inside one or the
+    signal's end cuts the last (the pin then goes to rest); None when it never lifts.
+
+    Slot ``k`` starts at ``(k + phase * pulses_per_cycle) * slot``, rounded to the ns (halves
+    up), and plays only if it ends within the signal, as `pinarray.schedule` plays it.
+    """
+    per_cycle, up = train.pulses_per_cycle, train.up_pulses
+    if up == 0:
+        return None
+    slot, offset = train.slot_ns, train.phase * per_cycle
+    widths = (train.up_width_ns, train.down_width_ns)
+
+    def start(k: int) -> int:
+        return math.floor((k + offset) * slot + Fraction(1, 2))
+
+    first = -int(offset)
+    last = int(train.duration_ns / slot - offset)
+    while last >= first and start(last) + widths[last % per_cycle >= up] > train.duration_ns:
+        last -= 1
+
+    def lift(a: int, b: int) -> int:  # up slots a..b; then a down slot, or rest
+        return (start(b + 1) if b < last else train.duration_ns) - start(a)
+
+    k = first if first % per_cycle < up else first - first % per_cycle + per_cycle
+    j = last if last % per_cycle < up else last - last % per_cycle + up - 1
+    if last < first or k > j:
+        return None  # no pulse, or none up
+    # The first lift (the phase may start it inside its run), the last (the signal's end may
+    # cut it), and whole ones between them.
+    lifts = [lift(k, min(k - k % per_cycle + up - 1, last)), lift(max(first, j - j % per_cycle), j)]
+    if j // per_cycle - k // per_cycle >= 2:
+        lifts.append(math.floor(up * slot))  # to the ns, as the rounded starts give it at least
+    return min(lifts)
+
+
 @dataclass(frozen=True)
 class Feasibility:
     """How much of a pin's calibrated stroke a train can really produce."""
@@ -50,10 +88,13 @@ class Feasibility:
     pin: int
     frequency_hz: float
     stroke_steps: int  # |up - down| as calibrated
-    reachable_steps: float  # in the shorter half-cycle
+    reachable_steps: float  # in the shorter half-cycle, or the shortest lift if shorter
     max_frequency_hz: float  # highest frequency at which ``needed_steps`` are reachable
     needed_steps: float  # the least travel that follows the train (see `check_train`)
     basis: str  # what the reach rests on: datasheet figures or a measured response
+    # A lift shorter than every half-cycle (a phase or a signal's end cutting a cycle), ms:
+    # what the reach was judged in; None when the half-cycles are the shortest.
+    cut_lift_ms: float | None = None
 
     @property
     def feasible(self) -> bool:
@@ -74,6 +115,15 @@ class Feasibility:
         def travel_mm(steps: float) -> float:
             return steps * mm_per_step
 
+        if self.cut_lift_ms is not None:
+            return (
+                f"pin {self.pin} cannot follow its train at {self.frequency_hz:g} Hz "
+                f"({self.basis}): the signal's length (or its phase) cuts a cycle, leaving a "
+                f"lift of {self.cut_lift_ms:.1f} ms, in which only {self.reachable_steps:.0f} "
+                f"of the {self.needed_steps:.0f} {unit} it needs of its stroke of "
+                f"{self.stroke_steps} {unit} ({travel_mm(self.stroke_steps):.2f} mm) are "
+                "reachable (a signal of whole cycles from phase 0 cuts none)"
+            )
         return (
             f"pin {self.pin} cannot follow {self.frequency_hz:g} Hz ({self.basis}): its stroke of "
             f"{self.stroke_steps} {unit} ({angle(self.stroke_steps):.1f} deg, "
@@ -103,19 +153,32 @@ def check_train(train: Train, calibration: PinCalibration, device: Device) -> Fe
     stroke = abs(up - down)
     shorter_share = min(train.duty_cycle, 1 - train.duty_cycle)
     half_s = float(shorter_share / train.frequency_hz)
+    lift_ns = shortest_lift_ns(train)
+    cut_s = None if lift_ns is None or lift_ns >= half_s * NS_PER_S else float(lift_ns) / NS_PER_S
+    if cut_s is None:
+        return _check_half(train, calibration.pin, stroke, half_s, shorter_share, device,
+                           "its shorter half-cycle of")
+    return replace(_check_half(train, calibration.pin, stroke, cut_s, shorter_share, device,
+                               "a lift its signal's length or phase cuts to"),
+                   cut_lift_ms=cut_s * 1e3)
+
+
+def _check_half(train: Train, pin: int, stroke: int, half_s: float, shorter_share: Fraction,
+                device: Device, what: str) -> Feasibility:
+    """`check_train` for the shortest time the pin has to travel, ``half_s`` (``what`` it is,
+    for a refusal)."""
     bandwidth = device.bandwidth
     if isinstance(bandwidth, Datasheet):
-        return _from_datasheet(calibration.pin, train, stroke, half_s, float(shorter_share),
-                               device.servo)
+        return _from_datasheet(pin, train, stroke, half_s, float(shorter_share), device.servo)
     needed = math.ceil(stroke * device.stroke_tolerance)
-    pin, frequency_hz = calibration.pin, float(train.frequency_hz)
+    frequency_hz = float(train.frequency_hz)
     reach = bandwidth.reach_steps(half_s)
     if reach is None:
         fastest_s = min(float(min(bandwidth.duty_cycle, 1 - bandwidth.duty_cycle)) / f
                         for f in bandwidth.frequencies_hz)
         raise NotMeasured(
             f"pin {pin}: {frequency_hz:g} Hz is faster than every train of the "
-            f"{bandwidth.describe()}: its shorter half-cycle of {half_s * 1e3:.1f} ms is below "
+            f"{bandwidth.describe()}: {what} {half_s * 1e3:.1f} ms is below "
             f"the {fastest_s * 1e3:.1f} ms measured; measure it (`pinarray servos response "
             f"--frequencies`) or lower the frequency")
     largest = max(p.commanded_steps for p in bandwidth.points)

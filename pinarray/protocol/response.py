@@ -28,6 +28,7 @@ from pinarray.text_files import NotText, decode_text, read_bounded
 
 MAX_RESPONSE_BYTES = 1_000_000
 MAX_POINTS = 1000
+MAX_PIN = 1024
 RESPONSE_KEYS = {"pin", "servo", "port", "speed_steps_per_s", "acceleration", "duty_cycle",
                  "cycles", "points"}
 POINT_KEYS = {"frequency_hz", "stroke_commanded_steps", "stroke_achieved_steps",
@@ -119,9 +120,11 @@ class MeasuredResponse:
         return tuple(sorted({p.frequency_hz for p in self.points}))
 
 
-def read_response(path: Path, reader: Reader, node: Node) -> MeasuredResponse:
-    """The response file at ``path``; its problems located in it (``FILE:LINE:COL``), and a
-    file that cannot be read located at ``node`` of the protocol."""
+def read_response(path: Path, reader: Reader, node: Node,
+                  pin_count: int = MAX_PIN) -> MeasuredResponse:
+    """The response file at ``path``, of a pin among ``pin_count`` (the protocol's grid); its
+    problems located in it (``FILE:LINE:COL``), and a file that cannot be read located at
+    ``node`` of the protocol."""
     try:
         text = decode_text(read_bounded(path, MAX_RESPONSE_BYTES, "servo response"))
     except NotText as problem:
@@ -134,7 +137,7 @@ def read_response(path: Path, reader: Reader, node: Node) -> MeasuredResponse:
     own = Reader(str(path))
     response = None
     try:
-        response = _parse(own, text)
+        response = _parse(own, text, pin_count)
     except ProtocolErrors as broken:  # not YAML at all
         own.errors.extend(broken.errors)
     except Invalid:
@@ -145,10 +148,13 @@ def read_response(path: Path, reader: Reader, node: Node) -> MeasuredResponse:
     return response
 
 
-def _parse(reader: Reader, text: str) -> MeasuredResponse:
-    root = reader.compose(text)
+def _parse(reader: Reader, text: str, pin_count: int) -> MeasuredResponse:
+    root = reader.compose(text, "a servo response (`pinarray servos response` writes one)")
     keys = reader.mapping(root, RESPONSE_KEYS, RESPONSE_KEYS, "servo response")
-    pin = reader.integer(keys["pin"], "a pin", 1, 1024)
+    pin = reader.integer(keys["pin"], "a pin", 1)
+    if pin > pin_count:
+        raise reader.error(keys["pin"], f"expected a pin from 1 to {pin_count} (the protocol's "
+                                        f"grid), found {pin}")
     servo = reader.string(keys["servo"], "the servo model")
     port = reader.string(keys["port"], "the port")
     speed = reader.integer(keys["speed_steps_per_s"], "the servo speed (steps/s)", 0, 32767)
@@ -178,9 +184,17 @@ def _point(reader: Reader, node: Node) -> ResponsePoint:
     keys = reader.mapping(node, POINT_KEYS, POINT_KEYS - {"lag_ms"}, "measured point")
     frequency = reader.number(keys["frequency_hz"], "a frequency", "Hz", maximum=1000)
     commanded = reader.integer(keys["stroke_commanded_steps"], "a stroke (steps)", 1, 4095)
+    # A servo may overshoot its goal a little; a stroke achieved well past the one commanded
+    # was not measured (a typo, or another file's numbers).
+    most = commanded + max(FULL_WITHIN_STEPS, commanded // 10)
     achieved = reader.integer(keys["stroke_achieved_steps"], "a stroke (steps)", 0, 4095)
     median = reader.number(keys["stroke_median_steps"], "a stroke", "steps", maximum=4095,
                            allow_zero=True)
+    for key, value in (("stroke_achieved_steps", achieved), ("stroke_median_steps", median)):
+        if value > most:
+            raise reader.error(keys[key], f"expected a stroke achieved of at most {most} steps "
+                                          f"({commanded} commanded, and a tenth of it for an "
+                                          f"overshoot), found {float(value):g}")
     lag = reader.optional(keys, "lag_ms",
                           lambda n: float(reader.number(n, "a lag", "ms", maximum=10_000,
                                                         allow_zero=True)), None)

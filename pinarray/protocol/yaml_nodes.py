@@ -45,11 +45,12 @@ for _resolvers in yaml.resolver.Resolver.yaml_implicit_resolvers.values():
         _IMPLICIT.setdefault(_tag, []).append(_pattern)
 # Characters YAML allows in a stream (YAML 1.1, 5.1): anything else is refused where it is.
 _NOT_PRINTABLE = re.compile("[^\t\n\r\x20-\x7e\x85\xa0-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
-_DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
+# ASCII digits only: Python's \d and int() also read full-width and other scripts' digits.
+_DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?", re.ASCII)
 # YAML 1.1 also reads 0x10 as 16, 017 as 15 (octal), 0b101, 1_000 and 1:00 as 60; a protocol
 # writes its numbers in decimal, as the lab (and a YAML 1.2 reader) reads them.
 _NOT_DECIMAL = re.compile(r"[_:xb]|^[+-]?0[0-9]+$")
-_RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)")
+_RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)", re.ASCII)
 
 
 # PyYAML's scanner and parser name tokens in angle brackets; a lab reads them as places.
@@ -169,8 +170,9 @@ class Reader:
 
     # -- structure ---------------------------------------------------------------------------
 
-    def compose(self, text: str) -> Node:
-        """The node tree of ``text``: one document, bounded in depth and aliases."""
+    def compose(self, text: str, what: str = "a protocol") -> Node:
+        """The node tree of ``text``: one document, bounded in depth and aliases (``what``
+        the file should hold, for an empty one)."""
         bad = _NOT_PRINTABLE.search(text)
         if bad:
             line = text.count("\n", 0, bad.start()) + 1
@@ -191,7 +193,7 @@ class Reader:
         except yaml.YAMLError as problem:
             self._fail(f"malformed YAML: {' '.join(str(problem).split())}")
         if root is None:
-            self._fail("expected a protocol, found an empty file")
+            self._fail(f"expected {what}, found an empty file")
         return root
 
     def _fail(self, message: str, line: int = 0, col: int = 0) -> NoReturn:
@@ -359,6 +361,20 @@ class Reader:
         if maximum is not None and value > maximum:
             raise self.error(node, f"expected {what} of at most {maximum}, found {value}")
         return value
+
+
+def exact_number(text: str) -> Fraction:
+    """The exact number ``text`` writes by a protocol's rules (``0.1``, ``1e-3``, ``1/3``: ASCII
+    decimal, at most `MAX_NUMBER_CHARS` characters, an exponent within ±`MAX_EXPONENT`), for
+    numbers typed on a command line; `ValueError` saying what was expected otherwise."""
+    try:
+        exact = _exact(text, text)
+    except _TooLarge:
+        raise ValueError(f"expected a number of at most {MAX_NUMBER_CHARS} characters with an "
+                         f"exponent within ±{MAX_EXPONENT}, found {shown(text)}") from None
+    if exact is None:
+        raise ValueError(f"expected a decimal number, found {shown(text)}")
+    return exact
 
 
 def _exact(text: str, value: Any) -> Fraction | None:

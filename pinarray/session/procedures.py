@@ -9,37 +9,58 @@ nothing, and is presented again at the same value.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from fractions import Fraction
+from pathlib import Path
 
+from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
 from pinarray.errors import PinArrayError
 from pinarray.journal.records import AdaptiveCells, TrialRecord, TrialStatus
-from pinarray.plan import PlannedTrial
+from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.procedures import Presented, ProcedureSet, counts_as_correct
 from pinarray.protocol.procedures import CATCH, PRACTICE, Adaptive
 
 
 class Procedures(ProcedureSet):
-    """The run's procedures, standing where its rows leave them."""
+    """The run's procedures, standing where its rows leave them.
 
-    def __init__(self, adaptive: Adaptive, seed: int, records: Sequence[TrialRecord]):
-        super().__init__(adaptive, seed)
+    ``beh`` names the rows' file in errors; ``plan`` gives each row's condition, against which
+    its ``correct`` cell is checked (a cell edited by hand is named on its own line, not where
+    the procedures' values first part from the rows); ``prepared``: QUEST+ tables computed
+    before the run was opened (`pinarray.procedures.prepare_quest_plus`).
+    """
+
+    def __init__(self, adaptive: Adaptive, seed: int, records: Sequence[TrialRecord],
+                 beh: Path | str = "beh.tsv", plan: TrialPlan | None = None,
+                 prepared: Mapping[str, QuestPlusMachine] | None = None):
+        super().__init__(adaptive, seed, prepared)
+        planned = {} if plan is None else {(t.trial, t.practice): t for t in plan.trials}
         for line, record in enumerate(records, start=2):
             cells = record.adaptive
             if (not record.counts or cells is None or cells.correct is None
                     or cells.procedure in (CATCH, PRACTICE)):
                 continue
+            where = f"{beh}:{line}: trial {record.trial}"
+            trial = planned.get(record.key)
+            if trial is not None and record.response is not None:
+                correct = counts_as_correct(adaptive.task, trial.condition, trial.catch,
+                                            str(record.response))
+                if correct != cells.correct:
+                    raise PinArrayError(
+                        f"{where}: correct is {str(cells.correct).lower()}, but the response "
+                        f"{str(record.response)!r} counts as {str(correct).lower()} (edited by "
+                        "hand?); put the row back as it was, then resume")
             if not self.runs(cells.procedure):
-                raise PinArrayError(f"beh.tsv:{line}: trial {record.trial} names procedure "
-                                    f"{cells.procedure!r}, which the protocol does not run")
+                raise PinArrayError(f"{where} names procedure {cells.procedure!r}, which the "
+                                    "protocol does not run")
             due = self.next()
             if due.procedure != cells.procedure or due.value is None \
                     or float(due.value) != cells.intensity:
                 raise PinArrayError(
-                    f"beh.tsv:{line}: trial {record.trial} presented {cells.intensity} for "
-                    f"{cells.procedure!r}, but the procedures' rules give {due.value} for "
-                    f"{due.procedure!r} from the rows before: the protocol or its seed changed")
+                    f"{where} presented {cells.intensity} for {cells.procedure!r}, but the "
+                    f"procedures' rules give {due.value} for {due.procedure!r} from the rows "
+                    "before: the protocol or its seed changed, or a row before was edited")
             self.take(cells.procedure, due.value, cells.correct)
 
     def presented(self, planned: PlannedTrial) -> Presented:

@@ -20,12 +20,12 @@ from __future__ import annotations
 import contextlib
 import threading
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 from types import TracebackType
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError, ResultsError
@@ -41,10 +41,14 @@ from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.player.rig import Rig
 from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import CheckSkipped, Verdict
+from pinarray.procedures import prepare_quest_plus
 from pinarray.protocol import Protocol
 from pinarray.protocol.imaging import EmulatedTrigger, ScannerSync
 from pinarray.session.trials import Phase, Session, Stimulator, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
+
+if TYPE_CHECKING:
+    from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
 
 QUIT_REASON = "quit from the UI"
 PAUSE_REASON = "paused by the experimenter"
@@ -372,17 +376,26 @@ class Sitting:
         request = self.request
         assert request is not None and self.rig is not None and self.clock is not None
         scanner = self.scanner
+        adaptive = request.protocol.design.adaptive
+        # What can fail without the run is done before it is opened: a failure leaves no new
+        # run, participant row or lock behind.
+        prepared = None if adaptive is None else prepare_quest_plus(adaptive)
         writer, plan = open_run(
             request.protocol, self.results_root, request.subject, request.session, request.task,
             resume=request.resume, seed=request.seed, port_url=self.rig.url,
             clock=self.rig.bus_clock, experimenter=request.experimenter,
             scanner=None if scanner is None else scanner.record(),
         )
-        if self.timing_check:
-            writer.note_timing_check(self.timing_check)
-        self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
-                                     scanner=scanner, marked=self.marker_stream is not None,
-                                     on_change=on_change)
+        with contextlib.ExitStack() as opened:
+            # A session that cannot start on it (its rows refused) marks the run and gives up
+            # its lock: the next try, or another process, finds it free.
+            opened.enter_context(writer)
+            if self.timing_check:
+                writer.note_timing_check(self.timing_check)
+            self.session = start_session(request.protocol, plan, writer, self.rig, self.clock,
+                                         scanner=scanner, marked=self.marker_stream is not None,
+                                         on_change=on_change, prepared=prepared)
+            opened.pop_all()
         self.failed = None
         self.runs.append((request, self.session))
         return self.session
@@ -512,7 +525,8 @@ class Sitting:
 
 def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Presenter,
                   clock: Clock, *, scanner: Scanner | None = None, marked: bool = False,
-                  on_change: Callable[[Session], None] | None = None) -> Session:
+                  on_change: Callable[[Session], None] | None = None,
+                  prepared: Mapping[str, QuestPlusMachine] | None = None) -> Session:
     """A `Session` on ``writer``'s run, timed from ``scanner`` if given, its stimuli marked.
 
     With a scanner, the session's time zero is the first counted volume (the scanner has
@@ -529,12 +543,12 @@ def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimul
         presenter = MarkedStimulator(stimulator, protocol, writer.paths.task,
                                      lambda: session.current if session else None)
     if scanner is None:
-        session = Session(protocol, plan, writer, presenter, clock, on_change)
+        session = Session(protocol, plan, writer, presenter, clock, on_change, prepared=prepared)
         return session
     zero_ns = scanner.timeline.zero_ns
     assert zero_ns is not None, "wait for the scanner's time zero first"
     writer.log_volumes(scanner.pending_rows)
     session = Session(protocol, plan, writer, presenter, clock, on_change,
                       time_zero_ns=zero_ns, time_zero_event=scanner.zero_event,
-                      gate=scanner.gate)
+                      gate=scanner.gate, prepared=prepared)
     return session

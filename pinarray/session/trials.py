@@ -26,10 +26,10 @@ thing to read (a trial's row is written by the transition that ends it).
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple, NotRequired, TypedDict
+from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
 from typing import Protocol as Interface
 
 from pinarray.clock import Clock
@@ -67,6 +67,9 @@ from pinarray.protocol.paradigms import (
 )
 from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
 from pinarray.session.procedures import Presented, Procedures
+
+if TYPE_CHECKING:
+    from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
 
@@ -209,7 +212,8 @@ class Session:
     def __init__(self, protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Stimulator,
                  clock: Clock, on_change: Callable[[Session], None] | None = None,
                  time_zero_ns: int | None = None, time_zero_event: str = "a time given to the session",
-                 gate: OnsetGate | None = None):
+                 gate: OnsetGate | None = None,
+                 prepared: Mapping[str, QuestPlusMachine] | None = None):
         self.protocol = protocol
         self.plan = plan
         self.writer = writer
@@ -245,7 +249,8 @@ class Session:
         adaptive = protocol.design.adaptive
         # An adaptive design's procedures, where the rows on disk leave them.
         self.procedures = (None if adaptive is None
-                           else Procedures(adaptive, plan.seed, writer.records))
+                           else Procedures(adaptive, plan.seed, writer.records,
+                                           writer.paths.beh_tsv, plan, prepared))
         self._presented: tuple[PlannedTrial, Presented] | None = None
         self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""

@@ -112,7 +112,8 @@ class PinArrayApp(App[None]):
         scale = options.time_scale
         self.sitting = Sitting(
             options.results_root,
-            clock_factory or (lambda port: choose_clock(port, None if port else scale)),
+            clock_factory or (lambda port: choose_clock(port, None if port else scale,
+                                                             sim_url=options.sim_url)),
             rig_factory, lsl_name=options.lsl)
         self.list_ports = list_ports
         self.ending: Ending = Quit()

@@ -52,6 +52,11 @@ class LiftTimeline:
             lifted.append(targets.position_steps[mine] != rest_steps[pin])
         return cls(pins, tuple(times), tuple(lifted))
 
+    def shortest_change_ns(self) -> int | None:
+        """The least time between two changes of one pin (None: no pin changes twice)."""
+        gaps = [int(np.diff(times).min()) for times in self.times_ns if len(times) > 1]
+        return min(gaps, default=None)
+
     def lifted_at(self, elapsed_ns: int) -> frozenset[int]:
         """Pins away from rest ``elapsed_ns`` after onset (none before onset)."""
         up = set()

@@ -393,6 +393,11 @@ class PreflightScreen(KeyNotices, Screen):
         except PinArrayError as problem:
             self._leaving = False
             self._status(f"Cannot open the run: {problem}", True)
+            # The reason at the top of the news, in view (it scrolls at 80x24), and a word on
+            # the notice line, so that a press of b is never met by nothing visible.
+            self.query_one("#preflight-info").scroll_home(animate=False)
+            self.query_one(Notice).say("Cannot open the run: the reason is at the top, in red",
+                                       error=True)
             return
         self.app.switch_screen(RunScreen(self.sitting, session))
 

@@ -34,12 +34,15 @@ from pinarray.tui.live import LiftTimeline, LiveCounts, track_lines
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
 from pinarray.tui.response_pad import ANSWER_KEYS, PIN_ENTRY, ResponsePad
+from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
     from pinarray.tui.app import PinArrayApp
 
 # Redraws of the moving pins per second while a stimulus plays.
 GRID_FPS = 20
+# A lift is drawn only when it lasts at least this many frames.
+FRAMES_PER_LIFT = 2
 ABORT_REASON = "aborted by the experimenter"
 PRESENT, CUT_SHORT = "present", "cut short"  # worker names
 
@@ -86,6 +89,7 @@ class RunScreen(KeyNotices, Screen):
         self._active: frozenset[int] = frozenset()
         self._onset_ns = 0
         self._stimulus_ns = 0  # the length of the stimulus presented last
+        self._shown_playing = ""  # the stimulus's progress as last shown
         self._presenting = False  # a present worker runs (the interval, then the stimulus)
         self._cutting = False  # a pause is cutting the stimulus short
         self._ending = False
@@ -347,7 +351,11 @@ class RunScreen(KeyNotices, Screen):
             elapsed_ns = self.clock.now_ns() - self._onset_ns
             self._draw_grid(self._timeline.lifted_at(elapsed_ns))
         if self.session.phase is Phase.STIMULUS and not (self.session.pausing or self._cutting):
-            self.query_one("#phase", Static).update(self._playing())
+            playing = self._playing()
+            if playing != self._shown_playing:  # a tenth of a second on
+                self._shown_playing = playing
+                # One line whose length hardly changes: no layout of the screen for it.
+                self.query_one("#phase", Static).update(playing, layout=False)
 
     def _playing(self) -> str:
         """The stimulus's own progress: seconds played of its length."""
@@ -406,7 +414,13 @@ class RunScreen(KeyNotices, Screen):
         schedule = session.current_schedule()
         device = session.protocol.device
         rest = {pin: device.calibration(pin).rest_steps for pin in schedule.active_pins}
-        self._timeline = LiftTimeline.from_targets(schedule.targets, rest)
+        timeline = LiftTimeline.from_targets(schedule.targets, rest)
+        # Lifts faster than the screen's frames (a 10 Hz train, or any at --speed 20) would
+        # flicker at random: the driven pins are shown driven, without the lifts.
+        scale = self.app.options.time_scale  # type: ignore[attr-defined]
+        shortest_ns = timeline.shortest_change_ns()
+        self._timeline = timeline if shortest_ns is None or (
+            scale and shortest_ns / scale >= FRAMES_PER_LIFT * NS_PER_S / GRID_FPS) else None
         self._stimulus_ns = schedule.end_ns
         self._active = frozenset(schedule.active_pins)
         self.query_one(ResponsePad).clear()

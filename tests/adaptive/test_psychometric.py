@@ -8,7 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pinarray.adaptive.observer import PsychometricObserver
-from pinarray.adaptive.psychometric import Psychometric
+from pinarray.adaptive.psychometric import Psychometric, probability_correct
 from pinarray.errors import PinArrayError
 
 
@@ -76,3 +76,12 @@ def test_a_simulated_subject_answers_a_trial_the_same_way_every_time():
     assert first == [PsychometricObserver(observer.function, 8).answer(t, 90.0) for t in range(1, 200)]
     other = [PsychometricObserver(observer.function, 9).answer(t, 90.0) for t in range(1, 200)]
     assert first != other
+
+
+def test_a_slope_so_steep_its_power_overflows_rises_fully_without_a_warning_on_stderr():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy's RuntimeWarning would reach the user's stderr
+        p = probability_correct("weibull", [0.5, 2.0], 1.0, 1e308, 0.5, 0.0)
+    assert list(p) == [0.5, 1.0]

@@ -1,8 +1,13 @@
 """QUEST+: the expected-entropy shortcut against the entropy computed directly, the threshold
 recovered by simulated subjects, replay, stability, stopping and refusals."""
 
+import warnings
+from decimal import Decimal, localcontext
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
@@ -99,6 +104,51 @@ def test_the_next_intensity_is_deterministic_and_ties_go_to_the_lowest():
     assert saturated.next_index(saturated.start()) == 0
 
 
+def exact_expected_entropy(quest: QuestPlus, posterior: np.ndarray, index: int) -> Decimal:
+    """The expected posterior entropy after a trial at ``index``, from the same float64 table
+    and posterior (exact binary values) in 40-digit decimal arithmetic."""
+    with localcontext() as context:
+        context.prec = 40
+        w = [Decimal(float(v)) for v in posterior]
+        p = [Decimal(float(v)) for v in quest.probability[index]]
+        expected = Decimal(0)
+        for likelihood in (p, [1 - v for v in p]):
+            joint = [a * b for a, b in zip(w, likelihood, strict=True)]
+            mass = sum(joint)
+            expected -= sum(j * (j / mass).ln() for j in joint if j > 0)
+        return expected
+
+
+def test_a_real_difference_far_inside_the_old_tie_window_is_not_taken_for_a_tie():
+    # Two strokes whose expected entropies differ by about 1e-10 nats, the higher one less:
+    # a real difference (rounding here is below 1e-14) which the former fixed window of 1e-9
+    # nats tied, choosing the lower stroke.
+    quest = QuestPlus.prepare(rule(intensities=(1.50097644, 1.59875), thresholds=(1.0, 2.0),
+                                   slopes=(3.0,), lapses=(0.0,)))
+    state = quest.start()
+    lower, higher = (exact_expected_entropy(quest, state.posterior, i) for i in (0, 1))
+    assert Decimal("1e-12") < lower - higher < Decimal("1e-9")
+    assert quest.next_index(state) == 1
+    assert quest.rounding_bound(state).max() < 1e-13
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=8, max_size=8).filter(lambda w: sum(w) > 0.1),
+       st.lists(st.floats(0.3, 30.0), min_size=2, max_size=6, unique=True))
+def test_the_chosen_intensity_is_never_measurably_worse_than_the_best(weights, intensities):
+    quest = QuestPlus.prepare(rule(intensities=tuple(sorted(intensities)),
+                                   thresholds=(1.0, 3.0, 9.0, 27.0), slopes=(1.5, 4.0),
+                                   lapses=(0.02,)))
+    posterior = np.asarray(weights) / np.sum(weights)
+    state = quest.start().__class__(0, posterior)
+    exact = [exact_expected_entropy(quest, posterior, i) for i in range(len(intensities))]
+    chosen = quest.next_index(state)
+    # Worse than the best by no more than what rounding can hide (the bound, twice over).
+    assert exact[chosen] - min(exact) <= Decimal(2 * float(quest.rounding_bound(state).max()))
+    # And ties go to the lowest: no lower intensity is as good to within rounding.
+    assert all(exact[i] - min(exact) > Decimal(0) for i in range(chosen))
+
+
 def test_the_posterior_stays_finite_over_500_always_correct_answers():
     quest = QuestPlus.prepare(rule(stop_after_trials=500))
     state = quest.start()
@@ -141,6 +191,25 @@ def test_a_stated_prior_shapes_the_starting_posterior():
     assert 7.0 < summary.threshold_mean < 9.0
     assert summary.lapse_mean == 0.0
     assert summary.slope_mean == pytest.approx(np.mean(SLOPES), rel=1e-12)
+
+
+magnitudes = st.floats(1e-100, 1e100)
+
+
+@settings(max_examples=200, deadline=None)
+@given(values=st.lists(magnitudes, min_size=1, max_size=8, unique=True).map(sorted),
+       mean=magnitudes, sd=magnitudes)
+def test_a_normal_prior_weighs_the_value_nearest_its_mean_1_and_the_rest_0_to_1_never_nan(
+        values, mean, sd):
+    # However far the values lie from the mean and however narrow the normal: the weights a
+    # protocol may state (numbers within 1e±100) stay usable, and nothing warns on stderr.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        weights = np.asarray(normal_weights(tuple(values), mean, sd))
+        QuestPlus.prepare(rule(thresholds=tuple(values), threshold_prior=tuple(weights)))
+    assert np.all((weights >= 0) & (weights <= 1))
+    nearest = int(np.argmin(np.abs(np.asarray(values) - mean)))
+    assert weights[nearest] == 1.0
 
 
 def test_the_credible_interval_is_read_from_the_threshold_marginal():

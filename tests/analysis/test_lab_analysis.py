@@ -1,22 +1,38 @@
 """The analysis of the lab's paradigms: information transferred within its bounds, fits that
-find the Weber fraction, PSS and JND a simulated subject was given, and `pinarray analyse`
-turning results into the tables, figures and summary."""
+find the Weber fraction, PSS and JND a simulated subject was given (their credible intervals
+holding them about as often as they say on the shipped designs), and words where the answers
+cannot place them."""
 
+import csv
+import functools
+import json
 import math
 from fractions import Fraction
+from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from pinarray.analysis.identification import information_transferred, it_bias_bits
-from pinarray.analysis.judgements import judgements
-from pinarray.analysis.lab_observer import LabObserverModel
+from pinarray.adaptive.posterior import ThresholdStatus
+from pinarray.analysis.identification import (
+    identifications,
+    information_transferred,
+    it_bias_bits,
+)
+from pinarray.analysis.judgements import JndStatus, judgements
+from pinarray.analysis.lab_observer import LabObserver, LabObserverModel
+from pinarray.analysis.lab_report import lab_sections, lab_tables
 from pinarray.analysis.load import LoadedTrial
 from pinarray.analysis.subjects import IntervalSettings
 from pinarray.journal.records import TemporalOrderRecord, TwoIntervalRecord
-from pinarray.protocol.paradigms import IntervalOrder
+from pinarray.plan import make_plan
+from pinarray.protocol.load import load_protocol
+from pinarray.protocol.paradigms import IntervalOrder, TemporalOrderCondition, TwoIntervalCondition
+
+PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 
 
 @settings(max_examples=200, deadline=None)
@@ -79,11 +95,103 @@ def simulated_rows(model: LabObserverModel, seed: int):
 def test_the_fits_find_the_weber_fraction_pss_and_jnd_a_subject_was_given():
     model = LabObserverModel(weber=Fraction(15, 100), pss_ms=-20.0, jnd_ms=30.0, lapse=0.0,
                              subject_sd=0.0)
-    found = judgements(simulated_rows(model, 1), IntervalSettings(), resamples=100)
+    found = judgements(simulated_rows(model, 1), IntervalSettings())
     (two,) = found.intervals
     (order,) = found.orders
-    weber, low, high = two.weber
-    assert low <= weber <= high and 0.11 < weber < 0.2
-    pss, pss_low, pss_high = order.pss
-    assert pss_low <= pss <= pss_high and -30 < pss < -10
-    assert 22 < order.jnd_ms < 40
+    weber = two.weber
+    assert weber.status is ThresholdStatus.ESTIMATED
+    assert weber.ci_low < 0.15 < weber.ci_high and 0.11 < weber.value < 0.2
+    assert two.threshold.value == pytest.approx(10 * weber.value)
+    pss = order.pss
+    assert pss.ci_low < -20 < pss.ci_high and -30 < pss.value < -10
+    jnd = order.jnd
+    assert jnd.status is JndStatus.ESTIMATED
+    assert jnd.ci_low < 30 < jnd.ci_high and 22 < jnd.value < 40
+
+
+@functools.cache
+def shipped_plans():
+    """protocols/flutter_2ifc.yaml and protocols/toj.yaml with a plan of each."""
+    protocols = [load_protocol(PROTOCOLS / f"{name}.yaml") for name in ("flutter_2ifc", "toj")]
+    return [(name.replace("_", ""), protocol, make_plan(protocol, 1))
+            for name, protocol in zip(("flutter_2ifc", "toj"), protocols, strict=True)]
+
+
+def shipped_design_rows(model: LabObserverModel, seed: int, subject: str = "01"):
+    """A subject of ``model`` running protocols/flutter_2ifc.yaml and protocols/toj.yaml as
+    planned, answering as `LabObserver` does."""
+    rows = []
+    for task, protocol, plan in shipped_plans():
+        observer = LabObserver(protocol, model, seed)
+        for planned in plan.trials:
+            c, said = planned.condition, observer.respond(planned.condition)
+            common = {"trial": planned.trial, "block": planned.block, "task": task,
+                      "onset_ns": 0, "duration_ns": 1, "practice": planned.practice}
+            match c:
+                case TwoIntervalCondition():
+                    rows.append(TwoIntervalRecord(
+                        **common, compared=c.parameter.value, standard=float(c.standard),
+                        comparison=float(c.comparison), interval_order=c.order, pins=(6,),
+                        response=said))
+                case TemporalOrderCondition():
+                    rows.append(TemporalOrderRecord(**common, pins=c.pins, soa_ns=c.soa_ns,
+                                                    response=said))
+    return [LoadedTrial(subject, "1", 1, None, r) for r in rows]
+
+
+def test_the_intervals_hold_the_truth_about_95_percent_of_the_time_on_the_shipped_designs():
+    # 40 subjects across the range a lab meets (judgements.COVERAGE: 900 of them).
+    rng = np.random.default_rng(40)
+    held = {"weber": 0, "pss": 0, "jnd": 0}
+    for subject in range(40):
+        model = LabObserverModel(weber=rng.uniform(0.1, 0.3), slope=rng.uniform(1.5, 5.0),
+                                 pss_ms=rng.uniform(-30, 30), jnd_ms=rng.uniform(20, 60),
+                                 lapse=rng.uniform(0, 0.04), subject_sd=0.0)
+        found = judgements(shipped_design_rows(model, subject), IntervalSettings())
+        (two,), (order,) = found.intervals, found.orders
+        for name, estimate, truth in (("weber", two.weber, model.weber),
+                                      ("pss", order.pss, model.pss_ms),
+                                      ("jnd", order.jnd, model.jnd_ms)):
+            # A bound in words counts by the bound it states (n/a: no bound that side).
+            low = -math.inf if math.isnan(estimate.ci_low) else estimate.ci_low
+            high = math.inf if math.isnan(estimate.ci_high) else estimate.ci_high
+            held[name] += estimate.status is not None and low <= truth <= high
+    # 6 misses or fewer: a 95 % interval has 6 or fewer in 40 with probability 0.99.
+    assert min(held.values()) >= 34, held
+
+
+def test_answers_that_cannot_place_a_value_give_words_and_the_bound_they_state(tmp_path):
+    steady = LabObserverModel(weber=0.2, pss_ms=0.0, jnd_ms=40.0, lapse=0.0, subject_sd=0.0)
+    keen = LabObserverModel(weber=0.01, pss_ms=0.0, jnd_ms=0.5, lapse=0.0, subject_sd=0.0)
+    rows = shipped_design_rows(steady, 1, "01") + shipped_design_rows(keen, 2, "02")
+    found = judgements(rows, IntervalSettings())
+    two, order = ({f.subject: f for f in fits} for fits in (found.intervals, found.orders))
+    # Subject 02 told every comparison apart: the threshold lies below the smallest
+    # difference tested (1 Hz), and is no number.
+    assert two["02"].threshold.status is ThresholdStatus.BELOW
+    assert math.isnan(two["02"].threshold.value) and two["02"].threshold.ci_high < 1.0
+    assert math.isnan(two["02"].weber.value) and two["02"].weber.ci_high < 0.1
+    # ... and named the right pin at every SOA: the PSS lies between -15 and 15 ms, the JND
+    # below what SOAs of 15 ms resolve.
+    assert order["02"].pss.status is ThresholdStatus.ESTIMATED
+    assert order["02"].jnd.status is JndStatus.BELOW and order["02"].jnd.ci_high < 15
+    across = {(m.task, m.measure): m for m in found.across}
+    assert [s for s, _ in across["flutter2ifc", "weber_fraction"].per_subject] == ["01"]
+    assert [s for s, _ in across["toj", "jnd_ms"].per_subject] == ["01"]
+    assert [s for s, _ in across["toj", "pss_ms"].per_subject] == ["01", "02"]
+
+    none = identifications(rows, IntervalSettings())  # no identification rows among them
+    lab_tables(none, found, IntervalSettings(), tmp_path)
+    table = {r["subject"]: r for r in csv.DictReader((tmp_path / "two_interval.csv").open())}
+    assert (table["02"]["threshold"], table["02"]["status"]) == ("n/a", "below the lowest "
+                                                                 "value tested")
+    assert table["01"]["status"] == "estimated" and table["all"]["status"] == "n/a"
+    toj = {r["subject"]: r for r in csv.DictReader((tmp_path / "temporal_order.csv").open())}
+    assert (toj["02"]["jnd_ms"], toj["02"]["jnd_status"]) == ("n/a", "below what the answers "
+                                                              "resolve")
+    sidecar = json.loads((tmp_path / "temporal_order.json").read_text())
+    assert "Bayesian logistic fit" in sidecar["pss_ms"]["Description"]
+    assert "below what the answers resolve" in sidecar["jnd_status"]["Levels"]
+    summary = "\n".join(lab_sections(none, found, IntervalSettings()))
+    assert "subject 02, task flutter2ifc: threshold *below the lowest value tested* (<" in summary
+    assert "Bayesian Weibull fit" in summary and "credible interval" in summary

@@ -150,3 +150,52 @@ def test_the_caption_calls_only_the_tests_tests_and_the_pin_best_a_descriptive_f
     assert tests.group(1).split("; ") == [PAIRED_FREQUENCY]
     assert descriptive.group(1).split("; ") == ["rising means", "error A on top", "pin 4 best"]
     assert "tests are two-sided" not in text
+
+
+# -- the work, not only each input, is bounded -------------------------------------------------
+
+MAXIMA = ",".join(str(1000 - k) for k in range(20))
+
+
+def run_power(capsys, *argv):
+    status = cli.main(["power", *map(str, argv)])
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def test_studies_and_subjects_each_within_their_limits_but_days_of_work_together_are_refused(
+        tmp_path, capsys):
+    status, out, err = run_power(capsys, PROTOCOLS / "localisation.yaml", "--studies", 10_000,
+                                 "--subjects", MAXIMA, "--out", tmp_path / "power")
+    assert (status, out) == (2, "")
+    assert err.count("\n") == 1 and err.startswith(
+        "pinarray: power: 10,000 studies for each of 20 numbers of subjects (19,810 simulated "
+        "subjects a round) would take about ")
+    assert err.endswith("; at most 30 min: fewer --studies, fewer or smaller --subjects\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_power_refuses_an_out_it_could_not_write_before_simulating_anything(tmp_path, capsys):
+    (tmp_path / "power").write_text("a file where the folder should be")
+    status, out, err = run_power(capsys, PROTOCOLS / "apparent_motion.yaml", "--studies", 10,
+                                 "--subjects", 2, "--out", tmp_path / "power")
+    assert (status, out) == (2, "")  # nothing simulated, nothing printed
+    assert err == f"pinarray: {tmp_path / 'power'}: cannot write there: it is a file, expected a folder\n"
+
+
+def test_power_hears_of_each_study_by_the_simulated_subjects_done():
+    heard = []
+    power_study(MOTION, ObserverModel(), [2, 3], 10, seed=1, progress=heard.append)
+    assert heard == [2 * k for k in range(1, 11)] + [20 + 3 * k for k in range(1, 11)]
+
+
+def test_power_that_may_take_a_while_says_how_far_it_is(tmp_path, capsys, monkeypatch):
+    from pinarray.cli import common
+
+    monkeypatch.setattr(common, "PROGRESS_AFTER_S", 0.0)  # an adaptive design: no figures
+    status, out, err = run_power(capsys, PROTOCOLS / "staircase_motion.yaml", "--studies", 10,
+                                 "--out", tmp_path / "power")
+    assert status == 0
+    lines = [line for line in err.splitlines() if line.startswith("power: simulated subjects: ")]
+    assert lines[0].startswith("power: simulated subjects: 1 of 10 (10 %), about ")
+    assert lines[-1] == "power: simulated subjects: 10 of 10 (100 %)" and len(lines) == 10

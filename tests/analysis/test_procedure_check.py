@@ -8,6 +8,7 @@ import pytest
 
 from pinarray.adaptive.psychometric import Psychometric
 from pinarray.analysis.procedure_check import check_procedures, target_probability
+from pinarray.cli import main
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
@@ -56,3 +57,45 @@ def test_power_refuses_an_observer_key_an_adaptive_design_does_not_have(tmp_path
                            "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "unknown parameter 'correct_5hz'" in done.stderr
+
+
+def test_power_refuses_procedures_that_would_run_for_hours_with_the_estimate_and_what_to_change(
+        tmp_path, capsys):
+    # One QUEST+ of 1 200 000 points (inside the grid limit) to 2000 trials, for 100 subjects.
+    text = (PROTOCOLS / "quest_stroke.yaml").read_text()
+    text = text.replace("threshold_prior: {mean: 40, sd: 30} # in steps: a broad guess",
+                        "thresholds: {from: 1, to: 1000, step: 1}").replace(
+        "slopes: [1, 1.5, 2, 3, 4, 6]", "slopes: [1, 1.5, 2, 3, 4, 5, 6, 7, 8, 9]").replace(
+        "lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0, 0.01, 0.02, 0.05]").replace(
+        "stop_after_trials: 60", "stop_after_trials: 2000")
+    path = tmp_path / "big.yaml"
+    path.write_text(text)
+    status = main(["power", str(path), "--studies", "100", "--out", str(tmp_path / "power")])
+    out, err = capsys.readouterr()
+    assert (status, out) == (2, "")
+    assert err.startswith("pinarray: power: 100 simulated subjects (--studies) running 1 "
+                          "procedure(s) to their trial limits would take about 1 h; at most 30 min")
+    assert "at most 30 min: fewer --studies, or a design with smaller QUEST+ grids" in err
+    assert not (tmp_path / "power").exists()
+
+
+def test_a_design_whose_quest_grids_add_up_past_the_limit_is_refused_where_its_procedures_are(
+        tmp_path):
+    from pinarray.errors import ProtocolErrors
+    from pinarray.protocol.load import load_protocol
+
+    quest = ("        method: quest_plus\n        thresholds: {from: 1, to: 1000, step: 1}\n"
+             "        slopes: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]\n"
+             "        lapse_rates: [0, 0.01, 0.02, 0.05]\n        stop_after_trials: 60\n")
+    text = (PROTOCOLS / "quest_stroke.yaml").read_text()
+    start, end = text.index("      quest:\n"), text.index("  inter_trial_interval_s")
+    path = tmp_path / "sixteen.yaml"
+    path.write_text(text[:start] + "".join(f"      q{i}:\n{quest}" for i in range(16))
+                    + text[end:])
+    with pytest.raises(ProtocolErrors) as refused:
+        load_protocol(path)
+    (error,) = refused.value.errors
+    assert error.message == ("expected QUEST+ grids of at most 4,000,000 points in all (values x "
+                             "thresholds x slopes x lapse rates, summed over the procedures), "
+                             "found 19,200,000")
+    assert error.line == text[:start].count("\n") + 1  # the first of them

@@ -5,6 +5,7 @@ import argparse
 import contextlib
 import csv
 import io
+import json
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,9 +13,12 @@ from pathlib import Path
 import pytest
 
 from pinarray import cli
-from pinarray.adaptive.fit import fit_psychometric
-from pinarray.analysis.subjects import DEFAULT_BOOTSTRAP_SEED
-from pinarray.analysis.thresholds import FIT_RESAMPLES, parameter_and_unit
+from pinarray.adaptive.posterior import threshold_posterior
+from pinarray.analysis.load import load_runs, select_runs
+from pinarray.analysis.report import summary_markdown
+from pinarray.analysis.study import study
+from pinarray.analysis.tables import write_tables
+from pinarray.analysis.thresholds import parameter_and_unit
 from pinarray.cli.analysis import register
 from pinarray.journal.records import AdaptiveCells
 from tests.analysis.adaptive_runs import Written, detection_run, motion_row, motion_run
@@ -24,7 +28,8 @@ from tests.analysis.conftest import write_results
 pytestmark = [pytest.mark.xdist_group("thresholds"), pytest.mark.long]
 
 COLUMNS = ["subject", "task", "parameter", "unit", "method", "threshold", "ci_low", "ci_high",
-           "n_trials", "procedure"]
+           "n_trials", "procedure", "status", "guess_rate", "lapse_rate",
+           "pct_correct_at_threshold"]
 # Subject 02's true thresholds are twice subject 01's (60 and 120 ms of SOA; 6 and 12 steps of
 # stroke). How far from 2 the ratio of two subjects' estimates falls is the numerics' spread,
 # measured on simulated pairs of subjects of this very design with other seeds: over 150 pairs
@@ -104,13 +109,13 @@ def test_thresholds_csv_has_the_columns_and_a_row_per_procedure_fit_and_across_s
     per_subject = Counter((r["subject"], r["task"], r["method"]) for r in rows)
     for subject in ("01", "02"):
         assert per_subject[subject, "motion", "reversal_mean"] == 2  # ascending, descending
-        assert per_subject[subject, "motion", "ml_weibull"] == 1
+        assert per_subject[subject, "motion", "bayes_weibull"] == 1
         assert per_subject[subject, "detection", "questplus_posterior"] == 1
-        assert per_subject[subject, "detection", "ml_weibull"] == 1
+        assert per_subject[subject, "detection", "bayes_weibull"] == 1
     across = [r for r in rows if r["subject"] == "all"]
     assert sorted((r["task"], r["method"], r["procedure"]) for r in across) == [
-        ("detection", "ml_weibull", "pooled"), ("detection", "questplus_posterior", "quest"),
-        ("motion", "ml_weibull", "pooled"), ("motion", "reversal_mean", "ascending"),
+        ("detection", "bayes_weibull", "pooled"), ("detection", "questplus_posterior", "quest"),
+        ("motion", "bayes_weibull", "pooled"), ("motion", "reversal_mean", "ascending"),
         ("motion", "reversal_mean", "descending")]
     assert len(rows) == 2 * 5 + 5
     assert {(r["parameter"], r["unit"]) for r in rows if r["task"] == "motion"} == {("soa", "ms")}
@@ -150,13 +155,30 @@ def test_the_fit_pools_every_counted_trial_of_the_task_and_is_the_same_on_every_
             if r.status == "ok" and not r.practice and r.adaptive.procedure != "catch"]
     counts = Counter((r.adaptive.intensity, r.adaptive.correct) for r in rows)
     intensities = sorted({x for x, _ in counts})
-    fit = fit_psychometric("weibull", intensities, [counts[x, True] for x in intensities],
-                           [counts[x, True] + counts[x, False] for x in intensities], guess=0.5,
-                           lapse="fit", resamples=FIT_RESAMPLES, seed=DEFAULT_BOOTSTRAP_SEED)
+    fit = threshold_posterior("weibull", intensities, [counts[x, True] for x in intensities],
+                              [counts[x, True] + counts[x, False] for x in intensities], guess=0.5)
     row = analysed.one(subject="02", task="motion", procedure="pooled")
     assert row["n_trials"] == "200"
     assert [float(row[k]) for k in ("threshold", "ci_low", "ci_high")] == pytest.approx(
         [fit.threshold, fit.ci_low, fit.ci_high], abs=5e-4)
+    assert row["status"] == "estimated"
+    assert float(row["lapse_rate"]) == pytest.approx(fit.lapse, abs=5e-4)
+    # The Weibull's threshold: 63.2 % of its way from the guess rate to 1 - lapse rate.
+    assert float(row["pct_correct_at_threshold"]) == pytest.approx(
+        100 * (0.5 + (0.5 - fit.lapse) * (1 - 1 / 2.718281828459045)), abs=0.05)
+
+
+def test_the_sidecar_describes_every_column_and_defines_the_fit_s_threshold(analysed):
+    sidecar = json.loads((analysed.out / "thresholds.json").read_text())
+    assert list(sidecar) == COLUMNS
+    definition = sidecar["threshold"]["Description"]
+    assert "63.2 %" in definition and "guess rate (0.5" in definition and "guess rate (0," \
+        in definition  # the motion task's 2AFC and the detection task's guess rates
+    assert "81.6 % correct at a lapse rate of 0" in definition
+    method = sidecar["method"]["Levels"]["bayes_weibull"]
+    assert "credible interval" in method and "simulated subjects" in method
+    assert set(sidecar["status"]["Levels"]) >= {"estimated", "below the lowest value tested",
+                                                "above the highest value tested", "not estimable"}
 
 
 def test_the_tracks_and_fitted_functions_are_drawn_and_the_summary_shows_and_links_them(
@@ -164,7 +186,7 @@ def test_the_tracks_and_fitted_functions_are_drawn_and_the_summary_shows_and_lin
     page = (analysed.out / "summary.md").read_text()
     assert "## Thresholds (adaptive procedures)" in page
     assert "subject `all` in thresholds.csv" in page and "(thresholds.csv)" in page
-    assert "| motion | soa | ms | `ml_weibull` | pooled | 2 | 400 |" in page
+    assert "| motion | soa | ms | `bayes_weibull` | pooled | 2 | 400 |" in page
     for subject in ("01", "02"):
         for task, parameter in (("motion", "soa"), ("detection", "stroke")):
             for kind in ("track", "fit"):
@@ -173,7 +195,10 @@ def test_the_tracks_and_fitted_functions_are_drawn_and_the_summary_shows_and_lin
                 assert (analysed.out / f"{stem}.pdf").read_bytes()[:5] == b"%PDF-"
                 assert f"![{stem}]({stem}.png)" in page
     assert "thresholds, mean of per-subject thresholds" in analysed.printed
-    assert "motion soa_ms ml_weibull (pooled)" in analysed.printed
+    assert "motion soa_ms bayes_weibull (pooled)" in analysed.printed
+    # The method and its measured coverage, and the threshold's definition, are named.
+    assert "Bayesian Weibull fit" in page and "simulated subjects" in page
+    assert "63.2 %" in page and "(thresholds.json)" in page
 
 
 def test_a_fixed_design_writes_no_thresholds_and_no_threshold_figures(tmp_path):
@@ -201,8 +226,8 @@ def test_a_staircase_without_reversals_and_a_single_intensity_give_n_a_not_a_num
     rows = read_csv(out / "thresholds.csv")
     by_method = {(r["subject"], r["method"]): r for r in rows}
     assert by_method["01", "reversal_mean"]["threshold"] == "n/a"
-    assert by_method["01", "ml_weibull"]["threshold"] == "n/a"
-    assert by_method["01", "ml_weibull"]["n_trials"] == "3"
+    assert by_method["01", "bayes_weibull"]["threshold"] == "n/a"
+    assert by_method["01", "bayes_weibull"]["n_trials"] == "3"
     assert "no fit: answers at 1 intensity" in (out / "summary.md").read_text()
     # No subject has an estimate: the across-subject rows say so with n/a, never nan.
     assert all(r["threshold"] == "n/a" for r in rows if r["subject"] == "all")
@@ -219,6 +244,34 @@ def test_rows_of_one_task_that_disagree_on_the_guess_rate_are_one_line_error_wit
     assert len(err.strip().splitlines()) == 1
     assert "expected one guess_rate for task motion (soa_ms) of subject 01, found 0.25, 0.5" \
         in err
+
+
+def test_answers_that_cannot_place_the_threshold_give_words_not_a_zero_width_interval(
+        tmp_path, write_run):
+    # Subject 01 answers every trial right, subject 02 every trial wrong; the tables and the
+    # page are written without figures (drawing them is the slow part of analyse).
+    root = tmp_path / "results"
+    soas = (40.0, 80.0, 120.0, 160.0)
+    for subject, right in (("01", True), ("02", False)):
+        write_run(root, subject, "motion", [staircase_row(n, soas[n % 4], right)
+                                            for n in range(1, 41)])
+    found = study(select_runs(load_runs([root])))
+    out = tmp_path / "analysis"
+    out.mkdir()
+    tables = write_tables(found, out)
+    rows = read_csv(out / "thresholds.csv")
+    fits = {r["subject"]: r for r in rows if r["procedure"] == "pooled"}
+    assert (fits["01"]["status"], fits["02"]["status"]) == (
+        "below the lowest value tested", "above the highest value tested")
+    assert fits["01"]["threshold"] == fits["02"]["threshold"] == "n/a"
+    # The one bound the answers give, near the end of the tested range the words name.
+    assert fits["01"]["ci_low"] == "n/a" and float(fits["01"]["ci_high"]) < 80.0
+    assert fits["02"]["ci_high"] == "n/a" and float(fits["02"]["ci_low"]) > 120.0
+    # Left out of the across-subject mean: no subject has a threshold.
+    assert fits["all"]["threshold"] == "n/a"
+    page = summary_markdown(found, tables, [])
+    assert "subject 01, task motion: threshold **below the lowest value tested** (below" in page
+    assert "subject 02, task motion: threshold **above the highest value tested** (above" in page
 
 
 @pytest.mark.parametrize(("adapted", "parameter", "unit"), [

@@ -1,7 +1,7 @@
 """Adaptive procedures: the cost of QUEST+'s next-trial decision on the issue's grid (50
 intensities x 40 thresholds x 10 slopes x 5 lapse rates) beside a naive pure-Python loop
 computing the same expected entropies, the memory its tables take, a staircase's step, and a
-psychometric fit with its bootstrap.
+subject's threshold from the grid posterior (its coverage: bench_thresholds).
 
 Target (issue 26): an update and the choice of the next intensity in milliseconds, so that
 the decision never delays a trial.
@@ -12,8 +12,8 @@ import statistics
 
 import numpy as np
 
-from pinarray.adaptive.fit import fit_psychometric
 from pinarray.adaptive.observer import PsychometricObserver
+from pinarray.adaptive.posterior import threshold_posterior
 from pinarray.adaptive.psychometric import Psychometric
 from pinarray.adaptive.questplus import QuestPlus, QuestPlusRule
 from pinarray.adaptive.staircase import StaircaseRule, StepSizes, advance, replay
@@ -107,17 +107,14 @@ def staircase_and_fit() -> None:
     times = interleaved_seconds({
         "advance": lambda: advance(rule, state, True),
         "replay": lambda: replay(rule, 20, outcomes),
-        "fit": lambda: fit_psychometric("weibull", intensities, k, n, guess=0.5, lapse="fit",
-                                        resamples=100),
-        "fit500": lambda: fit_psychometric("weibull", intensities, k, n, guess=0.5, lapse="fit"),
+        "posterior": lambda: threshold_posterior("weibull", intensities, k, n, guess=0.5),
     }, runs=3)
     print(f"\n{'what':<40} {SPREAD_HEADER} {'unit':<4} {'ratio':>9}")
     print(f"{'staircase: one answer (advance)':<40} {spread(times['advance'], 1e6)} us")
     print(f"{'staircase: replay of 100 answers':<40} {spread(times['replay'], 1e3, 2)} ms   "
           f"{ratio(times['replay'], times['advance']):>9}  (of one answer)")
-    print(f"{'fit + bootstrap of 500 (the default)':<40} {spread(times['fit500'])} ms   "
-          f"{ratio(times['fit500'], times['fit']):>9}  (of 100 resamples)")
-    print(f"{'fit + bootstrap of 100':<40} {spread(times['fit'])} ms")
+    print(f"{'threshold posterior, 8 intensities':<40} {spread(times['posterior'])} ms   "
+          f"{ratio(times['posterior'], times['replay']):>9}  (of the replay)")
 
 
 def run() -> None:

@@ -19,6 +19,7 @@ REPO = Path(__file__).resolve().parents[2]
 PROTOCOL = "protocols/localisation.yaml"
 SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip install` wrote
 RUNS = 10  # a start-up is a tenth of a second: more rounds than the usual five
+VALIDATE_TARGET = 5.0
 
 
 def _run(command: list[str]) -> tuple[float, float]:
@@ -65,3 +66,10 @@ def run() -> None:
         cpu_ratio = median(cpu[name]) / median(cpu[reference])
         print(f"{name:<56} {'':>4} {spread(wall[name])} {wall_ratio:>5.2f}x  {'':>4} "
               f"{spread(cpu[name])} {cpu_ratio:>5.2f}x")
+    validate = f"pinarray validate {PROTOCOL}" if SCRIPT.exists() else (
+        f"python -m pinarray validate {PROTOCOL}")
+    ratios = [median(wall[validate]) / median(wall[reference]),
+              median(cpu[validate]) / median(cpu[reference])]
+    met = "met" if max(ratios) < VALIDATE_TARGET else "NOT met"
+    print(f"target: `{validate}` under {VALIDATE_TARGET:g}x `{reference}` (wall and cpu "
+          f"medians): {met}")

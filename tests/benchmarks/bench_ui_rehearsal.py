@@ -30,6 +30,25 @@ TRIALS = {1.0: 3, 20.0: 6}  # trials measured at each speed (10 s stimuli at spe
 STRETCH_TARGET = 1.1
 
 
+class Prompted:
+    """When the session last asked for an answer (its ``on_change``, passed on to the UI's)."""
+
+    def __init__(self) -> None:
+        self.at_s = 0.0
+        self.event = asyncio.Event()
+
+    def watching(self, on_change, loop: asyncio.AbstractEventLoop):
+        from pinarray.session.trials import Phase
+
+        def changed(session) -> None:
+            if session.phase is Phase.RESPONSE:
+                self.at_s = time.monotonic()
+                loop.call_soon_threadsafe(self.event.set)
+            on_change(session)
+
+        return changed
+
+
 async def _ui_stretches(speed: float, trials: int) -> tuple[list[float], float, str]:
     """Each trial's Space-to-prompt over its scheduled time, Begin-to-run-screen seconds, and
     what the timing check said if Begin had to be confirmed."""
@@ -37,6 +56,7 @@ async def _ui_stretches(speed: float, trials: int) -> tuple[list[float], float, 
     from pinarray.tui.app import PinArrayApp, TuiOptions
     from pinarray.tui.confirm import Confirm
     from pinarray.tui.preflight_screen import PreflightScreen
+    from pinarray.tui.response_pad import ResponsePad
     from pinarray.tui.run_screen import RunScreen
 
     protocol = load_protocol(PROTOCOL)
@@ -65,17 +85,25 @@ async def _ui_stretches(speed: float, trials: int) -> tuple[list[float], float, 
                 await pilot.press("y")
                 await until(lambda: isinstance(app.screen, RunScreen))
             waited_s = time.monotonic() - begun
-            screen = app.screen
-            session = screen.session
+            session = app.screen.session
+            # The answer prompt's moment, taken where the session says so (polling for it
+            # would itself keep the interpreter busy beside the stimulus).
+            loop, prompted = asyncio.get_running_loop(), Prompted()
+            # The run screen sets its own on_change when mounted (sets `clock` first): after it.
+            await until(lambda: getattr(app.screen, "clock", None) is not None)
+            pad = app.screen.query_one(ResponsePad)
+            session.on_change = prompted.watching(session.on_change, loop)
             await pilot.press("space")  # the instructions are given
             await until(lambda: session.phase is Phase.READY)
             stretches = []
             for _ in range(trials):
                 length_s = session.current_schedule().end_ns / 1e9 / speed
+                prompted.event = asyncio.Event()
                 pressed = time.monotonic()
                 await pilot.press("space")
-                await until(lambda: session.phase is Phase.RESPONSE)
-                stretches.append((time.monotonic() - pressed) / length_s)
+                await prompted.event.wait()
+                stretches.append((prompted.at_s - pressed) / length_s)
+                await until(lambda: pad.accepting)  # the screen has caught up with the session
                 await pilot.press("1", "enter")
                 await until(lambda: session.phase is Phase.READY)
                 await asyncio.sleep(interval_s + 0.05)  # the inter-trial interval is over

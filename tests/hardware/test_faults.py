@@ -183,3 +183,11 @@ def test_servos_that_lost_power_with_the_usb_still_up_do_not_hold_up_the_safe_st
     took_ns = bus.clock.now_ns() - started_ns
     assert report.silent_ids == tuple(range(1, 17)) and not report.complete
     assert took_ns < 2_000_000_000 + 16 * 5 * 3_000_000
+
+
+@pytest.mark.parametrize("url", ["sim://?ids=1&ids=2", "sim://?drop=0.1&seed=3&drop=0.2"])
+def test_a_sim_url_key_given_twice_is_refused_not_read_as_its_last_value(url):
+    from pinarray.hardware.feetech.faults import parse_sim_url
+
+    with pytest.raises(PinArrayError, match="expected it once .* found it twice"):
+        parse_sim_url(url)

@@ -338,7 +338,8 @@ def test_several_boards_share_one_bus():
 
 
 @pytest.mark.parametrize("url", ["sim://pca9685?colour=red", "sim://pca9685?bus_hz=fast",
-                                 "sim://pca9685?address=0x70", "sim://pca9685?nack=2"])
+                                 "sim://pca9685?address=0x70", "sim://pca9685?nack=2",
+                                 "sim://pca9685?address=0x40&address=0x41"])
 def test_a_bad_sim_url_is_one_clear_error(url):
     with pytest.raises(PinArrayError, match="sim URL key|unknown key"):
         SimI2cLink(url, VirtualClock())

@@ -20,6 +20,16 @@ def test_a_5_hz_pin_is_up_for_the_first_100_ms_of_each_200_ms_cycle_and_down_aft
     assert up == [0, 50, 99, 200, 250]
 
 
+def test_the_shortest_lift_of_a_5_hz_train_is_its_half_cycle():
+    # The run screen draws lifts only where they last two frames (100 ms at 20 fps): this
+    # train's, at --speed 1; not at --speed 20, where its 100 ms are 5 ms of the wall.
+    protocol = load_protocol(LOCALISATION)
+    trial = next(t for t in make_plan(protocol, 3).trials if t.condition.frequency_hz == 5)
+    timeline = LiftTimeline.from_targets(compile_trial(protocol, trial).targets,
+                                         {trial.condition.pin: 2048})
+    assert timeline.shortest_change_ns() == 100 * MS
+
+
 def record(trial, error_class, practice=False, status="ok"):
     return LocalisationRecord(trial=trial, block=0 if practice else 1, task="t", onset_ns=0,
                               duration_ns=10**9, status=status,

@@ -29,6 +29,7 @@ from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.scanner_screen import ScannerScreen
 from pinarray.tui.start_screen import StartScreen
 from tests.many_ways import write_many_ways
+from tests.test_adaptive_runs import read_writer_paths
 from tests.tui.conftest import (
     LOCALISATION,
     MOTION,
@@ -229,6 +230,47 @@ async def test_the_preflight_that_cannot_connect_shows_every_button(results, siz
         await settle(pilot)
         assert "Could not connect" in says(app.screen, "#preflight-status")
         assert unseen(app.screen) == []
+
+
+def lock_is_free(paths) -> bool:
+    """Whether nobody (this process included: flock is per open file) holds the run's lock."""
+    import fcntl
+
+    with open(paths.lock, "a") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
+        fcntl.flock(lock, fcntl.LOCK_UN)
+    return True
+
+
+async def test_a_begin_that_fails_says_why_in_view_every_time_and_leaves_the_run_unlocked(
+        results):
+    from tests.test_adaptive_runs import STAIRCASES, edited_run
+
+    beh, line, trial = edited_run(results)  # its rows refuse to be resumed
+    paths = read_writer_paths(results, "staircasemotion")
+    app = make_app(results, protocol=STAIRCASES)
+    async with app.run_test(size=SMALL) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#resume")
+        await settle(pilot)
+        for _ in range(3):  # each press says the same, not "open in another process"
+            await pilot.press("b")
+            await settle(pilot)
+            screen = app.screen
+            assert isinstance(screen, PreflightScreen)
+            assert screen.notice.text == "Cannot open the run: the reason is at the top, in red"
+            assert unseen(screen) == []
+            status = screen.query_one("#preflight-status", Static)
+            assert says(screen, "#preflight-status").startswith(
+                f"Cannot open the run: {beh}:{line}: trial {trial}: correct is ")
+            news = screen.query_one("#preflight-info")
+            assert status.region.intersection(news.region) == status.region  # all in view
+            assert lock_is_free(paths)
+    assert len(list(results.rglob("*_beh.tsv"))) == 1  # no new run either
+    assert (results / "participants.tsv").read_text().count("sub-01") == 1
 
 
 @SIZES

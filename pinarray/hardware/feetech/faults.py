@@ -37,11 +37,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from urllib.parse import parse_qsl, urlsplit
+from urllib.parse import urlsplit
 
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.models import DEFAULT_MODEL, MODELS
 from pinarray.hardware.feetech.registers import BAUD_RATE_BY_CODE, MAX_SERVO_ID, StatusError
+from pinarray.hardware.sim_urls import sim_query
 
 SIM_SCHEME = "sim"
 # The simulated array every command uses unless told otherwise.
@@ -218,7 +219,7 @@ def parse_sim_url(url: str) -> SimConfig:
     parts = urlsplit(url)
     if parts.scheme != SIM_SCHEME:
         raise PinArrayError(f"expected a sim:// URL, found {url!r}")
-    query = dict(parse_qsl(parts.query, keep_blank_values=True))
+    query = sim_query(url, parts.query)
     unknown = sorted(set(query) - _KNOWN_KEYS)
     if unknown:
         raise PinArrayError(

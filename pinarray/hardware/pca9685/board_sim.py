@@ -104,6 +104,26 @@ class _Run:
 
 
 @dataclass(frozen=True)
+class BoardParts:
+    """Everything one board holds, as plain values: what a state file keeps (`board_file`).
+
+    ``runs`` are the counter's stretches (start, period, end or None, exact ns); ``latched``
+    holds, per channel, each latch key with the (ON count, OFF count, full on, full off) the
+    channel's output follows from it.
+    """
+
+    osc_hz: int
+    address: int
+    powered: bool
+    registers: bytes
+    pointer: int
+    restart_from: Fraction | None
+    awake_from: Fraction | None
+    runs: tuple[tuple[Fraction, Fraction, Fraction | None], ...]
+    latched: tuple[tuple[tuple[Key, tuple[int, int, bool, bool]], ...], ...]
+
+
+@dataclass(frozen=True)
 class _ChannelState:
     """What one channel's output does in a period, as latched from its four registers."""
 
@@ -150,6 +170,30 @@ class SimulatedBoard:
         ]
         self.powered = False
         self.power_up(0)
+
+    def parts(self) -> BoardParts:
+        """The board as plain values (`BoardParts`)."""
+        return BoardParts(
+            self.osc_hz, self.address, self.powered, bytes(self._regs), self._pointer,
+            self._restart_from, self._awake_from,
+            tuple((run.start_ns, run.period_ns, run.end_ns) for run in self._runs),
+            tuple(tuple((key, (s.on_count, s.off_count, s.full_on, s.full_off))
+                        for key, s in zip(keys, states, strict=True))
+                  for keys, states in self._latched))
+
+    @classmethod
+    def from_parts(cls, parts: BoardParts) -> SimulatedBoard:
+        """A board holding ``parts`` (checked by whoever read them: `board_file`)."""
+        board = cls(parts.osc_hz, parts.address)
+        board.powered = parts.powered
+        board._regs = bytearray(parts.registers)
+        board._pointer = parts.pointer
+        board._restart_from, board._awake_from = parts.restart_from, parts.awake_from
+        board._runs = [_Run(start, period, end) for start, period, end in parts.runs]
+        board._latched = [([key for key, _ in channel],
+                           [_ChannelState(*state) for _, state in channel])
+                          for channel in parts.latched]
+        return board
 
     # -- power --------------------------------------------------------------------------------
 

@@ -22,8 +22,9 @@ Every key is optional:
                     they outlive the program as real boards do: a player process opens them
                     too (`play` hands the board to one, as for a real i2c-dev bus), and a test
                     reads what the board was last told after the program was killed. A file
-                    that exists is taken as the boards were left (it is unpickled: name only
-                    files this simulator wrote). Message numbers (``nack_at``,
+                    that exists is taken as the boards were left; it must be one this
+                    simulator wrote (data only, `board_file`): any other file, a FIFO or a
+                    device is refused and left untouched. Message numbers (``nack_at``,
                     ``power_loss_at``, ``vanish_after``, ``kill_at``) then count every message
                     the boards heard, from every program. Shared boards run in real time.
 ``kill_at``         (with ``state``) the program that sends message number ``kill_at`` is
@@ -39,9 +40,9 @@ from __future__ import annotations
 import fcntl
 import math
 import os
-import pickle
 import random
 import signal
+import stat
 from collections.abc import Iterator
 from contextlib import contextmanager
 from urllib.parse import parse_qsl, urlsplit
@@ -49,9 +50,11 @@ from urllib.parse import parse_qsl, urlsplit
 from pinarray.clock import Clock, MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import PortLost
+from pinarray.hardware.pca9685 import board_file
 from pinarray.hardware.pca9685 import registers as r
 from pinarray.hardware.pca9685.board_sim import SimulatedBoard
 from pinarray.hardware.pca9685.i2c import I2cMessage, I2cNack, Listener
+from pinarray.hardware.sim_urls import sim_query
 from pinarray.units import NS_PER_S
 
 SCHEME_PREFIX = "sim://pca9685"
@@ -123,7 +126,7 @@ class SimI2cLink:
     def __init__(self, url: str, clock: Clock):
         if not is_pca9685_url(url):
             raise PinArrayError(f"expected a sim://pca9685?... URL, found {url!r}")
-        query = dict(parse_qsl(urlsplit(url).query, keep_blank_values=True))
+        query = sim_query(url, urlsplit(url).query)
         unknown = sorted(set(query) - set(_KNOWN_KEYS))
         if unknown:
             raise PinArrayError(f"{url}: unknown key(s) {', '.join(unknown)}; "
@@ -148,10 +151,12 @@ class SimI2cLink:
         self._boards = {address: SimulatedBoard(osc_hz, address) for address in addresses}
         self._messages = 0
         self._closed = False
-        self._state = query.get("state") or None
+        state = query.get("state") or None
+        self._state = None if state is None else os.path.realpath(state)
         self._lock_fd: int | None = None
         self._handed_fd: int | None = None
         self._in_message = False
+        self._written: bytes | None = None  # what this program last wrote to the state file
         if self._state is None:
             if self._kill_at:
                 raise PinArrayError(f"{url}: sim URL key kill_at: expected state=FILE beside "
@@ -159,13 +164,24 @@ class SimI2cLink:
             return
         if not isinstance(clock, MonotonicClock):
             raise PinArrayError(f"{url}: a board kept in a state file is shared by processes "
-                                "and runs in real time: play it at --speed 1")
+                                "and runs in real time: play it without --speed (or at "
+                                "--speed 1)")
+        self._load()  # a file that is not ours is refused before anything is created
         try:
-            self._lock_fd = os.open(self._state + ".lock", os.O_RDWR | os.O_CREAT, 0o600)
+            # O_NONBLOCK, O_NOCTTY: a FIFO or a device in the lock's place must neither make
+            # the open wait nor be acted on.
+            flags = os.O_NONBLOCK | os.O_NOCTTY | os.O_NOFOLLOW
+            self._lock_fd = os.open(self._state + ".lock", os.O_RDWR | os.O_CREAT | flags,
+                                    0o600)
             # What a player process inherits: its own open file, never locked, so that a lock
             # held by a program killed mid-message dies with it.
-            self._handed_fd = os.open(self._state + ".lock", os.O_RDONLY)
+            self._handed_fd = os.open(self._state + ".lock", os.O_RDONLY | flags)
+            if not stat.S_ISREG(os.fstat(self._lock_fd).st_mode):
+                self.close()
+                raise PinArrayError(f"{url}: sim URL key state: cannot use {self._state}.lock: "
+                                    "expected a regular file")
         except OSError as error:
+            self.close()
             raise PinArrayError(f"{url}: sim URL key state: cannot use {self._state}.lock: "
                                 f"{error.strerror}") from None
         with self._board_file():
@@ -214,39 +230,41 @@ class SimI2cLink:
         fcntl.flock(self._lock_fd, fcntl.LOCK_EX)
         self._in_message = True
         try:
-            self._load()
-            yield
-        finally:
+            self._load()  # raising, it writes nothing: the file is not ours
             try:
-                self._save()
+                yield
             finally:
-                self._in_message = False
-                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+                self._save()
+        finally:
+            self._in_message = False
+            fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
 
     def _load(self) -> None:
+        """The boards as the state file holds them (as powered up when there is none yet)."""
         assert self._state is not None
         try:
-            with open(self._state, "rb") as file:
-                messages, boards = pickle.load(file)
-        except FileNotFoundError:
-            return  # powered up now, as the URL says
-        except (OSError, EOFError, pickle.UnpicklingError, ValueError, TypeError) as error:
-            raise PinArrayError(f"{self._url}: sim URL key state: {self._state} does not hold "
-                                f"simulated boards ({error})") from None
+            data = board_file.read_state(self._state)
+            if data is None or data == self._written:
+                return  # powered up now, as the URL says; or as this program left them
+            messages, boards = board_file.decode(data)
+        except board_file.NotOurs as problem:
+            raise PinArrayError(f"{self._url}: sim URL key state: {self._state}: {problem}; "
+                                "name a new file or one this simulator wrote (it is left as "
+                                "it is)") from None
         if sorted(boards) != sorted(self._boards):
             raise PinArrayError(
                 f"{self._url}: sim URL key state: {self._state} holds boards at "
                 f"{', '.join(f'0x{a:02x}' for a in sorted(boards))}, the URL names "
                 f"{', '.join(f'0x{a:02x}' for a in sorted(self._boards))}")
         self._messages, self._boards = messages, boards
+        self._written = data
 
     def _save(self) -> None:
         assert self._state is not None
-        temporary = self._state + ".new"
+        data = board_file.encode(self._messages, self._boards)
         try:
-            with open(temporary, "wb") as file:
-                pickle.dump((self._messages, self._boards), file)
-            os.replace(temporary, self._state)
+            board_file.replace_state(self._state, data)
+            self._written = data
         except OSError as error:
             raise PinArrayError(f"{self._url}: sim URL key state: cannot write {self._state}: "
                                 f"{error.strerror}") from None
