@@ -16,6 +16,11 @@ from pinarray.errors import PinArrayError
 from pinarray.protocol import Condition, LocalisationCondition, Ordering, Protocol
 from pinarray.protocol.design import MAX_SHUFFLE_WORK, wave_condition
 from pinarray.protocol.model import WaveStimulus, condition_value
+from pinarray.protocol.paradigms import (
+    IdentificationCondition,
+    TemporalOrderCondition,
+    TwoIntervalCondition,
+)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -43,11 +48,22 @@ class PlannedTrial:
     def record(self) -> dict:
         """JSON-safe description, as stored in manifests and compile outputs."""
         c = self.condition
-        what: dict[str, object] = (
-            {"pin": c.pin, "frequency_hz": str(c.frequency_hz), "direction": None, "row": None}
-            if isinstance(c, LocalisationCondition)
-            else {"pin": None, "frequency_hz": None, "direction": c.kind.value, "row": c.row}
-            | ({} if c.row is not None else {"pins": list(c.pins), "towards": c.direction.value}))
+        what: dict[str, object] = {"pin": None, "frequency_hz": None, "direction": None,
+                                   "row": None}
+        match c:
+            case LocalisationCondition():
+                what |= {"pin": c.pin, "frequency_hz": str(c.frequency_hz)}
+            case IdentificationCondition():
+                what |= {"pattern": c.pattern, "pins": list(c.pins)}
+            case TwoIntervalCondition():
+                what |= {"compare": c.parameter.value, "standard": str(c.standard),
+                         "comparison": str(c.comparison), "interval_order": c.order.value}
+            case TemporalOrderCondition():
+                what |= {"pins": list(c.pins), "soa_ns": c.soa_ns}
+            case _:
+                what |= {"direction": c.kind.value, "row": c.row} | (
+                    {} if c.row is not None else {"pins": list(c.pins),
+                                                  "towards": c.direction.value})
         return ({"trial": self.trial, "block": self.block, "practice": self.practice,
                  "stimulus": c.stimulus} | what | ({"catch": True} if self.catch else {}))
 
@@ -300,8 +316,15 @@ def _adaptive_trials(protocol: Protocol, rng: np.random.Generator) -> tuple[Plan
               for n in range(1, design.practice_trials + 1)]
     main = adaptive.procedure_trials + adaptive.catch.count
     catches = set(rng.choice(main, size=adaptive.catch.count, replace=False).tolist())
+    balanced = None
+    if design.judgement is not None:
+        # Which interval holds the comparison, which pin goes first: as often one way as the
+        # other (to within one trial), in a seeded order.
+        copies = -(-main // len(conditions))
+        balanced = rng.permutation(len(conditions) * copies) % len(conditions)
     for index in range(main):
-        drawn = conditions[int(rng.integers(len(conditions)))]
+        drawn = (conditions[int(rng.integers(len(conditions)))] if balanced is None
+                 else conditions[int(balanced[index])])
         catch = index in catches
         condition = catch_condition if catch and catch_condition is not None else drawn
         trials.append(PlannedTrial(len(trials) + 1, 1, False, condition, catch))

@@ -32,6 +32,7 @@ from pinarray.protocol.model import (
     LocalisationCondition,
     MotionCondition,
 )
+from pinarray.protocol.paradigms import TemporalOrderCondition, TwoIntervalCondition
 from pinarray.protocol.procedures import (
     CATCH,
     PRACTICE,
@@ -66,8 +67,9 @@ class AdaptiveFields:
 
 def counts_as_correct(task: Task, condition: Condition, catch: bool, response: str) -> bool:
     """Whether ``response`` counts as correct: on a catch trial, nothing felt (no motion);
-    otherwise the wave's direction named (direction), the moved pin named (localisation), or
-    anything felt (detection)."""
+    otherwise the wave's direction named (direction), the moved pin named (localisation), the
+    interval with the higher value named (discrimination), the pin that came first named
+    (order), or anything felt (detection)."""
     felt = response != NOTHING_FELT
     if catch:
         return not felt
@@ -76,6 +78,12 @@ def counts_as_correct(task: Task, condition: Condition, catch: bool, response: s
             return isinstance(condition, MotionCondition) and response == condition.direction
         case Task.LOCALISATION:
             return isinstance(condition, LocalisationCondition) and response == str(condition.pin)
+        case Task.DISCRIMINATION:
+            return (isinstance(condition, TwoIntervalCondition)
+                    and response == condition.correct_answer)
+        case Task.ORDER:
+            return (isinstance(condition, TemporalOrderCondition)
+                    and response == str(condition.first_pin))
     return felt
 
 

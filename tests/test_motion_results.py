@@ -52,9 +52,13 @@ def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_
     cells = dict(zip(header.split("\t"), row.split("\t"), strict=True))
     assert [cells[c] for c in ("stroke_commanded", "stroke_achieved", "stroke_median",
                                "motion_lag", "cycles_short")] == ["114", "80", "80.5", "0.064", "9"]
-    # Appended after every earlier column: an older run resumed gets them as n/a cells.
-    assert BEH_NAMES[-6:-1] == ("stroke_commanded", "stroke_achieved", "stroke_median",
-                                "motion_lag", "cycles_short")
+    # Appended after every earlier column (later ones, motion_samples and the lab's
+    # paradigms', after them): an older run resumed gets them as n/a cells.
+    start = BEH_NAMES.index("stroke_commanded")
+    assert start > BEH_NAMES.index("guess_rate")
+    assert BEH_NAMES[start:start + 6] == ("stroke_commanded", "stroke_achieved",
+                                          "stroke_median", "motion_lag", "cycles_short",
+                                          "motion_samples")
     described = json.loads(writer.paths.beh_json.read_text())
     assert described["stroke_achieved"]["Units"] == "steps" and "Description" in described["motion_lag"]
 

@@ -3,8 +3,9 @@ slope x lapse, its median and 95 % credible interval, or words where the data ca
 
 Data: at each intensity, ``n_correct`` correct answers out of ``n_trials``. The model is a
 `Psychometric` of the stated kind with the guess rate stated; the threshold, the slope and the
-lapse rate are unknown, and the posterior over them is computed on a grid, exhaustively (no
-optimiser: nothing to stop short of an optimum):
+lapse rate are unknown (the lapse rate may instead be stated, ``lapse``: then it is that rate
+alone), and the posterior over them is computed on a grid, exhaustively (no optimiser:
+nothing to stop short of an optimum):
 
 - **grid**: `THRESHOLDS` thresholds evenly spaced in log intensity (a Weibull; a logistic: in
   intensity) from the tested range (the lowest to the highest intensity answered) widened by
@@ -22,8 +23,10 @@ optimiser: nothing to stop short of an optimum):
 - **likelihood**: binomial, ``k log p + (n - k) log(1 - p)`` summed over the intensities;
 - **threshold**: the median of the threshold's marginal posterior, and its 95 % equal-tailed
   credible interval (the 2.5 % and 97.5 % points), read from the cumulative mass by linear
-  interpolation within each grid cell (in log intensity for a Weibull). The slope and lapse
-  rate are their marginals' medians (the function drawn through the data).
+  interpolation within each grid cell (in log intensity for a Weibull);
+- **slope**: likewise the median and 95 % credible interval of its marginal posterior (in log
+  slope); the lapse rate is its marginal's median on the grid. The function drawn through the
+  data stands at these medians.
 
 Where the data cannot place the threshold, its `ThresholdStatus` says so in words instead of
 a number. The likelihood of each threshold (slope and lapse rate integrated out over their
@@ -31,7 +34,11 @@ priors) tells: where it is still within `OPEN_END` of its best at the grid's low
 the answers do not bound the threshold from below (a subject who got everything right), and
 it is ``below the lowest value tested``, with ``ci_high`` its one-sided 95 % upper bound;
 likewise ``above the highest value tested`` (answers at chance), ``ci_low`` its one-sided
-95 % lower bound; open at both ends (too few answers), ``not estimable``.
+95 % lower bound; open at both ends (too few answers), ``not estimable``. The slope gets the
+same rule (`SlopeStatus`): still within `OPEN_END` of its best at the grid's steepest slope,
+the answers do not bound it from above (a subject who answered every value tested as if at
+a step) and ``slope_ci_low`` is its one-sided 95 % lower bound; at the shallowest, likewise
+from below with ``slope_ci_high``.
 
 Measured calibration (`make bench`, bench_thresholds): on simulated subjects running
 ``protocols/staircase_motion.yaml`` and ``protocols/quest_stroke.yaml`` with thresholds across
@@ -81,12 +88,22 @@ class ThresholdStatus(StrEnum):
     NOT_ESTIMABLE = "not estimable"
 
 
+class SlopeStatus(StrEnum):
+    """Whether the data bound the slope (the module docstring's rule)."""
+
+    ESTIMATED = "estimated"
+    STEEPER = "steeper than the answers bound"
+    SHALLOWER = "shallower than the answers bound"
+    NOT_ESTIMABLE = "not estimable"
+
+
 @dataclass(frozen=True)
 class ThresholdPosterior:
     """A subject's threshold (intensity unit) from the grid posterior: its median and 95 %
-    credible interval, the medians of the slope and the lapse rate, the tested range, and
-    whether the data place it (``status``; where they do not, the median is still the
-    posterior's, and the words are what to report)."""
+    credible interval, the slope's likewise (the `Psychometric`'s unit), the lapse rate's
+    median, the tested range, and whether the data place the threshold (``status``) and bound
+    the slope (``slope_status``; where they do not, the medians are still the posterior's, and
+    the words are what to report)."""
 
     kind: PsychometricKind
     guess: float
@@ -98,6 +115,9 @@ class ThresholdPosterior:
     lowest_tested: float
     highest_tested: float
     status: ThresholdStatus
+    slope_ci_low: float
+    slope_ci_high: float
+    slope_status: SlopeStatus
 
     @property
     def function(self) -> Psychometric:
@@ -131,17 +151,20 @@ class ThresholdPosterior:
 
 @dataclass(frozen=True)
 class _Grid:
-    """The parameter grid and the prior's logarithm, one factor for the threshold and one for
-    the rest: ``first`` is log threshold (Weibull) or threshold (logistic), evenly spaced."""
+    """The parameter grid and the prior's logarithm, one factor per parameter: ``first`` is
+    log threshold (Weibull) or threshold (logistic), evenly spaced; the slopes are evenly
+    spaced in log."""
 
     first: NDArray[np.float64]
     slopes: NDArray[np.float64]
     lapses: NDArray[np.float64]
     log_threshold_prior: NDArray[np.float64]  # (thresholds,)
-    log_shape_prior: NDArray[np.float64]  # (slopes, lapses)
+    log_slope_prior: NDArray[np.float64]  # (slopes,)
+    log_lapse_prior: NDArray[np.float64]  # (lapses,)
 
 
-def _grid(kind: PsychometricKind, lowest: float, highest: float, guess: float) -> _Grid:
+def _grid(kind: PsychometricKind, lowest: float, highest: float, guess: float,
+          lapse: float | None) -> _Grid:
     if kind == "weibull":
         low, high = float(np.log(lowest)), float(np.log(highest))
         span = max(high - low, _MIN_LOG_RANGE)
@@ -155,10 +178,42 @@ def _grid(kind: PsychometricKind, lowest: float, highest: float, guess: float) -
     slope_prior = -0.5 * (np.log(slopes / SLOPE_MEDIAN) / SLOPE_LOG_SD) ** 2
     if kind == "logistic":
         slopes = slopes * _LOGISTIC_SLOPE_UNIT / span
-    top = min(MAX_LAPSE, 1.0 - guess - LAPSE_STEP)
-    lapses = np.arange(0.0, top + LAPSE_STEP / 2, LAPSE_STEP)
-    lapse_prior = (LAPSE_BETA - 1.0) * np.log1p(-lapses)
-    return _Grid(first, slopes, lapses, threshold_prior, slope_prior[:, None] + lapse_prior[None, :])
+    if lapse is None:
+        top = min(MAX_LAPSE, 1.0 - guess - LAPSE_STEP)
+        lapses = np.arange(0.0, top + LAPSE_STEP / 2, LAPSE_STEP)
+        lapse_prior = (LAPSE_BETA - 1.0) * np.log1p(-lapses)
+    else:
+        lapses, lapse_prior = np.array([lapse]), np.zeros(1)
+    return _Grid(first, slopes, lapses, threshold_prior, slope_prior, lapse_prior)
+
+
+@dataclass(frozen=True)
+class _Placed:
+    """One parameter's marginal posterior read on its evenly spaced axis: the median and the
+    95 % interval (one-sided where one end is open), and which ends the data leave open."""
+
+    median: float
+    low: float
+    high: float
+    open_low: bool
+    open_high: bool
+
+
+def _placed(axis: NDArray[np.float64], likelihood: NDArray[np.float64],
+            log_prior: NDArray[np.float64]) -> _Placed:
+    """The marginal posterior ``likelihood x prior`` on ``axis`` read as the module docstring
+    says: an end is open where the likelihood there is within `OPEN_END` of its best; with
+    one end open, the other bound is one-sided at the credible mass."""
+    tail = (1 - CREDIBLE_MASS) / 2
+    median, low, high, low_bound, high_bound = _quantiles(
+        axis, likelihood * np.exp(log_prior),
+        [0.5, tail, 1 - tail, 1 - CREDIBLE_MASS, CREDIBLE_MASS])
+    open_low, open_high = (bool(v) for v in likelihood[[0, -1]] >= OPEN_END * likelihood.max())
+    if open_low and not open_high:
+        high = high_bound
+    if open_high and not open_low:
+        low = low_bound
+    return _Placed(float(median), float(low), float(high), open_low, open_high)
 
 
 def _quantiles(first: NDArray[np.float64], mass: NDArray[np.float64],
@@ -194,11 +249,13 @@ def log_likelihood_grid(kind: PsychometricKind, x: NDArray[np.float64], k: NDArr
 
 def threshold_posterior(kind: PsychometricKind, intensities: Sequence[float],
                         n_correct: Sequence[int], n_trials: Sequence[int], *,
-                        guess: float) -> ThresholdPosterior:
+                        guess: float, lapse: float | None = None) -> ThresholdPosterior:
     """The threshold from the grid posterior (the module docstring's rule).
 
-    ``intensities`` in the adapted parameter's unit (above 0 for a Weibull), two distinct
-    ones or more; ``guess`` the task's guess rate (0 to below 0.9).
+    ``intensities`` in the adapted parameter's unit (above 0 for a Weibull; any sign for a
+    logistic), two distinct ones or more; ``guess`` the task's guess rate (0 to below 0.9);
+    ``lapse`` a lapse rate the model takes as known (0 to below ``1 - guess``), or None to
+    fit it (0 to `MAX_LAPSE`).
     """
     if kind not in KINDS:
         raise PinArrayError(f"a psychometric function is weibull or logistic, found {kind!r}")
@@ -218,37 +275,43 @@ def threshold_posterior(kind: PsychometricKind, intensities: Sequence[float],
                             f"more per intensity, found correct {k.tolist()}, trials {n.tolist()}")
     if not 0 <= guess < 1 - MAX_LAPSE:
         raise PinArrayError(f"a guess rate from 0 to below {1 - MAX_LAPSE:g} is needed, found {guess}")
+    if lapse is not None and not 0 <= lapse < 1 - guess:
+        raise PinArrayError(f"a stated lapse rate from 0 to below 1 - guess rate ({1 - guess:g}) "
+                            f"is needed, found {lapse}")
 
     lowest, highest = float(x.min()), float(x.max())
-    grid = _grid(kind, lowest, highest, float(guess))
+    grid = _grid(kind, lowest, highest, float(guess), None if lapse is None else float(lapse))
     thresholds = np.exp(grid.first) if kind == "weibull" else grid.first
-    log_weights = grid.log_shape_prior + log_likelihood_grid(
+    log_weights = grid.log_lapse_prior + log_likelihood_grid(
         kind, x, k, n, float(guess), thresholds, grid.slopes, grid.lapses)
     top = float(log_weights.max())
     if not np.isfinite(top):
         raise PinArrayError("these answers are impossible under every threshold, slope and lapse "
                             f"rate of the grid (guess rate {guess}): correct {k.tolist()} of "
                             f"{n.tolist()} at {x.tolist()}")
+    # Every cell's weight with the lapse rate's prior in it; the threshold's and the slope's
+    # priors are applied below, each left out of its own parameter's likelihood.
     weights = np.exp(log_weights - top)
-    # The likelihood of each threshold, the slope and the lapse rate integrated out over
-    # their priors; times the threshold's prior, the threshold's marginal posterior.
-    likelihood = weights.sum(axis=(1, 2))
-    by_threshold = likelihood * np.exp(grid.log_threshold_prior)
-    tail = (1 - CREDIBLE_MASS) / 2
-    median, low, high, low_bound, high_bound = _quantiles(
-        grid.first, by_threshold, [0.5, tail, 1 - tail, 1 - CREDIBLE_MASS, CREDIBLE_MASS])
-    open_low, open_high = likelihood[[0, -1]] >= OPEN_END * likelihood.max()
-    status = (ThresholdStatus.NOT_ESTIMABLE if open_low and open_high
-              else ThresholdStatus.BELOW if open_low else ThresholdStatus.ABOVE if open_high
-              else ThresholdStatus.ESTIMATED)
-    # Words with one bound: the bound is one-sided at the credible mass (95 %).
-    if status is ThresholdStatus.BELOW:
-        high = high_bound
-    if status is ThresholdStatus.ABOVE:
-        low = low_bound
-    shape = weights * np.exp(grid.log_threshold_prior)[:, None, None]
+    # Each parameter's likelihood, the others integrated out over their priors; times its own
+    # prior, its marginal posterior.
+    slope_prior = np.exp(grid.log_slope_prior)[None, :, None]
+    threshold_prior = np.exp(grid.log_threshold_prior)[:, None, None]
+    threshold = _placed(grid.first, (weights * slope_prior).sum(axis=(1, 2)),
+                        grid.log_threshold_prior)
+    slope = _placed(np.log(grid.slopes), (weights * threshold_prior).sum(axis=(0, 2)),
+                    grid.log_slope_prior)
     back = np.exp if kind == "weibull" else float
     return ThresholdPosterior(
-        kind, float(guess), float(back(median)), float(back(low)), float(back(high)),
-        _median_of(grid.slopes, shape.sum(axis=(0, 2))),
-        _median_of(grid.lapses, shape.sum(axis=(0, 1))), lowest, highest, status)
+        kind, float(guess), float(back(threshold.median)), float(back(threshold.low)),
+        float(back(threshold.high)), float(np.exp(slope.median)),
+        _median_of(grid.lapses, (weights * slope_prior * threshold_prior).sum(axis=(0, 1))),
+        lowest, highest, _THRESHOLD_WORDS[threshold.open_low, threshold.open_high],
+        float(np.exp(slope.low)), float(np.exp(slope.high)),
+        _SLOPE_WORDS[slope.open_low, slope.open_high])
+
+
+# Which ends of an axis the data leave open -> the parameter's words.
+_THRESHOLD_WORDS = {(False, False): ThresholdStatus.ESTIMATED, (True, False): ThresholdStatus.BELOW,
+                    (False, True): ThresholdStatus.ABOVE, (True, True): ThresholdStatus.NOT_ESTIMABLE}
+_SLOPE_WORDS = {(False, False): SlopeStatus.ESTIMATED, (True, False): SlopeStatus.SHALLOWER,
+                (False, True): SlopeStatus.STEEPER, (True, True): SlopeStatus.NOT_ESTIMABLE}

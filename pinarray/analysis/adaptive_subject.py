@@ -6,8 +6,9 @@ lapse; the rest default: a Weibull whose threshold is the middle of the design's
 probability ``p(x)`` (`pinarray.adaptive.observer`: a draw from the seed, the trial number and
 the value only, so a resumed run gets the answers it would have had). A correct answer is
 what the task counts as correct (the wave's direction; the moved pin; "felt": the pin, or the
-wave's direction); a wrong one is the other direction, another of the design's pins, or
-nothing felt. A catch trial is answered rightly (nothing felt) unless the subject lapses.
+wave's direction; the interval with the higher value; the pin that came first); a wrong one
+is the other direction, another of the design's pins, nothing felt, the other interval or the
+other pin. A catch trial is answered rightly (nothing felt) unless the subject lapses.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from pinarray.analysis.observer import observer_items, observer_number
 from pinarray.errors import PinArrayError
 from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Protocol
 from pinarray.protocol.model import NOTHING_FELT
+from pinarray.protocol.paradigms import FIRST, correct_answer
 from pinarray.protocol.procedures import Adaptive, Function, Task
 
 KEYS = ("function", "threshold", "slope", "guess", "lapse")
@@ -79,19 +81,31 @@ class AdaptiveSubject:
         return self._wrong(adaptive.task, condition, trial)
 
     def _felt(self, condition: Condition, trial: int) -> str:
-        if isinstance(condition, LocalisationCondition):
-            return str(condition.pin)
-        directions = self.protocol.design.directions
-        if condition.direction in directions or not directions:
-            return condition.direction if directions else "unsure"
-        return directions[trial % len(directions)]  # a no-wave control, felt as moving
+        judgement = self.protocol.design.judgement
+        match condition:
+            case LocalisationCondition():
+                return str(condition.pin)
+            case MotionCondition():
+                directions = self.protocol.design.directions
+                if condition.direction in directions or not directions:
+                    return condition.direction if directions else "unsure"
+                return directions[trial % len(directions)]  # a no-wave control, felt as moving
+        assert judgement is not None
+        return correct_answer(condition, judgement) or FIRST
 
     def _wrong(self, task: Task, condition: Condition, trial: int) -> str:
         if task is Task.DETECTION:
             return NOTHING_FELT
-        if isinstance(condition, MotionCondition):
-            others = [d for d in self.protocol.design.directions if d != condition.direction]
-            return others[trial % len(others)] if others else NOTHING_FELT
-        pins = sorted({c.pin for c in self.protocol.design.conditions
-                       if isinstance(c, LocalisationCondition) and c.pin != condition.pin})
-        return str(pins[trial % len(pins)]) if pins else NOTHING_FELT
+        match condition:
+            case MotionCondition():
+                others = [d for d in self.protocol.design.directions if d != condition.direction]
+                return others[trial % len(others)] if others else NOTHING_FELT
+            case LocalisationCondition():
+                pins = sorted({c.pin for c in self.protocol.design.conditions
+                               if isinstance(c, LocalisationCondition) and c.pin != condition.pin})
+                return str(pins[trial % len(pins)]) if pins else NOTHING_FELT
+        design = self.protocol.design
+        assert design.judgement is not None
+        right = correct_answer(condition, design.judgement)
+        answers = [a for a in design.answers(self.protocol.device.grid.pin_count) if a != right]
+        return answers[trial % len(answers)]

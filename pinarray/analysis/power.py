@@ -32,7 +32,13 @@ from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.stats import CATEGORIES, Proportion
 from pinarray.analysis.subjects import t_interval
 from pinarray.grid import Grid
-from pinarray.protocol import Direction, LocalisationCondition, MotionAnswer, Protocol
+from pinarray.protocol import (
+    Direction,
+    LocalisationCondition,
+    MotionAnswer,
+    MotionCondition,
+    Protocol,
+)
 
 ALPHA = 0.05
 # Measured on the 2-core machine this was written on: a simulated subject's answer, and the
@@ -102,7 +108,7 @@ def protocol_design(protocol: Protocol) -> Design:
         condition = trial.condition
         if isinstance(condition, LocalisationCondition):
             localisation.append((condition.pin, float(condition.frequency_hz)))
-        else:
+        elif isinstance(condition, MotionCondition):
             motion.append(condition.direction)
     return Design(tuple(localisation), tuple(motion), protocol.device.grid,
                   protocol.design.directions)

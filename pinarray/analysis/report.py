@@ -10,6 +10,7 @@ from pathlib import Path
 from pinarray.adaptive.posterior import ThresholdPosterior, ThresholdStatus
 from pinarray.analysis import captions
 from pinarray.analysis.chance import DIRECTION_CHANCE
+from pinarray.analysis.lab_report import lab_captions, lab_sections, lab_tables
 from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import FrequencyEffect
 from pinarray.analysis.stats import CATEGORIES, CATEGORY_LABELS, Proportion
@@ -260,14 +261,23 @@ def _strokes(strokes: StrokeTable) -> list[str]:
         lines += ["", "In steps and mm: [stroke_by_frequency.csv](stroke_by_frequency.csv)."]
     notes = []
     if strokes.motion_trials:
-        notes.append(f"{strokes.motion_trials} motion trial(s) with a measured stroke are not "
-                     "in the table: a wave has no single frequency (their strokes are in "
-                     "beh.tsv).")
+        notes.append(f"{strokes.motion_trials} trial(s) of waves, patterns, two intervals or "
+                     "two pins with a measured stroke are not in the table: they have no single "
+                     "pin and frequency (their strokes are in beh.tsv).")
     if strokes.not_measured:
         notes.append(f"{strokes.not_measured} localisation trial(s) sampled too sparsely to "
                      "judge a cycle are left out.")
     lines += ([""] + [f"- {note}" for note in notes]) if notes else []
     return lines + [""]
+
+
+def _lab_trials(study: Study) -> str:
+    """``, 28 identification trials``...: the lab's paradigms' counted trials, if any."""
+    counts = {"identification": sum(s.confusion.trials
+                                    for s in study.identification.per_subject),
+              "two-interval": sum(f.trials for f in study.judgements.intervals),
+              "temporal-order": sum(f.trials for f in study.judgements.orders)}
+    return "".join(f", {n} {name} trials" for name, n in counts.items() if n)
 
 
 def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Path]) -> str:
@@ -277,8 +287,8 @@ def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Pat
     lines = ["# Pin-array results", "",
              f"{len(runs.included)} run(s) counted, {len(subjects)} subject(s): "
              f"{', '.join(subjects) or 'none'}; {study.localisation_trials} localisation and "
-             f"{study.motion_trials} motion trials. {captions.COUNTED} A trial finished twice "
-             "in one run counts once.", ""]
+             f"{study.motion_trials} motion trials{_lab_trials(study)}. {captions.COUNTED} A "
+             "trial finished twice in one run counts once.", ""]
     notes = run_lines(runs)
     lines += ["## Runs", ""] + ([f"- {line}" for line in notes] if notes else
                                 ["- every run found is completed and counted"]) + [
@@ -290,11 +300,14 @@ def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Pat
         lines += _motion(study)
     if study.thresholds.found:
         lines += _thresholds(study.thresholds)
+    settings = study.subject_level.settings
+    lines += lab_sections(study.identification, study.judgements, settings)
     lines += _strokes(study.strokes)
     pngs = [p for p in figures if p.suffix == ".png"]
     if pngs:
         lines += ["## Figures", ""]
-        threshold_captions = captions.threshold_captions(study.thresholds)
+        threshold_captions = captions.threshold_captions(study.thresholds) | lab_captions(
+            study.identification.across, study.judgements, settings)
         for n, png in enumerate(pngs, start=1):
             caption = (captions.CAPTIONS[png.stem](study) if png.stem in captions.CAPTIONS
                        else threshold_captions[png.stem])
@@ -319,6 +332,11 @@ def write_figures(study: Study, out: Path) -> list[Path]:
     for found in study.thresholds.per_subject:
         drawn += plots.plot_track(found, out / f"track_{found.stem}")
         drawn += plots.plot_fit(found, out / f"fit_{found.stem}")
+    if study.identification.found or study.judgements.found:
+        from pinarray.analysis.lab_plots import lab_figures
+
+        drawn += lab_figures(study.identification.across, study.judgements,
+                             study.subject_level.settings, out)
     return drawn
 
 
@@ -326,6 +344,8 @@ def write_report(study: Study, out: Path) -> Report:
     """Write tables, figures and ``summary.md`` into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     tables = write_tables(study, out)
+    tables[-1:-1] = lab_tables(study.identification, study.judgements,
+                               study.subject_level.settings, out)  # runs.csv stays last
     figures = write_figures(study, out)
     path = out / "summary.md"
     path.write_text(summary_markdown(study, tables, figures), encoding="utf-8")

@@ -6,6 +6,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from pinarray.analysis.chance import LocalisationChance, localisation_chance
+from pinarray.analysis.identification import Identifications, identifications
+from pinarray.analysis.judgements import Judgements, judgements
 from pinarray.analysis.load import RunSelection
 from pinarray.analysis.mixed import Cell, FitSkipped, FrequencyEffect, fit_frequency_effect
 from pinarray.analysis.stats import Summary, summarise_subjects
@@ -27,7 +29,9 @@ class Study:
     ``pooled`` and ``per_subject`` are trial counts (see `pinarray.analysis.stats`);
     ``subject_level`` has subjects as the unit; ``chance`` is None without localisation trials;
     ``thresholds`` are those of the adaptive rows (empty without any); ``strokes`` each pin's
-    achieved stroke by frequency (empty where nothing was measured).
+    achieved stroke by frequency (empty where nothing was measured); ``identification`` and
+    ``judgements`` the lab's paradigms' (confusion matrices and information transferred;
+    two-interval and temporal-order fits), empty without their rows.
     """
 
     runs: RunSelection
@@ -39,6 +43,8 @@ class Study:
     grid: Grid
     thresholds: Thresholds
     strokes: StrokeTable
+    identification: Identifications
+    judgements: Judgements
 
     @property
     def subjects(self) -> tuple[str, ...]:
@@ -70,4 +76,5 @@ def study(runs: RunSelection, settings: IntervalSettings = DEFAULT_SETTINGS,
     return Study(runs, pooled, tuple(per_subject), subject_level(per_subject, settings), chance,
                  fit_frequency_effect(cells), grid, thresholds(runs, settings),
                  stroke_table((record, run.mm_per_step) for run in runs.included
-                              for record in run.records))
+                              for record in run.records),
+                 identifications(runs.trials, settings), judgements(runs.trials, settings))

@@ -122,6 +122,14 @@ def bootstrap_interval(values: Sequence[float], seed: int = DEFAULT_BOOTSTRAP_SE
     return float(low), float(high)
 
 
+def interval_of(values: Sequence[float], settings: IntervalSettings) -> tuple[float, float]:
+    """The across-subject interval of the mean of ``values`` that ``settings`` name."""
+    if settings.method is IntervalMethod.T:
+        return t_interval(values, settings.level)
+    return bootstrap_interval(values, settings.bootstrap_seed, settings.bootstrap_resamples,
+                              settings.level)
+
+
 @dataclass(frozen=True)
 class AcrossSubjects:
     """One measure with subjects as the unit: each subject's proportion and their mean.

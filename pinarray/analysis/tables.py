@@ -50,6 +50,9 @@ def _write(path: Path, header: Sequence[str], rows: Sequence[Sequence[object]]) 
     return path
 
 
+write_csv = _write  # the lab's paradigms' tables (`pinarray.analysis.lab_report`) too
+
+
 def _level(settings: IntervalSettings) -> str:
     return f"{100 * settings.level:g}"
 

@@ -32,13 +32,13 @@ from pinarray.plan import PlannedTrial
 from pinarray.player.playback import DEFAULT_LEAD_NS, Onset, OnsetAfter, OnsetAt, PlaybackReport
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import LocalisationCondition, MotionCondition, Protocol, is_simulated
+from pinarray.protocol.model import Condition, Protocol, is_simulated
 from pinarray.schedule import TrialSchedule, compile_drives
 
 __all__ = ["Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock", "PinArray",
            "PinStroke", "Presentable", "SafeStopReport", "VirtualClock", "open_array"]
 
-Presentable = PlannedTrial | LocalisationCondition | MotionCondition
+Presentable = PlannedTrial | Condition
 """What `PinArray.present` plays: a trial of the protocol's plan, or one of its conditions."""
 
 
@@ -204,7 +204,7 @@ class PinArray:
 
         Parameters
         ----------
-        stimulus : PlannedTrial, LocalisationCondition or MotionCondition
+        stimulus : PlannedTrial or Condition
             A trial of the protocol's plan (`plan_trials`) or a condition of its design
             (`find_condition`). A trial of an adaptive design plays its condition as the
             protocol writes it: the values its procedures choose are `run_session`'s.
@@ -236,7 +236,7 @@ class PinArray:
 
         Parameters
         ----------
-        stimulus : PlannedTrial, LocalisationCondition or MotionCondition
+        stimulus : PlannedTrial or Condition
             As for `present`.
         at_ns : int
             The stimulus's time zero on the array's clock, in ns, at least `lead_ns` ahead
@@ -294,7 +294,7 @@ class PinArray:
                                     "of an adaptive design: run_session presents those")
             case PlannedTrial(condition=condition):
                 pass
-            case LocalisationCondition() | MotionCondition():
+            case _ if isinstance(stimulus, Condition):
                 condition = stimulus
             case _:
                 raise PinArrayError(f"expected a planned trial or a condition of the protocol, "

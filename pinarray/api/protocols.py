@@ -13,10 +13,17 @@ from os import PathLike, fspath
 
 from pinarray.errors import PinArrayError
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
+from pinarray.protocol.described import describe_condition as described
 from pinarray.protocol.model import Condition, LocalisationCondition, MotionCondition, Protocol
+from pinarray.protocol.paradigms import (
+    IdentificationCondition,
+    TemporalOrderCondition,
+    TwoIntervalCondition,
+)
 
-__all__ = ["Condition", "LocalisationCondition", "MotionCondition", "PlannedTrial", "Protocol",
-           "TrialPlan", "find_condition", "load_protocol", "plan_trials"]
+__all__ = ["Condition", "IdentificationCondition", "LocalisationCondition", "MotionCondition",
+           "PlannedTrial", "Protocol", "TemporalOrderCondition", "TrialPlan",
+           "TwoIntervalCondition", "find_condition", "load_protocol", "plan_trials"]
 
 
 def load_protocol(path: str | PathLike[str]) -> Protocol:
@@ -82,7 +89,7 @@ def find_condition(protocol: Protocol, *, pin: int | None = None,
 
     Returns
     -------
-    LocalisationCondition or MotionCondition
+    Condition
         Ready to be presented (`PinArray.present`).
 
     Raises
@@ -115,4 +122,4 @@ def describe_condition(condition: Condition) -> str:
             return f"{name} on pin {pin} at {float(frequency):g} Hz"
         case MotionCondition(stimulus=name, direction=direction):
             return f"{name} ({direction})"
-    raise AssertionError(condition)
+    return f"{condition.stimulus}: {described(condition)}"

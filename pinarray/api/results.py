@@ -8,10 +8,19 @@ from pathlib import Path
 
 from pinarray.analysis.load import LoadedRun, ManifestState, find_beh_files, load_run
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import LocalisationRecord, MotionRecord, TrialRecord, TrialStatus
+from pinarray.journal.records import (
+    IdentificationRecord,
+    LocalisationRecord,
+    MotionRecord,
+    TemporalOrderRecord,
+    TrialRecord,
+    TrialStatus,
+    TwoIntervalRecord,
+)
 
-__all__ = ["LoadedRun", "LocalisationRecord", "ManifestState", "MotionRecord", "RunPaths",
-           "TrialRecord", "TrialStatus", "read_results"]
+__all__ = ["IdentificationRecord", "LoadedRun", "LocalisationRecord", "ManifestState",
+           "MotionRecord", "RunPaths", "TemporalOrderRecord", "TrialRecord", "TrialStatus",
+           "TwoIntervalRecord", "read_results"]
 
 
 def read_results(*paths: str | PathLike[str]) -> tuple[LoadedRun, ...]:

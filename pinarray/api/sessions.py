@@ -19,7 +19,7 @@ from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.journal.paths import check_label
 from pinarray.player.rig import choose_clock
-from pinarray.protocol.model import LocalisationCondition, Protocol
+from pinarray.protocol.model import LocalisationCondition, MotionCondition, Protocol
 from pinarray.session.sitting import Answer, NotDelivered, Question, SessionRequest, Sitting
 
 __all__ = ["Answer", "AnswerSource", "NotDelivered", "Question", "run_session",
@@ -28,7 +28,9 @@ __all__ = ["Answer", "AnswerSource", "NotDelivered", "Question", "run_session",
 AnswerSource = Callable[[Question], Answer]
 """Answers each trial once its stimulus has played: given the `Question`, a pin's number (or
 ``"none"``: nothing felt) for localisation, a direction's name, ``"none"`` or ``"unsure"`` for
-apparent motion; None counts as nothing felt."""
+apparent motion; None counts as nothing felt. Identification takes a pattern's name (or a
+count), two intervals ``"first"`` or ``"second"``, temporal order the number of the pin that
+came first."""
 
 
 def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, session: str = "1",
@@ -106,7 +108,9 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
     model : str
         ``"default"`` (the seed's average subject: 62.5 % correct at 10 Hz, 77 % felt motion)
         or overrides such as ``"correct_10hz=0.7,motion_felt=0.9"``; an adaptive design's
-        psychometric function, e.g. ``"threshold=120,slope=3,lapse=0.02"``.
+        psychometric function, e.g. ``"threshold=120,slope=3,lapse=0.02"``; for the lab's
+        paradigms, e.g. ``"identify_correct=0.7"``, ``"weber=0.25"``, ``"jnd_ms=30"``
+        (`pinarray.analysis.lab_observer`).
     seed : int or None
         Seed of its random answers (None: a fixed design's observer draws a new subject; an
         adaptive one uses 0).
@@ -128,6 +132,11 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
                                    question.adapted_value)
 
         return respond_adaptively
+    if protocol.design.judgement is not None:
+        from pinarray.analysis.lab_observer import LabObserver, parse_lab_observer
+
+        lab = LabObserver(protocol, parse_lab_observer(model), seed)
+        return lambda question: lab.respond(question.trial.condition)
     from pinarray.analysis.observer import SimulatedObserver, parse_observer
 
     observer = SimulatedObserver(parse_observer(model).for_protocol(protocol), seed=seed)
@@ -135,8 +144,12 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
 
     def respond(question: Question) -> Answer:
         condition = question.trial.condition
-        if isinstance(condition, LocalisationCondition):
-            return observer.respond_localisation(condition.pin, float(condition.frequency_hz))
-        return observer.respond_motion(condition.direction, directions)
+        match condition:
+            case LocalisationCondition():
+                return observer.respond_localisation(condition.pin,
+                                                     float(condition.frequency_hz))
+            case MotionCondition():
+                return observer.respond_motion(condition.direction, directions)
+        raise AssertionError(condition)
 
     return respond

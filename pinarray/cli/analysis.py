@@ -127,6 +127,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     except OSError as problem:
         raise ResultsError(f"{problem.filename or args.out}: cannot write the report there: "
                            f"{problem.strerror}") from None
+    from pinarray.analysis.lab_report import lab_lines
+
     print(f"counted {len(runs.included)} run(s): {len(result.subjects)} subject(s), "
           f"{result.localisation_trials} localisation and {result.motion_trials} motion trials "
           "(main trials with status ok)")
@@ -164,6 +166,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
                         else f"{low:.4g}-{high:.4g}")
             print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
                   f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
+    for line in lab_lines(result.identification, result.judgements):
+        print(line)
     print(f"summary: {report.summary}")
     return 0
 
@@ -173,12 +177,16 @@ def _cmd_power(args: argparse.Namespace) -> int:
 
     from pinarray.analysis.observer import parse_observer
     from pinarray.analysis.power import power_seconds, power_study, protocol_design, write_power
-    from pinarray.errors import ResultsError
+    from pinarray.errors import PinArrayError, ResultsError
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)
     if protocol.design.adaptive is not None:
         return _check_procedures(protocol, args)
+    if protocol.design.judgement is not None:
+        raise PinArrayError(f"{protocol.source}: power simulates localisation and apparent-motion "
+                            f"designs, and adaptive ones; not a fixed "
+                            f"{protocol.design.paradigm.value} design")
     model = parse_observer(args.observer).for_protocol(protocol)
     common.check_output_folder(args.out, POWER_FILES)  # before the work, not after
     counts = sorted(args.subjects)

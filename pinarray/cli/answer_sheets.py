@@ -21,6 +21,14 @@ from dataclasses import dataclass
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.model import Paradigm, Protocol
+from pinarray.protocol.paradigms import (
+    FIRST,
+    SECOND,
+    AnswerKind,
+    Identification,
+    TemporalOrder,
+    TwoInterval,
+)
 
 # 20 000 trials (a protocol's most) of a few bytes each, with room for extra columns.
 MAX_ANSWERS_BYTES = 4 << 20
@@ -99,7 +107,8 @@ def parse_answers(text: str, source: str) -> tuple[Answer, ...]:
 def check_answers(
     answers: Iterable[Answer], source: str, protocol: Protocol
 ) -> dict[int, str]:
-    """Answers by trial number, as the session takes them (``"7"``, ``"none"``, ``"left"``).
+    """Answers by trial number, as the session takes them (``"7"``, ``"none"``, ``"left"``,
+    a pattern's name, ``"first"``).
 
     Every trial of the protocol's plan must be answered once, with an answer its paradigm
     accepts; trials the plan does not have are refused.
@@ -107,6 +116,7 @@ def check_answers(
     count = protocol.design.trial_count
     pins = protocol.device.grid.pin_count
     localisation = protocol.design.paradigm is Paradigm.LOCALISATION
+    lab, lab_expected = _lab_answers(protocol)
     problems: list[tuple[int, str]] = []
     by_trial: dict[int, str] = {}
     for answer in answers:
@@ -115,7 +125,13 @@ def check_answers(
                                           f"{protocol.source}: expected 1 to {count}"))
             continue
         word = answer.response.lower()
-        if localisation:
+        if lab:
+            found = lab.get(word)
+            if found is not None:
+                by_trial[answer.trial] = found
+                continue
+            expected = lab_expected
+        elif localisation:
             if word == "none":
                 by_trial[answer.trial] = word
                 continue
@@ -138,6 +154,25 @@ def check_answers(
     if problems:
         raise AnswersError(source, problems)
     return by_trial
+
+
+def _lab_answers(protocol: Protocol) -> tuple[dict[str, str], str]:
+    """The lab's paradigms: each answer as a sheet may write it (in any case; an interval by
+    its number too, a pin first by its place), with the answer the session takes; and what
+    the sheet is expected to hold. Empty for the seed's paradigms."""
+    judgement = protocol.design.judgement
+    if judgement is None:
+        return {}, ""
+    answers = protocol.design.answers(protocol.device.grid.pin_count)
+    written = {answer.lower(): answer for answer in answers}
+    match judgement:
+        case Identification(answers=AnswerKind.COUNTS):
+            return written, f"a count from 1 to {protocol.device.grid.pin_count}"
+        case TwoInterval():
+            written |= {"1": FIRST, "2": SECOND}
+        case TemporalOrder(pins=pins, places=places):
+            written |= {place: str(pin) for pin, place in zip(pins, places, strict=True)}
+    return written, f"one of {', '.join(answers)}"
 
 
 def load_answers(path: str, protocols: Sequence[Protocol]) -> dict[int, str]:

@@ -396,19 +396,16 @@ def _preview(args: argparse.Namespace) -> int:
 
 def _plan(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
-    from pinarray.protocol import LocalisationCondition
+    from pinarray.protocol.described import COLUMNS, condition_cells
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, args.seed)
-    localisation = all(isinstance(t.condition, LocalisationCondition) for t in plan.trials)
-    header = (["trial", "block", "practice", "stimulus"]
-              + (["pin", "frequency_hz"] if localisation else ["row", "direction"]))
+    header = ["trial", "block", "practice", "stimulus", *COLUMNS[protocol.design.paradigm]]
     rows = []
     for planned in plan.trials:
         c = planned.condition
-        what = ([str(c.pin), f"{float(c.frequency_hz):g}"] if isinstance(c, LocalisationCondition)
-                else ["-" if c.row is None else str(c.row), c.direction.value])
+        what = condition_cells(c)
         rows.append([str(planned.trial), str(planned.block),
                      "yes" if planned.practice else "no", c.stimulus, *what])
     practice = sum(t.practice for t in plan.trials)

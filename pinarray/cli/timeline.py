@@ -7,17 +7,18 @@ from typing import IO
 import numpy as np
 
 from pinarray.plan import PlannedTrial
-from pinarray.protocol import LocalisationCondition, Protocol
+from pinarray.protocol import MotionCondition, Protocol
+from pinarray.protocol.described import describe_condition
 from pinarray.schedule import TrialSchedule
 
 
 def describe_trial(planned: PlannedTrial) -> str:
     c = planned.condition
-    if isinstance(c, LocalisationCondition):
-        what = f"pin {c.pin} at {float(c.frequency_hz):g} Hz"
-    else:
+    if isinstance(c, MotionCondition):
         where = f"row {c.row}" if c.row is not None else "pins " + " ".join(map(str, c.pins))
         what = f"{c.direction.value} wave on {where}"
+    else:
+        what = describe_condition(c)
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 

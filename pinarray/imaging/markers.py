@@ -21,7 +21,8 @@ from typing import Protocol as Interface
 from pinarray.hardware.delivery import Presentation
 from pinarray.plan import PlannedTrial
 from pinarray.player.markers import TrialMarkers
-from pinarray.protocol import LocalisationCondition, Protocol
+from pinarray.protocol import LocalisationCondition, MotionCondition, Protocol
+from pinarray.protocol.described import COLUMNS, condition_cells
 from pinarray.schedule import TrialSchedule
 
 
@@ -42,10 +43,14 @@ def marker_text(event: str, planned: PlannedTrial, protocol: Protocol, task: str
                                "block": planned.block, "practice": planned.practice}
     if isinstance(condition, LocalisationCondition):
         data |= {"pin": condition.pin, "frequency_hz": _number(condition.frequency_hz)}
-    else:
+    elif isinstance(condition, MotionCondition):
         wave = protocol.wave(condition.stimulus)
         data |= {"row": condition.row, "direction": condition.direction.value,
                  "frequency_hz": _number(wave.train.frequency_hz)}
+    else:
+        data |= {"stimulus": condition.stimulus,
+                 "condition": dict(zip(COLUMNS[protocol.design.paradigm],
+                                       condition_cells(condition), strict=True))}
     return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
 

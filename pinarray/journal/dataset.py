@@ -27,7 +27,15 @@ from typing import Any
 from pinarray.errors import ResultsError
 from pinarray.journal.files import write_atomically
 from pinarray.journal.lock import held
-from pinarray.journal.manifest import LocalisationEntry, MotionEntry, PlanEntry, RunManifest
+from pinarray.journal.manifest import (
+    IdentificationEntry,
+    LocalisationEntry,
+    MotionEntry,
+    PlanEntry,
+    RunManifest,
+    TemporalOrderEntry,
+    TwoIntervalEntry,
+)
 from pinarray.journal.paths import SOURCEDATA, RunPaths
 from pinarray.journal.records import (
     BEH_COLUMNS,
@@ -38,6 +46,7 @@ from pinarray.journal.records import (
     NOTHING_FELT,
     Column,
     condition_label,
+    number_text,
 )
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
 from pinarray.protocol import Direction, MotionAnswer, Paradigm
@@ -104,6 +113,13 @@ INSTRUCTIONS = {
                               "you felt a dot moving and, if so, which way it went (left, right, "
                               "up, down: the directions the experimenter named), or unsure; "
                               "say 'none' if you felt no movement.",
+    # The lab's paradigms: what the protocol asks (the run's manifest holds its words).
+    Paradigm.IDENTIFICATION: "Rest your fingertip on the pins. After each stimulus, name the "
+                             "shape the raised pins made (or how many pins were raised).",
+    Paradigm.TWO_INTERVAL: "Rest your fingertip on the pins. Each trial plays two intervals; "
+                           "say which one, first or second, had more of what you were asked.",
+    Paradigm.TEMPORAL_ORDER: "Rest your fingertip on the pins. Two pins tap one after the "
+                             "other; say which came first.",
 }
 
 
@@ -205,6 +221,19 @@ def _trial_types(task: str, plan: tuple[PlanEntry, ...]) -> dict[str, str]:
                 label = condition_label(task, direction=entry.direction)
                 levels.setdefault(label, f"apparent motion: {entry.direction.value} "
                                          f"({_direction_meaning(entry)})")
+            case IdentificationEntry():
+                levels.setdefault(f"{task}_{entry.stimulus}", f"pattern {entry.stimulus} on "
+                                  f"pins {' '.join(map(str, entry.pins))}")
+            case TwoIntervalEntry():
+                unit = entry.compared.rpartition("_")[2]
+                comparison = number_text(float(entry.comparison))
+                levels.setdefault(f"{task}_{comparison}{unit}",
+                                  f"two intervals: {entry.compared} {comparison} against the "
+                                  f"standard {number_text(float(entry.standard))}")
+            case TemporalOrderEntry():
+                soa = number_text(entry.soa_ns / 1e6)
+                levels.setdefault(f"{task}_soa{soa}ms", f"pin {entry.pins[1]} starts {soa} ms "
+                                  f"after pin {entry.pins[0]}")
     return dict(sorted(levels.items()))
 
 
@@ -228,6 +257,12 @@ def _run_levels(manifest: RunManifest) -> dict[str, dict[str, str]]:
     levels: dict[str, dict[str, str]] = {}
     if info.paradigm is Paradigm.LOCALISATION:
         response = {p: f"named pin {p}" for p in pins} | {NOTHING_FELT: "nothing felt"}
+    elif info.answers:  # the lab's paradigms: the answers the design offered
+        response = dict(info.answers)
+        patterns = {e.stimulus: f"pins {' '.join(map(str, e.pins))}" for e in manifest.plan
+                    if isinstance(e, IdentificationEntry)}
+        if patterns:
+            levels["pattern"] = patterns
     else:
         directions = [e.direction for e in manifest.plan if isinstance(e, MotionEntry)]
         offered = [*answered_directions(directions), MotionAnswer.NONE, MotionAnswer.UNSURE]

@@ -6,6 +6,9 @@ values crossing modules are frozen: `PlanEntry` (one trial of the plan), `Proven
 the run was made from), `TaskInfo` (what the sidecars say about the task); JSON only at the
 file boundary. Manifests written before the time base and the sum-typed plan (a ``pid`` and
 ``resumed_at`` list instead of sittings) are still read.
+
+Past 400 lines on purpose: the manifest's values and their JSON, written and read back by the
+same code (a plan entry per paradigm included); apart, they drift.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from pinarray.journal.timebase import (
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
 from pinarray.protocol.model import is_motion_answer
+from pinarray.protocol.paradigms import IntervalOrder
 from pinarray.version import __version__
 
 
@@ -76,7 +80,33 @@ class MotionEntry(_Entry):
     pins: tuple[int, ...] = ()
 
 
-PlanEntry: TypeAlias = LocalisationEntry | MotionEntry
+@dataclass(frozen=True, kw_only=True)
+class IdentificationEntry(_Entry):
+    """An identification trial: the pattern ``stimulus`` raising ``pins``."""
+
+    pins: tuple[int, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwoIntervalEntry(_Entry):
+    """A two-interval trial: ``compared`` at ``standard`` and ``comparison``, in ``order``."""
+
+    compared: str
+    standard: Fraction
+    comparison: Fraction
+    order: IntervalOrder
+
+
+@dataclass(frozen=True, kw_only=True)
+class TemporalOrderEntry(_Entry):
+    """A temporal-order trial: ``pins`` (A, B), B starting ``soa_ns`` after A."""
+
+    pins: tuple[int, ...]
+    soa_ns: int
+
+
+PlanEntry: TypeAlias = (LocalisationEntry | MotionEntry | IdentificationEntry | TwoIntervalEntry
+                        | TemporalOrderEntry)
 
 
 def entry_key(entry: PlanEntry) -> tuple[int, bool]:
@@ -98,6 +128,13 @@ def entry_to_json(entry: PlanEntry) -> dict[str, Any]:
             data |= {"direction": entry.wave.value, "row": entry.row}
             if entry.row is None:
                 data |= {"pins": list(entry.pins), "towards": entry.direction.value}
+        case IdentificationEntry():
+            data |= {"pattern": entry.stimulus, "pins": list(entry.pins)}
+        case TwoIntervalEntry():
+            data |= {"compare": entry.compared, "standard": str(entry.standard),
+                     "comparison": str(entry.comparison), "interval_order": entry.order.value}
+        case TemporalOrderEntry():
+            data |= {"pins": list(entry.pins), "soa_ns": entry.soa_ns}
     if entry.catch:
         data["catch"] = True
     return data
@@ -114,6 +151,16 @@ def entry_from_json(data: object, where: str) -> PlanEntry:
                               "stimulus": str(data.get("stimulus") or ""),
                               "catch": data.get("catch") is True}
     try:
+        if data.get("pattern") is not None:
+            return IdentificationEntry(**common, pins=tuple(int(p) for p in data["pins"]))
+        if data.get("interval_order") is not None:
+            return TwoIntervalEntry(**common, compared=str(data["compare"]),
+                                    standard=Fraction(str(data["standard"])),
+                                    comparison=Fraction(str(data["comparison"])),
+                                    order=IntervalOrder(data["interval_order"]))
+        if data.get("soa_ns") is not None and not isinstance(data["soa_ns"], bool):
+            return TemporalOrderEntry(**common, pins=tuple(int(p) for p in data["pins"]),
+                                      soa_ns=int(data["soa_ns"]))
         if data.get("pin") is not None:
             return LocalisationEntry(**common, pin=int(data["pin"]),
                                      frequency_hz=Fraction(str(data["frequency_hz"])))
@@ -165,6 +212,9 @@ class TaskInfo:
     # Each pin's travel for one position unit (servo step; us on a PWM board), mm, pin 1
     # first: what turns a stroke in the rows into millimetres. Empty in older manifests.
     mm_per_step: tuple[float, ...] = ()
+    # The lab's paradigms: every answer the design offers, each with what it means (the
+    # sidecar's response levels). Empty for the seed's paradigms and in older manifests.
+    answers: tuple[tuple[str, str], ...] = ()
 
     @property
     def pins(self) -> range:
@@ -233,7 +283,8 @@ class RunManifest:
             "task_info": {"name": t.name, "paradigm": t.paradigm.value,
                           "description": t.description, "instructions": t.instructions,
                           "grid_rows": t.grid_rows, "grid_columns": t.grid_columns,
-                          "pitch_mm": t.pitch_mm, "mm_per_step": list(t.mm_per_step)},
+                          "pitch_mm": t.pitch_mm, "mm_per_step": list(t.mm_per_step),
+                          **({"answers": dict(t.answers)} if t.answers else {})},
             "time_zero": None if self.time_zero is None else {
                 "event": self.time_zero.event, "at": self.time_zero.at},
             "sittings": [_sitting_to_json(s) for s in self.sittings],
@@ -302,7 +353,7 @@ def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
 
 
 def _task_info(data: Any, task: str, plan: Sequence[PlanEntry]) -> TaskInfo:
-    if data is None:  # an older manifest: what the plan and the labels say
+    if data is None:  # an older manifest (the seed's paradigms only): what the plan says
         motion = bool(plan) and isinstance(plan[0], MotionEntry)
         return TaskInfo(task, Paradigm.APPARENT_MOTION if motion else Paradigm.LOCALISATION)
     return TaskInfo(name=str(data["name"]), paradigm=Paradigm(data["paradigm"]),
@@ -311,7 +362,9 @@ def _task_info(data: Any, task: str, plan: Sequence[PlanEntry]) -> TaskInfo:
                     grid_rows=int(data.get("grid_rows", 4)),
                     grid_columns=int(data.get("grid_columns", 4)),
                     pitch_mm=float(data.get("pitch_mm", 2.0)),
-                    mm_per_step=tuple(float(mm) for mm in data.get("mm_per_step", ())))
+                    mm_per_step=tuple(float(mm) for mm in data.get("mm_per_step", ())),
+                    answers=tuple((str(a), str(m))
+                                  for a, m in dict(data.get("answers", {})).items()))
 
 
 def write_manifest(path: Path, manifest: RunManifest) -> None:

@@ -1,15 +1,19 @@
 """Trial records as the lab reads them: one row per finished (or abandoned) trial, and the reader.
 
-A row is a `LocalisationRecord` (a pin moved; the subject named a pin, or nothing felt) or a
+A row is a `LocalisationRecord` (a pin moved; the subject named a pin, or nothing felt), a
 `MotionRecord` (a wave along a row, or the no-wave control; the subject said which way, if
-any). `BEH_COLUMNS` is the ``beh.tsv`` schema, each column with its cell type; times are whole
-nanoseconds in a record and decimal seconds in a file. The writer is `pinarray.journal.writer`;
+any), or one of the lab's paradigms: an `IdentificationRecord` (a pattern; the subject named
+one, or a count), a `TwoIntervalRecord` (a standard and a comparison; the subject named an
+interval) or a `TemporalOrderRecord` (two pins an SOA apart; the subject named the first).
+`BEH_COLUMNS` is the ``beh.tsv`` schema, each column with its cell type (the lab's paradigms'
+appended after the columns older files end with); times are whole nanoseconds in a record and
+decimal seconds in a file. The writer is `pinarray.journal.writer`;
 this module only formats and parses, so the analysis reads results without any writer code.
 
 A process killed while writing leaves at most one torn last line (`split_torn_tail`); the
 reader leaves it out.
 
-Past 400 lines on purpose: the two record types, the column schema and the reader are one
+Past 400 lines on purpose: the record types, the column schema and the reader are one
 contract (every column is written and read back by the same table); split, they drift apart.
 """
 
@@ -28,6 +32,7 @@ from pinarray.grid import ErrorClass
 from pinarray.journal.paths import check_label
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
 from pinarray.protocol.model import NOTHING_FELT, Direction, MotionAnswer, is_motion_answer
+from pinarray.protocol.paradigms import FIRST, SECOND, IntervalOrder
 
 NA = "n/a"  # BIDS spelling of "not applicable"
 class TrialStatus(StrEnum):
@@ -261,8 +266,115 @@ class MotionRecord(_Trial):
         return self.response.value == self.direction.value if self.response else None
 
 
-TrialRecord: TypeAlias = LocalisationRecord | MotionRecord
-"""One row of a run's ``beh.tsv``: a localisation or an apparent-motion trial."""
+def _check_pins(pins: object, where: str, count: int | None = None) -> None:
+    if (not isinstance(pins, tuple) or not pins or (count is not None and len(pins) != count)
+            or any(isinstance(p, bool) or not isinstance(p, int) or p < 1 for p in pins)):
+        wanted = f"{count} pin numbers" if count else "pin numbers"
+        raise ResultsError(f"{where}: pins must be {wanted}, found {pins!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class IdentificationRecord(_Trial):
+    """An identification trial: the pattern stimulus ``pattern`` raised ``pins``; the subject
+    named a pattern, or a count of pins (``response``; None when the trial got no answer)."""
+
+    pattern: str
+    pins: tuple[int, ...]
+    response: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_pins(self.pins, f"trial {self.trial}")
+
+    @property
+    def correct(self) -> bool | None:
+        """Whether the answer names the pattern (or, a count, how many pins it raised)."""
+        if self.response is None:
+            return None
+        if self.response.isdigit():
+            return int(self.response) == len(self.pins)
+        return self.response == self.pattern
+
+
+@dataclass(frozen=True, kw_only=True)
+class TwoIntervalRecord(_Trial):
+    """A two-interval trial: ``compared`` (``frequency_hz``...) at ``standard`` and at
+    ``comparison`` in ``interval_order``, on ``pins``; the subject's ``response`` names the
+    interval that had more of it, ``first`` or ``second`` (None when the trial got no
+    answer)."""
+
+    compared: str
+    standard: float
+    comparison: float
+    interval_order: IntervalOrder
+    pins: tuple[int, ...]
+    response: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"trial {self.trial}"
+        _coerce(self, "interval_order", IntervalOrder, where)
+        _check_pins(self.pins, where)
+        if self.response not in (None, FIRST, SECOND):
+            raise ResultsError(f"{where}: a two-interval response must be {FIRST} or {SECOND}, "
+                               f"found {self.response!r}")
+
+    @property
+    def comparison_first(self) -> bool:
+        """Whether the comparison played in the first interval."""
+        return self.interval_order is IntervalOrder.COMPARISON_FIRST
+
+    @property
+    def chose_comparison(self) -> bool | None:
+        """Whether the interval named is the comparison's; None without an answer."""
+        if self.response is None:
+            return None
+        return (self.response == FIRST) == self.comparison_first
+
+    @property
+    def correct(self) -> bool | None:
+        """Whether the interval named had the higher value."""
+        chose = self.chose_comparison
+        return None if chose is None else chose == (self.comparison > self.standard)
+
+
+@dataclass(frozen=True, kw_only=True)
+class TemporalOrderRecord(_Trial):
+    """A temporal-order trial: a train on ``pins`` (A, B), B starting ``soa_ns`` after A
+    (negative: B first); the subject named the pin that came first (``response``)."""
+
+    pins: tuple[int, int]
+    soa_ns: int
+    response: str | None = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = f"trial {self.trial}"
+        _check_pins(self.pins, where, 2)
+        if isinstance(self.soa_ns, bool) or not isinstance(self.soa_ns, int):
+            raise ResultsError(f"{where}: soa_ns must be whole nanoseconds, found {self.soa_ns!r}")
+        if self.response is not None and self.response not in map(str, self.pins):
+            raise ResultsError(f"{where}: a temporal-order response must name pin "
+                               f"{self.pins[0]} or {self.pins[1]}, found {self.response!r}")
+
+    @property
+    def named_a_first(self) -> bool | None:
+        """Whether the subject said pin A (the first listed) came first."""
+        return None if self.response is None else self.response == str(self.pins[0])
+
+    @property
+    def correct(self) -> bool | None:
+        """Whether the pin named started first; None without an answer or at an SOA of 0."""
+        if self.response is None or self.soa_ns == 0:
+            return None
+        return self.named_a_first == (self.soa_ns > 0)
+
+
+TrialRecord: TypeAlias = (LocalisationRecord | MotionRecord | IdentificationRecord
+                          | TwoIntervalRecord | TemporalOrderRecord)
+"""One row of a run's ``beh.tsv``: a localisation, apparent-motion, identification,
+two-interval or temporal-order trial."""
+LabRecord: TypeAlias = IdentificationRecord | TwoIntervalRecord | TemporalOrderRecord
 
 
 # -- the columns ---------------------------------------------------------------------------------
@@ -373,7 +485,10 @@ BEH_COLUMNS: tuple[Column, ...] = (
            "adapted_parameter names; n/a for a catch trial's own stimulus and in a fixed design."),
     Column("correct", Cell.BOOLEAN, "Whether the answer counted as correct for the task (the "
            "wave's direction named; the moved pin named; something felt on a stimulus trial, "
-           "nothing on a catch trial); n/a without an answer.",
+           "nothing on a catch trial; the pattern, or its count of pins, named; the interval "
+           "with the higher value named; the pin that started first named); n/a without an "
+           "answer, in a fixed localisation or motion design, and at a temporal order's SOA "
+           "of 0.",
            levels={"true": "counted as correct", "false": "counted as wrong"}),
     Column("reversal", Cell.BOOLEAN, "Whether the answer made the staircase reverse (move the "
            "other way from its previous move); n/a for QUEST+ and catch trials.",
@@ -409,6 +524,29 @@ BEH_COLUMNS: tuple[Column, ...] = (
            "run's motion recording (its _recording-motion_physio.tsv.gz) holds: written and "
            "synced to disk before this row, in the order of the rows; 0 when none were taken "
            "(PWM servos, a stimulus that never played)."),
+    # The lab's paradigms (identification, two intervals, temporal order), appended after the
+    # columns files written before them hold (0.2.2's motion_samples the last of those).
+    Column("pattern", Cell.TEXT, "Identification: the pattern presented, by its name in the "
+           "protocol; n/a for the other paradigms."),
+    Column("pins", Cell.TEXT, "The pins the stimulus moved, numbered as the subject sees them "
+           "and separated by spaces: identification, every pin of the pattern; two intervals, "
+           "the stimulus's pins; temporal order, pin A then pin B as the protocol lists them "
+           "(soa is B's onset minus A's); n/a for localisation (see pin) and motion trials."),
+    Column("compared_parameter", Cell.TEXT, "Two intervals: the parameter the intervals differ "
+           "in, with its unit as the protocol names it (frequency_hz, duration_ms, soa_ms); n/a "
+           "for the other paradigms."),
+    Column("standard", Cell.NUMBER, "Two intervals: the standard's value, in the unit "
+           "compared_parameter names."),
+    Column("comparison", Cell.NUMBER, "Two intervals: the comparison's value, in the unit "
+           "compared_parameter names (an adaptive design's: its intensity)."),
+    Column("interval_order", Cell.TEXT, "Two intervals: which interval held the standard.",
+           levels={IntervalOrder.STANDARD_FIRST: "the standard in the first interval, the "
+                                                 "comparison in the second",
+                   IntervalOrder.COMPARISON_FIRST: "the comparison in the first interval, the "
+                                                   "standard in the second"}),
+    Column("soa", Cell.SECONDS, "Temporal order: the onset of pin B's train minus pin A's "
+           "(the pins column's order): positive when A started first, negative when B did.",
+           units="s"),
 )
 BEH_NAMES = tuple(c.name for c in BEH_COLUMNS)
 COLUMN = {c.name: c for c in BEH_COLUMNS}
@@ -476,6 +614,17 @@ def _values(record: TrialRecord) -> dict[str, Any]:
             values |= {"row": record.row, "direction": record.direction,
                        "response": record.response, "perceived_motion": record.perceived_motion,
                        "direction_correct": record.direction_correct}
+        case IdentificationRecord():
+            values |= {"pattern": record.pattern, "pins": pins_text(record.pins),
+                       "response": record.response, "correct": record.correct}
+        case TwoIntervalRecord():
+            values |= {"compared_parameter": record.compared, "standard": record.standard,
+                       "comparison": record.comparison, "interval_order": record.interval_order,
+                       "pins": pins_text(record.pins), "response": record.response,
+                       "correct": record.correct}
+        case TemporalOrderRecord():
+            values |= {"pins": pins_text(record.pins), "soa": record.soa_ns,
+                       "response": record.response, "correct": record.correct}
     if record.stroke is not None:
         s = record.stroke
         values |= {"stroke_commanded": s.commanded_steps, "stroke_achieved": s.achieved_steps,
@@ -504,13 +653,33 @@ def _cells(values: Mapping[str, Any], names: Sequence[str]) -> list[str]:
     return [cell(name) for name in names]
 
 
+def pins_text(pins: Sequence[int]) -> str:
+    """A pins cell: the pins separated by spaces."""
+    return " ".join(map(str, pins))
+
+
+def _pins_cell(text: str, where: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(p) for p in text.split())
+    except ValueError:
+        raise ResultsError(f"{where}: column 'pins' cannot hold {text!r}") from None
+
+
 def trial_type(record: TrialRecord) -> str:
-    """The events.tsv condition label, e.g. ``localisation_10hz`` or ``apparentmotion_left``."""
+    """The events.tsv condition label, e.g. ``localisation_10hz``, ``apparentmotion_left``,
+    ``shapes_L``, ``flutter2ifc_12hz`` or ``toj_soa-40ms``."""
     match record:
         case LocalisationRecord():
             return condition_label(record.task, frequency_hz=record.frequency_hz)
         case MotionRecord():
             return condition_label(record.task, direction=record.direction)
+        case IdentificationRecord():
+            return f"{record.task}_{record.pattern}"
+        case TwoIntervalRecord():
+            unit = record.compared.rpartition("_")[2]
+            return f"{record.task}_{number_text(record.comparison)}{unit}"
+        case TemporalOrderRecord():
+            return f"{record.task}_soa{number_text(record.soa_ns / 1e6)}ms"
 
 
 def condition_label(task: str, *, frequency_hz: float | None = None,
@@ -625,6 +794,23 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
         "adaptive": adaptive, "motion_samples": values.get("motion_samples"),
     }
     try:
+        if values.get("pattern") is not None:
+            return IdentificationRecord(
+                **common, pattern=values["pattern"],
+                pins=_pins_cell(_required(values, "pins", where), where),
+                response=values.get("response"))
+        if values.get("interval_order") is not None:
+            return TwoIntervalRecord(
+                **common, compared=_required(values, "compared_parameter", where),
+                standard=_required(values, "standard", where),
+                comparison=_required(values, "comparison", where),
+                interval_order=values["interval_order"],
+                pins=_pins_cell(_required(values, "pins", where), where),
+                response=values.get("response"))
+        if values.get("soa") is not None:
+            pins = _pins_cell(_required(values, "pins", where), where)
+            return TemporalOrderRecord(**common, pins=pins,  # type: ignore[arg-type]
+                                       soa_ns=values["soa"], response=values.get("response"))
         if values.get("pin") is not None:
             error_class = values.get("error_class")
             return LocalisationRecord(
@@ -636,7 +822,9 @@ def _record(values: Mapping[str, Any], where: str) -> TrialRecord:
                                 direction=values["direction"], response=values.get("response"))
     except ResultsError as problem:
         raise ResultsError(f"{where}: {problem}") from None
-    raise ResultsError(f"{where}: a row needs a pin (localisation) or a direction (motion)")
+    raise ResultsError(f"{where}: a row needs a pin (localisation), a direction (motion), a "
+                       "pattern (identification), an interval order (two intervals) or an soa "
+                       "(temporal order)")
 
 
 def read_trials(path: Path | str) -> list[TrialRecord]:

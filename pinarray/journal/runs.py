@@ -16,12 +16,15 @@ from pinarray.errors import PinArrayError
 from pinarray.journal.dataset import INSTRUCTIONS
 from pinarray.journal.lock import LockHolder, lock_holder
 from pinarray.journal.manifest import (
+    IdentificationEntry,
     LocalisationEntry,
     MotionEntry,
     PlanEntry,
     Provenance,
     RunManifest,
     TaskInfo,
+    TemporalOrderEntry,
+    TwoIntervalEntry,
     find_unfinished,
     remaining_plan,
 )
@@ -32,6 +35,13 @@ from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
 from pinarray.protocol import LocalisationCondition, Protocol
+from pinarray.protocol.paradigms import (
+    IdentificationCondition,
+    TemporalOrderCondition,
+    TwoIntervalCondition,
+    answer_meanings,
+    instructions,
+)
 
 
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
@@ -40,8 +50,16 @@ def plan_entry(planned: PlannedTrial) -> PlanEntry:
     common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
                               "practice": planned.practice, "stimulus": c.stimulus,
                               "catch": planned.catch}
-    if isinstance(c, LocalisationCondition):
-        return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
+    match c:
+        case LocalisationCondition():
+            return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
+        case IdentificationCondition():
+            return IdentificationEntry(**common, pins=c.pins)
+        case TwoIntervalCondition():
+            return TwoIntervalEntry(**common, compared=c.parameter.value, standard=c.standard,
+                                    comparison=c.comparison, order=c.order)
+        case TemporalOrderCondition():
+            return TemporalOrderEntry(**common, pins=c.pins, soa_ns=c.soa_ns)
     return MotionEntry(**common, row=c.row, wave=c.kind, direction=c.direction, pins=c.pins)
 
 
@@ -52,11 +70,16 @@ def plan_entries(plan: TrialPlan) -> tuple[PlanEntry, ...]:
 def task_info(protocol: Protocol) -> TaskInfo:
     """What the sidecars say about the protocol's task and device."""
     grid = protocol.device.grid
-    paradigm = protocol.design.paradigm
-    return TaskInfo(name=protocol.name, paradigm=paradigm, description=protocol.description,
-                    instructions=INSTRUCTIONS[paradigm], grid_rows=grid.rows,
-                    grid_columns=grid.columns, pitch_mm=grid.pitch_mm,
-                    mm_per_step=tuple(protocol.device.mm_per_step(pin) for pin in grid.pins))
+    design = protocol.design
+    judgement = design.judgement
+    return TaskInfo(name=protocol.name, paradigm=design.paradigm,
+                    description=protocol.description,
+                    instructions=(INSTRUCTIONS[design.paradigm] if judgement is None
+                                  else instructions(judgement)),
+                    grid_rows=grid.rows, grid_columns=grid.columns, pitch_mm=grid.pitch_mm,
+                    mm_per_step=tuple(protocol.device.mm_per_step(pin) for pin in grid.pins),
+                    answers=(() if judgement is None
+                             else answer_meanings(judgement, grid.pin_count)))
 
 
 def time_scale_of(clock: Clock) -> TimeScale:

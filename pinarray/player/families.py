@@ -23,10 +23,12 @@ from pinarray.protocol import (
     Device,
     HobbyServos,
     LocalisationCondition,
+    MotionCondition,
     Pca9685Board,
     Protocol,
     ServoSettings,
 )
+from pinarray.protocol.described import describe_condition
 from pinarray.protocol.device import SIMULATED_BOARD_PORT
 from pinarray.units import NS_PER_US
 
@@ -122,8 +124,11 @@ def board_refusals(protocol: Protocol) -> tuple[str, ...]:
                 name = f"{condition.stimulus} at {float(condition.frequency_hz):g} Hz"
                 pins, _ = refused.setdefault(name, ([], str(refusal)))
                 pins.append(condition.pin)
-            else:
+            elif isinstance(condition, MotionCondition):
                 refused[f"{condition.stimulus} going {condition.direction}"] = ([], str(refusal))
+            else:
+                refused[f"{condition.stimulus}: {describe_condition(condition)}"] = (
+                    [], str(refusal))
     return tuple(f"{name}{f' on pins {_pin_list(pins)}' if len(pins) > 1 else ''}: {reason}"
                  for name, (pins, reason) in refused.items())
 

@@ -17,8 +17,11 @@ from pinarray.protocol.drives import stimulus_drives
 from pinarray.protocol.model import (
     Condition,
     Device,
+    Frames,
     LocalisationCondition,
     PathWave,
+    Pattern,
+    PatternStimulus,
     PinDrive,
     Protocol,
     Stimulus,
@@ -28,6 +31,7 @@ from pinarray.protocol.model import (
     Wave,
     WaveStimulus,
 )
+from pinarray.protocol.paradigms import TemporalOrderCondition, TwoIntervalCondition
 from pinarray.protocol.procedures import Parameter
 from pinarray.units import NS_PER_MS
 
@@ -54,13 +58,40 @@ def adapted_stimulus(stimulus: Stimulus, parameter: Parameter, value: Fraction) 
             if parameter is Parameter.SOA_MS:
                 raise PinArrayError(f"stimulus {stimulus.name!r} is a pulse train: it has no SOA")
             return replace(stimulus, train=_train(train, parameter, value))
+        case PatternStimulus(shape=Frames() as frames) if parameter is Parameter.SOA_MS:
+            return replace(stimulus, shape=replace(frames, soa_ns=round(value * NS_PER_MS)))
+        case PatternStimulus(shape=Frames() as frames):
+            return replace(stimulus, shape=replace(frames, frames=tuple(
+                (name, _pattern(pattern, parameter, value)) for name, pattern in frames.frames)))
+        case PatternStimulus(shape=Pattern() as pattern):
+            if parameter is Parameter.SOA_MS:
+                raise PinArrayError(f"stimulus {stimulus.name!r} is one pattern: it has no SOA "
+                                    "(frames have one)")
+            return replace(stimulus, shape=_pattern(pattern, parameter, value))
     raise AssertionError(stimulus)
+
+
+def _pattern(pattern: Pattern, parameter: Parameter, value: Fraction) -> Pattern:
+    train = _train(pattern.train, parameter, value)
+    assert isinstance(train, Train)  # a pattern's train has its frequency
+    return replace(pattern, train=train)
+
+
+def adapts_condition(condition: Condition) -> bool:
+    """Whether a value of the design's parameter changes the condition alone (the comparison
+    of two intervals, the SOA between two pins), not the stimulus the protocol states."""
+    return isinstance(condition, TwoIntervalCondition | TemporalOrderCondition)
 
 
 def adapted_condition(condition: Condition, parameter: Parameter, value: Fraction) -> Condition:
     """The condition as its row tells it: a localisation trial's frequency is the one played."""
-    if isinstance(condition, LocalisationCondition) and parameter is Parameter.FREQUENCY_HZ:
-        return replace(condition, frequency_hz=value)
+    match condition:
+        case LocalisationCondition() if parameter is Parameter.FREQUENCY_HZ:
+            return replace(condition, frequency_hz=value)
+        case TwoIntervalCondition():
+            return replace(condition, comparison=value)
+        case TemporalOrderCondition(soa_ns=soa_ns):
+            return replace(condition, soa_ns=round(value * NS_PER_MS) * (-1 if soa_ns < 0 else 1))
     return condition
 
 
@@ -91,8 +122,9 @@ def stroke_device(device: Device, pins: set[int], train: Train, stroke: Fraction
 def adapted_drives(device: Device, stimulus: Stimulus, condition: Condition, parameter: Parameter,
                    value: Fraction) -> tuple[Device, tuple[PinDrive, ...]]:
     """What one trial at ``value`` drives, and the device it plays on."""
-    drives = stimulus_drives(adapted_stimulus(stimulus, parameter, value),
-                             adapted_condition(condition, parameter, value))
+    played = stimulus if adapts_condition(condition) else adapted_stimulus(stimulus, parameter,
+                                                                           value)
+    drives = stimulus_drives(played, adapted_condition(condition, parameter, value))
     if parameter.is_stroke:
         device = stroke_device(device, {d.pin for d in drives}, drives[0].train, value)
     return device, drives
@@ -103,7 +135,8 @@ def adapted(protocol: Protocol, condition: Condition, parameter: Parameter,
     """The protocol and condition of a trial presenting ``condition`` at ``value``."""
     stimulus = protocol.stimulus(condition.stimulus)
     device, _ = adapted_drives(protocol.device, stimulus, condition, parameter, value)
-    stimuli = tuple(adapted_stimulus(s, parameter, value) if s is stimulus else s
+    stimuli = tuple(adapted_stimulus(s, parameter, value)
+                    if s is stimulus and not adapts_condition(condition) else s
                     for s in protocol.stimuli)
     return (replace(protocol, device=device, stimuli=stimuli),
             adapted_condition(condition, parameter, value))

@@ -62,7 +62,7 @@ from pinarray.protocol.procedures import (
     UniformPrior,
 )
 from pinarray.protocol.quest_grid import uninformative
-from pinarray.protocol.stimuli import check_period, check_train_on_pins
+from pinarray.protocol.stimuli import check_bus, check_period, check_train_on_pins
 from pinarray.protocol.yaml_nodes import Invalid, MappingNode, Node, Reader
 
 ADAPTIVE_KEYS = {"parameter", "values", "task", "guess_rate", "catch_trials", "procedures"}
@@ -81,9 +81,15 @@ MAX_CHECKS = 20_000  # (value, stimulus) pairs checked as they would play
 RESERVED = (CATCH, PRACTICE)
 PROCEDURE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,31}")
 TASKS_OF = {Paradigm.APPARENT_MOTION: (Task.DIRECTION, Task.DETECTION),
-            Paradigm.LOCALISATION: (Task.LOCALISATION, Task.DETECTION)}
+            Paradigm.LOCALISATION: (Task.LOCALISATION, Task.DETECTION),
+            Paradigm.TWO_INTERVAL: (Task.DISCRIMINATION,),
+            Paradigm.TEMPORAL_ORDER: (Task.ORDER,)}
 PARAMETERS_OF = {Paradigm.APPARENT_MOTION: tuple(Parameter),
-                 Paradigm.LOCALISATION: tuple(p for p in Parameter if p is not Parameter.SOA_MS)}
+                 Paradigm.LOCALISATION: tuple(p for p in Parameter if p is not Parameter.SOA_MS),
+                 # The comparison of two intervals (the design's compare), the SOA of two pins.
+                 Paradigm.TWO_INTERVAL: (Parameter.FREQUENCY_HZ, Parameter.DURATION_MS,
+                                         Parameter.SOA_MS),
+                 Paradigm.TEMPORAL_ORDER: (Parameter.SOA_MS,)}
 DEFAULT_SLOPES: tuple[Fraction, ...] = tuple(map(Fraction, (1, 2, 3, 4, 5)))
 DEFAULT_LAPSES: tuple[Fraction, ...] = (Fraction(0), Fraction(1, 50), Fraction(1, 25))
 
@@ -136,6 +142,8 @@ def _default_guess(task: Task, conditions: Sequence[Condition]) -> Fraction:
         return Fraction(1, max(len(directions), 1))
     if task is Task.LOCALISATION:
         return Fraction(1, len({c.pin for c in conditions if isinstance(c, LocalisationCondition)}))
+    if task in (Task.DISCRIMINATION, Task.ORDER):
+        return Fraction(1, 2)  # one of two intervals, one of two pins
     return Fraction(0)
 
 
@@ -384,5 +392,6 @@ def _check_values(reader: Reader, node: Node, device: Device, parameter: Paramet
                 for train, pins in trains.items():
                     check_period(probe, node, node, train)
                     check_train_on_pins(probe, node, train, sorted(pins), played)
+                check_bus(probe, node, drives, played)
             except Invalid:
                 raise reader.error(node, where + probe.errors[0].message) from None

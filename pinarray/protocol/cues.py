@@ -7,8 +7,17 @@ warns about it without refusing the protocol: the lab may have reasons. Pure; no
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import Condition, LocalisationCondition, Protocol
+from pinarray.protocol.model import (
+    Condition,
+    LocalisationCondition,
+    MotionCondition,
+    Paradigm,
+    Protocol,
+)
+from pinarray.protocol.paradigms import correct_answer
 from pinarray.units import NS_PER_S
 
 
@@ -18,9 +27,17 @@ def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:
                default=0)
 
 
-def _answer(condition: Condition) -> object:
-    """What a correct answer names: the pin (localisation) or the wave's direction (motion)."""
-    return condition.pin if isinstance(condition, LocalisationCondition) else condition.direction
+def _answer(condition: Condition, protocol: Protocol) -> object:
+    """What a correct answer names: the pin (localisation), the wave's direction (motion), the
+    pattern or its count (identification)."""
+    match condition:
+        case LocalisationCondition():
+            return condition.pin
+        case MotionCondition():
+            return condition.direction
+    judgement = protocol.design.judgement
+    assert judgement is not None
+    return correct_answer(condition, judgement)
 
 
 def duration_cues(protocol: Protocol) -> list[str]:
@@ -29,11 +46,14 @@ def duration_cues(protocol: Protocol) -> list[str]:
     Conditions with the same correct answer may differ (a pin at several frequencies); those
     with different answers must not, or the duration tells them apart.
     """
+    design = protocol.design
+    if design.paradigm in (Paradigm.TWO_INTERVAL, Paradigm.TEMPORAL_ORDER):
+        return []  # both intervals, or both pins, play in every trial: the answer is in neither
     durations: dict[object, set[int]] = {}
     names: dict[int, list[str]] = {}
-    for condition in protocol.design.conditions:
+    for condition in design.conditions:
         duration_ns = stimulus_duration_ns(protocol, condition)
-        durations.setdefault(_answer(condition), set()).add(duration_ns)
+        durations.setdefault(_answer(condition, protocol), set()).add(duration_ns)
         label = (f"pin {condition.pin}" if isinstance(condition, LocalisationCondition)
                  else condition.stimulus)
         if label not in names.setdefault(duration_ns, []):
@@ -44,3 +64,27 @@ def duration_cues(protocol: Protocol) -> list[str]:
                         for duration_ns, labels in sorted(names.items(), reverse=True))
     return [f"the stimuli a subject must tell apart last different times ({listing}): duration "
             "alone could give the answer away; make them last equally long"]
+
+
+def cut_lifts(protocol: Protocol) -> list[str]:
+    """Warnings (one line each) for the lab's paradigms' trains whose signal ends inside a
+    lift: the pin is lowered before the lift's time is up, so it may not finish its stroke,
+    and a trial whose pin falls short is judged not delivered. The seed's designs play one
+    train a trial, whose last lift no later change measures: they are not warned of."""
+    if protocol.design.judgement is None:
+        return []
+    found: dict[tuple, str] = {}
+    for condition in protocol.design.conditions:
+        for drive in trial_drives(protocol, condition):
+            train = drive.train
+            period_ns = NS_PER_S / train.frequency_hz
+            into = (train.duration_ns / period_ns - train.phase) % 1  # of a cycle, at the end
+            lift = Fraction(train.up_pulses, train.pulses_per_cycle)
+            if 0 < into < lift:
+                key = (train.frequency_hz, train.duration_ns)
+                found.setdefault(key, (
+                    f"{condition.stimulus} at {float(train.frequency_hz):g} Hz ends "
+                    f"{float(into * period_ns) / 1e6:.1f} ms into a lift of "
+                    f"{float(lift * period_ns) / 1e6:.1f} ms: the pin is lowered before it may "
+                    "finish its stroke; give the signal a whole number of half cycles"))
+    return list(found.values())

@@ -5,7 +5,11 @@ constraint) or would not fit in a bounded time and memory: at most `MAX_TRIALS` 
 most `MAX_PULSES_PER_TRIAL` pulse slots in one trial (what a trial may play) and `MAX_PULSES` in
 the whole plan (what `pinarray compile` writes and holds in memory). A design read for a file
 only (``long_trials``: ``pinarray compile --allow-long``) may put the whole plan's pulses in one
-trial. Pure Python: `pinarray validate` runs it without numpy.
+trial. Pure Python: `pinarray validate` runs it without numpy. The lab's paradigms' conditions
+are read by `pinarray.protocol.judgements`; blocks, order, constraints and bounds here, for all.
+
+Past 400 lines on purpose: the section's reading and its bounds are one job (every paradigm's
+conditions end in the same checks of size and order).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from pinarray.protocol.adaptive_design import (
 )
 from pinarray.protocol.device import read_pin
 from pinarray.protocol.drives import pulse_slots
+from pinarray.protocol.judgements import KEYS_OF, Adapting, read_lab_design
 from pinarray.protocol.model import (
     NS_PER_S,
     Condition,
@@ -60,7 +65,10 @@ MAX_PULSES = 10_000_000
 MAX_SHUFFLE_WORK = 20_000_000
 # What an order constraint may name, by paradigm: what its trials have.
 ATTRIBUTES_OF = {Paradigm.LOCALISATION: ("pin", "frequency_hz", "stimulus"),
-                 Paradigm.APPARENT_MOTION: ("direction", "stimulus")}
+                 Paradigm.APPARENT_MOTION: ("direction", "stimulus"),
+                 Paradigm.IDENTIFICATION: ("pattern", "count"),
+                 Paradigm.TWO_INTERVAL: ("comparison", "interval_order"),
+                 Paradigm.TEMPORAL_ORDER: ("soa_ms", "first_pin")}
 CONDITION_ATTRIBUTES = tuple(dict.fromkeys(a for names in ATTRIBUTES_OF.values() for a in names))
 DESIGN_KEYS = {
     "paradigm",
@@ -76,7 +84,13 @@ DESIGN_KEYS = {
     "inter_trial_interval_s",
     "practice_trials",
     "adaptive",
+    *(key for keys in KEYS_OF.values() for key in keys),
 }
+# Keys only the lab's paradigms read (identification, two intervals, temporal order).
+LAB_ONLY_KEYS = frozenset(DESIGN_KEYS - {"paradigm", "stimulus", "pins", "frequencies_hz",
+                                         "configurations", "repetitions", "blocks", "order",
+                                         "constraints", "seed", "inter_trial_interval_s",
+                                         "practice_trials", "adaptive"})
 # What an adaptive design's procedures decide instead.
 FIXED_ONLY = ("repetitions", "blocks", "order", "constraints")
 
@@ -116,6 +130,10 @@ def read_design(
         reader.string(keys["paradigm"], "the paradigm", tuple(p.value for p in Paradigm))
     )
     by_name = {s.name: s for s in stimuli}
+    if paradigm not in KEYS_OF:
+        for key in sorted(keys.keys() & LAB_ONLY_KEYS):
+            reader.error(keys[key], f"expected no {key!r} in a {paradigm.value} design (the "
+                                    "lab's paradigms read it), found one")
     adaptive_node = keys.get("adaptive")
     adapting = None
     if adaptive_node is not None:
@@ -124,11 +142,24 @@ def read_design(
         if adapting is None:
             raise Invalid("adaptive")
     frequencies = None
-    if adapting is not None and adapting[1] is Parameter.FREQUENCY_HZ:
+    if (adapting is not None and adapting[1] is Parameter.FREQUENCY_HZ
+            and paradigm is Paradigm.LOCALISATION):
         frequencies = (adapting[0]["values"], adapting[2])
-    read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
     section = _Section(node, keys, device, by_name, declared, long_trials, frequencies)
-    read = reader.attempt(lambda: read_conditions(reader, section), None)
+    judgement = None
+    if paradigm in KEYS_OF:
+        lab = reader.attempt(lambda: read_lab_design(
+            reader, node, keys, paradigm, device, by_name, declared,
+            None if adapting is None else Adapting(adapting[1], adapting[2],
+                                                   adapting[0]["values"])), None)
+        read = None
+        if lab is not None:
+            read, judgement = (lab.conditions, lab.slots), lab.judgement
+            for count in lab.slots:
+                _check_pulses(reader, node, count, long_trials)
+    else:
+        read_conditions = _localisation if paradigm is Paradigm.LOCALISATION else _motion
+        read = reader.attempt(lambda: read_conditions(reader, section), None)
     _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
@@ -165,7 +196,7 @@ def read_design(
             replace(c, frequency_hz=frequencies[1][0])
             if frequencies is not None and isinstance(c, LocalisationCondition) else c
             for c in conditions))
-        slots = (max(slots),) * len(conditions)
+        slots = (max(slots, default=0),) * len(conditions)
         adaptive_keys_, parameter, values = adapting
         adaptive = read_adaptive(reader, adaptive_keys_, paradigm, device, parameter, values,
                                  conditions, by_name)
@@ -180,6 +211,7 @@ def read_design(
         round(iti * NS_PER_S),
         practice,
         adaptive,
+        judgement,
     )
     _check_size(reader, node, design, slots)
     problem = ordering_problem(design)
@@ -192,6 +224,10 @@ def _adapting(reader: Reader, keys: Mapping[str, Node], node: Node, paradigm: Pa
               device: Device) -> tuple[dict[str, Node], Parameter, tuple[Fraction, ...]]:
     """An adaptive design's keys, parameter and values (read before its conditions: a
     localisation design adapting the frequency takes its frequencies from the values)."""
+    if paradigm is Paradigm.IDENTIFICATION:
+        raise reader.error(node, "expected no 'adaptive' in an identification design (it has "
+                                 "no intensity to adapt: two_interval and temporal_order do), "
+                                 "found one")
     for key in FIXED_ONLY:
         if key in keys:
             raise reader.error(keys[key], f"expected no {key!r} in an adaptive design (its "

@@ -1,4 +1,8 @@
-"""The ``device`` section: grid, servo settings and one calibration per pin, each problem located."""
+"""The ``device`` section: grid, servo settings and one calibration per pin, each problem located.
+
+Past 400 lines on purpose: one section, read key by key, both servo families' settings and
+their calibrations in one place so that each key is refused the same way.
+"""
 
 from __future__ import annotations
 
@@ -222,7 +226,8 @@ def _grid(reader: Reader, node: Node) -> Grid:
 def _servo(reader: Reader, node: Node) -> ServoSettings:
     keys = reader.mapping(
         node,
-        {"model", "baud_rate", "speed_steps_per_s", "acceleration", "steps_per_turn"},
+        {"model", "baud_rate", "speed_steps_per_s", "acceleration", "steps_per_turn",
+         "return_delay_us"},
         what="servo section",
     )
     d = ServoSettings()
@@ -247,7 +252,20 @@ def _servo(reader: Reader, node: Node) -> ServoSettings:
             keys, "steps_per_turn", lambda n: reader.integer(n, "steps per turn", 1, 1 << 16),
             d.steps_per_turn,
         )
-    return ServoSettings(model, baud, speed, accel, steps)
+        # What `pinarray servos return-delay` set (2 us units, 0-508): the bus check's read-backs.
+        delay = reader.optional(
+            keys, "return_delay_us",
+            lambda n: _return_delay_us(reader, n), d.return_delay_us,
+        )
+    return ServoSettings(model, baud, speed, accel, steps, delay)
+
+
+def _return_delay_us(reader: Reader, node: Node) -> int:
+    delay = reader.integer(node, "the servos' return delay (us)", 0, 508)
+    if delay % 2:
+        raise reader.error(node, f"expected a return delay in steps of 2 us (the register "
+                                 f"counts 2 us), found {delay}")
+    return delay
 
 
 def _board(reader: Reader, node: Node) -> Pca9685Board:

@@ -3,6 +3,9 @@
 Built by `pinarray.protocol.load` from YAML; everything here is already checked, so the
 compiler and the player never see a bad number. Frequencies and durations are exact
 (`fractions.Fraction` or integer nanoseconds): a 0.1 s period is not a binary float.
+
+Past 400 lines on purpose: the values every section of a protocol is made of, one frozen type
+each, read together; the lab's own paradigms' conditions live in `pinarray.protocol.paradigms`.
 """
 
 from __future__ import annotations
@@ -17,6 +20,13 @@ from typing import TYPE_CHECKING, ClassVar, TypeAlias
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
+from pinarray.protocol.paradigms import (
+    IdentificationCondition,
+    Judgement,
+    TemporalOrderCondition,
+    TwoIntervalCondition,
+    offered_answers,
+)
 from pinarray.protocol.procedures import Adaptive
 from pinarray.units import NS_PER_S
 
@@ -34,6 +44,9 @@ class ServoSettings:
 
     ``acceleration_register`` is in the servo's units of 100 step/s^2; 0 means the servo's own
     maximum, which the feasibility check treats as unlimited (speed-limited motion).
+    ``return_delay_us`` is how long each servo waits before it answers a read (the factory's
+    500 us until `pinarray servos return-delay` lowers it): what the bus check counts for
+    each read-back (`pinarray.protocol.bus`).
     """
 
     model: str = "STS3215"
@@ -41,6 +54,7 @@ class ServoSettings:
     speed_steps_per_s: int = 3000
     acceleration_register: int = 0
     steps_per_turn: int = 4096
+    return_delay_us: int = 500
 
     @property
     def acceleration_steps_per_s2(self) -> int | None:
@@ -374,6 +388,42 @@ AnyWave = Wave | PathWave
 
 
 @dataclass(frozen=True)
+class Pattern:
+    """Pins raised together: each moves with ``train`` (the pattern's, at its phase)."""
+
+    pins: tuple[int, ...]  # ascending
+    train: Train
+
+    def drives(self) -> tuple[PinDrive, ...]:
+        return tuple(PinDrive(pin, self.train) for pin in self.pins)
+
+
+@dataclass(frozen=True)
+class Frames:
+    """Patterns in time: frame ``i`` (a named pattern) starts ``i * soa_ns`` after onset."""
+
+    frames: tuple[tuple[str, Pattern], ...]
+    soa_ns: int
+
+    def drives(self) -> tuple[PinDrive, ...]:
+        return tuple(PinDrive(pin, pattern.train, i * self.soa_ns)
+                     for i, (_, pattern) in enumerate(self.frames) for pin in pattern.pins)
+
+
+@dataclass(frozen=True)
+class PatternStimulus:
+    """A named pattern on the grid, or a sequence of patterns in time (``frames``)."""
+
+    name: str
+    shape: Pattern | Frames
+
+    @property
+    def pins(self) -> tuple[int, ...]:
+        """Every pin it raises, ascending."""
+        return tuple(sorted({drive.pin for drive in self.shape.drives()}))
+
+
+@dataclass(frozen=True)
 class TrainStimulus:
     """A named pulse train; the design chooses the pin (and may change the frequency).
 
@@ -392,12 +442,15 @@ class WaveStimulus:
     wave: AnyWave
 
 
-Stimulus = TrainStimulus | WaveStimulus
+Stimulus = TrainStimulus | WaveStimulus | PatternStimulus
 
 
 class Paradigm(StrEnum):
     LOCALISATION = "localisation"
     APPARENT_MOTION = "apparent_motion"
+    IDENTIFICATION = "identification"  # which pattern (or how many pins)?
+    TWO_INTERVAL = "two_interval"  # which interval had more? (2IFC)
+    TEMPORAL_ORDER = "temporal_order"  # which pin came first?
 
 
 class Ordering(StrEnum):
@@ -442,8 +495,10 @@ class MotionCondition:
         return (self.stimulus, None, None, self.direction)
 
 
-Condition = LocalisationCondition | MotionCondition
-"""What one trial presents: a train on a pin at a frequency, or a wave going a direction."""
+Condition = (LocalisationCondition | MotionCondition | IdentificationCondition
+             | TwoIntervalCondition | TemporalOrderCondition)
+"""What one trial presents: a train on a pin at a frequency, a wave going a direction, a
+pattern, two intervals, or a train on two pins an SOA apart (`pinarray.protocol.paradigms`)."""
 
 
 def condition_value(condition: Condition, attribute: str) -> object:
@@ -499,6 +554,9 @@ class Design:
     # An adaptive design: each trial's value of one parameter is chosen by its procedures
     # (``conditions`` are then what a trial draws from at random); None: a fixed design.
     adaptive: Adaptive | None = None
+    # What the subject judges in the lab's paradigms (identification, two-interval, temporal
+    # order); None in the seed's two, whose conditions say it all.
+    judgement: Judgement | None = None
 
     @property
     def directions(self) -> tuple[Direction, ...]:
@@ -510,6 +568,15 @@ class Design:
     def motion_answers(self) -> tuple[MotionAnswer, ...]:
         """Every answer an apparent-motion trial of this design takes."""
         return (*map(MotionAnswer, self.directions), MotionAnswer.NONE, MotionAnswer.UNSURE)
+
+    def answers(self, pin_count: int) -> tuple[str, ...]:
+        """Every answer a trial of this design takes, as the results write it (``pin_count``:
+        the grid's pins, which a localisation or numerosity answer may name)."""
+        if self.judgement is not None:
+            return offered_answers(self.judgement, pin_count)
+        if self.paradigm is Paradigm.LOCALISATION:
+            return (*map(str, range(1, pin_count + 1)), NOTHING_FELT)
+        return tuple(self.motion_answers)
 
     @property
     def trial_count(self) -> int:

@@ -48,6 +48,8 @@ class Task(StrEnum):
     DIRECTION = "direction"  # apparent motion: the wave's direction named
     DETECTION = "detection"  # anything felt on a stimulus trial (nothing, on a catch trial)
     LOCALISATION = "localisation"  # the moved pin named
+    DISCRIMINATION = "discrimination"  # two intervals: the one with the higher value named
+    ORDER = "order"  # temporal order: the pin that came first named
 
 
 class Function(StrEnum):

@@ -1,14 +1,21 @@
-"""The ``stimuli`` section: pulse trains and waves, each checked against the device it plays on."""
+"""The ``stimuli`` section: pulse trains and waves, each checked against the device it plays on.
+
+Patterns are read in `pinarray.protocol.patterns`, with the checks kept here (`check_drives`:
+trains on their pins, no pin driven twice at once, the servo bus), so that every kind of
+stimulus is judged by the same code. Past 400 lines on purpose: one section's reading and the
+checks every stimulus shares; apart, a wave and a pattern could be judged differently.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Collection, Mapping
+from collections.abc import Collection, Mapping, Sequence
 from fractions import Fraction
 from functools import partial
 from typing import TypeVar
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
+from pinarray.protocol.bus import bus_problem
 from pinarray.protocol.device import MS, read_pin, read_width_ns
 from pinarray.protocol.drives import check_no_overlap
 from pinarray.protocol.feasibility import check_train
@@ -22,6 +29,9 @@ from pinarray.protocol.model import (
     Direction,
     MotionAnswer,
     PathWave,
+    PatternStimulus,
+    PinDrive,
+    ServoSettings,
     Stimulus,
     Train,
     TrainShape,
@@ -53,6 +63,9 @@ def read_stimuli(
     stimuli: list[Stimulus] = []
     nodes: dict[str, Node] = {}
     none: list[tuple[Node, Node]] = []
+    # Here, not at the top: patterns are read with this module's helpers.
+    from pinarray.protocol.patterns import read_patterns
+
     pairs = reader.attempt(lambda: reader.items(node, "the stimuli"), none)
     trains: dict[str, Stimulus] = {}
     waves = []
@@ -61,33 +74,53 @@ def read_stimuli(
         if name is None:
             continue
         nodes[name] = value_node
-        if is_wave(value_node):
+        if stimulus_kind(value_node) is not TrainStimulus:
             waves.append((name, value_node))
             continue
         train = reader.attempt(partial(_train, reader, value_node), None)
         if train is not None:
             trains[name] = TrainStimulus(name, train)
             stimuli.append(trains[name])
-    declared_trains = {name: n for name, n in nodes.items() if not is_wave(n)}
+    declared_trains = {name: n for name, n in nodes.items()
+                       if stimulus_kind(n) is TrainStimulus}
     for name, value_node in waves:
+        if stimulus_kind(value_node) is not WaveStimulus:
+            continue
         wave = reader.attempt(
             partial(_wave, reader, value_node, device, trains, declared_trains), None
         )
         if wave is not None:
             stimuli.append(WaveStimulus(name, wave))
+    stimuli.extend(read_patterns(reader, nodes, device, trains, declared_trains))
     if not pairs and not reader.errors:
         reader.error(node, "expected at least one stimulus, found none")
     return tuple(stimuli), nodes
 
 
-def is_wave(node: Node) -> bool:
-    """A stimulus is a wave when its mapping has a ``wave`` key (trains have none)."""
+def _has_key(node: Node, key: str) -> bool:
     return isinstance(node.value, list) and any(
-        isinstance(pair, tuple) and getattr(pair[0], "value", None) == "wave" for pair in node.value
+        isinstance(pair, tuple) and getattr(pair[0], "value", None) == key for pair in node.value
     )
 
 
-Kind = TypeVar("Kind", TrainStimulus, WaveStimulus)
+def is_wave(node: Node) -> bool:
+    """A stimulus is a wave when its mapping has a ``wave`` key (trains have none)."""
+    return _has_key(node, "wave")
+
+
+def stimulus_kind(node: Node) -> type[Stimulus]:
+    """What a stimulus's mapping declares: a wave (``wave:``), a pattern (``pattern:`` or
+    ``frames:``) or else a pulse train."""
+    if is_wave(node):
+        return WaveStimulus
+    if _has_key(node, "pattern") or _has_key(node, "frames"):
+        return PatternStimulus
+    return TrainStimulus
+
+
+Kind = TypeVar("Kind", TrainStimulus, WaveStimulus, PatternStimulus)
+KIND_NAMES = {TrainStimulus: "pulse train", WaveStimulus: "wave stimulus",
+              PatternStimulus: "pattern"}
 
 
 def stimulus_named(
@@ -97,8 +130,9 @@ def stimulus_named(
     declared: Mapping[str, Node],
     kind: type[Kind],
 ) -> Kind:
-    """The pulse train (or wave) named at ``node``; ``declared``: every name, broken ones too."""
-    what = "wave stimulus" if kind is WaveStimulus else "pulse train"
+    """The pulse train (wave, pattern) named at ``node``; ``declared``: every name, broken
+    ones too."""
+    what = KIND_NAMES[kind]
     name = reader.string(node, f"the name of a {what}")
     stimulus = by_name.get(name)
     if stimulus is None and name in declared:
@@ -107,7 +141,7 @@ def stimulus_named(
         # Those declared with problems of their own are still the names meant.
         names = sorted({s.name for s in by_name.values() if isinstance(s, kind)}
                        | {n for n, at in declared.items()
-                          if n not in by_name and is_wave(at) == (kind is WaveStimulus)})
+                          if n not in by_name and stimulus_kind(at) is kind})
         hint = close_match(name, names)
         known = (f"did you mean {hint[0]!r}?" if hint
                  else f"the stimuli section has {', '.join(names)}" if names
@@ -240,6 +274,33 @@ def check_train_on_pins(
             )
 
 
+def check_drives(reader: Reader, node: Node, drives: Sequence[PinDrive], device: Device,
+                 what: str = "") -> None:
+    """What one trial's ``drives`` ask of the device, reported at ``node`` (``what``: the
+    stimulus, to begin the message): every train followed by its pins, no pin driven twice at
+    once, and (bus servos) every frame of goal changes written and read back in time."""
+    trains: dict[Train, list[int]] = {}
+    for drive in drives:
+        trains.setdefault(drive.train, []).append(drive.pin)
+    for train, pins in trains.items():
+        check_train_on_pins(reader, node, train, sorted(set(pins)), device)
+    try:
+        check_no_overlap(drives)
+    except PinArrayError as problem:
+        raise reader.error(node, what + str(problem)) from None
+    check_bus(reader, node, drives, device, what)
+
+
+def check_bus(reader: Reader, node: Node, drives: Sequence[PinDrive], device: Device,
+              what: str = "") -> None:
+    """On bus servos, every frame of the drives' goal changes is written and read back in
+    time (`pinarray.protocol.bus`)."""
+    if isinstance(device.servo, ServoSettings) and not reader.guessing:
+        problem = bus_problem(drives, device.servo, device.delivery_tolerance_ns)
+        if problem is not None:
+            raise reader.error(node, f"{what}the servo bus cannot deliver it: {problem}")
+
+
 def _wave(
     reader: Reader,
     node: Node,
@@ -296,6 +357,8 @@ def _wave(
         check_no_overlap(wave.drives())
     except PinArrayError as problem:
         raise reader.error(keys.get("soa_ms", node), str(problem)) from None
+    if device is not None:
+        check_bus(reader, keys.get("soa_ms", node), wave.drives(), device)
     return wave
 
 

@@ -122,6 +122,7 @@ class Reader:
         self.guessing = False
         # One constructor per file: PyYAML's caches every object it built, keyed by node.
         self._constructor = yaml.constructor.SafeConstructor()
+        self.text = ""  # the file's text, once composed (a block's lines are located in it)
 
     def error(self, node: Node | None, message: str) -> Invalid:
         if len(self.errors) >= MAX_PROBLEMS:
@@ -178,6 +179,7 @@ class Reader:
             col = bad.start() - (text.rfind("\n", 0, bad.start()) + 1) + 1
             self._fail(f"expected text, found the control character U+{ord(bad[0]):04X}",
                        line, col)
+        self.text = text
         try:
             root = compose_tree(text)
         except yaml.MarkedYAMLError as problem:

@@ -43,18 +43,28 @@ from pinarray.journal.records import (
     NOTHING_FELT,
     AdaptiveCells,
     DeliveryCounts,
+    IdentificationRecord,
     LocalisationRecord,
     MotionAnswer,
     MotionRecord,
     StrokeCounts,
+    TemporalOrderRecord,
     TrialRecord,
     TrialStatus,
+    TwoIntervalRecord,
 )
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import Condition, LocalisationCondition, Paradigm, Protocol
+from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Paradigm, Protocol
 from pinarray.protocol.adapted import adapted, adapted_condition
+from pinarray.protocol.paradigms import (
+    AnswerKind,
+    Identification,
+    IdentificationCondition,
+    TemporalOrderCondition,
+    TwoIntervalCondition,
+)
 from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
 from pinarray.session.procedures import Presented, Procedures
 
@@ -437,7 +447,9 @@ class Session:
         """Record the subject's answer to the current trial and move on.
 
         Localisation takes a pin number (or None / "none" for "nothing felt"); apparent
-        motion takes none / left / right / unsure. ``response_time_ns`` defaults to the time
+        motion takes none / left / right / unsure; identification a pattern's name (or a
+        count), two intervals first / second, temporal order the pin that came first
+        (`Design.answers`). ``response_time_ns`` defaults to the time
         since stimulus onset on the session's clock; None records it as not applicable
         (scripted answers have no response time).
         """
@@ -505,10 +517,49 @@ class Session:
             if not 1 <= pin <= self.grid.pin_count:
                 raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
             return str(pin)
-        answers = ("none", *self.protocol.design.directions, "unsure")  # the waves' directions
+        design = self.protocol.design
+        if design.judgement is not None:
+            answers = design.answers(self.grid.pin_count)
+            text = str(response).strip()
+            if text not in answers:
+                counts = (isinstance(design.judgement, Identification)
+                          and design.judgement.answers is AnswerKind.COUNTS)
+                shown = (f"a count from 1 to {self.grid.pin_count}" if counts
+                         else f"one of {', '.join(answers)}")
+                raise SessionError(f"expected {shown}, found {response!r}")
+            return text
+        answers = ("none", *design.directions, "unsure")  # the waves' directions
         if response not in answers:
             raise SessionError(f"expected one of {', '.join(answers)}, found {response!r}")
         return str(response)
+
+    def _record(self, condition: Condition, common: _SharedFields,
+                response: str | None) -> TrialRecord:
+        """The row of a trial presenting ``condition``, answered ``response``."""
+        match condition:
+            case LocalisationCondition():
+                named = None if response in (None, NOTHING_FELT) else int(str(response))
+                return LocalisationRecord(
+                    **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
+                    response=response,
+                    error_class=None if named is None else self.grid.classify(condition.pin,
+                                                                              named))
+            case MotionCondition():
+                return MotionRecord(**common, row=condition.row, direction=condition.direction,
+                                    response=None if response is None else MotionAnswer(response))
+            case IdentificationCondition():
+                return IdentificationRecord(**common, pattern=condition.pattern,
+                                            pins=condition.pins, response=response)
+            case TwoIntervalCondition():
+                pins = tuple(sorted({d.pin for d in self.current_schedule().drives}))
+                return TwoIntervalRecord(
+                    **common, compared=condition.parameter.value,
+                    standard=float(condition.standard), comparison=float(condition.comparison),
+                    interval_order=condition.order, pins=pins, response=response)
+            case TemporalOrderCondition():
+                return TemporalOrderRecord(**common, pins=condition.pins,
+                                           soa_ns=condition.soa_ns, response=response)
+        raise AssertionError(condition)
 
     def _fix_zero(self, zero_ns: int, event: str) -> None:
         self._zero_ns = zero_ns
@@ -541,17 +592,7 @@ class Session:
         if presented is not None and presented.value is not None and adaptive is not None:
             # As the row tells it (a frequency adapted is the one played): no protocol rebuilt.
             condition = adapted_condition(condition, adaptive.parameter, presented.value)
-        record: TrialRecord
-        if isinstance(condition, LocalisationCondition):
-            named = None if response in (None, NOTHING_FELT) else int(str(response))
-            record = LocalisationRecord(
-                **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
-                response=response,
-                error_class=None if named is None else self.grid.classify(condition.pin, named))
-        else:
-            record = MotionRecord(**common, row=condition.row,
-                                  direction=condition.direction,
-                                  response=None if response is None else MotionAnswer(response))
+        record = self._record(condition, common, response)
         traces, self._trace = self._trace, ()
         samples = _samples(planned.trial, self._onset_ns - self._zero_ns, traces,
                            self.current_schedule()) if traces else []

@@ -14,6 +14,7 @@ import numpy as np
 
 from pinarray.journal.records import (
     Direction,
+    LabRecord,
     LocalisationRecord,
     MotionRecord,
     TrialRecord,
@@ -78,10 +79,13 @@ class LiveCounts:
     direction_right: int  # motion: felt wave trials named in the right direction
     direction_named: int  # motion: felt wave trials with a direction answer
     practice_done: int
+    judged: int = 0  # the lab's paradigms: counted trials with a right answer to give
+    judged_right: int = 0  # ... given
 
     @classmethod
     def of(cls, records: list[TrialRecord]) -> LiveCounts:
         counted = [r for r in records if r.counts]
+        judged = [r.correct for r in counted if isinstance(r, LabRecord) and r.correct is not None]
         classes = Counter(r.category for r in counted if isinstance(r, LocalisationRecord))
         waves = [r for r in counted if isinstance(r, MotionRecord) and r.direction != Direction.NONE]
         named = [r for r in waves if r.direction_correct is not None]
@@ -94,6 +98,8 @@ class LiveCounts:
             direction_right=sum(1 for r in named if r.direction_correct),
             direction_named=len(named),
             practice_done=sum(1 for r in records if r.practice and r.status is TrialStatus.OK),
+            judged=len(judged),
+            judged_right=sum(judged),
         )
 
     def lines(self, localisation: bool) -> list[str]:
@@ -105,9 +111,14 @@ class LiveCounts:
         else:
             lines = [f"motion felt {self.felt}/{self.wave_trials} wave trials",
                      f"direction right {self.direction_right}/{self.direction_named}"]
-        if self.practice_done:
-            lines.append(f"practice done {self.practice_done} (not counted)")
-        return lines
+        return lines + self._practice()
+
+    def judged_lines(self) -> list[str]:
+        """The counts panel of the lab's paradigms: right answers of those that have one."""
+        return [f"correct {self.judged_right}/{self.judged}", *self._practice()]
+
+    def _practice(self) -> list[str]:
+        return [f"practice done {self.practice_done} (not counted)"] if self.practice_done else []
 
 
 TRACK_LENGTH = 8  # the last values of each procedure the run screen shows

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 from textual import events, on
 from textual.app import ComposeResult
@@ -22,6 +23,21 @@ SEQUENCE_KEYS = "123456789"  # the directions sequence waves name, in the order 
 # refused with a notice by the run screen, not taken for something else.
 ANSWER_KEYS = frozenset({*(k for keys, _ in USUAL_ANSWERS.values() for k in keys),
                          *"0123456789", "backspace"})
+
+
+class Choice(NamedTuple):
+    """One answer the pad offers as a button (or a card): what it records, its keys, its
+    label, and for a pattern a small drawing of it (`pinarray.tui.answers`)."""
+
+    answer: str
+    keys: tuple[str, ...]
+    label: str
+    drawing: str = ""
+
+
+# What the entry (digits, then Enter) says it takes: a pin, or a count of pins.
+PIN_ENTRY = "type the pin number, Enter to confirm · 0 or n: nothing felt · or click a pin"
+COUNT_ENTRY = "type how many pins were raised, Enter to confirm"
 
 
 def motion_answer_keys(answers: Sequence[str]) -> tuple[tuple[str, tuple[str, ...], str], ...]:
@@ -47,21 +63,44 @@ def motion_hint(answers: Sequence[str]) -> str:
         for answer, keys, _ in motion_answer_keys(answers))
 
 
-class ResponsePad(Widget, can_focus=True):
-    """The answer entry: a pin number for localisation, a direction for apparent motion.
+class ChoiceCard(Static):
+    """A pattern offered as an answer: its small drawing, its key and its name; a click
+    answers it."""
 
-    Localisation: digits then Enter; ``0`` or ``n`` means nothing felt; a pin clicked on the
-    grid is put in the entry (`choose`) and Enter confirms it. Motion: one key answers.
+    DEFAULT_CSS = """
+    ChoiceCard { width: auto; height: auto; padding: 0 1 0 0; }
+    ChoiceCard.-off { color: $text-disabled; }
+    """
+
+    def __init__(self, choice: Choice, **kwargs):
+        super().__init__(choice.drawing, **kwargs)
+        self.choice = choice
+
+    def on_click(self) -> None:
+        pad = self.parent.parent if self.parent is not None else None
+        if isinstance(pad, ResponsePad) and pad.accepting:
+            pad._answer(self.choice.answer)
+
+
+class ResponsePad(Widget, can_focus=True):
+    """The answer entry: typed digits (a pin, or a count of pins), or one key per answer.
+
+    Entry (localisation, counts): digits then Enter; for a pin ``0`` or ``n`` means nothing
+    felt, and a pin clicked on the grid is put in the entry (`choose`) and Enter confirms it.
+    Choices (motion, patterns, intervals, pins first): one key answers, or a click.
     The pad only collects answers; the run screen decides whether they are accepted.
 
     Parameters
     ----------
     localisation : bool
-        Which paradigm's answers to take.
+        Whether answers are typed (a pin or a count) rather than chosen.
     pin_count : int
-        Most digits a pin number can have follow from it.
-    answers : sequence of str
-        Apparent motion: the answers offered (the directions the waves go, none, unsure).
+        Most digits a pin number (or count) can have follow from it.
+    answers : sequence of str or of Choice
+        The answers chosen between: motion answers by name (the directions the waves go,
+        none, unsure), or `Choice` values.
+    entry_hint : str
+        What the entry takes, said under it (`PIN_ENTRY` or `COUNT_ENTRY`).
     """
 
     DEFAULT_CSS = """
@@ -76,6 +115,7 @@ class ResponsePad(Widget, can_focus=True):
         #motion-buttons { height: auto; layout: grid; grid-size: 4; grid-rows: 3;
                           grid-gutter: 0 1; }
         #motion-buttons Button { width: 100%; }
+        #pattern-cards { height: auto; layout: grid; grid-size: 4; grid-gutter: 0 1; }
     }
     """
 
@@ -111,22 +151,33 @@ class ResponsePad(Widget, can_focus=True):
     accepting: reactive[bool] = reactive(False)
 
     def __init__(self, localisation: bool, pin_count: int = 16,
-                 answers: Sequence[str] = ("left", "right", "none", "unsure"), **kwargs):
+                 answers: Sequence[str | Choice] = ("left", "right", "none", "unsure"),
+                 entry_hint: str = PIN_ENTRY, **kwargs):
         super().__init__(**kwargs)
         self.localisation = localisation
+        self.entry_hint = entry_hint
+        self.nothing_felt = entry_hint == PIN_ENTRY  # 0 or n: a pin's entry only
         self.digits = len(str(pin_count))
-        self.answers = motion_answer_keys(answers)
-        self.motion_keys = {key: answer for answer, keys, _ in self.answers for key in keys}
+        named = [a for a in answers if not isinstance(a, Choice)]
+        self.answers: tuple[Choice, ...] = (
+            *(Choice(*keyed) for keyed in motion_answer_keys(named)),
+            *(a for a in answers if isinstance(a, Choice)))
+        self.motion_keys = {key: choice.answer for choice in self.answers for key in choice.keys}
 
     def compose(self) -> ComposeResult:
         if self.localisation:
             yield Static(id="entry")
-            yield Static("type the pin number, Enter to confirm · 0 or n: nothing felt · "
-                         "or click a pin", classes="hint")
+            yield Static(self.entry_hint, classes="hint")
+        elif any(choice.drawing for choice in self.answers):
+            with Horizontal(id="pattern-cards"):
+                for choice in self.answers:
+                    yield ChoiceCard(choice, id=f"answer-{choice.answer}",
+                                     classes="answer -off")
         else:
             with Horizontal(id="motion-buttons"):
-                for answer, _, label in self.answers:
-                    yield Button(label, id=f"answer-{answer}", disabled=True)
+                for choice in self.answers:
+                    yield Button(choice.label, id=f"answer-{choice.answer}", classes="answer",
+                                 disabled=True)
 
     def on_mount(self) -> None:
         self._draw()
@@ -139,6 +190,8 @@ class ResponsePad(Widget, can_focus=True):
         self.set_class(self.accepting, "-accepting")
         for button in self.query(Button):
             button.disabled = not self.accepting
+        for card in self.query(ChoiceCard):
+            card.set_class(not self.accepting, "-off")
         self._draw()
 
     def _draw(self) -> None:
@@ -182,7 +235,7 @@ class ResponsePad(Widget, can_focus=True):
         if key == "backspace":
             event.stop()
             self.entry = "" if self.entry == "none" else self.entry[:-1]
-        elif key == "n" or (key == "0" and self.entry in ("", "none")):
+        elif self.nothing_felt and (key == "n" or (key == "0" and self.entry in ("", "none"))):
             event.stop()
             self.entry = "none"
         elif key.isdigit():

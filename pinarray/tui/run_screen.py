@@ -21,16 +21,19 @@ from textual.screen import Screen
 from textual.widgets import Footer, ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
-from pinarray.journal.records import LocalisationRecord, StrokeCounts
+from pinarray.journal.records import LocalisationRecord, MotionRecord, StrokeCounts
 from pinarray.player.playback import DEFAULT_LEAD_NS
-from pinarray.protocol import Condition, Direction, LocalisationCondition, Paradigm, WaveKind
+from pinarray.protocol import Condition, Direction, LocalisationCondition, MotionCondition, WaveKind
+from pinarray.protocol.described import describe_condition
+from pinarray.protocol.drives import trial_drives
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
+from pinarray.tui.answers import pad_answers
 from pinarray.tui.confirm import Confirm
 from pinarray.tui.live import LiftTimeline, LiveCounts, track_lines
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
-from pinarray.tui.response_pad import ANSWER_KEYS, ResponsePad, motion_hint
+from pinarray.tui.response_pad import ANSWER_KEYS, PIN_ENTRY, ResponsePad
 from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
@@ -78,7 +81,9 @@ class RunScreen(KeyNotices, Screen):
         super().__init__()
         self.sitting = sitting
         self.session = session
-        self.localisation = session.protocol.design.paradigm is Paradigm.LOCALISATION
+        self.answers = pad_answers(session.protocol)
+        self.localisation = self.answers.typed  # answers typed: a pin (or a count), then Enter
+        self.pins_answer = self.answers.entry_hint == PIN_ENTRY and self.localisation
         self._by_trial = {t.trial: t for t in session.plan.trials}
         self._timeline: LiftTimeline | None = None
         self._active: frozenset[int] = frozenset()
@@ -107,7 +112,7 @@ class RunScreen(KeyNotices, Screen):
                 yield ProgressBar(total=self.session.total, show_eta=False, id="progress")
                 yield Static(id="phase")
                 yield ResponsePad(self.localisation, self.session.grid.pin_count,
-                                  self.session.protocol.design.motion_answers, id="pad")
+                                  self.answers.choices, self.answers.entry_hint, id="pad")
                 yield Notice()
                 yield Static(id="counts")
         yield Footer()
@@ -178,8 +183,7 @@ class RunScreen(KeyNotices, Screen):
         phase = self.session.phase
         if phase is Phase.RESPONSE:
             return ("not an answer: a pin number + Enter, 0 or n for nothing felt"
-                    if self.localisation else
-                    "not an answer: " + motion_hint(self.session.protocol.design.motion_answers))
+                    if self.pins_answer else "not an answer: " + self.answers.hint)
         if key not in ANSWER_KEYS and key != "enter":
             return ""
         if phase is Phase.STIMULUS:
@@ -215,7 +219,9 @@ class RunScreen(KeyNotices, Screen):
         phase_line.set_class(phase is Phase.PAUSED or session.pausing, "-paused")
         pad = self.query_one(ResponsePad)
         pad.accepting = phase is Phase.RESPONSE
-        counts = LiveCounts.of(session.records).lines(self.localisation)
+        live = LiveCounts.of(session.records)
+        counts = (live.lines(self.pins_answer) if session.protocol.design.judgement is None
+                  else live.judged_lines())
         if session.procedures is not None:
             counts = [*counts, *track_lines(session.records)]
         self.query_one("#counts", Static).update("\n".join(counts))
@@ -241,9 +247,7 @@ class RunScreen(KeyNotices, Screen):
             case Phase.STIMULUS:
                 return self._playing()
             case Phase.RESPONSE:
-                return ("Subject's answer: pin number + Enter, or click a pin." if self.localisation
-                        else "Subject's answer: "
-                        + motion_hint(self.session.protocol.design.motion_answers) + ".")
+                return f"Subject's answer: {self.answers.hint}."
             case Phase.PAUSED:
                 return "PAUSED · p resumes."
             case Phase.FAULT:
@@ -277,7 +281,7 @@ class RunScreen(KeyNotices, Screen):
     def _draw_grid(self, lifted: frozenset[int]) -> None:
         chosen = None
         entry = self.query_one(ResponsePad).entry
-        if self.localisation and entry.isdigit():
+        if self.pins_answer and entry.isdigit():
             chosen = int(entry)
         showing = self.session.phase in (Phase.STIMULUS, Phase.RESPONSE)
         active = self._active if showing else frozenset()
@@ -299,6 +303,8 @@ class RunScreen(KeyNotices, Screen):
     def _condition_text(self, condition: Condition) -> str:
         if isinstance(condition, LocalisationCondition):
             return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
+        if not isinstance(condition, MotionCondition):
+            return f"stimulus: {describe_condition(condition)}"
         pins = " ".join(map(str, _pins_of(self.session, condition)))
         if condition.direction == Direction.NONE:
             return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
@@ -335,7 +341,10 @@ class RunScreen(KeyNotices, Screen):
         if isinstance(record, LocalisationRecord):
             answer = "nothing felt" if record.nothing_felt else f"pin {record.response}"
             return f"last: {name}, pin {record.pin} → {answer} ({record.category})"
-        return f"last: {name}, {record.direction} wave → {record.response}"
+        if isinstance(record, MotionRecord):
+            return f"last: {name}, {record.direction} wave → {record.response}"
+        mark = {True: "✓", False: "✗", None: ""}[record.correct]
+        return f"last: {name} → {record.response} {mark}".rstrip()
 
     def _tick(self) -> None:
         if self._timeline is not None:
@@ -497,7 +506,7 @@ class RunScreen(KeyNotices, Screen):
                 act()
                 return
         if self.session.phase is Phase.RESPONSE:
-            self.notice.say("type the answer first" + (", or click a pin" if self.localisation
+            self.notice.say("type the answer first" + (", or click a pin" if self.pins_answer
                                                         else ""))
         else:
             self.notice.say(self.refusal(("present",)))
@@ -510,6 +519,9 @@ class RunScreen(KeyNotices, Screen):
 
     @on(PinGrid.Selected, "#pins")
     def _pin_clicked(self, message: PinGrid.Selected) -> None:
+        if self.session.phase is Phase.RESPONSE and not self.pins_answer:
+            self.notice.say("not an answer here: " + self.answers.hint)
+            return
         if self.session.phase is not Phase.RESPONSE:
             self.notice.say(self.unbound("0"))
             return
@@ -540,6 +552,5 @@ class RunScreen(KeyNotices, Screen):
 def _pins_of(session: Session, condition: Condition) -> tuple[int, ...]:
     if isinstance(condition, LocalisationCondition):
         return (condition.pin,)
-    wave = session.protocol.wave(condition.stimulus)
-    return tuple(sorted({d.pin for d in wave.drives()}))
+    return tuple(sorted({d.pin for d in trial_drives(session.protocol, condition)}))
 

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinarray.adaptive import posterior
-from pinarray.adaptive.posterior import ThresholdStatus, threshold_posterior
+from pinarray.adaptive.posterior import SlopeStatus, ThresholdStatus, threshold_posterior
 from pinarray.adaptive.psychometric import Psychometric
 from pinarray.analysis.procedure_check import simulated_run, subject_seed
 from pinarray.errors import PinArrayError
@@ -134,6 +134,60 @@ def test_a_weibull_threshold_scales_with_the_intensities_unit(scale, seed):
     assert fit.ci_low <= fit.threshold <= fit.ci_high
 
 
+# A temporal order: the SOAs of protocols/toj.yaml (ms, B's onset minus A's), 12 answers each.
+SOAS_MS = np.array([-120.0, -60.0, -30.0, -15.0, 15.0, 30.0, 60.0, 120.0])
+
+
+def test_a_stated_lapse_rate_is_the_model_s_and_a_slope_gets_its_own_interval():
+    truth = Psychometric("logistic", threshold=-20.0, slope=np.log(3) / 30, guess=0.0, lapse=0.0)
+    n = np.full(len(SOAS_MS), 200)
+    k = np.random.default_rng(4).binomial(n, truth.probability(SOAS_MS))
+    fit = threshold_posterior("logistic", SOAS_MS, k, n, guess=0.0, lapse=0.0)
+    assert fit.lapse == 0.0 and fit.status is ThresholdStatus.ESTIMATED
+    assert fit.slope_status is SlopeStatus.ESTIMATED
+    assert fit.slope_ci_low < truth.slope < fit.slope_ci_high
+    assert fit.slope_ci_low < fit.slope < fit.slope_ci_high
+    assert fit.slope == pytest.approx(truth.slope, rel=0.15)
+
+
+def test_answers_that_change_like_a_step_leave_the_slope_open_above_with_its_lower_bound():
+    n = np.full(len(SOAS_MS), 12)
+    step = threshold_posterior("logistic", SOAS_MS, np.where(SOAS_MS > 0, n, 0), n, guess=0.0,
+                               lapse=0.0)
+    # The 50 % point lies between the two SOAs nearest 0; how steep, the answers cannot say.
+    assert step.status is ThresholdStatus.ESTIMATED and -15 < step.ci_low < step.ci_high < 15
+    assert step.slope_status is SlopeStatus.STEEPER and step.slope_ci_low > np.log(3) / 15
+    flat = threshold_posterior("logistic", SOAS_MS, n // 2, n, guess=0.0, lapse=0.0)
+    assert flat.slope_status is SlopeStatus.SHALLOWER and flat.slope_ci_high < np.log(3) / 60
+
+
+@settings(max_examples=20, deadline=None)
+@given(shift_ms=st.floats(-500, 500), pss_ms=st.floats(-40, 40), seed=st.integers(0, 2**32 - 1))
+def test_a_logistic_on_signed_values_moves_with_them_and_mirrors_with_them(shift_ms, pss_ms,
+                                                                          seed):
+    # SOAs counted from another zero move the 50 % point and its interval by as much; the
+    # pins named the other way round (SOAs and answers mirrored) mirror it; the slope and its
+    # interval stay (to rounding).
+    truth = Psychometric("logistic", threshold=pss_ms, slope=0.04, guess=0.0, lapse=0.0)
+    n = np.full(len(SOAS_MS), 12)
+    k = np.random.default_rng(seed).binomial(n, truth.probability(SOAS_MS))
+    fit = threshold_posterior("logistic", SOAS_MS, k, n, guess=0.0, lapse=0.0)
+    moved = threshold_posterior("logistic", SOAS_MS + shift_ms, k, n, guess=0.0, lapse=0.0)
+    mirrored = threshold_posterior("logistic", -SOAS_MS, n - k, n, guess=0.0, lapse=0.0)
+    flipped = {ThresholdStatus.BELOW: ThresholdStatus.ABOVE, ThresholdStatus.ABOVE: ThresholdStatus.BELOW}
+    assert moved.status is fit.status and mirrored.status is flipped.get(fit.status, fit.status)
+    assert moved.slope_status is mirrored.slope_status is fit.slope_status
+    tolerance = 1e-9 * (1 + abs(shift_ms))
+    np.testing.assert_allclose([moved.threshold, moved.ci_low, moved.ci_high],
+                               np.add([fit.threshold, fit.ci_low, fit.ci_high], shift_ms),
+                               atol=tolerance)
+    np.testing.assert_allclose([mirrored.threshold, mirrored.ci_low, mirrored.ci_high],
+                               [-fit.threshold, -fit.ci_high, -fit.ci_low], atol=1e-9)
+    for other in (moved, mirrored):
+        np.testing.assert_allclose([other.slope, other.slope_ci_low, other.slope_ci_high],
+                                   [fit.slope, fit.slope_ci_low, fit.slope_ci_high], rtol=1e-9)
+
+
 @pytest.mark.parametrize(("arguments", "message"), [
     ({"intensities": [1.0, 2.0], "n_correct": [1], "n_trials": [2, 2]}, "one count of correct answers and of trials per intensity"),
     ({"intensities": [1.0, 1.0], "n_correct": [1, 1], "n_trials": [2, 2]}, "2 distinct finite intensities or more"),
@@ -141,6 +195,7 @@ def test_a_weibull_threshold_scales_with_the_intensities_unit(scale, seed):
     ({"intensities": [1.0, 2.0], "n_correct": [3, 1], "n_trials": [2, 2]}, "0 <= correct <= trials"),
     ({"intensities": [1.0, 2.0], "n_correct": [1, 1], "n_trials": [2, 2], "guess": 0.95}, "guess rate from 0 to below 0.9 is needed, found 0.95"),
     ({"kind": "probit", "intensities": [1.0, 2.0], "n_correct": [1, 1], "n_trials": [2, 2]}, "weibull or logistic, found 'probit'"),
+    ({"intensities": [1.0, 2.0], "n_correct": [1, 1], "n_trials": [2, 2], "lapse": 0.5}, r"stated lapse rate from 0 to below 1 - guess rate \(0.5\)"),
 ])
 def test_bad_fit_data_are_refused_saying_what_was_found(arguments, message):
     with pytest.raises(PinArrayError, match=message):
