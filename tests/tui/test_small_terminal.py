@@ -16,6 +16,7 @@ from textual.errors import NoWidget
 from textual.widgets import Button, DataTable, Static
 
 from pinarray.errors import BusError
+from pinarray.player.playback import DEFAULT_LEAD_NS
 from pinarray.player.rig import Rig
 from pinarray.player.timing import PortFigures, WakeUps, judge
 from pinarray.protocol.imaging import SyncOverrides, parse_trigger
@@ -293,91 +294,92 @@ async def test_the_scanner_wait_shows_what_it_waits_for_and_how_to_stop(results,
 # -- the run ---------------------------------------------------------------------------------
 
 
-@SIZES
-@PARADIGMS
-async def test_the_instructions_show_every_key_and_answer(results, size, protocol):
-    app = make_app(results, protocol=protocol)
-    async with app.run_test(size=size) as pilot:
-        await to_run_screen(pilot)
-        assert app.screen.session.phase is Phase.INSTRUCTIONS
-        assert unseen(app.screen) == []
+async def answer(pilot, protocol):
+    """The trial awaiting its answer gets one (pin 1, or left)."""
+    await pilot.press(*(["1", "enter"] if protocol == LOCALISATION else ["l"]))
+    await settle(pilot)
 
 
 @SIZES
 @PARADIGMS
-async def test_a_trial_ready_to_present_shows_the_last_answer_and_the_notice(results, size,
+async def test_every_phase_of_a_run_shows_every_key_answer_and_notice_whole(results, size,
                                                                             protocol):
-    app = make_app(results, protocol=protocol)
+    """One run walked through each phase the experimenter meets: the instructions, a trial
+    ready, a stimulus playing, the answer awaited, each question, a pause and a failed
+    stimulus; in each, every key, answer, notice and line is in view and whole."""
+    app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
     async with app.run_test(size=size) as pilot:
         await to_run_screen(pilot)
+        screen = app.screen
+        session = screen.session
+        # The instructions.
+        assert session.phase is Phase.INSTRUCTIONS
+        assert unseen(screen) == []
+        # A trial ready to present, after the first was answered.
         await answer_one(pilot, protocol)
         await pilot.press("x")
-        screen = app.screen
-        assert screen.session.phase is Phase.READY
+        assert session.phase is Phase.READY
         assert says(screen, "#last").startswith("last: practice 1")
         assert screen.notice.text.startswith("x does nothing here")
         assert unseen(screen) == []
-
-
-async def holding_a_stimulus(pilot, protocol):
-    """The second trial's stimulus begun and held (`ArrayRig.hold`) until the test sets it."""
-    await to_run_screen(pilot)
-    await answer_one(pilot, protocol)
-    ArrayRig.hold = threading.Event()
-    await pilot.press("space")
-    while pilot.app.screen.session.phase is not Phase.STIMULUS:
-        await pilot.pause(0.01)
-
-
-@SIZES
-@PARADIGMS
-async def test_a_stimulus_playing_shows_every_key_and_answer(results, size, protocol):
-    app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
-    async with app.run_test(size=size) as pilot:
-        await holding_a_stimulus(pilot, protocol)
-        await pilot.press("x")
-        try:
-            assert app.screen.notice.text.startswith("x does nothing here")
-            assert says(app.screen, "#last").startswith("last: practice 1")
-            assert unseen(app.screen) == []
-        finally:
-            ArrayRig.hold.set()
-            await settle(pilot)
-
-
-@SIZES
-async def test_a_stimulus_playing_shows_how_far_it_has_played_of_its_length(results, size):
-    app = make_app(results, rig_factory=ArrayRig)
-    async with app.run_test(size=size) as pilot:
-        await holding_a_stimulus(pilot, LOCALISATION)
-        try:
-            clock = app.sitting.clock.clock  # the sitting's virtual clock, under its stop
-            clock.sleep_until_ns(clock.now_ns() + 3_250_000_000)
-            await pilot.pause(0.2)  # a few frames of the grid's animation
-            assert says(app.screen, "#phase") == "Stimulus playing: 3.2 of 10.0 s"
-            assert "Stimulus playing: 3.2 of 10.0 s" in on_screen(app)
-        finally:
-            ArrayRig.hold.set()
-            await settle(pilot)
-
-
-@SIZES
-@PARADIGMS
-async def test_the_answer_awaited_shows_every_answer_the_last_one_and_the_notice(results, size,
-                                                                                protocol):
-    app = make_app(results, protocol=protocol)
-    async with app.run_test(size=size) as pilot:
-        await to_run_screen(pilot)
-        await answer_one(pilot, protocol)
+        # Its stimulus playing (held at its start until the checks are done).
+        ArrayRig.hold = threading.Event()
         await pilot.press("space")
-        await settle(pilot)
+        try:
+            while session.phase is not Phase.STIMULUS:
+                await pilot.pause(0.01)
+            await pilot.press("x")
+            assert screen.notice.text.startswith("x does nothing here")
+            assert says(screen, "#last").startswith("last: practice 1")
+            assert unseen(screen) == []
+            # How far it has played of its length.
+            length_s = session.current_schedule().end_ns / 1e9
+            clock = app.sitting.clock.clock  # the sitting's virtual clock, under its stop
+            played_ns = min(3_250_000_000, int(length_s * 1e9) // 2)
+            clock.sleep_until_ns(clock.now_ns() + played_ns)
+            await pilot.pause(0.2)  # a few frames of the grid's animation
+            playing = f"Stimulus playing: {(played_ns - DEFAULT_LEAD_NS) / 1e9:.1f} of {length_s:.1f} s"
+            assert says(screen, "#phase") == playing
+            assert playing in on_screen(app)
+        finally:
+            ArrayRig.hold.set()
+            await settle(pilot)
+        # The answer awaited.
         await pilot.press("x")  # not an answer: the notice says what is
-        screen = app.screen
-        assert screen.session.phase is Phase.RESPONSE
+        assert session.phase is Phase.RESPONSE
         assert screen.notice.text.startswith("not an answer")
         assert says(screen, "#last").startswith("last: practice 1")
-        answers = screen.query("#pad Button")
-        assert len(answers) == (0 if protocol == LOCALISATION else 4)
+        assert len(screen.query("#pad Button")) == (0 if protocol == LOCALISATION else 4)
+        assert unseen(screen) == []
+        # Each question asked before quitting, aborting or redoing, and both its answers.
+        for key in ("q", "a", "d"):
+            await pilot.press(key)
+            await settle(pilot)
+            await pilot.press("x")
+            assert isinstance(app.screen, Confirm), key
+            assert app.screen.notice.text == "y: yes · n or Escape: no"
+            assert unseen(app.screen) == []
+            await pilot.press("n")
+            await settle(pilot)
+        # A pause.
+        await pilot.press("p")
+        await settle(pilot)
+        await pilot.press("space")
+        assert session.phase is Phase.PAUSED
+        assert screen.notice.text == "paused: p resumes first"
+        assert says(screen, "#last").startswith("last: practice 1")
+        assert unseen(screen) == []
+        await pilot.press("p")
+        await settle(pilot)
+        await answer(pilot, protocol)
+        # A stimulus that failed.
+        ArrayRig.failures = 1
+        await pilot.press("space")
+        await settle(pilot)
+        await pilot.press("space")
+        assert session.phase is Phase.FAULT
+        assert "t: present the trial again" in says(screen, "#phase")
+        assert screen.notice.text.startswith("the stimulus failed")
         assert unseen(screen) == []
 
 
@@ -400,63 +402,6 @@ async def test_waves_going_every_way_offer_every_direction_as_an_answer_all_in_v
         await pilot.press("1")  # the first direction a sequence names
         await settle(pilot)
         assert screen.session.last.record.response == "up-right"
-
-
-@SIZES
-@PARADIGMS
-async def test_a_paused_run_shows_every_key_the_last_answer_and_the_notice(results, size,
-                                                                          protocol):
-    app = make_app(results, protocol=protocol)
-    async with app.run_test(size=size) as pilot:
-        await to_run_screen(pilot)
-        await answer_one(pilot, protocol)
-        await pilot.press("space")
-        await settle(pilot)
-        await pilot.press("p")
-        await settle(pilot)
-        await pilot.press("space")
-        screen = app.screen
-        assert screen.session.phase is Phase.PAUSED
-        assert screen.notice.text == "paused: p resumes first"
-        assert says(screen, "#last").startswith("last: practice 1")
-        assert unseen(screen) == []
-
-
-@SIZES
-@PARADIGMS
-async def test_a_failed_stimulus_shows_why_what_next_and_every_key(results, size, protocol):
-    app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
-    async with app.run_test(size=size) as pilot:
-        await to_run_screen(pilot)
-        await answer_one(pilot, protocol)
-        ArrayRig.failures = 1
-        await pilot.press("space")
-        await settle(pilot)
-        await pilot.press("space")
-        screen = app.screen
-        assert screen.session.phase is Phase.FAULT
-        assert "t: present the trial again" in says(screen, "#phase")
-        assert screen.notice.text.startswith("the stimulus failed")
-        assert unseen(screen) == []
-
-
-@SIZES
-@pytest.mark.parametrize("key", ["q", "a", "d"], ids=["quit", "abort", "redo"])
-async def test_a_question_shows_itself_and_both_answers_whole(results, size, key):
-    app = make_app(results)
-    async with app.run_test(size=size) as pilot:
-        await to_run_screen(pilot)
-        await answer_one(pilot, LOCALISATION)
-        await pilot.press("space")
-        await settle(pilot)
-        await pilot.press(key)
-        await settle(pilot)
-        await pilot.press("x")
-        assert isinstance(app.screen, Confirm)
-        assert app.screen.notice.text == "y: yes · n or Escape: no"
-        assert unseen(app.screen) == []
-        await pilot.press("n")
-        await settle(pilot)
 
 
 # -- the end ---------------------------------------------------------------------------------
