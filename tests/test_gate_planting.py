@@ -23,22 +23,32 @@ ROOT = Path(__file__).resolve().parents[1]
 LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
 
 
-def gate(project: Path) -> str:
-    """Everything the gate finds wrong in ``project``, one string ("" when it passes)."""
-    found = []
+def gate(project: Path, names: tuple[str, ...] = ()) -> str:
+    """What the gate finds wrong in ``project``, one string ("" when it passes).
+
+    Its checks run cheapest first; once every one of ``names`` has been said, the dearest
+    (lint-imports, which reads the whole package) is not run: the gate has failed already.
+    """
+    found: list[str] = []
+
+    def said() -> str:
+        return re.sub(r"\s+", " ", "\n".join(found))
+
     ruff = subprocess.run([sys.executable, "-m", "ruff", "check", "--no-cache",
                            "--output-format", "concise", "pinarray"],
                           cwd=project, capture_output=True, text=True, timeout=120)
     if ruff.returncode:
         found.append(ruff.stdout + ruff.stderr)
+    found += dynamic_imports_of_the_roots(project / "pinarray")
+    found += waits_and_signal_handlers_out_of_place(project / "pinarray")
+    if names and all(name in said() for name in names):
+        return said()
     # lint-imports puts its working directory first on the path: the copy is the one analysed.
     contracts = subprocess.run([LINT_IMPORTS, "--no-cache"], cwd=project, capture_output=True,
                                text=True, timeout=120, env={**os.environ, "COLUMNS": "400"})
     if contracts.returncode:
         found.append(contracts.stdout + contracts.stderr)
-    found += dynamic_imports_of_the_roots(project / "pinarray")
-    found += waits_and_signal_handlers_out_of_place(project / "pinarray")
-    return re.sub(r"\s+", " ", "\n".join(found))
+    return said()
 
 
 @pytest.fixture
@@ -118,6 +128,6 @@ def test_the_gate_fails_on_and_names_a_planted(violation, project):
     target = project / "pinarray" / where
     text = target.read_text(encoding="utf-8") if target.exists() else ""
     target.write_text(text + code, encoding="utf-8")
-    found = gate(project)
+    found = gate(project, tuple(expected))
     for message in expected:
         assert message in found, f"the gate did not say {message!r}: {found or 'it passed'}"

@@ -89,8 +89,8 @@ class InstructionPacket:
 
 def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
     """``FF FF id len err params chk`` with ``len = len(params) + 2``."""
-    body = bytes([servo_id, len(params) + 2, error]) + params
-    return b"\xff\xff" + body + bytes([checksum(body)])
+    body = bytes((servo_id, len(params) + 2, error)) + params
+    return b"\xff\xff" + body + bytes((checksum(body),))
 
 
 def _fits(length: int) -> bool:
@@ -390,18 +390,18 @@ class SimBus:
     def _reply(
         self, servo: SimServo, reply_id: int, params: bytes, end_ns: int, chained: bool = False
     ) -> StatusReply:
-        packet = bytearray(status_packet(reply_id, int(servo.status_error), params))
+        packet = status_packet(reply_id, int(servo.status_error), params)
         corrupt = self.corrupt_next > 0 or (
             self.corrupt_rate and self._random.random() < self.corrupt_rate
         )
         if corrupt:
             self.corrupt_next = max(0, self.corrupt_next - 1)
-            packet[-1] ^= 0x5A  # a flipped bit pattern the checksum cannot miss
+            packet = packet[:-1] + bytes((packet[-1] ^ 0x5A,))  # a flip the checksum cannot miss
         late = self.late_next > 0 or (self.late_rate and self._random.random() < self.late_rate)
         if late:
             self.late_next = max(0, self.late_next - 1)
         return StatusReply(
-            servo.return_delay_ns, bytes(packet), end_ns, chained, self.late_ns if late else 0
+            servo.return_delay_ns, packet, end_ns, chained, self.late_ns if late else 0
         )
 
 
@@ -460,7 +460,8 @@ class SimSerial:
 
     def write(self, data: bytes) -> int:
         self._check_alive("write")
-        data = bytes(data)
+        if type(data) is not bytes:
+            data = bytes(data)
         start_ns = max(self.clock.now_ns(), self._wire_free_ns)
         end_ns = start_ns + round(len(data) * self._byte_ns)
         self._tx_done_ns = self._wire_free_ns = end_ns
