@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from pinarray.journal.manifest import RunStatus, read_manifest
 from pinarray.journal.records import TrialStatus, read_trials
 from pinarray.tui.outcome import Crashed
-from tests.tui.conftest import SIZE, make_app, settle, to_run_screen
+from tests.tui.conftest import SIZE, make_app, settle, to_run_screen, write_short_localisation
 
 # The run screen's keys (begin/present, pause/resume, redo, retry, abort and the dialog's
 # answers), answer keys, and keys that mean nothing there. q ends every sequence.
@@ -27,7 +27,7 @@ bursts = st.lists(st.lists(st.sampled_from(KEYS), min_size=1, max_size=6), min_s
 
 
 async def play(results: Path, sequence: list[list[str]]):
-    app = make_app(results)
+    app = make_app(results, protocol=write_short_localisation(results.parent))
     async with app.run_test(size=SIZE) as pilot:
         await to_run_screen(pilot)
         for burst in sequence:

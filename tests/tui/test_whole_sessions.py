@@ -12,8 +12,8 @@ from tests.tui.conftest import MOTION, SIZE, make_app, settle, to_run_screen
 
 
 @pytest.mark.long
-async def test_a_whole_localisation_session_by_typing_and_clicking(results):
-    app = make_app(results)
+async def test_a_whole_localisation_session_by_typing_and_clicking(results, short_localisation):
+    app = make_app(results, protocol=short_localisation)
     answers = {}
     async with app.run_test(size=SIZE) as pilot:
         await to_run_screen(pilot)
