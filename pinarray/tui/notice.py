@@ -90,12 +90,12 @@ class KeyNotices:
         """Have the footer show which keys act now, if that changed.
 
         The footer redraws every key it shows when told the bindings changed (the costliest
-        update a screen makes), so it is told only when one of this screen's actions became
+        update a screen makes), so it is told only when one of the actions it shows became
         possible or impossible.
         """
         screen = typing.cast("Screen[object]", self)
-        now = tuple(screen.check_action(action, ()) for actions in
-                    actions_by_key(self.BINDINGS).values() for action in actions)
+        shown = [b if isinstance(b, Binding) else Binding(*b) for b in self.BINDINGS]
+        now = tuple(screen.check_action(b.action, ()) for b in shown if b.show)
         if now != getattr(self, "_keys_shown", None):
             self._keys_shown = now
             screen.refresh_bindings()

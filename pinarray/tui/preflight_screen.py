@@ -47,7 +47,8 @@ class PreflightScreen(KeyNotices, Screen):
     # b and Escape whatever has focus: the pin field takes only digits anyway.
     BINDINGS = [Binding("escape", "back", "back", priority=True),
                 Binding("b", "begin", "begin run", priority=True),
-                Binding("s", "skip_timing", "skip timing check", priority=True)]
+                # Said on the timing line while the check measures, not in the footer.
+                Binding("s", "skip_timing", "skip timing check", priority=True, show=False)]
 
     def __init__(self, sitting: Sitting, request: SessionRequest):
         super().__init__()
