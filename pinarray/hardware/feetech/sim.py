@@ -61,6 +61,11 @@ from pinarray.hardware.feetech.sim_wire import (
 
 # Instructions that only ask: no servo's id can change by them.
 ASKING = frozenset({Instruction.PING, Instruction.READ, Instruction.SYNC_READ})
+# Instruction codes as plain ints, for the comparisons every packet makes.
+_PING, _READ = int(Instruction.PING), int(Instruction.READ)
+_SYNC_READ, _SYNC_WRITE = int(Instruction.SYNC_READ), int(Instruction.SYNC_WRITE)
+# The longest READ answer one status packet can carry, in data bytes.
+_LONGEST_READ = MAX_PACKET_BYTES - status_size(0)
 # How long a read on an empty line waits before returning nothing; the SDK polls in a loop.
 POLL_NS = 500_000
 # The port keeps the last this many writes for a test to look at (a log, bounded: a long
@@ -95,7 +100,7 @@ def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
 
 def _fits(length: int) -> bool:
     """Whether an answer of ``length`` data bytes fits in one packet the servos can send."""
-    return status_size(length) <= MAX_PACKET_BYTES
+    return length <= _LONGEST_READ
 
 
 class SimBus:
@@ -179,6 +184,8 @@ class SimBus:
             for servo in self.all_servos():
                 servo.set_up_baud(baud_rate)
         replies: list[StatusReply] = []
+        if len(self._buffer) < 4:  # the tail of a packet to come: nothing whole yet
+            return replies
         while (packet := self._next_packet()) is not None:
             servo_id, instruction, params = packet
             end_ns = at_ns - round(len(self._buffer) * byte_ns)
@@ -195,6 +202,9 @@ class SimBus:
         return replies
 
     def _lost(self, instruction: int) -> bool:
+        if not (self.drop_next or self.drop_rate or self.drop_writes_next
+                or self.drop_write_rate):
+            return False  # the usual wire: nothing is lost
         if self.drop_next > 0:
             self.drop_next -= 1
             return True
@@ -225,7 +235,10 @@ class SimBus:
             if len(buffer) < total:
                 return None
             packet = bytes(buffer[:total])
-            del buffer[:total]
+            if len(buffer) == total:
+                buffer.clear()
+            else:
+                del buffer[:total]
             if checksum(packet[2:-1]) != packet[-1]:
                 self.packets_rejected += 1  # a servo silently ignores a bad checksum
                 continue
@@ -297,6 +310,8 @@ class SimBus:
         """Every servo answering at ``servo_id`` that hears the host's speed."""
         servo = self.servos.get(servo_id)
         found = [servo] if servo is not None and servo.hears(baud_rate) else []
+        if not self._shadowed:
+            return found
         if self._shadowed:
             found += [s for s in self._shadowed if s.servo_id == servo_id and s.hears(baud_rate)]
         return found
@@ -321,11 +336,16 @@ class SimBus:
         self, servo_id: int, instruction: int, params: bytes, end_ns: int, baud: int | None
     ) -> list[StatusReply]:
         broadcast = servo_id == BROADCAST_ID
-        if instruction == Instruction.SYNC_WRITE:
+        if instruction == _READ and not broadcast:  # the usual request: one servo's bytes
+            if len(params) != 2 or not _fits(params[1]):
+                return []
+            return [self._reply(servo, servo_id, servo.read(params[0], params[1], end_ns), end_ns)
+                    for servo in self._at(servo_id, baud)]
+        if instruction == _SYNC_WRITE:
             if broadcast and len(params) >= 2:
                 self._sync_write(params, end_ns, baud)
             return []
-        if instruction == Instruction.SYNC_READ:
+        if instruction == _SYNC_READ:
             if not broadcast or len(params) < 2 or not _fits(params[1]):
                 return []
             address, length = params[0], params[1]
@@ -390,7 +410,9 @@ class SimBus:
     def _reply(
         self, servo: SimServo, reply_id: int, params: bytes, end_ns: int, chained: bool = False
     ) -> StatusReply:
-        packet = status_packet(reply_id, int(servo.status_error), params)
+        packet = status_packet(reply_id, servo.status_error_byte, params)
+        if not (self.corrupt_next or self.corrupt_rate or self.late_next or self.late_rate):
+            return StatusReply(servo.return_delay_ns, packet, end_ns, chained, 0)
         corrupt = self.corrupt_next > 0 or (
             self.corrupt_rate and self._random.random() < self.corrupt_rate
         )
@@ -459,7 +481,8 @@ class SimSerial:
             raise serial.SerialException(f"{what} failed: [Errno 5] Input/output error")
 
     def write(self, data: bytes) -> int:
-        self._check_alive("write")
+        if not self.is_open or self.bus.vanished:
+            self._check_alive("write")
         if type(data) is not bytes:
             data = bytes(data)
         start_ns = max(self.clock.now_ns(), self._wire_free_ns)
@@ -478,7 +501,12 @@ class SimSerial:
         """Put transmissions on their way to the host, every byte at its own arrival time
         (``late``: one of them was made late, and may overlap or overtake the others)."""
         times, data, head = self._arrival_ns, self._data, self._head
-        if head > COMPACT_BYTES and 2 * head > len(times):
+        if head == len(times):
+            if head:  # everything queued so far was read: start the queue again
+                times.clear()
+                data.clear()
+                self._head = head = 0
+        elif head > COMPACT_BYTES and 2 * head > len(times):
             del times[:head], data[:head]
             self._head = head = 0
         in_order = len(times) == head or times[-1] <= arriving[0].arrival_ns(0)
@@ -517,7 +545,8 @@ class SimSerial:
         return ends[index] if index < len(ends) else None
 
     def read(self, size: int = 1) -> bytes:
-        self._check_alive("read")
+        if not self.is_open or self.bus.vanished:
+            self._check_alive("read")
         now_ns = self.clock.now_ns()
         pending = len(self._arrival_ns) - self._head
         if size > 0 and self._arrived(now_ns) == 0:

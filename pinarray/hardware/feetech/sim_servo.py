@@ -241,7 +241,12 @@ class SimServo:
     @property
     def status_error(self) -> StatusError:
         """Error bits of the next status packet: injected faults and a supply out of limits."""
-        bits = self.error_bits
+        return StatusError(self.status_error_byte)
+
+    @property
+    def status_error_byte(self) -> int:
+        """`status_error` as the byte a status packet carries."""
+        bits = int(self.error_bits)
         if not self.table[_MIN_VOLTAGE] <= self.supply_v * 10 <= self.table[_MAX_VOLTAGE]:
             bits |= StatusError.VOLTAGE
         return bits
@@ -255,7 +260,7 @@ class SimServo:
         if address < FEEDBACK_END and end > FEEDBACK_START:
             self._refresh_feedback(now_ns, address, end)  # only then does the motion matter
         data = bytes(self.table[address:end])
-        return data + bytes(length - len(data))
+        return data if len(data) == length else data + bytes(length - len(data))
 
     def write(self, address: int, data: bytes, now_ns: int) -> None:
         """Apply a WRITE; writes to EEPROM addresses are remembered so tests can forbid them."""
@@ -372,8 +377,10 @@ class SimServo:
         return self._history[0]
 
     def _touch(self, now_ns: int) -> int:
-        self._last_ns = max(self._last_ns, now_ns)
-        return max(now_ns, self._move.start_ns)
+        if now_ns > self._last_ns:
+            self._last_ns = now_ns
+        start_ns = self._move.start_ns
+        return now_ns if now_ns > start_ns else start_ns
 
     def _drive(self) -> Drive:
         top = self.model.speed_at(self.supply_v)
