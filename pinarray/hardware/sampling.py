@@ -85,7 +85,8 @@ class Holds:
         self._holding: set[int] = set()
 
     def moved(self, servo_id: int) -> None:
-        """A frame changed the servo's goal: it no longer holds."""
+        """The servo is not known to hold any more: a frame changed its goal, or a sample
+        went unanswered."""
         self._holding.discard(servo_id)
         self._last_steps.pop(servo_id, None)
 

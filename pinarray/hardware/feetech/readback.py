@@ -142,7 +142,12 @@ class Verifier:
                 continue
             # Each servo samples its encoder as the request's last byte reaches it.
             at_ns = now_ns - self.onset_ns + request_ns
-            for servo_id, steps in bus.read_positions(ids, limit_ns).items():
+            positions = bus.read_positions(ids, limit_ns)
+            for servo_id in ids:
+                steps = positions.get(servo_id)
+                if steps is None:
+                    holds.moved(servo_id)  # no answer: not known to hold, sampled every period
+                    continue
                 sampled_ns[servo_id].append(at_ns)
                 sampled_steps[servo_id].append(steps)
                 holds.sampled(servo_id, at_ns, steps)
