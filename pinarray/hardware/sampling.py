@@ -7,8 +7,11 @@
 and holds its goal gives the same reading again and again until its next goal change: those
 readings change no peak (the held position is already among the samples), no lag (the
 arrival is already seen) and no count that matters. So while *every* moving pin holds, the
-next sample is taken only when the cycle's gap rule needs it, a sampling period early; from
-a pin's next goal change on, every period again.
+next sample is taken only when the cycle's gap rule needs it, and once just before the next
+goal change of any moving pin (as late as it still fits before that frame); from the change
+on, every period again. The gap rule is kept with what follows a change budgeted: the
+frame's read-back and a sample after it (several servos on a slow bus take tens of ms); where
+that budget leaves no room, samples are not held back at all.
 
 A pin holds when its last two samples read the same position within `ARRIVAL_STEPS` of the
 goal in force. A horn pushed off its goal between two sparse samples (a finger pressing
@@ -25,6 +28,8 @@ from dataclasses import dataclass
 
 from pinarray.hardware.delivery import Change
 from pinarray.hardware.motion import ARRIVAL_STEPS, MAX_GAP_FRACTION
+
+NEVER_NS = 2**62  # later than any trial ends
 
 
 @dataclass(frozen=True)
@@ -48,6 +53,11 @@ class PinGoals:
         """The goal in force at ``time_ns`` (None before the first change)."""
         index = bisect_right(self.change_ns, time_ns)
         return self.goal_steps[index - 1] if index else None
+
+    def next_change_ns(self, time_ns: int) -> int:
+        """The servo's first goal change after ``time_ns`` (never: a very large number)."""
+        index = bisect_right(self.change_ns, time_ns)
+        return self.change_ns[index] if index < len(self.change_ns) else NEVER_NS
 
     def gap_allowed_ns(self, time_ns: int, end_ns: int) -> int | None:
         """The longest gap between samples the cycle holding ``time_ns`` allows (None
@@ -100,14 +110,29 @@ class Holds:
             self._holding.discard(servo_id)
         self._last_steps[servo_id] = steps
 
-    def next_sample_ns(self, last_ns: int) -> int:
-        """When, after a sample at ``last_ns`` (ns after onset), the next one is needed."""
-        dense_ns = last_ns + self.period_ns
+    def next_sample_ns(self, last_ns: int, sample_ns: int, after_change_ns: int) -> int:
+        """When, after a sample at ``last_ns`` (ns after onset), the next one is needed.
+
+        ``sample_ns``: what one sample of the moving servos takes on this bus;
+        ``after_change_ns``: the longest from a goal change to the first sample after it (the
+        frame, its read-back, a sample).
+        """
+        dense_ns = last_ns + max(self.period_ns, sample_ns)
         if len(self._holding) < len(self._goals):
             return dense_ns
         allowed = [goals.gap_allowed_ns(last_ns, self.end_ns) for goals in self._goals.values()]
         if None in allowed:
             return dense_ns
-        # A period early: the first sample after the pins' next goal change comes up to a
-        # read-back and a period after it, and that gap must fit the rule too.
-        return max(dense_ns, last_ns + min(a for a in allowed if a is not None) - self.period_ns)
+        # The last sample before a change must still fit before its frame, a period early;
+        # from it to the first sample after the change the gap must fit the rule too.
+        before_change_ns = sample_ns + self.period_ns
+        gap_ns = min(a for a in allowed if a is not None)
+        if before_change_ns + after_change_ns > gap_ns:
+            return dense_ns  # no room to hold anything back on this bus
+        next_change_ns = min((goals.next_change_ns(last_ns) for goals in self._goals.values()),
+                             default=self.end_ns)
+        wanted_ns = min(last_ns + gap_ns - after_change_ns, next_change_ns - before_change_ns)
+        # On the grid sampling every period would keep: the samples after the next change
+        # then fall where they would have, and so do the lags they measure.
+        step_ns = dense_ns - last_ns
+        return max(dense_ns, last_ns + (wanted_ns - last_ns) // step_ns * step_ns)

@@ -10,6 +10,7 @@ import pytest
 from pinarray.clock import VirtualClock
 from pinarray.hardware.feetech.registers import Register
 from pinarray.hardware.motion import PinTrace, measure_trial
+from pinarray.hardware.sampling import Holds
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.physio import motion_recording_path, read_motion
 from pinarray.journal.records import TrialStatus, read_trials
@@ -21,7 +22,7 @@ from pinarray.protocol.load import parse_protocol
 from pinarray.schedule import compile_trial
 from tests.runs import REPO
 
-from .lab import pulse_train, sim_bus
+from .lab import pulse_train, sim_bus, targets
 
 MS = 1_000_000
 SEED = (REPO / "protocols" / "localisation.yaml").read_text()
@@ -224,3 +225,34 @@ def test_waiting_for_the_ports_bytes_or_polling_for_them_delivers_and_measures_t
             b.commanded_steps, b.achieved_steps, b.cycles, b.short_cycles)
         # polling every 20 us finds a reply up to 20 us after it arrived; waiting, at once
         assert abs(a.lag_ns - b.lag_ns) <= 20_000
+
+
+def up_then_short_down(pins, period_ms=300, up_ms=260, cycles=4, up_steps=2300):
+    """Up for most of each cycle, briefly down: a stroke a slow servo cannot make down."""
+    changes = [(k * period_ms * MS + at_ms * MS, pin, goal) for k in range(cycles)
+               for pin in pins for at_ms, goal in ((0, up_steps), (up_ms, 2048))]
+    return targets(changes, cycles * period_ms * MS + 200 * MS)
+
+
+@pytest.mark.parametrize("query, schedule", [
+    ("", pulse_train(range(1, 17), 2, 4, up_steps=2162)),
+    ("", up_then_short_down(range(1, 17))),
+    ("baud=115200", pulse_train(range(1, 17), 2, 4, up_steps=2162)),
+    ("baud=57600", pulse_train(range(1, 9), 2, 4, up_steps=2162)),
+], ids=["16-pins-2Hz", "16-pins-short-down", "16-pins-115200", "8-pins-57600"])
+def test_holding_samples_back_measures_what_sampling_every_period_measures(query, schedule,
+                                                                          monkeypatch):
+    """Sixteen pins on the factory return delay, or a slow bus: a sample of them all and the
+    read-back after a change take tens of ms, which the samples held back must leave room
+    for (else a cycle goes unjudged, or a short one is missed and the trial passes)."""
+    measured = []
+    for every_period in (False, True):
+        if every_period:
+            monkeypatch.setattr(Holds, "next_sample_ns", lambda self, last_ns, sample_ns, after_ns:
+                                last_ns + max(self.period_ns, sample_ns))
+        bus = sim_bus(query)
+        report = play_prepared(bus, prepare_trial(bus, schedule), bus.clock)
+        measured.append((report.delivery.strokes, sum(len(t.time_ns) for t in report.trace)))
+    (held_back, fewer), (every, more) = measured
+    assert held_back == every
+    assert fewer <= more  # equal where the bus leaves no room to hold any back (115200 baud)

@@ -1,11 +1,13 @@
 """Which samples the measured motion needs: every period while a pin moves, only as often as
-the cycle rule asks while every moving pin holds its goal."""
+the cycle rule asks while every moving pin holds its goal, and one just before each change."""
 
 from pinarray.hardware.delivery import Change
 from pinarray.hardware.sampling import Holds
 
 MS = 1_000_000
 PERIOD_NS = 4 * MS
+SAMPLE_NS = 1 * MS  # one sample of the moving servos on this bus
+AFTER_NS = 2 * MS  # from a goal change to the first sample after it
 UP, REST = 2113, 2048
 
 
@@ -15,39 +17,55 @@ def square_train(servo_id: int, cycles: int, half_ns: int) -> list[Change]:
             for k in range(2 * cycles)]
 
 
-def test_a_pin_holding_its_goal_is_next_sampled_a_period_before_the_cycle_rule_demands():
+def holding(holds: Holds, servo_id: int, *at_ms: int, steps: int = UP) -> None:
+    for ms in at_ms:
+        holds.sampled(servo_id, ms * MS, steps)
+
+
+def test_a_pin_holding_its_goal_is_sampled_again_when_the_cycle_rule_needs_it():
     holds = Holds(square_train(4, 3, 200 * MS), (4,), 1200 * MS, PERIOD_NS)
-    holds.sampled(4, 100 * MS, UP - 1)
-    assert holds.next_sample_ns(100 * MS) == 104 * MS  # one sample at the goal: not yet
-    holds.sampled(4, 104 * MS, UP - 1)
-    # a 400 ms cycle allows gaps of 50 ms; the first sample after the next change comes up to
-    # a period late, so the one before it is a period early
-    assert holds.next_sample_ns(104 * MS) == (104 + 50 - 4) * MS
+    holding(holds, 4, 20, steps=UP - 1)
+    assert holds.next_sample_ns(20 * MS, SAMPLE_NS, AFTER_NS) == 24 * MS  # once: not yet
+    holding(holds, 4, 24, steps=UP - 1)
+    # a 400 ms cycle allows gaps of 50 ms, less what follows a change
+    assert holds.next_sample_ns(24 * MS, SAMPLE_NS, AFTER_NS) == (24 + 50 - 2) * MS
+
+
+def test_the_last_sample_before_a_change_fits_before_its_frame_on_the_period_grid():
+    holds = Holds(square_train(4, 3, 200 * MS), (4,), 1200 * MS, PERIOD_NS)
+    holding(holds, 4, 170, 174)
+    # the change at 200 ms: a sample of 1 ms must end a period before it (by 195 ms), on the
+    # grid of samples every period from 174 ms, as sampling every period would have taken it
+    assert holds.next_sample_ns(174 * MS, SAMPLE_NS, AFTER_NS) == 194 * MS
+
+
+def test_a_bus_too_slow_to_leave_room_around_a_change_holds_nothing_back():
+    holds = Holds(square_train(4, 3, 200 * MS), (4,), 1200 * MS, PERIOD_NS)
+    holding(holds, 4, 20, 24)
+    # a sample of 16 servos and the read-back after a change: 30 + 25 ms > a 50 ms gap
+    assert holds.next_sample_ns(24 * MS, 30 * MS, 25 * MS) == (24 + 30) * MS
 
 
 def test_a_pin_still_far_from_its_goal_or_another_still_moving_keeps_every_period():
     changes = square_train(4, 3, 200 * MS) + square_train(9, 3, 200 * MS)
     holds = Holds(sorted(changes, key=lambda c: c.time_ns), (4, 9), 1200 * MS, PERIOD_NS)
-    for at_ms in (100, 104):
-        holds.sampled(4, at_ms * MS, UP)
-        holds.sampled(9, at_ms * MS, UP - 20)  # stopped short: not within 3 steps
-    assert holds.next_sample_ns(104 * MS) == 108 * MS
+    holding(holds, 4, 20, 24)
+    holding(holds, 9, 20, 24, steps=UP - 20)  # stopped short: not within 3 steps
+    assert holds.next_sample_ns(24 * MS, SAMPLE_NS, AFTER_NS) == 28 * MS
 
 
 def test_a_goal_change_or_an_unanswered_sample_sends_sampling_back_to_every_period():
     holds = Holds(square_train(4, 3, 200 * MS), (4,), 1200 * MS, PERIOD_NS)
-    for at_ms in (100, 104):
-        holds.sampled(4, at_ms * MS, UP)
-    assert holds.next_sample_ns(104 * MS) > 108 * MS
+    holding(holds, 4, 20, 24)
+    assert holds.next_sample_ns(24 * MS, SAMPLE_NS, AFTER_NS) > 28 * MS
     holds.moved(4)
-    assert holds.next_sample_ns(104 * MS) == 108 * MS
-    holds.sampled(4, 108 * MS, UP)
-    assert holds.next_sample_ns(108 * MS) == 112 * MS  # it must be seen holding again first
+    assert holds.next_sample_ns(24 * MS, SAMPLE_NS, AFTER_NS) == 28 * MS
+    holding(holds, 4, 28)
+    assert holds.next_sample_ns(28 * MS, SAMPLE_NS, AFTER_NS) == 32 * MS  # seen holding first
 
 
 def test_before_its_first_cycle_begins_a_pin_is_sampled_every_period():
     changes = [Change(4, 4, UP, 300 * MS), Change(4, 4, REST, 500 * MS)]
     holds = Holds(changes, (4,), 800 * MS, PERIOD_NS)
-    for at_ms in (100, 104):
-        holds.sampled(4, at_ms * MS, REST)  # no goal in force yet: nothing held
-    assert holds.next_sample_ns(104 * MS) == 108 * MS
+    holding(holds, 4, 100, 104, steps=REST)  # no goal in force yet: nothing held
+    assert holds.next_sample_ns(104 * MS, SAMPLE_NS, AFTER_NS) == 108 * MS

@@ -63,6 +63,7 @@ class Verifier:
         self._next_sample_ns = 0  # clock ns: the earliest the next sample is taken
         self._last_sample_ns = 0  # clock ns: when the last one was
         self._holds = Holds(trial.changes, self.moving, trial.end_ns, SAMPLE_PERIOD_NS)
+        self.frame_bytes = max((len(frame.packet) for frame in trial.frames), default=0)
 
     def sent(self, frame: PreparedFrame, sent_ns: int) -> None:
         """A frame's write returned ``sent_ns`` after onset: its changes await confirmation."""
@@ -131,6 +132,10 @@ class Verifier:
         # Samples held back while the pins hold (`pinarray.hardware.sampling`) only where one
         # request reads them all: a bus that reads one servo a time samples each less often.
         thinning = len(ids) == 1 or bus.read_request_bytes(ids) != READ_REQUEST_BYTES
+        # From a goal change to the first sample after it: the frame on the wire, the
+        # read-back of every moving servo's goal, then a sample (each as this bus usually takes).
+        after_change_ns = (bus.wire_ns(self.frame_bytes) + bus.read_goals_time_ns(self.moving)
+                           + cost_ns)
         while not self.pending:
             now_ns = clock.now_ns()
             if now_ns < self.onset_ns or now_ns + cost_ns > limit_ns:
@@ -153,7 +158,8 @@ class Verifier:
                 holds.sampled(servo_id, at_ns, steps)
             self._last_sample_ns = now_ns
             self._next_sample_ns = now_ns + (
-                holds.next_sample_ns(at_ns) - at_ns if thinning else SAMPLE_PERIOD_NS)
+                holds.next_sample_ns(at_ns, cost_ns, after_change_ns) - at_ns if thinning
+                else SAMPLE_PERIOD_NS)
             if len(ids) > 1:
                 # Where SYNC READs gave way to READs (one servo each), the next one is the
                 # next servo.
