@@ -28,6 +28,8 @@ from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
     SOON,
     Onset,
+    OnsetAfter,
+    OnsetAt,
     PlaybackReport,
     play_prepared,
     prepare_trial,
@@ -155,6 +157,8 @@ class Rig:
         # One user of the port at a time: the UI may test a pin while a timing check runs.
         self._port = threading.RLock()
         self._released = False
+        # The stimulus playing now: its time zero on the rig's clock (None: none is playing).
+        self._playing_from_ns: int | None = None
         self._wall_time = markers is not None  # see `keep_wall_time`
         self._fd = self.bus.descriptor
         self._isolate = self._fd is not None if isolate is None else isolate
@@ -212,6 +216,11 @@ class Rig:
             self.bus.reconnect()
             self._released = False
         trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
+        match onset:
+            case OnsetAt(onset_ns=onset_ns):
+                self._playing_from_ns = onset_ns
+            case OnsetAfter(lead_ns=lead_ns):
+                self._playing_from_ns = self.clock.now_ns() + lead_ns
         try:
             if self.player is not None:
                 report = self.player.play(trial, onset=onset, tolerance_ns=self.tolerance_ns,
@@ -225,10 +234,20 @@ class Rig:
         except PinArrayError:
             self._released = True
             raise
+        finally:
+            self._playing_from_ns = None
         self.reports.append(report)
         if report.marker_problem:
             self.marker_problems.append(report.marker_problem)
         return Presentation(report.onset_ns, report.delivery, report.trace)
+
+    @property
+    def playing_from_ns(self) -> int | None:
+        """The time zero on the rig's clock of the stimulus playing now; None while none is
+        (a presentation still waiting for the array, or between stimuli). Safe from any
+        thread: a screen shows a stimulus's progress from it, never from when it was asked
+        for."""
+        return self._playing_from_ns
 
     def keep_wall_time(self) -> None:
         """Play every stimulus on the wall clock (never in the simulator's own time): another

@@ -180,8 +180,10 @@ class Sitting:
         self.lsl_name = lsl_name
         self.marker_stream: MarkerStream | None = None
         self.scanner: Scanner | None = None
-        # What the last timing check on this connection said, for the run's manifest.
+        # What the last timing check on this connection said, for the run's manifest, and
+        # the last verdict one gave (a check skipped gives none).
         self.timing_check = ""
+        self._verdict = ""
         self._jobs = 0  # hardware jobs running in workers (a stimulus, a test pin, a timing check)
         self._jobs_done = threading.Condition()
         # Set while the rig is being closed: a pause must not clear the stop a close relies on.
@@ -223,7 +225,7 @@ class Sitting:
         """
         self.release("connecting again")
         self.request = request
-        self.timing_check = ""
+        self.timing_check = self._verdict = ""
         with self._jobs_done:
             self._closing = False
             if self.stop.signal_number is None:
@@ -281,9 +283,12 @@ class Sitting:
         match outcome:
             case Verdict(judgement=judgement, lines=lines):
                 said = [line for line in lines if line.startswith(f"{judgement.value}:")]
-                self.timing_check = said[0] if said else judgement.value
+                self._verdict = said[0] if said else judgement.value
+                self.timing_check = self._verdict
             case CheckSkipped():
-                self.timing_check = "timing check " + outcome.describe()
+                # A re-check skipped (after Lower return delay): the verdict before it stands.
+                before = f"; the verdict before it: {self._verdict}" if self._verdict else ""
+                self.timing_check = f"timing check {outcome.describe()}{before}"
         return outcome
 
     def lower_return_delay(self, delay_us: int = 0

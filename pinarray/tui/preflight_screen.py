@@ -179,13 +179,19 @@ class PreflightScreen(KeyNotices, Screen):
                 self._timing_doubt = "" if outcome.deliverable else outcome.judgement.value
                 self._timing_line("Timing: " + "\n".join(outcome.lines), not outcome.deliverable)
             case CheckSkipped():
-                self._timing_doubt = ""
-                self._timing_line(f"Timing: {outcome.describe()} (written in the run's records)")
+                # A verdict measured before (a re-check after Lower return delay) still
+                # stands: what it doubted, Begin still asks about.
+                earlier = f"; the last verdict: {self._timing_doubt}" if self._timing_doubt else ""
+                self._timing_line(f"Timing: {outcome.describe()}{earlier} (written in the "
+                                  "run's records)", bool(self._timing_doubt))
         if self._begin_after_check:
             self._begin_after_check = False
             self.query_one("#begin", Button).label = BEGIN_LABEL
-            if outcome is not None:  # None: stopped, the screen is being left
+            if outcome is not None:
                 self.action_begin()
+            elif not self._leaving:  # the check failed or was stopped: say so, not silence
+                self.notice.say("Begin cancelled: the timing check ended without a verdict; "
+                                "b begins without it")
 
     def action_skip_timing(self) -> None:
         if self._measuring:

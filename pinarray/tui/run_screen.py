@@ -22,7 +22,6 @@ from textual.widgets import Footer, ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import LocalisationRecord, MotionRecord, StrokeCounts
-from pinarray.player.playback import DEFAULT_LEAD_NS
 from pinarray.protocol import Condition, Direction, LocalisationCondition, MotionCondition, WaveKind
 from pinarray.protocol.described import describe_condition
 from pinarray.protocol.drives import trial_drives
@@ -87,7 +86,6 @@ class RunScreen(KeyNotices, Screen):
         self._by_trial = {t.trial: t for t in session.plan.trials}
         self._timeline: LiftTimeline | None = None
         self._active: frozenset[int] = frozenset()
-        self._onset_ns = 0
         self._stimulus_ns = 0  # the length of the stimulus presented last
         self._shown_playing = ""  # the stimulus's progress as last shown
         self._presenting = False  # a present worker runs (the interval, then the stimulus)
@@ -348,7 +346,8 @@ class RunScreen(KeyNotices, Screen):
 
     def _tick(self) -> None:
         if self._timeline is not None:
-            elapsed_ns = self.clock.now_ns() - self._onset_ns
+            onset_ns = self._playing_from()
+            elapsed_ns = -1 if onset_ns is None else self.clock.now_ns() - onset_ns
             self._draw_grid(self._timeline.lifted_at(elapsed_ns))
         if self.session.phase is Phase.STIMULUS and not (self.session.pausing or self._cutting):
             playing = self._playing()
@@ -357,10 +356,19 @@ class RunScreen(KeyNotices, Screen):
                 # One line whose length hardly changes: no layout of the screen for it.
                 self.query_one("#phase", Static).update(playing, layout=False)
 
+    def _playing_from(self) -> int | None:
+        """The time zero of the stimulus the array is playing now (None: it has not begun)."""
+        rig = self.sitting.rig
+        return None if rig is None else rig.playing_from_ns
+
     def _playing(self) -> str:
-        """The stimulus's own progress: seconds played of its length."""
+        """The stimulus's own progress, seconds played of its length, once the array plays it;
+        until then, that it waits."""
+        onset_ns = self._playing_from()
+        if onset_ns is None:
+            return "Stimulus starting: waiting for the array…"
         length_ns = self._stimulus_ns
-        played_ns = min(length_ns, max(0, self.clock.now_ns() - self._onset_ns))
+        played_ns = min(length_ns, max(0, self.clock.now_ns() - onset_ns))
         return f"Stimulus playing: {played_ns / 1e9:.1f} of {length_ns / 1e9:.1f} s"
 
     # -- session changes ----------------------------------------------------------------------
@@ -368,7 +376,6 @@ class RunScreen(KeyNotices, Screen):
     @on(Changed)
     def _changed(self, message: Changed) -> None:
         if message.phase is Phase.STIMULUS:
-            self._onset_ns = message.at_ns + DEFAULT_LEAD_NS  # the player's own lead
             self._ticker.resume()
         else:
             self._ticker.pause()

@@ -6,8 +6,10 @@ import threading
 
 import pytest
 
+from pinarray.errors import BusError
 from pinarray.journal.manifest import read_manifest
 from pinarray.player.timing import CheckSkipped, PortFigures, WakeUps, judge
+from pinarray.tui.confirm import Confirm
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
 from tests.tui.conftest import SIZE, fill_start, make_app
@@ -107,3 +109,59 @@ async def test_a_skipped_check_lets_begin_start_the_run_later_without_asking(res
         assert isinstance(app.screen, PreflightScreen)
         await pilot.press("b")
         await until(pilot, lambda: isinstance(app.screen, RunScreen), "the run screen")
+
+
+class DoubtfulRig(MeasuringRig):
+    """A first check that says NOT OK at once; a re-check that measures as `MeasuringRig`."""
+
+    checks = 0
+
+    def check_timing(self, duration_ns=0, period_ns=0, progress=None):
+        DoubtfulRig.checks += 1
+        if DoubtfulRig.checks == 1:
+            return judge(WakeUps(2000, 1_200_000, 9_800_000, 32_100_000), "",
+                         PortFigures("sim://", 8, 3_400_000, None, 200), 10_000_000)
+        return super().check_timing(duration_ns, period_ns, progress)
+
+
+async def test_a_re_check_skipped_leaves_the_verdict_before_it_to_ask_about_and_record(results):
+    DoubtfulRig.checks = 0
+    app = make_app(results, rig_factory=DoubtfulRig, timing_check_ns=None)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        await pilot.click("#start")
+        await until(pilot, lambda: "NOT OK" in on_screen(app), "the first verdict")
+        await pilot.click("#lower-delay")  # faster read-backs: the timing is measured again
+        await until(pilot, lambda: app.screen._measuring, "the re-check measuring")
+        await pilot.press("s")
+        MeasuringRig.go.release(1)
+        await until(pilot, lambda: "skipped by the experimenter" in on_screen(app), "skipped")
+        await pilot.press("b")
+        await until(pilot, lambda: isinstance(app.screen, Confirm), "Begin asking first")
+        assert "Begin although the timing check said NOT OK?" in on_screen(app)
+        await pilot.press("y")
+        await until(pilot, lambda: isinstance(app.screen, RunScreen), "the run screen")
+        (manifest,) = manifests(results)
+        said = manifest.sittings[-1].timing_check
+        assert said.startswith("timing check skipped by the experimenter after 1 of 10 s")
+        assert "; the verdict before it: NOT OK: stimuli may be reported not delivered" in said
+
+
+class FailingCheckRig(MeasuringRig):
+    """A timing check that ends without a verdict: the array went away while it measured."""
+
+    def check_timing(self, duration_ns=0, period_ns=0, progress=None):
+        assert MeasuringRig.go.acquire(timeout=30)
+        raise BusError("servo 3 (pin 3): no status packet after 3 retries")
+
+
+async def test_a_begin_waiting_for_a_check_that_fails_is_cancelled_in_words(results):
+    app = make_app(results, rig_factory=FailingCheckRig, timing_check_ns=None)
+    async with app.run_test(size=SIZE) as pilot:
+        await measuring_preflight(pilot, 0)
+        await pilot.press("b")
+        MeasuringRig.go.release(1)
+        await until(pilot, lambda: "Begin cancelled" in on_screen(app), "the cancel said")
+        assert isinstance(app.screen, PreflightScreen)
+        assert "Timing: not checked" in on_screen(app)
+        assert manifests(results) == []

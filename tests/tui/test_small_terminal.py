@@ -16,7 +16,6 @@ from textual.errors import NoWidget
 from textual.widgets import Button, DataTable, Static
 
 from pinarray.errors import BusError
-from pinarray.player.playback import DEFAULT_LEAD_NS
 from pinarray.player.rig import Rig
 from pinarray.player.timing import PortFigures, WakeUps, judge
 from pinarray.protocol.imaging import SyncOverrides, parse_trigger
@@ -322,28 +321,48 @@ async def test_every_phase_of_a_run_shows_every_key_answer_and_notice_whole(resu
         assert says(screen, "#last").startswith("last: practice 1")
         assert screen.notice.text.startswith("x does nothing here")
         assert unseen(screen) == []
-        # Its stimulus playing (held at its start until the checks are done).
+        # Its stimulus asked for, the array not free yet (held until the checks are done):
+        # the screen says it waits, never that it plays.
         ArrayRig.hold = threading.Event()
         await pilot.press("space")
+        rig = app.sitting.rig
+        length_ns = session.current_schedule().end_ns
+        into_ns = min(3_250_000_000, length_ns // 2)  # how far into it the array is stopped
+        midway, go_on = threading.Event(), threading.Event()
+
+        def stop_midway(packet):  # on the array's own thread, as the bytes reach the servos
+            start_ns = rig.playing_from_ns
+            if start_ns is not None and packet.end_ns >= start_ns + into_ns and not go_on.is_set():
+                midway.set()
+                go_on.wait(30)
+
+        rig.bus.sim.packet_listener = stop_midway
         try:
             while session.phase is not Phase.STIMULUS:
                 await pilot.pause(0.01)
             await pilot.press("x")
+            await pilot.pause(0.2)  # a few frames of the screen's animation
+            assert rig.playing_from_ns is None
+            assert says(screen, "#phase") == "Stimulus starting: waiting for the array…"
+            assert "playing" not in on_screen(app)
             assert screen.notice.text.startswith("x does nothing here")
             assert says(screen, "#last").startswith("last: practice 1")
             assert unseen(screen) == []
-            # How far it has played of its length.
-            length_s = session.current_schedule().end_ns / 1e9
-            clock = app.sitting.clock.clock  # the sitting's virtual clock, under its stop
-            played_ns = min(3_250_000_000, int(length_s * 1e9) // 2)
-            clock.sleep_until_ns(clock.now_ns() + played_ns)
-            await pilot.pause(0.2)  # a few frames of the grid's animation
-            playing = f"Stimulus playing: {(played_ns - DEFAULT_LEAD_NS) / 1e9:.1f} of {length_s:.1f} s"
+            # The array plays it, stopped a while into it: how far it has played of its length.
+            ArrayRig.hold.set()
+            while not midway.is_set():
+                await pilot.pause(0.01)
+            await pilot.pause(0.2)
+            played_ns = app.sitting.clock.now_ns() - rig.playing_from_ns
+            playing = f"Stimulus playing: {played_ns / 1e9:.1f} of {length_ns / 1e9:.1f} s"
+            assert played_ns >= into_ns
             assert says(screen, "#phase") == playing
             assert playing in on_screen(app)
         finally:
             ArrayRig.hold.set()
+            go_on.set()
             await settle(pilot)
+            rig.bus.sim.packet_listener = None
         # The answer awaited.
         await pilot.press("x")  # not an answer: the notice says what is
         assert session.phase is Phase.RESPONSE

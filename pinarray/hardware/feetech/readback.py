@@ -16,8 +16,9 @@ on the wire (8 + 8 bytes for one servo: 160 us at 1 Mbit/s, 1.4 ms at 115200), e
 return delay (500 us from the factory, 100 us after `pinarray servos return-delay`) and the
 USB adapter's latency (1 ms with its latency timer at 1 ms; 16 ms at the FTDI default). So
 about 1.5 kHz per moving servo on a tuned adapter at 1 Mbit/s, about 60 Hz at the FTDI
-default, of which at most `SAMPLE_PERIOD_NS` is used; the time around each frame's write and read-back (the guard and the read-back
-itself) leaves gaps of a millisecond or two in the trace.
+default, of which at most `SAMPLE_PERIOD_NS` is used (and fewer while every moving pin holds
+its goal: `pinarray.hardware.sampling`); the time around each frame's write and read-back (the
+guard and the read-back itself) leaves gaps of a millisecond or two in the trace.
 """
 
 from __future__ import annotations

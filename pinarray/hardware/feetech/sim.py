@@ -310,8 +310,6 @@ class SimBus:
         """Every servo answering at ``servo_id`` that hears the host's speed."""
         servo = self.servos.get(servo_id)
         found = [servo] if servo is not None and servo.hears(baud_rate) else []
-        if not self._shadowed:
-            return found
         if self._shadowed:
             found += [s for s in self._shadowed if s.servo_id == servo_id and s.hears(baud_rate)]
         return found
@@ -512,7 +510,8 @@ class SimSerial:
         in_order = len(times) == head or times[-1] <= arriving[0].arrival_ns(0)
         for sent in arriving:
             start_ns, byte_ns = sent.start_ns, sent.byte_ns  # `Transmission.arrival_ns`, inline
-            times.extend([start_ns + round(index * byte_ns) for index in range(1, len(sent.data) + 1)])
+            times.extend([start_ns + round(index * byte_ns)
+                          for index in range(1, len(sent.data) + 1)])
             data += sent.data
             insort(self._ends_ns, times[-1])
         if late or not in_order:

@@ -79,14 +79,18 @@ def schedule(
     """
     if len(replies) == 1 and not replies[0].late_ns:  # the usual answer: nothing to collide
         reply = replies[0]
-        after_ns = max(line_free_ns, reply.instruction_end_ns) if reply.chained else reply.instruction_end_ns
+        after_ns = reply.instruction_end_ns
+        if reply.chained:
+            after_ns = max(line_free_ns, after_ns)
         sent = Transmission(after_ns + reply.delay_ns, reply.packet, byte_ns)
         return [sent], max(line_free_ns, sent.end_ns)
     on_time: list[Transmission] = []
     late: list[Transmission] = []
     free_ns = line_free_ns
     for reply in replies:
-        after_ns = max(free_ns, reply.instruction_end_ns) if reply.chained else reply.instruction_end_ns
+        after_ns = reply.instruction_end_ns
+        if reply.chained:
+            after_ns = max(free_ns, after_ns)
         start_ns = after_ns + reply.delay_ns
         if reply.late_ns:
             late.append(Transmission(start_ns + reply.late_ns, reply.packet, byte_ns))
