@@ -211,7 +211,7 @@ def test_participants_lists_every_subject_once(study):
 def test_analyse_gives_subject_level_numbers_counting_every_trial_once(study, tmp_path):
     result = subprocess.run(
         [sys.executable, "-m", "pinarray", "analyse", str(study.root), "--out", str(tmp_path),
-         "--bootstrap-resamples", "1000"],
+         "--bootstrap-resamples", "1000", "--no-figures"],
         capture_output=True, text=True, timeout=300, cwd=REPO)
     assert result.returncode == 0, result.stderr
 

@@ -280,8 +280,10 @@ def _lab_trials(study: Study) -> str:
     return "".join(f", {n} {name} trials" for name, n in counts.items() if n)
 
 
-def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Path]) -> str:
-    """The report page: runs, methods, subject-level tables, figures with captions, links."""
+def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Path],
+                     figures_skipped: bool = False) -> str:
+    """The report page: runs, methods, subject-level tables, figures with captions, links
+    (``figures_skipped``: the analysis was asked for none, and the page says so)."""
     subjects = study.subjects
     runs = study.runs
     lines = ["# Pin-array results", "",
@@ -313,6 +315,8 @@ def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Pat
                        else threshold_captions[png.stem])
             lines += [f"![{png.stem}]({png.name})", "",
                       f"*Figure {n}.* {caption} Vector: [{png.stem}.pdf]({png.stem}.pdf).", ""]
+    elif figures_skipped:
+        lines += ["## Figures", "", "Not drawn: analysed with `--no-figures`.", ""]
     lines += ["## Tables", ""] + [f"- [{p.name}]({p.name})" for p in tables] + [""]
     return "\n".join(lines)
 
@@ -340,13 +344,13 @@ def write_figures(study: Study, out: Path) -> list[Path]:
     return drawn
 
 
-def write_report(study: Study, out: Path) -> Report:
-    """Write tables, figures and ``summary.md`` into ``out``."""
+def write_report(study: Study, out: Path, figures: bool = True) -> Report:
+    """Write tables, figures (unless ``figures`` is False) and ``summary.md`` into ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     tables = write_tables(study, out)
     tables[-1:-1] = lab_tables(study.identification, study.judgements,
                                study.subject_level.settings, out)  # runs.csv stays last
-    figures = write_figures(study, out)
+    drawn = write_figures(study, out) if figures else []
     path = out / "summary.md"
-    path.write_text(summary_markdown(study, tables, figures), encoding="utf-8")
-    return Report(path, tuple(tables), tuple(figures))
+    path.write_text(summary_markdown(study, tables, drawn, figures_skipped=not figures), encoding="utf-8")
+    return Report(path, tuple(tables), tuple(drawn))

@@ -61,6 +61,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         metavar="LIST",
                         help="pins a subject could name, e.g. 1,4,6,7 (default: every pin of "
                         "the grid); sets the chance levels")
+    parser.add_argument("--no-figures", action="store_true",
+                        help="tables and summary.md only, no PNG or PDF figures (drawing them "
+                        "takes most of the time of a small study)")
     parser.set_defaults(func=_cmd_analyse)
 
     power = subparsers.add_parser(
@@ -123,7 +126,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     runs = select_runs(loaded, args.include_incomplete)
     result = study(runs, settings, args.answer_pins)
     try:
-        report = write_report(result, Path(args.out))
+        report = write_report(result, Path(args.out), figures=not args.no_figures)
     except OSError as problem:
         raise ResultsError(f"{problem.filename or args.out}: cannot write the report there: "
                            f"{problem.strerror}") from None

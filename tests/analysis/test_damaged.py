@@ -48,7 +48,7 @@ def test_skip_damaged_analyses_the_rest_and_says_what_it_left_out(tmp_path):
     _, broken = two_runs(tmp_path / "results")
     broken.beh_tsv.write_bytes(b"\0" * 10 + b"\n" + b"\0" * 10)
     status, out, err = analyse(str(tmp_path / "results"), "--out", str(tmp_path / "report"),
-                               "--skip-damaged")
+                               "--skip-damaged", "--no-figures")
     assert status == 0
     assert err == (f"pinarray: {broken.beh_tsv}:1:1: expected a tab-separated results table, "
                    "found a NUL byte (a binary file?) (skipped)\n")
@@ -70,7 +70,8 @@ def test_a_torn_last_row_is_left_out_and_said(tmp_path):
     _, torn = two_runs(tmp_path / "results")
     data = torn.beh_tsv.read_bytes()
     torn.beh_tsv.write_bytes(data[: len(data) - 20])
-    status, out, _ = analyse(str(tmp_path / "results"), "--out", str(tmp_path / "report"))
+    status, out, _ = analyse(str(tmp_path / "results"), "--out", str(tmp_path / "report"),
+                             "--no-figures")
     assert status == 0
     assert f"  {torn.beh_tsv}: its last row was cut short by an interrupted write" in out
     assert "trial(s) 5 have no finished row" in out

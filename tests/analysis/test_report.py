@@ -70,6 +70,26 @@ def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them
         assert f"({name})" in page and (out / name).exists()
 
 
+def test_no_figures_writes_the_same_tables_and_printout_and_the_page_says_none_were_drawn(
+        analysed):
+    out = analysed.out.parent / "tables-only"
+    printed = io.StringIO()
+    with contextlib.redirect_stdout(printed):
+        assert analyse(str(analysed.out.parent / "results"), "--out", str(out),
+                       "--no-figures") == 0
+    assert printed.getvalue().replace(str(out), "OUT") == \
+        analysed.printed.replace(str(analysed.out), "OUT")
+    tables = sorted(p.name for p in analysed.out.glob("*.csv"))
+    assert tables and sorted(p.name for p in out.glob("*.csv")) == tables
+    for name in tables:
+        assert (out / name).read_bytes() == (analysed.out / name).read_bytes(), name
+    assert not list(out.glob("*.png")) and not list(out.glob("*.pdf"))
+    page = (out / "summary.md").read_text()
+    assert "Not drawn: analysed with `--no-figures`." in page and "*Figure" not in page
+    drawn = (analysed.out / "summary.md").read_text()
+    assert page.split("## Figures")[0] == drawn.split("## Figures")[0]
+
+
 def test_the_page_and_the_printout_give_subject_means_and_label_the_pooled_numbers(analysed):
     out, printed = analysed.out, analysed.printed
     # 3 Hz: subject A 25 %, subject B 50 %: mean 37.5 %; the 6 trials pooled: 2/6.
@@ -105,7 +125,7 @@ def test_no_interval_of_a_percentage_leaves_0_to_100_by_default(analysed):
 def test_the_old_t_interval_is_there_when_asked_for_and_says_it_is_not_bounded(results_root,
                                                                               tmp_path, capsys):
     out = tmp_path / "analysis"
-    analyse(str(results_root), "--out", str(out), "--interval", "t")
+    analyse(str(results_root), "--out", str(out), "--interval", "t", "--no-figures")
     assert "3 Hz: 37.5 % [-121.3, 196.3] (2 subj., 6 trials)" in capsys.readouterr().out
     page = (out / "summary.md").read_text()
     assert "| 3 Hz | 2 | 6 | 37.5 % | [-121.3, 196.3] | [25.0, 50.0] | 33.3 % [9.7, 70.0] (2/6) " \
@@ -197,7 +217,7 @@ def test_an_aborted_run_is_listed_and_left_out_unless_asked_for(results_root, tm
     write_run(results_root, "C", "localisation", [localisation_row(1, 4, "4")],
               status="aborted")
     out = tmp_path / "analysis"
-    analyse(str(results_root), "--out", str(out))
+    analyse(str(results_root), "--out", str(out), "--no-figures")
     printed = capsys.readouterr().out
     assert ("left out: sub-C ses-1 task-localisation run-1: manifest says aborted "
             "(1 counted trial(s)); --include-incomplete counts it") in printed
@@ -205,7 +225,7 @@ def test_an_aborted_run_is_listed_and_left_out_unless_asked_for(results_root, tm
     runs = {r["subject"]: r for r in read_csv(out / "runs.csv") if r["task"] == "localisation"}
     assert (runs["C"]["included"], runs["C"]["incomplete_reason"]) == \
         ("no", "manifest says aborted")
-    analyse(str(results_root), "--out", str(out), "--include-incomplete")
+    analyse(str(results_root), "--out", str(out), "--include-incomplete", "--no-figures")
     printed = capsys.readouterr().out
     assert "3 subject(s)" in printed and "counted on request: sub-C" in printed
 

@@ -222,7 +222,7 @@ def test_a_staircase_without_reversals_and_a_single_intensity_give_n_a_not_a_num
     write_run(root, "01", "motion", [staircase_row(n, 50.0, True) for n in (1, 2, 3)])
     out = tmp_path / "analysis"
     with contextlib.redirect_stdout(io.StringIO()):
-        assert analyse(str(root), "--out", str(out)) == 0
+        assert analyse(str(root), "--out", str(out), "--no-figures") == 0
     rows = read_csv(out / "thresholds.csv")
     by_method = {(r["subject"], r["method"]): r for r in rows}
     assert by_method["01", "reversal_mean"]["threshold"] == "n/a"
