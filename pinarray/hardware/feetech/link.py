@@ -350,6 +350,9 @@ class Link:
         self.reader = StatusReader()
         self.counters = LinkCounters()
         self.return_delay_ns: dict[int, int] = {}
+        # The replies the last request asked for, by servo id: a sampled bus asks the same
+        # (the very same tuple) every few milliseconds.
+        self._wanted: tuple[Sequence[Expected], dict[int, int], int] = ((), {}, 0)
 
     @property
     def name(self) -> str:
@@ -411,8 +414,12 @@ class Link:
         """
         self.drain()
         wire, reader, counters = self.wire, self.reader, self.counters
-        wanted = {e.servo_id: e.params_length for e in expected}
-        reader.longest_params = max(wanted.values(), default=0)
+        asked, wanted, longest = self._wanted
+        if asked is not expected:
+            wanted = {e.servo_id: e.params_length for e in expected}
+            longest = max(wanted.values(), default=0)
+            self._wanted = expected, wanted, longest
+        reader.longest_params = longest
         start_ns = self.clock.now_ns()
         limit_ns = start_ns + self.reply_time_ns(len(packet), expected, patience=patience)
         if deadline_ns is not None and deadline_ns < limit_ns:

@@ -220,6 +220,18 @@ class SimBus:
 
     def _next_packet(self) -> tuple[int, int, bytes] | None:
         buffer = self._buffer
+        if not buffer:
+            return None
+        size = len(buffer)
+        if (size >= 6 and buffer[0] == 0xFF and buffer[1] == 0xFF and buffer[2] != 0xFF
+                and buffer[3] >= 2 and size == buffer[3] + 4):
+            # The usual case, the loop below's first round: one whole packet and nothing else.
+            packet = bytes(buffer)
+            buffer.clear()
+            if checksum(packet[2:-1]) != packet[-1]:
+                self.packets_rejected += 1
+                return None
+            return packet[2], packet[4], packet[5:-1]
         while True:
             # Hunt for the FF FF header one byte at a time, as the servo's UART does.
             while len(buffer) >= 2 and not (buffer[0] == 0xFF and buffer[1] == 0xFF):
@@ -510,8 +522,13 @@ class SimSerial:
         in_order = len(times) == head or times[-1] <= arriving[0].arrival_ns(0)
         for sent in arriving:
             start_ns, byte_ns = sent.start_ns, sent.byte_ns  # `Transmission.arrival_ns`, inline
-            times.extend([start_ns + round(index * byte_ns)
-                          for index in range(1, len(sent.data) + 1)])
+            step_ns = int(byte_ns)
+            if step_ns == byte_ns:  # 1 Mbit/s and the other round rates: whole ns a byte
+                times.extend(range(start_ns + step_ns, start_ns + step_ns * len(sent.data) + 1,
+                                   step_ns))
+            else:
+                times.extend([start_ns + round(index * byte_ns)
+                              for index in range(1, len(sent.data) + 1)])
             data += sent.data
             insort(self._ends_ns, times[-1])
         if late or not in_order:
