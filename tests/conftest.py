@@ -1,7 +1,7 @@
 """For the whole test suite: LSL stays on this machine (see `tests.lsl_local`); no Hypothesis
 example is judged by how long it took (a wall-time limit fails on a busy machine; timing
 belongs in `make bench`); the longest tests start first, so that on several workers none of
-them is left running alone at the end; the garbage collector runs less often."""
+them is left running alone at the end; the garbage collector runs less often, and never again over what collection imported."""
 
 import gc
 
@@ -24,6 +24,12 @@ settings.load_profile("pinarray")
 
 def pytest_configure(config):
     keep_lsl_on_this_machine()
+
+
+def pytest_collection_finish(session):
+    # What the test modules imported lives as long as the process: out of the collector's
+    # sight, every full collection (pytest makes five as each worker ends) costs a fraction.
+    gc.freeze()
 
 
 def pytest_collection_modifyitems(config, items):
