@@ -207,7 +207,7 @@ def load_run(beh: Path) -> LoadedRun:
     except NotText as problem:
         where = f":{problem.line}:{problem.col}" if problem.line else ""
         raise DamagedResults([DamagedRun(beh, f"{beh}{where}: {problem.message}")]) from None
-    except (ResultsError, ValueError) as problem:  # ValueError: a csv.Error or a decode error
+    except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         reason = " ".join(str(problem).split())
         if not reason.startswith(str(beh)):
             reason = f"{beh}: {reason}"

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import Enum, StrEnum
@@ -33,6 +34,7 @@ from pinarray.journal.paths import check_label
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
 from pinarray.protocol.model import NOTHING_FELT, Direction, MotionAnswer, is_motion_answer
 from pinarray.protocol.paradigms import FIRST, SECOND, IntervalOrder
+from pinarray.text_files import position_of
 
 NA = "n/a"  # BIDS spelling of "not applicable"
 class TrialStatus(StrEnum):
@@ -725,7 +727,11 @@ def split_torn_tail(data: bytes, columns: int) -> tuple[int, bytes]:
     if end:
         start = data.rfind(b"\n", 0, end - 1) + 1
         last = data[start:end].decode("utf-8", errors="replace")
-        if start and len(next(csv.reader([last], delimiter="\t"))) != columns:
+        try:
+            cells = len(next(csv.reader([last], delimiter="\t")))
+        except csv.Error:  # not a row at all: not torn but damaged, which reading it says
+            cells = columns
+        if start and cells != columns:
             end = start
     return end, data[end:]
 
@@ -839,7 +845,10 @@ def read_trials(path: Path | str) -> list[TrialRecord]:
         raise ResultsError(f"{path}: no such results file") from None
     columns = len(beh_header(path)) or len(BEH_NAMES)
     end, _ = split_torn_tail(data, columns)
-    rows = list(csv.reader(io.StringIO(data[:end].decode("utf-8")), delimiter="\t"))
+    try:
+        rows = list(csv.reader(io.StringIO(data[:end].decode("utf-8")), delimiter="\t"))
+    except csv.Error as problem:
+        raise ResultsError(_not_a_table(path, data[:end], problem)) from None
     if not rows:
         return []
     header = todays_names(rows[0])
@@ -854,6 +863,16 @@ def read_trials(path: Path | str) -> list[TrialRecord]:
         values = {name: _parse(name, cell, where) for name, cell in zip(header, cells, strict=True)}
         records.append(_record(values, where))
     return records
+
+
+def _not_a_table(path: Path, data: bytes, problem: csv.Error) -> str:
+    """Where and why ``data`` cannot be read as tab-separated rows."""
+    lone = re.search(rb"\r(?!\n)", data)
+    if lone is None:
+        return f"{path}: expected a tab-separated results table, found {problem}"
+    line, col = position_of(data, lone.start())
+    return (f"{path}:{line}:{col}: expected a tab-separated results table, found a carriage "
+            "return inside a row")
 
 
 def finished_trials(records: Iterable[TrialRecord]) -> frozenset[tuple[int, bool]]:

@@ -5,7 +5,7 @@ import contextlib
 import io
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from pinarray.analysis.load import DamagedResults, load_runs, scan_runs, select_runs
@@ -30,6 +30,8 @@ def analyse(*argv: str) -> tuple[int, str, str]:
     (b"\x89PNG\r\n\x1a\n\0\0\0\rIHDR", ":3:1:", "found a NUL byte (a binary file?)"),
     ("trial\tblock\nsé".encode("latin-1"), ":2:2:", "expected UTF-8 text, found byte 0xe9"),
     (b"hello\tworld\n1\t2\n", ":1:", "expected the columns"),
+    # A line break of another system (a lone carriage return) inside a row.
+    (b"trial\tblock\n1\t\r2\n", ":2:3:", "found a carriage return inside a row"),
 ])
 def test_a_damaged_file_stops_the_analysis_naming_the_file_the_line_and_why(
         tmp_path, damage, where, why):
@@ -80,6 +82,7 @@ def test_a_torn_last_row_is_left_out_and_said(tmp_path):
 @settings(max_examples=60, deadline=None, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(cut=st.integers(0, 10_000), insert=st.binary(max_size=8), at=st.integers(0, 10_000))
+@example(cut=543, insert=b"\r", at=0)  # once a traceback: a carriage return before the header
 def test_any_damage_to_a_results_file_loads_it_or_names_it(tmp_path_factory, cut, insert, at):
     root = tmp_path_factory.mktemp("results")
     _, damaged = two_runs(root)
