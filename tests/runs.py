@@ -110,3 +110,14 @@ def unfinished_batch_run(root: Path, protocol_file: Path, subject: str = "01",
                          seed=seed, port_url="sim://", clock=VirtualClock())
     writer.finish(RunStatus.ABORTED, "stopped before trial 1")
     return writer.paths
+
+
+def write_short_localisation(folder: Path) -> Path:
+    """The seed's localisation protocol with 1 s stimuli, written into ``folder``: for tests
+    that go through whole runs to see what the screens do or what the files hold, where ten
+    seconds of simulated servos per trial add nothing."""
+    text = (REPO / "protocols" / "localisation.yaml").read_text(encoding="utf-8")
+    assert "    duration_s: 10\n" in text
+    path = folder / "localisation.yaml"
+    path.write_text(text.replace("    duration_s: 10\n", "    duration_s: 1\n"), encoding="utf-8")
+    return path

@@ -27,12 +27,11 @@ from pinarray.journal.manifest import RunStatus, entry_key, read_manifest
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import LocalisationRecord, TrialStatus, read_trials
 from pinarray.journal.timebase import ClockKind, seconds_text
-from tests.runs import REPO
+from tests.runs import REPO, write_short_localisation
 
 # One worker builds the module's fixture once (make test runs --dist loadgroup).
 pytestmark = pytest.mark.xdist_group("study")
 
-LOCALISATION = REPO / "protocols" / "localisation.yaml"
 MOTION = REPO / "protocols" / "apparent_motion.yaml"
 SUBJECTS = ("01", "02", "03", "04")
 VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
@@ -76,6 +75,9 @@ def kill_when(process, paths, rows):
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     root = tmp_path_factory.mktemp("study") / "results"
+    # The seed's localisation with 1 s stimuli: what the files hold is the point, not ten
+    # seconds of simulated servos per trial.
+    localisation = write_short_localisation(root.parent)
 
     def background(subject, *files, more=()):
         return subprocess.Popen(batch_command(root, subject, *files, more=more), cwd=REPO,
@@ -83,24 +85,24 @@ def study(tmp_path_factory):
 
     # All at once, as on a lab's shared results folder: sub-01 and sub-04 do both tasks,
     # sub-02 and sub-03 their motion task and, paced at 50x real time, their localisation.
-    others = [background("01", LOCALISATION, MOTION), background("04", LOCALISATION, MOTION),
+    others = [background("01", localisation, MOTION), background("04", localisation, MOTION),
               background("02", MOTION), background("03", MOTION)]
-    killed = background("02", LOCALISATION, more=["--time-scale", "50"])
-    killed3 = background("03", LOCALISATION, more=["--time-scale", "50"])
+    killed = background("02", localisation, more=["--time-scale", "50"])
+    killed3 = background("03", localisation, more=["--time-scale", "50"])
     paths3 = localisation_run(root, "03")
     before_kill = kill_when(killed, localisation_run(root, "02"), rows=6)
     kill_when(killed3, paths3, rows=3)
 
     # sub-02 resumes; meanwhile two processes resume sub-03 at once.
-    resumed = background("02", LOCALISATION, more=["--resume"])
+    resumed = background("02", localisation, more=["--resume"])
     others.append(resumed)
-    first = background("03", LOCALISATION, more=["--resume", "--time-scale", "1"])
+    first = background("03", localisation, more=["--resume", "--time-scale", "1"])
     wait_for(lambda: getattr(lock_holder(paths3.lock), "pid", None) == first.pid, first,
              "the first resumer holding the run")
-    second = batch(root, "03", LOCALISATION, more=["--resume"])
+    second = batch(root, "03", localisation, more=["--resume"])
     first.send_signal(signal.SIGTERM)  # the experimenter stops the first one ...
     _, first_stderr = first.communicate(timeout=60)
-    last = batch(root, "03", LOCALISATION, more=["--resume"])  # ... and finishes the run later
+    last = batch(root, "03", localisation, more=["--resume"])  # ... and finishes the run later
     assert last.returncode == 0, last.stderr
 
     stderr = {process: process.communicate(timeout=180)[1] for process in others}

@@ -7,6 +7,7 @@ import pytest
 from pinarray.clock import VirtualClock
 from pinarray.player.rig import Rig
 from pinarray.tui.app import PinArrayApp, TuiOptions
+from tests.runs import write_short_localisation
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 LOCALISATION = PROTOCOLS / "localisation.yaml"
@@ -75,17 +76,6 @@ def delay_column(app) -> list[str]:
 @pytest.fixture
 def results(tmp_path):
     return tmp_path / "results"
-
-
-def write_short_localisation(folder: Path) -> Path:
-    """The seed's localisation protocol with 1 s stimuli, written into ``folder``: for tests
-    that go through whole runs to see what the screens do, where ten seconds of simulated
-    servos per trial add nothing."""
-    text = LOCALISATION.read_text(encoding="utf-8")
-    assert "    duration_s: 10\n" in text
-    path = folder / "localisation.yaml"
-    path.write_text(text.replace("    duration_s: 10\n", "    duration_s: 1\n"), encoding="utf-8")
-    return path
 
 
 @pytest.fixture
