@@ -26,7 +26,7 @@ from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError, task_label
 from pinarray.stop import StoppableClock, StopRequest
-from tests.runs import VIRTUAL
+from tests.runs import VIRTUAL, write_short_localisation
 
 S = 1_000_000_000  # ns per s
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
@@ -356,9 +356,11 @@ def test_batch_refuses_unsafe_labels_and_incomplete_answers_in_one_line(tmp_path
 @pytest.mark.parametrize("rows_before_kill", [None, 0, 1, 9, 20])
 def test_a_batch_killed_at_any_moment_resumes_with_exactly_the_remaining_trials(tmp_path, rows_before_kill):
     out = tmp_path / "out"
-    common = [str(LOCALISATION), "--subject", "k1", "--observer", "default", "--seed", "21",
-              "--results", str(out)]
-    process = subprocess.Popen([sys.executable, "-m", "pinarray", "batch", *common, "--time-scale", "200"],
+    # The seed's plan with 1 s stimuli: what is on disk at the kill is the point. Paced at 50x
+    # a trial takes 80 ms, so the kill lands before the 26th.
+    common = [str(write_short_localisation(tmp_path)), "--subject", "k1", "--observer",
+              "default", "--seed", "21", "--results", str(out)]
+    process = subprocess.Popen([sys.executable, "-m", "pinarray", "batch", *common, "--time-scale", "50"],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     if rows_before_kill is None:
         time.sleep(0.1)  # most likely before the manifest exists: nothing written yet
