@@ -14,6 +14,7 @@ from pinarray.protocol.load import load_protocol
 from pinarray.session.sitting import MAX_ATTEMPTS, NotDelivered, SessionRequest, Sitting
 from pinarray.session.trials import Phase
 from pinarray.stop import Stopped
+from tests.runs import write_short_localisation
 
 LOCALISATION = Path(__file__).resolve().parent.parent / "protocols" / "localisation.yaml"
 
@@ -53,8 +54,12 @@ class RigStoppedMidStimulus(Rig):
 
 
 def sitting_on(results: Path, rig_factory=Rig) -> tuple[Sitting, SessionRequest]:
+    """A sitting in virtual time with the seed's plan at 1 s stimuli (how each trial goes is
+    the point, not ten seconds of simulated servos)."""
     sitting = Sitting(results, clock_factory=lambda port: VirtualClock(), rig_factory=rig_factory)
-    request = SessionRequest(load_protocol(LOCALISATION), "01", "1", "", None, None, 3, False)
+    (results / "protocol").mkdir(parents=True, exist_ok=True)
+    protocol = load_protocol(write_short_localisation(results / "protocol"))
+    request = SessionRequest(protocol, "01", "1", "", None, None, 3, False)
     return sitting, request
 
 
