@@ -4,7 +4,7 @@ import subprocess
 import sys
 
 from pinarray.journal.records import read_trials
-from tests.runs import REPO
+from tests.runs import REPO, write_short_localisation
 
 LOCALISATION = REPO / "protocols" / "localisation.yaml"
 MOTION = REPO / "protocols" / "apparent_motion.yaml"
@@ -16,14 +16,15 @@ def pinarray(*args: str) -> subprocess.CompletedProcess:
 
 
 def test_the_printed_plan_is_the_order_a_run_with_the_same_seed_presents(tmp_path):
-    printed = pinarray("plan", str(LOCALISATION), "--seed", "11", "--tsv")
+    protocol = write_short_localisation(tmp_path)  # the seed's plan, 1 s stimuli
+    printed = pinarray("plan", str(protocol), "--seed", "11", "--tsv")
     assert printed.returncode == 0, printed.stderr
     header, *lines = printed.stdout.splitlines()
     assert header.split("\t") == ["trial", "block", "practice", "stimulus", "pin", "frequency_hz"]
     plan = [line.split("\t") for line in lines]
     assert [int(row[0]) for row in plan] == list(range(1, len(plan) + 1))
-    ran = pinarray("batch", str(LOCALISATION), "--subject", "p1", "--seed", "11",
-                   "--observer", "default", "--results", str(tmp_path))
+    ran = pinarray("batch", str(protocol), "--subject", "p1", "--seed", "11",
+                   "--observer", "default", "--results", str(tmp_path / "results"))
     assert ran.returncode == 0, ran.stderr
     (beh,) = tmp_path.rglob("*_beh.tsv")
     presented = [(r.trial, r.practice, r.pin, r.frequency_hz) for r in read_trials(beh)]

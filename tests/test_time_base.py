@@ -26,17 +26,25 @@ from pinarray.journal.writer import RunWriter
 from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import Phase, Session, task_label
-from tests.runs import PROVENANCE, REPO, VIRTUAL, localisation_plan, start_run
+from tests.runs import (
+    PROVENANCE,
+    REPO,
+    VIRTUAL,
+    localisation_plan,
+    start_run,
+    write_short_localisation,
+)
 
 S = 1_000_000_000  # ns per s
-LOCALISATION = REPO / "protocols" / "localisation.yaml"
 MOTION = REPO / "protocols" / "apparent_motion.yaml"
 T0 = datetime(2024, 5, 1, 14, 3, 7, tzinfo=timezone(timedelta(hours=2)))
 
 
 def sitting(root, resume, stop_after=None):
-    """Run a localisation sitting in virtual time (a new process's clock: it starts at 0)."""
-    protocol = load_protocol(LOCALISATION)
+    """Run a localisation sitting in virtual time (a new process's clock: it starts at 0), the
+    seed's plan at 1 s stimuli."""
+    (root / "protocol").mkdir(parents=True, exist_ok=True)
+    protocol = load_protocol(write_short_localisation(root / "protocol"))
     clock = VirtualClock()
     writer, plan = open_run(protocol, root, "01", "1", task_label(protocol), resume=resume,
                             seed=3, port_url="sim://", clock=clock)
