@@ -10,12 +10,16 @@ force/area curve of a tissue.
 
 from __future__ import annotations
 
+import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from pinarray.softness._checks import SoftnessError, nonnegative, positive, positive_scalar
+
+_LARGEST_LOG10 = math.log10(sys.float_info.max)
 
 
 @dataclass(frozen=True)
@@ -47,6 +51,17 @@ class TelescopicDisplay:
         if not isinstance(self.cylinder_count, int) or self.cylinder_count < 1:
             raise SoftnessError(
                 f"cylinder_count must be a whole number >= 1, found {self.cylinder_count!r}"
+            )
+        # The outermost area A_0 dA^(n-1), in logarithms: past the largest float it would be
+        # infinite, and every force and fit after it with it.
+        outermost_log10 = (math.log10(self.central_area_m2)
+                           + (self.cylinder_count - 1) * math.log10(self.area_ratio))
+        if outermost_log10 >= _LARGEST_LOG10:
+            raise SoftnessError(
+                f"expected an outermost cylinder's area below 10^{_LARGEST_LOG10:.0f} m^2 (the "
+                f"largest number a float holds), found 10^{outermost_log10:.0f} m^2 "
+                f"({self.cylinder_count} cylinders, area_ratio {self.area_ratio:g}): fewer "
+                "cylinders or a smaller area_ratio"
             )
 
     @property
@@ -99,11 +114,20 @@ class TelescopicDisplay:
     ) -> float:
         """The single pressure p_0 whose staircase p_0 A_i fits the target best, Pa.
 
-        Minimising sum_i (p A_i - F(A_i))^2 over p gives p = sum F_i A_i / sum A_i^2.
+        Minimising sum_i (p A_i - F(A_i))^2 over p gives p = sum F_i A_i / sum A_i^2, computed
+        with the areas over the largest (s): p = sum F_i (A_i / s) / (s sum (A_i / s)^2), so
+        no square of an area overflows.
         """
         areas = self.step_areas_m2
         forces = nonnegative("target force", force_at_area_n(areas))
-        return float(np.dot(forces, areas) / np.dot(areas, areas))
+        largest = float(areas[-1])
+        scaled = areas / largest
+        with np.errstate(over="ignore"):
+            pressure = float(np.dot(forces, scaled) / (largest * np.dot(scaled, scaled)))
+        if not math.isfinite(pressure):
+            raise SoftnessError("expected a best single pressure a float can hold, found one "
+                                "past the largest: a smaller target force or display")
+        return pressure
 
 
 def staircase_points(

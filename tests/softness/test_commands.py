@@ -72,6 +72,16 @@ def test_bad_input_is_one_line_with_status_2(tmp_path):
     assert result.stderr.strip() == f"pinarray: {data}:3: expected two numbers, found 2,oops"
 
 
+def test_a_display_too_large_to_compute_is_one_line_with_status_2_and_no_numpy_warning():
+    result = subprocess.run(
+        [sys.executable, "-W", "error", "-m", "pinarray", "softness", "telescopic",
+         "--area-ratio", "1e9", "--cylinders", "1000", "--match-young-kpa", "10"],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and "expected an outermost cylinder's area below" \
+        in result.stderr and "fewer cylinders or a smaller area_ratio" in result.stderr
+
+
 def test_a_negative_force_names_the_argument(capsys):
     assert main(["softness", "hertz", "--max-force-n", "-1"]) == 2
     assert "force_n must be finite and non-negative" in capsys.readouterr().err

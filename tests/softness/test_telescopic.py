@@ -108,3 +108,14 @@ def test_impossible_displays_are_rejected():
         TelescopicDisplay(1e-5, 2.0, -1e-3, 3)
     with pytest.raises(SoftnessError, match="indentation_m"):
         DISPLAY.area_m2(np.nan)
+    # 20 mm^2 grown by 1e9 a step: the 36th cylinder would be past the largest float.
+    with pytest.raises(SoftnessError, match=r"below 10\^308 m\^2 .*found 10\^310 m\^2"):
+        TelescopicDisplay(20e-6, 1e9, 1e-3, 36)
+
+
+def test_the_best_single_pressure_of_a_display_near_the_largest_float_is_finite():
+    # Its 35th cylinder is 2 10^301 m^2: the squares the fit sums would overflow unscaled.
+    display = TelescopicDisplay(20e-6, 1e9, 1e-3, 35)
+    with np.errstate(over="raise", invalid="raise", divide="raise"):
+        assert display.best_constant_pressure_pa(lambda areas: 2.0 * areas) == \
+            pytest.approx(2.0, rel=1e-12)
