@@ -351,7 +351,7 @@ class Link:
         self.counters = LinkCounters()
         self.return_delay_ns: dict[int, int] = {}
         # The replies the last request asked for, by servo id: a sampled bus asks the same
-        # (the very same tuple) every few milliseconds.
+        # (the very same tuple, which cannot change) every few milliseconds.
         self._wanted: tuple[Sequence[Expected], dict[int, int], int] = ((), {}, 0)
 
     @property
@@ -418,7 +418,8 @@ class Link:
         if asked is not expected:
             wanted = {e.servo_id: e.params_length for e in expected}
             longest = max(wanted.values(), default=0)
-            self._wanted = expected, wanted, longest
+            if type(expected) is tuple:
+                self._wanted = expected, wanted, longest
         reader.longest_params = longest
         start_ns = self.clock.now_ns()
         limit_ns = start_ns + self.reply_time_ns(len(packet), expected, patience=patience)
