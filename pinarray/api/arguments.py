@@ -96,12 +96,16 @@ def sim_url(call: str, value: object) -> str | None:
 def clock(call: str, value: object) -> Clock | None:
     if value is None:
         return None
-    if not all(callable(getattr(value, method, None))
-               for method in ("now_ns", "sleep_until_ns", "doze_until_ns")):
-        refuse(call, "clock", "a Clock (pinarray.VirtualClock() or pinarray.MonotonicClock())",
-               value)
+    expected = "a Clock (pinarray.VirtualClock() or pinarray.MonotonicClock())"
+    if isinstance(value, type) or not all(
+            callable(getattr(value, method, None))
+            for method in ("now_ns", "sleep_until_ns", "doze_until_ns")):
+        refuse(call, "clock", expected, value)
     clock_value: Clock = value  # type: ignore[assignment]  # checked just above, as a Protocol
-    now_ns = clock_value.now_ns()
+    try:
+        now_ns = clock_value.now_ns()
+    except Exception:  # a look-alike that cannot tell the time
+        refuse(call, "clock", expected, value)
     if not is_int(now_ns):
         raise PinArrayError(f"{call}: clock: its now_ns() must give integer ns, gave "
                             f"{found(now_ns)}")

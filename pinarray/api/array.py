@@ -265,10 +265,12 @@ class PinArray:
             stimulus still armed, a closed array.
         """
         condition = self._condition("present", stimulus)
-        onset: Onset = (OnsetAfter(self.lead_ns) if at_ns is None else
-                        OnsetAt(arguments.onset_ns("present", at_ns, self.now_ns(),
-                                                   self.lead_ns)))
-        armed = self._begin("present", condition, onset)
+        with self._lock:
+            self._check_idle("present")
+            onset: Onset = (OnsetAfter(self.lead_ns) if at_ns is None else
+                            OnsetAt(arguments.onset_ns("present", at_ns, self.now_ns(),
+                                                       self.lead_ns)))
+            armed = self._current = Armed(self, condition, onset)
         self._run(armed)
         return armed.result()
 
@@ -297,10 +299,14 @@ class PinArray:
             As for `present`, before anything is armed.
         """
         condition = self._condition("arm", stimulus)
-        onset: Onset | StartCue = (StartCue() if at_ns is None else
-                                   OnsetAt(arguments.onset_ns("arm", at_ns, self.now_ns(),
-                                                              self.lead_ns)))
-        armed = self._begin("arm", condition, onset)
+        with self._lock:
+            self._check_idle("arm")
+            if at_ns is not None:
+                self._rig.ready()  # torque on again after a stop, before the onset is taken
+            onset: Onset | StartCue = (StartCue() if at_ns is None else
+                                       OnsetAt(arguments.onset_ns("arm", at_ns, self.now_ns(),
+                                                                  self.lead_ns)))
+            armed = self._current = Armed(self, condition, onset)
         threading.Thread(target=self._run, args=(armed,), daemon=True,
                          name=f"pinarray: {armed._described()}").start()
         return armed
@@ -390,16 +396,13 @@ class PinArray:
         if self._safe_stop is not None:
             raise PinArrayError(f"{call}: {self.url}: the array is closed")
 
-    def _begin(self, call: str, condition: Condition, onset: Onset | StartCue) -> Armed:
-        with self._lock:
-            self._check_open(call)
-            current = self._current
-            if current is not None and not current.done:
-                raise PinArrayError(f"{call}: the stimulus {current._described()} has not ended: "
-                                    "wait for its result or cancel it first (one stimulus "
-                                    "plays at a time)")
-            armed = self._current = Armed(self, condition, onset)
-            return armed
+    def _check_idle(self, call: str) -> None:
+        self._check_open(call)
+        current = self._current
+        if current is not None and not current.done:
+            raise PinArrayError(f"{call}: the stimulus {current._described()} has not ended: "
+                                "wait for its result or cancel it first (one stimulus "
+                                "plays at a time)")
 
     def _run(self, armed: Armed) -> None:
         """Play ``armed`` in this thread and hand its outcome to whoever waits for it."""

@@ -246,16 +246,24 @@ class Rig:
         with self._port:
             return self._present(trial, markers, onset)
 
+    def ready(self) -> None:
+        """Ready to play: the player process running, torque on (after a fault or a stop
+        released it, the handshake turns it back on, checking every servo: tens of ms on
+        real servos). `present` does this first; a stimulus armed for a time does it before
+        its onset is taken."""
+        with self._port:
+            if self.player is not None and not self.player.alive:
+                # Started again before torque can come back on, so that it guards it.
+                self.player.close()
+                self._start_player()
+            if self._released:
+                self.bus.reconnect()
+                self._released = False
+                self._safe = None
+
     def _present(self, trial: PreparedTrial, markers: TrialMarkers | None,
                  onset: Onset | StartCue) -> Presentation:
-        if self.player is not None and not self.player.alive:
-            # Started again before torque can come back on, so that it guards it.
-            self.player.close()
-            self._start_player()
-        if self._released:
-            # A fault released torque; the handshake turns it back on, checking every servo.
-            self.bus.reconnect()
-            self._released = False
+        self.ready()
         self._safe = None
         match onset:
             case OnsetAt(onset_ns=onset_ns):
