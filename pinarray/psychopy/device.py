@@ -276,6 +276,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         touch = self._last_touch
         if self.array.is_open and touch is not None and not touch.done:
             logging.warning(f"pinarray {self.url}: {touch.stimulus} cut short by {by}")
+            touch._cut_by = by
             try:
                 self.array.stop()
             except pinarray.PinArrayError:

@@ -46,6 +46,7 @@ class Touch:
         self._flip_stamp: dict[str, float] = {}
         self._window: weakref.ref[Any] | None = None  # the window armed on
         self._never_flipped = False
+        self._cut_by = ""  # what the device cut it for (PsychoPy quitting, its window closing)
 
     @property
     def stimulus(self) -> str:
@@ -136,6 +137,8 @@ class Touch:
         if self._never_flipped:
             return ("its flip was never made (call win.flip() after armOnFlip): cancelled, "
                     "nothing moved")
+        if self._cut_by and isinstance(delivery.ending, pinarray.Cut):
+            return f"cut short by {self._cut_by}"
         from_flip = self.onsetFromFlip
         tolerance_ns = delivery.record.tolerance_ns
         if from_flip is not None and abs(from_flip) * NS_PER_S > tolerance_ns:
@@ -160,7 +163,7 @@ class Touch:
             "onset_write_late_ms": delivery.onset_write_late_ns / NS_PER_MS,
             "delivered": self.delivered,
             "problem": self.problem,
-            "ending": _ending(delivery.ending),
+            "ending": _ending(delivery.ending, self._cut_by),
             "goal_changes": record.scheduled,
             "confirmed": record.confirmed,
             "healed": record.healed,
@@ -227,10 +230,10 @@ class Touch:
         self._flip_ns = self._timeline.to_array_ns(self._flip_stamp["flip"] + self._clock_zero_s)
 
 
-def _ending(ending: pinarray.Ending) -> str:
+def _ending(ending: pinarray.Ending, cut_by: str) -> str:
     match ending:
         case pinarray.Cut(at_ns=_, by=by):
-            return f"cut by {by}"
+            return f"cut by {cut_by or by}"
         case pinarray.NotStarted():
             return "not started"
     return "played"
