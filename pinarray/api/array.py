@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import atexit
 import logging
+import queue
 import threading
 import weakref
 from concurrent.futures import Future
@@ -180,6 +181,11 @@ class PinArray:
         self._safe_stop: SafeStopReport | None = None  # set once closed
         self._trials: dict[Condition, PreparedTrial] = {}
         self._preparing = threading.Lock()
+        # Armed stimuli play in one thread of their own, started once: starting a thread per
+        # stimulus would hand it the interpreter for up to a switch interval (5 ms) while the
+        # script's frame loop waited in `arm`.
+        self._armed: queue.SimpleQueue[Armed | None] = queue.SimpleQueue()
+        self._player: threading.Thread | None = None
         _open_arrays.add(self)
         for warning in rig.warnings:
             log.warning("%s: %s", rig.url, warning)
@@ -307,8 +313,11 @@ class PinArray:
                                        OnsetAt(arguments.onset_ns("arm", at_ns, self.now_ns(),
                                                                   self.lead_ns)))
             armed = self._current = Armed(self, condition, onset)
-        threading.Thread(target=self._run, args=(armed,), daemon=True,
-                         name=f"pinarray: {armed._described()}").start()
+            if self._player is None:
+                self._player = threading.Thread(target=self._play_armed, daemon=True,
+                                                name=f"pinarray: stimuli armed on {self.url}")
+                self._player.start()
+        self._armed.put(armed)
         return armed
 
     def stop(self) -> SafeStopReport:
@@ -357,6 +366,7 @@ class PinArray:
                 finally:
                     self._safe_stop = self._rig.close()
                     _open_arrays.discard(self)
+                    self._armed.put(None)  # the thread playing armed stimuli ends
                 log.info("%s: closed by %s: %s", self.url, by, self._safe_stop.describe())
             return self._safe_stop
 
@@ -403,6 +413,10 @@ class PinArray:
             raise PinArrayError(f"{call}: the stimulus {current._described()} has not ended: "
                                 "wait for its result or cancel it first (one stimulus "
                                 "plays at a time)")
+
+    def _play_armed(self) -> None:
+        while (armed := self._armed.get()) is not None:
+            self._run(armed)
 
     def _run(self, armed: Armed) -> None:
         """Play ``armed`` in this thread and hand its outcome to whoever waits for it."""
