@@ -23,7 +23,7 @@ from pathlib import Path
 
 from pinarray.errors import BusError
 
-__all__ = ["PortInUse", "PortLock", "hold_port", "holder_of"]
+__all__ = ["PortInUse", "PortLock", "hold_port"]
 
 PROC = Path("/proc")
 
@@ -108,28 +108,6 @@ def hold_port(port: str, holder: str) -> PortLock:
                             "close it there first") from None
         _held[key] = _Holding(fd, holder)
         return PortLock(key, fd)
-
-
-def holder_of(port: str) -> str | None:
-    """Who holds ``port``, in words (None: nobody; a port that is not a file: None)."""
-    key = _key(port)
-    if key is None:
-        return None
-    with _held_lock:
-        holding = _held.get(key)
-    if holding is not None:
-        return f"{holding.holder} in this process"
-    try:
-        fd = os.open(key, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK | os.O_CLOEXEC)
-    except OSError:
-        return None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        return _other_holders(key)
-    finally:
-        os.close(fd)  # closing it lets the lock go, if this took it
-    return None
 
 
 def _other_holders(key: str) -> str:
