@@ -53,6 +53,9 @@ from pinarray.hardware.sampling import Holds
 # Faster would only cost the host's processor: on a simulated bus every sample is a whole
 # exchange simulated byte by byte (2 ms made a 24-trial batch 7 times slower).
 SAMPLE_PERIOD_NS = 4_000_000
+# A sample moved as late as fits before a frame is aimed this much earlier: woken a little
+# late on a busy host, it must still end before the frame.
+WAKE_SLACK_NS = 500_000
 # A WRITE of a 2-byte goal, in bytes.
 REWRITE_REQUEST_BYTES = 9
 
@@ -134,9 +137,9 @@ class Verifier:
         once every change is confirmed (never at a read-back's expense) and from onset on.
 
         Samples follow `SAMPLE_PERIOD_NS` (or `pinarray.hardware.sampling`'s thinner rule while
-        every pin holds); where the next would not fit before ``limit_ns`` and the gap from the
-        last to the first after the next frame would break a cycle's rule, one more is taken as
-        late as fits.
+        every pin holds); where the last one before ``limit_ns`` would leave the gap to the
+        first after the next frame longer than a cycle's rule allows, it is taken as late as
+        fits instead (or one more is, where the usual ones have all been taken).
         """
         self._sampling = True
         bus, clock, ids = self.bus, self.clock, self.moving
@@ -147,13 +150,12 @@ class Verifier:
             now_ns = clock.now_ns()
             if now_ns < self.onset_ns or now_ns + cost_ns > limit_ns:
                 return
-            if now_ns < self._next_sample_ns:  # at most one sample a SAMPLE_PERIOD_NS
-                if self._next_sample_ns + cost_ns > limit_ns:
-                    late_ns = limit_ns - cost_ns
-                    if not self._late_sample_helps(late_ns - self.onset_ns + request_ns):
-                        return
-                    self._next_sample_ns = late_ns
-                clock.doze_until_ns(self._next_sample_ns)
+            start_ns = self._next_start_ns(now_ns, cost_ns, request_ns, limit_ns)
+            if start_ns is None:
+                return
+            if now_ns < start_ns:  # at most one sample a SAMPLE_PERIOD_NS
+                self._next_sample_ns = start_ns
+                clock.doze_until_ns(start_ns)
                 continue
             positions = bus.read_positions(ids, limit_ns)
             self._record_sample(ids, positions, now_ns, cost_ns, request_ns, after_change_ns,
@@ -163,6 +165,25 @@ class Verifier:
                 # next servo.
                 ids = ids[1:] + ids[:1]
                 cost_ns, request_ns, after_change_ns, thinning = self._sample_costs(ids)
+
+    def _next_start_ns(self, now_ns: int, cost_ns: int, request_ns: int,
+                       limit_ns: int) -> int | None:
+        """When the next sample's request goes out (clock ns), or None: none before
+        ``limit_ns``. As planned, unless it is the last before the next frame and one as late
+        as fits keeps a cycle's rule that it would not."""
+        planned_ns = max(now_ns, self._next_sample_ns)
+        fits = planned_ns + cost_ns <= limit_ns
+        late_ns = limit_ns - cost_ns - WAKE_SLACK_NS
+        if not fits:  # none fits as planned: one more, as late as fits?
+            instead_at_ns = self._last_sampled_ns()
+        elif planned_ns + max(SAMPLE_PERIOD_NS, cost_ns) + cost_ns > limit_ns and planned_ns < late_ns:
+            instead_at_ns = planned_ns - self.onset_ns + request_ns  # the last as planned
+        else:
+            return planned_ns
+        if late_ns >= now_ns and self._late_sample_helps(late_ns - self.onset_ns + request_ns,
+                                                         instead_at_ns):
+            return late_ns
+        return planned_ns if fits else None
 
     def _sample_costs(self, ids: tuple[int, ...]) -> tuple[int, int, int, bool]:
         """A sample of ``ids`` on this bus: what it takes, its request on the wire, from a goal
@@ -222,8 +243,9 @@ class Verifier:
 
     def _first_after_next_frame_ns(self) -> int:
         """When, ns after onset, the first sample after the next frame reads the horns at the
-        soonest: a read-back that samples too, where one request reads every moving servo; the
-        trial's end, where its last cycle ends, after the last frame."""
+        soonest: a read-back that samples too, where one request reads every moving servo (else
+        the read-back of the frame's goals, then a sample); after the last frame, the trial's
+        end, where its last cycle ends."""
         frames = self.trial.frames
         if self._frames_sent >= len(frames):
             return self.trial.end_ns
@@ -236,13 +258,15 @@ class Verifier:
         changed = tuple(servo_id for servo_id, _ in frame.goals)
         return written_ns + bus.read_goals_time_ns(changed) + request_ns
 
-    def _late_sample_helps(self, late_at_ns: int) -> bool:
-        """Whether a sample reading the horns at ``late_at_ns`` (ns after onset), the last before
-        the next frame, keeps a cycle's rule that the samples taken so far would break."""
-        after_ns = self._first_after_next_frame_ns()
+    def _late_sample_helps(self, late_at_ns: int, instead_at_ns: int) -> bool:
+        """Whether the last sample before the next frame reading the horns at ``late_at_ns``
+        (ns after onset) rather than at ``instead_at_ns`` keeps a cycle's rule that the latter
+        would break, even with the first sample after the frame taken at the soonest."""
+        soonest_ns = self._first_after_next_frame_ns()
         holds = self._holds
-        return (not holds.gap_fits(self._last_sampled_ns(), after_ns)
-                and holds.gap_fits(late_at_ns, after_ns))
+        return (not holds.gap_fits(instead_at_ns, soonest_ns)
+                and holds.gap_fits(self._last_sampled_ns(), late_at_ns)
+                and holds.gap_fits(late_at_ns, soonest_ns))
 
     def _read_back_samples(self, pending_ids: tuple[int, ...], limit_ns: int) -> bool:
         """Whether the next read-back should sample every moving pin too: the trial is sampled,
