@@ -89,7 +89,10 @@ def test_the_player_process_on_a_serial_port_measures_a_slow_square_on_every_pin
         assert achieved is not None and achieved < TOLERANCE * COMMANDED, f"pin {pin}"
     assert not delivery.delivered
     assert "played by a player process" in played.stdout
-    assert played.returncode == 3 and "of 65 commanded steps" in played.stdout, played.stdout
+    # never passed (it was, exit status 0): short, or whatever a host too busy for the wall
+    # clock made of it (late goals, cycles not measured)
+    assert played.returncode == 3, played.stdout + played.stderr
+    assert "NOT DELIVERED AS SCHEDULED" in played.stdout
 
 
 @pytest.mark.parametrize("pins, query, rate_hz", [

@@ -109,3 +109,13 @@ def test_the_gap_the_sampler_keeps_is_the_one_motion_judges_a_cycle_by(from_ms, 
     stroke = measure_pin(trace, [(c.time_ns, c.goal_steps) for c in changes], end_ms * MS)
     fits = PinGoals.of(changes).gap_fits(from_ms * MS, to_ms * MS, end_ms * MS)
     assert (stroke.unmeasured_cycles == 0) == fits
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 1300), st.integers(0, 700))
+def test_the_latest_next_sample_is_where_the_gap_rule_stops_holding(from_ms, length_ms):
+    changes = [Change(4, 4, c.goal_steps, c.time_ns + 100 * MS)
+               for c in square_train(4, 3, 200 * MS)]
+    goals = PinGoals.of(changes)
+    from_ns, to_ns, end_ns = from_ms * MS, (from_ms + length_ms) * MS, 1300 * MS
+    assert goals.gap_fits(from_ns, to_ns, end_ns) == (to_ns <= goals.reach_ns(from_ns, end_ns))

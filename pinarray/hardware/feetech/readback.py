@@ -169,20 +169,24 @@ class Verifier:
     def _next_start_ns(self, now_ns: int, cost_ns: int, request_ns: int,
                        limit_ns: int) -> int | None:
         """When the next sample's request goes out (clock ns), or None: none before
-        ``limit_ns``. As planned, unless it is the last before the next frame and one as late
-        as fits keeps a cycle's rule that it would not."""
+        ``limit_ns``. As planned, unless it is the last before the next frame and one later
+        (as late as fits, and as the gap from the last sample allows) keeps a cycle's rule
+        across the frame that it would not."""
         planned_ns = max(now_ns, self._next_sample_ns)
         fits = planned_ns + cost_ns <= limit_ns
-        late_ns = limit_ns - cost_ns - WAKE_SLACK_NS
-        if not fits:  # none fits as planned: one more, as late as fits?
-            instead_at_ns = self._last_sampled_ns()
-        elif planned_ns + max(SAMPLE_PERIOD_NS, cost_ns) + cost_ns > limit_ns and planned_ns < late_ns:
-            instead_at_ns = planned_ns - self.onset_ns + request_ns  # the last as planned
-        else:
-            return planned_ns
-        if late_ns >= now_ns and self._late_sample_helps(late_ns - self.onset_ns + request_ns,
-                                                         instead_at_ns):
-            return late_ns
+        if fits and planned_ns + max(SAMPLE_PERIOD_NS, cost_ns) + cost_ns <= limit_ns:
+            return planned_ns  # not the last before the frame
+        onset_ns = self.onset_ns
+        last_at_ns = self._last_sampled_ns()
+        later_ns = min(limit_ns - cost_ns - WAKE_SLACK_NS,
+                       onset_ns + self._holds.reach_ns(last_at_ns) - request_ns)
+        instead_at_ns = planned_ns - onset_ns + request_ns if fits else last_at_ns
+        soonest_ns = self._first_after_next_frame_ns()
+        holds = self._holds
+        if (later_ns >= now_ns and (not fits or later_ns > planned_ns)
+                and not holds.gap_fits(instead_at_ns, soonest_ns)
+                and holds.gap_fits(later_ns - onset_ns + request_ns, soonest_ns)):
+            return later_ns
         return planned_ns if fits else None
 
     def _sample_costs(self, ids: tuple[int, ...]) -> tuple[int, int, int, bool]:
@@ -257,16 +261,6 @@ class Verifier:
             return written_ns + request_ns
         changed = tuple(servo_id for servo_id, _ in frame.goals)
         return written_ns + bus.read_goals_time_ns(changed) + request_ns
-
-    def _late_sample_helps(self, late_at_ns: int, instead_at_ns: int) -> bool:
-        """Whether the last sample before the next frame reading the horns at ``late_at_ns``
-        (ns after onset) rather than at ``instead_at_ns`` keeps a cycle's rule that the latter
-        would break, even with the first sample after the frame taken at the soonest."""
-        soonest_ns = self._first_after_next_frame_ns()
-        holds = self._holds
-        return (not holds.gap_fits(instead_at_ns, soonest_ns)
-                and holds.gap_fits(self._last_sampled_ns(), late_at_ns)
-                and holds.gap_fits(late_at_ns, soonest_ns))
 
     def _read_back_samples(self, pending_ids: tuple[int, ...], limit_ns: int) -> bool:
         """Whether the next read-back should sample every moving pin too: the trial is sampled,
