@@ -97,12 +97,12 @@ def test_the_player_process_on_a_serial_port_measures_a_slow_square_on_every_pin
 
 @pytest.mark.parametrize("pins, query, rate_hz", [
     (16, "", 5),                         # the factory return delay, 1 Mbit/s
-    (12, "", 10),
+    (14, "", 10),
     (16, "return_delay_us=100", 10),     # after `pinarray servos return-delay`
     (16, "baud=115200", 2),
     (4, "baud=115200", 10),
     (1, "baud=38400", 10),
-], ids=["16-pins-5Hz", "12-pins-10Hz", "16-pins-10Hz-100us", "16-pins-115200-2Hz",
+], ids=["16-pins-5Hz", "14-pins-10Hz", "16-pins-10Hz-100us", "16-pins-115200-2Hz",
         "4-pins-115200-10Hz", "1-pin-38400-10Hz"])
 def test_every_moving_pin_is_measured_in_every_cycle_where_the_bus_leaves_room(pins, query,
                                                                              rate_hz):
