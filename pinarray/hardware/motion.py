@@ -22,8 +22,8 @@ between them (or from its edges) longer than `MAX_GAP_FRACTION` of it: sparse sa
 the peaks and would make a good stroke look short, so such a cycle is *not measured* rather
 than failed. It is not passed either: the smallest peak-to-peak is known only when every
 cycle was judged, so a pin with a cycle not measured makes the trial not delivered as
-specified (`TrialStrokes.problem`), as a pin that fell short does. Pure values and
-arithmetic: no I/O.
+specified (`TrialStrokes.problem`), as a pin that fell short does, unless the tolerance is 0
+(no stroke checked). Pure values and arithmetic: no I/O.
 """
 
 from __future__ import annotations
@@ -120,7 +120,8 @@ class TrialStrokes:
 
     def problem(self) -> str:
         """Empty when every pin was measured in every cycle and moved enough; else, in words,
-        which pin fell short or, failing that, which was not measured."""
+        which pin fell short or, failing that, which was not measured. A tolerance of 0 checks
+        no stroke: no cycle can fall short, so none unmeasured can hide one."""
         short = [p for p in self.pins if p.measured and p.commanded_steps
                  and Fraction(p.achieved_steps or 0, p.commanded_steps) < self.tolerance]
         if short:
@@ -132,7 +133,7 @@ class TrialStrokes:
                     f"{float(self.tolerance) * 100:g} %) in {worst.short_cycles} of "
                     f"{worst.cycles} cycles{others}")
         unmeasured = self.unmeasured
-        if not unmeasured:
+        if not unmeasured or not self.tolerance:
             return ""
         first = max(unmeasured, key=lambda p: Fraction(p.unmeasured_cycles,
                                                         p.unmeasured_cycles + p.cycles))

@@ -144,3 +144,17 @@ def test_hobby_pwm_servos_say_nothing_of_strokes_and_their_shapes_are_delivered(
         delivery = array.present(shape(protocol, "square"))
     assert delivery.delivered, delivery.problem
     assert delivery.strokes == () and delivery.record.strokes is None
+
+
+def test_a_protocol_that_checks_no_stroke_presents_a_short_or_unmeasured_shape_as_delivered(
+        tmp_path):
+    # stroke_tolerance_percent: 0, e.g. a rehearsal on a simulator starved of the processor
+    path = tmp_path / "shapes_unchecked.yaml"
+    path.write_text(SHAPES.read_text().replace("  lever_mm: 10\n",
+                                               "  lever_mm: 10\n  stroke_tolerance_percent: 0\n"))
+    protocol = pinarray.load_protocol(path)
+    assert protocol.device.stroke_tolerance == 0
+    with pinarray.open_array(protocol, sim=SLOW) as array:
+        delivery = array.present(shape(protocol, "square"))
+    assert delivery.delivered, delivery.problem
+    assert all(achieved < TOLERANCE * COMMANDED for achieved, _ in every_pin(delivery).values())

@@ -125,3 +125,12 @@ def test_the_achieved_stroke_is_what_the_horn_reached_within_a_step(reach, lag_m
     stroke = measure_pin(horn(goals, reach, lag_ms * MS, MS, end_ns), goals, end_ns)
     assert stroke.achieved_steps is not None and abs(stroke.achieved_steps - reach) <= 1
     assert stroke.median_steps is not None and stroke.achieved_steps <= stroke.median_steps
+
+
+def test_a_stroke_tolerance_of_0_checks_no_stroke_so_no_cycle_unmeasured_matters():
+    goals = train_goals(10, 5)
+    unmeasured = measure_pin(horn(goals, 114, 0, 30 * MS, 500 * MS), goals, 500 * MS,
+                             tolerance=Fraction(0))
+    assert unmeasured.unmeasured_cycles == 5
+    assert TrialStrokes((unmeasured,), Fraction(0)).problem() == ""
+    assert TrialStrokes((unmeasured,), Fraction(1, 100)).problem() != ""
