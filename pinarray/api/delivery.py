@@ -92,7 +92,8 @@ class Delivery:
     @property
     def delivered(self) -> bool:
         """Delivered as scheduled and specified: played to its end, every goal change reached
-        its servo within the protocol's tolerance, and every measured pin made its stroke."""
+        its servo within the protocol's tolerance, and, where the servos report their
+        positions, every moving pin was measured in every cycle and made its stroke."""
         return isinstance(self.ending, Played) and self.record.delivered
 
     @property
