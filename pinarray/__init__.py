@@ -83,9 +83,9 @@ _HOMES = {
                                "MotionCondition", "PlannedTrial", "Protocol",
                                "TemporalOrderCondition", "TrialPlan", "TwoIntervalCondition",
                                "find_condition", "load_protocol", "plan_trials"),
-    "pinarray.api.array": ("Armed", "Clock", "DeliveryRecord", "MonotonicClock", "PinArray",
-                           "PinStroke", "Presentable", "SafeStopReport", "VirtualClock",
-                           "open_array"),
+    "pinarray.api.array": ("Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
+                           "Presentable", "SafeStopReport", "VirtualClock", "open_array"),
+    "pinarray.api.armed": ("Armed",),
     "pinarray.api.delivery": ("Cut", "Delivery", "Ending", "NotStarted", "Played"),
     "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
     "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
@@ -113,8 +113,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
+    from pinarray.api.armed import Armed
     from pinarray.api.array import (
-        Armed,
         Clock,
         DeliveryRecord,
         MonotonicClock,

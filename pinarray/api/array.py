@@ -16,22 +16,31 @@ is ``time.monotonic_ns()`` (CLOCK_MONOTONIC, the clock PsychoPy's flips are stam
 Linux); on the simulated array, virtual time unless the script gives a clock. Notices (the
 connection's warnings, healed writes, retries, each stimulus's verdict) go to the `logging`
 logger ``"pinarray"``.
+
+Past 400 lines on purpose: the array's states (idle, a stimulus armed or playing, closed) and
+the one lock every change of them takes, with the face's docstrings that the reference is
+built from; the stimulus armed (`armed`) and what it delivered (`delivery`) live beside it.
 """
 
 from __future__ import annotations
 
 import atexit
-import logging
 import queue
 import threading
 import weakref
-from concurrent.futures import Future
 from types import TracebackType
 
-import numpy as np
-
 from pinarray.api import arguments
-from pinarray.api.delivery import Cut, Delivery, NotStarted, unplayed
+from pinarray.api.armed import Armed
+from pinarray.api.delivery import (
+    Cut,
+    Delivery,
+    NotStarted,
+    log,
+    onset_write_late_ns,
+    tell,
+    unplayed,
+)
 from pinarray.api.protocols import describe_condition
 from pinarray.clock import Clock, MonotonicClock, VirtualClock
 from pinarray.errors import PinArrayError
@@ -46,7 +55,6 @@ from pinarray.player.playback import (
     OnsetAt,
     OnsetPassed,
     PlaybackAborted,
-    PlaybackReport,
 )
 from pinarray.player.process import StartCue
 from pinarray.player.rig import Rig, choose_clock
@@ -55,112 +63,14 @@ from pinarray.protocol.model import Condition, HobbyServos, Protocol, is_simulat
 from pinarray.schedule import compile_drives
 from pinarray.stop import Stopped
 
-__all__ = ["Armed", "Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
+__all__ = ["Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
            "Presentable", "SafeStopReport", "VirtualClock", "open_array"]
 
 Presentable = PlannedTrial | Condition
 """What `PinArray.present` plays: a trial of the protocol's plan, or one of its conditions."""
 
-log = logging.getLogger("pinarray")
-log.addHandler(logging.NullHandler())  # a library's notices: shown where the script says
-
 # Arrays still open, closed as the interpreter exits (a stimulus armed at the script's end).
 _open_arrays: weakref.WeakSet[PinArray] = weakref.WeakSet()
-
-
-class Armed:
-    """A stimulus armed to start at a time, or on a cue (`start`): it plays in the background
-    while the script goes on (draws a frame, flips a screen); `result` waits for what it
-    delivered, `cancel` cuts it short.
-
-    Made by `PinArray.arm`.
-    """
-
-    def __init__(self, array: PinArray, condition: Condition, onset: Onset | StartCue) -> None:
-        self._array = array
-        self._condition = condition
-        self._onset = onset
-        self._future: Future[Delivery] = Future()
-        self._cut: Cut | None = None  # what cut it, once something has
-        self._runner: int | None = None  # the thread playing it
-        self._started_ns: int | None = None  # when `start` was called
-
-    @property
-    def onset_ns(self) -> int | None:
-        """The time zero it is armed for, on the array's clock, in ns; None for one armed to
-        start on `start` (its `Delivery.onset_ns` says when it did)."""
-        return self._onset.onset_ns if isinstance(self._onset, OnsetAt) else None
-
-    @property
-    def done(self) -> bool:
-        """Whether it has ended: played, cut short, never started, or failed (`result` then
-        raises)."""
-        return self._future.done()
-
-    def result(self, timeout_s: float | None = None) -> Delivery:
-        """Wait until it has ended; what it delivered.
-
-        A stimulus that could not start in time, or was cut short, is returned as not
-        delivered (its `Delivery.ending` says why), not raised.
-
-        Parameters
-        ----------
-        timeout_s : float or None
-            Wait at most this long, in seconds of the host's time (None: until it ends).
-
-        Raises
-        ------
-        PlaybackAborted
-            The bus failed while it played (the message says where; the pins were put to
-            rest first).
-        PinArrayError
-            A wait that timed out.
-        """
-        timeout = arguments.timeout_s("Armed.result", timeout_s)
-        try:
-            return self._future.result(timeout)
-        except TimeoutError:
-            raise PinArrayError(f"the stimulus {self._described()} has not ended after "
-                                f"{timeout_s} s") from None
-
-    def start(self) -> None:
-        """Start a stimulus armed without an onset, now: its time zero is the moment the
-        player takes the start, a fraction of a millisecond after this call on an idle
-        machine (`Delivery.onset_ns` says when). Cheap enough for a screen's flip callback.
-
-        Raises
-        ------
-        PinArrayError
-            One armed for a time (it starts then), or one started, cancelled or ended already.
-        """
-        cue = self._onset
-        if not isinstance(cue, StartCue):
-            raise PinArrayError(f"start: the stimulus {self._described()} is armed for a time: "
-                                "it starts then")
-        started_ns = self._array.now_ns()
-        if not cue.give():
-            raise PinArrayError(f"start: the stimulus {self._described()} has started, been "
-                                "cancelled or ended already")
-        self._started_ns = started_ns
-
-    def cancel(self) -> None:
-        """Cut it short, or keep it from starting: every pin to rest and torque off, as
-        `PinArray.stop` (nothing happens to one that has ended). Its `result` is then a
-        delivery whose `Delivery.ending` says it was cut (`Cut`) or never started."""
-        self._array._cancel(self)
-
-    def _began(self, at_ns: int, playing_from_ns: int | None) -> bool:
-        """Whether it had begun moving pins by ``at_ns`` (the array's clock)."""
-        match self._onset:
-            case StartCue():
-                return self._onset.given
-            case OnsetAt(onset_ns=onset_ns):
-                return onset_ns <= at_ns
-        return playing_from_ns is not None and playing_from_ns <= at_ns
-
-    def _described(self) -> str:
-        when = f" armed for {self.onset_ns} ns" if self.onset_ns is not None else ""
-        return f"{describe_condition(self._condition)}{when}"
 
 
 class PinArray:
@@ -460,9 +370,9 @@ class PinArray:
         # The delivery carries what a script needs; the rig need not keep every stimulus's
         # frames and samples for as long as the script runs.
         report = rig.reports.pop()
-        delivery = Delivery(presentation.onset_ns, trial.end_ns, _onset_write_late_ns(report),
+        delivery = Delivery(presentation.onset_ns, trial.end_ns, onset_write_late_ns(report),
                             presentation.delivery)
-        _tell(self.url, describe_condition(condition), delivery, report)
+        tell(self.url, describe_condition(condition), delivery, report)
         return delivery
 
     def _cut_current(self, by: str) -> None:
@@ -487,29 +397,6 @@ class PinArray:
             if self._current is armed and not armed.done:
                 self._cut_current("cancel()")
                 self._rig.rest_and_release()
-
-
-def _onset_write_late_ns(report: PlaybackReport) -> int:
-    """How late the write of the first frame at or after time zero returned, in ns."""
-    at_or_after = np.flatnonzero(report.scheduled_ns >= 0)
-    if not len(at_or_after):
-        return 0
-    first = int(at_or_after[0])
-    return int(report.sent_ns[first] - report.scheduled_ns[first])
-
-
-def _tell(url: str, stimulus: str, delivery: Delivery, report: PlaybackReport) -> None:
-    """The notices of one stimulus played: its verdict, writes healed, retries."""
-    record = delivery.record
-    if record.healed:
-        log.info("%s: %s: %d goal write(s) lost on the wire were written again and confirmed",
-                 url, stimulus, record.healed)
-    if report.retries:
-        log.info("%s: %s: %d transient bus failure(s) retried", url, stimulus, report.retries)
-    if delivery.delivered:
-        log.info("%s: %s: %s", url, stimulus, record.summary())
-    else:
-        log.warning("%s: %s: %s", url, stimulus, record.summary())
 
 
 def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None = None,

@@ -1,14 +1,18 @@
 """What one presentation delivered, and how it ended: played to its end, cut short, or never
 started. A stimulus is delivered as scheduled or reported as not delivered, with the reason:
-never silently different."""
+never silently different; and the notices each tells the logger ``"pinarray"``."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+
+import numpy as np
 
 from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import DeliveryRecord
 from pinarray.hardware.motion import PinStroke
+from pinarray.player.playback import PlaybackReport
 
 __all__ = ["Cut", "Delivery", "Ending", "NotStarted", "Played"]
 
@@ -54,6 +58,9 @@ Ending = Played | Cut | NotStarted
 """How a presentation ended: `Played`, `Cut` or `NotStarted`."""
 
 PLAYED = Played()
+
+log = logging.getLogger("pinarray")
+log.addHandler(logging.NullHandler())  # a library's notices: shown where the script says
 
 
 @dataclass(frozen=True)
@@ -129,3 +136,26 @@ def unplayed(onset_ns: int, duration_ns: int, changes: int, tolerance_ns: int,
     record = DeliveryRecord(scheduled=changes, confirmed=0, healed=0, missing=changes,
                             worst_lateness_ns=0, tolerance_ns=tolerance_ns, problem=problem)
     return Delivery(onset_ns, duration_ns, 0, record, ending)
+
+
+def onset_write_late_ns(report: PlaybackReport) -> int:
+    """How late the write of the first frame at or after time zero returned, in ns."""
+    at_or_after = np.flatnonzero(report.scheduled_ns >= 0)
+    if not len(at_or_after):
+        return 0
+    first = int(at_or_after[0])
+    return int(report.sent_ns[first] - report.scheduled_ns[first])
+
+
+def tell(url: str, stimulus: str, delivery: Delivery, report: PlaybackReport) -> None:
+    """The notices of one stimulus played: its verdict, writes healed, retries."""
+    record = delivery.record
+    if record.healed:
+        log.info("%s: %s: %d goal write(s) lost on the wire were written again and confirmed",
+                 url, stimulus, record.healed)
+    if report.retries:
+        log.info("%s: %s: %d transient bus failure(s) retried", url, stimulus, report.retries)
+    if delivery.delivered:
+        log.info("%s: %s: %s", url, stimulus, record.summary())
+    else:
+        log.warning("%s: %s: %s", url, stimulus, record.summary())

@@ -14,6 +14,10 @@ where the bus still answers.
 One owner per port: a rig on a device holds it (`pinarray.hardware.port_lock`) from before
 it opens it until it is closed, and its player process keeps it held while it may still
 drive the servos; any other opener is refused, naming the holder.
+
+Past 400 lines on purpose: one connected array and every use of it that must take its port in
+turn (a stimulus now, at a time or on a cue; a test pin; the timing check; telemetry; the
+stop and the close).
 """
 
 from __future__ import annotations
