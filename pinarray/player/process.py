@@ -33,6 +33,7 @@ import sys
 import tempfile
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from fractions import Fraction
 from multiprocessing.connection import Connection, wait
@@ -192,7 +193,8 @@ class PlayerProcess:
         # A stop request wakes the wait for the child's answer (a byte down this pipe).
         self._wake_read, self._wake_write = os.pipe()
         os.set_blocking(self._wake_write, False)
-        stop.when_requested(self._wake)
+        wake = weakref.WeakMethod(self._wake)  # the request outlives this player: keep it light
+        stop.when_requested(lambda: (method := wake()) is not None and method())
         passed = (child_end.fileno(),) + ((fd,) if fd is not None else ()) + keep_fds
         command = [sys.executable, "-m", "pinarray.player.child", str(child_end.fileno()),
                    str(fd if fd is not None else -1)]
