@@ -91,6 +91,12 @@ def test_open_array_refuses_wrong_settings_in_the_scripts_own_words(protocol, se
     assert expected in said and "--sim" not in said and "ids=1," not in said
 
 
+def test_a_session_refuses_a_sim_url_in_the_scripts_own_words(protocol, tmp_path):
+    said = refused(pinarray.run_session, protocol, print, subject="01", results=tmp_path,
+                   sim="sim://?drop=lots")
+    assert said == "sim://?drop=lots: sim URL key drop: expected a number, found 'lots'"
+
+
 @pytest.mark.parametrize("call", [
     lambda p: pinarray.load_protocol(5),
     lambda p: pinarray.load_protocol(None),
@@ -111,6 +117,7 @@ def test_open_array_refuses_wrong_settings_in_the_scripts_own_words(protocol, se
     lambda p: pinarray.run_session(p, print, subject="01", seed="7"),
     lambda p: pinarray.run_session(p, print, subject="01", resume="yes"),
     lambda p: pinarray.run_session(p, print, subject="01", clock=5),
+    lambda p: pinarray.run_session(p, print, subject="01", sim="sim://pca9685"),
     lambda p: pinarray.testing.assert_delivered(5),
     lambda p: pinarray.testing.assert_not_delivered(None, because="late"),
     lambda p: pinarray.testing.assert_left_safe("array"),

@@ -93,6 +93,28 @@ def sim_url(call: str, value: object) -> str | None:
     return value
 
 
+def sim_for(call: str, protocol: Protocol, value: object) -> str | None:
+    """A ``sim://`` URL of the protocol's kind of servos, read as the script wrote it (its
+    problems in its own words, before pinarray adds the protocol's servo ids to it)."""
+    from pinarray.hardware.pca9685.sim import is_pca9685_url
+    from pinarray.protocol.model import HobbyServos
+
+    url = sim_url(call, value)
+    if url is None:
+        return None
+    board = isinstance(protocol.device.servo, HobbyServos)
+    if board != is_pca9685_url(url):
+        wanted = ("a sim://pca9685 URL: its device is a PWM board" if board else
+                  "a sim:// URL of bus servos (not sim://pca9685): its device is STS servos")
+        raise PinArrayError(f"{call}: sim: protocol {protocol.name!r} takes {wanted}, found "
+                            f"{url!r}")
+    if not board:
+        from pinarray.hardware.feetech.faults import parse_sim_url
+
+        parse_sim_url(url)
+    return url
+
+
 def clock(call: str, value: object) -> Clock | None:
     if value is None:
         return None

@@ -59,7 +59,7 @@ from pinarray.player.playback import (
 from pinarray.player.process import StartCue
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import Condition, HobbyServos, Protocol, is_simulated
+from pinarray.protocol.model import Condition, Protocol, is_simulated
 from pinarray.schedule import compile_drives
 from pinarray.stop import Stopped
 
@@ -442,26 +442,15 @@ def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None =
         A wrong argument (named), both a port and a sim URL, a URL that cannot be read, or a
         clock real servos cannot play on.
     """
-    from pinarray.hardware.pca9685.sim import is_pca9685_url, is_shared_board_url
+    from pinarray.hardware.pca9685.sim import is_shared_board_url
 
     call = "open_array"
     protocol = arguments.protocol(call, protocol)
     port = arguments.port(call, port)
-    sim = arguments.sim_url(call, sim)
+    sim = arguments.sim_for(call, protocol, sim)
     clock = arguments.clock(call, clock)
     if port is not None and sim is not None:
         raise PinArrayError(f"{call}: give a port (real servos) or a sim URL, not both")
-    if sim is not None:
-        board = isinstance(protocol.device.servo, HobbyServos)
-        if board != is_pca9685_url(sim):
-            wanted = ("a sim://pca9685 URL: its device is a PWM board" if board else
-                      "a sim:// URL of bus servos (not sim://pca9685): its device is STS servos")
-            raise PinArrayError(f"{call}: sim: protocol {protocol.name!r} takes {wanted}, found "
-                                f"{sim!r}")
-        if not board:
-            from pinarray.hardware.feetech.faults import parse_sim_url
-
-            parse_sim_url(sim)  # its problems in the script's own words, before any is added
     if clock is None:
         clock = choose_clock(port, None, paced=True, sim_url=sim)
     elif (port is not None or is_shared_board_url(sim)) and not isinstance(clock, MonotonicClock):

@@ -87,7 +87,7 @@ def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, sessi
     session = arguments.text(call, "session", session)
     results = arguments.path(call, "results", results)
     port = arguments.port(call, port)
-    sim = arguments.sim_url(call, sim)
+    sim = arguments.sim_for(call, protocol, sim)
     seed = arguments.seed(call, seed)
     resume = arguments.flag(call, "resume", resume)
     experimenter = arguments.text(call, "experimenter", experimenter)
