@@ -7,6 +7,7 @@ display, its data file holding the tactile columns."""
 import csv
 import importlib.metadata
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -14,6 +15,7 @@ from pathlib import Path
 
 import pytest
 from conftest import APPARENT_MOTION, REPO
+from dialog_picture import PICTURE, example_component, picture
 from psychopy import experiment, prefs
 from psychopy.experiment.components import getAllComponents
 from psychopy.experiment.devices import DeviceBackend
@@ -299,3 +301,22 @@ def test_the_device_managers_file_names_pinarrays_backend(device_manager, tmp_pa
     stored = json.loads((tmp_path / "devices.json").read_text())
     assert stored["touch"]["__class__"].endswith("pinArrayTouch.PinArrayDeviceBackend")
     assert stored["touch"]["profile"]["sim"] == "sim://"
+
+
+def test_the_docs_picture_of_the_dialog_is_what_the_components_parameters_draw():
+    assert PICTURE.read_text(encoding="utf-8") == picture(example_component()), (
+        "run .venv-psychopy/bin/python tests/psychopy/dialog_picture.py")
+
+
+def test_the_docs_excerpt_of_the_compiled_script_is_in_the_example_compiled(tmp_path,
+                                                                              device_manager):
+    exp = experiment.Experiment()
+    exp.loadFromXML(str(EXAMPLE))
+    compiled = {line.strip() for line in exp.writeScript(target="PsychoPy").splitlines()}
+    page = (REPO / "docs" / "programmers" / "psychopy.md").read_text(encoding="utf-8")
+    excerpt = re.search(r"<!-- compiled: examples/psychopy_congruency.psyexp -->\n```python\n"
+                        r"(.*?)```", page, re.S)
+    assert excerpt is not None
+    lines = [line.strip() for line in excerpt.group(1).splitlines()]
+    code = [line for line in lines if line and not line.startswith("#")]
+    assert len(code) > 20 and [line for line in code if line not in compiled] == []
