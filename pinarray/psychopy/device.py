@@ -91,10 +91,11 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     Parameters
     ----------
-    protocol : str, path-like or pinarray.Protocol
+    protocol : str, path-like, pinarray.Protocol or None
         The protocol file (or one read with `pinarray.load_protocol`): its device section names
         the servos, their calibration and the delivery tolerance; its stimuli are what can be
-        presented.
+        presented. None: the device is set up for its port, and opened for a protocol by
+        `open` (as Builder's Device Manager sets it up for a Pin array touch component).
     port : str or None
         The serial device of real bus servos (``/dev/ttyUSB0``), or the I2C bus of a PWM board.
     sim : str or None

@@ -20,6 +20,7 @@ from psychopy import experiment, prefs
 from psychopy.experiment.components import getAllComponents
 from psychopy.experiment.devices import DeviceBackend
 from psychopy.experiment.loops import TrialHandler
+from psychopy.experiment.utils import CodeGenerationException
 from psychopy.preferences.devices import DeviceConfig
 from psychopy.tests.test_experiment.test_components.test_base_components import (
     BaseComponentTests,
@@ -153,6 +154,20 @@ def test_unchecked_start_on_the_flip_starts_at_once_and_columns_follow_the_data_
     assert "tactile.addData(thisExp, columns=['delivered'])" in script
 
 
+def test_a_stimulus_the_protocol_does_not_hold_stops_the_compiling_in_the_protocols_words():
+    exp = minimal(deviceLabel="touch", protocol=str(APPARENT_MOTION), stimulus="sideways")
+    with pytest.raises(CodeGenerationException) as raised:
+        exp.writeScript(target="PsychoPy")
+    assert raised.value.source == "tactile"
+    assert raised.value.message == (
+        f"{APPARENT_MOTION}: no condition of the design has stimulus sideways (it holds: "
+        "rightwards (right); leftwards (left); no_wave (none))")
+    for known in ("rightwards", "$wave"):  # a name it holds; one the loop gives at run time
+        script = minimal(deviceLabel="touch", protocol=str(APPARENT_MOTION),
+                         stimulus=known).writeScript(target="PsychoPy")
+        assert "tactile = PinArrayTouch(" in script
+
+
 @pytest.fixture
 def device_manager(tmp_path, monkeypatch):
     """Builder's Device Manager on this machine, as a lab sets it up: the simulated array,
@@ -209,13 +224,19 @@ def test_the_example_psyexp_compiles_and_runs_on_the_simulated_array_writing_the
     assert len(trials) == 8  # 4 pairings, twice
     for row in trials:
         assert row["tactile.stimulus"] == row["wave"]
-        assert row["tactile.ending"] == "played" and row["tactile.missing"] == "0"
+        assert row["tactile.ending"] == "played"
         from_flip_ms = float(row["tactile.onset_from_flip_ms"])
         assert from_flip_ms >= 0  # started by the flip, never before it
-        # Delivered as scheduled when the onset lay within the tolerance of its flip (how
-        # far it did on this busy machine is the benchmark's).
+        # Delivered as scheduled only with its onset within the tolerance of its flip and
+        # every goal change confirmed (how far the onset lay, and whether a simulator starved
+        # of the processor by other work kept up, are the benchmark's and the machine's).
         within = from_flip_ms <= float(row["tactile.tolerance_ms"])
-        assert row["tactile.delivered"] == str(within), row["tactile.problem"]
+        if row["tactile.delivered"] == "True":
+            assert within and row["tactile.missing"] == "0" and not row["tactile.problem"]
+        else:
+            assert row["tactile.problem"], row
+            assert within or row["tactile.problem"].startswith("missed its flip: the pins "
+                                                               "started")
         # The flash and the touch on one flip: PsychoPy's stamp of the flash's start is the
         # touch's flip.
         assert float(row["tactile.flip_t"]) == pytest.approx(float(row["flash.started"]),

@@ -22,11 +22,13 @@ a condition.
 
 from __future__ import annotations
 
+import ast
 from pathlib import Path
 from typing import Any
 
 from psychopy.experiment.components import BaseDeviceComponent, Param, getInitVals
 from psychopy.experiment.devices import DeviceBackend
+from psychopy.experiment.utils import CodeGenerationException
 from psychopy.localization import _translate
 
 __all__ = ["PinArrayDeviceBackend", "PinArrayTouchComponent"]
@@ -129,6 +131,7 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                                        direct=False, label=label, hint=hint)
 
     def writeInitCode(self, buff: Any) -> None:
+        self._check_stimulus()
         inits = getInitVals(self.params)
         code = (
             "# *%(name)s*: touches on the pin array %(deviceLabel)s of Builder's Device Manager,\n"
@@ -198,6 +201,35 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         )
         buff.writeIndentedLines(code % self.params)
         super().writeRoutineEndCode(buff)
+
+
+    def _check_stimulus(self) -> None:
+        """A stimulus given as constants that the protocol does not hold stops the compiling,
+        with the protocol's own words (its file and the stimuli it holds), not the experiment
+        at its first trial. Values from the loop ($variables), and a protocol that is not
+        where the experiment is compiled (it is read, and checked, where it runs), are left to
+        the run."""
+        given = {name: str(self.params[name].val).strip()
+                 for name in ("protocol", "stimulus", "pin", "frequency")}
+        if not given["protocol"] or any(value.startswith("$") for value in given.values()):
+            return
+        folder = Path(self.exp.filename).parent if self.exp.filename else Path.cwd()
+        protocol_file = folder / given["protocol"]
+        try:
+            pin, frequency_hz = (ast.literal_eval(given[name]) if given[name] else None
+                                 for name in ("pin", "frequency"))
+        except (ValueError, SyntaxError):
+            return  # code, not a value: it is known at run time only
+        if not protocol_file.is_file():
+            return
+        import pinarray  # only now: Builder imports this module without the array
+
+        try:
+            pinarray.find_condition(pinarray.load_protocol(protocol_file),
+                                    stimulus=given["stimulus"] or None, pin=pin,
+                                    frequency_hz=frequency_hz)
+        except pinarray.PinArrayError as error:
+            raise CodeGenerationException(self.params["name"].val, str(error)) from None
 
 
 class PinArrayDeviceBackend(DeviceBackend):  # type: ignore[misc]  # PsychoPy is untyped
