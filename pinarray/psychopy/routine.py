@@ -14,6 +14,7 @@ from collections.abc import Collection
 from os import PathLike
 from typing import Any
 
+from psychopy import logging
 from psychopy.constants import NOT_STARTED
 from psychopy.hardware.manager import DeviceManager
 
@@ -70,7 +71,8 @@ class PinArrayTouch:
                 columns: Collection[str] = COLUMN_GROUPS) -> pinarray.Delivery | None:
         """Add this repeat's touch to the current row: `Touch.addData` (waiting until it has
         ended), or, for a routine that ended before the touch's start, the stimulus as not
-        delivered, with the reason: a stimulus is delivered or reported as not delivered.
+        delivered, with the reason, in the data and the log: a stimulus is delivered or
+        reported as not delivered.
 
         Parameters
         ----------
@@ -86,12 +88,13 @@ class PinArrayTouch:
         """
         if self.touch is not None:
             return self.touch.addData(experiment, self.name, columns)
+        problem = "never started: the routine ended before its start"
         experiment.addData(f"{self.name}.stimulus", _stimulus_name(self.stimulus))
         if "delivered" in columns:
             experiment.addData(f"{self.name}.delivered", False)
-            experiment.addData(f"{self.name}.problem",
-                               "never started: the routine ended before its start")
+            experiment.addData(f"{self.name}.problem", problem)
             experiment.addData(f"{self.name}.ending", "not started")
+        logging.warning(f"{self.name}: {_stimulus_name(self.stimulus)} not delivered: {problem}")
         return None
 
     def __repr__(self) -> str:

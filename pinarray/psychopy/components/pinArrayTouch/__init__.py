@@ -70,7 +70,6 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
             startEstim=startEstim, durationEstim=durationEstim, deviceLabel=deviceLabel,
             saveStartStop=saveStartStop, syncScreenRefresh=syncScreenRefresh,
             disabled=disabled)
-        self.url = "https://pinarray.readthedocs.io/programmers/psychopy/#builder"
         self.exp.requireImport(importName="pinarray")
         self.exp.requireImport(importName="PinArrayTouch", importFrom="pinarray.psychopy")
         self.params["deviceLabel"].hint = _translate(
