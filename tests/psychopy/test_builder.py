@@ -168,19 +168,24 @@ def test_a_stimulus_the_protocol_does_not_hold_stops_the_compiling_in_the_protoc
         assert "tactile = PinArrayTouch(" in script
 
 
-@pytest.fixture
-def device_manager(tmp_path, monkeypatch):
-    """Builder's Device Manager on this machine, as a lab sets it up: the simulated array,
-    named 'touch' (the Device Manager's file kept in tmp_path, not the user's)."""
-    devices = DeviceConfig(tmp_path / "devices.json")
-    profile = next(p for p in PinArrayDeviceBackend.getAvailableDevices() if "sim" in p)
+def set_up_device_manager(folder: Path, monkeypatch, profile: dict) -> DeviceConfig:
+    """Builder's Device Manager on this machine, as a lab sets it up: the array of
+    ``profile`` (one `getAvailableDevices` lists) named 'touch' (the Device Manager's file
+    kept in ``folder``, not the user's)."""
+    devices = DeviceConfig(folder / "devices.json")
     backend = PinArrayDeviceBackend(profile)
     backend.name = "touch"
     devices["touch"] = backend
     devices.save()
-    monkeypatch.setattr(prefs, "_devices", DeviceConfig(tmp_path / "devices.json"),
-                        raising=False)
+    monkeypatch.setattr(prefs, "_devices", DeviceConfig(folder / "devices.json"), raising=False)
     return devices
+
+
+@pytest.fixture
+def device_manager(tmp_path, monkeypatch):
+    """The Device Manager holding the simulated array as it lists it, named 'touch'."""
+    profile = next(p for p in PinArrayDeviceBackend.getAvailableDevices() if "sim" in p)
+    return set_up_device_manager(tmp_path, monkeypatch, profile)
 
 
 def compile_and_run(exp_file: Path, folder: Path) -> Path:
@@ -206,7 +211,14 @@ def rows_of(data_file: Path) -> tuple[list[str], list[dict[str, str]]]:
 
 
 def test_the_example_psyexp_compiles_and_runs_on_the_simulated_array_writing_the_tactile_columns(
-        tmp_path, device_manager):
+        tmp_path, monkeypatch, way):
+    # The Device Manager's array: the simulated one as it lists it, or servos behind a serial
+    # port (sim-serve's, in a process of its own), as it lists a port where servos answer.
+    settings, served = way
+    (where,) = settings.values()
+    set_up_device_manager(tmp_path, monkeypatch, {
+        "deviceName": f"pin array@{where}", **settings,
+        "deviceClass": "pinarray.psychopy.device.PinArrayDevice"})
     # The example's folder as a lab has it: the experiment, its conditions, the protocol.
     (tmp_path / "examples").mkdir()
     for name in ("psychopy_congruency.psyexp", "psychopy_congruency.csv"):
@@ -216,7 +228,8 @@ def test_the_example_psyexp_compiles_and_runs_on_the_simulated_array_writing_the
     data_file = compile_and_run(tmp_path / "examples" / "psychopy_congruency.psyexp", tmp_path)
     script = (tmp_path / "examples" / "psychopy_congruency.py").read_text()
     assert "deviceManager.addDevice(\n        deviceName='touch',\n" in script
-    assert "sim='sim://'," in script  # the Device Manager's array, set up by the script
+    # the Device Manager's array, set up by the script
+    assert f"{next(iter(settings))}={where!r}," in script
 
     header, rows = rows_of(data_file)
     assert set(TACTILE_COLUMNS + STROKE_COLUMNS) <= set(header), header
@@ -246,6 +259,9 @@ def test_the_example_psyexp_compiles_and_runs_on_the_simulated_array_writing_the
             assert row[f"tactile.pin{pin}.achieved_steps"]
     log = data_file.with_suffix(".log").read_text(encoding="utf-8")
     assert log.count("DATA \ttactile: ") == 8
+    if served is not None:  # as the servos saw it: every one released once the script ended
+        released = served.torque_off_at_ns()
+        assert sorted(released) == list(range(1, 17)) and all(released.values()), released
 
 
 def test_a_routine_ended_early_waits_for_the_touch_or_cuts_it_and_a_stop_time_cuts_it(
