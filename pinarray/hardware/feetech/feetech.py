@@ -308,8 +308,9 @@ class FeetechBus:
         handshake.hold(self)
 
     def reconnect(self) -> None:
-        """The handshake again, after a fault released torque."""
-        self.connect(self.setup)
+        """Torque on again after a safe stop: the light way where every servo answers as it
+        should, else the whole handshake (`pinarray.hardware.feetech.handshake.hold_again`)."""
+        handshake.hold_again(self)
 
     # -- playback ------------------------------------------------------------------------
 
