@@ -29,6 +29,7 @@ __all__ = [
     "Clock",
     "Condition",
     "Cut",
+    "DamagedResults",
     "Delivery",
     "DeliveryRecord",
     "Ending",
@@ -43,6 +44,7 @@ __all__ = [
     "MotionRecord",
     "NotDelivered",
     "NotStarted",
+    "NothingToResume",
     "PinArray",
     "PinArrayError",
     "PinStroke",
@@ -50,12 +52,14 @@ __all__ = [
     "PlaybackAborted",
     "Played",
     "PortInUse",
+    "PortLost",
     "Presentable",
     "Protocol",
     "ProtocolError",
     "ProtocolErrors",
     "Question",
     "ResultsError",
+    "RunLocked",
     "RunPaths",
     "SafeStopReport",
     "ServoPort",
@@ -93,8 +97,9 @@ _HOMES = {
     "pinarray.api.results": ("IdentificationRecord", "LoadedRun", "LocalisationRecord",
                              "ManifestState", "MotionRecord", "RunPaths", "TemporalOrderRecord",
                              "TrialRecord", "TrialStatus", "TwoIntervalRecord", "read_results"),
-    "pinarray.api.errors": ("BusError", "PinArrayError", "PlaybackAborted", "PortInUse",
-                            "ProtocolError", "ProtocolErrors", "ResultsError"),
+    "pinarray.api.errors": ("BusError", "DamagedResults", "NothingToResume", "PinArrayError",
+                            "PlaybackAborted", "PortInUse", "PortLost", "ProtocolError",
+                            "ProtocolErrors", "ResultsError", "RunLocked"),
 }
 _HOME_OF = {name: module for module, names in _HOMES.items() for name in names}
 
@@ -128,12 +133,16 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
     from pinarray.api.delivery import Cut, Delivery, Ending, NotStarted, Played
     from pinarray.api.errors import (
         BusError,
+        DamagedResults,
+        NothingToResume,
         PinArrayError,
         PlaybackAborted,
         PortInUse,
+        PortLost,
         ProtocolError,
         ProtocolErrors,
         ResultsError,
+        RunLocked,
     )
     from pinarray.api.ports import ServoPort, find_servo_ports
     from pinarray.api.protocols import (

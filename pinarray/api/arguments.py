@@ -253,6 +253,31 @@ def flag(call: str, name: str, value: object) -> bool:
     return value
 
 
+def label(call: str, name: str, value: object) -> str:
+    """A BIDS label (a subject's, a session's): letters and digits only."""
+    from pinarray.journal.paths import LabelError, check_label
+
+    try:
+        return check_label(name, text(call, name, value))
+    except LabelError:
+        refuse(call, name, "letters and digits only (a BIDS label: no spaces, dots, slashes, "
+                           "dashes or underscores)", value)
+
+
+def answer(call: str, value: object) -> str | int | None:
+    """What an answer source gave: a name (str), a whole number (a pin, a count) or None;
+    never a bool (True is 1 to Python, never a pin) nor a number with a fraction (6.7 is not
+    pin 6)."""
+    if value is None or isinstance(value, str):
+        return value
+    if is_int(value):
+        return int(value)
+    if is_real(value) and math.isfinite(value) and float(value).is_integer():
+        return int(value)
+    refuse(call, "answer", "a pin's number or a count (a whole number), a name (str) or None",
+           value)
+
+
 def answer_source(call: str, value: object) -> Callable[..., Any]:
     if not callable(value):
         refuse(call, "answer", "a function taking a Question and returning an answer", value)

@@ -46,7 +46,7 @@ def check(bus: FeetechBus, setup: BusSetup) -> None:
         Naming every missing id and every id with the wrong model, in one message.
     """
     bus.setup = setup
-    found = {servo_id: bus.ping(servo_id) for servo_id in setup.servo_ids}
+    found = _ping_all(bus, setup.servo_ids)
     missing = sorted(i for i, model in found.items() if model is None)
     wrong = sorted(
         (i, model) for i, model in found.items() if model not in (None, setup.model_number)
@@ -68,6 +68,25 @@ def check(bus: FeetechBus, setup: BusSetup) -> None:
         delay, _ = bus.read(servo.servo_id, Register.RETURN_DELAY_TIME)
         bus.link.return_delay_ns[servo.servo_id] = delay[0] * 2 * NS_PER_US
         _check_angle_limits(bus, servo)
+
+
+def _ping_all(bus: FeetechBus, servo_ids: tuple[int, ...]) -> dict[int, int | None]:
+    """Each id's model number, None for a servo that never answered.
+
+    In rounds, each waiting longer than the one before (`FeetechBus.ping_attempt`), asking
+    only those still silent: a reply lost once is asked for again, as the vendor's SDK
+    users learnt to. Where nothing has answered after two rounds, no servo is there (power
+    off, the wrong adapter): the error comes within seconds, naming them all, rather than
+    after every id's longest wait.
+    """
+    found: dict[int, int | None] = dict.fromkeys(servo_ids)
+    for attempt in range(bus.retries + 1):
+        silent = [i for i, model in found.items() if model is None]
+        if not silent or (attempt >= 2 and len(silent) == len(servo_ids)):
+            break
+        for servo_id in silent:
+            found[servo_id] = bus.ping_attempt(servo_id, attempt)
+    return found
 
 
 def hold(bus: FeetechBus) -> None:
