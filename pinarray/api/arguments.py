@@ -127,28 +127,28 @@ def port(call: str, value: object) -> str | None:
     return value
 
 
-def sim_url(call: str, value: object) -> str | None:
+def sim_url(call: str, value: object, name: str = "sim") -> str | None:
     if value is None:
         return None
     if not isinstance(value, str) or not value.startswith("sim://"):
-        refuse(call, "sim", "a sim:// URL such as 'sim://?drop_writes=0.1&seed=3' (str)", value)
+        refuse(call, name, "a sim:// URL such as 'sim://?drop_writes=0.1&seed=3' (str)", value)
     return value
 
 
-def sim_for(call: str, protocol: Protocol, value: object) -> str | None:
+def sim_for(call: str, protocol: Protocol, value: object, name: str = "sim") -> str | None:
     """A ``sim://`` URL of the protocol's kind of servos, read as the script wrote it (its
     problems in its own words, before pinarray adds the protocol's servo ids to it)."""
     from pinarray.hardware.pca9685.sim import is_pca9685_url
     from pinarray.protocol.model import HobbyServos
 
-    url = sim_url(call, value)
+    url = sim_url(call, value, name)
     if url is None:
         return None
     board = isinstance(protocol.device.servo, HobbyServos)
     if board != is_pca9685_url(url):
         wanted = ("a sim://pca9685 URL: its device is a PWM board" if board else
                   "a sim:// URL of bus servos (not sim://pca9685): its device is STS servos")
-        raise PinArrayError(f"{call}: sim: protocol {protocol.name!r} takes {wanted}, found "
+        raise PinArrayError(f"{call}: {name}: protocol {protocol.name!r} takes {wanted}, found "
                             f"{url!r}")
     if not board:
         from pinarray.hardware.feetech.faults import parse_sim_url

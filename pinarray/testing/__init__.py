@@ -100,7 +100,7 @@ class ArrayOpener:
             arguments.refuse(call, "protocol", "a Protocol (pinarray.load_protocol) or a "
                                                "protocol file's path", protocol)
         over_serial = arguments.flag(call, "over_serial", over_serial)
-        url = arguments.sim_for(call, protocol, url)  # as the test wrote it, before the ids
+        url = arguments.sim_for(call, protocol, url, "url")  # as written, before the ids
         clock = arguments.clock(call, clock)
         if not over_serial:
             array = open_array(protocol, sim=url,
