@@ -14,6 +14,7 @@ import sys
 import threading
 import time
 from collections import Counter
+from contextlib import contextmanager
 
 import pytest
 
@@ -41,6 +42,44 @@ def until(condition, timeout_s: float = 30.0, what: str = "the condition") -> No
 
 def served():
     return PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+
+
+@contextmanager
+def script_on_a_port(tmp_path, text: str, protocol: pinarray.Protocol, *args: str):
+    """``text`` run as a lab's script (its arguments: the protocol's file, the port, ``args``)
+    on servos behind a pseudo-terminal: its process and the served bus."""
+    server = served()
+    script = tmp_path / "script.py"
+    script.write_text(text)
+    process = subprocess.Popen([sys.executable, str(script), str(protocol.source), server.path,
+                                *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        yield process, server
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        server.stop()
+
+
+@contextmanager
+def array_on_a_port(protocol: pinarray.Protocol):
+    """The protocol's array opened on servos behind a pseudo-terminal: it and the served bus."""
+    server = served()
+    array = pinarray.open_array(protocol, port=server.path)
+    try:
+        yield array, server
+    finally:
+        array.close()
+        server.stop()
+
+
+def armed_and_moving(array: pinarray.PinArray, servos) -> pinarray.Armed:
+    """Pin 6's stimulus armed 100 ms ahead, once it moves."""
+    armed = array.arm(pinarray.find_condition(array.protocol, pin=6),
+                      at_ns=array.now_ns() + 10**8)
+    wait_moving(servos)
+    return armed
 
 
 def alive(pid: int) -> bool:
@@ -89,27 +128,20 @@ def test_a_script_killed_mid_stimulus_while_its_forked_helpers_live_leaves_the_s
     # A lab's recorder or analysis workers forked after the array opened: they must not keep
     # the stimulus playing, torque on or the port held once the script itself is gone.
     protocol = buzz(tmp_path, 10)
-    server = served()
-    script = tmp_path / "script.py"
-    script.write_text(FORKING_SCRIPT)
-    process = subprocess.Popen([sys.executable, str(script), str(protocol.source), server.path,
-                                forked_by], stdout=subprocess.PIPE, text=True)
     helper = None
-    try:
-        helper = int(process.stdout.readline())
-        wait_moving(server.sim.servos)
-        process.kill()
-        process.wait(timeout=30)
-        until(lambda: not at_rest_and_released(server.sim.servos),
-              what="every servo at rest and released")
-        assert alive(helper)  # the helper lives on: it held nothing
-        until(lambda: _opens(protocol, server.path), what="the port free for the next opener")
-    finally:
-        if process.poll() is None:
+    with script_on_a_port(tmp_path, FORKING_SCRIPT, protocol, forked_by) as (process, server):
+        try:
+            helper = int(process.stdout.readline())
+            wait_moving(server.sim.servos)
             process.kill()
-        if helper is not None and alive(helper):
-            os.kill(helper, signal.SIGKILL)
-        server.stop()
+            process.wait(timeout=30)
+            until(lambda: not at_rest_and_released(server.sim.servos),
+                  what="every servo at rest and released")
+            assert alive(helper)  # the helper lives on: it held nothing
+            until(lambda: _opens(protocol, server.path), what="the port free to open")
+        finally:
+            if helper is not None and alive(helper):
+                os.kill(helper, signal.SIGKILL)
 
 
 def _opens(protocol, port) -> bool:
@@ -139,35 +171,26 @@ array.close()
 @realtime
 def test_a_forked_copy_that_ends_leaves_the_scripts_stimulus_and_array_alone(tmp_path):
     protocol = buzz(tmp_path, 1)
-    server = served()
-    script = tmp_path / "script.py"
-    script.write_text(COPY_SCRIPT)
-    try:
-        done = subprocess.run([sys.executable, str(script), str(protocol.source), server.path],
-                              capture_output=True, text=True, timeout=120)
-        assert done.returncode == 0, done.stderr
-        assert done.stdout.split() == ["True", "Played"]
+    with script_on_a_port(tmp_path, COPY_SCRIPT, protocol) as (process, server):
+        out, err = process.communicate(timeout=120)
+        assert process.returncode == 0, err
+        assert out.split() == ["True", "Played"]
         assert at_rest_and_released(server.sim.servos) == []
-    finally:
-        server.stop()
 
 
 @realtime
 def test_a_player_process_that_stops_answering_mid_stimulus_is_killed_and_the_pins_rest(
         tmp_path):
     protocol = buzz(tmp_path, 1)
-    server = served()
-    array = pinarray.open_array(protocol, port=server.path)
     outcome: dict[str, object] = {}
+    with array_on_a_port(protocol) as (array, server):
+        def present() -> None:
+            try:
+                outcome["delivery"] = array.present(pinarray.find_condition(protocol, pin=6))
+            except pinarray.PinArrayError as error:
+                outcome["error"] = error
 
-    def present() -> None:
-        try:
-            outcome["delivery"] = array.present(pinarray.find_condition(protocol, pin=6))
-        except pinarray.PinArrayError as error:
-            outcome["error"] = error
-
-    try:
-        presenting = threading.Thread(target=present)
+        presenting = threading.Thread(target=present, daemon=True)
         presenting.start()
         wait_moving(server.sim.servos)
         frozen = player_pid(array)
@@ -181,27 +204,17 @@ def test_a_player_process_that_stops_answering_mid_stimulus_is_killed_and_the_pi
         assert not alive(frozen)
         # A new player process for the next stimulus, which plays.
         assert array.present(pinarray.find_condition(protocol, pin=6)).delivered
-    finally:
-        array.close()
-        server.stop()
 
 
 @realtime
 def test_a_stop_while_the_player_process_is_frozen_still_releases_every_servo(tmp_path):
-    protocol = buzz(tmp_path, 10)
-    server = served()
-    array = pinarray.open_array(protocol, port=server.path)
-    try:
-        armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**8)
-        wait_moving(server.sim.servos)
+    with array_on_a_port(buzz(tmp_path, 10)) as (array, server):
+        armed = armed_and_moving(array, server.sim.servos)
         os.kill(player_pid(array), signal.SIGSTOP)
         report = array.stop()
         assert report.complete and at_rest_and_released(server.sim.servos) == []
         ending = armed.result(timeout_s=30).ending
         assert isinstance(ending, pinarray.Cut) and ending.by == "stop()"
-    finally:
-        array.close()
-        server.stop()
 
 
 SUSPENDED_SCRIPT = """\
@@ -222,12 +235,7 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
 def test_a_script_suspended_mid_stimulus_gets_it_cut_and_every_servo_released(tmp_path):
     # Ctrl-Z: nobody can stop a suspended script's stimulus, so none plays on its behalf.
     protocol = buzz(tmp_path, 3)
-    server = served()
-    script = tmp_path / "script.py"
-    script.write_text(SUSPENDED_SCRIPT)
-    process = subprocess.Popen([sys.executable, str(script), str(protocol.source), server.path],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with script_on_a_port(tmp_path, SUSPENDED_SCRIPT, protocol) as (process, server):
         assert process.stdout.readline().strip() == "open"
         wait_moving(server.sim.servos)
         process.send_signal(signal.SIGTSTP)
@@ -237,10 +245,6 @@ def test_a_script_suspended_mid_stimulus_gets_it_cut_and_every_servo_released(tm
         out, err = process.communicate(timeout=60)
         assert process.returncode == 0, err
         assert out.splitlines() == ["Cut the script's suspension (Ctrl-Z)", "True"]
-    finally:
-        if process.poll() is None:
-            process.kill()
-        server.stop()
 
 
 @realtime
@@ -286,20 +290,13 @@ def test_a_presentation_cut_from_another_thread_is_reported_cut_not_unstarted(
 
 @realtime
 def test_a_signal_to_the_player_process_mid_presentation_is_a_cut_naming_it(tmp_path):
-    protocol = buzz(tmp_path, 10)
-    server = served()
-    array = pinarray.open_array(protocol, port=server.path)
-    try:
-        armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**8)
-        wait_moving(server.sim.servos)
+    with array_on_a_port(buzz(tmp_path, 10)) as (array, server):
+        armed = armed_and_moving(array, server.sim.servos)
         os.kill(player_pid(array), signal.SIGTERM)
         delivery = armed.result(timeout_s=30)
         assert isinstance(delivery.ending, pinarray.Cut)
         assert delivery.problem == "cut short by SIGTERM sent to the player process"
         assert at_rest_and_released(server.sim.servos) == []
-    finally:
-        array.close()
-        server.stop()
 
 
 def packets_received(array: pinarray.PinArray, server: PtyServer | None) -> int:
