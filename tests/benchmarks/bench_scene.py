@@ -77,6 +77,7 @@ def _exchange_cpu_us(polled: bool) -> float:
     bus = open_bus("sim://?ids=1-16", None, VirtualClock())
     if polled:
         bus.link.wire._readable_at_ns = None  # the reader polls the port, as it once did
+        bus.link.wire._read_arrived = None
     clock = bus.clock
     started = time.process_time()
     for _ in range(EXCHANGES):

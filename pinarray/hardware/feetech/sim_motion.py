@@ -129,10 +129,11 @@ class Move:
 
     def state_at(self, time_ns: int) -> MotionState:
         """Drive, drive speed and horn at ``time_ns``."""
-        piece = self._piece_at(time_ns)
+        final = self.pieces[-1]
+        piece = final if final.start_ns <= time_ns else self._piece_at(time_ns)
+        if piece is final:  # at rest (the usual case: a servo holding its goal)
+            return MotionState(final.drive_steps, 0.0, final.horn_steps)
         drive, speed = piece.drive_at(time_ns)
-        if piece is self.pieces[-1]:
-            return MotionState(piece.drive_steps, 0.0, piece.horn_steps)
         horn = horn_for(drive, piece.horn_steps, piece.direction, self.drive)
         return MotionState(drive, speed, horn)
 
