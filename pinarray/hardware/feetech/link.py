@@ -418,22 +418,39 @@ class Link:
             The replies that arrived and fit; a missing id means no fitting reply in time.
         """
         self.drain()
-        wire, reader, counters = self.wire, self.reader, self.counters
         asked, wanted, longest = self._wanted
         if asked is not expected:
             wanted = {e.servo_id: e.params_length for e in expected}
             longest = max(wanted.values(), default=0)
             if type(expected) is tuple:
                 self._wanted = expected, wanted, longest
-        reader.longest_params = longest
+        self.reader.longest_params = longest
         start_ns = self.clock.now_ns()
         limit_ns = start_ns + self.reply_time_ns(len(packet), expected, patience=patience)
         if deadline_ns is not None and deadline_ns < limit_ns:
             limit_ns = deadline_ns
-        wire.write(packet)
-        counters.bytes_written += len(packet)
-        counters.exchanges += 1
-        replies: dict[int, StatusPacket] = {}
+        replies = self._send_and_collect(packet, wanted, limit_ns)
+        if self.latency.learns and replies and len(replies) == len(wanted):
+            # The adapter's part of the exchange: what it took beyond the wire and the servos'
+            # return delays.
+            used_ns = self.clock.now_ns() - start_ns
+            wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
+            self.latency.record(max(0, used_ns - wire_and_delays_ns))
+        return replies
+
+    def _send_and_collect(self, packet: bytes, wanted: dict[int, int],
+                          limit_ns: int) -> dict[int, StatusPacket]:
+        """Put the request on the wire, then `collect` its replies until ``limit_ns``."""
+        self.wire.write(packet)
+        self.counters.bytes_written += len(packet)
+        self.counters.exchanges += 1
+        return self.collect(wanted, limit_ns, {})
+
+    def collect(self, wanted: dict[int, int], limit_ns: int,
+                replies: dict[int, StatusPacket]) -> dict[int, StatusPacket]:
+        """Read status packets into ``replies`` until each servo in ``wanted`` (id -> data
+        length) has answered, or ``limit_ns``; what does not fit is counted as mismatched."""
+        wire, reader, counters = self.wire, self.reader, self.counters
         while len(replies) < len(wanted):
             data = wire.read_some(limit_ns)
             if not data:
@@ -446,12 +463,6 @@ class Link:
                     counters.mismatched_replies += 1
                     continue
                 replies[status.servo_id] = status
-        if self.latency.learns and replies and len(replies) == len(wanted):
-            # The adapter's part of the exchange: what it took beyond the wire and the servos'
-            # return delays.
-            used_ns = self.clock.now_ns() - start_ns
-            wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
-            self.latency.record(max(0, used_ns - wire_and_delays_ns))
         return replies
 
     def close(self) -> None:

@@ -134,6 +134,14 @@ class SimBus:
         limit = self.vanish_after_packets
         return limit is not None and self.packets_received >= limit
 
+    @property
+    def whole_packets(self) -> bool:
+        """Whether packets can be taken whole, their bytes unseen (the packet level): no half
+        packet waiting for its rest, no fault that acts on bytes (corrupt or late answers, a
+        vanishing port), no host speed still to learn."""
+        return not (self._buffer or self._follow_baud or self.vanish_after_packets is not None
+                    or self.corrupt_rate or self.corrupt_next or self.late_rate or self.late_next)
+
     def receive(
         self, data: bytes, at_ns: int, byte_ns: float | None = None, baud_rate: int | None = None
     ) -> list[StatusReply]:

@@ -112,6 +112,15 @@ class SimSerial:
             self._check_alive("write")
         if type(data) is not bytes:
             data = bytes(data)
+        end_ns = self._transmit(data)
+        replies = self.bus.receive(data, end_ns)
+        if replies:
+            arriving, self._wire_free_ns = schedule(replies, end_ns, self._byte_ns)
+            self._queue(arriving, any(reply.late_ns for reply in replies))
+        return len(data)
+
+    def _transmit(self, data: bytes) -> int:
+        """``data`` onto the wire after whatever is on it; when its last byte has arrived."""
         start_ns = self.clock.now_ns()
         if start_ns < self._wire_free_ns:
             start_ns = self._wire_free_ns
@@ -121,11 +130,39 @@ class SimSerial:
         self.writes.append(data)
         bus = self.bus
         bus.byte_ns, bus.host_baud_rate = self._byte_ns, self._baud_rate
-        replies = bus.receive(data, end_ns)
-        if replies:
-            arriving, self._wire_free_ns = schedule(replies, end_ns, self._byte_ns)
-            self._queue(arriving, any(reply.late_ns for reply in replies))
-        return len(data)
+        return end_ns
+
+    @property
+    def byte_ns(self) -> float:
+        """Wire time of one byte at the port's speed, in nanoseconds."""
+        return self._byte_ns
+
+    def computable(self) -> bool:
+        """Whether an exchange written now can be computed whole (the packet level): nothing
+        on its way to the host, and nothing at the servos that acts on bytes (a half packet,
+        a fault that corrupts or delays answers, a port about to vanish, a speed to learn)."""
+        return not self._queued and self.is_open and self.bus.whole_packets
+
+    def write_whole(self, packet: bytes, servo_id: int, instruction: int,
+                    params: bytes) -> list[Transmission]:
+        """`write` of one whole instruction packet (``servo_id``, ``instruction``,
+        ``params``): the same time on the wire, the same answers, returned in arrival order
+        instead of queued byte by byte. Only when `computable`."""
+        end_ns = self._transmit(packet)
+        replies = self.bus.deliver(servo_id, instruction, params, end_ns, self._baud_rate)
+        if not replies:
+            return []
+        arriving, self._wire_free_ns = schedule(replies, end_ns, self._byte_ns)
+        return arriving
+
+    def took(self, byte_count: int) -> None:
+        """A transmission of `write_whole` was read whole (for the port's count)."""
+        self.bytes_read += byte_count
+
+    def put_on_wire(self, arriving: list[Transmission]) -> None:
+        """Transmissions of `write_whole` not read whole: on their way, byte by byte."""
+        if arriving:
+            self._queue(arriving, False)
 
     def _queue(self, arriving: list[Transmission], late: bool) -> None:
         """Put transmissions on their way to the host (``late``: one of them was made late,

@@ -173,6 +173,8 @@ class SimServo:
         start = MotionState(float(position_steps), 0.0, float(position_steps))
         self._move: Move = at_rest(start_ns, start, self._drive())
         self._history: list[Move] | None = None
+        # Moves planned since someone asked (`log_moves`): the motion level's samples.
+        self._move_log: list[Move] | None = None
         self._recording_from_ns: int | None = None
         self._last_ns = start_ns
 
@@ -361,6 +363,20 @@ class SimServo:
             TrajectorySample(t, self.position_at_ns(t)) for t in range(start, end + 1, STEP_NS)
         ]
 
+    def log_moves(self) -> list[Move]:
+        """The move in force now and every move planned from now on, in a list that grows
+        until `stop_logging_moves`."""
+        self._move_log = [self._move]
+        return self._move_log
+
+    def stop_logging_moves(self) -> None:
+        self._move_log = None
+
+    @property
+    def folds_position(self) -> bool:
+        """Whether Present Position is folded into one turn (phase bit 4 clear)."""
+        return not self.table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK
+
     def carry_on_at(self, now_ns: int) -> None:
         """Go on from ``now_ns`` on another clock's time line, as if time had passed with
         nobody talking to the servo: a move in progress has ended, the table is as it was."""
@@ -417,6 +433,8 @@ class SimServo:
             self._move = at_rest(now_ns, state, drive)  # limp: the horn stays where it is
         if self._history is not None:
             self._history.append(self._move)
+        if self._move_log is not None:
+            self._move_log.append(self._move)
 
     def _calibrate_to_2048(self, now_ns: int) -> None:
         actual = round(self._move.state_at(now_ns).horn_steps)
