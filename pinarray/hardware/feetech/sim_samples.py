@@ -12,7 +12,9 @@ and at each the Present Position each servo would report, from the moves it was 
 (`horn_steps_at`, the servo model's own arithmetic over arrays). The positions are the
 servos' own; the instants differ from the other levels' only where those held samples back
 while every pin held its goal (`pinarray.hardware.sampling`), which shifts the grid after such
-a stretch by at most a period.
+a stretch by at most a period. The samples are those of a free wire: on a bus too slow for its
+traffic, where the other levels' read-backs and samples time out behind a sync write still on
+the wire, theirs come late or not at all, and these do not.
 """
 
 from __future__ import annotations
