@@ -9,16 +9,22 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pinarray.clock import VirtualClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.faults import parse_sim_url
 from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.hardware.feetech.sim_levels import Fidelity
 from pinarray.hardware.feetech.transport import fidelity_of
+from pinarray.player.families import open_array
 from pinarray.player.playback import PlaybackAborted, play_trial
+from pinarray.player.simulators import simulation_level
+from pinarray.protocol.load import load_protocol
+from tests.runs import REPO
 
 from .lab import pulse_train, sim_bus, targets
 
 MS = 1_000_000
+PROTOCOLS = REPO / "protocols"
 
 
 def play(query: str, schedule, trials: int = 2):
@@ -50,6 +56,17 @@ def test_each_level_is_what_its_url_names_and_packet_is_the_default():
     assert fidelity_of(sim_bus()) is Fidelity.PACKET
     for level in Fidelity:
         assert fidelity_of(sim_bus(f"fidelity={level}")) is level
+
+
+def test_a_protocols_simulated_array_says_how_closely_it_is_simulated():
+    device = load_protocol(PROTOCOLS / "localisation.yaml").device
+    said = [simulation_level(open_array(device, None, url, VirtualClock()))
+            for url in (None, "sim://?fidelity=wire", "sim://?fidelity=motion")]
+    assert said == ["packet level: exchanges computed whole", "wire level: every byte at its time",
+                    "motion level: motion samples computed"]
+    board = load_protocol(PROTOCOLS / "localisation_pwm.yaml").device
+    assert simulation_level(open_array(board, None, None, VirtualClock())) == (
+        "every I2C message to the board's registers")
 
 
 @pytest.mark.parametrize("faults", ["", "drop_writes=0.2&seed=4", "drop=0.05&seed=2",
