@@ -40,7 +40,7 @@ from pinarray.hardware.feetech.registers import (
 )
 from pinarray.hardware.feetech.sim_serial import POLL_NS, WRITE_LOG, SimSerial
 from pinarray.hardware.feetech.sim_servo import SimServo
-from pinarray.hardware.feetech.sim_wire import StatusReply
+from pinarray.hardware.feetech.sim_wire import Answer, StatusReply, status_packet
 
 # Instructions that only ask: no servo's id can change by them.
 ASKING = frozenset({Instruction.PING, Instruction.READ, Instruction.SYNC_READ})
@@ -50,8 +50,8 @@ _SYNC_READ, _SYNC_WRITE = int(Instruction.SYNC_READ), int(Instruction.SYNC_WRITE
 # The longest READ answer one status packet can carry, in data bytes.
 _LONGEST_READ = MAX_PACKET_BYTES - status_size(0)
 
-__all__ = ["POLL_NS", "WRITE_LOG", "InstructionPacket", "SimBus", "SimSerial", "StatusReply",
-           "status_packet"]
+__all__ = ["POLL_NS", "WRITE_LOG", "Answer", "InstructionPacket", "SimBus", "SimSerial",
+           "StatusReply", "status_packet"]
 
 
 @dataclass(frozen=True)
@@ -67,12 +67,6 @@ class InstructionPacket:
     instruction: int
     params: bytes
     delivered: bool
-
-
-def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
-    """``FF FF id len err params chk`` with ``len = len(params) + 2``."""
-    body = bytes((servo_id, len(params) + 2, error)) + params
-    return b"\xff\xff" + body + bytes((checksum(body),))
 
 
 def _fits(length: int) -> bool:
@@ -189,7 +183,7 @@ class SimBus:
     def deliver(self, servo_id: int, instruction: int, params: bytes, end_ns: int,
                 baud_rate: int | None) -> list[StatusReply]:
         """One well-formed instruction packet, whole at the servos at ``end_ns``: counted, lost
-        to an injected fault or carried out; returns the answers (not yet on the wire).
+        to an injected fault or carried out; returns the answers, as the servos send them.
 
         Parameters
         ----------
@@ -202,6 +196,14 @@ class SimBus:
         baud_rate : int or None
             The host's speed in bit/s; servos listening at another speed hear only noise.
         """
+        answers = self.carry_out(servo_id, instruction, params, end_ns, baud_rate)
+        if len(answers) == 1:  # the usual: one servo answers
+            return [self.reply(answers[0], end_ns)]
+        return [self.reply(answer, end_ns) for answer in answers]
+
+    def carry_out(self, servo_id: int, instruction: int, params: bytes, end_ns: int,
+                  baud_rate: int | None) -> list[Answer]:
+        """`deliver`, the answers not yet bytes (see `reply`)."""
         self.packets_received += 1
         delivered = not ((self.drop_next or self.drop_rate or self.drop_writes_next
                           or self.drop_write_rate) and self._lost(instruction))
@@ -209,10 +211,10 @@ class SimBus:
             self.packet_listener(InstructionPacket(end_ns, servo_id, instruction, params, delivered))
         if not delivered:
             return []
-        replies = self._execute(servo_id, instruction, params, end_ns, baud_rate)
+        answers = self._execute(servo_id, instruction, params, end_ns, baud_rate)
         if instruction not in ASKING:
             self._renumber()
-        return replies
+        return answers
 
     def _lost(self, instruction: int) -> bool:
         if not (self.drop_next or self.drop_rate or self.drop_writes_next
@@ -357,7 +359,7 @@ class SimBus:
 
     def _execute(
         self, servo_id: int, instruction: int, params: bytes, end_ns: int, baud: int | None
-    ) -> list[StatusReply]:
+    ) -> list[Answer]:
         broadcast = servo_id == BROADCAST_ID
         if instruction == _READ and not broadcast:  # the usual request: one servo's bytes
             if len(params) != 2 or not _fits(params[1]):
@@ -366,9 +368,9 @@ class SimBus:
                 servo = self.servos.get(servo_id)
                 if servo is None or not servo.hears(baud):
                     return []
-                return [self._reply(servo, servo_id, servo.read(params[0], params[1], end_ns),
-                                    end_ns)]
-            return [self._reply(servo, servo_id, servo.read(params[0], params[1], end_ns), end_ns)
+                data = servo.read(params[0], params[1], end_ns)  # `_answer`, inline
+                return [Answer(servo_id, servo.status_error_byte, data, servo.return_delay_ns)]
+            return [_answer(servo, servo_id, servo.read(params[0], params[1], end_ns))
                     for servo in self._at(servo_id, baud)]
         if instruction == _SYNC_WRITE:
             if broadcast and len(params) >= 2:
@@ -379,7 +381,7 @@ class SimBus:
                 return []
             address, length = params[0], params[1]
             return [
-                self._reply(servo, target, servo.read(address, length, end_ns), end_ns, True)
+                _answer(servo, target, servo.read(address, length, end_ns), chained=True)
                 for target in params[2:]
                 for servo in self._at(target, baud)
             ]
@@ -387,19 +389,19 @@ class SimBus:
             [s for s in self.all_servos() if s.hears(baud)] if broadcast
             else self._at(servo_id, baud)
         )
-        replies = []
+        answers = []
         for servo in targets:
-            answer = self._apply(servo, instruction, params, end_ns)
-            if answer is None:
+            carried = self._apply(servo, instruction, params, end_ns)
+            if carried is None:
                 continue
             if instruction == Instruction.PING:
                 # PING answers at the broadcast id too, with the servo's own id.
-                replies.append(self._reply(servo, servo.servo_id, b"", end_ns))
+                answers.append(_answer(servo, servo.servo_id, b""))
             elif not broadcast and (
                 instruction == Instruction.READ or servo.status_return_level >= 1
             ):
-                replies.append(self._reply(servo, servo_id, answer, end_ns))
-        return replies
+                answers.append(_answer(servo, servo_id, carried))
+        return answers
 
     def _apply(
         self, servo: SimServo, instruction: int, params: bytes, end_ns: int
@@ -436,12 +438,12 @@ class SimBus:
             for servo in self._at(body[offset], baud):
                 servo.write(address, body[offset + 1 : offset + 1 + length], end_ns)
 
-    def _reply(
-        self, servo: SimServo, reply_id: int, params: bytes, end_ns: int, chained: bool = False
-    ) -> StatusReply:
-        packet = status_packet(reply_id, servo.status_error_byte, params)
+    def reply(self, answer: Answer, end_ns: int) -> StatusReply:
+        """``answer`` as the servo sends it after an instruction whole at ``end_ns``: its bytes,
+        corrupted or made late where the faults say."""
+        packet = status_packet(answer.reply_id, answer.error, answer.params)
         if not (self.corrupt_next or self.corrupt_rate or self.late_next or self.late_rate):
-            return StatusReply(servo.return_delay_ns, packet, end_ns, chained, 0)
+            return StatusReply(answer.delay_ns, packet, end_ns, answer.chained, 0)
         corrupt = self.corrupt_next > 0 or (
             self.corrupt_rate and self._random.random() < self.corrupt_rate
         )
@@ -452,5 +454,10 @@ class SimBus:
         if late:
             self.late_next = max(0, self.late_next - 1)
         return StatusReply(
-            servo.return_delay_ns, packet, end_ns, chained, self.late_ns if late else 0
+            answer.delay_ns, packet, end_ns, answer.chained, self.late_ns if late else 0
         )
+
+
+def _answer(servo: SimServo, reply_id: int, params: bytes, chained: bool = False) -> Answer:
+    """What ``servo`` answers now (its error bits and return delay as they are)."""
+    return Answer(reply_id, servo.status_error_byte, params, servo.return_delay_ns, chained)

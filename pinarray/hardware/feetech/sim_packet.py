@@ -19,6 +19,7 @@ from pinarray.hardware.feetech.link import Latency, Link, PolledWire
 from pinarray.hardware.feetech.packets import MAX_ERROR_BYTE, StatusPacket
 from pinarray.hardware.feetech.registers import BROADCAST_ID, checksum
 from pinarray.hardware.feetech.sim_serial import SimSerial
+from pinarray.hardware.feetech.sim_wire import Answer
 
 # Requests kept parsed (a sampled bus sends the same few every few milliseconds).
 REQUESTS_KEPT = 256
@@ -37,16 +38,11 @@ def _request(packet: bytes) -> Request | None:
     return None
 
 
-def _status(data: bytes, longest_params: int) -> StatusPacket | None:
-    """The one status packet `StatusReader.feed` finds in exactly ``data`` (its buffer empty,
-    every byte taken), or None where the reader would do anything else with them."""
-    size = len(data)
-    if (size >= 6 and data[0] == 0xFF and data[1] == 0xFF and data[2] != 0xFF
-            and data[2] != BROADCAST_ID and data[3] >= 2 and data[3] - 2 <= longest_params
-            and data[4] <= MAX_ERROR_BYTE and size == data[3] + 4
-            and checksum(data[2:-1]) == data[-1]):
-        return StatusPacket(data[2], data[4], data[5:-1])
-    return None
+def _readable(answer: Answer, longest_params: int) -> bool:
+    """Whether `StatusReader.feed`, its buffer empty, takes ``answer``'s bytes whole as one
+    status packet (anything else: the bytes go to the reader)."""
+    return (answer.reply_id < BROADCAST_ID and len(answer.params) <= longest_params
+            and answer.error <= MAX_ERROR_BYTE)
 
 
 class PacketLink(Link):
@@ -86,23 +82,33 @@ class PacketLink(Link):
         counters, clock, longest = self.counters, self.clock, self.reader.longest_params
         counters.bytes_written += len(packet)
         counters.exchanges += 1
-        arriving = port.write_whole(packet, *request)
+        end_ns, answers = port.write_whole(packet, *request)
+        if len(answers) > 1 and not all(answer.chained for answer in answers):
+            port.schedule_answers(answers, end_ns)  # answers at once may collide: bytes
+            return self.collect(wanted, limit_ns, {})
+        # Each answer starts its return delay after the line is free (as `sim_wire.schedule`
+        # places them) and is whole when its last byte has arrived.
+        byte_ns, free_ns = port.byte_ns, end_ns
+        starts = []
+        for answer in answers:
+            starts.append(free_ns + answer.delay_ns)
+            free_ns = starts[-1] + round(answer.size * byte_ns)
+        port.answered(free_ns)
         replies: dict[int, StatusPacket] = {}
-        for index, sent in enumerate(arriving):
-            status = None
-            if len(replies) < len(wanted) and sent.end_ns <= limit_ns:
-                status = _status(sent.data, longest)
-            if status is None:  # the reader's own way with the bytes from here on
-                port.put_on_wire(arriving[index:])
+        for index, answer in enumerate(answers):
+            whole_ns = starts[index] + round(answer.size * byte_ns)
+            if (len(replies) == len(wanted) or whole_ns > limit_ns
+                    or not _readable(answer, longest)):  # the reader's own way from here on
+                port.put_on_wire(list(zip(starts[index:], answers[index:], strict=True)))
                 break
-            clock.sleep_until_ns(sent.end_ns)
-            port.took(len(sent.data))
-            counters.bytes_read += len(sent.data)
-            length = wanted.get(status.servo_id)
-            if length is None or length != len(status.params) or status.servo_id in replies:
+            clock.sleep_until_ns(whole_ns)
+            port.took(answer.size)
+            counters.bytes_read += answer.size
+            length = wanted.get(answer.reply_id)
+            if length is None or length != len(answer.params) or answer.reply_id in replies:
                 counters.mismatched_replies += 1
                 continue
-            replies[status.servo_id] = status
+            replies[answer.reply_id] = StatusPacket(answer.reply_id, answer.error, answer.params)
         if len(replies) < len(wanted):
             return self.collect(wanted, limit_ns, replies)
         return replies

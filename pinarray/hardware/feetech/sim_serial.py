@@ -26,7 +26,13 @@ from typing import TYPE_CHECKING
 import serial
 
 from pinarray.clock import Clock
-from pinarray.hardware.feetech.sim_wire import Transmission, byte_time_ns, schedule
+from pinarray.hardware.feetech.sim_wire import (
+    Answer,
+    Transmission,
+    byte_time_ns,
+    schedule,
+    status_packet,
+)
 
 if TYPE_CHECKING:
     from pinarray.hardware.feetech.sim import SimBus
@@ -144,25 +150,36 @@ class SimSerial:
         return not self._queued and self.is_open and self.bus.whole_packets
 
     def write_whole(self, packet: bytes, servo_id: int, instruction: int,
-                    params: bytes) -> list[Transmission]:
+                    params: bytes) -> tuple[int, list[Answer]]:
         """`write` of one whole instruction packet (``servo_id``, ``instruction``,
-        ``params``): the same time on the wire, the same answers, returned in arrival order
-        instead of queued byte by byte. Only when `computable`."""
+        ``params``): the same time on the wire, the same answers carried out, returned (with
+        when the request was whole at the servos) instead of queued byte by byte. Only when
+        `computable`; the caller puts the answers on their way (`answered`, `put_on_wire`)."""
         end_ns = self._transmit(packet)
-        replies = self.bus.deliver(servo_id, instruction, params, end_ns, self._baud_rate)
-        if not replies:
-            return []
-        arriving, self._wire_free_ns = schedule(replies, end_ns, self._byte_ns)
-        return arriving
+        return end_ns, self.bus.carry_out(servo_id, instruction, params, end_ns, self._baud_rate)
+
+    def answered(self, line_free_ns: int) -> None:
+        """The answers of the last `write_whole` keep the line until ``line_free_ns``."""
+        self._wire_free_ns = line_free_ns
 
     def took(self, byte_count: int) -> None:
-        """A transmission of `write_whole` was read whole (for the port's count)."""
+        """An answer of `write_whole` was read whole (for the port's count)."""
         self.bytes_read += byte_count
 
-    def put_on_wire(self, arriving: list[Transmission]) -> None:
-        """Transmissions of `write_whole` not read whole: on their way, byte by byte."""
-        if arriving:
-            self._queue(arriving, False)
+    def put_on_wire(self, answers: Sequence[tuple[int, Answer]]) -> None:
+        """Answers of `write_whole` not read whole, each from its start (ns): on their way as
+        bytes, each at its own arrival time."""
+        if answers:
+            byte_ns = self._byte_ns
+            self._queue([Transmission(start_ns, status_packet(a.reply_id, a.error, a.params),
+                                      byte_ns) for start_ns, a in answers], False)
+
+    def schedule_answers(self, answers: list[Answer], end_ns: int) -> None:
+        """Answers of `write_whole` that may collide (several not waiting for the line): on
+        their way as `write` puts them."""
+        replies = [self.bus.reply(answer, end_ns) for answer in answers]
+        arriving, self._wire_free_ns = schedule(replies, end_ns, self._byte_ns)
+        self._queue(arriving, False)
 
     def _queue(self, arriving: list[Transmission], late: bool) -> None:
         """Put transmissions on their way to the host (``late``: one of them was made late,
@@ -257,12 +274,15 @@ class SimSerial:
         What a reader polling `in_waiting`, waiting until `readable_at_ns` and reading what
         arrived gets, in one call (`pinarray.hardware.feetech.link.PolledWire`).
         """
-        clock, ends = self.clock, self._ends_ns
+        clock, ends, queued = self.clock, self._ends_ns, self._queued
         while True:
             if not self.is_open or self.bus.vanished:
                 self._check_alive("read")
             now_ns = clock.now_ns()
-            if self._queued:
+            if queued:
+                times = queued[0][0]
+                if len(queued) == 1 and times[-1] <= now_ns:  # one transmission, all here
+                    return self._take(len(times) - self._offset)
                 count = self._arrived(now_ns)
                 if count:
                     return self._take(count)
