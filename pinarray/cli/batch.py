@@ -179,6 +179,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
     """One protocol's run on ``sitting``, answered from ``responses`` or ``--observer``; says
     what happens on stderr and where the rows went on stdout. The rig is closed after it."""
     from pinarray.journal.volumes import volume_log_path
+    from pinarray.player.simulators import simulation_level
     from pinarray.protocol.response import MeasuredResponse
     from pinarray.stop import Stopped, stop_on_signals
 
@@ -220,8 +221,10 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
                 print(f"pinarray: run {writer.paths.run} aborted, {resume_hint}", file=sys.stderr)
                 raise
             progress.close()
+            level = simulation_level(sitting.rig.bus) if sitting.rig is not None else None
+            simulated = f"; simulated, {level}" if level is not None else ""
             print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed "
-                  f"{run.plan.seed}, run {writer.paths.run})")
+                  f"{run.plan.seed}, run {writer.paths.run}{simulated})")
             if scanner is not None:
                 print(f"scanner: {scanner.summary()}; every volume in "
                       f"{volume_log_path(writer.paths)}")
