@@ -40,6 +40,7 @@ __all__ = [
     "MotionCondition",
     "MotionRecord",
     "NotDelivered",
+    "Paradigm",
     "PinArray",
     "PinArrayError",
     "PinStroke",
@@ -73,19 +74,21 @@ __all__ = [
 
 # The module of `pinarray.api` each public name lives in, imported when the name is first used.
 _HOMES = {
-    "pinarray.api.protocols": ("Condition", "IdentificationCondition", "LocalisationCondition",
-                               "MotionCondition", "PlannedTrial", "Protocol",
-                               "TemporalOrderCondition", "TrialPlan", "TwoIntervalCondition",
+    "pinarray.api.protocols": ("Condition", "PlannedTrial", "Protocol", "TrialPlan",
                                "find_condition", "load_protocol", "plan_trials"),
+    "pinarray.api.paradigms": ("IdentificationCondition", "IdentificationRecord",
+                               "LocalisationCondition", "LocalisationRecord", "MotionCondition",
+                               "MotionRecord", "Paradigm", "TemporalOrderCondition",
+                               "TemporalOrderRecord", "TwoIntervalCondition",
+                               "TwoIntervalRecord"),
     "pinarray.api.array": ("Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock",
                            "PinArray", "PinStroke", "Presentable", "SafeStopReport",
                            "VirtualClock", "open_array"),
     "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
     "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
                               "run_session", "simulated_observer"),
-    "pinarray.api.results": ("IdentificationRecord", "LoadedRun", "LocalisationRecord",
-                             "ManifestState", "MotionRecord", "RunPaths", "TemporalOrderRecord",
-                             "TrialRecord", "TrialStatus", "TwoIntervalRecord", "read_results"),
+    "pinarray.api.results": ("LoadedRun", "ManifestState", "RunPaths", "TrialRecord",
+                             "TrialStatus", "read_results"),
     "pinarray.api.errors": ("BusError", "PinArrayError", "ProtocolError", "ProtocolErrors",
                             "ResultsError"),
 }
@@ -126,32 +129,35 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         ProtocolErrors,
         ResultsError,
     )
+    from pinarray.api.paradigms import (
+        IdentificationCondition,
+        IdentificationRecord,
+        LocalisationCondition,
+        LocalisationRecord,
+        MotionCondition,
+        MotionRecord,
+        Paradigm,
+        TemporalOrderCondition,
+        TemporalOrderRecord,
+        TwoIntervalCondition,
+        TwoIntervalRecord,
+    )
     from pinarray.api.ports import ServoPort, find_servo_ports
     from pinarray.api.protocols import (
         Condition,
-        IdentificationCondition,
-        LocalisationCondition,
-        MotionCondition,
         PlannedTrial,
         Protocol,
-        TemporalOrderCondition,
         TrialPlan,
-        TwoIntervalCondition,
         find_condition,
         load_protocol,
         plan_trials,
     )
     from pinarray.api.results import (
-        IdentificationRecord,
         LoadedRun,
-        LocalisationRecord,
         ManifestState,
-        MotionRecord,
         RunPaths,
-        TemporalOrderRecord,
         TrialRecord,
         TrialStatus,
-        TwoIntervalRecord,
         read_results,
     )
     from pinarray.api.sessions import (

@@ -24,16 +24,10 @@ from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
-from pinarray.journal.manifest import read_manifest, remaining_plan
+from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import (
-    BEH_NAMES,
-    TrialRecord,
-    TrialStatus,
-    beh_header,
-    read_trials,
-    split_torn_tail,
-)
+from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
+from pinarray.journal.rows import beh_header, check_run, read_trials, split_torn_tail
 from pinarray.text_files import NotText, kind_of, position_of, read_bounded
 
 BEH_PATTERN = "*_beh.tsv"
@@ -198,23 +192,18 @@ def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], li
 def load_run(beh: Path) -> LoadedRun:
     """One run: its whole rows (torn last row left out) and its manifest's verdict.
 
-    Raises `DamagedResults` for a file that is not a results table.
+    With its manifest, every row is read as the run's paradigm writes it and checked against
+    the run (`pinarray.journal.rows.check_run`: its task, its plan, the answers offered).
+    Raises `DamagedResults` for a file that is not a results table, or whose rows are not the
+    run's.
     """
-    try:
-        paths = RunPaths.from_file(beh)
-        torn = _check_table(beh)
-        all_records = read_trials(beh)
-    except NotText as problem:
-        where = f":{problem.line}:{problem.col}" if problem.line else ""
-        raise DamagedResults([DamagedRun(beh, f"{beh}{where}: {problem.message}")]) from None
-    except (ResultsError, ValueError) as problem:  # ValueError: a decode error
-        reason = " ".join(str(problem).split())
-        if not reason.startswith(str(beh)):
-            reason = f"{beh}: {reason}"
-        raise DamagedResults([DamagedRun(beh, reason)]) from None
-    records, duplicates = first_ok_rows(all_records)
+    manifest: RunManifest | None = None
     unfinished: tuple[int, ...] = ()
     mm_per_step: tuple[float, ...] = ()
+    try:
+        paths = RunPaths.from_file(beh)
+    except (ResultsError, ValueError) as problem:
+        raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
     manifest_path = paths.manifest_on_disk()
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
@@ -224,12 +213,30 @@ def load_run(beh: Path) -> LoadedRun:
             status = manifest.status
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
-            unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
             mm_per_step = manifest.task_info.mm_per_step
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
+    try:
+        torn = _check_table(beh)
+        all_records = read_trials(beh, None if manifest is None
+                                  else manifest.task_info.paradigm)
+        if manifest is not None:
+            check_run(beh, all_records, manifest)
+    except NotText as problem:
+        where = f":{problem.line}:{problem.col}" if problem.line else ""
+        raise DamagedResults([DamagedRun(beh, f"{beh}{where}: {problem.message}")]) from None
+    except (ResultsError, ValueError) as problem:  # ValueError: a decode error
+        raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
+    records, duplicates = first_ok_rows(all_records)
+    if manifest is not None:
+        unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
     return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
                      unfinished, mm_per_step)
+
+
+def _reason(beh: Path, problem: Exception) -> str:
+    reason = " ".join(str(problem).split())
+    return reason if reason.startswith(str(beh)) else f"{beh}: {reason}"
 
 
 def _check_table(beh: Path) -> str:
@@ -244,7 +251,7 @@ def _check_table(beh: Path) -> str:
     except UnicodeDecodeError as problem:
         raise NotText(f"expected UTF-8 text, found byte 0x{body[problem.start]:02x}",
                       *position_of(body, problem.start)) from None
-    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(BEH_NAMES))
+    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
     return torn.decode("utf-8", errors="replace")
 
 

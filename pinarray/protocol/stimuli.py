@@ -24,10 +24,10 @@ from pinarray.protocol.model import (
     DIRECTION_OF_WAVE,
     MAX_DIRECTION_CHARS,
     NS_PER_S,
+    RESERVED_DIRECTION_NAMES,
     AnyWave,
     Device,
     Direction,
-    MotionAnswer,
     PathWave,
     PatternStimulus,
     PinDrive,
@@ -462,7 +462,7 @@ def _path_direction(
         raise reader.error(node, "a sequence wave names the direction a subject would answer: "
                                  "expected a 'direction' key (e.g. up-right), found none")
     name = reader.string(keys["direction"], "the direction")
-    reserved = (Direction.NONE, MotionAnswer.UNSURE)
+    reserved = RESERVED_DIRECTION_NAMES
     if (name in reserved or len(name) > MAX_DIRECTION_CHARS
             or DIRECTION_NAME.fullmatch(name) is None):
         raise reader.error(

@@ -15,12 +15,13 @@ from dataclasses import replace
 from pathlib import Path
 
 from pinarray.analysis.load import load_runs, select_runs
-from pinarray.analysis.mixed import Cell, _Data, fit_frequency_effect
-from pinarray.analysis.observer import ObserverModel, SimulatedObserver
 from pinarray.analysis.power import power_study, protocol_design, simulate_subject
 from pinarray.analysis.study import study
 from pinarray.grid import classify
-from pinarray.journal.records import LocalisationRecord, trial_row
+from pinarray.journal.rows import trial_row
+from pinarray.paradigms.localisation.frequency_effect import Cell, _Data, fit_frequency_effect
+from pinarray.paradigms.localisation.observer import ObserverModel, SimulatedObserver
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.protocol.load import load_protocol
 from tests.runs import plan_of, start_run
 
