@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from pinarray import registry
 from pinarray.errors import PinArrayError
@@ -163,7 +163,33 @@ class Context:
     answer_pins: tuple[int, ...] | None = None
 
 
-Answerer = Callable[["Condition"], str]
+@runtime_checkable
+class Answerer(Protocol):
+    """A simulated subject of a fixed design: who it is is drawn once, from its seed, when it
+    is made; each answer is drawn from ``rng``, which the seam sets before every trial
+    (`trial_answers`), so that an answer depends on the seed and the trial alone."""
+
+    rng: Any  # numpy.random.Generator (numpy is not imported to read a protocol)
+
+    def __call__(self, condition: Condition) -> str:
+        """The subject's answer to a trial presenting ``condition``."""
+        ...
+
+
+def trial_answers(subject: Answerer, seed: int | None) -> Callable[[int, Condition], str]:
+    """``subject``'s answer to each trial, drawn from a generator of the trial's own, made from
+    ``seed`` and the trial's number: a run killed and resumed gets the same answers as one
+    that ran through with the same seed, whatever was presented again (None: a seed drawn
+    once, so a subject answers at random but alike to a trial asked twice)."""
+    import numpy as np
+
+    base = seed if seed is not None else int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> 1)
+
+    def answer(trial: int, condition: Condition) -> str:
+        subject.rng = np.random.default_rng((base, trial))
+        return subject(condition)
+
+    return answer
 
 
 @runtime_checkable

@@ -133,7 +133,9 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
                                    question.adapted_value)
 
         return respond_adaptively
-    from pinarray.analysis.seam import analysis_of
+    from pinarray.analysis.seam import analysis_of, trial_answers
 
-    answer = analysis_of(protocol.design.paradigm.name).observer(protocol, model, seed)
-    return lambda question: answer(question.trial.condition)
+    # Each answer from the seed and the trial's number: a resumed run answers as an unbroken one.
+    answer = trial_answers(
+        analysis_of(protocol.design.paradigm.name).observer(protocol, model, seed), seed)
+    return lambda question: answer(question.trial.trial, question.trial.condition)

@@ -33,6 +33,7 @@ from pinarray.protocol.yaml_nodes import Node, Reader
 
 if TYPE_CHECKING:
     from pinarray.grid import Grid
+    from pinarray.protocol.model import Protocol as PinProtocol
 
 
 class Adapting(NamedTuple):
@@ -150,6 +151,11 @@ class ParadigmDesign(Protocol):
     def completes(self, section: DesignSection) -> str | None:
         """The stimulus whose train leaves its frequency to this design, if any (a train
         without ``frequency_hz`` is an error unless a design completes it)."""
+        ...
+
+    def warnings(self, protocol: PinProtocol) -> list[str]:
+        """What a valid design of it may still get wrong, one line each (validate prints them
+        beside every paradigm's: a duration cue, a lift cut short)."""
         ...
 
     def drives(self, stimulus: Stimulus, condition: Condition) -> tuple[PinDrive, ...]:
@@ -350,6 +356,9 @@ class DesignDefaults:
 
     def completes(self, section: DesignSection) -> str | None:
         return None
+
+    def warnings(self, protocol: PinProtocol) -> list[str]:
+        return []
 
     def adapt(self, condition: Condition, parameter: Parameter, value: Fraction) -> Condition:
         return condition
