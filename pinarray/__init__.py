@@ -61,6 +61,8 @@ __all__ = [
     "TrialStatus",
     "TwoIntervalCondition",
     "TwoIntervalRecord",
+    "TwoPointCondition",
+    "TwoPointRecord",
     "VirtualClock",
     "find_condition",
     "find_servo_ports",
@@ -80,7 +82,7 @@ _HOMES = {
                                "LocalisationCondition", "LocalisationRecord", "MotionCondition",
                                "MotionRecord", "Paradigm", "TemporalOrderCondition",
                                "TemporalOrderRecord", "TwoIntervalCondition",
-                               "TwoIntervalRecord"),
+                               "TwoIntervalRecord", "TwoPointCondition", "TwoPointRecord"),
     "pinarray.api.array": ("Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock",
                            "PinArray", "PinStroke", "Presentable", "SafeStopReport",
                            "VirtualClock", "open_array"),
@@ -141,6 +143,8 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         TemporalOrderRecord,
         TwoIntervalCondition,
         TwoIntervalRecord,
+        TwoPointCondition,
+        TwoPointRecord,
     )
     from pinarray.api.ports import ServoPort, find_servo_ports
     from pinarray.api.protocols import (

@@ -32,9 +32,11 @@ BUILT_IN = {
     "temporal_order": "pinarray.paradigms.temporal_order",
     "localisation": "pinarray.paradigms.localisation",
     "apparent_motion": "pinarray.paradigms.apparent_motion",
+    "two_point": "pinarray.paradigms.two_point",
 }
 # The order people read them in (validate's list of what a design may name).
-LISTED = ("localisation", "apparent_motion", "identification", "two_interval", "temporal_order")
+LISTED = ("localisation", "apparent_motion", "identification", "two_interval", "temporal_order",
+          "two_point")
 NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 
 

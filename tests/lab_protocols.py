@@ -18,6 +18,8 @@ SHORTER = {
     "localisation": (("duration_s: 10", "duration_s: 0.4"),
                      ("inter_trial_interval_s: 3", "inter_trial_interval_s: 0.1")),
     "apparent_motion": (("repetitions: 2 ", "repetitions: 1 "), ("blocks: 2", "blocks: 1")),
+    "two_point": (("repetitions: 10", "repetitions: 1"), ("duration_s: 1\n", "duration_s: 0.5\n"),
+                  ("practice_trials: 4", "practice_trials: 1")),
 }
 
 

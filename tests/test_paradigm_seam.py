@@ -23,7 +23,8 @@ from tests.lab_protocols import short_copy
 
 # One shipped protocol of each paradigm (shortened: tests/lab_protocols.py).
 SHIPPED = {"localisation": "localisation", "apparent_motion": "apparent_motion",
-           "identification": "shapes", "two_interval": "flutter_2ifc", "temporal_order": "toj"}
+           "identification": "shapes", "two_interval": "flutter_2ifc", "temporal_order": "toj",
+           "two_point": "two_point"}
 
 
 def test_every_paradigm_is_one_room_that_implements_the_whole_seam():

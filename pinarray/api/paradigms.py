@@ -20,7 +20,10 @@ from pinarray.paradigms.temporal_order.design import TemporalOrderCondition
 from pinarray.paradigms.temporal_order.rows import TemporalOrderRecord
 from pinarray.paradigms.two_interval.design import TwoIntervalCondition
 from pinarray.paradigms.two_interval.rows import TwoIntervalRecord
+from pinarray.paradigms.two_point.design import TwoPointCondition
+from pinarray.paradigms.two_point.rows import TwoPointRecord
 
 __all__ = ["IdentificationCondition", "IdentificationRecord", "LocalisationCondition",
            "LocalisationRecord", "MotionCondition", "MotionRecord", "Paradigm", "TemporalOrderCondition",
-           "TemporalOrderRecord", "TwoIntervalCondition", "TwoIntervalRecord"]
+           "TemporalOrderRecord", "TwoIntervalCondition", "TwoIntervalRecord",
+           "TwoPointCondition", "TwoPointRecord"]
