@@ -14,7 +14,7 @@ from pinarray.paradigms.two_interval.design import IntervalOrder, TwoIntervalCon
 from pinarray.plan import make_plan
 from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.load import load_protocol, parse_protocol, protocol_warnings, validate_file
-from pinarray.protocol.procedures import Parameter, Task
+from pinarray.protocol.procedures import Parameter
 from tests.lab_protocols import PROTOCOLS
 from tests.test_protocol_load import problems
 
@@ -153,7 +153,7 @@ ADAPTIVE_PROTOCOL = parse_protocol(ADAPTIVE_2IFC)
 def test_an_adaptive_two_interval_plan_puts_the_comparison_first_half_the_time(seed):
     protocol = ADAPTIVE_PROTOCOL
     adaptive = protocol.design.adaptive
-    assert (adaptive.task, adaptive.guess_rate) == (Task.DISCRIMINATION, Fraction(1, 2))
+    assert (adaptive.task, adaptive.guess_rate) == ("discrimination", Fraction(1, 2))
     first = [t.condition.order is IntervalOrder.COMPARISON_FIRST
              for t in make_plan(protocol, seed).trials if not t.practice]
     assert abs(2 * sum(first) - len(first)) <= 1

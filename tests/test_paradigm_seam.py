@@ -36,7 +36,8 @@ def test_every_paradigm_is_one_room_that_implements_the_whole_seam():
         # ... and each layer finds it by name, checked against its own part of the seam.
         assert paradigm_named(name) is room and rows_of(name) is room.rows
         assert analysis_of(name) is room.analysis
-        assert type(room).__module__.startswith(f"pinarray.paradigms.{name}")
+        if name in registry.BUILT_IN:  # (a lab's own, if installed, lives in its package)
+            assert type(room).__module__.startswith(f"pinarray.paradigms.{name}")
 
 
 def test_a_protocol_naming_no_paradigm_is_told_every_one_there_is():

@@ -189,7 +189,7 @@ class RowsDefaults:
         return {"response": dict(manifest.task_info.answers)}
 
     def offered(self, manifest: RunManifest) -> tuple[str, ...] | None:
-        return tuple(answer for answer, _ in manifest.task_info.answers)
+        return tuple(answer for answer, _ in manifest.task_info.answers) or None
 
     def check_entry(self, entry: PlanEntry) -> None:
         return None

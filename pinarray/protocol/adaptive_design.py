@@ -47,7 +47,6 @@ from pinarray.protocol.procedures import (
     QuestPlus,
     Staircase,
     StepSize,
-    Task,
     UniformPrior,
 )
 from pinarray.protocol.quest_grid import uninformative
@@ -104,8 +103,8 @@ def read_adaptive(reader: Reader, keys: Mapping[str, Node], paradigm: ParadigmDe
                   conditions: Sequence[Condition], by_name: Mapping[str, Stimulus]) -> Adaptive:
     """The ``adaptive`` section (its ``keys``), every value checked on every condition it can
     present."""
-    task = Task(reader.string(keys["task"], f"the task of a {paradigm.name} design",
-                              tuple(t.value for t in paradigm.tasks)))
+    task = reader.string(keys["task"], f"the task of a {paradigm.name} design",
+                         tuple(paradigm.tasks))
     guess = reader.optional(
         keys, "guess_rate",
         lambda n: reader.number(n, "the guess rate", "", maximum=Fraction(99, 100), allow_zero=True),

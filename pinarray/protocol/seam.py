@@ -206,8 +206,9 @@ class ParadigmDesign(Protocol):
         ...
 
     def answer_meanings(self, design: Design, pin_count: int) -> tuple[tuple[str, str], ...]:
-        """Each answer with what it means, as the run's manifest keeps it (empty: the results'
-        sidecar says them from the plan)."""
+        """Each answer with what it means, as the run's manifest keeps it (what a row's
+        answer is checked against when read back; empty: the paradigm's rows say what a run
+        offered from its plan, as the first two paradigms' files have always done)."""
         ...
 
     def instructions(self, design: Design) -> str:
@@ -375,7 +376,7 @@ class DesignDefaults:
 
     def counts_as_correct(self, task: Task, condition: Condition, catch: bool,
                           response: str) -> bool:
-        raise PinArrayError(f"a {self.name} design has no adaptive task {task.value!r}")
+        raise PinArrayError(f"a {self.name} design has no adaptive task {task!r}")
 
     def felt_answer(self, condition: Condition, design: Design, trial: int) -> str:
         right = self.correct_answer(condition, design)
@@ -391,7 +392,7 @@ class DesignDefaults:
         raise NotImplementedError
 
     def answer_meanings(self, design: Design, pin_count: int) -> tuple[tuple[str, str], ...]:
-        return ()
+        return tuple((a, f"answered {a}") for a in self.answers(design, pin_count))
 
     def take_answer(self, response: object, design: Design, grid: Grid) -> str:
         answers = design.answers(grid.pin_count)

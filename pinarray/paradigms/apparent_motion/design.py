@@ -36,7 +36,7 @@ from pinarray.protocol.model import (
     WaveKind,
     WaveStimulus,
 )
-from pinarray.protocol.procedures import Parameter, Task
+from pinarray.protocol.procedures import DETECTION, Parameter, Task
 from pinarray.protocol.seam import (
     AnswerPad,
     Choice,
@@ -49,6 +49,10 @@ from pinarray.protocol.stimuli import stimulus_named
 
 if TYPE_CHECKING:
     from pinarray.grid import Grid
+
+
+# Its adaptive designs' task (`Task`): which answer counts as correct.
+DIRECTION = "direction"  # the wave's direction named
 
 
 class MotionAnswer(str):
@@ -164,7 +168,7 @@ class ApparentMotionDesign(DesignDefaults):
     keys = frozenset({"configurations"})
     attributes = ("direction", "stimulus")
     parameters = tuple(Parameter)
-    tasks = (Task.DIRECTION, Task.DETECTION)
+    tasks = (DIRECTION, DETECTION)
     plan_columns = ("row", "direction")
     warns_of_cut_lifts = False  # a wave's pins each play once: no later change measures them
 
@@ -194,7 +198,7 @@ class ApparentMotionDesign(DesignDefaults):
     # -- adaptive designs ------------------------------------------------------------------
 
     def default_guess(self, task: Task, conditions: Sequence[Condition]) -> Fraction:
-        if task is Task.DIRECTION:
+        if task == DIRECTION:
             named = answered_directions(c.direction for c in conditions
                                         if isinstance(c, MotionCondition))
             return Fraction(1, max(len(named), 1))
@@ -216,7 +220,7 @@ class ApparentMotionDesign(DesignDefaults):
         felt = response != MotionAnswer.NONE
         if catch:
             return not felt
-        if task is Task.DIRECTION:
+        if task == DIRECTION:
             return isinstance(condition, MotionCondition) and response == condition.direction
         return felt
 
@@ -230,12 +234,15 @@ class ApparentMotionDesign(DesignDefaults):
     def wrong_answer(self, task: Task, condition: Condition, design: Design, pin_count: int,
                      trial: int) -> str:
         assert isinstance(condition, MotionCondition)
-        if task is Task.DETECTION:
+        if task == DETECTION:
             return MotionAnswer.NONE
         others = [d for d in directions(design) if d != condition.direction]
         return others[trial % len(others)] if others else MotionAnswer.NONE
 
     # -- answers ---------------------------------------------------------------------------
+
+    def answer_meanings(self, design: Design, pin_count: int) -> tuple[tuple[str, str], ...]:
+        return ()  # its manifests have never listed them: its rows read them from the plan
 
     def answers(self, design: Design, pin_count: int) -> tuple[str, ...]:
         return tuple(motion_answers(design))

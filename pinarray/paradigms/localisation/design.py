@@ -31,7 +31,7 @@ from pinarray.protocol.model import (
     TrainShape,
     TrainStimulus,
 )
-from pinarray.protocol.procedures import Parameter, Task
+from pinarray.protocol.procedures import DETECTION, Parameter, Task
 from pinarray.protocol.seam import (
     AnswerPad,
     DesignDefaults,
@@ -46,6 +46,10 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from pinarray.grid import Grid
+
+# Its adaptive designs' task (`Task`): which answer counts as correct.
+LOCALISATION = "localisation"  # the moved pin named
+
 
 NOTHING_FELT = "none"  # the answer when no pin was felt
 # What the pad's entry says it takes (digits, then Enter).
@@ -78,7 +82,7 @@ class LocalisationDesign(DesignDefaults):
     keys = frozenset({"stimulus", "pins", "frequencies_hz"})
     attributes = ("pin", "frequency_hz", "stimulus")
     parameters = tuple(p for p in Parameter if p is not Parameter.SOA_MS)
-    tasks = (Task.LOCALISATION, Task.DETECTION)
+    tasks = (LOCALISATION, DETECTION)
     plan_columns = ("pin", "frequency_hz")
     warns_of_cut_lifts = False  # one train a trial: no later change measures its last lift
 
@@ -144,7 +148,7 @@ class LocalisationDesign(DesignDefaults):
         return condition
 
     def default_guess(self, task: Task, conditions: Sequence[Condition]) -> Fraction:
-        if task is Task.LOCALISATION:
+        if task == LOCALISATION:
             return Fraction(1, len({c.pin for c in conditions
                                     if isinstance(c, LocalisationCondition)}))
         return Fraction(0)
@@ -154,7 +158,7 @@ class LocalisationDesign(DesignDefaults):
         felt = response != NOTHING_FELT
         if catch:
             return not felt
-        if task is Task.LOCALISATION:
+        if task == LOCALISATION:
             return isinstance(condition, LocalisationCondition) and response == str(condition.pin)
         return felt
 
@@ -165,13 +169,16 @@ class LocalisationDesign(DesignDefaults):
     def wrong_answer(self, task: Task, condition: Condition, design: Design, pin_count: int,
                      trial: int) -> str:
         assert isinstance(condition, LocalisationCondition)
-        if task is Task.DETECTION:
+        if task == DETECTION:
             return NOTHING_FELT
         pins = sorted({c.pin for c in design.conditions
                        if isinstance(c, LocalisationCondition) and c.pin != condition.pin})
         return str(pins[trial % len(pins)]) if pins else NOTHING_FELT
 
     # -- answers ---------------------------------------------------------------------------
+
+    def answer_meanings(self, design: Design, pin_count: int) -> tuple[tuple[str, str], ...]:
+        return ()  # its manifests have never listed them: its rows read them from the plan
 
     def answers(self, design: Design, pin_count: int) -> tuple[str, ...]:
         return (*map(str, range(1, pin_count + 1)), NOTHING_FELT)

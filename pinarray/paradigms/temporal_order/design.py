@@ -52,6 +52,10 @@ PLACE_KEYS = {"left": (("l", "left"), "← left (l)"), "right": (("r", "right"),
               "lower": (("down",), "↓ lower"), "upper": (("up",), "↑ upper")}
 
 
+# Its adaptive designs' task (`Task`): which answer counts as correct.
+ORDER = "order"  # the pin that came first named
+
+
 @dataclass(frozen=True)
 class TemporalOrderCondition(Condition):
     """One temporal-order trial: the train ``stimulus`` on ``pins`` (A, B as the design lists
@@ -118,7 +122,7 @@ class TemporalOrderDesign(DesignDefaults):
     keys = frozenset({"stimulus", "pins", "soas_ms"})
     attributes = ("soa_ms", "first_pin")
     parameters = (Parameter.SOA_MS,)
-    tasks = (Task.ORDER,)
+    tasks = (ORDER,)
     balanced_draws = True  # which pin goes first: as often one as the other
     plan_columns = ("pins", "soa_ms")
 

@@ -60,6 +60,10 @@ DEFAULT_GAP_MS = 500
 MAX_QUESTION_CHARS = 60
 
 
+# Its adaptive designs' task (`Task`): which answer counts as correct.
+DISCRIMINATION = "discrimination"  # the interval with the higher value named
+
+
 class IntervalOrder(StrEnum):
     """Which interval of a two-interval trial holds the standard."""
 
@@ -135,7 +139,7 @@ class TwoIntervalDesign(DesignDefaults):
     attributes = ("comparison", "interval_order")
     # The comparison of two intervals: the design's compare.
     parameters = COMPARED
-    tasks = (Task.DISCRIMINATION,)
+    tasks = (DISCRIMINATION,)
     balanced_draws = True  # which interval holds the comparison: as often one way as the other
     plan_columns = ("first", "second", "interval_order")
 
