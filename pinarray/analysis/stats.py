@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from pinarray.analysis.seam import Estimate
+
 Z_95 = 1.959963984540054  # two-sided 95 % normal quantile
 POOLED = "all"  # the group of every subject's trials together
 
@@ -47,3 +49,12 @@ class Proportion:
             return math.nan, math.nan
         low, high = wilson_interval(self.successes, self.trials)
         return 100 * low, 100 * high
+
+    @property
+    def estimate(self) -> Estimate:
+        """The share of trials (0-1) as an estimate: estimated with its Wilson interval, or
+        not resolved without trials."""
+        if not self.trials:
+            return Estimate.of(math.nan, words="no trials")
+        low, high = wilson_interval(self.successes, self.trials)
+        return Estimate.of(self.successes / self.trials, low, high)

@@ -14,7 +14,6 @@ the subjects' values with the interval the analysis's settings name.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +39,7 @@ from pinarray.analysis.fits import (
 )
 from pinarray.analysis.load import LoadedTrial
 from pinarray.analysis.seam import AnalysisDefaults, Context, Estimate, Findings
-from pinarray.analysis.stats import Proportion, wilson_interval
+from pinarray.analysis.stats import Proportion
 from pinarray.analysis.tables import ALL_SUBJECTS, number, write_csv
 from pinarray.analysis.thresholds import NotFitted, interval_name
 from pinarray.paradigms.two_point.rows import TwoPointRecord
@@ -61,14 +60,6 @@ COLUMNS = ("subject", "task", "threshold_mm", "ci_low", "ci_high", "status", "fa
 STIMULUS_COLUMNS = ("task", "stimulus", "pins", "said_two", "trials", "pct", "ci_low_pct",
                     "ci_high_pct")
 MOST_FALSE_ALARMS = 0.85  # a floor this high leaves a fit nothing to rise through
-
-
-def rate(said: Proportion) -> Estimate:
-    """A proportion with its Wilson interval; not resolved without trials."""
-    if not said.trials:
-        return Estimate.of(math.nan, words="no trials")
-    low, high = wilson_interval(said.successes, said.trials)
-    return Estimate.of(said.successes / said.trials, low, high)
 
 
 @dataclass(frozen=True)
@@ -92,7 +83,7 @@ class DistanceFit:
 
     @property
     def false_alarm(self) -> Estimate:
-        return rate(self.one_pin)
+        return self.one_pin.estimate
 
     def reported(self) -> tuple[tuple[str, str, Estimate], ...]:
         return (("threshold_mm", "mm", self.threshold), ("false_alarm", "", self.false_alarm))
