@@ -20,6 +20,7 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
@@ -245,6 +246,7 @@ def correct_lines(records: Sequence[TrialRecord]) -> list[str]:
     return [f"correct {sum(judged)}/{len(judged)} ({100 * sum(judged) / len(judged):.1f} %)"]
 
 
+@cache  # a protocol's check is slow (typing's), and a results file asks once per row
 def analysis_of(name: str) -> ParadigmAnalysis:
     """The analysis of the paradigm called ``name`` (the registry's), checked."""
     room = registry.room(name)

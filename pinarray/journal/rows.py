@@ -160,9 +160,10 @@ def _same(read: Any, written: Any) -> bool:
 
 
 def row_record(values: Mapping[str, Any], names: Sequence[str], columns: Mapping[str, Column],
-               rows: ParadigmRows | None, where: str) -> TrialRecord:
-    """The record of a row read back (``values``: its cells parsed, by column), checked to
-    write exactly the cells it was read from."""
+               rows: ParadigmRows | None, where: str,
+               cells: Sequence[str] | None = None) -> TrialRecord:
+    """The record of a row read back (``values``: its cells parsed, by column; ``cells``:
+    their text, when at hand), checked to write exactly the cells it was read from."""
     rows = rows or _rows_of_row(values, where)
     try:
         record = rows.record(common_fields(dict(values), where), values, where)
@@ -171,11 +172,13 @@ def row_record(values: Mapping[str, Any], names: Sequence[str], columns: Mapping
         raise ResultsError(message if message.startswith(where) else f"{where}: {message}") \
             from None
     written = record_values(record, rows)
-    for name in names:
+    for n, name in enumerate(names):
         column = columns[name]
         read, again = values.get(name), written.get(name)
         if read is None and again is None:
             continue
+        if cells is not None and again is not None and cells[n] == cell_text(column, again):
+            continue  # written as read, to the character: the common case, and the quick one
         if read is None or again is None or not _same(
                 cell_value(column, cell_text(column, read), where),
                 cell_value(column, cell_text(column, again), where)):
@@ -216,7 +219,7 @@ def read_trials(path: Path | str, paradigm: str | None = None) -> list[TrialReco
             raise ResultsError(f"{where}: expected {len(names)} cells, found {len(cells)}")
         values = {name: cell_value(columns[name], cell, where)
                   for name, cell in zip(names, cells, strict=True)}
-        records.append(row_record(values, names, columns, rows, where))
+        records.append(row_record(values, names, columns, rows, where, cells))
     return records
 
 

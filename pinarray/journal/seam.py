@@ -14,6 +14,7 @@ task is the run's, the trial is one of its plan's and presents what the plan say
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from functools import cache
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from pinarray import registry
@@ -119,6 +120,7 @@ class ParadigmRows(Protocol):
         ...
 
 
+@cache  # a protocol's check is slow (typing's), and a results file asks once per row
 def rows_of(name: str) -> ParadigmRows:
     """The rows of the paradigm called ``name`` (the registry's), checked to be `ParadigmRows`."""
     room = registry.room(name)

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from functools import partial
+from functools import cache, partial
 from typing import TYPE_CHECKING, NamedTuple, Protocol, runtime_checkable
 
 from pinarray import registry
@@ -274,6 +274,7 @@ class ParadigmDesign(Protocol):
         ...
 
 
+@cache  # a protocol's check is slow (typing's), and a results file asks once per row
 def paradigm_named(name: str) -> ParadigmDesign:
     """The paradigm called ``name`` (the registry's), checked to implement `ParadigmDesign`."""
     room = registry.room(name)
