@@ -240,8 +240,10 @@ def williams_row(n: int, r: int) -> list[int]:
 def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     """The seeded trial plan; the seed is the argument, else the protocol's, else a fresh one."""
     design = protocol.design
-    if seed is not None and not 0 <= seed < 2**63:
-        raise PinArrayError(f"a plan seed must be a whole number from 0 to 2^63-1, found {seed}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)
+                             or not 0 <= seed < 2**63):
+        raise PinArrayError(f"a plan seed must be a whole number from 0 to 2^63-1, found "
+                            f"{seed!r}")
     if seed is None:
         seed = design.seed if design.seed is not None else secrets.randbits(32)
     import numpy as np

@@ -24,7 +24,7 @@ from pinarray.adaptive.posterior import ThresholdPosterior, ThresholdStatus, thr
 from pinarray.adaptive.psychometric import PsychometricKind
 from pinarray.analysis.seam import Estimate, EstimateStatus, Reported
 from pinarray.analysis.subjects import IntervalSettings, interval_of
-from pinarray.analysis.tables import ALL_SUBJECTS
+from pinarray.analysis.tables import ALL_SUBJECTS, number
 from pinarray.analysis.thresholds import NotFitted
 from pinarray.errors import PinArrayError
 
@@ -183,7 +183,7 @@ def estimate_text(e: Estimate, digits: int = 3) -> str:
 
 
 def _n(value: float, digits: int) -> str:
-    return "n/a" if math.isnan(value) else f"{value:.{digits}f}"
+    return number(value, digits)
 
 
 # -- what the tables' sidecars and the summary say of fitted estimates ----------------------

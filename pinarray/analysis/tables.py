@@ -34,8 +34,12 @@ from pinarray.analysis.thresholds import (
 
 
 def number(value: float, digits: int = 1) -> str:
-    """A table cell: fixed decimals, or "n/a" for NaN (BIDS spelling)."""
-    return "n/a" if math.isnan(value) else f"{value:.{digits}f}"
+    """A table cell: fixed decimals, or "n/a" for NaN (BIDS spelling); never "-0.000" (a
+    value that rounds to zero is zero, whichever side it came from)."""
+    if math.isnan(value):
+        return "n/a"
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text
 
 
 def _write(path: Path, header: Sequence[str], rows: Sequence[Sequence[object]]) -> Path:

@@ -253,8 +253,12 @@ class RunManifest:
             paradigm = _paradigm(data.get("task_info"), data["plan"], where)
             plan = tuple(entry_from_json(e, f"{where}: plan entry {i + 1}", paradigm)
                          for i, e in enumerate(data["plan"]))
+            seed = data["seed"]
+            if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+                raise ResultsError(f"{where}: the plan's seed must be a whole number from 0 "
+                                   f"to 2**63 - 1, found {seed!r}")
             provenance = Provenance(
-                seed=data["seed"], protocol_sha256=str(data["protocol_sha256"]),
+                seed=seed, protocol_sha256=str(data["protocol_sha256"]),
                 port=str(data["port"]), protocol_file=str(data.get("protocol_file", "")),
                 servo_models=tuple(map(str, data.get("servo_models", ()))),
                 experimenter=str(data.get("experimenter", "")))

@@ -19,7 +19,9 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import re
+import stat
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -38,7 +40,7 @@ from pinarray.journal.records import (
     common_fields,
 )
 from pinarray.journal.seam import ParadigmRows, columns_of, legacy_rooms, rows_of
-from pinarray.text_files import position_of
+from pinarray.text_files import NotText, kind_of, position_of, read_bounded
 
 if TYPE_CHECKING:
     from pinarray.journal.manifest import RunManifest
@@ -93,13 +95,59 @@ def split_torn_tail(data: bytes, columns: int) -> tuple[int, bytes]:
     return end, data[end:]
 
 
+MAX_RESULTS_BYTES = 256 << 20  # a run's beh.tsv: a million rows, far more than any design
+
+
+def _regular(path: Path) -> bool:
+    """Whether ``path`` is a regular file (through a link); False when there is none; a
+    `ResultsError` for anything else, looked at before it is opened (opening a FIFO waits
+    for a writer, reading /dev/zero never ends)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return False
+    except OSError as problem:
+        raise ResultsError(f"{path}: cannot read the results: {problem.strerror}") from None
+    if not stat.S_ISREG(mode):
+        raise ResultsError(f"{path}: expected a results file, found {kind_of(mode)}")
+    return True
+
+
+def results_bytes(path: Path) -> bytes:
+    """The bytes of a ``beh.tsv``: a regular file of UTF-8 text within `MAX_RESULTS_BYTES`
+    (zeros after a power cut belong to its torn tail); else a `ResultsError` saying where."""
+    if not _regular(path):
+        raise ResultsError(f"{path}: no such results file")
+    try:
+        data = read_bounded(path, MAX_RESULTS_BYTES, "results")
+    except NotText as problem:
+        where = f":{problem.line}:{problem.col}" if problem.line else ""
+        raise ResultsError(f"{path}{where}: {problem.message}") from None
+    body = data.rstrip(b"\0")
+    if b"\0" in body:
+        line, col = position_of(body, body.index(b"\0"))
+        raise ResultsError(f"{path}:{line}:{col}: expected a tab-separated results table, "
+                           "found a NUL byte (a binary file?)")
+    try:
+        body.decode("utf-8")
+    except UnicodeDecodeError as problem:
+        line, col = position_of(body, problem.start)
+        raise ResultsError(f"{path}:{line}:{col}: expected UTF-8 text, found byte "
+                           f"0x{body[problem.start]:02x}") from None
+    return data
+
+
 def beh_header(path: Path) -> list[str]:
     """The column names of an existing ``beh.tsv`` (empty if it has no header yet)."""
+    if not _regular(path):
+        return []
     try:
         with open(path, encoding="utf-8", newline="") as handle:
-            first = handle.readline()
+            first = handle.readline(1 << 16)
     except FileNotFoundError:
         return []
+    except UnicodeDecodeError:
+        raise ResultsError(f"{path}:1: expected UTF-8 text in the header line") from None
     if not first.endswith("\n"):
         return []  # no header yet, or one torn by a crash (a resume drops it)
     return next(csv.reader([first], delimiter="\t"), []) if first.strip() else []
@@ -197,10 +245,7 @@ def read_trials(path: Path | str, paradigm: str | None = None) -> list[TrialReco
     1 is the header).
     """
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise ResultsError(f"{path}: no such results file") from None
+    data = results_bytes(path)
     header_names = beh_header(path)
     end, _ = split_torn_tail(data, len(header_names) or len(LEGACY_LAYOUT))
     try:

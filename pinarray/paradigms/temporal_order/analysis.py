@@ -44,7 +44,7 @@ from pinarray.analysis.fits import (
     write_sidecar,
 )
 from pinarray.analysis.load import LoadedTrial
-from pinarray.analysis.seam import AnalysisDefaults, Context, Estimate, Findings
+from pinarray.analysis.seam import AnalysisDefaults, Context, Estimate, EstimateStatus, Findings
 from pinarray.analysis.tables import ALL_SUBJECTS, number, write_csv
 from pinarray.analysis.thresholds import NotFitted, interval_name
 from pinarray.paradigms.temporal_order.rows import TemporalOrderRecord
@@ -82,9 +82,13 @@ class JndStatus(StrEnum):
     NOT_ESTIMABLE = "not estimable"
 
 
+# The PSS where the JND has no upper bound: words, no number (issue 46: coin flips gave an
+# "estimated" PSS beside a JND "above what the answers resolve").
+PSS_UNRESOLVED = "not resolved: the answers may not follow the SOA (JND unbounded above)"
 _JND_WORDS = {SlopeStatus.ESTIMATED: JndStatus.ESTIMATED, SlopeStatus.STEEPER: JndStatus.BELOW,
               SlopeStatus.SHALLOWER: JndStatus.ABOVE,
               SlopeStatus.NOT_ESTIMABLE: JndStatus.NOT_ESTIMABLE}
+_JND_UNBOUNDED = frozenset({JndStatus.ABOVE.value, JndStatus.NOT_ESTIMABLE.value})
 
 
 @dataclass(frozen=True)
@@ -106,7 +110,12 @@ class OrderFit:
 
     @property
     def pss(self) -> Estimate:
-        """The point of subjective simultaneity (ms) and its interval."""
+        """The point of subjective simultaneity (ms) and its interval; not resolved where the
+        answers do not show that they follow the SOA at all (the JND has no upper bound: a
+        flat function has no 50 % point, and coin flips would place one anywhere)."""
+        if self.jnd.words in _JND_UNBOUNDED:
+            return Estimate(math.nan, math.nan, math.nan, EstimateStatus.NOT_RESOLVED,
+                            PSS_UNRESOLVED)
         return threshold_estimate(self.fit)
 
     @property
@@ -234,7 +243,9 @@ def _sidecar(out: Path) -> Path:
                    + "; n/a where pss_status gives words instead" + ACROSS_TEXT, "Units": "ms"},
         **bounds_columns("pss_", "ms"),
         "pss_status": {"Description": "whether the answers place the PSS",
-                       "Levels": THRESHOLD_WORDS},
+                       "Levels": {**THRESHOLD_WORDS, PSS_UNRESOLVED: "the JND has no upper "
+                                  "bound: the answers need not depend on the SOA, so no 50 % "
+                                  "point is placed"}},
         "jnd_ms": {"Description": "the just noticeable difference: half the distance between "
                    "the SOAs at which pin A is named first 25 % and 75 % of the time; n/a where "
                    "jnd_status gives words instead" + ACROSS_TEXT, "Units": "ms"},
