@@ -5,6 +5,8 @@ carries its status, and a killed run resumes to the same trials and the same sim
 answers."""
 
 import math
+import re
+from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -158,3 +160,27 @@ def test_the_simulated_answers_depend_on_the_seed_and_the_trial_alone(tmp_path):
         return {n: answer(Question(plan[n])) for n in order}
 
     assert asked(sorted(plan)) == asked(sorted(plan, reverse=True))
+
+
+# -- a paradigm is named in its own room, and only there ------------------------------------
+
+PACKAGE = Path(__file__).resolve().parents[1] / "pinarray"
+# Where a paradigm may be named outside its room: the public face, the API module that names
+# its public types, and the registry that finds it.
+NAMERS = ("__init__.py", "api/paradigms.py", "registry.py")
+
+
+def test_each_paradigm_is_named_in_its_own_room_and_only_the_face_the_api_and_the_registry():
+    import pinarray.api.paradigms as api
+
+    found = {}
+    for name in registry.BUILT_IN:
+        room = f"pinarray.paradigms.{name}"
+        types = [t for t in api.__all__ if getattr(api, t).__module__.startswith(room + ".")]
+        pattern = re.compile("|".join([rf'"{name}"', re.escape(room), *(rf"\b{t}\b" for t in types)]))
+        found[name] = sorted(
+            str(path.relative_to(PACKAGE)) for path in PACKAGE.rglob("*.py")
+            if not str(path.relative_to(PACKAGE)).startswith(f"paradigms/{name}/")
+            and str(path.relative_to(PACKAGE)) not in NAMERS
+            and pattern.search(path.read_text(encoding="utf-8")))
+    assert found == {name: [] for name in registry.BUILT_IN}

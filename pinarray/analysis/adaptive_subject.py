@@ -22,7 +22,7 @@ from pinarray.errors import PinArrayError
 from pinarray.protocol.model import Condition, Protocol
 from pinarray.protocol.procedures import Adaptive, Function
 
-NOTHING_FELT = "none"  # a catch trial answered rightly: nothing felt
+NOTHING = "none"  # a detection task's catch trial answered rightly: nothing felt
 
 KEYS = ("function", "threshold", "slope", "guess", "lapse")
 
@@ -74,7 +74,7 @@ class AdaptiveSubject:
             # A Weibull is its guess rate at 0: a draw that comes out True with p = lapse.
             slips = PsychometricObserver(Psychometric("weibull", 1.0, 1.0, self.function.lapse,
                                                       0.0), self.seed)
-            return self._felt(condition, trial) if slips.answer(trial, 0.0) else NOTHING_FELT
+            return self._felt(condition, trial) if slips.answer(trial, 0.0) else NOTHING
         if observer.answer(trial, float(value)):
             return self._felt(condition, trial)
         design = self.protocol.design

@@ -55,10 +55,10 @@ class Room:
     module ``rows`` and ``ANALYSIS`` of the module ``analysis`` beside the class's own (the
     room's package). A room's paradigm is its design class with this mixed in::
 
-        class TwoPointParadigm(Room, TwoPointDesign):
+        class TapCountParadigm(Room, TapCountDesign):
             pass
 
-        PARADIGM = TwoPointParadigm()
+        PARADIGM = TapCountParadigm()
     """
 
     rows_module = "rows"
