@@ -10,7 +10,8 @@ what the pins did: the tactile onset from the flip, the delivery verdict, each p
     python examples/psychopy_congruency.py --subject 01 --port /dev/ttyUSB0
 
 Needs ``pip install 'pinarray[psychopy]'`` and a display (``make psychopy`` runs it under a
-virtual one). Keys: S same, D different, Escape quits (the pins rest either way).
+virtual one). Keys: S same, D different, Escape quits (a wave still playing is cut, the pins
+rest, torque off: so does Ctrl-C).
 """
 
 from __future__ import annotations
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> Path:
         for trial in trial_list(args.repetitions, args.seed):
             wave = pinarray.find_condition(tactile.protocol, stimulus=WAVE_OF_SIDE[trial["wave"]])
             show(win, [fixation], FIXATION_S)
-            touch = tactile.armOnFlip(wave, win)  # returns just before the flip it is armed on
+            touch = tactile.armOnFlip(wave, win)  # returns at once: the next flip starts it
             show(win, [flashes[trial["flash"]], fixation], FLASH_S)  # the flash and the wave
             show(win, [question], 0)
             if args.observer:
@@ -105,7 +106,7 @@ def run(args: argparse.Namespace) -> Path:
             touch.addData(experiment)  # waits for the wave to end: onset from flip, delivery
             experiment.nextEntry()
     finally:
-        DeviceManager.removeDevice("touch")  # pins to rest, torque off, however the loop ended
+        DeviceManager.removeDevice("touch")  # a wave still playing cut, pins to rest, torque off
     # --8<-- [end:run]
         win.close()
     experiment.saveAsWideText(str(data_file) + ".csv", delim=",")

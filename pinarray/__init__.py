@@ -28,8 +28,10 @@ __all__ = [
     "BusError",
     "Clock",
     "Condition",
+    "Cut",
     "Delivery",
     "DeliveryRecord",
+    "Ending",
     "IdentificationCondition",
     "IdentificationRecord",
     "LoadedRun",
@@ -40,11 +42,15 @@ __all__ = [
     "MotionCondition",
     "MotionRecord",
     "NotDelivered",
+    "NotStarted",
     "Paradigm",
     "PinArray",
     "PinArrayError",
     "PinStroke",
     "PlannedTrial",
+    "PlaybackAborted",
+    "Played",
+    "PortInUse",
     "Presentable",
     "Protocol",
     "ProtocolError",
@@ -83,16 +89,17 @@ _HOMES = {
                                "MotionRecord", "Paradigm", "TemporalOrderCondition",
                                "TemporalOrderRecord", "TwoIntervalCondition",
                                "TwoIntervalRecord", "TwoPointCondition", "TwoPointRecord"),
-    "pinarray.api.array": ("Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock",
-                           "PinArray", "PinStroke", "Presentable", "SafeStopReport",
-                           "VirtualClock", "open_array"),
+    "pinarray.api.array": ("Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
+                           "Presentable", "SafeStopReport", "VirtualClock", "open_array"),
+    "pinarray.api.armed": ("Armed",),
+    "pinarray.api.delivery": ("Cut", "Delivery", "Ending", "NotStarted", "Played"),
     "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
     "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
                               "run_session", "simulated_observer"),
     "pinarray.api.results": ("LoadedRun", "ManifestState", "RunPaths", "TrialRecord",
                              "TrialStatus", "read_results"),
-    "pinarray.api.errors": ("BusError", "PinArrayError", "ProtocolError", "ProtocolErrors",
-                            "ResultsError"),
+    "pinarray.api.errors": ("BusError", "PinArrayError", "PlaybackAborted", "PortInUse",
+                            "ProtocolError", "ProtocolErrors", "ResultsError"),
 }
 _HOME_OF = {name: module for module, names in _HOMES.items() for name in names}
 
@@ -111,10 +118,9 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
+    from pinarray.api.armed import Armed
     from pinarray.api.array import (
-        Armed,
         Clock,
-        Delivery,
         DeliveryRecord,
         MonotonicClock,
         PinArray,
@@ -124,9 +130,12 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         VirtualClock,
         open_array,
     )
+    from pinarray.api.delivery import Cut, Delivery, Ending, NotStarted, Played
     from pinarray.api.errors import (
         BusError,
         PinArrayError,
+        PlaybackAborted,
+        PortInUse,
         ProtocolError,
         ProtocolErrors,
         ResultsError,

@@ -36,7 +36,14 @@ class ProtocolErrors(PinArrayError):
 
 
 class Interrupted(PinArrayError):
-    """The run was asked to stop (SIGTERM): not a fault of the stimulus, the bus or the input."""
+    """The run was asked to stop (SIGTERM): not a fault of the stimulus, the bus or the input.
+
+    ``safe_stop``: what the safe stop made on the way out achieved (the player's
+    `SafeStopReport`, set by whoever made it; None when none was made, e.g. before a stimulus
+    began), so that whoever asked need not make another.
+    """
+
+    safe_stop: object = None
 
 
 class BusError(PinArrayError):

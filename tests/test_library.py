@@ -113,7 +113,7 @@ def test_one_stimulus_plays_at_a_time(simulated_array, localisation):
     condition = pinarray.find_condition(localisation, pin=6, frequency_hz=3)
     clock.hold()
     armed = array.arm(condition, at_ns=array.now_ns() + SECOND_NS)
-    with pytest.raises(pinarray.PinArrayError, match="wait for its result first"):
+    with pytest.raises(pinarray.PinArrayError, match="wait for its result or cancel it first"):
         array.present(condition)
     clock.release()
     assert_delivered(armed.result(timeout_s=60))

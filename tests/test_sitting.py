@@ -1,6 +1,7 @@
 """One sitting at the array, as the UI and batch both drive it: on the simulated array in
 virtual time, its runs checked on disk and its servos checked after it closes."""
 
+from contextlib import nullcontext
 from pathlib import Path
 
 import pytest
@@ -289,3 +290,35 @@ def test_servos_connected_again_on_a_clock_of_its_own_move_on_it_and_deliver_eve
     assert session.phase is Phase.DONE
     assert {r.status for r in rows(session)} == {"ok"}
     assert_at_rest(request.protocol, sim)
+
+
+@pytest.mark.realtime
+@pytest.mark.parametrize("stopped", [False, True], ids=["whole run", "stopped mid-stimulus"])
+def test_a_sitting_through_a_serial_port_runs_as_on_the_simulator_and_leaves_servos_released(
+        tmp_path, stopped):
+    # The same sitting, its servos behind a pseudo-terminal: the player process plays, and the
+    # servos themselves show how they were left.
+    from pinarray.clock import MonotonicClock
+    from pinarray.hardware.feetech.faults import SimConfig
+    from pinarray.hardware.feetech.serve import PtyServer
+    from tests.test_library_paths import at_rest_and_released, buzz
+
+    server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+    try:
+        rig_factory = RigStoppedMidStimulus if stopped else Rig
+        sitting = Sitting(tmp_path, clock_factory=lambda port: MonotonicClock(),
+                          rig_factory=rig_factory)
+        request = SessionRequest(buzz(tmp_path, 0.3), "01", "1", "", server.path, None, 3, False)
+        with pytest.raises(Stopped) if stopped else nullcontext(), sitting:
+            assert sitting.connect(request).isolated  # played by a player process
+            session = sitting.open_session()
+            sitting.run_scripted(lambda question: 6)
+        manifest = read_manifest(session.writer.paths.manifest)
+        if stopped:
+            assert (manifest.status, manifest.abort_reason) == ("aborted", "stopped by SIGHUP")
+        else:
+            assert manifest.status == "completed"
+            assert [r.status for r in rows(session)] == ["ok"] * session.total
+        assert at_rest_and_released(server.sim.servos) == []
+    finally:
+        server.stop()

@@ -9,7 +9,12 @@ from importlib.metadata import entry_points
 import pytest
 
 import pinarray
-from pinarray.testing import ArrayOpener, assert_every_goal_confirmed, assert_pin_moved
+from pinarray.testing import (
+    ArrayOpener,
+    assert_every_goal_confirmed,
+    assert_left_safe,
+    assert_pin_moved,
+)
 from tests.test_library import LOCALISATION
 
 
@@ -45,3 +50,19 @@ def test_a_stroke_that_differs_says_how_far_the_pin_moved_of_how_far_it_was_comm
     with pytest.raises(AssertionError, match="expected pin 7 to move 65 steps, found no stroke "
                                              r"measured for it \(pins measured: 6\)"):
         assert_pin_moved(delivery, pin=7, steps=65)
+
+
+@pytest.mark.realtime
+@pytest.mark.parametrize("over_serial", [False, True], ids=["in-process", "over a serial port"])
+def test_a_labs_test_holds_the_array_either_way_faults_included(simulated_array, tmp_path,
+                                                                  over_serial):
+    from tests.test_library_paths import buzz
+
+    protocol = buzz(tmp_path, 0.4)
+    array = simulated_array(protocol, "sim://?overheat=6", over_serial=over_serial)
+    assert array.simulated is not over_serial  # over a serial port it is a device, as real ones
+    with pytest.raises(pinarray.PlaybackAborted, match="servo 6 .pin 6. reports overheat") as aborted:
+        array.present(pinarray.find_condition(protocol, pin=6))
+    assert type(aborted.value) is pinarray.PlaybackAborted  # the public class, on either path
+    assert aborted.value.safe_stop.complete
+    assert_left_safe(array)

@@ -1,178 +1,104 @@
-"""An open pin array for scripts: present a stimulus now or armed for a time, learn what was
-delivered.
+"""An open pin array for scripts: present a stimulus now, armed for a time or armed to start
+on a cue (a screen flip as it happens), stop it at any moment, learn what was delivered.
 
 `open_array` connects the protocol's array (real servos on a port, or the simulated array) as
-``pinarray play`` does: every servo pinged, all missing ones named at once, the pins to rest.
-Leaving its ``with`` block is the safe stop on every way out (the end of the block, an error,
-Ctrl-C): a stimulus still playing is cut short, then the pins go to rest and torque off. On
-real servos the stimuli play in a player process of their own, which also rests the pins if
-the script's process is killed outright.
+``pinarray play`` does: the port held against every other opener, every servo pinged, all
+missing ones named at once, the pins to rest. On real servos the stimuli play in a player
+process of their own, which also rests the pins if the script's process is killed outright.
+
+A stop stops: `PinArray.stop`, `Armed.cancel`, `PinArray.close` and leaving the ``with``
+block (at its end or by an error) cut a stimulus still armed or playing, put every pin to
+rest and switch torque off; its `Delivery` says it was cut, and when. An array still open
+when the script ends is closed as the interpreter exits, the same way.
 
 Times are integer nanoseconds on the array's clock (`PinArray.now_ns`): on real servos that
 is ``time.monotonic_ns()`` (CLOCK_MONOTONIC, the clock PsychoPy's flips are stamped on under
-Linux); on the simulated array, virtual time unless the script gives a clock.
+Linux); on the simulated array, virtual time unless the script gives a clock. Notices (the
+connection's warnings, healed writes, retries, each stimulus's verdict) go to the `logging`
+logger ``"pinarray"``.
+
+Past 400 lines on purpose: the array's states (idle, a stimulus armed or playing, closed) and
+the one lock every change of them takes, with the face's docstrings that the reference is
+built from; the stimulus armed (`armed`) and what it delivered (`delivery`) live beside it.
 """
 
 from __future__ import annotations
 
+import atexit
+import queue
 import threading
-from concurrent.futures import Future
-from dataclasses import dataclass
+import weakref
 from types import TracebackType
 
-import numpy as np
-
+from pinarray.api import arguments
+from pinarray.api.armed import Armed
+from pinarray.api.delivery import (
+    Cut,
+    Delivery,
+    NotStarted,
+    log,
+    onset_write_late_ns,
+    tell,
+    unplayed,
+)
 from pinarray.api.protocols import describe_condition
 from pinarray.clock import Clock, MonotonicClock, VirtualClock
 from pinarray.errors import PinArrayError
-from pinarray.hardware.delivery import DeliveryRecord
+from pinarray.hardware.delivery import DeliveryRecord, PreparedTrial
 from pinarray.hardware.driver import SafeStopReport
 from pinarray.hardware.motion import PinStroke
 from pinarray.plan import PlannedTrial
-from pinarray.player.playback import DEFAULT_LEAD_NS, Onset, OnsetAfter, OnsetAt, PlaybackReport
+from pinarray.player.playback import (
+    DEFAULT_LEAD_NS,
+    Onset,
+    OnsetAfter,
+    OnsetAt,
+    OnsetPassed,
+    PlaybackAborted,
+)
+from pinarray.player.process import StartCue
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.model import Condition, Protocol, is_simulated
-from pinarray.schedule import TrialSchedule, compile_drives
+from pinarray.schedule import compile_drives
+from pinarray.stop import Stopped
 
-__all__ = ["Armed", "Clock", "Delivery", "DeliveryRecord", "MonotonicClock", "PinArray",
-           "PinStroke", "Presentable", "SafeStopReport", "VirtualClock", "open_array"]
+__all__ = ["Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
+           "Presentable", "SafeStopReport", "VirtualClock", "open_array"]
 
 Presentable = PlannedTrial | Condition
 """What `PinArray.present` plays: a trial of the protocol's plan, or one of its conditions."""
 
-
-@dataclass(frozen=True)
-class Delivery:
-    """What one presentation delivered.
-
-    Attributes
-    ----------
-    onset_ns : int
-        The stimulus's time zero on the array's clock (`PinArray.now_ns`), in ns: the time
-        it was armed for, or the lead after the call for one presented at once. Every goal
-        change of the schedule is due at this plus its own time.
-    duration_ns : int
-        The stimulus's length as scheduled, in ns.
-    onset_write_late_ns : int
-        How late the write of the stimulus's first frame (at or after time zero) returned
-        after its deadline, in ns: the host's side of the onset (0 for a stimulus without
-        frames).
-    record : DeliveryRecord
-        What reached the servos: goal changes scheduled, confirmed as sent, healed (written
-        again, then confirmed), missing; the latest any arrived; the protocol's tolerance; and
-        the moving pins' measured strokes where the servos report their positions.
-    """
-
-    onset_ns: int
-    duration_ns: int
-    onset_write_late_ns: int
-    record: DeliveryRecord
-
-    @property
-    def delivered(self) -> bool:
-        """Delivered as scheduled and specified: every goal change reached its servo within
-        the protocol's tolerance, and every measured pin made its stroke."""
-        return self.record.delivered
-
-    @property
-    def problem(self) -> str:
-        """Empty when delivered; otherwise the first thing that went wrong, in plain words."""
-        return self.record.problem
-
-    @property
-    def strokes(self) -> tuple[PinStroke, ...]:
-        """Each moving pin's measured stroke (empty where the servos report no position:
-        hobby PWM servos)."""
-        return () if self.record.strokes is None else self.record.strokes.pins
-
-    def stroke(self, pin: int) -> PinStroke:
-        """The measured stroke of ``pin``.
-
-        Raises
-        ------
-        PinArrayError
-            When the pin did not move in this stimulus or its motion was not measured.
-        """
-        for stroke in self.strokes:
-            if stroke.pin == pin:
-                return stroke
-        moved = ", ".join(str(s.pin) for s in self.strokes) or "none"
-        raise PinArrayError(f"pin {pin}: no stroke measured in this stimulus (pins measured: "
-                            f"{moved})")
-
-
-class Armed:
-    """A stimulus armed to start at `onset_ns`: it plays in the background while the script
-    goes on (draws a frame, flips a screen); `result` waits for what it delivered.
-
-    Made by `PinArray.arm`.
-    """
-
-    def __init__(self, onset_ns: int) -> None:
-        self._onset_ns = onset_ns
-        self._future: Future[Delivery] = Future()
-
-    @property
-    def onset_ns(self) -> int:
-        """The time zero it is armed for, on the array's clock, in ns."""
-        return self._onset_ns
-
-    @property
-    def done(self) -> bool:
-        """Whether it has ended (played, or failed: `result` then raises)."""
-        return self._future.done()
-
-    def result(self, timeout_s: float | None = None) -> Delivery:
-        """Wait until the stimulus has played; what it delivered.
-
-        Parameters
-        ----------
-        timeout_s : float or None
-            Wait at most this long, in seconds of the host's time (None: until it ends).
-
-        Raises
-        ------
-        PinArrayError
-            What stopped it (the bus failed, the array closed first), or a wait that timed out.
-        """
-        try:
-            return self._future.result(timeout_s)
-        except TimeoutError:
-            raise PinArrayError(f"the stimulus armed for {self.onset_ns} ns has not ended "
-                                f"after {timeout_s} s") from None
-
-    def _play(self, play: _Play) -> None:
-        try:
-            self._future.set_result(play())
-        except BaseException as error:  # handed to whoever asks for the result
-            self._future.set_exception(error)
-
-
-class _Play:
-    """One stimulus to play on a rig (what `Armed` runs in its thread)."""
-
-    def __init__(self, array: PinArray, schedule: TrialSchedule, onset: Onset) -> None:
-        self.array, self.schedule, self.onset = array, schedule, onset
-
-    def __call__(self) -> Delivery:
-        return self.array._play(self.schedule, self.onset)
+# Arrays still open, closed as the interpreter exits (a stimulus armed at the script's end).
+_open_arrays: weakref.WeakSet[PinArray] = weakref.WeakSet()
 
 
 class PinArray:
     """A connected pin array for one protocol: `open_array` makes one.
 
-    One stimulus plays at a time; between stimuli the pins hold at rest.
+    One stimulus plays at a time; between stimuli the pins hold at rest (or, after a stop,
+    rest released: the next stimulus turns torque on again).
     """
 
     lead_ns: int = DEFAULT_LEAD_NS
-    """How far ahead of the array's clock a stimulus is armed at least, in ns; a stimulus
-    presented at once starts this long after the call."""
+    """How far ahead of the array's clock a stimulus is armed for a time at least, in ns; a
+    stimulus presented at once starts this long after the call."""
 
     def __init__(self, rig: Rig) -> None:
         self._rig = rig
-        self._armed: Armed | None = None
-        self._safe_stop: SafeStopReport | None = None
+        self._lock = threading.RLock()  # one change of state at a time: arm, stop, close
+        self._current: Armed | None = None
+        self._safe_stop: SafeStopReport | None = None  # set once closed
+        self._trials: dict[Condition, PreparedTrial] = {}
+        self._preparing = threading.Lock()
+        # Armed stimuli play in one thread of their own, started once: starting a thread per
+        # stimulus would hand it the interpreter for up to a switch interval (5 ms) while the
+        # script's frame loop waited in `arm`.
+        self._armed: queue.SimpleQueue[Armed | None] = queue.SimpleQueue()
+        self._player: threading.Thread | None = None
+        _open_arrays.add(self)
+        for warning in rig.warnings:
+            log.warning("%s: %s", rig.url, warning)
 
     @property
     def protocol(self) -> Protocol:
@@ -190,6 +116,11 @@ class PinArray:
         return is_simulated(self.url)
 
     @property
+    def is_open(self) -> bool:
+        """Whether the array is open (not closed yet)."""
+        return self._safe_stop is None
+
+    @property
     def warnings(self) -> tuple[str, ...]:
         """What the connection found worth saying (a USB adapter's latency timer, real-time
         priority refused, a servo response measured on another rig), one line each."""
@@ -198,6 +129,27 @@ class PinArray:
     def now_ns(self) -> int:
         """The array's clock, in ns: the time line onsets are given and reported on."""
         return self._rig.clock.now_ns()
+
+    def __repr__(self) -> str:
+        current = self._current
+        if not self.is_open:
+            state = "closed"
+        elif current is not None and not current.done:
+            state = f"open, {current._described()} armed or playing"
+        else:
+            state = "open, idle"
+        return f"<PinArray {self.url} for protocol {self.protocol.name!r}: {state}>"
+
+    def prepare(self, stimulus: Presentable) -> None:
+        """Compile and encode a stimulus ahead, so that presenting or arming it later costs
+        the script nothing but the call (each stimulus is prepared once, on first use).
+
+        Parameters
+        ----------
+        stimulus : PlannedTrial or Condition
+            As for `present`.
+        """
+        self._trial(self._condition("prepare", stimulus))
 
     def present(self, stimulus: Presentable, *, at_ns: int | None = None) -> Delivery:
         """Play one stimulus and wait until it has played.
@@ -209,83 +161,127 @@ class PinArray:
             (`find_condition`). A trial of an adaptive design plays its condition as the
             protocol writes it: the values its procedures choose are `run_session`'s.
         at_ns : int or None
-            The stimulus's time zero on the array's clock, in ns, at least `lead_ns` ahead;
-            None: `lead_ns` after the call.
+            The stimulus's time zero on the array's clock, in integer ns, at least `lead_ns`
+            and at most a minute ahead; None: `lead_ns` after the call.
 
         Returns
         -------
         Delivery
             Its onset, its delivery record and the strokes measured. A stimulus not delivered
-            as scheduled is returned (``delivered`` False, with the reason), not raised.
+            as scheduled (late, short, cut by `stop` from another thread) is returned
+            (``delivered`` False, with the reason), not raised.
 
         Raises
         ------
+        PlaybackAborted
+            The bus failing mid-stimulus (the message says at which frame it stopped and how
+            the pins were left: they were put to rest first).
         PinArrayError
-            A stimulus the protocol does not hold, an onset too soon, another stimulus still
-            armed, a closed array, or the bus failing mid-stimulus (the message says at which
-            frame it stopped and how the pins were left: they were put to rest first).
+            A stimulus the protocol does not hold, an onset too soon or too far, another
+            stimulus still armed, a closed array.
         """
-        schedule = self._schedule(stimulus)
-        onset = self._onset(at_ns)
-        self._check_idle()
-        return self._play(schedule, onset)
+        condition = self._condition("present", stimulus)
+        with self._lock:
+            self._check_idle("present")
+            onset: Onset = (OnsetAfter(self.lead_ns) if at_ns is None else
+                            OnsetAt(arguments.onset_ns("present", at_ns, self.now_ns(),
+                                                       self.lead_ns)))
+            armed = self._current = Armed(self, condition, onset)
+        self._run(armed)
+        return armed.result()
 
-    def arm(self, stimulus: Presentable, *, at_ns: int) -> Armed:
-        """Arm one stimulus to start at ``at_ns`` and return at once; it plays in the
-        background (on real servos, in the player process).
+    def arm(self, stimulus: Presentable, *, at_ns: int | None = None) -> Armed:
+        """Arm one stimulus and return at once; it plays in the background (on real servos,
+        in the player process), at ``at_ns`` or when `Armed.start` is called.
 
         Parameters
         ----------
         stimulus : PlannedTrial or Condition
             As for `present`.
-        at_ns : int
-            The stimulus's time zero on the array's clock, in ns, at least `lead_ns` ahead
-            (a screen flip's time, on real servos ``time.monotonic_ns()``'s time line).
+        at_ns : int or None
+            The stimulus's time zero on the array's clock, in integer ns, at least `lead_ns`
+            and at most a minute ahead (on real servos ``time.monotonic_ns()``'s time line).
+            None: armed to start on `Armed.start` (a screen flip as it happens).
 
         Returns
         -------
         Armed
-            Its `Armed.result` is the `Delivery`, once it has played.
+            Its `Armed.result` is the `Delivery`, once it has ended. One that cannot start in
+            time (the host stalled past its onset) ends as not delivered, nothing moved.
+
+        Raises
+        ------
+        PinArrayError
+            As for `present`, before anything is armed.
         """
-        schedule = self._schedule(stimulus)
-        onset = self._onset(at_ns)
-        self._check_idle()
-        armed = self._armed = Armed(at_ns)
-        threading.Thread(target=armed._play, args=(_Play(self, schedule, onset),),
-                         name=f"pinarray stimulus at {at_ns} ns", daemon=True).start()
+        condition = self._condition("arm", stimulus)
+        with self._lock:
+            self._check_idle("arm")
+            if at_ns is not None:
+                self._rig.ready()  # torque on again after a stop, before the onset is taken
+            onset: Onset | StartCue = (StartCue() if at_ns is None else
+                                       OnsetAt(arguments.onset_ns("arm", at_ns, self.now_ns(),
+                                                                  self.lead_ns)))
+            armed = self._current = Armed(self, condition, onset)
+            if self._player is None:
+                self._player = threading.Thread(target=self._play_armed, daemon=True,
+                                                name=f"pinarray: stimuli armed on {self.url}")
+                self._player.start()
+        self._armed.put(armed)
         return armed
 
-    def close(self) -> SafeStopReport:
-        """Wait for a stimulus still armed, then pins to rest, torque off, port closed.
-
-        Safe to call more than once; leaving the ``with`` block calls it (after an error it
-        first cuts a playing stimulus short).
+    def stop(self) -> SafeStopReport:
+        """Cut the stimulus armed or playing now (if any), then every pin to rest and torque
+        off; returns once they are. The array stays open: the next stimulus turns torque on
+        again. Safe from any thread.
 
         Returns
         -------
         SafeStopReport
             Which servos were confirmed at rest and released, and which did not answer.
         """
-        if self._safe_stop is None:
-            armed = self._armed
-            if armed is not None:
-                armed._future.exception()  # its outcome stays with whoever holds it
-            self._safe_stop = self._rig.close()
-        return self._safe_stop
+        with self._lock:
+            self._check_open("stop")
+            self._cut_current("stop()")
+            return self._rig.rest_and_release()
+
+    def close(self) -> SafeStopReport:
+        """Cut a stimulus still armed or playing, then pins to rest, torque off, port closed
+        (and let go: another opener may have it).
+
+        Safe to call more than once; leaving the ``with`` block calls it, as does the
+        interpreter's exit for an array still open.
+
+        Returns
+        -------
+        SafeStopReport
+            Which servos were confirmed at rest and released, and which did not answer.
+        """
+        return self._close("close()")
 
     def __enter__(self) -> PinArray:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  traceback: TracebackType | None) -> None:
-        if kind is not None:
-            self._rig.stop.request(f"the script stopped: {kind.__name__}")
-        self.close()
+        self._close("leaving the with block" + (f" on {kind.__name__}" if kind else ""))
 
     # -- below the face -------------------------------------------------------------------
 
-    def _schedule(self, stimulus: Presentable) -> TrialSchedule:
-        """The stimulus compiled, once it is known to be one the protocol holds (and so was
+    def _close(self, by: str) -> SafeStopReport:
+        with self._lock:
+            if self._safe_stop is None:
+                try:
+                    self._cut_current(by)
+                finally:
+                    self._safe_stop = self._rig.close()
+                    _open_arrays.discard(self)
+                    self._armed.put(None)  # the thread playing armed stimuli ends
+                log.info("%s: closed by %s: %s", self.url, by, self._safe_stop.describe())
+            return self._safe_stop
+
+    def _condition(self, call: str, stimulus: object) -> Condition:
+        """The stimulus's condition, once it is known to be one the protocol holds (and so was
         checked when the protocol was read)."""
         protocol = self.protocol
         match stimulus:
@@ -297,57 +293,121 @@ class PinArray:
             case _ if isinstance(stimulus, Condition):
                 condition = stimulus
             case _:
-                raise PinArrayError(f"expected a planned trial or a condition of the protocol, "
-                                    f"found {type(stimulus).__name__}")
+                arguments.refuse(call, "stimulus", "a planned trial or a condition of the "
+                                 "protocol (pinarray.find_condition)", stimulus)
         if condition not in protocol.design.conditions:
             raise PinArrayError(f"{protocol.source}: {describe_condition(condition)} is not a "
                                 "condition of the protocol's design: write it into the protocol "
                                 "(find_condition names what it holds)")
-        return compile_drives(trial_drives(protocol, condition), protocol.device)
+        return condition
 
-    def _onset(self, at_ns: int | None) -> Onset:
-        if at_ns is None:
-            return OnsetAfter(self.lead_ns)
-        now_ns = self.now_ns()
-        if at_ns - now_ns < self.lead_ns:
-            raise PinArrayError(f"a stimulus armed for {at_ns} ns is {(at_ns - now_ns) / 1e6:.1f} "
-                                f"ms ahead of the array's clock ({now_ns} ns): arm it at least "
-                                f"{self.lead_ns / 1e6:g} ms ahead")
-        return OnsetAt(at_ns)
+    def _trial(self, condition: Condition) -> PreparedTrial:
+        trial = self._trials.get(condition)
+        if trial is None:
+            with self._preparing:
+                trial = self._trials.get(condition)
+                if trial is None:
+                    protocol = self.protocol
+                    schedule = compile_drives(trial_drives(protocol, condition), protocol.device)
+                    trial = self._trials[condition] = self._rig.prepare(schedule)
+        return trial
 
-    def _check_idle(self) -> None:
+    def _check_open(self, call: str) -> None:
         if self._safe_stop is not None:
-            raise PinArrayError(f"{self.url}: the array is closed")
-        armed = self._armed
-        if armed is not None and not armed.done:
-            raise PinArrayError(f"a stimulus is armed for {armed.onset_ns} ns: wait for its "
-                                "result first (one stimulus plays at a time)")
+            raise PinArrayError(f"{call}: {self.url}: the array is closed")
 
-    def _play(self, schedule: TrialSchedule, onset: Onset) -> Delivery:
-        presentation = self._rig.present(schedule, onset=onset)
-        # The delivery below carries what a script needs; the rig need not keep every
-        # stimulus's frames and samples for as long as the script runs.
-        report = self._rig.reports.pop()
-        return Delivery(presentation.onset_ns, schedule.end_ns, _onset_write_late_ns(report),
-                        presentation.delivery)
+    def _check_idle(self, call: str) -> None:
+        self._check_open(call)
+        current = self._current
+        if current is not None and not current.done:
+            raise PinArrayError(f"{call}: the stimulus {current._described()} has not ended: "
+                                "wait for its result or cancel it first (one stimulus "
+                                "plays at a time)")
 
+    def _play_armed(self) -> None:
+        while (armed := self._armed.get()) is not None:
+            self._run(armed)
 
-def _onset_write_late_ns(report: PlaybackReport) -> int:
-    """How late the write of the first frame at or after time zero returned, in ns."""
-    at_or_after = np.flatnonzero(report.scheduled_ns >= 0)
-    if not len(at_or_after):
-        return 0
-    first = int(at_or_after[0])
-    return int(report.sent_ns[first] - report.scheduled_ns[first])
+    def _run(self, armed: Armed) -> None:
+        """Play ``armed`` in this thread and hand its outcome to whoever waits for it."""
+        armed._runner = threading.get_ident()
+        try:
+            armed._future.set_result(self._play(armed))
+        except BaseException as error:  # handed to whoever asks for the result
+            armed._future.set_exception(error)
+
+    def _play(self, armed: Armed) -> Delivery:
+        condition = armed._condition
+        trial = self._trial(condition)
+        rig = self._rig
+        planned_ns = armed.onset_ns if armed.onset_ns is not None else self.now_ns()
+        try:
+            if armed._cut is not None:
+                raise Stopped(f"cut short by {armed._cut.by}")
+            presentation = rig.play(trial, onset=armed._onset)
+        except Stopped as stopped:
+            cut = armed._cut or Cut(self.now_ns(), str(stopped))
+            if armed._began(cut.at_ns, rig.playing_from_ns):
+                delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
+                                    cut, f"cut short by {cut.by}")
+            else:
+                delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
+                                    NotStarted(f"cancelled by {cut.by} before it started"),
+                                    f"cancelled by {cut.by} before it started: nothing moved")
+            log.warning("%s: %s: %s", self.url, describe_condition(condition), delivery.problem)
+            return delivery
+        except OnsetPassed as passed:
+            why = (f"its onset had passed {passed.late_ns / 1e6:.1f} ms before playback could "
+                   "begin (the host was busy): nothing moved")
+            log.warning("%s: %s: %s", self.url, describe_condition(condition), why)
+            return unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
+                            NotStarted(why), why)
+        except PlaybackAborted as aborted:
+            log.error("%s: %s: %s", self.url, describe_condition(condition), aborted)
+            if type(aborted) is PlaybackAborted:
+                raise
+            raise PlaybackAborted(str(aborted), aborted.safe_stop) from None  # the public class
+        # The delivery carries what a script needs; the rig need not keep every stimulus's
+        # frames and samples for as long as the script runs.
+        report = rig.reports.pop()
+        delivery = Delivery(presentation.onset_ns, trial.end_ns, onset_write_late_ns(report),
+                            presentation.delivery)
+        tell(self.url, describe_condition(condition), delivery, report)
+        return delivery
+
+    def _cut_current(self, by: str) -> None:
+        """Cut the stimulus armed or playing (holding the lock): it ends, pins to rest and
+        torque off, before this returns (unless it plays in this very thread)."""
+        armed = self._current
+        if armed is None or armed.done:
+            return
+        armed._cut = Cut(self.now_ns(), by)
+        if isinstance(armed._onset, StartCue):
+            armed._onset.withdraw()
+        rig = self._rig
+        rig.stop.request(f"cut short by {by}")
+        try:
+            if armed._runner != threading.get_ident():
+                armed._future.exception()  # until it has ended; its outcome stays with it
+        finally:
+            rig.stop.clear()
+
+    def _cancel(self, armed: Armed) -> None:
+        with self._lock:
+            if self._current is armed and not armed.done:
+                self._cut_current("cancel()")
+                self._rig.rest_and_release()
 
 
 def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None = None,
                clock: Clock | None = None) -> PinArray:
     """Connect the protocol's pin array: real servos on ``port``, or simulated ones.
 
-    Every servo of the protocol's device is pinged first (all missing ones named in one
-    error), then the pins go to rest holding torque. Use it as a context manager: leaving the
-    block rests the pins and switches torque off however the block ends.
+    The port is held for this array until it is closed: any other opener, in this script or
+    another process, is refused, naming the holder. Every servo of the protocol's device is
+    pinged first (all missing ones named in one error), then the pins go to rest holding
+    torque. Use it as a context manager: leaving the block cuts a stimulus still playing,
+    rests the pins and switches torque off however the block ends.
 
     Parameters
     ----------
@@ -373,19 +433,39 @@ def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None =
 
     Raises
     ------
+    PortInUse
+        Another array holds the port (in this script or another process), named.
     BusError
-        Servos missing or failing, naming their ids and registers.
+        Servos missing or failing, naming their ids and registers; a port that cannot be
+        opened.
     PinArrayError
-        Both a port and a sim URL, a URL that cannot be opened, or a clock real servos
-        cannot play on.
+        A wrong argument (named), both a port and a sim URL, a URL that cannot be read, or a
+        clock real servos cannot play on.
     """
     from pinarray.hardware.pca9685.sim import is_shared_board_url
 
+    call = "open_array"
+    protocol = arguments.protocol(call, protocol)
+    port = arguments.port(call, port)
+    sim = arguments.sim_for(call, protocol, sim)
+    clock = arguments.clock(call, clock)
     if port is not None and sim is not None:
-        raise PinArrayError("open_array: give a port (real servos) or a sim URL, not both")
+        raise PinArrayError(f"{call}: give a port (real servos) or a sim URL, not both")
     if clock is None:
         clock = choose_clock(port, None, paced=True, sim_url=sim)
     elif (port is not None or is_shared_board_url(sim)) and not isinstance(clock, MonotonicClock):
-        raise PinArrayError(f"{port or sim}: real servos play in real time: give no clock, or a "
-                            "MonotonicClock")
-    return PinArray(Rig(protocol, port, sim, clock))
+        raise PinArrayError(f"{call}: {port or sim}: real servos play in real time: give no "
+                            "clock, or a MonotonicClock")
+    rig = Rig(protocol, port, sim, clock,
+              holder=f"an array of protocol {protocol.name!r} (pinarray.open_array)")
+    return PinArray(rig)
+
+
+@atexit.register
+def _close_left_open() -> None:
+    """An array a script left open is closed as it ends: a stimulus still armed is cut."""
+    for array in list(_open_arrays):
+        try:
+            array._close("the script's end")
+        except Exception:  # one array's failure must not keep the others' torque on
+            log.exception("%s: closing at the script's end failed", array.url)

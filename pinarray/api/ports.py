@@ -11,9 +11,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from pinarray.api import arguments
 from pinarray.errors import BusError
 from pinarray.hardware.feetech.bringup import scan, sweep_timeout_ns
 from pinarray.hardware.feetech.transport import is_sim_url, open_bus
+from pinarray.hardware.port_lock import PortInUse, hold_port
 
 __all__ = ["ServoPort", "find_servo_ports"]
 
@@ -45,9 +47,10 @@ def find_servo_ports(ports: Sequence[str] | None = None) -> tuple[ServoPort, ...
     Each port is opened at 1 Mbit/s (the servos' factory rate) and sent one broadcast PING. A
     port where nothing answers is closed at once; where something does (a whole array's
     answers collide: several servos share one return delay), every id from 0 to 252 is
-    pinged in turn, waiting a few milliseconds for each. A port that cannot be opened (in
-    use, no permission, gone) or that stops answering is left out. Ask only about ports no
-    other program is using: a PING sent to another device is a few stray bytes to it.
+    pinged in turn, waiting a few milliseconds for each. A port that cannot be opened (held
+    by an array, in use, no permission, gone) or that stops answering is left out: a port an
+    array holds is never sent anything. Ask only about ports no other program is using: a
+    PING sent to another device is a few stray bytes to it.
 
     Parameters
     ----------
@@ -62,6 +65,7 @@ def find_servo_ports(ports: Sequence[str] | None = None) -> tuple[ServoPort, ...
     """
     from serial.tools.list_ports import comports
 
+    ports = arguments.port_list("find_servo_ports", ports)
     listed = {info.device: info.description for info in comports()}
     if ports is None:
         ports = sorted(listed)
@@ -77,8 +81,13 @@ def find_servo_ports(ports: Sequence[str] | None = None) -> tuple[ServoPort, ...
 def _answering_ids(port: str) -> tuple[int, ...]:
     """The ids that answer on ``port``; none where it cannot be opened or asked."""
     try:
+        held = hold_port(port, "pinarray.find_servo_ports")  # held while asked
+    except PortInUse:
+        return ()  # an array drives it: not a byte from here
+    try:
         bus = open_bus(port)
     except BusError:
+        held.release()
         return ()
     try:
         ping = bus.broadcast_ping()
@@ -89,3 +98,4 @@ def _answering_ids(port: str) -> tuple[int, ...]:
         return ()
     finally:
         bus.close()
+        held.release()

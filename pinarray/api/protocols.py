@@ -11,6 +11,7 @@ from __future__ import annotations
 from fractions import Fraction
 from os import PathLike, fspath
 
+from pinarray.api import arguments
 from pinarray.errors import PinArrayError
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
 from pinarray.protocol.model import Condition, Protocol
@@ -41,7 +42,7 @@ def load_protocol(path: str | PathLike[str]) -> Protocol:
     """
     from pinarray.protocol.load import load_protocol as load
 
-    return load(fspath(path))
+    return load(fspath(arguments.path("load_protocol", "path", path)))
 
 
 def plan_trials(protocol: Protocol, seed: int | None = None) -> TrialPlan:
@@ -62,7 +63,7 @@ def plan_trials(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     TrialPlan
         Its trials numbered 1..N in plan order, practice trials first.
     """
-    return make_plan(protocol, seed)
+    return make_plan(arguments.protocol("plan_trials", protocol), arguments.seed("plan_trials", seed))
 
 
 def find_condition(protocol: Protocol, *, pin: int | None = None,
@@ -89,8 +90,15 @@ def find_condition(protocol: Protocol, *, pin: int | None = None,
     Raises
     ------
     PinArrayError
-        When no condition or more than one matches, naming the protocol and what it holds.
+        When no condition or more than one matches, naming the protocol and what it holds;
+        a filter of the wrong kind (a pin outside 1-16, a frequency that is not a finite
+        number above 0).
     """
+    call = "find_condition"
+    protocol = arguments.protocol(call, protocol)
+    pin = arguments.optional_pin(call, pin)
+    frequency_hz = arguments.frequency_hz(call, frequency_hz)
+    stimulus = arguments.optional_text(call, "stimulus", stimulus)
     if isinstance(frequency_hz, float):
         frequency_hz = Fraction(repr(frequency_hz))  # 0.1 Hz is 1/10, as the protocol reads it
     wanted = {"pin": pin, "frequency_hz": frequency_hz, "stimulus": stimulus}

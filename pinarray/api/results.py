@@ -8,6 +8,7 @@ from os import PathLike
 from pathlib import Path
 
 from pinarray.analysis.load import LoadedRun, ManifestState, find_beh_files, load_run
+from pinarray.api import arguments
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import TrialRecord, TrialStatus
 
@@ -35,4 +36,5 @@ def read_results(*paths: str | PathLike[str]) -> tuple[LoadedRun, ...]:
         A path that does not exist, no results found, or a file that is not a results table
         (`DamagedResults`, naming the file, line and reason).
     """
-    return tuple(load_run(beh) for beh in find_beh_files(Path(path) for path in paths))
+    checked = arguments.paths("read_results", paths)
+    return tuple(load_run(beh) for beh in find_beh_files(Path(path) for path in checked))

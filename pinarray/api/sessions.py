@@ -15,6 +15,7 @@ from os import PathLike
 from pathlib import Path
 
 from pinarray.analysis.load import LoadedRun, load_run
+from pinarray.api import arguments
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.journal.paths import check_label
@@ -79,6 +80,20 @@ def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, sessi
         Bad labels, a run open in another process (`RunLocked`), nothing to resume, the bus
         failing (`BusError`), results that cannot be written (`ResultsError`).
     """
+    call = "run_session"
+    protocol = arguments.protocol(call, protocol)
+    answer = arguments.answer_source(call, answer)
+    subject = arguments.text(call, "subject", subject)
+    session = arguments.text(call, "session", session)
+    results = arguments.path(call, "results", results)
+    port = arguments.port(call, port)
+    sim = arguments.sim_for(call, protocol, sim)
+    seed = arguments.seed(call, seed)
+    resume = arguments.flag(call, "resume", resume)
+    experimenter = arguments.text(call, "experimenter", experimenter)
+    clock = arguments.clock(call, clock)
+    if port is not None and sim is not None:
+        raise PinArrayError(f"{call}: give a port (real servos) or a sim URL, not both")
     if protocol.sync is not None:
         raise PinArrayError(f"{protocol.source}: a protocol with a sync: section waits for the "
                             "scanner's triggers: run it with `pinarray batch` or the UI")
@@ -121,6 +136,10 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
     PinArrayError
         A model it cannot read, naming the key.
     """
+    call = "simulated_observer"
+    protocol = arguments.protocol(call, protocol)
+    model = arguments.text(call, "model", model)
+    seed = arguments.seed(call, seed)
     adaptive = protocol.design.adaptive
     if adaptive is not None:
         from pinarray.analysis.adaptive_subject import AdaptiveSubject, parse_psychometric

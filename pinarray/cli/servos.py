@@ -189,7 +189,11 @@ def _target(args: argparse.Namespace, command: str) -> Target:
 
 def open_bare(url: str, baud_rate: int):
     from pinarray.hardware.feetech.transport import open_bus
+    from pinarray.hardware.port_lock import hold_port
 
+    # One owner per port: refused while an array drives it (naming it), held until this
+    # command's process ends.
+    hold_port(url, "a pinarray servos command")
     bus = open_bus(url, baud_rate=baud_rate)
     for warning in bus.warnings:
         say(f"pinarray: warning: {warning}", error=True)

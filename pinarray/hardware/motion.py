@@ -20,7 +20,10 @@ short cycles
 A cycle is judged only when it holds at least `MIN_SAMPLES_PER_CYCLE` samples and no gap
 between them (or from its edges) longer than `MAX_GAP_FRACTION` of it: sparse samples miss
 the peaks and would make a good stroke look short, so such a cycle is *not measured* rather
-than failed. Pure values and arithmetic: no I/O.
+than failed. It is not passed either: the smallest peak-to-peak is known only when every
+cycle was judged, so a pin with a cycle not measured makes the trial not delivered as
+specified (`TrialStrokes.problem`), as a pin that fell short does, unless the tolerance is 0
+(no stroke checked). Pure values and arithmetic: no I/O.
 """
 
 from __future__ import annotations
@@ -67,8 +70,11 @@ class PinTrace:
 class PinStroke:
     """One pin's motion in a trial, measured from its samples (see the module docstring).
 
-    ``commanded_steps`` is the span of the goals the trial sent the pin; ``achieved_steps``, ``median_steps`` and ``lag_ns`` are None when not measured (too few
-    samples); ``cycles`` counts the cycles judged, ``short_cycles`` those that fell short.
+    ``commanded_steps`` is the span of the goals the trial sent the pin; ``achieved_steps``
+    and ``median_steps`` are over the cycles judged, None when none was (too few samples), as
+    ``lag_ns`` is when too few arrivals were seen; ``cycles`` counts the cycles judged,
+    ``short_cycles`` those that fell short, ``unmeasured_cycles`` those sampled too sparsely
+    to judge.
     """
 
     pin: int
@@ -78,10 +84,12 @@ class PinStroke:
     lag_ns: int | None
     cycles: int
     short_cycles: int
+    unmeasured_cycles: int = 0
 
     @property
     def measured(self) -> bool:
-        """Whether enough samples were taken to judge the pin's cycles."""
+        """Whether any of the pin's cycles was sampled densely enough to judge (its achieved
+        stroke is known); `unmeasured_cycles` says whether every one was."""
         return self.achieved_steps is not None
 
 
@@ -105,19 +113,36 @@ class TrialStrokes:
         pin = self.worst or (self.pins[0] if self.pins else None)
         return None if pin is None else pin.commanded_steps
 
+    @property
+    def unmeasured(self) -> tuple[PinStroke, ...]:
+        """The pins with a stroke commanded and a cycle sampled too sparsely to judge."""
+        return tuple(p for p in self.pins if p.commanded_steps and p.unmeasured_cycles)
+
     def problem(self) -> str:
-        """Empty when every measured pin moved enough; else which pin fell short, in words."""
+        """Empty when every pin was measured in every cycle and moved enough; else, in words,
+        which pin fell short or, failing that, which was not measured. A tolerance of 0 checks
+        no stroke: no cycle can fall short, so none unmeasured can hide one."""
         short = [p for p in self.pins if p.measured and p.commanded_steps
                  and Fraction(p.achieved_steps or 0, p.commanded_steps) < self.tolerance]
-        if not short:
+        if short:
+            worst = min(short, key=lambda p: Fraction(p.achieved_steps or 0, p.commanded_steps))
+            share = 100 * (worst.achieved_steps or 0) / worst.commanded_steps
+            others = f" (and {len(short) - 1} more pin(s))" if len(short) > 1 else ""
+            return (f"pin {worst.pin} moved {worst.achieved_steps} of {worst.commanded_steps} "
+                    f"commanded steps ({share:.0f} %, below the tolerance of "
+                    f"{float(self.tolerance) * 100:g} %) in {worst.short_cycles} of "
+                    f"{worst.cycles} cycles{others}")
+        unmeasured = self.unmeasured
+        if not unmeasured or not self.tolerance:
             return ""
-        worst = min(short, key=lambda p: Fraction(p.achieved_steps or 0, p.commanded_steps))
-        share = 100 * (worst.achieved_steps or 0) / worst.commanded_steps
-        others = f" (and {len(short) - 1} more pin(s))" if len(short) > 1 else ""
-        return (f"pin {worst.pin} moved {worst.achieved_steps} of {worst.commanded_steps} "
-                f"commanded steps ({share:.0f} %, below the tolerance of "
-                f"{float(self.tolerance) * 100:g} %) in {worst.short_cycles} of "
-                f"{worst.cycles} cycles{others}")
+        first = max(unmeasured, key=lambda p: Fraction(p.unmeasured_cycles,
+                                                        p.unmeasured_cycles + p.cycles))
+        others = f" (and {len(unmeasured) - 1} more pin(s))" if len(unmeasured) > 1 else ""
+        return (f"pin {first.pin}'s stroke not measured in {first.unmeasured_cycles} of "
+                f"{first.unmeasured_cycles + first.cycles} cycles{others}: too few position "
+                f"samples to judge (a cycle needs {MIN_SAMPLES_PER_CYCLE}, none more than "
+                f"{MAX_GAP_FRACTION} of it apart); fewer moving pins, a shorter return delay "
+                "(pinarray servos return-delay) or a faster baud rate leave room for them")
 
 
 def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
@@ -147,11 +172,12 @@ def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
         if peak is not None:
             peaks.append(peak)
     lag_ns = _median_lag(times, positions, goals, end_ns)
+    unmeasured = len(starts) - len(peaks)
     if not peaks:
-        return PinStroke(trace.pin, commanded, None, None, lag_ns, 0, 0)
+        return PinStroke(trace.pin, commanded, None, None, lag_ns, 0, 0, unmeasured)
     short = sum(1 for peak in peaks if commanded and Fraction(peak, commanded) < tolerance)
     return PinStroke(trace.pin, commanded, min(peaks), float(np.median(peaks)), lag_ns,
-                     len(peaks), short)
+                     len(peaks), short, unmeasured)
 
 
 def measure_trial(traces: Sequence[PinTrace], changes: Sequence[Change], end_ns: int,

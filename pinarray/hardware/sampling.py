@@ -17,6 +17,14 @@ A pin holds when its last two samples read the same position within `ARRIVAL_STE
 goal in force. A horn pushed off its goal between two sparse samples (a finger pressing
 down, say) shows at the next one, at most a gap of the cycle rule later.
 
+The same rule says when a sample *must* be taken where the usual ones would leave a gap too
+long (`Holds.gap_fits`), and how late it may come (`Holds.reach_ns`): on a bus where one
+sample of the moving servos takes milliseconds (many pins, the factory return delay, a slow
+baud rate), the gap across a frame (the last sample before it, the frame, the read-back after
+it, the next sample) can be longer than a cycle allows; the verifier then reads the goals
+back and samples in one exchange, and takes the last sample before the frame as late as fits
+(`pinarray.hardware.feetech.readback`).
+
 Pure arithmetic on the trial's goal changes and the samples: no I/O, no clock.
 """
 
@@ -25,6 +33,7 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
+from math import floor
 
 from pinarray.hardware.delivery import Change
 from pinarray.hardware.motion import ARRIVAL_STEPS, MAX_GAP_FRACTION
@@ -58,6 +67,36 @@ class PinGoals:
         """The servo's first goal change after ``time_ns`` (never: a very large number)."""
         index = bisect_right(self.change_ns, time_ns)
         return self.change_ns[index] if index < len(self.change_ns) else NEVER_NS
+
+    def gap_fits(self, from_ns: int, to_ns: int, end_ns: int) -> bool:
+        """Whether no sample from ``from_ns`` to ``to_ns`` (ns after onset) keeps the cycle
+        rule: each part of the gap inside one cycle (a cycle's start and end count as edges,
+        as `pinarray.hardware.motion` cuts them) at most `MAX_GAP_FRACTION` of that cycle."""
+        starts = self.cycle_start_ns
+        index = bisect_right(starts, from_ns)  # cycle index - 1 holds from_ns (0: none yet)
+        left_ns = from_ns
+        while left_ns < min(to_ns, end_ns):
+            stop_ns = starts[index] if index < len(starts) else end_ns
+            right_ns = min(to_ns, stop_ns)
+            if index and right_ns - left_ns > (stop_ns - starts[index - 1]) * MAX_GAP_FRACTION:
+                return False
+            left_ns, index = right_ns, index + 1
+        return True
+
+    def reach_ns(self, from_ns: int, end_ns: int) -> int:
+        """The latest a sample may follow one at ``from_ns`` (ns after onset) and keep the cycle
+        rule: `gap_fits` from ``from_ns`` exactly up to it (`NEVER_NS` after the trial's end)."""
+        starts = self.cycle_start_ns
+        index = bisect_right(starts, from_ns)
+        left_ns = from_ns
+        while left_ns < end_ns:
+            stop_ns = starts[index] if index < len(starts) else end_ns
+            if index:
+                reach = left_ns + (stop_ns - starts[index - 1]) * MAX_GAP_FRACTION
+                if reach < stop_ns:
+                    return floor(reach)
+            left_ns, index = stop_ns, index + 1
+        return NEVER_NS
 
     def gap_allowed_ns(self, time_ns: int, end_ns: int) -> int | None:
         """The longest gap between samples the cycle holding ``time_ns`` allows (None
@@ -109,6 +148,17 @@ class Holds:
         else:
             self._holding.discard(servo_id)
         self._last_steps[servo_id] = steps
+
+    def gap_fits(self, from_ns: int, to_ns: int) -> bool:
+        """Whether every moving pin's cycles allow no sample from ``from_ns`` to ``to_ns``
+        (ns after onset): see `PinGoals.gap_fits`."""
+        return all(goals.gap_fits(from_ns, to_ns, self.end_ns) for goals in self._goals.values())
+
+    def reach_ns(self, from_ns: int) -> int:
+        """The latest the next sample may follow one at ``from_ns`` (ns after onset) and keep
+        every moving pin's cycle rule: see `PinGoals.reach_ns`."""
+        return min((goals.reach_ns(from_ns, self.end_ns) for goals in self._goals.values()),
+                   default=NEVER_NS)
 
     def next_sample_ns(self, last_ns: int, sample_ns: int, after_change_ns: int) -> int:
         """When, after a sample at ``last_ns`` (ns after onset), the next one is needed.

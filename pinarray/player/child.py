@@ -18,12 +18,15 @@ from multiprocessing.connection import Connection
 
 from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
-from pinarray.hardware.driver import ArrayDriver
+from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.player.markers import Announcer
 from pinarray.player.messages import (
     Answer,
+    Cue,
     Hello,
     MeasureWakeUps,
+    OnCue,
+    OnsetMissed,
     Play,
     Played,
     PlayFailed,
@@ -33,7 +36,7 @@ from pinarray.player.messages import (
     StopPlaying,
     WakeUpsMeasured,
 )
-from pinarray.player.playback import PlaybackAborted, play_prepared
+from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
 from pinarray.stop import Stopped, raise_on_signals
 
 # SCHED_FIFO priority of the player: above every normal process, below the kernel's own
@@ -72,7 +75,8 @@ class ControlledClock(MonotonicClock):
     """Real time for the child: sleeps wake for a message from the parent, then spin.
 
     A `StopPlaying` for the request being worked on raises `Stopped` at once (the player then
-    rests the pins and answers); a `Quit`, or the parent's end of the socket closing, raises
+    rests the pins and answers); a `Cue` for it starts a trial waiting for one
+    (`wait_for_cue`); a `Quit`, or the parent's end of the socket closing, raises
     `_ParentGone` (the child rests the pins and leaves).
     """
 
@@ -81,11 +85,18 @@ class ControlledClock(MonotonicClock):
         self.conn = conn
         self._fd = conn.fileno()
         self.working = 0  # number of the request being worked on, 0 between requests
+        self._cued = 0  # number of the last request a cue came for
 
-    def _wait_for_message(self, seconds: float) -> None:
+    def _wait_for_message(self, seconds: float | None) -> None:
         # select, not Connection.poll: the latter rounds its timeout up to whole ms.
         if select.select([self._fd], [], [], seconds)[0]:
             self._message()
+
+    def wait_for_cue(self) -> None:
+        """Return when the cue for the request being worked on comes (no time limit: the
+        parent stops or cancels a stimulus whose cue never comes)."""
+        while self._cued != self.working:
+            self._wait_for_message(None)
 
     def doze_until_ns(self, deadline_ns: int) -> None:
         """Sleep (no spin) until ``deadline_ns``, waking for messages."""
@@ -101,6 +112,8 @@ class ControlledClock(MonotonicClock):
             raise _ParentGone("the process controlling the player is closing it")
         if isinstance(message, StopPlaying) and message.number == self.working:
             raise _AskedToStop(message.reason, message.signal_number)
+        if isinstance(message, Cue) and message.number == self.working:
+            self._cued = message.number
 
 
 class ProtocolMismatch(Exception):
@@ -148,8 +161,8 @@ def _serve(conn: Connection, port_fd: int) -> int:
                                        partial(_wake_ups, clock, duration_ns, period_ns)))
                 case Quit():
                     return 0  # `finally` rests the pins: the parent may not outlive this by much
-                case StopPlaying():
-                    pass  # for a request already answered: nothing to stop
+                case StopPlaying() | Cue():
+                    pass  # for a request already answered: nothing to stop or start
                 case _:
                     raise ProtocolMismatch(f"unexpected message {message!r}")
     finally:
@@ -165,18 +178,25 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
     try:
         return work()
     except _AskedToStop as stopped:
-        return PlayStopped(str(stopped), stopped.signal_number)
+        safe = stopped.safe_stop if isinstance(stopped.safe_stop, SafeStopReport) else None
+        return PlayStopped(str(stopped), stopped.signal_number, safe)
     finally:
         clock.working = 0
 
 
 def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
-          announcer: Announcer | None) -> Played | PlayFailed:
+          announcer: Announcer | None) -> Played | PlayFailed | OnsetMissed:
+    onset = play.onset
+    if isinstance(onset, OnCue):
+        clock.wait_for_cue()
+        onset = OnsetAfter(0)  # at once: the time zero is when the cue came, as measured
     try:
-        report = play_prepared(bus, play.trial, clock, onset=play.onset,
+        report = play_prepared(bus, play.trial, clock, onset=onset,
                                tolerance_ns=play.tolerance_ns, release_at_end=False,
                                markers=play.markers, announcer=announcer,
                                stroke_tolerance=play.stroke_tolerance)
+    except OnsetPassed as passed:
+        return OnsetMissed(str(passed), passed.late_ns)
     except PlaybackAborted as aborted:
         return PlayFailed(str(aborted), aborted.safe_stop)
     return Played(report)
@@ -195,6 +215,10 @@ def _wake_ups(clock: ControlledClock, duration_ns: int, period_ns: int) -> WakeU
 
 def main(argv: list[str]) -> int:
     control_fd, port_fd = int(argv[0]), int(argv[1])
+    # The channel blocks, whatever its creator's defaults were: a recv that found nothing to
+    # read would be taken for the parent gone (a host program's socket timeout made it
+    # non-blocking: PsychoPy sets one on import).
+    os.set_blocking(control_fd, True)
     conn = Connection(control_fd)
     try:
         with raise_on_signals("the player process"):

@@ -1,6 +1,6 @@
 """What the parent and its player process say to each other (pickled over a socket).
 
-Requests are numbered, so a stop meant for one cannot stop the next.
+Requests are numbered, so a stop meant for one cannot stop the next, nor a cue start it.
 """
 
 from __future__ import annotations
@@ -33,10 +33,16 @@ class Ready:
 
 
 @dataclass(frozen=True)
+class OnCue:
+    """A trial's onset not known yet: the child waits for a `Cue` (a screen flip as it
+    happens) and starts at once when it comes."""
+
+
+@dataclass(frozen=True)
 class Play:
     number: int  # a stop request names the trial it is for: a late one must not stop the next
     trial: PreparedTrial
-    onset: Onset
+    onset: Onset | OnCue
     tolerance_ns: int
     markers: TrialMarkers | None = None  # announced at the onset and the end, if any
     stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE
@@ -47,6 +53,13 @@ class StopPlaying:
     number: int
     reason: str
     signal_number: int | None
+
+
+@dataclass(frozen=True)
+class Cue:
+    """Start the trial `number` (sent `OnCue`) now."""
+
+    number: int
 
 
 @dataclass(frozen=True)
@@ -70,6 +83,15 @@ class Played:
 class PlayStopped:
     reason: str
     signal_number: int | None
+    safe_stop: SafeStopReport | None = None  # None: stopped before anything moved
+
+
+@dataclass(frozen=True)
+class OnsetMissed:
+    """The onset had passed by the time playback could begin: nothing was sent."""
+
+    message: str
+    late_ns: int
 
 
 @dataclass(frozen=True)
@@ -84,7 +106,7 @@ class WakeUpsMeasured:
 
 
 # What the child answers, one per request (and Ready once, to Hello).
-Answer = Ready | Played | PlayStopped | PlayFailed | WakeUpsMeasured
-# What the parent asks, numbered where a stop may name it.
-Request = Play | StopPlaying | MeasureWakeUps | Quit
-ANSWERS = (Ready, Played, PlayStopped, PlayFailed, WakeUpsMeasured)
+Answer = Ready | Played | PlayStopped | PlayFailed | OnsetMissed | WakeUpsMeasured
+# What the parent asks, numbered where a stop or a cue may name it.
+Request = Play | StopPlaying | Cue | MeasureWakeUps | Quit
+ANSWERS = (Ready, Played, PlayStopped, PlayFailed, OnsetMissed, WakeUpsMeasured)

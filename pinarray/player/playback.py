@@ -94,11 +94,22 @@ SOON = OnsetAfter()  # the default: a session's trial, `DEFAULT_LEAD_NS` after i
 
 
 class PlaybackAborted(PinArrayError):
-    """Playback stopped early; says why and what the safe stop achieved."""
+    """Playback stopped early by a fault (the bus failing mid-stimulus, a servo's error):
+    the message says where and how the pins were left; ``safe_stop`` is the `SafeStopReport`
+    of the safe stop made on the way out."""
 
     def __init__(self, message: str, safe_stop: SafeStopReport):
         super().__init__(message)
         self.safe_stop = safe_stop
+
+
+class OnsetPassed(PlaybackAborted):
+    """An onset that had passed by the time playback could begin (the host stalled): refused
+    before anything was sent; ``late_ns`` is by how much it had passed."""
+
+    def __init__(self, message: str, late_ns: int):
+        super().__init__(message, SafeStopReport((), (), ()))
+        self.late_ns = late_ns
 
 
 @dataclass(frozen=True, eq=False)
@@ -336,8 +347,9 @@ def play_prepared(
                 _rest(bus, tuple(verifier.pending))
             readings = _checked(_telemetry(bus, setup.servo_ids), setup)
             trace = verifier.trace() if sample_motion else ()
-        except Interrupted:
-            bus.rest_and_release()  # asked to stop: pins first, then let the caller wind down
+        except Interrupted as stopped:
+            # Asked to stop: pins first, then let the caller wind down (knowing how they were left).
+            stopped.safe_stop = bus.rest_and_release()
             raise
         except PinArrayError as error:
             safe = bus.rest_and_release()
@@ -375,10 +387,10 @@ def _onset_ns(onset: Onset, clock: Clock) -> int:
         case OnsetAt(onset_ns=onset_ns):
             late_ns = clock.now_ns() - onset_ns
             if late_ns > 0:
-                raise PlaybackAborted(
+                raise OnsetPassed(
                     f"the onset asked for had passed {late_ns / 1e6:.1f} ms before playback "
                     f"could begin: arm a stimulus at least {DEFAULT_LEAD_NS / 1e6:g} ms ahead",
-                    SafeStopReport((), (), ()))
+                    late_ns)
             return onset_ns
     raise AssertionError(onset)
 

@@ -15,21 +15,28 @@ Every way out stays safe:
 - the parent dies: the child sees the socket close, rests the pins and releases torque itself;
 - the child is sent a signal: it rests the pins, releases torque and exits.
 
+The channel is a socket pair whose blocking mode is set here, whatever defaults the host
+program set for new sockets (PsychoPy sets a 20 s timeout on import, which makes every new
+socket non-blocking underneath). A stop request wakes the parent's wait at once (its
+`StopRequest` callback), so the child hears of it within a fraction of a millisecond.
+
 The child runs in its own session, so a Ctrl-C or a hang-up meant for the terminal reaches the
 parent only, which decides.
 """
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 import sys
 import tempfile
 import threading
 import time
+import weakref
 from collections.abc import Callable
 from fractions import Fraction
-from multiprocessing.connection import Connection
+from multiprocessing.connection import Connection, wait
 from typing import NoReturn
 
 from pinarray.clock import MonotonicClock
@@ -41,8 +48,11 @@ from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.messages import (
     ANSWERS,
     Answer,
+    Cue,
     Hello,
     MeasureWakeUps,
+    OnCue,
+    OnsetMissed,
     Play,
     Played,
     PlayFailed,
@@ -56,6 +66,8 @@ from pinarray.player.messages import (
 from pinarray.player.playback import (
     SOON,
     Onset,
+    OnsetAfter,
+    OnsetPassed,
     PlaybackAborted,
     PlaybackReport,
     PreparedTrial,
@@ -71,6 +83,8 @@ START_TIMEOUT_NS = 30_000_000_000
 STOP_BUDGET_NS = 5_000_000_000
 # How long a player process whose socket closed may take to finish exiting, in s.
 EXIT_WAIT_S = 1.0
+# A cue given before its trial reached the child: the child starts it as soon as it can.
+SOON_AS_ASKED = OnsetAfter(0)
 
 
 class PlayerDied(PlaybackAborted):
@@ -82,6 +96,56 @@ class PlayerDied(PlaybackAborted):
     def __init__(self, message: str, safe_stop: SafeStopReport, noticed_ns: int):
         super().__init__(message, safe_stop)
         self.noticed_ns = noticed_ns
+
+
+class StartCue:
+    """The moment a stimulus armed without an onset starts (a screen flip as it happens),
+    given from any thread; whoever plays it is told at once, or finds it given already.
+
+    `give` starts it; `withdraw` (a stop, a cancel) keeps a cue not given yet from starting it.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._given = threading.Event()
+        self._withdrawn = False
+        self._tell: Callable[[], None] | None = None
+
+    def give(self) -> bool:
+        """Start it now; False when withdrawn or given already."""
+        with self._lock:
+            if self._withdrawn or self._given.is_set():
+                return False
+            self._given.set()
+            tell = self._tell
+        if tell is not None:
+            tell()
+        return True
+
+    def withdraw(self) -> None:
+        with self._lock:
+            self._withdrawn = not self._given.is_set()
+            self._given.set()  # whoever waits wakes, and finds it withdrawn
+
+    @property
+    def given(self) -> bool:
+        return self._given.is_set() and not self._withdrawn
+
+    @property
+    def withdrawn(self) -> bool:
+        return self._withdrawn
+
+    def wait(self, timeout_s: float | None) -> bool:
+        """Whether it was given (or withdrawn) within ``timeout_s``."""
+        return self._given.wait(timeout_s)
+
+    def when_given(self, tell: Callable[[], None]) -> bool:
+        """Call ``tell`` when given; True (and no call) if it is given already."""
+        with self._lock:
+            if self._given.is_set():
+                return True
+            self._tell = tell
+            return False
 
 
 
@@ -102,11 +166,14 @@ class PlayerProcess:
     markers : Announcers, optional
         A marker stream the child opens once (a `PinArrayError` here if it cannot) and
         announces each trial's markers on, from the child itself.
+    keep_fds : tuple of int
+        Descriptors the child inherits and keeps until it ends (the port's lock: the port
+        stays held while the child may still drive it).
     """
 
     def __init__(self, bus: ArrayDriver | None, fd: int | None, stop: StopRequest,
                  realtime: bool = True, spin_ns: int = SPIN_NS,
-                 markers: Announcers | None = None):
+                 markers: Announcers | None = None, keep_fds: tuple[int, ...] = ()):
         self.bus = bus
         self.fd = fd
         self.stop = stop
@@ -118,9 +185,17 @@ class PlayerProcess:
         self._closing = False
         # One request at a time: the UI may ask for a test pin while a timing check runs.
         self._one_at_a_time = threading.Lock()
+        self._sending = threading.Lock()  # a cue is sent from another thread than the trial's
         self._errors = tempfile.TemporaryFile()
         parent_end, child_end = socket.socketpair()
-        passed = (child_end.fileno(),) + ((fd,) if fd is not None else ())
+        for end in (parent_end, child_end):
+            end.setblocking(True)  # whatever the host's default timeout: see the docstring
+        # A stop request wakes the wait for the child's answer (a byte down this pipe).
+        self._wake_read, self._wake_write = os.pipe()
+        os.set_blocking(self._wake_write, False)
+        wake = weakref.WeakMethod(self._wake)  # the request outlives this player: keep it light
+        stop.when_requested(lambda: (method := wake()) is not None and method())
+        passed = (child_end.fileno(),) + ((fd,) if fd is not None else ()) + keep_fds
         command = [sys.executable, "-m", "pinarray.player.child", str(child_end.fileno()),
                    str(fd if fd is not None else -1)]
         self.process = subprocess.Popen(
@@ -130,7 +205,7 @@ class PlayerProcess:
         child_end.close()
         self.conn = Connection(parent_end.detach())
         handover = bus.handover() if bus is not None else None
-        self.conn.send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
+        self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
                              markers))
         ready = self._answer("starting", START_TIMEOUT_NS)
         if not isinstance(ready, Ready):
@@ -145,14 +220,25 @@ class PlayerProcess:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def play(self, trial: PreparedTrial, *, onset: Onset = SOON,
+    def play(self, trial: PreparedTrial, *, onset: Onset | StartCue = SOON,
              tolerance_ns: int, markers: TrialMarkers | None = None,
              stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> PlaybackReport:
         """Play one trial in the child, announcing ``markers`` there if its stream is open;
-        raises `Stopped`, `PlaybackAborted` or `PlayerDied`."""
-        answer = self._ask(lambda number: Play(number, trial, onset, tolerance_ns, markers,
-                                               stroke_tolerance),
-                           "playing a trial")
+        raises `Stopped`, `OnsetPassed`, `PlaybackAborted` or `PlayerDied`.
+
+        ``onset`` a `StartCue`: the child holds the trial ready and starts it the moment the
+        cue is given (at once if it was given before the trial reached the child).
+        """
+
+        def request(number: int) -> Play:
+            if not isinstance(onset, StartCue):
+                return Play(number, trial, onset, tolerance_ns, markers, stroke_tolerance)
+            if onset.when_given(lambda: self._send(Cue(number), quietly=True)):
+                return Play(number, trial, SOON_AS_ASKED, tolerance_ns, markers,
+                            stroke_tolerance)
+            return Play(number, trial, OnCue(), tolerance_ns, markers, stroke_tolerance)
+
+        answer = self._ask(request, "playing a trial")
         match answer:
             case Played(report=report):
                 if self.bus is not None:
@@ -162,6 +248,8 @@ class PlayerProcess:
                 return report
             case PlayFailed(message=message, safe_stop=safe):
                 raise PlaybackAborted(message, safe)
+            case OnsetMissed(message=message, late_ns=late_ns):
+                raise OnsetPassed(message, late_ns)
         raise PlayerDied(f"the player process answered {answer!r} to a trial",
                          SafeStopReport((), (), ()), time.monotonic_ns())
 
@@ -181,15 +269,33 @@ class PlayerProcess:
             self._working = self._requests
             self._stop_sent = False
             try:
-                self.conn.send(request(self._requests))
+                self._send(request(self._requests))
                 answer = self._answer(doing)
             except OSError:
                 self._died(doing)
             finally:
                 self._working = 0
         if isinstance(answer, PlayStopped):
-            raise Stopped(answer.reason, answer.signal_number)
+            stopped = Stopped(answer.reason, answer.signal_number)
+            stopped.safe_stop = answer.safe_stop
+            raise stopped
         return answer
+
+    def _send(self, message: Request | Hello, quietly: bool = False) -> None:
+        """One message to the child, whole (a cue may be sent from another thread);
+        ``quietly``: a child already gone is left to the watch loop to notice."""
+        try:
+            with self._sending:
+                self.conn.send(message)
+        except OSError:
+            if not quietly:
+                raise
+
+    def _wake(self) -> None:
+        try:
+            os.write(self._wake_write, b"!")
+        except OSError:
+            pass  # full (woken already) or closed (this player has ended)
 
     def _answer(self, doing: str, timeout_ns: int | None = None) -> Answer:
         """The child's next message, passing a stop request on; a dead child is a `PlayerDied`.
@@ -201,7 +307,10 @@ class PlayerProcess:
         give_up_ns = None if timeout_ns is None else clock.now_ns() + timeout_ns
         while True:
             try:
-                if self.conn.poll(WATCH_S):
+                ready = wait([self.conn, self._wake_read], WATCH_S)
+                if self._wake_read in ready:
+                    os.read(self._wake_read, 64)
+                if self.conn in ready:
                     answer = self.conn.recv()
                     if isinstance(answer, ANSWERS):
                         return answer
@@ -217,10 +326,9 @@ class PlayerProcess:
 
     def _send_stop(self) -> None:
         self._stop_sent = True
-        try:
-            self.conn.send(StopPlaying(self._working, self.stop.reason, self.stop.signal_number))
-        except OSError:
-            pass  # gone already: the watch loop notices
+        # Gone already: the watch loop notices.
+        self._send(StopPlaying(self._working, self.stop.reason, self.stop.signal_number),
+                   quietly=True)
 
     def _died(self, doing: str) -> NoReturn:
         noticed_ns = time.monotonic_ns()
@@ -255,7 +363,7 @@ class PlayerProcess:
             try:
                 if self._working:
                     self._send_stop()
-                self.conn.send(Quit())
+                self._send(Quit())
                 self.process.wait(timeout=STOP_BUDGET_NS / 1e9)
             except (OSError, subprocess.TimeoutExpired):
                 pass
@@ -265,5 +373,9 @@ class PlayerProcess:
         with self._one_at_a_time:  # a request still waiting sees the socket closed
             self.conn.close()
             self._errors.close()
+            wake_fds = (self._wake_read, self._wake_write)
+            self._wake_read = self._wake_write = -1  # a late stop callback writes nowhere
+            for fd in wake_fds:
+                os.close(fd)
 
 

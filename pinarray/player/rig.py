@@ -10,6 +10,14 @@ in-process simulator, in virtual or scaled time, it runs here. Markers (LSL) are
 whoever plays: the rig opens its marker stream once, in the player process or here. However a
 `Rig` is left (normal close, exception, a stop request), pins go to rest and torque goes off
 where the bus still answers.
+
+One owner per port: a rig on a device holds it (`pinarray.hardware.port_lock`) from before
+it opens it until it is closed, and its player process keeps it held while it may still
+drive the servos; any other opener is refused, naming the holder.
+
+Past 400 lines on purpose: one connected array and every use of it that must take its port in
+turn (a stimulus now, at a time or on a cue; a test pin; the timing check; telemetry; the
+stop and the close).
 """
 
 from __future__ import annotations
@@ -20,9 +28,10 @@ from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING, overload
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
-from pinarray.errors import PinArrayError
-from pinarray.hardware.delivery import Presentation
+from pinarray.errors import Interrupted, PinArrayError
+from pinarray.hardware.delivery import PreparedTrial, Presentation
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
+from pinarray.hardware.port_lock import PortLock, hold_port
 from pinarray.player.families import board_refusals, open_array
 from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
@@ -30,6 +39,7 @@ from pinarray.player.playback import (
     Onset,
     OnsetAfter,
     OnsetAt,
+    OnsetPassed,
     PlaybackReport,
     play_prepared,
     prepare_trial,
@@ -49,10 +59,13 @@ from pinarray.protocol import NS_PER_S, Protocol
 from pinarray.protocol.model import is_simulated
 from pinarray.protocol.response import MeasuredResponse
 from pinarray.schedule import TrialSchedule
-from pinarray.stop import StoppableClock, StopRequest
+from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 if TYPE_CHECKING:
-    from pinarray.player.process import PlayerProcess
+    from pinarray.player.process import PlayerProcess, StartCue
+
+# How often a stimulus waiting for its cue on the in-process simulator looks at the stop, in s.
+CUE_WATCH_S = 0.02
 
 
 def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = False,
@@ -108,12 +121,16 @@ class Rig:
         A marker stream (LSL), opened once where trials play (the player process, or here)
         and kept until the rig closes; each `present` given markers announces them at its
         onset and end. Stimuli then play on the wall clock (`keep_wall_time`).
+    holder : str
+        Who holds the port, in words another opener is told ("pinarray play", "an array of
+        protocol 'x'"); empty: the protocol's array.
     """
 
     def __init__(self, protocol: Protocol, port: str | None, sim_url: str | None, clock: Clock,
                  stop: StopRequest | None = None, *, isolate: bool | None = None,
                  realtime: bool = True, wire_log: str | None = None,
-                 simulators: SimulatedArrays | None = None, markers: Announcers | None = None):
+                 simulators: SimulatedArrays | None = None, markers: Announcers | None = None,
+                 holder: str = ""):
         self.protocol = protocol
         self.stop = stop or StopRequest()
         self.bus_clock = clock
@@ -129,14 +146,24 @@ class Rig:
             more = (f" (and {others} more {'stimulus' if others == 1 else 'stimuli'}: "
                     "`pinarray validate` lists them)" if others else "")
             raise PinArrayError(f"{protocol.source}: {refusals[0]}{more}")
-        self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, wire_log,
-                                           simulators)
+        # Held before it is opened (nothing is sent to a port another array drives), until
+        # the rig and its player process have let it go.
+        self._port_lock: PortLock | None = None
+        if port is not None:
+            self._port_lock = hold_port(port, holder or f"an array of protocol {protocol.name!r}")
+        try:
+            self.bus: ArrayDriver = open_array(protocol.device, port, sim_url, clock, wire_log,
+                                               simulators)
+        except BaseException:
+            self._let_port_go()
+            raise
         self.setup = self.bus.setup
         self.url = self.bus.port_name
         try:
             self.bus.check_servos()  # reads only: nothing moves, no torque yet
         except BaseException:
             self.bus.close()
+            self._let_port_go()
             raise
         self.warnings = list(self.bus.warnings)
         bandwidth = protocol.device.bandwidth
@@ -157,6 +184,9 @@ class Rig:
         # One user of the port at a time: the UI may test a pin while a timing check runs.
         self._port = threading.RLock()
         self._released = False
+        # The last safe stop's report while the servos are known to be at rest and released
+        # since (nothing sent after it): a stop after a stop need not make another.
+        self._safe: SafeStopReport | None = None
         # The stimulus playing now: its time zero on the rig's clock (None: none is playing).
         self._playing_from_ns: int | None = None
         self._wall_time = markers is not None  # see `keep_wall_time`
@@ -189,8 +219,10 @@ class Rig:
 
         if self._fd is None:
             raise PinArrayError(f"{self.url}: a player process needs a serial device")
+        lock_fd = self._port_lock.fd if self._port_lock is not None else -1
         self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime,
-                                    markers=self.markers)
+                                    markers=self.markers,
+                                    keep_fds=(lock_fd,) if lock_fd >= 0 else ())
 
     def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None, *,
                 onset: Onset = SOON) -> Presentation:
@@ -202,20 +234,41 @@ class Rig:
         is added to `marker_problems`, never raised. ``onset``: the trial's time zero, a lead
         after the call or a time on the rig's clock (a stimulus a script armed).
         """
-        with self._port:
-            return self._present(schedule, markers, onset)
+        return self.play(self.prepare(schedule), markers, onset=onset)
 
-    def _present(self, schedule: TrialSchedule, markers: TrialMarkers | None,
-                 onset: Onset) -> Presentation:
-        if self.player is not None and not self.player.alive:
-            # Started again before torque can come back on, so that it guards it.
-            self.player.close()
-            self._start_player()
-        if self._released:
-            # A fault released torque; the handshake turns it back on, checking every servo.
-            self.bus.reconnect()
-            self._released = False
-        trial = prepare_trial(self.bus, schedule.targets, schedule.pulses)
+    def prepare(self, schedule: TrialSchedule) -> PreparedTrial:
+        """The trial's frames encoded for this array (a stimulus prepared once can be played
+        many times: the frames do not depend on what was played before)."""
+        return prepare_trial(self.bus, schedule.targets, schedule.pulses)
+
+    def play(self, trial: PreparedTrial, markers: TrialMarkers | None = None, *,
+             onset: Onset | StartCue = SOON) -> Presentation:
+        """`present` for a prepared trial; ``onset`` a `StartCue`: held ready and started the
+        moment the cue is given (its time zero is then, as measured). A stop request ends it
+        with `Stopped`, whose ``safe_stop`` tells how the pins were left (None: nothing had
+        moved)."""
+        with self._port:
+            return self._present(trial, markers, onset)
+
+    def ready(self) -> None:
+        """Ready to play: the player process running, torque on (after a fault or a stop
+        released it, the handshake turns it back on, checking every servo: tens of ms on
+        real servos). `present` does this first; a stimulus armed for a time does it before
+        its onset is taken."""
+        with self._port:
+            if self.player is not None and not self.player.alive:
+                # Started again before torque can come back on, so that it guards it.
+                self.player.close()
+                self._start_player()
+            if self._released:
+                self.bus.reconnect()
+                self._released = False
+                self._safe = None
+
+    def _present(self, trial: PreparedTrial, markers: TrialMarkers | None,
+                 onset: Onset | StartCue) -> Presentation:
+        self.ready()
+        self._safe = None
         match onset:
             case OnsetAt(onset_ns=onset_ns):
                 self._playing_from_ns = onset_ns
@@ -226,13 +279,22 @@ class Rig:
                 report = self.player.play(trial, onset=onset, tolerance_ns=self.tolerance_ns,
                                           markers=markers, stroke_tolerance=self.stroke_tolerance)
             else:
+                if not isinstance(onset, OnsetAt | OnsetAfter):
+                    self._wait_for(onset)
+                    onset = OnsetAfter(0)  # at once: the time zero is when the cue came
                 with self._own_time():
                     report = play_prepared(self.bus, trial, self.clock, onset=onset,
                                            tolerance_ns=self.tolerance_ns, release_at_end=False,
                                            markers=markers, announcer=self._announcer,
                                            stroke_tolerance=self.stroke_tolerance)
-        except PinArrayError:
+        except OnsetPassed:
+            raise  # refused before anything was sent: the pins hold at rest as they were
+        except BaseException as error:
+            # However it ended (a fault, a stop, Ctrl-C), the player made the pins safe on
+            # its way out: the next stimulus turns torque on again through the handshake.
             self._released = True
+            if isinstance(error, Interrupted) and isinstance(error.safe_stop, SafeStopReport):
+                self._safe = error.safe_stop
             raise
         finally:
             self._playing_from_ns = None
@@ -240,6 +302,23 @@ class Rig:
         if report.marker_problem:
             self.marker_problems.append(report.marker_problem)
         return Presentation(report.onset_ns, report.delivery, report.trace)
+
+    def _wait_for(self, cue: StartCue) -> None:
+        """Until ``cue`` is given; a stop (or the cue withdrawn) ends the wait with `Stopped`."""
+        while not cue.wait(CUE_WATCH_S):
+            self.stop.raise_if_requested()
+        if cue.withdrawn:
+            raise Stopped(self.stop.reason or "withdrawn before it started")
+        self.stop.raise_if_requested()
+
+    def rest_and_release(self) -> SafeStopReport:
+        """Every pin to rest and torque off (never raises), unless the last stimulus's stop
+        did exactly that and nothing was sent since; the next stimulus turns torque on again."""
+        with self._port:
+            if self._safe is None:
+                self._safe = self.bus.rest_and_release()
+                self._released = True
+            return self._safe
 
     @property
     def playing_from_ns(self) -> int | None:
@@ -374,14 +453,23 @@ class Rig:
                 if player is not None:
                     player.close()
             finally:
-                # However the player's end went (a second Ctrl-C as it left), pins go to rest.
-                safe = self.bus.rest_and_release()
+                # However the player's end went (a second Ctrl-C as it left), pins go to rest
+                # (unless the last stop left them so and nothing was sent since).
+                safe = self._safe if self._safe is not None else self.bus.rest_and_release()
         finally:
-            self.bus.close()
-            announcer, self._announcer = self._announcer, None
-            if announcer is not None:
-                announcer.close()
+            try:
+                self.bus.close()
+                announcer, self._announcer = self._announcer, None
+                if announcer is not None:
+                    announcer.close()
+            finally:
+                self._let_port_go()
         return safe
+
+    def _let_port_go(self) -> None:
+        lock, self._port_lock = self._port_lock, None
+        if lock is not None:
+            lock.release()
 
     def __enter__(self) -> Rig:
         return self

@@ -121,8 +121,10 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     )
     stroke = reader.optional(
         keys, "stroke_tolerance_percent",
+        # 0: no stroke checked (nor, then, whether every cycle was measured)
         lambda n: reader.number(n, "the stroke tolerance (the least share of a pin's commanded "
-                                "stroke it must achieve)", "%", maximum=100) / 100,
+                                "stroke it must achieve)", "%", maximum=100,
+                                allow_zero=True) / 100,
         Device.stroke_tolerance,
     )
     base = reader.optional(

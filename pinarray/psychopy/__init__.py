@@ -9,7 +9,7 @@ PsychoPy's plugin manager finds it by entry point (group ``psychopy.hardware``) 
     touch_device = DeviceManager.addDevice("pinarray", "touch",
                                            protocol="protocols/apparent_motion.yaml")
     wave = pinarray.find_condition(touch_device.protocol, stimulus="rightwards")
-    touch = touch_device.armOnFlip(wave, win)     # returns just before that flip
+    touch = touch_device.armOnFlip(wave, win)     # returns at once: the next flip starts it
     flash.draw()
     win.flip()                                    # the flash and the wave start together
     touch.addData(thisExp)                        # onset from the flip, delivery, strokes

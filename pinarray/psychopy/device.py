@@ -5,19 +5,32 @@ once or armed to start on the window's next flip, and what was delivered handed 
 Defining the class registers it with PsychoPy's `DeviceManager` (`BaseDevice.__init_subclass__`:
 its class path and the alias ``"pinarray"``); PsychoPy's plugin manager imports it through the
 entry point ``psychopy.hardware: PinArrayDevice`` of pinarray's package.
+
+One device per port, as PsychoPy's own `SerialDevice`: asking for a port (or ``sim://`` URL)
+already open hands back the device holding it, and `DeviceManager.addDevice` under a name a
+pin array already has closes that array first (PsychoPy's manager would store the new device
+over the old one and leave the old one open, its pins torqued).
+
+A stop stops at once: closing the device (`DeviceManager.removeDevice`, the experiment's end),
+`core.quit()` (Escape in a Builder script), the window a touch was armed on closing, and
+Ctrl-C cut a stimulus still playing: every pin to rest and torque off.
 """
 
 from __future__ import annotations
 
-from os import PathLike
+import sys
+import threading
+import weakref
+from os import PathLike, fspath
+from pathlib import Path
 from types import TracebackType
 from typing import Any, ClassVar
 
-from psychopy import clock, logging
+from psychopy import clock, core, logging
 from psychopy.hardware.base import BaseDevice
 
 import pinarray
-from pinarray.psychopy.timeline import NS_PER_S, Timeline
+from pinarray.psychopy.timeline import Timeline
 from pinarray.psychopy.touch import Touch
 
 __all__ = ["PinArrayDevice"]
@@ -25,12 +38,43 @@ __all__ = ["PinArrayDevice"]
 SIMULATED = "sim://"
 """The simulated array, as `getAvailableDevices` offers it (``sim://?...`` URLs add faults)."""
 
-# Arming compiles the stimulus first (a few ms): the flip chosen lies this much beyond the
-# array's lead, so the onset is still `PinArray.lead_ns` ahead once compiled.
-COMPILE_MARGIN_S = 0.010
-# A flip that passed out of reach while the stimulus was armed (the host stalled) is chosen
-# again this many times in all.
-ARMING_ATTEMPTS = 3
+# How often a device looks whether a window it armed a stimulus on has closed, in s.
+WINDOW_WATCH_S = 0.02
+
+
+class _QuitWatch(threading.Thread):
+    """Stops the device's pins when PsychoPy quits or a window it armed on closes.
+
+    `psychopy.core.quit` calls ``stop()`` on every thread that has ``stop`` and ``running``
+    (the way it ends its own event threads) before it exits: so `core.quit()` (and Escape in
+    a Builder script, which calls it) stops the pins at once, before the interpreter's exit
+    closes the device.
+    """
+
+    running = 1  # never 0: core.quit would wait for it to become so
+
+    def __init__(self, device: PinArrayDevice) -> None:
+        super().__init__(name=f"pinarray: quit watch of {device.url}", daemon=True)
+        self._device = weakref.ref(device)
+        self._ended = threading.Event()
+
+    def stop(self) -> None:
+        """PsychoPy quits: pins to rest, torque off, now."""
+        device = self._device()
+        if device is not None:
+            device._stop("PsychoPy quitting (core.quit)")
+
+    def end(self) -> None:
+        self._ended.set()
+
+    def run(self) -> None:
+        while not self._ended.wait(WINDOW_WATCH_S):
+            device = self._device()
+            if device is None:
+                return
+            window = device._armed_window()
+            if window is not None and not any(ref() is window for ref in core.openWindows):
+                device._stop("its window closing")
 
 
 class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg]  # PsychoPy is untyped
@@ -39,7 +83,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
     Open it directly, as a context manager, or through PsychoPy's device manager
     (``DeviceManager.addDevice("pinarray", "touch", protocol=..., port=...)``), which closes
     it when the experiment ends. Closing rests the pins and switches torque off, however the
-    experiment ends.
+    experiment ends. Asking for a port already open hands back the device that holds it.
 
     Parameters
     ----------
@@ -53,24 +97,51 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         A ``sim://`` URL (faults included: ``sim://?drop=0.01&seed=3``). With neither ``port``
         nor ``sim``: the simulated array. Simulated servos play in real time here, on the
         clock real ones play on, so that their onsets and the screen's flips share one line.
+
+    Raises
+    ------
+    pinarray.PinArrayError
+        The port held by another program's array (`pinarray.PortInUse`, naming it), the same
+        port asked for with another protocol, servos missing (named), a protocol with problems.
     """
 
-    _ports_in_use: ClassVar[set[str]] = set()
+    _open: ClassVar[dict[str, PinArrayDevice]] = {}  # port or sim URL -> its device
+
+    def __new__(cls, protocol: str | PathLike[str] | pinarray.Protocol = "",
+                port: str | None = None, sim: str | None = None) -> PinArrayDevice:
+        existing = cls._open.get(_asked_for(port, sim))
+        _close_another_array_of_the_same_name(sys._getframe(1), existing)
+        if existing is not None:
+            return existing  # as PsychoPy's SerialDevice does for a port it has open
+        device: PinArrayDevice = super().__new__(cls)
+        return device
 
     def __init__(self, protocol: str | PathLike[str] | pinarray.Protocol, port: str | None = None,
                  sim: str | None = None) -> None:
+        if getattr(self, "array", None) is not None:  # handed back open by __new__
+            self._check_same_protocol(protocol)
+            return
         if not isinstance(protocol, pinarray.Protocol):
             protocol = pinarray.load_protocol(protocol)
         if port is None and sim is None:
             sim = SIMULATED
-        self._asked_for = port if port is not None else sim  # as a profile names it
+        self._asked_for = _asked_for(port, sim)  # as a profile names it
         self._clock = pinarray.MonotonicClock()
         self.array: pinarray.PinArray = pinarray.open_array(protocol, port=port, sim=sim,
                                                             clock=self._clock)
         """The open array (`pinarray.PinArray`): everything the library offers."""
+        PinArrayDevice._open[self._asked_for] = self
         if port is not None:
             self.portString = port  # where PsychoPy's device manager looks for ports in use
-            PinArrayDevice._ports_in_use.add(port)
+        self._last_touch: Touch | None = None
+        self._windows: weakref.WeakKeyDictionary[Any, None] = weakref.WeakKeyDictionary()
+        # Every stimulus compiled and encoded now: arming one on a flip then costs the frame
+        # loop only the call.
+        for condition in protocol.design.conditions:
+            self.array.prepare(condition)
+        self._watch = _QuitWatch(self)
+        self._watch.start()
+        _ready_for_quit()
         for warning in self.array.warnings:
             logging.warning(f"pinarray {self.url}: {warning}")
         logging.exp(f"pinarray {self.url}: open for protocol {protocol.name!r}, pins at rest")
@@ -85,11 +156,14 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         """The serial device of real servos, or the ``sim://`` URL of the simulated array."""
         return self.array.url
 
+    def __repr__(self) -> str:
+        return f"<PinArrayDevice {self._asked_for}: {self.array!r}>"
+
     # -- what PsychoPy's device manager asks ------------------------------------------------
 
     def isSameDevice(self, other: object) -> bool:
-        """Whether ``other`` (a device, or a profile from `getAvailableDevices`) is this array:
-        the same serial port or ``sim://`` URL."""
+        """Whether ``other`` (a device, or a profile from `getAvailableDevices`, or the keyword
+        arguments of this class) is this array: the same serial port or ``sim://`` URL."""
         if isinstance(other, PinArrayDevice):
             return other.url == self.url
         if isinstance(other, dict):
@@ -99,7 +173,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
     @staticmethod
     def getAvailableDevices() -> list[dict[str, Any]]:
         """The arrays this machine can open: each serial port on which bus servos answer a
-        PING (`pinarray.find_servo_ports`; ports open in this session are not asked), then the
+        PING (`pinarray.find_servo_ports`; ports an array holds are not asked), then the
         simulated array.
 
         Returns
@@ -111,7 +185,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         from psychopy.hardware.manager import DeviceManager
         from serial.tools.list_ports import comports
 
-        busy = PinArrayDevice._ports_in_use | {
+        busy = set(PinArrayDevice._open) | {
             getattr(device, "portString", None) for device in DeviceManager.devices.values()}
         free = [info.device for info in comports() if info.device not in busy]
         profiles: list[dict[str, Any]] = [
@@ -134,26 +208,28 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         """
         timeline = self._timeline()
         delivery = self.array.present(stimulus)
-        return Touch(stimulus, delivery.onset_ns, timeline, delivery, _clock_zero_s())
+        touch = Touch(stimulus, timeline, delivery, _clock_zero_s())
+        self._last_touch = touch
+        return touch
 
     def armOnFlip(self, stimulus: pinarray.Presentable, win: Any) -> Touch:
-        """Arm ``stimulus`` to start on the window's next flip, and return just before it.
+        """Arm ``stimulus`` to start on the window's next flip, and return at once.
 
-        The pins need the stimulus `pinarray.PinArray.lead_ns` (20 ms) ahead, more than a
-        frame: so the flip chosen is the first the window will make at least that long (and
-        half a frame) from now, as `win.getFutureFlipTime` predicts it, the stimulus is armed
-        for that time, and the call returns half a frame before it. Draw the frame that goes
-        with the touch and call ``win.flip()`` at once: it is that flip (within half a frame
-        of drawing). PsychoPy's stamp of the flip (`win.timeOnFlip`) is kept, so the touch
-        tells how far its onset lay from the flip that was actually made.
+        The stimulus is ready in the player before the flip and started by the flip itself
+        (`win.callOnFlip`, right after PsychoPy stamps it): its time zero lies a fraction of a
+        millisecond after the flip that actually happened, however late that flip was. The
+        touch keeps PsychoPy's stamp of the flip (`win.timeOnFlip`) and the pins' measured
+        onset: a touch whose onset lay further from its flip than the protocol's delivery
+        tolerance is not delivered, with the reason. Arming costs the frame loop well under a
+        millisecond (`make bench`).
 
         Parameters
         ----------
         stimulus : pinarray.PlannedTrial or pinarray.Condition (any paradigm's)
             As for `present`.
         win : psychopy.visual.Window
-            The window whose next flip starts the stimulus; its frame period must be known
-            (measured when it opened, as PsychoPy does unless ``checkTiming=False``).
+            The window whose next flip starts the stimulus. A touch whose flip is never made
+            (its `Touch.wait` comes first) is cancelled: not delivered, nothing moved.
 
         Returns
         -------
@@ -163,40 +239,26 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         Raises
         ------
         pinarray.PinArrayError
-            A stimulus the protocol does not hold, another one still playing, a closed
-            device, or a window whose frame period is unknown.
+            A stimulus the protocol does not hold, another one still playing, a closed device.
         """
-        period_s = win.monitorFramePeriod
-        if not period_s:
-            raise pinarray.PinArrayError(
-                "armOnFlip: the window's frame period is unknown (was it opened with "
-                "checkTiming=False?): set win.monitorFramePeriod to 1 / its refresh rate")
-        timeline = self._timeline()
-        ahead_s = self.array.lead_ns / NS_PER_S + period_s / 2 + COMPILE_MARGIN_S
-        for attempt in range(1, ARMING_ATTEMPTS + 1):
-            flip_ns = timeline.to_array_ns(win.getFutureFlipTime(targetTime=ahead_s, clock="ptb"))
-            try:
-                armed = self.array.arm(stimulus, at_ns=flip_ns)
-                break
-            except pinarray.PinArrayError:
-                # The host stalled between choosing the flip and arming for it (a busy
-                # machine): choose again; any other refusal is raised as it is.
-                still_reachable = flip_ns - self.array.now_ns() >= self.array.lead_ns
-                if attempt == ARMING_ATTEMPTS or still_reachable:
-                    raise
-        touch = Touch(stimulus, flip_ns, timeline, armed, _clock_zero_s())
+        armed = self.array.arm(stimulus)
+        touch = Touch(stimulus, self._timeline(), armed, _clock_zero_s())
         win.timeOnFlip(touch._flip_stamp, "flip")
-        win.callOnFlip(touch._flipped)
-        self._clock.sleep_until_ns(flip_ns - round(period_s / 2 * NS_PER_S))
+        win.callOnFlip(touch._flipped)  # after the stamp: PsychoPy calls them in this order
+        self._last_touch = touch
+        self._windows[win] = None
+        touch._window = weakref.ref(win)
         return touch
 
     # -- leaving -------------------------------------------------------------------------------
 
     def close(self) -> pinarray.SafeStopReport:
-        """Wait for a stimulus still playing, then pins to rest, torque off, port closed.
-        Safe to call more than once (PsychoPy's device manager calls it at exit)."""
+        """Cut a stimulus still playing, then pins to rest, torque off, port closed. Safe to
+        call more than once (PsychoPy's device manager calls it at exit)."""
         report = self.array.close()
-        PinArrayDevice._ports_in_use.discard(self._asked_for or "")
+        if PinArrayDevice._open.get(self._asked_for) is self:
+            del PinArrayDevice._open[self._asked_for]
+        self._watch.end()
         logging.exp(f"pinarray {self.url}: closed: {report.describe()}")
         return report
 
@@ -205,11 +267,74 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  traceback: TracebackType | None) -> None:
-        self.array.__exit__(kind, error, traceback)  # an error cuts a playing stimulus short
+        self.array.__exit__(kind, error, traceback)  # cuts a stimulus still playing
         self.close()
+
+    # -- below the face ------------------------------------------------------------------------
+
+    def _stop(self, by: str) -> None:
+        """Cut the stimulus playing, if any: pins to rest and torque off (the quit watch's)."""
+        touch = self._last_touch
+        if self.array.is_open and touch is not None and not touch.done:
+            logging.warning(f"pinarray {self.url}: {touch.stimulus} cut short by {by}")
+            touch._cut_by = by
+            try:
+                self.array.stop()
+            except pinarray.PinArrayError:
+                pass  # closed meanwhile: the close rested the pins
+
+    def _armed_window(self) -> Any:
+        """The window the touch armed or playing now was armed on (None: none is)."""
+        touch = self._last_touch
+        if touch is None or touch.done or touch._window is None:
+            return None
+        return touch._window()
+
+    def _check_same_protocol(self, protocol: str | PathLike[str] | pinarray.Protocol) -> None:
+        if isinstance(protocol, pinarray.Protocol):
+            same = protocol == self.protocol
+        else:
+            same = Path(fspath(protocol)).resolve() == Path(self.protocol.source).resolve()
+        if not same:
+            raise pinarray.PinArrayError(
+                f"{self._asked_for} is open already as a pin array for protocol "
+                f"{self.protocol.name!r} ({self.protocol.source}): remove that device first "
+                "(DeviceManager.removeDevice), or ask for it with the same protocol")
 
     def _timeline(self) -> Timeline:
         return Timeline.measure(clock.getTime, self.array.now_ns)
+
+
+def _ready_for_quit() -> None:
+    """`core.quit()` imports ioHub's client before it stops the threads it knows (the quit
+    watch among them; psychopy/core.py, `quit`): imported now, as the device opens, so that a
+    quit reaches the pins at once, not a quarter of a second later (the import's time here)."""
+    try:
+        import psychopy.iohub.client  # noqa: F401
+    except ImportError:
+        pass  # no ioHub in this PsychoPy: core.quit will not import it either
+
+
+def _asked_for(port: str | None, sim: str | None) -> str:
+    return port if port is not None else sim if sim is not None else SIMULATED
+
+
+def _close_another_array_of_the_same_name(caller: Any, kept: PinArrayDevice | None) -> None:
+    """When `DeviceManager.addDevice` asks for a device under a name another pin array has
+    (not ``kept``, the one handed back), close that array first: the manager stores the new
+    device over it without closing it (psychopy/hardware/manager.py, `addDevice`), which would
+    leave its pins torqued and its port held. The name is the manager's own argument, read
+    from its frame."""
+    from psychopy.hardware.manager import DeviceManager
+
+    if (caller.f_code.co_name != "addDevice"
+            or caller.f_globals.get("__name__") != "psychopy.hardware.manager"):
+        return
+    name = caller.f_locals.get("deviceName")
+    named = DeviceManager.devices.get(name)
+    if isinstance(named, PinArrayDevice) and named is not kept:
+        logging.exp(f"pinarray: a new device named {name!r}: closing the pin array of that name")
+        DeviceManager.removeDevice(name)
 
 
 def _clock_zero_s() -> float:

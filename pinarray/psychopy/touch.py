@@ -1,9 +1,16 @@
-"""One stimulus on the pin array as a PsychoPy trial sees it: the flip it was armed on, what
-was delivered, and the columns that go into the experiment's data and log."""
+"""One stimulus on the pin array as a PsychoPy trial sees it: the flip it started on, what was
+delivered, and the columns that go into the experiment's data and log.
+
+A touch armed on a flip is checked against that flip: PsychoPy's stamp of the flip that
+actually happened beside the pins' measured onset. One whose onset lay further from its flip
+than the protocol's delivery tolerance was not delivered as scheduled, in the data and the
+log, with the reason; as is one whose flip was never made (it was cancelled, nothing moved).
+"""
 
 from __future__ import annotations
 
-from typing import Protocol
+import weakref
+from typing import Any, Protocol
 
 from psychopy import logging
 
@@ -29,15 +36,17 @@ class Touch:
     log are stamped on), in seconds; the array's own are kept in ns.
     """
 
-    def __init__(self, stimulus: pinarray.Presentable, onset_ns: int, timeline: Timeline,
+    def __init__(self, stimulus: pinarray.Presentable, timeline: Timeline,
                  result: pinarray.Armed | pinarray.Delivery, clock_zero_s: float) -> None:
         self._stimulus = stimulus
-        self._onset_ns = onset_ns
         self._timeline = timeline
         self._result = result
         self._clock_zero_s = clock_zero_s  # defaultClock's time base at its last reset
         self._flip_ns: int | None = None
         self._flip_stamp: dict[str, float] = {}
+        self._window: weakref.ref[Any] | None = None  # the window armed on
+        self._never_flipped = False
+        self._cut_by = ""  # what the device cut it for (PsychoPy quitting, its window closing)
 
     @property
     def stimulus(self) -> str:
@@ -47,10 +56,18 @@ class Touch:
         return condition.stimulus
 
     @property
-    def onsetTime(self) -> float:
-        """The stimulus's time zero on PsychoPy's clock, in s: the flip it was armed on, as
-        predicted when it was armed."""
-        return self._timeline.to_psychopy_s(self._onset_ns) - self._clock_zero_s
+    def armed_on_flip(self) -> bool:
+        """Whether it was armed on a flip (`PinArrayDevice.armOnFlip`), not presented at once."""
+        return isinstance(self._result, pinarray.Armed)
+
+    @property
+    def onsetTime(self) -> float | None:
+        """The stimulus's time zero on PsychoPy's clock, in s, as the pins played it; None
+        until it has started (or for one that never did)."""
+        delivery = self._delivery_if_ended()
+        if delivery is None or isinstance(delivery.ending, pinarray.NotStarted):
+            return None
+        return self._timeline.to_psychopy_s(delivery.onset_ns) - self._clock_zero_s
 
     @property
     def flipTime(self) -> float | None:
@@ -62,38 +79,79 @@ class Touch:
 
     @property
     def onsetFromFlip(self) -> float | None:
-        """The tactile onset relative to the flip it was armed on, in s (positive: the pins
-        started after the screen changed); None until that flip."""
-        if self._flip_ns is None:
+        """The pins' measured onset (their time zero as played) relative to PsychoPy's stamp
+        of the flip it was armed on, in s (positive: the pins started after the screen
+        changed); None until both are known."""
+        delivery = self._delivery_if_ended()
+        if (self._flip_ns is None or delivery is None
+                or isinstance(delivery.ending, pinarray.NotStarted)):
             return None
-        return (self._onset_ns - self._flip_ns) / NS_PER_S
+        return (delivery.onset_ns - self._flip_ns) / NS_PER_S
 
     @property
     def done(self) -> bool:
-        """Whether the stimulus has played (or failed: `wait` then raises)."""
+        """Whether the stimulus has ended (played, cut, never started, or failed: `wait`
+        then raises)."""
         return not isinstance(self._result, pinarray.Armed) or self._result.done
 
     def wait(self, timeout: float | None = None) -> pinarray.Delivery:
-        """Wait until the stimulus has played; what it delivered.
+        """Wait until the stimulus has ended; what the array delivered (`delivered` and
+        `problem` add the check against the flip).
+
+        A touch armed on a flip that was not made before this call is cancelled (the flip can
+        no longer come while the script waits here): not delivered, nothing moved.
 
         Parameters
         ----------
         timeout : float or None
-            Wait at most this long, in s (None: until it has played).
+            Wait at most this long, in s (None: until it has ended).
 
         Raises
         ------
         pinarray.PinArrayError
-            What stopped it (the bus failed, the device closed first), or a wait that timed out.
+            What stopped it (the bus failed mid-stimulus: `pinarray.PlaybackAborted`), or a
+            wait that timed out.
         """
         result = self._result
-        return result.result(timeout) if isinstance(result, pinarray.Armed) else result
+        if not isinstance(result, pinarray.Armed):
+            return result
+        if self._flip_ns is None and not result.done:
+            self._never_flipped = True
+            result.cancel()
+        return result.result(timeout)
+
+    @property
+    def delivered(self) -> bool:
+        """Delivered as scheduled: the array delivered it (`pinarray.Delivery.delivered`) and,
+        armed on a flip, its onset lay within the protocol's delivery tolerance of that flip.
+        Waits until the stimulus has ended."""
+        return not self.problem
+
+    @property
+    def problem(self) -> str:
+        """Empty when delivered; otherwise what went wrong first, in words. Waits until the
+        stimulus has ended."""
+        delivery = self.wait()
+        if not self.armed_on_flip:
+            return delivery.problem
+        if self._never_flipped:
+            return ("its flip was never made (call win.flip() after armOnFlip): cancelled, "
+                    "nothing moved")
+        if self._cut_by and isinstance(delivery.ending, pinarray.Cut):
+            return f"cut short by {self._cut_by}"
+        from_flip = self.onsetFromFlip
+        tolerance_ns = delivery.record.tolerance_ns
+        if from_flip is not None and abs(from_flip) * NS_PER_S > tolerance_ns:
+            return (f"missed its flip: the pins started {abs(from_flip) * 1e3:.1f} ms "
+                    f"{'after' if from_flip > 0 else 'before'} the screen changed, beyond the "
+                    f"delivery tolerance of {tolerance_ns / NS_PER_MS:g} ms")
+        return delivery.problem
 
     def columns(self, name: str = "touch") -> dict[str, object]:
         """The touch as data columns, ``name.`` before each: the stimulus, the flip and the
-        onset on PsychoPy's clock (s), the onset from the flip (ms), the delivery record, and
-        each moving pin's measured stroke (``name.pin6.achieved_steps``, ...). Waits until
-        the stimulus has played."""
+        onset on PsychoPy's clock (s), the onset from the flip (ms), the verdict and its
+        reason, how it ended, the delivery record, and each moving pin's measured stroke
+        (``name.pin6.achieved_steps``, ...). Waits until the stimulus has ended."""
         delivery = self.wait()
         record = delivery.record
         from_flip = self.onsetFromFlip
@@ -103,8 +161,9 @@ class Touch:
             "onset_t": self.onsetTime,
             "onset_from_flip_ms": None if from_flip is None else from_flip * 1e3,
             "onset_write_late_ms": delivery.onset_write_late_ns / NS_PER_MS,
-            "delivered": delivery.delivered,
-            "problem": delivery.problem,
+            "delivered": self.delivered,
+            "problem": self.problem,
+            "ending": _ending(delivery.ending, self._cut_by),
             "goal_changes": record.scheduled,
             "confirmed": record.confirmed,
             "healed": record.healed,
@@ -122,33 +181,59 @@ class Touch:
         return {f"{name}.{key}": value for key, value in values.items()}
 
     def addData(self, experiment: DataSink, name: str = "touch") -> pinarray.Delivery:
-        """Wait until the stimulus has played, then add its `columns` to ``experiment`` (an
-        `ExperimentHandler`: the current trial's row) and a line to PsychoPy's log.
+        """Wait until the stimulus has ended, then add its `columns` to ``experiment`` (an
+        `ExperimentHandler`: the current trial's row) and a line to PsychoPy's log (a warning
+        too when it was not delivered as scheduled).
 
         Returns
         -------
         pinarray.Delivery
-            What it delivered.
+            What the array delivered.
         """
         delivery = self.wait()
         for column, value in self.columns(name).items():
             experiment.addData(column, value)
         logging.data(self.describe(name))
-        if not delivery.delivered:
+        if not self.delivered:
             logging.warning(f"{name}: {self.stimulus} not delivered as scheduled: "
-                            f"{delivery.problem}")
+                            f"{self.problem}")
         return delivery
 
     def describe(self, name: str = "touch") -> str:
         """One line for the log: the stimulus, its onset from the flip, what was delivered."""
         delivery = self.wait()
         from_flip = self.onsetFromFlip
-        when = ("presented at once" if from_flip is None
+        when = ("presented at once" if not self.armed_on_flip
+                else "never started" if from_flip is None
                 else f"onset {from_flip * 1e3:+.2f} ms from its flip")
-        return f"{name}: {self.stimulus}, {when}; {delivery.record.summary()}"
+        problem = self.problem  # the record's summary says its own
+        verdict = (f": NOT DELIVERED AS SCHEDULED: {problem}"
+                   if problem and problem != delivery.problem else "")
+        return f"{name}: {self.stimulus}, {when}; {delivery.record.summary()}{verdict}"
+
+    def _delivery_if_ended(self) -> pinarray.Delivery | None:
+        result = self._result
+        if not isinstance(result, pinarray.Armed):
+            return result
+        return result.result() if result.done else None
 
     def _flipped(self) -> None:
         """Called by the window right after the flip it was armed on (`win.callOnFlip`),
-        after PsychoPy stamped that flip into ``_flip_stamp`` (`win.timeOnFlip`)."""
+        after PsychoPy stamped that flip into ``_flip_stamp`` (`win.timeOnFlip`): the pins
+        start now."""
+        result = self._result
+        if isinstance(result, pinarray.Armed) and not result.done:
+            try:
+                result.start()
+            except pinarray.PinArrayError:
+                pass  # cancelled or stopped meanwhile (a quit): its result says so
         self._flip_ns = self._timeline.to_array_ns(self._flip_stamp["flip"] + self._clock_zero_s)
 
+
+def _ending(ending: pinarray.Ending, cut_by: str) -> str:
+    match ending:
+        case pinarray.Cut(at_ns=_, by=by):
+            return f"cut by {cut_by or by}"
+        case pinarray.NotStarted():
+            return "not started"
+    return "played"

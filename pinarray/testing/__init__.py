@@ -15,6 +15,11 @@ a fraction of a second), with faults as ``sim://`` URLs say (``drop=0.1``, ``spe
         assert_every_goal_confirmed(delivery)
         assert_pin_moved(delivery, pin=6, steps=65)
 
+The same array can be opened the way real servos are: ``simulated_array(protocol,
+over_serial=True)`` serves the simulated bus on a pseudo-terminal and opens the array on that
+serial port, in real time, its stimuli played by a player process of their own, as on a lab's
+``/dev/ttyUSB0``: a test then covers the whole path to the pins.
+
 Outside pytest, `ArrayOpener` works as a context manager. Loading this module (as pytest does
 at start-up) imports nothing heavy: the array is imported when one is opened.
 """
@@ -23,11 +28,13 @@ from __future__ import annotations
 
 from os import PathLike
 from types import TracebackType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 if TYPE_CHECKING:
-    from pinarray.api.array import Clock, Delivery, PinArray
+    from pinarray.api.array import Clock, PinArray
+    from pinarray.api.delivery import Delivery
     from pinarray.api.protocols import Protocol
+    from pinarray.hardware.feetech.serve import PtyServer
 
 __all__ = ["ArrayOpener", "assert_delivered", "assert_every_goal_confirmed", "assert_left_safe",
            "assert_not_delivered", "assert_pin_moved"]
@@ -46,9 +53,10 @@ class ArrayOpener:
 
     def __init__(self) -> None:
         self._opened: list[PinArray] = []
+        self._servers: list[PtyServer] = []
 
     def __call__(self, protocol: Protocol | str | PathLike[str], url: str | None = None, *,
-                 clock: Clock | None = None) -> PinArray:
+                 clock: Clock | None = None, over_serial: bool = False) -> PinArray:
         """Open ``protocol``'s array on simulated servos, pins at rest.
 
         Parameters
@@ -61,27 +69,59 @@ class ArrayOpener:
             the adapter pulled out after 400 packets; ``sim://pca9685?nack_at=20`` for a PWM
             board). None: the protocol's simulated array without faults.
         clock : Clock or None
-            None: virtual time.
+            None: virtual time (over a serial port: real time, the only time a port has).
+        over_serial : bool
+            Serve the simulated bus (faults included) on a pseudo-terminal and open the array
+            on that serial port, as real servos are opened: in real time, played by a player
+            process, the port held. Bus servos only (a PWM board is not on a serial port).
 
         Returns
         -------
         PinArray
             Closed (pins to rest, torque off) when the opener closes.
+
+        Raises
+        ------
+        PinArrayError
+            A protocol that cannot be read, a URL that cannot, a clock given over a serial port.
         """
         from pinarray.api.array import VirtualClock, open_array
         from pinarray.api.protocols import load_protocol
+        from pinarray.errors import PinArrayError
 
         if isinstance(protocol, str | PathLike):
             protocol = load_protocol(protocol)
-        url = url if url is not None else None
-        array = open_array(protocol, sim=url, clock=clock if clock is not None else VirtualClock())
+        if not over_serial:
+            array = open_array(protocol, sim=url,
+                               clock=clock if clock is not None else VirtualClock())
+        elif clock is not None:
+            raise PinArrayError("simulated_array: over_serial: a serial port plays in real time: "
+                                "give no clock")
+        else:
+            array = open_array(protocol, port=self._serve(protocol, url))
         self._opened.append(array)
         return array
 
+    def _serve(self, protocol: Protocol, url: str | None) -> str:
+        """The simulated bus behind a pseudo-terminal: its path."""
+        from pinarray.hardware.feetech.faults import parse_sim_url
+        from pinarray.hardware.feetech.serve import PtyServer
+        from pinarray.player.families import bus_setup, sim_url_for
+
+        config = parse_sim_url(sim_url_for(url, bus_setup(protocol.device).servo_ids))
+        server = PtyServer(config).start()
+        self._servers.append(server)
+        return server.path
+
     def close(self) -> None:
-        """Close every array opened, last first (each rests its pins, however the test went)."""
-        while self._opened:
-            self._opened.pop().close()
+        """Close every array opened, last first (each rests its pins, however the test went),
+        then the simulated buses served for them."""
+        try:
+            while self._opened:
+                self._opened.pop().close()
+        finally:
+            while self._servers:
+                self._servers.pop().stop()
 
     def __enter__(self) -> ArrayOpener:
         return self
@@ -94,6 +134,7 @@ class ArrayOpener:
 def assert_delivered(delivery: Delivery) -> None:
     """The stimulus was delivered as scheduled and specified (else: what went wrong)."""
     __tracebackhide__ = True  # pytest shows the test's line, not this one
+    _check_delivery("assert_delivered", delivery)
     if not delivery.delivered:
         raise AssertionError(f"expected the stimulus delivered as scheduled, found "
                              f"{delivery.record.summary()}")
@@ -102,6 +143,7 @@ def assert_delivered(delivery: Delivery) -> None:
 def assert_every_goal_confirmed(delivery: Delivery) -> None:
     """Every goal change of the stimulus was confirmed on its servo (as sent, or healed)."""
     __tracebackhide__ = True
+    _check_delivery("assert_every_goal_confirmed", delivery)
     record = delivery.record
     if record.missing or record.confirmed + record.healed != record.scheduled:
         raise AssertionError(f"expected all {record.scheduled} goal changes confirmed, found "
@@ -111,6 +153,7 @@ def assert_every_goal_confirmed(delivery: Delivery) -> None:
 def assert_not_delivered(delivery: Delivery, because: str = "") -> None:
     """The stimulus was not delivered as scheduled, for a reason whose words hold ``because``."""
     __tracebackhide__ = True
+    _check_delivery("assert_not_delivered", delivery)
     if delivery.delivered:
         raise AssertionError(f"expected the stimulus not delivered, found "
                              f"{delivery.record.summary()}")
@@ -124,6 +167,10 @@ def assert_pin_moved(delivery: Delivery, pin: int, steps: int, *,
     """``pin`` made a stroke of ``steps`` (its smallest cycle's, as measured), within
     ``tolerance_steps``."""
     __tracebackhide__ = True
+    _check_delivery("assert_pin_moved", delivery)
+    if isinstance(pin, bool) or not isinstance(pin, int) or isinstance(steps, bool) \
+            or not isinstance(steps, int):
+        _refuse("assert_pin_moved", "pin and steps", "whole numbers (int)", (pin, steps))
     measured = [s for s in delivery.strokes if s.pin == pin]
     if not measured or measured[0].achieved_steps is None:
         moved = ", ".join(str(s.pin) for s in delivery.strokes if s.measured) or "none"
@@ -142,7 +189,24 @@ def assert_left_safe(array: PinArray) -> None:
     """Closing ``array`` (or its having been closed) left every servo confirmed at rest and
     released (torque off)."""
     __tracebackhide__ = True
+    from pinarray.api.array import PinArray
+
+    if not isinstance(array, PinArray):
+        _refuse("assert_left_safe", "array", "a PinArray", array)
     report = array.close()
     if not report.complete or sorted(report.at_rest_ids) != sorted(report.released_ids):
         raise AssertionError(f"expected every servo at rest and released, found "
                              f"{report.describe()}")
+
+
+def _check_delivery(call: str, value: object) -> None:
+    from pinarray.api.delivery import Delivery
+
+    if not isinstance(value, Delivery):
+        _refuse(call, "delivery", "a Delivery (what PinArray.present gave)", value)
+
+
+def _refuse(call: str, name: str, expected: str, value: object) -> NoReturn:
+    from pinarray.api.arguments import refuse
+
+    refuse(call, name, expected, value)

@@ -93,13 +93,18 @@ def test_at_heavy_packet_loss_a_trial_is_as_scheduled_or_reported_not_delivered(
 
 
 def test_at_ten_percent_loss_healing_leaves_no_change_missing():
-    delivered = 0
+    healed_in_time = 0
     for seed in range(20):
         bus = sim_bus(f"drop=0.1&seed={seed}")
         report = play_trial(bus, pulse_train([10], 10, 20), bus.clock)
-        assert report.delivery.missing == 0 or not report.delivery.delivered
-        delivered += report.delivery.delivered
-    assert delivered >= 15  # most trials heal within the 10 ms tolerance
+        d = report.delivery
+        assert d.missing == 0 or not d.delivered
+        healed_in_time += d.missing == 0 and d.worst_lateness_ns <= d.tolerance_ns
+        # Where lost samples and heals crowd round one frame a cycle goes unmeasured: the
+        # trial then says so and is not delivered, whatever its goal changes did.
+        assert d.delivered or d.missing or d.worst_lateness_ns > d.tolerance_ns or (
+            "not measured" in d.problem)
+    assert healed_in_time >= 15  # most trials heal within the 10 ms tolerance
 
 
 def test_a_change_superseded_before_it_could_be_read_back_counts_as_missing():

@@ -16,6 +16,8 @@ from pinarray.hardware.feetech.link import Expected, Latency, Link, WireLost
 from pinarray.hardware.feetech.registers import Register
 from pinarray.hardware.feetech.sim import status_packet
 
+from .lab import sim_bus
+
 MS = 1_000_000
 
 
@@ -225,3 +227,16 @@ def test_a_silent_servo_costs_the_whole_growing_wait_and_is_named():
         bus.read(7, Register.PRESENT_POSITION)
     waited_ns = clock.now_ns() - start_ns
     assert (1 + 4 + 16 + 64) * 2 * MS <= waited_ns < (1 + 4 + 16 + 64) * 2 * MS + 20 * MS
+
+
+@pytest.mark.parametrize("baud", [115_200, 38_400])
+def test_a_read_back_written_behind_a_frame_still_on_the_wire_waits_for_it(baud):
+    # 16 goals take 4.9 ms on the wire at 115 200 baud (14.6 ms at 38 400): the request goes
+    # out behind them, and so do the answers; counted from its own write, the last answer
+    # would be given up for lost.
+    bus = sim_bus(f"baud={baud}")
+    ids = tuple(range(1, 17))
+    bus.write_goals({i: 2100 for i in ids})
+    readings = bus.read_goals((13, 14, 15, 16), bus.clock.now_ns() + 200 * MS)
+    assert {i: r.goal_steps for i, r in readings.items()} == {13: 2100, 14: 2100, 15: 2100,
+                                                             16: 2100}

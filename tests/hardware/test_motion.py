@@ -65,11 +65,43 @@ def test_the_smallest_cycle_is_the_achieved_stroke_and_the_median_stands_beside_
     assert (stroke.achieved_steps, stroke.median_steps, stroke.short_cycles) == (60, 114, 1)
 
 
-def test_too_few_samples_to_judge_a_cycle_is_not_measured_rather_than_short():
+def test_too_few_samples_to_judge_a_cycle_is_not_measured_never_short_and_never_passed():
     goals = train_goals(10, 5)
     sparse = horn(goals, 114, 0, 30 * MS, 500 * MS)  # 3 or 4 samples a 100 ms cycle
     stroke = measure_pin(sparse, goals, 500 * MS)
     assert not stroke.measured and stroke.achieved_steps is None and stroke.cycles == 0
+    assert (stroke.short_cycles, stroke.unmeasured_cycles) == (0, 5)
+    problem = TrialStrokes((stroke,), Fraction(8, 10)).problem()
+    assert problem.startswith("pin 6's stroke not measured in 5 of 5 cycles: too few position "
+                              "samples to judge (a cycle needs 6, none more than 1/8 of it apart)")
+    assert "moved" not in problem
+
+
+def test_one_cycle_unmeasured_among_judged_ones_still_leaves_the_stroke_unknown():
+    goals = train_goals(10, 5)
+    full = horn(goals, 114, 0, MS, 500 * MS)
+    gap = (full.time_ns > 120 * MS) & (full.time_ns < 135 * MS)  # 15 ms without a sample
+    stroke = measure_pin(PinTrace(6, 6, full.time_ns[~gap], full.position_steps[~gap]), goals,
+                         500 * MS)
+    assert (stroke.achieved_steps, stroke.cycles, stroke.unmeasured_cycles) == (114, 4, 1)
+    assert stroke.measured  # a stroke is known from the cycles judged ...
+    strokes = TrialStrokes((stroke,), Fraction(8, 10))
+    assert strokes.unmeasured == (stroke,)  # ... but not the smallest over all of them
+    assert "pin 6's stroke not measured in 1 of 5 cycles" in strokes.problem()
+
+
+def test_a_pin_that_fell_short_is_named_before_one_that_was_not_measured():
+    goals = train_goals(10, 5)
+    short = measure_pin(horn(goals, 75, 0, MS, 500 * MS), goals, 500 * MS)
+    unmeasured = measure_pin(horn(goals, 114, 0, 30 * MS, 500 * MS), goals, 500 * MS)
+    problem = TrialStrokes((unmeasured, short), Fraction(8, 10)).problem()
+    assert problem.startswith("pin 6 moved 75 of 114 commanded steps")
+
+
+def test_a_pin_commanded_no_stroke_has_nothing_to_measure():
+    goals = [(0, UP)]  # one goal, held: no cycle, no stroke
+    stroke = measure_pin(horn(train_goals(10, 1), 114, 0, 30 * MS, 100 * MS), goals, 100 * MS)
+    assert (stroke.commanded_steps, stroke.cycles, stroke.unmeasured_cycles) == (0, 0, 0)
     assert TrialStrokes((stroke,), Fraction(8, 10)).problem() == ""
 
 
@@ -93,3 +125,12 @@ def test_the_achieved_stroke_is_what_the_horn_reached_within_a_step(reach, lag_m
     stroke = measure_pin(horn(goals, reach, lag_ms * MS, MS, end_ns), goals, end_ns)
     assert stroke.achieved_steps is not None and abs(stroke.achieved_steps - reach) <= 1
     assert stroke.median_steps is not None and stroke.achieved_steps <= stroke.median_steps
+
+
+def test_a_stroke_tolerance_of_0_checks_no_stroke_so_no_cycle_unmeasured_matters():
+    goals = train_goals(10, 5)
+    unmeasured = measure_pin(horn(goals, 114, 0, 30 * MS, 500 * MS), goals, 500 * MS,
+                             tolerance=Fraction(0))
+    assert unmeasured.unmeasured_cycles == 5
+    assert TrialStrokes((unmeasured,), Fraction(0)).problem() == ""
+    assert TrialStrokes((unmeasured,), Fraction(1, 100)).problem() != ""

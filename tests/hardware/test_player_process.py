@@ -6,6 +6,7 @@ import subprocess
 import sys
 import threading
 import time
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -14,8 +15,8 @@ from pinarray.clock import MonotonicClock
 from pinarray.hardware.feetech.faults import SimConfig
 from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.hardware.feetech.transport import open_bus
-from pinarray.player.playback import prepare_trial
-from pinarray.player.process import PlayerDied, PlayerProcess
+from pinarray.player.playback import OnsetAt, OnsetPassed, prepare_trial
+from pinarray.player.process import PlayerDied, PlayerProcess, StartCue
 from pinarray.stop import Stopped, StopRequest
 
 from .lab import REST_STEPS, device_setup, pulse_train
@@ -61,14 +62,38 @@ def connected(server, ids=IDS):
 def test_a_trial_played_in_the_player_process_is_verified_and_ends_at_rest(server):
     bus, player = connected(server)
     try:
-        # A tolerance no scheduler hiccup reaches: this test is about verification, not
-        # timing (timing is measured by `make bench`).
-        report = player.play(prepare_trial(bus, pulse_train(IDS, 10, 3)), tolerance_ns=10**9)
+        # A tolerance no scheduler hiccup reaches, and no stroke checked (a starved simulator
+        # samples too seldom to judge a cycle): this test is about verification, not timing
+        # (timing is measured by `make bench`).
+        report = player.play(prepare_trial(bus, pulse_train(IDS, 10, 3)), tolerance_ns=10**9,
+                             stroke_tolerance=Fraction(0))
     finally:
         player.close()
     assert report.frames_sent == 6
     assert report.delivery.scheduled == 24 and report.delivery.delivered
     assert report.delivery.confirmed + report.delivery.healed == 24
+    bus.rest_and_release()
+    bus.close()
+    wait_until_safe(server, IDS)
+
+
+def test_a_trial_held_ready_in_the_player_process_starts_on_its_cue_never_before(server):
+    bus, player = connected(server)
+    try:
+        cue = StartCue()
+        asked_ns = time.monotonic_ns()
+        threading.Timer(0.3, cue.give).start()
+        report = player.play(prepare_trial(bus, pulse_train(IDS, 10, 1)), onset=cue,
+                             tolerance_ns=10**9)
+        assert report.onset_ns >= asked_ns + 300_000_000  # its time zero: when the cue came
+        assert report.delivery.missing == 0
+        # An onset already passed is refused before anything is sent, saying by how much.
+        with pytest.raises(OnsetPassed) as passed:
+            player.play(prepare_trial(bus, pulse_train(IDS, 10, 1)),
+                        onset=OnsetAt(time.monotonic_ns() - 10**7), tolerance_ns=10**9)
+        assert passed.value.late_ns >= 10**7 and player.alive
+    finally:
+        player.close()
     bus.rest_and_release()
     bus.close()
     wait_until_safe(server, IDS)

@@ -1,8 +1,13 @@
 """Which samples the measured motion needs: every period while a pin moves, only as often as
 the cycle rule asks while every moving pin holds its goal, and one just before each change."""
 
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from pinarray.hardware.delivery import Change
-from pinarray.hardware.sampling import Holds
+from pinarray.hardware.motion import PinTrace, measure_pin
+from pinarray.hardware.sampling import Holds, PinGoals
 
 MS = 1_000_000
 PERIOD_NS = 4 * MS
@@ -69,3 +74,48 @@ def test_before_its_first_cycle_begins_a_pin_is_sampled_every_period():
     holds = Holds(changes, (4,), 800 * MS, PERIOD_NS)
     holding(holds, 4, 100, 104, steps=REST)  # no goal in force yet: nothing held
     assert holds.next_sample_ns(104 * MS, SAMPLE_NS, AFTER_NS) == 108 * MS
+
+
+def test_a_gap_across_a_change_is_judged_by_each_cycle_it_falls_in():
+    # Cycles of 400 ms from 0 (the last runs to 1200 ms): at most 50 ms without a sample.
+    goals = PinGoals.of(square_train(4, 3, 200 * MS))
+    assert goals.gap_fits(150 * MS, 200 * MS, 1200 * MS)  # a down change inside a cycle
+    assert not goals.gap_fits(150 * MS, 201 * MS, 1200 * MS)
+    # across the up change at 400 ms: 40 ms before it, 40 ms after, each within its cycle
+    assert goals.gap_fits(360 * MS, 440 * MS, 1200 * MS)
+    assert not goals.gap_fits(340 * MS, 440 * MS, 1200 * MS)
+    # after the trial's end nothing is judged
+    assert goals.gap_fits(1160 * MS, 1500 * MS, 1200 * MS)
+
+
+def test_before_its_first_cycle_a_pin_leaves_any_gap_free():
+    goals = PinGoals.of([Change(4, 4, UP, 300 * MS), Change(4, 4, REST, 500 * MS)])
+    assert goals.gap_fits(0, 300 * MS, 800 * MS)
+    # its one cycle runs from 300 ms to the trial's end at 800: 62.5 ms without a sample
+    assert goals.gap_fits(0, 362 * MS, 800 * MS) and not goals.gap_fits(0, 363 * MS, 800 * MS)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 1300), st.integers(1, 700))
+def test_the_gap_the_sampler_keeps_is_the_one_motion_judges_a_cycle_by(from_ms, length_ms):
+    """Samples every ms but none strictly between ``from`` and ``to``: every cycle is judged
+    exactly when `PinGoals.gap_fits` says that gap keeps the rule."""
+    start_ms, end_ms = 100, 1300
+    changes = [Change(4, 4, c.goal_steps, c.time_ns + start_ms * MS)
+               for c in square_train(4, 3, 200 * MS)]
+    to_ms = from_ms + length_ms
+    times = np.array([t for t in range(end_ms) if not from_ms < t < to_ms], dtype=np.int64) * MS
+    trace = PinTrace(4, 4, times, np.full(len(times), UP, dtype=np.int32))
+    stroke = measure_pin(trace, [(c.time_ns, c.goal_steps) for c in changes], end_ms * MS)
+    fits = PinGoals.of(changes).gap_fits(from_ms * MS, to_ms * MS, end_ms * MS)
+    assert (stroke.unmeasured_cycles == 0) == fits
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 1300), st.integers(0, 700))
+def test_the_latest_next_sample_is_where_the_gap_rule_stops_holding(from_ms, length_ms):
+    changes = [Change(4, 4, c.goal_steps, c.time_ns + 100 * MS)
+               for c in square_train(4, 3, 200 * MS)]
+    goals = PinGoals.of(changes)
+    from_ns, to_ns, end_ns = from_ms * MS, (from_ms + length_ms) * MS, 1300 * MS
+    assert goals.gap_fits(from_ns, to_ns, end_ns) == (to_ns <= goals.reach_ns(from_ns, end_ns))

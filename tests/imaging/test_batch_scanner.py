@@ -32,9 +32,10 @@ VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
 NS = 1_000_000_000
 
 # These runs are about triggers, volumes and markers, not timing (`make bench` measures that):
-# a delivery tolerance no host hiccup on a busy machine reaches keeps a trial from being
-# presented again.
-RELAXED = "device:\n  delivery_tolerance_ms: 5000\n"
+# a delivery tolerance no host hiccup on a busy machine reaches, and no stroke checked (a
+# simulator starved of the processor on the wall clock samples too seldom to judge a cycle,
+# which no real servo makes it do), keep a trial from being presented again.
+RELAXED = "device:\n  delivery_tolerance_ms: 5000\n  stroke_tolerance_percent: 0\n"
 
 SHORT = RELAXED + """\
 protocol: short

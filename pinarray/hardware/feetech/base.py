@@ -80,6 +80,15 @@ class ReadBackBus(Protocol):
         """What `read_positions` of these servos should take on this bus."""
         ...
 
+    def read_goals_and_positions(self, servo_ids: tuple[int, ...],
+                                 deadline_ns: int) -> dict[int, tuple[GoalReading, int]]:
+        """Goal registers and Present Positions in one exchange (a servo missing: no reply)."""
+        ...
+
+    def read_goals_and_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_goals_and_positions` of these servos should take on this bus."""
+        ...
+
     def read_request_bytes(self, servo_ids: tuple[int, ...]) -> int:
         """The size of the request that reads these servos' registers."""
         ...

@@ -56,6 +56,10 @@ if TYPE_CHECKING:
 # Present position .. present temperature, read in one instruction.
 TELEMETRY_START = Register.PRESENT_POSITION
 TELEMETRY_LENGTH = Register.PRESENT_TEMPERATURE.address + 1 - TELEMETRY_START.address
+# A read-back that samples too: Goal Position (42) through Present Position (56), in one read.
+GOAL_TO_POSITION_BYTES = (Register.PRESENT_POSITION.address + Register.PRESENT_POSITION.size
+                          - Register.GOAL_POSITION.address)
+POSITION_OFFSET = Register.PRESENT_POSITION.address - Register.GOAL_POSITION.address
 # Sync reads that get no answer at all, in a row, before read-backs use READs instead.
 SYNC_READ_TRIES = 3
 # Read requests kept made (a trial asks the same few again and again; a bring-up, many once).
@@ -110,7 +114,7 @@ class FeetechBus:
         self.sim: SimBus | None = None  # behind a simulated port; for tests and benchmarks
         self._last_goals: dict[int, int] = {}
         self._sync_read_works = True
-        self._read_requests: dict[tuple[Register, tuple[int, ...], bool],
+        self._read_requests: dict[tuple[Register, int, tuple[int, ...], bool],
                                   tuple[bytes, tuple[Expected, ...]]] = {}
         self._sync_reads_unanswered = 0
         self._sync_writes = 0
@@ -367,14 +371,15 @@ class FeetechBus:
         costs only that servo's reading). One attempt: the player decides when to try again.
         A bus whose servos never answer a SYNC READ (some emulators) falls back to READs.
         """
-        replies = self._read_words(Register.GOAL_POSITION, servo_ids, deadline_ns,
-                                   "reading back")
+        replies = self._read_words(Register.GOAL_POSITION, Register.GOAL_POSITION.size,
+                                   servo_ids, deadline_ns, "reading back")
         return {i: GoalReading(decode_position(from_bytes(r.params)), StatusError(r.error))
                 for i, r in replies.items()}
 
     def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
         """What `read_goals` of these servos should take (to fit it between two frames)."""
-        return self._read_words_time_ns(Register.GOAL_POSITION, servo_ids)
+        return self._read_words_time_ns(Register.GOAL_POSITION, Register.GOAL_POSITION.size,
+                                        servo_ids)
 
     def read_positions(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, int]:
         """Where the horns are (Present Position, in steps), as `read_goals` reads goals.
@@ -382,13 +387,34 @@ class FeetechBus:
         Each servo samples its encoder when the request reaches it; a servo missing: no reply
         by ``deadline_ns``. The replies' error bits are left to the read-backs and telemetry.
         """
-        replies = self._read_words(Register.PRESENT_POSITION, servo_ids, deadline_ns,
-                                   "sampling")
+        replies = self._read_words(Register.PRESENT_POSITION, Register.PRESENT_POSITION.size,
+                                   servo_ids, deadline_ns, "sampling")
         return {i: decode_position(from_bytes(r.params)) for i, r in replies.items()}
 
     def read_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
         """What `read_positions` of these servos should take on this bus."""
-        return self._read_words_time_ns(Register.PRESENT_POSITION, servo_ids)
+        return self._read_words_time_ns(Register.PRESENT_POSITION,
+                                        Register.PRESENT_POSITION.size, servo_ids)
+
+    def read_goals_and_positions(self, servo_ids: tuple[int, ...],
+                                 deadline_ns: int) -> dict[int, tuple[GoalReading, int]]:
+        """Goal and Present Position together, as `read_goals` reads goals: one exchange of
+        the registers from GOAL_POSITION (42) to PRESENT_POSITION (56), 16 bytes a servo.
+
+        A read-back that samples the horns too, where two exchanges would not fit: each servo
+        reads both as the request reaches it. A servo missing: no reply by ``deadline_ns``.
+        """
+        replies = self._read_words(Register.GOAL_POSITION, GOAL_TO_POSITION_BYTES, servo_ids,
+                                   deadline_ns, "reading back and sampling")
+        goal, present = slice(0, 2), slice(POSITION_OFFSET, POSITION_OFFSET + 2)
+        return {i: (GoalReading(decode_position(from_bytes(r.params[goal])), StatusError(r.error)),
+                    decode_position(from_bytes(r.params[present])))
+                for i, r in replies.items()}
+
+    def read_goals_and_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
+        """What `read_goals_and_positions` of these servos should take on this bus."""
+        return self._read_words_time_ns(Register.GOAL_POSITION, GOAL_TO_POSITION_BYTES,
+                                        servo_ids)
 
     def read_request_bytes(self, servo_ids: tuple[int, ...]) -> int:
         """The size of the request `read_goals` or `read_positions` sends for these servos."""
@@ -396,28 +422,28 @@ class FeetechBus:
             return packets.INSTRUCTION_OVERHEAD_BYTES + 2 + len(servo_ids)
         return packets.READ_REQUEST_BYTES
 
-    def _read_request(self, register: Register,
+    def _read_request(self, register: Register, length: int,
                       servo_ids: tuple[int, ...]) -> tuple[bytes, tuple[Expected, ...]]:
-        """The packet that reads ``register`` of these servos, and the replies it asks for:
-        one READ, or one SYNC READ of several (made once: a sampled bus sends it every few
-        milliseconds)."""
-        key = (register, servo_ids, self._sync_read_works)
+        """The packet that reads ``length`` bytes from ``register`` on, of these servos, and the
+        replies it asks for: one READ, or one SYNC READ of several (made once: a sampled bus
+        sends it every few milliseconds)."""
+        key = (register, length, servo_ids, self._sync_read_works)
         request = self._read_requests.get(key)
         if request is None:
             if len(servo_ids) == 1 or not self._sync_read_works:
-                packet = packets.read(servo_ids[0], register.address, register.size)
+                packet = packets.read(servo_ids[0], register.address, length)
                 servo_ids = servo_ids[:1]
             else:
-                packet = packets.sync_read(register.address, register.size, servo_ids)
-            request = packet, tuple(Expected(i, register.size) for i in servo_ids)
+                packet = packets.sync_read(register.address, length, servo_ids)
+            request = packet, tuple(Expected(i, length) for i in servo_ids)
             if len(self._read_requests) >= READ_REQUESTS_KEPT:
                 self._read_requests.clear()
             self._read_requests[key] = request
         return request
 
-    def _read_words(self, register: Register, servo_ids: tuple[int, ...], deadline_ns: int,
-                    action: str) -> dict[int, StatusPacket]:
-        packet, expected = self._read_request(register, servo_ids)
+    def _read_words(self, register: Register, length: int, servo_ids: tuple[int, ...],
+                    deadline_ns: int, action: str) -> dict[int, StatusPacket]:
+        packet, expected = self._read_request(register, length, servo_ids)
         try:
             replies = self.link.exchange(packet, expected, deadline_ns)
         except WireLost as error:
@@ -429,8 +455,9 @@ class FeetechBus:
                 self._sync_read_works = False
         return replies
 
-    def _read_words_time_ns(self, register: Register, servo_ids: tuple[int, ...]) -> int:
-        packet, expected = self._read_request(register, servo_ids)
+    def _read_words_time_ns(self, register: Register, length: int,
+                            servo_ids: tuple[int, ...]) -> int:
+        packet, expected = self._read_request(register, length, servo_ids)
         return self.link.reply_time_ns(len(packet), expected, expected=True)
 
     def rewrite_goal(self, servo_id: int, goal_steps: int, deadline_ns: int) -> StatusError | None:

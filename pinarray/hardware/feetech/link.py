@@ -350,6 +350,9 @@ class Link:
         self.reader = StatusReader()
         self.counters = LinkCounters()
         self.return_delay_ns: dict[int, int] = {}
+        # Clock ns when the bytes written so far will have left the host: a request written
+        # behind a frame still on the wire (a sync write gets no reply) goes out after it.
+        self._wire_free_ns = 0
         # The replies the last request asked for, by servo id: a sampled bus asks the same
         # (the very same tuple, which cannot change) every few milliseconds.
         self._wanted: tuple[Sequence[Expected], dict[int, int], int] = ((), {}, 0)
@@ -383,6 +386,7 @@ class Link:
         """Put a packet that gets no reply (a sync write) on the wire."""
         self.wire.write(packet)
         self.counters.bytes_written += len(packet)
+        self._wire_free_ns = max(self.clock.now_ns(), self._wire_free_ns) + self.wire_ns(len(packet))
 
     def drain(self) -> None:
         """Drop input left from earlier exchanges: late replies must not answer this request."""
@@ -422,11 +426,15 @@ class Link:
                 self._wanted = expected, wanted, longest
         reader.longest_params = longest
         start_ns = self.clock.now_ns()
-        limit_ns = start_ns + self.reply_time_ns(len(packet), expected, patience=patience)
+        # Bytes still leaving ahead of the request (a frame just written) hold it back.
+        queued_ns = max(0, self._wire_free_ns - start_ns)
+        limit_ns = start_ns + queued_ns + self.reply_time_ns(len(packet), expected,
+                                                             patience=patience)
         if deadline_ns is not None and deadline_ns < limit_ns:
             limit_ns = deadline_ns
         wire.write(packet)
         counters.bytes_written += len(packet)
+        self._wire_free_ns = start_ns + queued_ns + self.wire_ns(len(packet))
         counters.exchanges += 1
         replies: dict[int, StatusPacket] = {}
         while len(replies) < len(wanted):
@@ -444,7 +452,7 @@ class Link:
         if self.latency.learns and replies and len(replies) == len(wanted):
             # The adapter's part of the exchange: what it took beyond the wire and the servos'
             # return delays.
-            used_ns = self.clock.now_ns() - start_ns
+            used_ns = self.clock.now_ns() - start_ns - queued_ns
             wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
             self.latency.record(max(0, used_ns - wire_and_delays_ns))
         return replies
