@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
 from fractions import Fraction
-from functools import partial
+from functools import lru_cache, partial
 from typing import TypeVar
 
 from pinarray.errors import PinArrayError
@@ -296,9 +296,29 @@ def check_bus(reader: Reader, node: Node, drives: Sequence[PinDrive], device: De
     """On bus servos, every frame of the drives' goal changes is written and read back in
     time (`pinarray.protocol.bus`)."""
     if isinstance(device.servo, ServoSettings) and not reader.guessing:
+        if _deliverable(_bus_shape(drives), device.servo, device.delivery_tolerance_ns):
+            return
         problem = bus_problem(drives, device.servo, device.delivery_tolerance_ns)
         if problem is not None:
             raise reader.error(node, f"{what}the servo bus cannot deliver it: {problem}")
+
+
+BusShape = tuple[tuple[Train, int, int], ...]
+
+
+def _bus_shape(drives: Sequence[PinDrive]) -> BusShape:
+    """What the bus check sees of ``drives``: each train, when it starts, and its pin by rank
+    (which pins they are changes only the words of a problem, not whether there is one: the
+    same train on each of a design's pins is checked once)."""
+    rank = {pin: n for n, pin in enumerate(sorted({d.pin for d in drives}), start=1)}
+    return tuple(sorted(((d.train, d.delay_ns, rank[d.pin]) for d in drives),
+                        key=lambda item: (item[1], item[2])))
+
+
+@lru_cache(maxsize=4096)
+def _deliverable(shape: BusShape, servo: ServoSettings, tolerance_ns: int) -> bool:
+    return bus_problem([PinDrive(pin, train, delay) for train, delay, pin in shape], servo,
+                       tolerance_ns) is None
 
 
 def _wave(
