@@ -27,6 +27,7 @@ from pinarray.paradigms.two_point.observer import TwoPointObserver, TwoPointObse
 from pinarray.paradigms.two_point.rows import TwoPointRecord
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol, parse_protocol, protocol_warnings
+from tests.lab_protocols import short_copy
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 TWO_POINT = PROTOCOLS / "two_point.yaml"
@@ -201,8 +202,8 @@ def test_answers_that_cannot_place_the_threshold_give_words_not_a_number(model, 
 
 def test_every_cell_read_back_is_checked_against_the_record_and_the_plan(tmp_path):
     results = tmp_path / "results"
-    assert main(["batch", str(TWO_POINT), "--subject", "01", "--observer", "default",
-                 "--seed", "2", "--results", str(results)]) == 0
+    assert main(["batch", str(short_copy("two_point", tmp_path)), "--subject", "01",
+                 "--observer", "default", "--seed", "2", "--results", str(results)]) == 0
     beh = next(results.rglob("*_beh.tsv"))
     lines = beh.read_text().splitlines()
     header = lines[0].split("\t")
