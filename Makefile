@@ -108,7 +108,8 @@ example-paradigm: $(PARADIGM_VENV)/.installed
 # pinarray[psychopy] in an environment of their own, a virtual display (Xvfb, installed from
 # Debian's packages when missing) started by the job itself, and tests/psychopy/: the entry
 # points PsychoPy loads, the device its DeviceManager finds, waves armed on flips, the example
-# experiment. `make test` never imports PsychoPy. Nothing compiled ahead: only what runs is.
+# experiment, the Builder component (the example .psyexp compiled as Builder compiles it, and
+# its script run). `make test` never imports PsychoPy. Nothing compiled ahead: only what runs is.
 PSYCHOPY_VENV := .venv-psychopy
 $(PSYCHOPY_VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(PSYCHOPY_VENV)

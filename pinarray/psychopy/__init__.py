@@ -14,11 +14,44 @@ PsychoPy's plugin manager finds it by entry point (group ``psychopy.hardware``) 
     win.flip()                                    # the flash and the wave start together
     touch.addData(thisExp)                        # onset from the flip, delivery, strokes
 
+Builder's "Pin array touch" component is `pinarray.psychopy.components` (entry point
+``psychopy.experiment.components``); a compiled experiment holds each one as a
+`PinArrayTouch`.
+
 A composition root of its own: it builds on the public face (`import pinarray`) and nothing
-in pinarray imports it, so the rest of the package never imports PsychoPy.
+in pinarray imports it, so the rest of the package never imports PsychoPy. Its names are
+imported on first use (PEP 562), so that Builder can load the component without the device,
+PsychoPy's hardware or pinarray's array behind it.
 """
 
-from pinarray.psychopy.device import PinArrayDevice
-from pinarray.psychopy.touch import Touch
+import importlib
 
-__all__ = ["PinArrayDevice", "Touch"]
+# typing.TYPE_CHECKING without importing typing: type checkers take this name as true.
+TYPE_CHECKING = False
+
+__all__ = ["PinArrayDevice", "PinArrayTouch", "Touch"]
+
+_HOME_OF = {
+    "PinArrayDevice": "pinarray.psychopy.device",
+    "PinArrayTouch": "pinarray.psychopy.routine",
+    "Touch": "pinarray.psychopy.touch",
+}
+
+
+def __getattr__(name: str) -> object:
+    module = _HOME_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pinarray.psychopy' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # found directly from now on
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})
+
+
+if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
+    from pinarray.psychopy.device import PinArrayDevice
+    from pinarray.psychopy.routine import PinArrayTouch
+    from pinarray.psychopy.touch import Touch

@@ -6,6 +6,10 @@ Defining the class registers it with PsychoPy's `DeviceManager` (`BaseDevice.__i
 its class path and the alias ``"pinarray"``); PsychoPy's plugin manager imports it through the
 entry point ``psychopy.hardware: PinArrayDevice`` of pinarray's package.
 
+A device may be set up before it is opened: Builder's Device Manager names a port (or the
+simulated array) on this machine, and the experiment's Pin array touch component opens it for
+its protocol (`open`) as the experiment starts.
+
 One device per port, as PsychoPy's own `SerialDevice`: asking for a port (or ``sim://`` URL)
 already open hands back the device holding it, and `DeviceManager.addDevice` under a name a
 pin array already has closes that array first (PsychoPy's manager would store the new device
@@ -87,10 +91,11 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     Parameters
     ----------
-    protocol : str, path-like or pinarray.Protocol
+    protocol : str, path-like, pinarray.Protocol or None
         The protocol file (or one read with `pinarray.load_protocol`): its device section names
         the servos, their calibration and the delivery tolerance; its stimuli are what can be
-        presented.
+        presented. None: the device is set up for its port, and opened for a protocol by
+        `open` (as Builder's Device Manager sets it up for a Pin array touch component).
     port : str or None
         The serial device of real bus servos (``/dev/ttyUSB0``), or the I2C bus of a PWM board.
     sim : str or None
@@ -107,7 +112,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     _open: ClassVar[dict[str, PinArrayDevice]] = {}  # port or sim URL -> its device
 
-    def __new__(cls, protocol: str | PathLike[str] | pinarray.Protocol = "",
+    def __new__(cls, protocol: str | PathLike[str] | pinarray.Protocol | None = None,
                 port: str | None = None, sim: str | None = None) -> PinArrayDevice:
         existing = cls._open.get(_asked_for(port, sim))
         _close_another_array_of_the_same_name(sys._getframe(1), existing)
@@ -116,35 +121,88 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         device: PinArrayDevice = super().__new__(cls)
         return device
 
-    def __init__(self, protocol: str | PathLike[str] | pinarray.Protocol, port: str | None = None,
-                 sim: str | None = None) -> None:
-        if getattr(self, "array", None) is not None:  # handed back open by __new__
-            self._check_same_protocol(protocol)
+    def __init__(self, protocol: str | PathLike[str] | pinarray.Protocol | None = None,
+                 port: str | None = None, sim: str | None = None) -> None:
+        if getattr(self, "_asked_for", None) is not None:  # handed back by __new__
+            if protocol is not None and protocol != "":
+                self.open(protocol)  # checks it is the protocol it is open for, if it is
             return
-        if not isinstance(protocol, pinarray.Protocol):
-            protocol = pinarray.load_protocol(protocol)
         if port is None and sim is None:
             sim = SIMULATED
+        self._port, self._sim = port, sim
         self._asked_for = _asked_for(port, sim)  # as a profile names it
         self._clock = pinarray.MonotonicClock()
-        self.array: pinarray.PinArray = pinarray.open_array(protocol, port=port, sim=sim,
-                                                            clock=self._clock)
-        """The open array (`pinarray.PinArray`): everything the library offers."""
+        self._array: pinarray.PinArray | None = None
+        self._last_touch: Touch | None = None
+        self._windows: weakref.WeakKeyDictionary[Any, None] = weakref.WeakKeyDictionary()
+        self._watch: _QuitWatch | None = None
         PinArrayDevice._open[self._asked_for] = self
         if port is not None:
             self.portString = port  # where PsychoPy's device manager looks for ports in use
-        self._last_touch: Touch | None = None
-        self._windows: weakref.WeakKeyDictionary[Any, None] = weakref.WeakKeyDictionary()
+        if protocol is not None and protocol != "":
+            self.open(protocol)
+        else:
+            logging.exp(f"pinarray {self._asked_for}: set up, to be opened for a protocol")
+
+    def open(self, protocol: str | PathLike[str] | pinarray.Protocol) -> PinArrayDevice:
+        """Open the array for ``protocol``, if it is not open yet: its servos checked, held,
+        pins at rest, every stimulus of the protocol prepared. A device open already for the
+        same protocol is left as it is.
+
+        Parameters
+        ----------
+        protocol : str, path-like or pinarray.Protocol
+            As for the class.
+
+        Returns
+        -------
+        PinArrayDevice
+            This device, open.
+
+        Raises
+        ------
+        pinarray.PinArrayError
+            A device open already for another protocol; as for the class.
+        """
+        if self._array is not None and self._array.is_open:
+            self._check_same_protocol(protocol)
+            return self
+        if not isinstance(protocol, pinarray.Protocol):
+            protocol = pinarray.load_protocol(protocol)
+        self._array = pinarray.open_array(protocol, port=self._port, sim=self._sim,
+                                          clock=self._clock)
+        PinArrayDevice._open[self._asked_for] = self  # again, after a close
         # Every stimulus compiled and encoded now: arming one on a flip then costs the frame
         # loop only the call.
         for condition in protocol.design.conditions:
-            self.array.prepare(condition)
+            self._array.prepare(condition)
         self._watch = _QuitWatch(self)
         self._watch.start()
         _ready_for_quit()
-        for warning in self.array.warnings:
+        for warning in self._array.warnings:
             logging.warning(f"pinarray {self.url}: {warning}")
         logging.exp(f"pinarray {self.url}: open for protocol {protocol.name!r}, pins at rest")
+        return self
+
+    @property
+    def is_open(self) -> bool:
+        """Whether the array is open (for a protocol), its pins held."""
+        return self._array is not None and self._array.is_open
+
+    @property
+    def array(self) -> pinarray.PinArray:
+        """The open array (`pinarray.PinArray`): everything the library offers.
+
+        Raises
+        ------
+        pinarray.PinArrayError
+            A device set up but not opened for a protocol (`open`).
+        """
+        if self._array is None:
+            raise pinarray.PinArrayError(
+                f"the pin array {self._asked_for} is not open for a protocol: open it with "
+                "device.open(protocol), or give the Pin array touch component a protocol")
+        return self._array
 
     @property
     def protocol(self) -> pinarray.Protocol:
@@ -154,10 +212,11 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
     @property
     def url(self) -> str:
         """The serial device of real servos, or the ``sim://`` URL of the simulated array."""
-        return self.array.url
+        return self._array.url if self._array is not None else self._asked_for
 
     def __repr__(self) -> str:
-        return f"<PinArrayDevice {self._asked_for}: {self.array!r}>"
+        state = repr(self._array) if self._array is not None else "not open"
+        return f"<PinArrayDevice {self._asked_for}: {state}>"
 
     # -- what PsychoPy's device manager asks ------------------------------------------------
 
@@ -196,19 +255,27 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     # -- presenting ----------------------------------------------------------------------------
 
-    def present(self, stimulus: pinarray.Presentable) -> Touch:
-        """Play ``stimulus`` now (`pinarray.PinArray.lead_ns` from the call) and wait until it
-        has played.
+    def present(self, stimulus: pinarray.Presentable, wait: bool = True) -> Touch:
+        """Play ``stimulus`` now, not locked to a flip, and (by default) wait until it has
+        played.
 
         Parameters
         ----------
         stimulus : pinarray.PlannedTrial or pinarray.Condition (any paradigm's)
             A trial of the protocol's plan or a condition of its design
             (``pinarray.find_condition(device.protocol, stimulus="rightwards")``).
+        wait : bool
+            True: played `pinarray.PinArray.lead_ns` from the call, returned once it has
+            ended. False: started at once (its time zero a fraction of a millisecond after
+            the call), returned while it plays (`Touch.wait`).
         """
         timeline = self._timeline()
-        delivery = self.array.present(stimulus)
-        touch = Touch(stimulus, timeline, delivery, _clock_zero_s())
+        if wait:
+            result: pinarray.Delivery | pinarray.Armed = self.array.present(stimulus)
+        else:
+            result = self.array.arm(stimulus)
+            result.start()
+        touch = Touch(stimulus, timeline, result, _clock_zero_s(), on_flip=False)
         self._last_touch = touch
         return touch
 
@@ -242,7 +309,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
             A stimulus the protocol does not hold, another one still playing, a closed device.
         """
         armed = self.array.arm(stimulus)
-        touch = Touch(stimulus, self._timeline(), armed, _clock_zero_s())
+        touch = Touch(stimulus, self._timeline(), armed, _clock_zero_s(), on_flip=True)
         win.timeOnFlip(touch._flip_stamp, "flip")
         win.callOnFlip(touch._flipped)  # after the stamp: PsychoPy calls them in this order
         self._last_touch = touch
@@ -252,13 +319,33 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     # -- leaving -------------------------------------------------------------------------------
 
-    def close(self) -> pinarray.SafeStopReport:
+    def stop(self, by: str = "stop()") -> None:
+        """Cut the stimulus armed or playing now, if any: every pin to rest, torque off (the
+        next stimulus turns it on again). Its touch then says it was cut, and ``by`` what.
+
+        Parameters
+        ----------
+        by : str
+            What cut it, in words, for the data and the log ("the routine's end").
+        """
+        self._stop(by)
+
+    def close(self) -> pinarray.SafeStopReport | None:
         """Cut a stimulus still playing, then pins to rest, torque off, port closed. Safe to
-        call more than once (PsychoPy's device manager calls it at exit)."""
-        report = self.array.close()
+        call more than once (PsychoPy's device manager calls it at exit).
+
+        Returns
+        -------
+        pinarray.SafeStopReport or None
+            What the safe stop confirmed; None for a device never opened (no pin was held).
+        """
         if PinArrayDevice._open.get(self._asked_for) is self:
             del PinArrayDevice._open[self._asked_for]
-        self._watch.end()
+        if self._watch is not None:
+            self._watch.end()
+        if self._array is None:
+            return None
+        report = self._array.close()
         logging.exp(f"pinarray {self.url}: closed: {report.describe()}")
         return report
 
@@ -267,7 +354,8 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  traceback: TracebackType | None) -> None:
-        self.array.__exit__(kind, error, traceback)  # cuts a stimulus still playing
+        if self._array is not None:
+            self._array.__exit__(kind, error, traceback)  # cuts a stimulus still playing
         self.close()
 
     # -- below the face ------------------------------------------------------------------------
@@ -275,7 +363,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
     def _stop(self, by: str) -> None:
         """Cut the stimulus playing, if any: pins to rest and torque off (the quit watch's)."""
         touch = self._last_touch
-        if self.array.is_open and touch is not None and not touch.done:
+        if self.is_open and touch is not None and not touch.done:
             logging.warning(f"pinarray {self.url}: {touch.stimulus} cut short by {by}")
             touch._cut_by = by
             try:

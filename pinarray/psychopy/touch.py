@@ -10,6 +10,7 @@ log, with the reason; as is one whose flip was never made (it was cancelled, not
 from __future__ import annotations
 
 import weakref
+from collections.abc import Collection
 from typing import Any, Protocol
 
 from psychopy import logging
@@ -20,6 +21,12 @@ from pinarray.psychopy.timeline import NS_PER_S, Timeline
 __all__ = ["Touch"]
 
 NS_PER_MS = 1_000_000
+
+COLUMN_GROUPS = ("delivered", "onset", "strokes")
+"""The groups of a touch's data columns, beside its stimulus (always written): ``delivered``
+(the verdict, its reason, how it ended, the delivery record), ``onset`` (the flip and the
+onset on PsychoPy's clock, the onset from the flip, the first write's lateness), ``strokes``
+(each moving pin's commanded and achieved stroke and its lag)."""
 
 
 class DataSink(Protocol):
@@ -37,8 +44,10 @@ class Touch:
     """
 
     def __init__(self, stimulus: pinarray.Presentable, timeline: Timeline,
-                 result: pinarray.Armed | pinarray.Delivery, clock_zero_s: float) -> None:
+                 result: pinarray.Armed | pinarray.Delivery, clock_zero_s: float,
+                 on_flip: bool) -> None:
         self._stimulus = stimulus
+        self._on_flip = on_flip
         self._timeline = timeline
         self._result = result
         self._clock_zero_s = clock_zero_s  # defaultClock's time base at its last reset
@@ -58,7 +67,7 @@ class Touch:
     @property
     def armed_on_flip(self) -> bool:
         """Whether it was armed on a flip (`PinArrayDevice.armOnFlip`), not presented at once."""
-        return isinstance(self._result, pinarray.Armed)
+        return self._on_flip
 
     @property
     def onsetTime(self) -> float | None:
@@ -115,7 +124,7 @@ class Touch:
         result = self._result
         if not isinstance(result, pinarray.Armed):
             return result
-        if self._flip_ns is None and not result.done:
+        if self._on_flip and self._flip_ns is None and not result.done:
             self._never_flipped = True
             result.cancel()
         return result.result(timeout)
@@ -147,31 +156,48 @@ class Touch:
                     f"delivery tolerance of {tolerance_ns / NS_PER_MS:g} ms")
         return delivery.problem
 
-    def columns(self, name: str = "touch") -> dict[str, object]:
-        """The touch as data columns, ``name.`` before each: the stimulus, the flip and the
-        onset on PsychoPy's clock (s), the onset from the flip (ms), the verdict and its
-        reason, how it ended, the delivery record, and each moving pin's measured stroke
-        (``name.pin6.achieved_steps``, ...). Waits until the stimulus has ended."""
+    def columns(self, name: str = "touch",
+                groups: Collection[str] = COLUMN_GROUPS) -> dict[str, object]:
+        """The touch as data columns, ``name.`` before each: the stimulus, and the ``groups``
+        asked for (`COLUMN_GROUPS`, all by default): ``onset``, the flip and the onset on
+        PsychoPy's clock (s), the onset from the flip (ms); ``delivered``, the verdict and its
+        reason, how it ended, the delivery record; ``strokes``, each moving pin's measured
+        stroke (``name.pin6.achieved_steps``, ...). Waits until the stimulus has ended.
+
+        Raises
+        ------
+        pinarray.PinArrayError
+            A group that is not one of `COLUMN_GROUPS`.
+        """
+        unknown = sorted(set(groups) - set(COLUMN_GROUPS))
+        if unknown:
+            raise pinarray.PinArrayError(
+                f"Touch.columns: expected groups among {', '.join(COLUMN_GROUPS)}, found "
+                f"{', '.join(map(repr, unknown))}")
         delivery = self.wait()
         record = delivery.record
         from_flip = self.onsetFromFlip
-        values: dict[str, object] = {
-            "stimulus": self.stimulus,
-            "flip_t": self.flipTime,
-            "onset_t": self.onsetTime,
-            "onset_from_flip_ms": None if from_flip is None else from_flip * 1e3,
-            "onset_write_late_ms": delivery.onset_write_late_ns / NS_PER_MS,
-            "delivered": self.delivered,
-            "problem": self.problem,
-            "ending": _ending(delivery.ending, self._cut_by),
-            "goal_changes": record.scheduled,
-            "confirmed": record.confirmed,
-            "healed": record.healed,
-            "missing": record.missing,
-            "latest_ms": record.worst_lateness_ns / NS_PER_MS,
-            "tolerance_ms": record.tolerance_ns / NS_PER_MS,
-        }
-        for stroke in delivery.strokes:
+        values: dict[str, object] = {"stimulus": self.stimulus}
+        if "onset" in groups:
+            values |= {
+                "flip_t": self.flipTime,
+                "onset_t": self.onsetTime,
+                "onset_from_flip_ms": None if from_flip is None else from_flip * 1e3,
+                "onset_write_late_ms": delivery.onset_write_late_ns / NS_PER_MS,
+            }
+        if "delivered" in groups:
+            values |= {
+                "delivered": self.delivered,
+                "problem": self.problem,
+                "ending": _ending(delivery.ending, self._cut_by),
+                "goal_changes": record.scheduled,
+                "confirmed": record.confirmed,
+                "healed": record.healed,
+                "missing": record.missing,
+                "latest_ms": record.worst_lateness_ns / NS_PER_MS,
+                "tolerance_ms": record.tolerance_ns / NS_PER_MS,
+            }
+        for stroke in delivery.strokes if "strokes" in groups else ():
             values |= {
                 f"pin{stroke.pin}.commanded_steps": stroke.commanded_steps,
                 f"pin{stroke.pin}.achieved_steps": stroke.achieved_steps,
@@ -180,10 +206,11 @@ class Touch:
             }
         return {f"{name}.{key}": value for key, value in values.items()}
 
-    def addData(self, experiment: DataSink, name: str = "touch") -> pinarray.Delivery:
-        """Wait until the stimulus has ended, then add its `columns` to ``experiment`` (an
-        `ExperimentHandler`: the current trial's row) and a line to PsychoPy's log (a warning
-        too when it was not delivered as scheduled).
+    def addData(self, experiment: DataSink, name: str = "touch",
+                columns: Collection[str] = COLUMN_GROUPS) -> pinarray.Delivery:
+        """Wait until the stimulus has ended, then add its `columns` (the ``columns`` groups:
+        all by default) to ``experiment`` (an `ExperimentHandler`: the current trial's row)
+        and a line to PsychoPy's log (a warning too when it was not delivered as scheduled).
 
         Returns
         -------
@@ -191,7 +218,7 @@ class Touch:
             What the array delivered.
         """
         delivery = self.wait()
-        for column, value in self.columns(name).items():
+        for column, value in self.columns(name, columns).items():
             experiment.addData(column, value)
         logging.data(self.describe(name))
         if not self.delivered:

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import time
 
+import psychopy.hardware
 import pytest
 from conftest import APPARENT_MOTION, LOCALISATION, REPO
 from psychopy import core, plugins, visual
@@ -40,13 +41,16 @@ def test_psychopy_imported_first_set_its_default_socket_timeout():
 def test_every_entry_point_psychopy_loads_resolves_to_pinarrays_own_class_not_a_stub():
     entry_points = [ep for ep in importlib.metadata.distribution("pinarray").entry_points
                     if ep.group.startswith("psychopy")]
-    assert [(ep.group, ep.name) for ep in entry_points] == [("psychopy.hardware", "PinArrayDevice")]
+    assert sorted((ep.group, ep.name) for ep in entry_points) == [
+        ("psychopy.experiment.components", "PinArrayTouchComponent"),
+        ("psychopy.hardware", "PinArrayDevice")]
     assert "pinarray" in plugins.listPlugins("loaded")
     assert "pinarray" not in plugins.listPlugins("failed")
     for ep in entry_points:
         target = getattr(importlib.import_module(ep.group), ep.name)
-        assert target is ep.load() is PinArrayDevice
+        assert target is ep.load()
         assert not issubclass(target, PluginStub)
+    assert psychopy.hardware.PinArrayDevice is PinArrayDevice  # (the component: test_builder)
 
 
 def test_the_device_manager_lists_the_simulated_array_and_opens_it_by_alias():
