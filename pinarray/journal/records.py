@@ -7,6 +7,8 @@ type of its own (a subclass) and the columns that hold it (`pinarray.journal.sea
 the columns every row has (`COMMON_COLUMNS`) and the order files have kept since the first
 release (`LEGACY_LAYOUT`). Times are whole nanoseconds in a record and decimal seconds in a
 file; the writer is `pinarray.journal.writer`, the tables `pinarray.journal.rows`.
+It passes 400 lines by the columns' descriptions (each a BIDS sidecar's words) and the
+first release's column order, which every older file still read needs.
 """
 
 from __future__ import annotations
