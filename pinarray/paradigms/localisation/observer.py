@@ -30,9 +30,6 @@ about 41 % and 82 % correct at 10 Hz on the localisation protocol's 8 pins
 
 Past 400 lines on purpose: the model of one simulated subject and the arithmetic that
 calibrates a population of them on the seed's figures belong together; apart, neither reads.
-
-It passes 400 lines: the seed's calibration (its figures' error rates, solved for the
-average subject) is kept with the model it calibrates.
 """
 
 from __future__ import annotations
