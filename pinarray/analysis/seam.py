@@ -184,7 +184,7 @@ def trial_answers(subject: Answerer, seed: int | None) -> Callable[[int, Conditi
     once, so a subject answers at random but alike to a trial asked twice)."""
     import numpy as np
 
-    base = seed if seed is not None else int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> 1)
+    base = seed if seed is not None else int(np.random.SeedSequence().generate_state(1)[0])
 
     def answer(trial: int, condition: Condition) -> str:
         subject.rng = np.random.default_rng((base, trial))
