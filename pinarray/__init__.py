@@ -43,6 +43,7 @@ __all__ = [
     "MotionRecord",
     "NotDelivered",
     "NotStarted",
+    "Paradigm",
     "PinArray",
     "PinArrayError",
     "PinStroke",
@@ -66,6 +67,8 @@ __all__ = [
     "TrialStatus",
     "TwoIntervalCondition",
     "TwoIntervalRecord",
+    "TwoPointCondition",
+    "TwoPointRecord",
     "VirtualClock",
     "find_condition",
     "find_servo_ports",
@@ -79,10 +82,13 @@ __all__ = [
 
 # The module of `pinarray.api` each public name lives in, imported when the name is first used.
 _HOMES = {
-    "pinarray.api.protocols": ("Condition", "IdentificationCondition", "LocalisationCondition",
-                               "MotionCondition", "PlannedTrial", "Protocol",
-                               "TemporalOrderCondition", "TrialPlan", "TwoIntervalCondition",
+    "pinarray.api.protocols": ("Condition", "PlannedTrial", "Protocol", "TrialPlan",
                                "find_condition", "load_protocol", "plan_trials"),
+    "pinarray.api.paradigms": ("IdentificationCondition", "IdentificationRecord",
+                               "LocalisationCondition", "LocalisationRecord", "MotionCondition",
+                               "MotionRecord", "Paradigm", "TemporalOrderCondition",
+                               "TemporalOrderRecord", "TwoIntervalCondition",
+                               "TwoIntervalRecord", "TwoPointCondition", "TwoPointRecord"),
     "pinarray.api.array": ("Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
                            "Presentable", "SafeStopReport", "VirtualClock", "open_array"),
     "pinarray.api.armed": ("Armed",),
@@ -90,9 +96,8 @@ _HOMES = {
     "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
     "pinarray.api.sessions": ("Answer", "AnswerSource", "NotDelivered", "Question",
                               "run_session", "simulated_observer"),
-    "pinarray.api.results": ("IdentificationRecord", "LoadedRun", "LocalisationRecord",
-                             "ManifestState", "MotionRecord", "RunPaths", "TemporalOrderRecord",
-                             "TrialRecord", "TrialStatus", "TwoIntervalRecord", "read_results"),
+    "pinarray.api.results": ("LoadedRun", "ManifestState", "RunPaths", "TrialRecord",
+                             "TrialStatus", "read_results"),
     "pinarray.api.errors": ("BusError", "PinArrayError", "PlaybackAborted", "PortInUse",
                             "ProtocolError", "ProtocolErrors", "ResultsError"),
 }
@@ -135,32 +140,37 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         ProtocolErrors,
         ResultsError,
     )
+    from pinarray.api.paradigms import (
+        IdentificationCondition,
+        IdentificationRecord,
+        LocalisationCondition,
+        LocalisationRecord,
+        MotionCondition,
+        MotionRecord,
+        Paradigm,
+        TemporalOrderCondition,
+        TemporalOrderRecord,
+        TwoIntervalCondition,
+        TwoIntervalRecord,
+        TwoPointCondition,
+        TwoPointRecord,
+    )
     from pinarray.api.ports import ServoPort, find_servo_ports
     from pinarray.api.protocols import (
         Condition,
-        IdentificationCondition,
-        LocalisationCondition,
-        MotionCondition,
         PlannedTrial,
         Protocol,
-        TemporalOrderCondition,
         TrialPlan,
-        TwoIntervalCondition,
         find_condition,
         load_protocol,
         plan_trials,
     )
     from pinarray.api.results import (
-        IdentificationRecord,
         LoadedRun,
-        LocalisationRecord,
         ManifestState,
-        MotionRecord,
         RunPaths,
-        TemporalOrderRecord,
         TrialRecord,
         TrialStatus,
-        TwoIntervalRecord,
         read_results,
     )
     from pinarray.api.sessions import (

@@ -19,10 +19,12 @@ if TYPE_CHECKING:  # the command imports what it runs when it runs
     from pinarray.session.trials import Session
 
 BATCH_EPILOG = """\
-Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'
-for localisation, none/left/right/unsure for apparent motion) or from --observer MODEL, a
-simulated subject: 'default' reproduces the seed's figures, or override parameters such as
-'correct_10hz=0.7,motion_felt=0.9'.
+Answers come from --responses FILE (CSV with columns trial,response: an answer the protocol's
+paradigm takes, e.g. a pin number or 'none' for localisation, none/left/right/unsure for
+apparent motion) or from --observer MODEL, a simulated subject: 'default' reproduces the
+seed's figures, or override its paradigm's parameters, e.g. 'correct_10hz=0.7' (localisation)
+or 'motion_felt=0.9' (apparent motion); for an adaptive design its psychometric function, e.g.
+'threshold=120,slope=3'.
 
 Results go to DIR/sub-ID/ses-N/beh/ (a BIDS dataset); every trial is on disk the moment it
 ends. A run that was killed or aborted resumes with --resume: exactly the remaining trials, in

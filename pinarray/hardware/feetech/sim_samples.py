@@ -22,6 +22,7 @@ read, as on the packet level, and measured alike.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 
 import numpy as np
@@ -123,7 +124,7 @@ class ComputedVerifier(Verifier):
         cost_ns = bus.read_positions_time_ns(ids)
         worst_ns = (2 * max(SAMPLE_PERIOD_NS, cost_ns) + cost_ns + WAKE_SLACK_NS
                     + bus.wire_ns(self.frame_bytes) + bus.read_goals_time_ns(ids))
-        spacing_ns = min((b.time_ns - a.time_ns for a, b in zip(frames, frames[1:])),
+        spacing_ns = min((b.time_ns - a.time_ns for a, b in itertools.pairwise(frames)),
                          default=worst_ns)
         return worst_ns <= tightest_ns and worst_ns <= spacing_ns
 
