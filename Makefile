@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-floors bench lint examples psychopy docs clean
+.PHONY: run test test-floors bench lint examples example-paradigm psychopy docs clean
 
 # Installed again when the Makefile changes (how it installs may have: 14 s).
 $(STAMP): pyproject.toml Makefile
@@ -83,8 +83,26 @@ lint: $(STAMP)
 examples: $(STAMP)
 	results=$$(mktemp -d) && $(BIN)/python examples/which_pin.py --subject ci --seed 1 \
 		--results $$results && rm -rf $$results
-	cd examples && ../$(BIN)/python -m pytest -q -p no:cacheprovider .
+	cd examples && ../$(BIN)/python -m pytest -q -p no:cacheprovider --ignore=tap_count .
 	$(BIN)/python -m tests.typing_canary
+
+# A lab's own paradigm as its own package (examples/tap_count/, docs/programmers/paradigms.md):
+# installed beside pinarray in an environment of its own (so that `make test` never sees it),
+# found by its entry point, and its own tests run there: validate, batch, analyse, read back.
+PARADIGM_VENV := .venv-paradigm
+$(PARADIGM_VENV)/.installed: $(STAMP) pyproject.toml examples/tap_count/pyproject.toml
+	$(PYTHON) -m venv $(PARADIGM_VENV)
+	PYTHONWARNINGS=ignore::UserWarning $(BIN)/uv pip install --quiet \
+		--python $(PARADIGM_VENV)/bin/python -e . -e examples/tap_count pytest mypy \
+	|| (PYTHONWARNINGS=ignore::UserWarning $(PARADIGM_VENV)/bin/python -m pip install --quiet \
+		-e . -e examples/tap_count pytest mypy)
+	touch $@
+
+example-paradigm: $(PARADIGM_VENV)/.installed
+	cd examples/tap_count && ../../$(PARADIGM_VENV)/bin/python -m pytest -q -p no:cacheprovider
+	@# The package strictly typed against pinarray's own types, read from the checkout.
+	cd examples/tap_count && MYPYPATH=../.. ../../$(PARADIGM_VENV)/bin/mypy --strict \
+		--no-incremental --follow-imports=silent pinarray_tap_count
 
 # The PsychoPy plugin (pinarray/psychopy/), for real: PsychoPy's library (`psychopy-lib`) and
 # pinarray[psychopy] in an environment of their own, a virtual display (Xvfb, installed from
@@ -117,4 +135,4 @@ docs: $(DOCS_STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 
 clean:
-	rm -rf $(VENV) $(FLOOR_VENV) $(PSYCHOPY_VENV) build site *.egg-info
+	rm -rf $(VENV) $(FLOOR_VENV) $(PSYCHOPY_VENV) $(PARADIGM_VENV) build site *.egg-info

@@ -13,14 +13,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Condition, LocalisationCondition, Ordering, Protocol
-from pinarray.protocol.design import MAX_SHUFFLE_WORK, wave_condition
-from pinarray.protocol.model import WaveStimulus, condition_value
-from pinarray.protocol.paradigms import (
-    IdentificationCondition,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-)
+from pinarray.protocol.design import MAX_SHUFFLE_WORK
+from pinarray.protocol.model import Condition, Ordering, Protocol, condition_value
+from pinarray.protocol.seam import paradigm_named
 
 if TYPE_CHECKING:
     import numpy as np
@@ -46,24 +41,14 @@ class PlannedTrial:
     catch: bool = False
 
     def record(self) -> dict:
-        """JSON-safe description, as stored in manifests and compile outputs."""
+        """JSON-safe description, as stored in manifests and compile outputs: the trial, its
+        block, practice and stimulus, then what its paradigm says of the condition
+        (`ParadigmDesign.plan_fields`). Every entry has a pin, frequency_hz, direction and row
+        (null where its paradigm has none), as plans have had since the first release."""
         c = self.condition
         what: dict[str, object] = {"pin": None, "frequency_hz": None, "direction": None,
                                    "row": None}
-        match c:
-            case LocalisationCondition():
-                what |= {"pin": c.pin, "frequency_hz": str(c.frequency_hz)}
-            case IdentificationCondition():
-                what |= {"pattern": c.pattern, "pins": list(c.pins)}
-            case TwoIntervalCondition():
-                what |= {"compare": c.parameter.value, "standard": str(c.standard),
-                         "comparison": str(c.comparison), "interval_order": c.order.value}
-            case TemporalOrderCondition():
-                what |= {"pins": list(c.pins), "soa_ns": c.soa_ns}
-            case _:
-                what |= {"direction": c.kind.value, "row": c.row} | (
-                    {} if c.row is not None else {"pins": list(c.pins),
-                                                  "towards": c.direction.value})
+        what |= paradigm_named(c.paradigm).plan_fields(c)
         return ({"trial": self.trial, "block": self.block, "practice": self.practice,
                  "stimulus": c.stimulus} | what | ({"catch": True} if self.catch else {}))
 
@@ -255,8 +240,10 @@ def williams_row(n: int, r: int) -> list[int]:
 def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     """The seeded trial plan; the seed is the argument, else the protocol's, else a fresh one."""
     design = protocol.design
-    if seed is not None and not 0 <= seed < 2**63:
-        raise PinArrayError(f"a plan seed must be a whole number from 0 to 2^63-1, found {seed}")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)
+                             or not 0 <= seed < 2**63):
+        raise PinArrayError(f"a plan seed must be a whole number from 0 to 2^63-1, found "
+                            f"{seed!r}")
     if seed is None:
         seed = design.seed if design.seed is not None else secrets.randbits(32)
     import numpy as np
@@ -310,14 +297,13 @@ def _adaptive_trials(protocol: Protocol, rng: np.random.Generator) -> tuple[Plan
     catch_condition: Condition | None = None
     if adaptive.catch.stimulus:
         stimulus = protocol.stimulus(adaptive.catch.stimulus)
-        assert isinstance(stimulus, WaveStimulus)
-        catch_condition = wave_condition(stimulus)
+        catch_condition = design.paradigm.catch_condition(stimulus)
     trials = [PlannedTrial(n, 0, True, conditions[int(rng.integers(len(conditions)))])
               for n in range(1, design.practice_trials + 1)]
     main = adaptive.procedure_trials + adaptive.catch.count
     catches = set(rng.choice(main, size=adaptive.catch.count, replace=False).tolist())
     balanced = None
-    if design.judgement is not None:
+    if design.paradigm.balanced_draws:
         # Which interval holds the comparison, which pin goes first: as often one way as the
         # other (to within one trial), in a seeded order.
         copies = -(-main // len(conditions))

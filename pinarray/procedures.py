@@ -26,13 +26,7 @@ from pinarray.adaptive.staircase import (
     reversal_mean,
     start,
 )
-from pinarray.protocol.model import (
-    NOTHING_FELT,
-    Condition,
-    LocalisationCondition,
-    MotionCondition,
-)
-from pinarray.protocol.paradigms import TemporalOrderCondition, TwoIntervalCondition
+from pinarray.protocol.model import Condition
 from pinarray.protocol.procedures import (
     CATCH,
     PRACTICE,
@@ -66,25 +60,13 @@ class AdaptiveFields:
 
 
 def counts_as_correct(task: Task, condition: Condition, catch: bool, response: str) -> bool:
-    """Whether ``response`` counts as correct: on a catch trial, nothing felt (no motion);
-    otherwise the wave's direction named (direction), the moved pin named (localisation), the
-    interval with the higher value named (discrimination), the pin that came first named
-    (order), or anything felt (detection)."""
-    felt = response != NOTHING_FELT
-    if catch:
-        return not felt
-    match task:
-        case Task.DIRECTION:
-            return isinstance(condition, MotionCondition) and response == condition.direction
-        case Task.LOCALISATION:
-            return isinstance(condition, LocalisationCondition) and response == str(condition.pin)
-        case Task.DISCRIMINATION:
-            return (isinstance(condition, TwoIntervalCondition)
-                    and response == condition.correct_answer)
-        case Task.ORDER:
-            return (isinstance(condition, TemporalOrderCondition)
-                    and response == str(condition.first_pin))
-    return felt
+    """Whether ``response`` counts as correct for ``task``: on a catch trial, nothing felt (no
+    motion); otherwise as the condition's paradigm judges it (`ParadigmDesign.counts_as_correct`:
+    the wave's direction named, the moved pin named, anything felt...)."""
+    from pinarray.protocol.seam import paradigm_named
+
+    return paradigm_named(condition.paradigm).counts_as_correct(task, condition, catch,
+                                                                response)
 
 
 class _Staircase:

@@ -5,6 +5,7 @@ them is left running alone at the end; the garbage collector runs less often, an
 
 import gc
 
+import pytest
 from hypothesis import settings
 
 from tests.lsl_local import keep_lsl_on_this_machine
@@ -34,3 +35,13 @@ def pytest_collection_finish(session):
 
 def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: item.get_closest_marker("long") is None)  # stable: keeps order
+    if config.getoption("markexpr") == "not realtime":  # the bulk lane of tests/suite.py
+        from tests.suite import realtime_files
+
+        lane = {str(path) for path in realtime_files()}
+        strays = [item.nodeid for item in items if item.get_closest_marker("realtime")
+                  and str(item.path) not in lane]
+        if strays:
+            raise pytest.UsageError(
+                f"real-time test(s) the real-time lane of tests/suite.py would not collect "
+                f"(mark them with pytest.mark.realtime in their file): {', '.join(strays)}")

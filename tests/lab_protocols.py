@@ -1,4 +1,4 @@
-"""The ready protocols of the lab's paradigms (protocols/), shortened for tests: the same
+"""The ready protocols of each paradigm (protocols/), shortened for tests: the same
 patterns, comparisons and SOAs, with brief stimuli and few repetitions, so that a whole run
 costs the simulator little."""
 
@@ -15,6 +15,11 @@ SHORTER = {
                      ("practice_trials: 4", "practice_trials: 1")),
     "toj": (("repetitions: 6", "repetitions: 1"), ("blocks: 2", "blocks: 1"),
             ("practice_trials: 4", "practice_trials: 1")),
+    "localisation": (("duration_s: 10", "duration_s: 0.4"),
+                     ("inter_trial_interval_s: 3", "inter_trial_interval_s: 0.1")),
+    "apparent_motion": (("repetitions: 2 ", "repetitions: 1 "), ("blocks: 2", "blocks: 1")),
+    "two_point": (("repetitions: 10", "repetitions: 1"), ("duration_s: 1\n", "duration_s: 0.5\n"),
+                  ("practice_trials: 4", "practice_trials: 1")),
 }
 
 

@@ -9,20 +9,15 @@ from fractions import Fraction
 from pathlib import Path
 
 from pinarray.clock import VirtualClock
-from pinarray.journal.manifest import (
-    LocalisationEntry,
-    MotionEntry,
-    PlanEntry,
-    Provenance,
-    RunStatus,
-    TaskInfo,
-)
+from pinarray.journal.manifest import PlanEntry, Provenance, RunStatus, TaskInfo
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import LocalisationRecord, MotionRecord, TrialRecord
+from pinarray.journal.records import TrialRecord
 from pinarray.journal.runs import open_run
 from pinarray.journal.timebase import ClockKind, TimeScale
 from pinarray.journal.writer import RunWriter
-from pinarray.protocol import Paradigm, WaveKind
+from pinarray.paradigms.apparent_motion.rows import MotionRecord
+from pinarray.paradigms.localisation.rows import LocalisationRecord
+from pinarray.protocol import WaveKind
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import task_label
 
@@ -32,13 +27,25 @@ VIRTUAL = TimeScale(ClockKind.VIRTUAL, None)
 WAVE = {"left": WaveKind.LEFTWARDS, "right": WaveKind.RIGHTWARDS, "none": WaveKind.NONE}
 
 
-def task_info(task: str, paradigm: Paradigm = Paradigm.LOCALISATION) -> TaskInfo:
+def task_info(task: str, paradigm: str = "localisation") -> TaskInfo:
     return TaskInfo(task, paradigm)
+
+
+def localisation_entry(trial: int, pin: int, frequency_hz: float, **common) -> PlanEntry:
+    """A localisation trial of a plan, as its manifest keeps it."""
+    return PlanEntry(trial=trial, **common,
+                     fields={"pin": pin, "frequency_hz": str(Fraction(str(frequency_hz)))})
+
+
+def motion_entry(trial: int, row: int | None, direction: str, **common) -> PlanEntry:
+    """An apparent-motion trial of a plan (a wave along ``row`` going ``direction``)."""
+    return PlanEntry(trial=trial, **common,
+                     fields={"direction": WAVE[direction].value, "row": row})
 
 
 def localisation_plan(*pins_and_frequencies: tuple[int, float]) -> tuple[PlanEntry, ...]:
     """Main trials 1..N at these (pin, frequency_hz)."""
-    return tuple(LocalisationEntry(trial=n, pin=pin, frequency_hz=Fraction(str(f)))
+    return tuple(localisation_entry(n, pin, f)
                  for n, (pin, f) in enumerate(pins_and_frequencies, start=1))
 
 
@@ -46,23 +53,22 @@ def plan_of(records: list[TrialRecord]) -> tuple[PlanEntry, ...]:
     """A plan with one entry per (trial, practice) of ``records``, in their order."""
     entries: dict[tuple[int, bool], PlanEntry] = {}
     for r in records:
-        common = {"trial": r.trial, "block": r.block, "practice": r.practice}
+        common = {"block": r.block, "practice": r.practice}
         match r:
             case LocalisationRecord():
-                entries.setdefault(r.key, LocalisationEntry(
-                    **common, pin=r.pin, frequency_hz=Fraction(str(r.frequency_hz))))
+                entries.setdefault(r.key, localisation_entry(r.trial, r.pin, r.frequency_hz,
+                                                             **common))
             case MotionRecord():
-                entries.setdefault(r.key, MotionEntry(**common, row=r.row,
-                                                      wave=WAVE[r.direction.value],
-                                                      direction=r.direction))
+                entries.setdefault(r.key, motion_entry(r.trial, r.row, r.direction.value,
+                                                       **common))
     return tuple(entries.values())
 
 
 def start_run(root: Path, subject: str, task: str, plan, session: str | int = 1,
               clock: TimeScale = VIRTUAL, provenance: Provenance = PROVENANCE,
               **options) -> RunWriter:
-    paradigm = (Paradigm.APPARENT_MOTION if plan and isinstance(plan[0], MotionEntry)
-                else Paradigm.LOCALISATION)
+    paradigm = ("apparent_motion" if plan and plan[0]["direction"] is not None
+                else "localisation")
     return RunWriter.start(root, subject, session, task, plan, provenance,
                            task_info(task, paradigm), clock, **options)
 

@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pinarray.cli.answer_sheets import AnswersError, check_answers, load_answers, parse_answers
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
 

@@ -25,8 +25,10 @@ import pytest
 from pinarray.journal.lock import lock_holder
 from pinarray.journal.manifest import RunStatus, entry_key, read_manifest
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import LocalisationRecord, TrialStatus, read_trials
+from pinarray.journal.records import TrialStatus
+from pinarray.journal.rows import read_trials
 from pinarray.journal.timebase import ClockKind, seconds_text
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from tests.runs import REPO, write_short_localisation
 
 # One worker builds the module's fixture once (make test runs --dist loadgroup).

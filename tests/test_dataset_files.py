@@ -11,7 +11,10 @@ import pytest
 from pinarray import __version__
 from pinarray.errors import ResultsError
 from pinarray.journal import dataset
-from pinarray.journal.records import BEH_COLUMNS, BEH_NAMES, EVENT_NAMES, Cell, read_trials
+from pinarray.journal.columns import Cell
+from pinarray.journal.records import LEGACY_EVENT_LAYOUT, LEGACY_LAYOUT
+from pinarray.journal.rows import read_trials
+from pinarray.journal.seam import columns_of, rows_of
 from pinarray.journal.writer import RunWriter
 from tests.runs import REPO, VIRTUAL, localisation_plan, start_run
 
@@ -102,7 +105,7 @@ def test_the_sidecars_describe_every_column_with_levels_or_units(tmp_path):
     writer = start_run(tmp_path, "01", "localisation", localisation_plan((4, 10), (7, 3)))
     writer.close()
     beh = json.loads(writer.paths.beh_json.read_text())
-    for column in BEH_COLUMNS:
+    for column in columns_of(rows_of("localisation")).values():
         assert beh[column.name]["Description"]
         if column.cell in (Cell.SECONDS, Cell.BOOLEAN) or column.name == "frequency_hz":
             assert "Units" in beh[column.name] or "Levels" in beh[column.name], column.name
@@ -116,7 +119,7 @@ def test_the_sidecars_describe_every_column_with_levels_or_units(tmp_path):
     assert beh["TaskName"] == "localisation" and "name the pin" in beh["Instructions"]
     assert beh["Device"]["PitchMm"] == 2.0 and beh["Device"]["ServoModels"] == ["STS3215"]
     events = json.loads(writer.paths.events_json.read_text())
-    assert [k for k in events if k in EVENT_NAMES] == list(EVENT_NAMES)
+    assert [k for k in events if k in LEGACY_EVENT_LAYOUT] == list(LEGACY_EVENT_LAYOUT)
     assert events["onset"]["Units"] == events["duration"]["Units"] == "s"
     assert events["trial_type"]["Levels"] == {"localisation_3hz": "one pin moves at 3 Hz",
                                               "localisation_10hz": "one pin moves at 10 Hz"}
@@ -162,7 +165,7 @@ def test_resuming_a_run_with_the_old_column_names_renames_them_adds_todays_as_na
     lines = text.splitlines()
     added = lines[1].split("\t")[len(row.split("\t")):]
     assert lines[1].startswith(row.rstrip("\n") + "\t") and set(added) == {"n/a"}
-    assert len(lines[1].split("\t")) == len(lines[0].split("\t")) == len(BEH_NAMES)
+    assert len(lines[1].split("\t")) == len(lines[0].split("\t")) == len(LEGACY_LAYOUT)
     assert read_trials(writer.paths.beh_tsv) == before
     assert [e.trial for e in resumed.remaining()] == [2]
 

@@ -8,17 +8,13 @@ from itertools import groupby
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from pinarray.paradigms.identification.design import AnswerKind
+from pinarray.paradigms.temporal_order.design import TemporalOrderCondition
+from pinarray.paradigms.two_interval.design import IntervalOrder, TwoIntervalCondition
 from pinarray.plan import make_plan
 from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.load import load_protocol, parse_protocol, protocol_warnings, validate_file
-from pinarray.protocol.paradigms import (
-    AnswerKind,
-    IntervalOrder,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-    correct_answer,
-)
-from pinarray.protocol.procedures import Parameter, Task
+from pinarray.protocol.procedures import Parameter
 from tests.lab_protocols import PROTOCOLS
 from tests.test_protocol_load import problems
 
@@ -52,7 +48,7 @@ def test_shapes_offer_the_seven_patterns_as_answers_in_the_order_listed():
     assert answers == ("across", "upright", "rising", "falling", "L", "T", "square")
     square = next(c for c in protocol.design.conditions if c.pattern == "square")
     assert square.pins == (5, 6, 7, 9, 11, 13, 14, 15)
-    assert correct_answer(square, protocol.design.judgement) == "square"
+    assert protocol.design.paradigm.correct_answer(square, protocol.design) == "square"
 
 
 def test_a_numerosity_design_is_answered_by_counting_the_raised_pins():
@@ -60,7 +56,8 @@ def test_a_numerosity_design_is_answered_by_counting_the_raised_pins():
                                   "answers: counts"))
     judgement = protocol.design.judgement
     assert judgement.answers is AnswerKind.COUNTS
-    assert [correct_answer(c, judgement) for c in protocol.design.conditions] == ["4", "3"]
+    assert [protocol.design.paradigm.correct_answer(c, protocol.design)
+            for c in protocol.design.conditions] == ["4", "3"]
     assert protocol.design.answers(16)[-1] == "16"
 
 
@@ -156,7 +153,7 @@ ADAPTIVE_PROTOCOL = parse_protocol(ADAPTIVE_2IFC)
 def test_an_adaptive_two_interval_plan_puts_the_comparison_first_half_the_time(seed):
     protocol = ADAPTIVE_PROTOCOL
     adaptive = protocol.design.adaptive
-    assert (adaptive.task, adaptive.guess_rate) == (Task.DISCRIMINATION, Fraction(1, 2))
+    assert (adaptive.task, adaptive.guess_rate) == ("discrimination", Fraction(1, 2))
     first = [t.condition.order is IntervalOrder.COMPARISON_FIRST
              for t in make_plan(protocol, seed).trials if not t.practice]
     assert abs(2 * sum(first) - len(first)) <= 1
@@ -175,7 +172,8 @@ def test_a_temporal_order_trial_starts_pin_b_an_soa_after_pin_a():
     assert [c.soa_ns // 1_000_000 for c in protocol.design.conditions] == [
         -120, -60, -30, -15, 15, 30, 60, 120]
     right_first = TemporalOrderCondition("tap", (6, 7), -30_000_000)
-    assert right_first.first_pin == 7 and correct_answer(right_first, judgement) == "7"
+    assert right_first.first_pin == 7
+    assert protocol.design.paradigm.correct_answer(right_first, protocol.design) == "7"
     assert {(d.pin, d.delay_ns) for d in trial_drives(protocol, right_first)} == {
         (6, 30_000_000), (7, 0)}
     assert protocol.design.answers(16) == ("6", "7")

@@ -9,15 +9,13 @@ import pytest
 from pinarray.analysis.load import load_run
 from pinarray.api.sessions import run_session, simulated_observer
 from pinarray.cli import main
-from pinarray.journal.records import (
-    BEH_NAMES,
-    IdentificationRecord,
-    TemporalOrderRecord,
-    TwoIntervalRecord,
-    read_trials,
-)
+from pinarray.journal.records import LEGACY_LAYOUT
+from pinarray.journal.rows import read_trials
+from pinarray.paradigms.identification.rows import IdentificationRecord
+from pinarray.paradigms.temporal_order.rows import TemporalOrderRecord
+from pinarray.paradigms.two_interval.design import IntervalOrder
+from pinarray.paradigms.two_interval.rows import TwoIntervalRecord
 from pinarray.protocol.load import load_protocol
-from pinarray.protocol.paradigms import IntervalOrder
 from tests.lab_protocols import short_copy
 
 RECORD = {"shapes": IdentificationRecord, "flutter_2ifc": TwoIntervalRecord,
@@ -63,7 +61,7 @@ def test_the_rows_keep_the_pattern_the_interval_order_and_the_soa(runs):
     cells = dict(zip(header.split("\t"), row.split("\t"), strict=True))
     assert cells["pins"] == "6 7" and cells["pattern"] == "n/a" and cells["pin"] == "n/a"
     # The new columns come after every column older files hold (0.2.2's motion_samples last).
-    assert BEH_NAMES.index("pattern") == BEH_NAMES.index("motion_samples") + 1
+    assert LEGACY_LAYOUT.index("pattern") == LEGACY_LAYOUT.index("motion_samples") + 1
 
 
 def test_the_sidecar_describes_the_new_columns_with_levels_and_units(runs):
@@ -159,10 +157,10 @@ def test_an_adaptive_temporal_order_run_moves_its_soa_and_keeps_which_pin_went_f
 
 def test_results_written_before_the_lab_s_columns_still_read(tmp_path):
     older = tmp_path / "older_beh.tsv"
-    cut = BEH_NAMES.index("pattern")
+    cut = LEGACY_LAYOUT.index("pattern")
     row = ["1", "1", "loc", "4", "n/a", "n/a", "10", "4", "correct", "n/a", "n/a", "0", "10",
            "n/a", "ok", "false", "false"]
-    older.write_text("\t".join(BEH_NAMES[:cut]) + "\n"
+    older.write_text("\t".join(LEGACY_LAYOUT[:cut]) + "\n"
                      + "\t".join(row + ["n/a"] * (cut - len(row))) + "\n")
     (record,) = read_trials(older)
     assert (type(record).__name__, record.pin, record.response) == ("LocalisationRecord", 4, "4")

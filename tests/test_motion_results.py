@@ -12,27 +12,28 @@ from fractions import Fraction
 import pytest
 
 from pinarray.errors import PinArrayError, ResultsError
+from pinarray.journal.columns import tsv_line
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.physio import MotionSample, motion_recording_path, read_motion
-from pinarray.journal.records import (
-    BEH_NAMES,
-    LocalisationRecord,
-    StrokeCounts,
-    read_trials,
-    trial_row,
-    tsv_line,
-)
+from pinarray.journal.records import LEGACY_LAYOUT, StrokeCounts
+from pinarray.journal.rows import read_trials, trial_row
 from pinarray.journal.writer import RunWriter
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.protocol.load import parse_protocol
 from tests.runs import REPO, localisation_plan, start_run
 
 S = 1_000_000_000
 
 
+# The frequencies of the plans below, trial by trial: a row read back is checked against its
+# run's plan.
+FREQUENCIES = (10.0, 3.0, 5.0)
+
+
 def localisation(trial, **more):
     return LocalisationRecord(trial=trial, block=1, task="localisation", onset_ns=12 * S * trial,
-                              duration_ns=10 * S, response="4", pin=4, frequency_hz=10.0,
-                              error_class="correct", **more)
+                              duration_ns=10 * S, response="4", pin=4,
+                              frequency_hz=FREQUENCIES[trial - 1], error_class="correct", **more)
 
 
 def samples(trial, count=50):
@@ -54,9 +55,9 @@ def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_
                                "motion_lag", "cycles_short")] == ["114", "80", "80.5", "0.064", "9"]
     # Appended after every earlier column (later ones, motion_samples and the lab's
     # paradigms', after them): an older run resumed gets them as n/a cells.
-    start = BEH_NAMES.index("stroke_commanded")
-    assert start > BEH_NAMES.index("guess_rate")
-    assert BEH_NAMES[start:start + 6] == ("stroke_commanded", "stroke_achieved",
+    start = LEGACY_LAYOUT.index("stroke_commanded")
+    assert start > LEGACY_LAYOUT.index("guess_rate")
+    assert LEGACY_LAYOUT[start:start + 6] == ("stroke_commanded", "stroke_achieved",
                                           "stroke_median", "motion_lag", "cycles_short",
                                           "motion_samples")
     described = json.loads(writer.paths.beh_json.read_text())
@@ -64,7 +65,7 @@ def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_
 
 
 def test_results_written_before_the_stroke_columns_still_read(tmp_path):
-    older = BEH_NAMES[: BEH_NAMES.index("stroke_commanded")]
+    older = LEGACY_LAYOUT[: LEGACY_LAYOUT.index("stroke_commanded")]
     row = trial_row(localisation(1))[: len(older)]
     path = tmp_path / "sub-01_ses-1_task-localisation_run-1_beh.tsv"
     path.write_text(tsv_line(older) + tsv_line(row))

@@ -1,4 +1,5 @@
-"""The simulated subject: a population that matches the seed on average, and subjects who differ."""
+"""The simulated subjects of the seed's two experiments (localisation's and apparent motion's):
+a population that matches the seed on average, and subjects who differ."""
 
 import math
 import re
@@ -10,15 +11,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from pinarray.analysis import observer as observer_module
-from pinarray.analysis.observer import (
+from pinarray.errors import PinArrayError
+from pinarray.grid import classify
+from pinarray.paradigms.apparent_motion.observer import MotionObserver, MotionObserverModel
+from pinarray.paradigms.apparent_motion.observer import parse_observer as parse_motion
+from pinarray.paradigms.localisation import observer as observer_module
+from pinarray.paradigms.localisation.observer import (
     ObserverModel,
     SimulatedObserver,
     SubjectOffsets,
     parse_observer,
 )
-from pinarray.errors import PinArrayError
-from pinarray.grid import classify
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
@@ -72,7 +75,7 @@ def test_pin_4_is_best_localised_and_edges_beat_the_centre():
 
 def test_the_population_gives_77_percent_motion_felt_and_65_percent_of_those_right():
     for direction in ("left", "right"):
-        answers = DEFAULT.motion_probabilities(direction)
+        answers = MotionObserverModel().probabilities(direction)
         felt = 1 - answers["none"]
         # plain arithmetic on the model's fractions (1 - (1 - 0.77), a product, a quotient):
         # a few u, far inside 1e-12
@@ -84,7 +87,7 @@ def test_subjects_differ_and_a_spread_of_0_makes_them_identical():
     subjects = [SimulatedObserver(ON_PROTOCOL, seed=s).subject for s in range(5)]
     at_ten = {round(s.expected_localisation(10)["correct"], 6) for s in subjects}
     assert len(at_ten) == 5
-    assert len({s.motion_felt for s in subjects}) == 5
+    assert len({MotionObserver(seed=s).subject.motion_felt for s in range(5)}) == 5
     same = ObserverModel(subject_sd_logit=0).for_protocol(LOCALISATION)
     assert {SimulatedObserver(same, seed=s).subject for s in range(5)} == {same}
 
@@ -121,7 +124,8 @@ def test_many_simulated_subjects_average_the_seeds_numbers_within_monte_carlo_er
             correct[frequency_hz].append(verdicts.count("correct") / len(PROTOCOL_PINS))
             for c in errors:
                 errors[c] += verdicts.count(c)
-        said = [observer.respond_motion(d) for d in ("left", "right") * 4]
+        feeling = MotionObserver(seed=rng)
+        said = [feeling.respond(d) for d in ("left", "right") * 4]
         felt += sum(a != "none" for a in said)
         right += sum(a == d for a, d in zip(said, ("left", "right") * 4, strict=True))
     for frequency_hz, target in SEED_CORRECT.items():
@@ -145,11 +149,12 @@ def test_one_subjects_long_run_answers_match_their_own_probability_row():
 
 
 def test_one_subjects_long_run_motion_answers_match_their_own_model():
-    observer = SimulatedObserver(ObserverModel(no_wave_felt=0.4, unsure_given_felt=0.2), seed=3)
+    observer = MotionObserver(MotionObserverModel(no_wave_felt=0.4, unsure_given_felt=0.2),
+                              seed=3)
     n = 12_000
     for direction in ("left", "right", "none"):
-        answers = [observer.respond_motion(direction) for _ in range(n)]
-        for answer, probability in observer.subject.motion_probabilities(direction).items():
+        answers = [observer.respond(direction) for _ in range(n)]
+        for answer, probability in observer.subject.probabilities(direction).items():
             assert within(answers.count(answer), n, probability), (direction, answer)
 
 
@@ -207,8 +212,6 @@ def test_sigma_never_grows_with_frequency(low, high):
 @pytest.mark.parametrize(
     ("changes", "message"),
     [
-        ({"motion_felt": 1.2}, "motion_felt must be a fraction"),
-        ({"direction_given_felt": 0.8, "unsure_given_felt": 0.3}, "at most 1"),
         ({"correct_by_frequency": ((3.0, 0.7), (10.0, 0.5))}, "must not fall as frequency rises"),
         ({"correct_by_frequency": ((10.0, 0.01),)}, "between chance"),
         ({"pin_acuity": ((17, 0.5),)}, "pin 17 is not on the 4x4 grid"),
@@ -220,27 +223,42 @@ def test_impossible_parameters_are_refused_with_the_reason(changes, message):
         ObserverModel(**changes)
 
 
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [({"motion_felt": 1.2}, "motion_felt must be a fraction"),
+     ({"direction_given_felt": 0.8, "unsure_given_felt": 0.3}, "at most 1")])
+def test_impossible_motion_parameters_are_refused_with_the_reason(changes, message):
+    with pytest.raises(PinArrayError, match=message):
+        MotionObserverModel(**changes)
+
+
 def test_a_model_can_be_written_on_the_command_line():
-    model = parse_observer("motion_felt=0.9, correct_10hz=0.7,correct_20hz=0.8,subject_sd_logit=1")
-    assert model.motion_felt == 0.9 and model.subject_sd_logit == 1.0
+    model = parse_observer("miss_rate=0.01, correct_10hz=0.7,correct_20hz=0.8,subject_sd_logit=1")
+    assert model.miss_rate == 0.01 and model.subject_sd_logit == 1.0
     assert dict(model.correct_by_frequency) == {3.0: 0.4, 5.0: 0.5, 10.0: 0.7, 20.0: 0.8}
     assert parse_observer("default") == DEFAULT
+    assert parse_motion("motion_felt=0.9").motion_felt == 0.9
     with pytest.raises(PinArrayError, match="unknown parameter 'speed'"):
         parse_observer("speed=3")
-    with pytest.raises(PinArrayError, match="'motion_felt=lots': expected a decimal number"):
-        parse_observer("motion_felt=lots")
+    # Each experiment's subject takes its own parameters, and names the others' unknown.
+    with pytest.raises(PinArrayError, match="unknown parameter 'motion_felt'"):
+        parse_observer("motion_felt=0.9")
+    with pytest.raises(PinArrayError, match="unknown parameter 'correct_10hz' for apparent_mot"):
+        parse_motion("correct_10hz=0.7")
+    with pytest.raises(PinArrayError, match="'miss_rate=lots': expected a decimal number"):
+        parse_observer("miss_rate=lots")
     with pytest.raises(PinArrayError, match="expected a decimal number, found 'nan'"):
         parse_observer("subject_sd_logit=nan")
 
 
 @pytest.mark.parametrize(("spec", "message"), [
-    ("motion_felt=0.5,motion_felt=0.9", "'motion_felt' is given twice; give each parameter once"),
+    ("miss_rate=0.1,miss_rate=0.2", "'miss_rate' is given twice; give each parameter once"),
     ("correct_10hz=0.7, correct_10hz =0.8", "'correct_10hz' is given twice"),
     ("subject_sd_logit=1_000", "expected a decimal number, found '1_000'"),
-    ("motion_felt=０.９", "expected a decimal number, found '０.９'"),
+    ("miss_rate=０.１", "expected a decimal number, found '０.１'"),
     ("correct_infhz=0.9", "'correct_infhz': expected correct_<Hz>hz with a frequency above 0"),
     ("correct_0hz=0.9", "expected correct_<Hz>hz with a frequency above 0"),
-    ("motion_felt", "'motion_felt': expected name=number"),
+    ("miss_rate", "'miss_rate': expected name=number"),
 ])
 def test_a_model_written_twice_over_or_in_numbers_a_protocol_would_refuse_is_refused(spec,
                                                                                       message):
@@ -248,9 +266,20 @@ def test_a_model_written_twice_over_or_in_numbers_a_protocol_would_refuse_is_ref
         parse_observer(spec)
 
 
+@pytest.mark.parametrize(("spec", "message"), [
+    ("motion_felt=0.5,motion_felt=0.9", "'motion_felt' is given twice; give each parameter once"),
+    ("motion_felt=０.９", "expected a decimal number, found '０.９'"),
+    ("motion_felt", "'motion_felt': expected name=number"),
+])
+def test_a_motion_model_written_twice_over_or_in_numbers_a_protocol_would_refuse_is_refused(
+        spec, message):
+    with pytest.raises(PinArrayError, match=re.escape(message)):
+        parse_motion(spec)
+
+
 def test_an_off_grid_pin_or_unknown_direction_is_refused():
     observer = SimulatedObserver(seed=1)
     with pytest.raises(PinArrayError, match="pin 0"):
         observer.respond_localisation(0, 10.0)
     with pytest.raises(PinArrayError, match="up"):
-        observer.respond_motion("up")
+        MotionObserver(seed=1).respond("up")

@@ -16,8 +16,9 @@ from pinarray.errors import ResultsError
 from pinarray.journal.lock import RunLocked, lock_holder
 from pinarray.journal.manifest import RunStatus, read_manifest
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import LocalisationRecord, read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.journal.writer import RunWriter
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from tests.runs import (
     REPO,
     VIRTUAL,

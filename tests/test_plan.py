@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError
+from pinarray.paradigms.localisation.design import LocalisationCondition
 from pinarray.plan import constrained_shuffle, make_plan, williams_square
-from pinarray.protocol import LocalisationCondition
 from pinarray.protocol.load import load_protocol, parse_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"

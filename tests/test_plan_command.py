@@ -3,7 +3,7 @@
 import subprocess
 import sys
 
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from tests.runs import REPO, write_short_localisation
 
 LOCALISATION = REPO / "protocols" / "localisation.yaml"

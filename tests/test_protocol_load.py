@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from pinarray.errors import ProtocolErrors
-from pinarray.protocol import Paradigm, WaveKind
+from pinarray.protocol import WaveKind
 from pinarray.protocol.load import load_protocol, parse_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
@@ -37,7 +37,7 @@ def problems(text: str) -> list[str]:
 def test_the_seed_localisation_protocol_is_8_pins_by_3_frequencies_of_10_s():
     protocol = load_protocol(PROTOCOLS / "localisation.yaml")
     design = protocol.design
-    assert design.paradigm is Paradigm.LOCALISATION
+    assert design.paradigm.name == "localisation"
     assert {c.pin for c in design.conditions} == {1, 4, 6, 7, 10, 11, 13, 16}
     assert {c.frequency_hz for c in design.conditions} == {3, 5, 10}
     train = protocol.stimulus("seed_train").train

@@ -24,32 +24,34 @@ from pinarray.journal.manifest import (
     write_manifest,
 )
 from pinarray.journal.paths import LabelError, RunPaths
-from pinarray.journal.records import (
-    BEH_NAMES,
-    EVENT_NAMES,
-    AdaptiveCells,
-    LocalisationRecord,
-    MotionRecord,
-    read_trials,
-    split_torn_tail,
-)
+from pinarray.journal.records import LEGACY_EVENT_LAYOUT, LEGACY_LAYOUT, AdaptiveCells
+from pinarray.journal.rows import read_trials, split_torn_tail
 from pinarray.journal.writer import RunWriter
-from tests.runs import localisation_plan, start_run
+from pinarray.paradigms.apparent_motion.rows import MotionRecord
+from pinarray.paradigms.localisation.rows import LocalisationRecord
+from tests.runs import localisation_plan, motion_entry, start_run
 
 S = 1_000_000_000  # ns per s
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PLAN = localisation_plan((4, 10), (7, 3), (10, 5), (1, 10), (16, 3))
+MOTION_PLAN = (motion_entry(1, 2, "left"),)  # a run of apparent motion
 
 
 def start(root, subject="S01", session=1, task="localisation", plan=PLAN):
     return start_run(root, subject, task, plan, session=session)
 
 
-def localisation(trial, status="ok", response="4", **more):
+def localisation(trial, status="ok", response=None, **more):
+    """Trial ``trial`` of `PLAN` (its pin and frequency), answered ``response`` (default: its
+    pin, right)."""
+    entry = PLAN[(trial - 1) % len(PLAN)]
+    pin = entry["pin"]
+    response = str(pin) if response is None else response
     return LocalisationRecord(trial=trial, block=1, task="localisation", onset_ns=12_500_000_000 * trial,
                               duration_ns=10 * S, status=status, response=response,
-                              response_time_ns=1_500_000_000, pin=4, frequency_hz=10.0,
-                              error_class="correct" if response == "4" else None, **more)
+                              response_time_ns=1_500_000_000, pin=pin,
+                              frequency_hz=float(entry["frequency_hz"]),
+                              error_class="correct" if response == str(pin) else None, **more)
 
 
 @pytest.mark.parametrize("label", ["../x", "a b", "a/b", "", "sub_1", "x-1", "é1", None])
@@ -79,13 +81,13 @@ def test_the_sidecar_describes_every_column_with_units_or_levels(tmp_path):
     writer = start(tmp_path)
     writer.close()
     sidecar = json.loads(writer.paths.beh_json.read_text())
-    columns = {k: v for k, v in sidecar.items() if k in BEH_NAMES}
-    assert list(columns) == list(BEH_NAMES)
+    columns = {k: v for k, v in sidecar.items() if k in LEGACY_LAYOUT}
+    assert list(columns) == list(LEGACY_LAYOUT)
     assert all(entry["Description"] for entry in columns.values())
     assert sidecar["stimulus_onset"]["Units"] == "s" and sidecar["frequency_hz"]["Units"] == "Hz"
     assert set(sidecar["status"]["Levels"]) == {"ok", "redone", "aborted", "invalid"}
     events = json.loads(writer.paths.events_json.read_text())
-    assert [k for k in events if k in (*EVENT_NAMES, "trial_type")] == list(EVENT_NAMES)
+    assert [k for k in events if k in (*LEGACY_EVENT_LAYOUT, "trial_type")] == list(LEGACY_EVENT_LAYOUT)
 
 
 def test_the_manifest_holds_the_plan_and_the_provenance_before_trial_one(tmp_path):
@@ -138,15 +140,15 @@ def test_a_torn_last_line_is_left_out_and_resume_drops_it_keeping_every_earlier_
 
 
 def test_split_torn_tail_only_ever_cuts_the_last_row():
-    header = "\t".join(BEH_NAMES).encode() + b"\n"
-    row = b"\t".join([b"1"] * len(BEH_NAMES)) + b"\n"
+    header = "\t".join(LEGACY_LAYOUT).encode() + b"\n"
+    row = b"\t".join([b"1"] * len(LEGACY_LAYOUT)) + b"\n"
     whole = header + row + row
-    assert split_torn_tail(whole, len(BEH_NAMES)) == (len(whole), b"")
-    assert split_torn_tail(whole + b"1\t2", len(BEH_NAMES)) == (len(whole), b"1\t2")
-    assert split_torn_tail(whole + b"\0\0\0", len(BEH_NAMES))[0] == len(whole)
+    assert split_torn_tail(whole, len(LEGACY_LAYOUT)) == (len(whole), b"")
+    assert split_torn_tail(whole + b"1\t2", len(LEGACY_LAYOUT)) == (len(whole), b"1\t2")
+    assert split_torn_tail(whole + b"\0\0\0", len(LEGACY_LAYOUT))[0] == len(whole)
     short = b"1\t2\n"
-    assert split_torn_tail(whole + short, len(BEH_NAMES)) == (len(whole), short)
-    assert split_torn_tail(header[:5], len(BEH_NAMES)) == (0, header[:5])
+    assert split_torn_tail(whole + short, len(LEGACY_LAYOUT)) == (len(whole), short)
+    assert split_torn_tail(header[:5], len(LEGACY_LAYOUT)) == (0, header[:5])
 
 
 def test_resume_rebuilds_the_events_row_a_crash_left_out(tmp_path):
@@ -243,7 +245,7 @@ def test_any_motion_row_reads_back_exactly_as_written(
     record = MotionRecord(trial=3, block=2, task="motion", onset_ns=onset, duration_ns=duration,
                           response=response, response_time_ns=response_time, row=row,
                           direction=direction, status_reason=reason)
-    writer = start(tmp_path_factory.mktemp("r"), task="motion")
+    writer = start(tmp_path_factory.mktemp("r"), task="motion", plan=MOTION_PLAN)
     written = writer.write_trial(record)
     writer.close()
     assert written == replace(record, motion_samples=0)  # no samples: none claimed
@@ -264,7 +266,7 @@ def test_any_adaptive_trial_reads_back_exactly_as_written(
                           low, high)
     record = MotionRecord(trial=3, block=1, task="motion", onset_ns=0, duration_ns=S,
                           response="left", row=2, direction="left", adaptive=cells)
-    writer = start(tmp_path_factory.mktemp("r"), task="motion")
+    writer = start(tmp_path_factory.mktemp("r"), task="motion", plan=MOTION_PLAN)
     written = writer.write_trial(record)
     writer.close()
     assert written == replace(record, motion_samples=0)  # no samples: none claimed
@@ -275,8 +277,8 @@ CHILD = textwrap.dedent("""
     import sys
     from pathlib import Path
     from pinarray.journal.paths import RunPaths
-    from pinarray.journal.records import LocalisationRecord
     from pinarray.journal.writer import RunWriter
+    from pinarray.paradigms.localisation.rows import LocalisationRecord
     from tests.runs import VIRTUAL, localisation_plan, start_run
 
     root, mode = Path(sys.argv[1]), sys.argv[2]
@@ -289,7 +291,8 @@ CHILD = textwrap.dedent("""
         n = entry.trial
         writer.write_trial(LocalisationRecord(
             trial=n, block=1, task="localisation", onset_ns=n * 10**9, duration_ns=10**10,
-            response=str(entry.pin), pin=entry.pin, frequency_hz=5.0, error_class="correct"))
+            response=str(entry["pin"]), pin=entry["pin"], frequency_hz=5.0,
+            error_class="correct"))
     writer.finish()
 """)
 

@@ -18,7 +18,7 @@ from pinarray.errors import BusError
 from pinarray.grid import classify
 from pinarray.hardware.delivery import DEFAULT_TOLERANCE_NS, DeliveryRecord, Presentation
 from pinarray.journal.manifest import Provenance, RunStatus, read_manifest
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.journal.runs import plan_entries, task_info
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import make_plan

@@ -8,7 +8,7 @@ import pytest
 
 from pinarray.clock import VirtualClock
 from pinarray.journal.manifest import read_manifest
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.journal.runs import unfinished_run
 from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol

@@ -24,7 +24,10 @@ HEAVY = ("numpy", "scipy", "matplotlib", "textual", "serial", "scservo_sdk")
 # What validating needs of pinarray: the reader of protocol files and the validate command.
 NEEDED = ("pinarray", "pinarray.version", "pinarray.cli", "pinarray.cli.common", "pinarray.cli.protocols",
           "pinarray.errors", "pinarray.units", "pinarray.grid", "pinarray.text_files",
-          "pinarray.protocol")
+          "pinarray.protocol", "pinarray.registry", "pinarray.paradigms", "pinarray.paradigms.base")
+# ... and of the protocol's paradigm (found by the registry), its room's design alone: not its
+# rows, analysis or observer, nor any other room, nor the installed packages' entry points.
+ROOM = ("pinarray.paradigms.localisation", "pinarray.paradigms.localisation.design")
 
 
 def imported_by(command: list[str]) -> set[str]:
@@ -64,9 +67,10 @@ def test_validate_loads_the_protocol_reader_and_nothing_else_of_pinarray_nor_hea
 
     assert "pinarray.protocol.load" in modules  # the listing is read right: it did validate
     assert sorted(m for m in modules if m.split(".")[0] in HEAVY) == []
-    others = {m for m in modules if m.split(".")[0] == "pinarray"
+    others = {m for m in modules if m.split(".")[0] == "pinarray" and m not in ROOM
               and not any(m == n or m.startswith("pinarray.protocol.") for n in NEEDED)}
     assert sorted(others) == []
+    assert "importlib.metadata" not in modules  # a shipped paradigm: no entry points read
 
 
 def parts_loaded_by(code: str) -> list[str]:

@@ -24,6 +24,14 @@ def test_pytest_finds_the_plugin_through_its_entry_point():
     assert callable(plugin.load().simulated_array)
 
 
+def test_pytest_says_how_closely_the_fixture_simulates_the_array():
+    (plugin,) = [e for e in entry_points(group="pytest11") if e.name == "pinarray"]
+    header = plugin.load().pytest_report_header(None)
+    assert header.startswith("pinarray: simulated_array plays bus servos in virtual time at the "
+                             "packet level: exchanges computed whole (the wire's results, byte "
+                             "for byte; a URL's fidelity= chooses wire, motion)")
+
+
 def test_loading_the_plugin_imports_neither_the_array_nor_numpy():
     shown = "import sys; print(*sorted(m for m in sys.modules if m.split('.')[0] in ('numpy', 'pinarray')))"
     loaded = subprocess.run([sys.executable, "-c", f"import pinarray.testing.plugin; {shown}"],

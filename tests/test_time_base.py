@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from pinarray.clock import MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.journal.manifest import read_manifest
-from pinarray.journal.records import LocalisationRecord, read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.journal.runs import open_run, time_scale_of
 from pinarray.journal.timebase import (
     REAL_TIME,
@@ -23,6 +23,7 @@ from pinarray.journal.timebase import (
     seconds_text,
 )
 from pinarray.journal.writer import RunWriter
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import Phase, Session, task_label

@@ -9,8 +9,9 @@ import textwrap
 
 import pytest
 
-from pinarray.errors import ProtocolErrors
-from pinarray.journal.manifest import MotionEntry, entry_from_json, entry_to_json
+from pinarray.errors import ProtocolErrors, ResultsError
+from pinarray.journal.manifest import PlanEntry, entry_from_json, entry_to_json
+from pinarray.paradigms.apparent_motion.rows import entry_direction
 from pinarray.protocol import Direction, WaveKind
 from pinarray.protocol.load import load_protocol, parse_protocol
 from tests.many_ways import MANY_WAYS, write_many_ways
@@ -47,9 +48,9 @@ def test_a_sequence_wave_visits_its_pins_in_the_order_listed_going_the_way_it_na
 
 
 def test_the_answers_are_the_directions_the_waves_go_then_no_motion_and_unsure():
-    many = parse_protocol(MANY_WAYS, "p.yaml").design.motion_answers
+    many = parse_protocol(MANY_WAYS, "p.yaml").design.answers(16)
     assert list(many) == ["left", "right", "up", "down", "up-right", "none", "unsure"]
-    seed = load_protocol(PROTOCOLS / "apparent_motion.yaml").design.motion_answers
+    seed = load_protocol(PROTOCOLS / "apparent_motion.yaml").design.answers(16)
     assert list(seed) == ["left", "right", "none", "unsure"]
 
 
@@ -114,12 +115,19 @@ def test_a_column_and_a_diagonal_wave_run_in_batch_with_a_simulated_subject(tmp_
 
 
 def test_a_wave_not_along_a_row_is_kept_in_the_plan_with_its_pins_and_direction():
-    entry = MotionEntry(trial=3, stimulus="diagonal", row=None, wave=WaveKind.SEQUENCE,
-                        direction=Direction("up-right"), pins=(1, 6, 11, 16))
-    assert entry_from_json(json.loads(json.dumps(entry_to_json(entry))), "m.json") == entry
+    entry = PlanEntry(trial=3, stimulus="diagonal",
+                      fields={"pin": None, "frequency_hz": None, "direction": "sequence",
+                              "row": None, "pins": [1, 6, 11, 16], "towards": "up-right"})
+    back = entry_from_json(json.loads(json.dumps(entry_to_json(entry))), "m.json",
+                           "apparent_motion")
+    assert back == entry and entry_direction(back) == "up-right"
     # A row's wave is stored as it always was, so plans written before read the same.
-    row = entry_from_json({"trial": 1, "direction": "leftwards", "row": 2}, "m.json")
-    assert isinstance(row, MotionEntry) and row.direction == "left" and row.pins == ()
+    row = entry_from_json({"trial": 1, "direction": "leftwards", "row": 2}, "m.json",
+                          "apparent_motion")
+    assert entry_direction(row) == "left" and row["pins"] is None
+    with pytest.raises(ResultsError, match="not an apparent_motion trial"):
+        entry_from_json({"trial": 1, "direction": "sideways", "row": 2}, "m.json",
+                        "apparent_motion")
 
 
 # -- a localisation train without frequency_hz ---------------------------------------------------
@@ -163,5 +171,6 @@ def test_a_wave_whose_train_has_no_frequency_is_refused_where_it_names_the_train
 
 def test_a_design_frequency_too_high_for_the_signal_length_is_refused_at_that_frequency():
     text = SHAPE_ONLY.replace("{duration_s: 1}", "{duration_s: 0.001}")
-    (line,) = problems(text)
-    assert line.startswith("p.yaml:8:20:") and "at least one pulse period (33.3333 ms at 3 Hz)" in line
+    three, ten = problems(text)  # each frequency the signal is too short for, where it is written
+    assert three.startswith("p.yaml:8:20:") and "at least one pulse period (33.3333 ms at 3 Hz)" in three
+    assert ten.startswith("p.yaml:8:23:") and "(10 ms at 10 Hz), found 1 ms" in ten

@@ -5,10 +5,9 @@ lapse; the rest default: a Weibull whose threshold is the middle of the design's
 3, the design's guess rate, lapse 0.02). A trial at value ``x`` is answered correctly with
 probability ``p(x)`` (`pinarray.adaptive.observer`: a draw from the seed, the trial number and
 the value only, so a resumed run gets the answers it would have had). A correct answer is
-what the task counts as correct (the wave's direction; the moved pin; "felt": the pin, or the
-wave's direction; the interval with the higher value; the pin that came first); a wrong one
-is the other direction, another of the design's pins, nothing felt, the other interval or the
-other pin. A catch trial is answered rightly (nothing felt) unless the subject lapses.
+what the task counts as correct, a wrong one another of the design's answers (or nothing felt,
+for detection), as the paradigm says them (`pinarray.protocol.seam.ParadigmDesign.felt_answer`,
+``wrong_answer``). A catch trial is answered rightly (nothing felt) unless the subject lapses.
 """
 
 from __future__ import annotations
@@ -18,12 +17,12 @@ from fractions import Fraction
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
-from pinarray.analysis.observer import observer_items, observer_number
+from pinarray.analysis.observers import observer_items, observer_number
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Protocol
-from pinarray.protocol.model import NOTHING_FELT
-from pinarray.protocol.paradigms import FIRST, correct_answer
-from pinarray.protocol.procedures import Adaptive, Function, Task
+from pinarray.protocol.model import Condition, Protocol
+from pinarray.protocol.procedures import Adaptive, Function
+
+NOTHING = "none"  # a detection task's catch trial answered rightly: nothing felt
 
 KEYS = ("function", "threshold", "slope", "guess", "lapse")
 
@@ -75,37 +74,13 @@ class AdaptiveSubject:
             # A Weibull is its guess rate at 0: a draw that comes out True with p = lapse.
             slips = PsychometricObserver(Psychometric("weibull", 1.0, 1.0, self.function.lapse,
                                                       0.0), self.seed)
-            return self._felt(condition, trial) if slips.answer(trial, 0.0) else NOTHING_FELT
+            return self._felt(condition, trial) if slips.answer(trial, 0.0) else NOTHING
         if observer.answer(trial, float(value)):
             return self._felt(condition, trial)
-        return self._wrong(adaptive.task, condition, trial)
+        design = self.protocol.design
+        return design.paradigm.wrong_answer(adaptive.task, condition, design,
+                                            self.protocol.device.grid.pin_count, trial)
 
     def _felt(self, condition: Condition, trial: int) -> str:
-        judgement = self.protocol.design.judgement
-        match condition:
-            case LocalisationCondition():
-                return str(condition.pin)
-            case MotionCondition():
-                directions = self.protocol.design.directions
-                if condition.direction in directions or not directions:
-                    return condition.direction if directions else "unsure"
-                return directions[trial % len(directions)]  # a no-wave control, felt as moving
-        assert judgement is not None
-        return correct_answer(condition, judgement) or FIRST
-
-    def _wrong(self, task: Task, condition: Condition, trial: int) -> str:
-        if task is Task.DETECTION:
-            return NOTHING_FELT
-        match condition:
-            case MotionCondition():
-                others = [d for d in self.protocol.design.directions if d != condition.direction]
-                return others[trial % len(others)] if others else NOTHING_FELT
-            case LocalisationCondition():
-                pins = sorted({c.pin for c in self.protocol.design.conditions
-                               if isinstance(c, LocalisationCondition) and c.pin != condition.pin})
-                return str(pins[trial % len(pins)]) if pins else NOTHING_FELT
         design = self.protocol.design
-        assert design.judgement is not None
-        right = correct_answer(condition, design.judgement)
-        answers = [a for a in design.answers(self.protocol.device.grid.pin_count) if a != right]
-        return answers[trial % len(answers)]
+        return design.paradigm.felt_answer(condition, design, trial)

@@ -1,17 +1,12 @@
-"""Figure captions: what is drawn, N (subjects and trials), the unit, and the interval method.
+"""Figure captions of the adaptive designs' figures: what is drawn, N (trials), the method.
 
 Captions are plain text, written under each figure and into ``summary.md``, so a figure taken
-out of the report still says what it shows.
+out of the report still says what it shows; each paradigm's room captions its own figures.
 """
 
 from __future__ import annotations
 
-import math
-
 from pinarray.adaptive.posterior import ThresholdStatus
-from pinarray.analysis.chance import DIRECTION_CHANCE
-from pinarray.analysis.study import Study
-from pinarray.analysis.subjects import AcrossSubjects
 from pinarray.analysis.thresholds import (
     NotFitted,
     SubjectThresholds,
@@ -21,88 +16,6 @@ from pinarray.analysis.thresholds import (
 )
 
 COUNTED = "Counted: main trials with status ok."
-
-
-def _n(measure: AcrossSubjects) -> str:
-    return f"N = {measure.subjects} subject(s), {measure.trials} trials"
-
-
-def _localisation_n(study: Study) -> str:
-    level = study.subject_level
-    return (f"N = {len(level.localisation_subjects)} subject(s), "
-            f"{study.localisation_trials} trials")
-
-
-def correct_by_frequency(study: Study) -> str:
-    settings = study.subject_level.settings
-    chance = study.chance
-    chance_text = f" Dashed line: {chance.definition()}." if chance else ""
-    return (f"Correct localisation by frequency. Bars: mean of per-subject percentages "
-            f"(unit: subject; {_localisation_n(study)}); error bars: {settings.describe()}; "
-            f"grey lines: individual subjects; under each bar: its mean, subjects and "
-            f"trials.{chance_text} {COUNTED}")
-
-
-def error_types(study: Study) -> str:
-    settings = study.subject_level.settings
-    return (f"Localisation answers by type, % of all trials at each frequency (correct answers "
-            f"are the rest). A: adjacent on the same row or column; B: diagonal neighbour; "
-            f"C: same row or column, not adjacent; D: neither; nothing felt: no pin named. "
-            f"Bars: mean of per-subject percentages (unit: subject; {_localisation_n(study)}); "
-            f"error bars: {settings.describe()}. Black ticks: chance share of each error class "
-            f"for a subject naming any of {len(study.chance.answer_pins) if study.chance else 0} "
-            f"pins at random, averaged over the stimulated pins. {COUNTED}")
-
-
-def confusion_matrix(study: Study) -> str:
-    return (f"Confusion matrix, trial-pooled: every trial of every subject counted together "
-            f"(unit: trial; {_localisation_n(study)}, all frequencies). Each row is one "
-            f"stimulated pin and adds up to 100 % of its trials, including the 'nothing felt' "
-            f"column. Pins numbered 1-16 as the subject feels them (1 bottom-left). {COUNTED}")
-
-
-def pin_accuracy(study: Study) -> str:
-    return (f"Correct localisation per pin, drawn as the subject feels the grid (pin 1 "
-            f"bottom-left, pin numbers 1-based). Each cell: mean of per-subject percentages "
-            f"for that pin (unit: subject; {_localisation_n(study)}, all frequencies); grey "
-            f"cells were never stimulated. {COUNTED}")
-
-
-def motion(study: Study) -> str:
-    settings = study.subject_level.settings
-    level = study.subject_level.motion
-    return (f"Apparent motion. Bars: mean of per-subject percentages (unit: subject); error "
-            f"bars: {settings.describe()}; under each bar: its mean, subjects and trials; "
-            f"grey dots: individual subjects. Felt a moving dot: % of wave trials "
-            f"({_n(level.felt)}). Direction right: % of the wave trials on which motion was "
-            f"felt ({_n(level.direction_right)}); dashed line: chance "
-            f"{100 * DIRECTION_CHANCE:.0f} % (left or right named at random; 'unsure' counts "
-            f"as not right). Felt on no-wave trials: the false-alarm baseline "
-            f"({_n(level.no_wave_felt)}). {COUNTED}")
-
-
-def stroke_by_frequency(study: Study) -> str:
-    rows = study.strokes.rows
-    commanded = ", ".join(
-        f"{steps} steps" + ("" if math.isnan(mm) else f" ({mm:.2f} mm)")
-        for steps, mm in sorted({(r.commanded_steps, r.mm(r.commanded_steps)) for r in rows}))
-    return (f"Achieved stroke by frequency, each pin its own line: a trial's achieved stroke is "
-            f"the smallest peak-to-peak of the pin's sampled position over the trial's cycles. "
-            f"Points: the median over trials as a percentage of the commanded stroke "
-            f"({commanded}); bars: the smallest and largest trial; dashed: 100 %. "
-            f"N = {sum(r.n_trials for r in rows)} trials of {len({r.pin for r in rows})} "
-            f"pin(s): every localisation row of the counted runs whose stroke was measured, "
-            f"practice and invalid rows included.")
-
-
-CAPTIONS = {
-    "correct_by_frequency": correct_by_frequency,
-    "error_types": error_types,
-    "confusion_matrix": confusion_matrix,
-    "pin_accuracy": pin_accuracy,
-    "motion": motion,
-    "stroke_by_frequency": stroke_by_frequency,
-}
 
 
 def threshold_track(found: SubjectThresholds) -> str:

@@ -18,27 +18,27 @@ is left out like any unfinished run, with the trials that are missing.
 
 from __future__ import annotations
 
+import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
-from pinarray.journal.manifest import read_manifest, remaining_plan
+from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import (
-    BEH_NAMES,
-    TrialRecord,
-    TrialStatus,
+from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
+from pinarray.journal.rows import (
     beh_header,
+    check_run,
     read_trials,
+    results_bytes,
     split_torn_tail,
 )
-from pinarray.text_files import NotText, kind_of, position_of, read_bounded
+from pinarray.text_files import kind_of
 
 BEH_PATTERN = "*_beh.tsv"
 # 20 000 trials (a plan's most) of a few hundred bytes each, many times over.
-MAX_RESULTS_BYTES = 256 << 20
 
 
 class DamagedResults(ResultsError):
@@ -162,7 +162,9 @@ def find_beh_files(paths: Iterable[Path | str]) -> list[Path]:
     for given in paths:
         path = Path(given)
         if path.is_dir():
-            found.update(p for p in path.rglob(BEH_PATTERN) if p.is_file())
+            # Every name a run's rows go by, whatever it is: a folder or a FIFO under that
+            # name is a run whose rows cannot be read (`load_run` says so), not nothing.
+            found.update(path.rglob(BEH_PATTERN))
         elif path.is_file():
             found.add(path)
         elif path.exists():
@@ -198,23 +200,22 @@ def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], li
 def load_run(beh: Path) -> LoadedRun:
     """One run: its whole rows (torn last row left out) and its manifest's verdict.
 
-    Raises `DamagedResults` for a file that is not a results table.
+    With its manifest, every row is read as the run's paradigm writes it and checked against
+    the run (`pinarray.journal.rows.check_run`: its task, its plan, the answers offered).
+    Raises `DamagedResults` for a file that is not a results table, or whose rows are not the
+    run's.
     """
-    try:
-        paths = RunPaths.from_file(beh)
-        torn = _check_table(beh)
-        all_records = read_trials(beh)
-    except NotText as problem:
-        where = f":{problem.line}:{problem.col}" if problem.line else ""
-        raise DamagedResults([DamagedRun(beh, f"{beh}{where}: {problem.message}")]) from None
-    except (ResultsError, ValueError) as problem:  # ValueError: a decode error
-        reason = " ".join(str(problem).split())
-        if not reason.startswith(str(beh)):
-            reason = f"{beh}: {reason}"
-        raise DamagedResults([DamagedRun(beh, reason)]) from None
-    records, duplicates = first_ok_rows(all_records)
+    manifest: RunManifest | None = None
     unfinished: tuple[int, ...] = ()
     mm_per_step: tuple[float, ...] = ()
+    try:
+        paths = RunPaths.from_file(beh)
+        mode = beh.stat().st_mode  # (through a link: what it leads to)
+    except (ResultsError, ValueError, OSError) as problem:
+        raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
+    if not stat.S_ISREG(mode):  # never opened: a FIFO would wait for a writer for ever
+        raise DamagedResults([DamagedRun(beh, f"{beh}: expected a results file, found "
+                                              f"{kind_of(mode)}")])
     manifest_path = paths.manifest_on_disk()
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
@@ -224,27 +225,34 @@ def load_run(beh: Path) -> LoadedRun:
             status = manifest.status
             state = (ManifestState.COMPLETED if status == "completed"
                      else ManifestState.UNFINISHED)
-            unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
             mm_per_step = manifest.task_info.mm_per_step
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
+    try:
+        torn = _check_table(beh)
+        all_records = read_trials(beh, None if manifest is None
+                                  else manifest.task_info.paradigm)
+        if manifest is not None:
+            check_run(beh, all_records, manifest)
+    except (ResultsError, ValueError) as problem:  # ValueError: a decode error
+        raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
+    records, duplicates = first_ok_rows(all_records)
+    if manifest is not None:
+        unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
     return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
                      unfinished, mm_per_step)
 
 
+def _reason(beh: Path, problem: Exception) -> str:
+    reason = " ".join(str(problem).split())
+    return reason if reason.startswith(str(beh)) else f"{beh}: {reason}"
+
+
 def _check_table(beh: Path) -> str:
-    """`NotText` unless ``beh`` is UTF-8 text of a readable size; the torn last row's text."""
-    data = read_bounded(beh, MAX_RESULTS_BYTES, "results")
-    body = data.rstrip(b"\0")  # zeros after a power cut belong to the torn tail
-    if b"\0" in body:
-        raise NotText("expected a tab-separated results table, found a NUL byte (a binary "
-                      "file?)", *position_of(body, body.index(b"\0")))
-    try:
-        body.decode("utf-8")
-    except UnicodeDecodeError as problem:
-        raise NotText(f"expected UTF-8 text, found byte 0x{body[problem.start]:02x}",
-                      *position_of(body, problem.start)) from None
-    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(BEH_NAMES))
+    """A `ResultsError` unless ``beh`` is UTF-8 text of a readable size; the torn last row's
+    text."""
+    data = results_bytes(beh)
+    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
     return torn.decode("utf-8", errors="replace")
 
 

@@ -4,41 +4,30 @@ Each simulated study draws N subjects from the observer's population (between-su
 included), lets each answer the protocol's main trials (practice left out), and analyses the
 study with subjects as the unit, as `pinarray analyse` does. Over many studies per N this gives
 
-- **power curves**: how often each of the seed's findings comes out (criteria below), with a
+- **power curves**: how often each of the paradigm's findings comes out (its criteria), with a
   95 % Wilson interval for the Monte-Carlo error;
-- **precision**: the across-subject mean correct rate per frequency (averaged over studies,
-  which checks the observer's calibration), its spread from study to study, and the average
-  half-width of the 95 % t interval a study of N subjects would report.
+- **precision**: each across-subject mean (averaged over studies, which checks the observer's
+  calibration), its spread from study to study, and the average half-width of the 95 % t
+  interval a study of N subjects would report.
 
-The criteria are defined in `CRITERIA`: some are significance tests (two-sided at `ALPHA`,
-subjects as the unit), the others descriptive findings about the across-subject means (how
-often they come out in the seed's order; no test). The paired t-test of the highest against
-the lowest frequency is named so, not "frequency effect": `pinarray analyse`'s frequency
-effect is a mixed-effects logistic regression over every frequency, whose fit (tenths of a
-second each, and only from 6 subjects) is too slow to repeat for thousands of simulated
-studies.
+What a simulated subject answers and which findings count is the paradigm's
+(`PowerModel`, from its room: `pinarray.analysis.seam.ParadigmAnalysis.power`): some criteria
+are significance tests (two-sided at `ALPHA`, subjects as the unit), the others descriptive
+findings about the across-subject means (how often they come out so; no test).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from pinarray.analysis.observer import ObserverModel, SimulatedObserver
-from pinarray.analysis.stats import CATEGORIES, Proportion
+from pinarray.analysis.stats import Proportion
 from pinarray.analysis.subjects import t_interval
-from pinarray.grid import Grid
-from pinarray.protocol import (
-    Direction,
-    LocalisationCondition,
-    MotionAnswer,
-    MotionCondition,
-    Protocol,
-)
 
 ALPHA = 0.05
 # Measured on the 2-core machine this was written on: a simulated subject's answer, and the
@@ -46,7 +35,6 @@ ALPHA = 0.05
 ANSWER_NS = 25_000
 STUDY_NS = 8_000_000
 TARGET_POWER = 0.8
-PAIRED_FREQUENCY = "highest vs lowest frequency (paired t)"
 
 
 @dataclass(frozen=True)
@@ -57,102 +45,42 @@ class Criterion:
     test: bool
 
 
-CRITERIA = {
-    PAIRED_FREQUENCY: Criterion(
-        "paired t-test of each subject's correct % at the highest against the lowest "
-        "frequency: p < 0.05 and higher at the highest. Not the frequency effect `pinarray "
-        "analyse` reports (a mixed-effects logistic regression over every frequency): a "
-        "different test, whose power is not simulated here", test=True),
-    "rising means": Criterion("the across-subject mean correct % rises strictly from each "
-                              "frequency to the next", test=False),
-    "error A on top": Criterion("the across-subject mean % of error A exceeds B, C and D at "
-                                "every frequency", test=False),
-    "pin best": Criterion("the pin the model localises best (pin 4 by default) has the highest "
-                          "across-subject mean correct % over all frequencies, strictly (no "
-                          "tie)", test=False),
-    "direction above chance": Criterion("one-sample t-test of each subject's direction-right % "
-                                        "(of the wave trials felt) against 50 %: p < 0.05 and "
-                                        "above", test=True),
-    "motion felt more on waves": Criterion("paired t-test of each subject's felt % on wave "
-                                           "against no-wave trials: p < 0.05 and higher on "
-                                           "waves", test=True),
-}
+@runtime_checkable
+class PowerModel(Protocol):
+    """A paradigm's simulated studies of one protocol: its subjects and its criteria.
 
-
-@dataclass(frozen=True)
-class Design:
-    """The main trials of a protocol, as the observer needs them."""
-
-    localisation: tuple[tuple[int, float], ...]  # (pin, frequency_hz) per trial
-    motion: tuple[Direction, ...]  # per trial: the wave's direction (none: the no-wave control)
-    grid: Grid
-    directions: tuple[Direction, ...] = (Direction.LEFT, Direction.RIGHT)  # a subject may name
+    Attributes
+    ----------
+    criteria : mapping of str to Criterion
+        Every finding a study may show, by name (a name may end in a detail, e.g. ``pin 4
+        best``: `criterion` finds its definition by the words before).
+    answers : int
+        Main trials one simulated subject answers.
+    subject_sd : float
+        How much simulated subjects differ (logit units), as the caption says it.
+    """
 
     @property
-    def frequencies_hz(self) -> tuple[float, ...]:
-        return tuple(sorted({f for _, f in self.localisation}))
+    def criteria(self) -> Mapping[str, Criterion]: ...
 
     @property
-    def pins(self) -> tuple[int, ...]:
-        return tuple(sorted({p for p, _ in self.localisation}))
+    def answers(self) -> int: ...
 
+    @property
+    def subject_sd(self) -> float: ...
 
-def protocol_design(protocol: Protocol) -> Design:
-    """The protocol's main trials (one plan; order does not matter to the observer)."""
-    from pinarray.plan import make_plan
+    def described(self) -> str:
+        """How its subjects are drawn, after "simulated subjects drawn from the observer
+        population with..." (one clause)."""
+        ...
 
-    localisation, motion = [], []
-    for trial in make_plan(protocol, 0).trials:
-        if trial.practice:
-            continue
-        condition = trial.condition
-        if isinstance(condition, LocalisationCondition):
-            localisation.append((condition.pin, float(condition.frequency_hz)))
-        elif isinstance(condition, MotionCondition):
-            motion.append(condition.direction)
-    return Design(tuple(localisation), tuple(motion), protocol.device.grid,
-                  protocol.design.directions)
+    def subject(self, rng: np.random.Generator) -> object:
+        """One simulated subject's answers to the protocol's main trials, counted."""
+        ...
 
-
-@dataclass(frozen=True)
-class SubjectCounts:
-    """One simulated subject's answers, counted."""
-
-    categories: np.ndarray  # [frequency index, category index] counts, `CATEGORIES` order
-    pin_correct: np.ndarray  # [pin - 1]
-    pin_trials: np.ndarray
-    wave: int
-    felt: int
-    right: int
-    no_wave: int
-    no_wave_felt: int
-
-
-def simulate_subject(design: Design, observer: SimulatedObserver) -> SubjectCounts:
-    """Let one simulated subject answer every main trial of ``design``."""
-    grid = design.grid
-    frequencies = design.frequencies_hz
-    categories = np.zeros((len(frequencies), len(CATEGORIES)), dtype=int)
-    pin_correct = np.zeros(grid.pin_count, dtype=int)
-    pin_trials = np.zeros(grid.pin_count, dtype=int)
-    for pin, frequency_hz in design.localisation:
-        answer = observer.respond_localisation(pin, frequency_hz)
-        verdict = "none" if answer is None else grid.classify(pin, answer).value
-        categories[frequencies.index(frequency_hz), CATEGORIES.index(verdict)] += 1
-        pin_trials[pin - 1] += 1
-        pin_correct[pin - 1] += verdict == "correct"
-    wave = felt = right = no_wave = no_wave_felt = 0
-    for direction in design.motion:
-        said = observer.respond_motion(direction, design.directions)
-        if direction == Direction.NONE:
-            no_wave += 1
-            no_wave_felt += said != MotionAnswer.NONE
-        else:
-            wave += 1
-            felt += said != MotionAnswer.NONE
-            right += said.value == direction.value  # named the way the wave went
-    return SubjectCounts(categories, pin_correct, pin_trials, wave, felt, right, no_wave,
-                         no_wave_felt)
+    def study(self, subjects: Sequence[object]) -> StudyOutcome:
+        """What one study of ``subjects`` finds."""
+        ...
 
 
 def t_test_p(values: Sequence[float], against: float = 0.0) -> float:
@@ -171,7 +99,8 @@ def t_test_p(values: Sequence[float], against: float = 0.0) -> float:
     return float(2 * stdtr(n - 1, -abs(t)))
 
 
-def _significant_above(values: Sequence[float], against: float = 0.0) -> bool:
+def significant_above(values: Sequence[float], against: float = 0.0) -> bool:
+    """Whether a two-sided t-test finds ``values`` above ``against`` at `ALPHA`."""
     p = t_test_p(values, against)
     return not math.isnan(p) and p < ALPHA and float(np.mean(values)) > against
 
@@ -180,56 +109,15 @@ def _significant_above(values: Sequence[float], against: float = 0.0) -> bool:
 class StudyOutcome:
     """What one simulated study found: criterion -> found, and its subject-level means."""
 
-    found: dict[str, bool]
-    means_pct: dict[str, float]  # measure -> across-subject mean
-    half_widths_pct: dict[str, float]  # measure -> t interval half-width
+    found: dict[str, bool] = field(default_factory=dict)
+    means_pct: dict[str, float] = field(default_factory=dict)  # measure -> across-subject mean
+    half_widths_pct: dict[str, float] = field(default_factory=dict)  # t interval half-width
 
-
-def analyse_study(design: Design, subjects: Sequence[SubjectCounts],
-                  best_pin: int | None) -> StudyOutcome:
-    """The criteria and precision measures of one study, subjects as the unit."""
-    found: dict[str, bool] = {}
-    means: dict[str, float] = {}
-    widths: dict[str, float] = {}
-
-    def record(name: str, values: Sequence[float]) -> None:
-        means[name] = float(np.mean(values)) if len(values) else math.nan
+    def record(self, name: str, values: Sequence[float]) -> None:
+        """The across-subject mean of ``values`` and its t interval's half-width, as ``name``."""
+        self.means_pct[name] = float(np.mean(values)) if len(values) else math.nan
         low, high = t_interval(values)
-        widths[name] = (high - low) / 2
-
-    frequencies = design.frequencies_hz
-    if frequencies:
-        counts = np.array([s.categories for s in subjects])  # subject x frequency x category
-        shares = 100 * counts / counts.sum(axis=2, keepdims=True)
-        correct = shares[:, :, 0]
-        for i, f in enumerate(frequencies):
-            record(f"correct at {f:g} Hz", correct[:, i])
-        mean_correct = correct.mean(axis=0)
-        if len(frequencies) > 1:
-            found[PAIRED_FREQUENCY] = _significant_above(correct[:, -1] - correct[:, 0])
-            found["rising means"] = bool(np.all(np.diff(mean_correct) > 0))
-        errors = shares[:, :, 1:5].mean(axis=0)  # frequency x A..D
-        found["error A on top"] = bool(np.all(errors[:, 0] > errors[:, 1:].max(axis=1)))
-        if best_pin is not None:
-            pin_trials = np.array([s.pin_trials for s in subjects])
-            pin_correct = np.array([s.pin_correct for s in subjects])
-            stimulated = pin_trials[0] > 0
-            pin_means = (100 * pin_correct[:, stimulated] / pin_trials[:, stimulated]).mean(axis=0)
-            pins = [int(p) + 1 for p in np.flatnonzero(stimulated)]
-            top = pin_means.max()
-            found[f"pin {best_pin} best"] = bool(
-                pin_means[pins.index(best_pin)] == top and np.sum(pin_means == top) == 1)
-    if design.motion:
-        felt = [100 * s.felt / s.wave for s in subjects if s.wave]
-        direction = [100 * s.right / s.felt for s in subjects if s.felt]
-        record("motion felt", felt)
-        record("direction right of felt", direction)
-        found["direction above chance"] = _significant_above(direction, 50.0)
-        paired = [100 * s.felt / s.wave - 100 * s.no_wave_felt / s.no_wave for s in subjects
-                  if s.wave and s.no_wave]
-        if paired:
-            found["motion felt more on waves"] = _significant_above(paired)
-    return StudyOutcome(found, means, widths)
+        self.half_widths_pct[name] = (high - low) / 2
 
 
 @dataclass(frozen=True)
@@ -257,7 +145,7 @@ class PowerCurves:
     """Power and precision per number of subjects, and how they were simulated."""
 
     protocol: str
-    model: ObserverModel
+    model: PowerModel
     studies: int
     seed: int
     points: tuple[PowerPoint, ...]
@@ -304,33 +192,25 @@ class PowerCurves:
         return lines
 
 
-def power_seconds(design: Design, subject_counts: Sequence[int], studies: int) -> float:
+def power_seconds(model: PowerModel, subject_counts: Sequence[int], studies: int) -> float:
     """About how long `power_study` takes, s: `ANSWER_NS` per simulated answer and
     `STUDY_NS` per study analysed (measured on the 2-core machine this was written on)."""
-    answers = studies * sum(subject_counts) * (len(design.localisation) + len(design.motion))
+    answers = studies * sum(subject_counts) * model.answers
     return (answers * ANSWER_NS + studies * len(subject_counts) * STUDY_NS) / 1e9
 
 
-def power_study(protocol: Protocol, model: ObserverModel, subject_counts: Sequence[int],
-                studies: int, seed: int,
-                progress: Callable[[int], object] = lambda done: None) -> PowerCurves:
-    """Simulate ``studies`` studies for each number of subjects; one seed makes it repeatable.
-    ``progress`` hears how many simulated subjects (of every study) are done after each study."""
-    design = protocol_design(protocol)
-    best_pin = None
-    if design.localisation:
-        accuracy = np.mean([model.expected_pin_accuracy(f).ravel()
-                            for f in design.frequencies_hz], axis=0)
-        best_pin = max(design.pins, key=lambda p: accuracy[p - 1])
+def power_study(name: str, model: PowerModel, subject_counts: Sequence[int], studies: int,
+                seed: int, progress: Callable[[int], object] = lambda done: None) -> PowerCurves:
+    """Simulate ``studies`` studies of protocol ``name`` for each number of subjects; one seed
+    makes it repeatable. ``progress`` hears how many simulated subjects (of every study) are
+    done after each study."""
     rng = np.random.default_rng(seed)
     points, precision = [], []
     done = 0
     for n in subject_counts:
         outcomes = []
         for _ in range(studies):
-            outcomes.append(analyse_study(design, [
-                simulate_subject(design, SimulatedObserver(model, rng)) for _ in range(n)],
-                best_pin))
+            outcomes.append(model.study([model.subject(rng) for _ in range(n)]))
             done += n
             progress(done)
         for criterion in outcomes[0].found:
@@ -343,12 +223,12 @@ def power_study(protocol: Protocol, model: ObserverModel, subject_counts: Sequen
                                             float(np.nanstd(means, ddof=1)),
                                             float(np.nanmean(widths))
                                             if np.isfinite(widths).any() else math.nan))
-    return PowerCurves(protocol.name, model, studies, seed, tuple(points), tuple(precision))
+    return PowerCurves(name, model, studies, seed, tuple(points), tuple(precision))
 
 
 def caption(curves: PowerCurves) -> str:
-    tests = [c for c in curves.criteria if _criterion(c).test]
-    descriptive = [c for c in curves.criteria if not _criterion(c).test]
+    tests = [c for c in curves.criteria if _criterion(curves, c).test]
+    descriptive = [c for c in curves.criteria if not _criterion(curves, c).test]
     kinds = []
     if tests:
         kinds.append(f"Tests, two-sided at p < {ALPHA:g} with subjects as the unit: "
@@ -360,24 +240,25 @@ def caption(curves: PowerCurves) -> str:
             f"'{curves.protocol}': share of {curves.studies} simulated studies per point "
             f"(seed {curves.seed}) in which it was found; shaded: 95 % Wilson interval of that "
             f"share (Monte-Carlo error). Simulated subjects differ with an SD of "
-            f"{curves.model.subject_sd_logit:g} logit units. {' '.join(kinds)} Criteria "
+            f"{curves.model.subject_sd:g} logit units. {' '.join(kinds)} Criteria "
             f"defined in power.md. Dashed: {100 * TARGET_POWER:.0f} % power.")
 
 
-def _criterion(name: str) -> Criterion:
-    return CRITERIA["pin best" if name.startswith("pin ") else name]
+def _criterion(curves: PowerCurves, name: str) -> Criterion:
+    criteria = curves.model.criteria
+    return criteria[name] if name in criteria else criteria[name.split()[0] + " best"]
 
 
 def power_markdown(curves: PowerCurves, figure: str) -> str:
     """The power page: how it was simulated, the criteria, the table and the figure."""
     lines = [f"# How many subjects? Protocol '{curves.protocol}'", "",
              f"{curves.studies} simulated studies per number of subjects (seed {curves.seed}); "
-             f"simulated subjects drawn from the observer population with a between-subject "
-             f"SD of {curves.model.subject_sd_logit:g} logit units, calibrated on pins "
-             f"{', '.join(map(str, curves.model.pins))}. Each study is analysed with subjects "
-             "as the unit.", "", "## Criteria", ""]
-    lines += [f"- **{c}** ({'test' if _criterion(c).test else 'descriptive, not a test'}): "
-              f"{_criterion(c).definition}" for c in curves.criteria]
+             f"simulated subjects drawn from the observer population with "
+             f"{curves.model.described()}. Each study is analysed with subjects as the unit.",
+             "", "## Criteria", ""]
+    kinds = {True: "test", False: "descriptive, not a test"}
+    lines += [f"- **{c}** ({kinds[_criterion(curves, c).test]}): "
+              f"{_criterion(curves, c).definition}" for c in curves.criteria]
     lines += ["", "## Results", "", "```", *curves.table_lines(), "```", "",
               f"![power curves]({figure})", "", f"*{caption(curves)}*", ""]
     return "\n".join(lines)
@@ -400,7 +281,7 @@ def write_power(curves: PowerCurves, out: Path) -> list[Path]:
             low, high = p.met.interval_pct
             writer.writerow([p.criterion, p.subjects, p.met.trials, p.met.successes,
                              f"{p.met.pct:.1f}", f"{low:.1f}", f"{high:.1f}", curves.seed,
-                             curves.model.subject_sd_logit])
+                             curves.model.subject_sd])
     precision = out / "precision.csv"
     with open(precision, "w", encoding="utf-8", newline="") as handle:
         writer = csv.writer(handle)

@@ -26,7 +26,7 @@ from enum import StrEnum
 
 import numpy as np
 
-from pinarray.analysis.stats import CATEGORIES, Proportion, Summary
+from pinarray.analysis.stats import Proportion
 from pinarray.errors import PinArrayError
 
 DEFAULT_BOOTSTRAP_SEED = 20240501
@@ -187,69 +187,3 @@ def across_subjects(per_subject: Iterable[tuple[str, Proportion]],
         bootstrap_interval(values, settings.bootstrap_seed, settings.bootstrap_resamples,
                            settings.level),
     )
-
-
-@dataclass(frozen=True)
-class FrequencyMeasures:
-    """Localisation at one frequency: every answer category, subjects as the unit."""
-
-    frequency_hz: float
-    categories: tuple[AcrossSubjects, ...]  # in `CATEGORIES` order
-
-    def share(self, category: str) -> AcrossSubjects:
-        return self.categories[CATEGORIES.index(category)]
-
-
-@dataclass(frozen=True)
-class MotionMeasures:
-    """Apparent motion, subjects as the unit (see `pinarray.analysis.stats.MotionSummary`)."""
-
-    felt: AcrossSubjects
-    direction_right: AcrossSubjects
-    no_wave_felt: AcrossSubjects
-
-
-@dataclass(frozen=True)
-class SubjectLevel:
-    """Every measure with subjects as the unit, and the interval settings that made it."""
-
-    settings: IntervalSettings
-    localisation: tuple[FrequencyMeasures, ...]
-    pins: tuple[AcrossSubjects, ...]  # correct per stimulated pin, pins 1..P
-    motion: MotionMeasures
-
-    @property
-    def localisation_subjects(self) -> tuple[str, ...]:
-        names = {s for row in self.localisation for s, _ in row.share("correct").per_subject}
-        return tuple(sorted(names))
-
-
-def subject_level(per_subject: Sequence[Summary],
-                  settings: IntervalSettings = DEFAULT_SETTINGS) -> SubjectLevel:
-    """Subject-level measures from one `Summary` per subject (each with one subject name)."""
-    named = [(summary.subjects[0], summary) for summary in per_subject]
-    frequencies = sorted({row.frequency_hz for _, s in named for row in s.localisation})
-
-    def at(summary: Summary, frequency_hz: float, category: str) -> Proportion:
-        for row in summary.localisation:
-            if row.frequency_hz == frequency_hz:
-                return row.share(category)
-        return Proportion(0, 0)
-
-    localisation = tuple(
-        FrequencyMeasures(f, tuple(across_subjects(((name, at(s, f, c)) for name, s in named),
-                                                   settings) for c in CATEGORIES))
-        for f in frequencies
-    )
-    pin_count = named[0][1].pin_trials.size if named else 0
-    pins = tuple(
-        across_subjects(((name, Proportion(int(s.pin_correct.flat[i]), int(s.pin_trials.flat[i])))
-                         for name, s in named), settings)
-        for i in range(pin_count)
-    )
-    motion = MotionMeasures(
-        across_subjects(((name, s.motion.felt) for name, s in named), settings),
-        across_subjects(((name, s.motion.direction_right) for name, s in named), settings),
-        across_subjects(((name, s.motion.no_wave_felt) for name, s in named), settings),
-    )
-    return SubjectLevel(settings, localisation, pins, motion)

@@ -1,4 +1,4 @@
-"""CSV tables of a `Study`: subject-level tables with their interval(s) and the trial-pooled one.
+"""CSV tables of an analysis: their cells, the adaptive designs' thresholds, the runs counted.
 
 Every table says its unit in its columns: ``subject_mean_pct`` and its ``bootstrap``
 interval have subjects as the unit (the interval level and the bootstrap's seed and
@@ -17,12 +17,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from pinarray.adaptive.posterior import ThresholdStatus
-from pinarray.analysis.chance import DIRECTION_CHANCE
 from pinarray.analysis.load import RunSelection
-from pinarray.analysis.mixed import FitSkipped, FrequencyEffect
-from pinarray.analysis.stats import CATEGORIES, Proportion
-from pinarray.analysis.strokes import StrokeTable
-from pinarray.analysis.study import Study
+from pinarray.analysis.stats import Proportion
 from pinarray.analysis.subjects import AcrossSubjects, IntervalMethod, IntervalSettings
 from pinarray.analysis.thresholds import (
     ALL_SUBJECTS,
@@ -38,8 +34,12 @@ from pinarray.analysis.thresholds import (
 
 
 def number(value: float, digits: int = 1) -> str:
-    """A table cell: fixed decimals, or "n/a" for NaN (BIDS spelling)."""
-    return "n/a" if math.isnan(value) else f"{value:.{digits}f}"
+    """A table cell: fixed decimals, or "n/a" for NaN (BIDS spelling); never "-0.000" (a
+    value that rounds to zero is zero, whichever side it came from)."""
+    if math.isnan(value):
+        return "n/a"
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and not text.strip("-0.") else text
 
 
 def _write(path: Path, header: Sequence[str], rows: Sequence[Sequence[object]]) -> Path:
@@ -50,7 +50,7 @@ def _write(path: Path, header: Sequence[str], rows: Sequence[Sequence[object]]) 
     return path
 
 
-write_csv = _write  # the lab's paradigms' tables (`pinarray.analysis.lab_report`) too
+write_csv = _write  # every paradigm's tables too (its room's)
 
 
 def _level(settings: IntervalSettings) -> str:
@@ -73,87 +73,6 @@ def measure_cells(m: AcrossSubjects, settings: IntervalSettings) -> list[object]
             *(number(v) for v in t), *(number(v) for v in m.bootstrap_interval_pct),
             settings.bootstrap_seed, settings.bootstrap_resamples, number(pooled.pct),
             *(number(v) for v in pooled.interval_pct)]
-
-
-def _pct(p: Proportion) -> str:
-    return number(p.pct)
-
-
-def localisation_tables(study: Study, out: Path) -> list[Path]:
-    level = study.subject_level
-    settings = level.settings
-    chance = study.chance.fractions if study.chance else {}
-    means = [[f"{row.frequency_hz:g}", category, *measure_cells(row.share(category), settings),
-              number(100 * chance[category], 2) if category in chance else "n/a"]
-             for row in level.localisation for category in CATEGORIES]
-    per_subject = [[s.subjects[0], f"{row.frequency_hz:g}", row.trials,
-                    *(row.count(c) for c in CATEGORIES), *(_pct(row.share(c)) for c in CATEGORIES)]
-                   for s in study.per_subject for row in s.localisation]
-    grid = study.grid
-    pins = []
-    for pin in grid.pins:
-        row, column = grid.cell(pin)
-        m = level.pins[pin - 1]
-        pins.append([pin, row + 1, column + 1, *measure_cells(m, settings)])
-    confusion = study.pooled.confusion
-    answers = [f"answer_{p}" for p in grid.pins] + ["nothing_felt"]
-    return [
-        _write(out / "localisation_subject_level.csv",
-               ["frequency_hz", "category", *measure_header(settings), "chance_pct"], means),
-        _write(out / "localisation_per_subject.csv",
-               ["subject", "frequency_hz", "trials", *CATEGORIES,
-                *(f"{c}_pct" for c in CATEGORIES)], per_subject),
-        _write(out / "pin_accuracy.csv", ["pin", "row", "column", *measure_header(settings)],
-               pins),
-        _write(out / "confusion_matrix.csv", ["stimulated_pin", *answers, "trials"],
-               [[pin, *confusion[pin - 1], int(confusion[pin - 1].sum())]
-                for pin in grid.pins if confusion[pin - 1].sum()]),
-    ]
-
-
-def motion_tables(study: Study, out: Path) -> list[Path]:
-    settings = study.subject_level.settings
-    motion = study.subject_level.motion
-    rows = [["felt_on_wave_trials", *measure_cells(motion.felt, settings), "n/a"],
-            ["direction_right_of_felt", *measure_cells(motion.direction_right, settings),
-             number(100 * DIRECTION_CHANCE, 2)],
-            ["felt_on_no_wave_trials", *measure_cells(motion.no_wave_felt, settings), "n/a"]]
-    per_subject = [[s.subjects[0], s.motion.felt.trials, s.motion.felt.successes,
-                    _pct(s.motion.felt), s.motion.direction_right.successes,
-                    _pct(s.motion.direction_right), s.motion.no_wave_felt.trials,
-                    s.motion.no_wave_felt.successes, _pct(s.motion.no_wave_felt)]
-                   for s in study.per_subject
-                   if s.motion.felt.trials or s.motion.no_wave_felt.trials]
-    return [
-        _write(out / "motion_subject_level.csv",
-               ["measure", *measure_header(settings), "chance_pct"], rows),
-        _write(out / "motion_per_subject.csv",
-               ["subject", "wave_trials", "felt", "felt_pct", "direction_right",
-                "direction_right_pct_of_felt", "no_wave_trials", "no_wave_felt",
-                "no_wave_felt_pct"], per_subject),
-    ]
-
-
-def frequency_effect_table(effect: FrequencyEffect | FitSkipped, out: Path) -> Path:
-    header = ["model", "status", "subjects", "trials", "odds_ratio_per_doubling",
-              "odds_ratio_wald95_low", "odds_ratio_wald95_high", "slope_logit_per_doubling",
-              "slope_se", "subject_sd_logit", "lrt_chi2", "lrt_p", "wald_p", "log_likelihood",
-              "typical_subject_pct_by_frequency", "note"]
-    model = "correct ~ log2(frequency) + (1 | subject), binomial logit, adaptive Gauss-Hermite ML"
-    match effect:
-        case FrequencyEffect():
-            low, high = effect.odds_ratio_interval
-            typical = "; ".join(f"{f:g} Hz {p:.1f}" for f, p in
-                                zip(effect.frequencies_hz, effect.typical_subject_pct, strict=True))
-            row = [model, "fitted" if effect.converged else "fitted, not converged",
-                   effect.subjects, effect.trials, number(effect.odds_ratio_per_doubling, 3),
-                   number(low, 3), number(high, 3), number(effect.slope_per_doubling, 4),
-                   number(effect.slope_se, 4), number(effect.subject_sd_logit, 4),
-                   number(effect.lrt_statistic, 3), f"{effect.lrt_p:.3g}", f"{effect.wald_p:.3g}",
-                   number(effect.log_likelihood, 3), typical, ""]
-        case FitSkipped():
-            row = [model, "not fitted", *["n/a"] * 13, effect.reason]
-    return _write(out / "frequency_effect.csv", header, [row])
 
 
 THRESHOLD_COLUMNS = ("subject", "task", "parameter", "unit", "method", "threshold", "ci_low",
@@ -258,29 +177,6 @@ def thresholds_sidecar(found: Thresholds, out: Path) -> Path:
     return path
 
 
-STROKE_COLUMNS = ("pin", "frequency_hz", "stroke_commanded_steps", "stroke_commanded_mm",
-                  "achieved_min_steps", "achieved_median_steps", "achieved_max_steps",
-                  "achieved_min_mm", "achieved_median_mm", "achieved_max_mm",
-                  "achieved_min_pct_of_commanded", "achieved_median_pct_of_commanded",
-                  "n_trials", "n_short")
-
-
-def stroke_table(strokes: StrokeTable, out: Path) -> Path:
-    """``stroke_by_frequency.csv``: each pin's achieved stroke (each trial's smallest
-    peak-to-peak over its cycles) over the trials at each frequency, in steps, mm and % of
-    the commanded stroke; ``n_short``: trials with a cycle below the stroke tolerance."""
-    rows = []
-    for r in strokes.rows:
-        achieved = (r.achieved_min_steps, r.achieved_median_steps, r.achieved_max_steps)
-        rows.append([r.pin, f"{r.frequency_hz:g}", r.commanded_steps,
-                     number(r.mm(r.commanded_steps), 3), r.achieved_min_steps,
-                     f"{r.achieved_median_steps:g}", r.achieved_max_steps,
-                     *(number(r.mm(steps), 3) for steps in achieved),
-                     number(r.share_pct(r.achieved_min_steps)),
-                     number(r.share_pct(r.achieved_median_steps)), r.n_trials, r.n_short])
-    return _write(out / "stroke_by_frequency.csv", STROKE_COLUMNS, rows)
-
-
 def runs_table(runs: RunSelection, out: Path) -> Path:
     rows = []
     for run, included in ([(r, True) for r in runs.included]
@@ -296,18 +192,49 @@ def runs_table(runs: RunSelection, out: Path) -> Path:
                   rows)
 
 
-def write_tables(study: Study, out: Path) -> list[Path]:
-    """Every table for which there are trials, and the runs table always."""
+def write_tables(thresholds: Thresholds, runs: RunSelection, out: Path) -> list[Path]:
+    """The adaptive designs' thresholds table (and its sidecar) if there are any, and the
+    runs table always (each paradigm writes its own: `pinarray.analysis.seam.Findings`)."""
     tables = []
-    if study.pooled.localisation:
-        tables += localisation_tables(study, out)
-        tables.append(frequency_effect_table(study.frequency_effect, out))
-    if study.motion_trials:
-        tables += motion_tables(study, out)
-    if study.thresholds.found:
-        tables.append(thresholds_table(study.thresholds, out))
-        tables.append(thresholds_sidecar(study.thresholds, out))
-    if study.strokes.rows:
-        tables.append(stroke_table(study.strokes, out))
-    tables.append(runs_table(study.runs, out))
+    if thresholds.found:
+        tables.append(thresholds_table(thresholds, out))
+        tables.append(thresholds_sidecar(thresholds, out))
+    tables.append(runs_table(runs, out))
     return tables
+
+
+# -- cells of the summary's tables -----------------------------------------------------------
+
+
+def interval_text(interval: tuple[float, float]) -> str:
+    """An across-subject interval of percentages, or why there is none."""
+    low, high = interval
+    return "n/a (one subject)" if math.isnan(low) else f"[{number(low)}, {number(high)}]"
+
+
+def pooled_text(p: Proportion) -> str:
+    """A trial-pooled percentage with its Wilson interval and counts."""
+    return f"{number(p.pct)} % {interval_text(p.interval_pct)} ({p.successes}/{p.trials})"
+
+
+def measure_text(m: AcrossSubjects, method: IntervalMethod) -> str:
+    """``mean % [interval] (N subjects, n trials)``, the chosen interval."""
+    return (f"{number(m.mean_pct)} % {interval_text(m.interval_pct(method))} "
+            f"({m.subjects} subj., {m.trials} trials)")
+
+
+def interval_heads(settings: IntervalSettings) -> list[str]:
+    """The subject-level interval columns: the bootstrap, and the t interval if asked for."""
+    t = ["t interval (may pass 0-100 %)"] if settings.method is IntervalMethod.T else []
+    return [*t, "bootstrap interval"]
+
+
+def interval_cells(m: AcrossSubjects, settings: IntervalSettings) -> list[str]:
+    """A measure's cells under `interval_heads`."""
+    t = [interval_text(m.t_interval_pct)] if settings.method is IntervalMethod.T else []
+    return [*t, interval_text(m.bootstrap_interval_pct)]
+
+
+def markdown_row(cells: Sequence[object]) -> str:
+    """One row of a Markdown table."""
+    return "| " + " | ".join(map(str, cells)) + " |"

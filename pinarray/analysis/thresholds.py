@@ -54,7 +54,7 @@ from pinarray.analysis.subjects import (
     t_interval,
 )
 from pinarray.errors import PinArrayError, ResultsError
-from pinarray.journal.records import NA
+from pinarray.journal.columns import NA
 from pinarray.protocol.procedures import CATCH
 
 ALL_SUBJECTS = POOLED  # the subject cell of an across-subject row

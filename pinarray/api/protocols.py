@@ -14,17 +14,11 @@ from os import PathLike, fspath
 from pinarray.api import arguments
 from pinarray.errors import PinArrayError
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
-from pinarray.protocol.described import describe_condition as described
-from pinarray.protocol.model import Condition, LocalisationCondition, MotionCondition, Protocol
-from pinarray.protocol.paradigms import (
-    IdentificationCondition,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-)
+from pinarray.protocol.model import Condition, Protocol
+from pinarray.protocol.seam import paradigm_named
 
-__all__ = ["Condition", "IdentificationCondition", "LocalisationCondition", "MotionCondition",
-           "PlannedTrial", "Protocol", "TemporalOrderCondition", "TrialPlan",
-           "TwoIntervalCondition", "find_condition", "load_protocol", "plan_trials"]
+__all__ = ["Condition", "PlannedTrial", "Protocol", "TrialPlan", "find_condition",
+           "load_protocol", "plan_trials"]
 
 
 def load_protocol(path: str | PathLike[str]) -> Protocol:
@@ -125,10 +119,5 @@ def find_condition(protocol: Protocol, *, pin: int | None = None,
 
 
 def describe_condition(condition: Condition) -> str:
-    """A condition in the lab's words: ``seed_train on pin 6 at 10 Hz``."""
-    match condition:
-        case LocalisationCondition(stimulus=name, pin=pin, frequency_hz=frequency):
-            return f"{name} on pin {pin} at {float(frequency):g} Hz"
-        case MotionCondition(stimulus=name, direction=direction):
-            return f"{name} ({direction})"
-    return f"{condition.stimulus}: {described(condition)}"
+    """A condition in the lab's words, as its paradigm says it: ``seed_train on pin 6 at 10 Hz``."""
+    return paradigm_named(condition.paradigm).title(condition)

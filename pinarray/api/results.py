@@ -1,5 +1,6 @@
 """Results read back for a script's own analysis: the runs a sitting wrote, as the analysis
-reads them (``pinarray analyse``), one frozen record per row."""
+reads them (``pinarray analyse``), one frozen record per row (each paradigm's type of its own:
+`pinarray.api.paradigms`)."""
 
 from __future__ import annotations
 
@@ -9,19 +10,10 @@ from pathlib import Path
 from pinarray.analysis.load import LoadedRun, ManifestState, find_beh_files, load_run
 from pinarray.api import arguments
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import (
-    IdentificationRecord,
-    LocalisationRecord,
-    MotionRecord,
-    TemporalOrderRecord,
-    TrialRecord,
-    TrialStatus,
-    TwoIntervalRecord,
-)
+from pinarray.journal.records import TrialRecord, TrialStatus
 
-__all__ = ["IdentificationRecord", "LoadedRun", "LocalisationRecord", "ManifestState",
-           "MotionRecord", "RunPaths", "TemporalOrderRecord", "TrialRecord", "TrialStatus",
-           "TwoIntervalRecord", "read_results"]
+__all__ = ["LoadedRun", "ManifestState", "RunPaths", "TrialRecord", "TrialStatus",
+           "read_results"]
 
 
 def read_results(*paths: str | PathLike[str]) -> tuple[LoadedRun, ...]:

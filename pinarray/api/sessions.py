@@ -19,7 +19,7 @@ from pinarray.api import arguments
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
 from pinarray.player.rig import choose_clock
-from pinarray.protocol.model import LocalisationCondition, MotionCondition, Protocol
+from pinarray.protocol.model import Protocol
 from pinarray.session.sitting import Answer, NotDelivered, Question, SessionRequest, Sitting
 from pinarray.session.trials import SessionError
 
@@ -27,11 +27,11 @@ __all__ = ["Answer", "AnswerSource", "NotDelivered", "Question", "run_session",
            "simulated_observer"]
 
 AnswerSource = Callable[[Question], Answer]
-"""Answers each trial once its stimulus has played: given the `Question`, a pin's number (or
-``"none"``: nothing felt) for localisation, a direction's name, ``"none"`` or ``"unsure"`` for
-apparent motion; None counts as nothing felt. Identification takes a pattern's name (or a
-count), two intervals ``"first"`` or ``"second"``, temporal order the number of the pin that
-came first."""
+"""Answers each trial once its stimulus has played: given the `Question`, an answer its
+paradigm takes (`Protocol.design.answers`): a pin's number (or ``"none"``: nothing felt) for
+localisation, a direction's name, ``"none"`` or ``"unsure"`` for apparent motion (None counts
+as nothing felt); a pattern's name (or a count) for identification, ``"first"`` or
+``"second"`` for two intervals, the number of the pin that came first for temporal order."""
 
 
 def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, session: str = "1",
@@ -125,11 +125,12 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
     protocol : Protocol
         The protocol it will answer; a fixed design's observer is calibrated on its pins.
     model : str
-        ``"default"`` (the seed's average subject: 62.5 % correct at 10 Hz, 77 % felt motion)
-        or overrides such as ``"correct_10hz=0.7,motion_felt=0.9"``; an adaptive design's
-        psychometric function, e.g. ``"threshold=120,slope=3,lapse=0.02"``; for the lab's
-        paradigms, e.g. ``"identify_correct=0.7"``, ``"weber=0.25"``, ``"jnd_ms=30"``
-        (`pinarray.analysis.lab_observer`).
+        ``"default"`` (the paradigm's average subject: for localisation 62.5 % correct at
+        10 Hz, as the seed's; for apparent motion 77 % felt motion) or overrides of its
+        paradigm's model such as ``"correct_10hz=0.7"``, ``"motion_felt=0.9"``,
+        ``"identify_correct=0.7"``, ``"weber=0.25"``, ``"jnd_ms=30"`` (each paradigm's room
+        says its own: `pinarray.analysis.seam.ParadigmAnalysis.observer`); an adaptive
+        design's psychometric function, e.g. ``"threshold=120,slope=3,lapse=0.02"``.
     seed : int or None
         Seed of its random answers (None: a fixed design's observer draws a new subject; an
         adaptive one uses 0).
@@ -155,24 +156,9 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
                                    question.adapted_value)
 
         return respond_adaptively
-    if protocol.design.judgement is not None:
-        from pinarray.analysis.lab_observer import LabObserver, parse_lab_observer
+    from pinarray.analysis.seam import analysis_of, trial_answers
 
-        lab = LabObserver(protocol, parse_lab_observer(model), seed)
-        return lambda question: lab.respond(question.trial.condition)
-    from pinarray.analysis.observer import SimulatedObserver, parse_observer
-
-    observer = SimulatedObserver(parse_observer(model).for_protocol(protocol), seed=seed)
-    directions = protocol.design.directions
-
-    def respond(question: Question) -> Answer:
-        condition = question.trial.condition
-        match condition:
-            case LocalisationCondition():
-                return observer.respond_localisation(condition.pin,
-                                                     float(condition.frequency_hz))
-            case MotionCondition():
-                return observer.respond_motion(condition.direction, directions)
-        raise AssertionError(condition)
-
-    return respond
+    # Each answer from the seed and the trial's number: a resumed run answers as an unbroken one.
+    answer = trial_answers(
+        analysis_of(protocol.design.paradigm.name).observer(protocol, model, seed), seed)
+    return lambda question: answer(question.trial.trial, question.trial.condition)

@@ -96,7 +96,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from pinarray.analysis.load import scan_runs, select_runs
-    from pinarray.analysis.report import measure_text, run_lines, write_report
+    from pinarray.analysis.report import run_lines, write_report
     from pinarray.analysis.study import study
     from pinarray.analysis.subjects import (
         DEFAULT_BOOTSTRAP_RESAMPLES,
@@ -130,36 +130,21 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     except OSError as problem:
         raise ResultsError(f"{problem.filename or args.out}: cannot write the report there: "
                            f"{problem.strerror}") from None
-    from pinarray.analysis.lab_report import lab_lines
-
+    counted = [f.counted() for f in result.findings]
+    trials = (", ".join(counted[:-1]) + " and " + counted[-1] if len(counted) > 1
+              else counted[0] if counted else "no trials")
     print(f"counted {len(runs.included)} run(s): {len(result.subjects)} subject(s), "
-          f"{result.localisation_trials} localisation and {result.motion_trials} motion trials "
-          "(main trials with status ok)")
+          f"{trials} (main trials with status ok)")
     for line in run_lines(runs):
         print(f"  {line}")
     for run in loaded:
         if run.torn:
             print(f"  {run.source}: its last row was cut short by an interrupted write and is "
                   f"left out ({len(run.torn)} characters)")
-    level = result.subject_level
     method = settings.method
-    if level.localisation:
-        print(f"correct localisation, mean of per-subject % [{settings.describe()}]; "
-              "trial-pooled % [95 % Wilson]:")
-        for row in level.localisation:
-            m = row.share("correct")
-            low, high = m.pooled.interval_pct
-            chance = (f"; chance {100 * result.chance.correct:.2f} %" if result.chance else "")
-            print(f"  {row.frequency_hz:g} Hz: {measure_text(m, method)}; trial-pooled "
-                  f"{m.pooled.pct:.1f} % [{low:.1f}, {high:.1f}]{chance}")
-        print("frequency effect (mixed-effects logistic regression): "
-              f"{result.frequency_effect.describe()}")
-    if result.motion_trials:
-        motion = level.motion
-        print(f"motion, mean of per-subject % [{method} interval]: felt "
-              f"{measure_text(motion.felt, method)}; direction right of those felt "
-              f"{measure_text(motion.direction_right, method)} (chance 50 %); felt on no-wave "
-              f"trials {measure_text(motion.no_wave_felt, method)}")
+    for found in result.findings:
+        for line in found.lines():
+            print(line)
     if result.thresholds.found:
         print(f"thresholds, mean of per-subject thresholds [{interval_name(settings)}] "
               "(each subject's in thresholds.csv):")
@@ -169,8 +154,6 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
                         else f"{low:.4g}-{high:.4g}")
             print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
                   f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
-    for line in lab_lines(result.identification, result.judgements):
-        print(line)
     print(f"summary: {report.summary}")
     return 0
 
@@ -178,29 +161,30 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
 def _cmd_power(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from pinarray.analysis.observer import parse_observer
-    from pinarray.analysis.power import power_seconds, power_study, protocol_design, write_power
+    from pinarray.analysis.power import power_seconds, power_study, write_power
+    from pinarray.analysis.seam import analysis_of
     from pinarray.errors import PinArrayError, ResultsError
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.protocol)
     if protocol.design.adaptive is not None:
         return _check_procedures(protocol, args)
-    if protocol.design.judgement is not None:
-        raise PinArrayError(f"{protocol.source}: power simulates localisation and apparent-motion "
-                            f"designs, and adaptive ones; not a fixed "
-                            f"{protocol.design.paradigm.value} design")
-    model = parse_observer(args.observer).for_protocol(protocol)
+    name = protocol.design.paradigm.name
+    model = analysis_of(name).power(protocol, args.observer)
+    if model is None:
+        raise PinArrayError(f"{protocol.source}: power simulates the designs whose paradigm "
+                            f"says how (localisation, apparent motion), and adaptive ones; "
+                            f"not a fixed {name} design")
     common.check_output_folder(args.out, POWER_FILES)  # before the work, not after
     counts = sorted(args.subjects)
-    seconds = power_seconds(protocol_design(protocol), counts, args.studies)
+    seconds = power_seconds(model, counts, args.studies)
     common.refuse_long_work(
         f"power: {args.studies:,} studies for each of {len(counts)} numbers of subjects "
         f"({sum(counts):,} simulated subjects a round)", seconds, MAX_POWER_S,
         "fewer --studies, fewer or smaller --subjects")
     print(f"{protocol.name}: {args.studies} simulated studies per number of subjects, "
-          f"subject SD {model.subject_sd_logit:g} logit, seed {args.seed}")
-    curves = power_study(protocol, model, counts, args.studies, args.seed,
+          f"subject SD {model.subject_sd:g} logit, seed {args.seed}")
+    curves = power_study(protocol.name, model, counts, args.studies, args.seed,
                          common.progress("power: simulated subjects",
                                          args.studies * sum(counts), seconds))
     try:

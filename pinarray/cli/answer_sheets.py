@@ -20,15 +20,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.model import Paradigm, Protocol
-from pinarray.protocol.paradigms import (
-    FIRST,
-    SECOND,
-    AnswerKind,
-    Identification,
-    TemporalOrder,
-    TwoInterval,
-)
+from pinarray.protocol.model import Protocol
 
 # 20 000 trials (a protocol's most) of a few bytes each, with room for extra columns.
 MAX_ANSWERS_BYTES = 4 << 20
@@ -111,12 +103,13 @@ def check_answers(
     a pattern's name, ``"first"``).
 
     Every trial of the protocol's plan must be answered once, with an answer its paradigm
-    accepts; trials the plan does not have are refused.
+    accepts as a sheet writes it (`ParadigmDesign.sheet_answer`: in any case; an interval by
+    its number too, a pin first by its place...); trials the plan does not have are refused.
     """
-    count = protocol.design.trial_count
-    pins = protocol.device.grid.pin_count
-    localisation = protocol.design.paradigm is Paradigm.LOCALISATION
-    lab, lab_expected = _lab_answers(protocol)
+    design = protocol.design
+    grid = protocol.device.grid
+    count = design.trial_count
+    expected = design.paradigm.sheet_expected(design, grid)
     problems: list[tuple[int, str]] = []
     by_trial: dict[int, str] = {}
     for answer in answers:
@@ -124,27 +117,10 @@ def check_answers(
             problems.append((answer.line, f"no trial {answer.trial} in the plan of "
                                           f"{protocol.source}: expected 1 to {count}"))
             continue
-        word = answer.response.lower()
-        if lab:
-            found = lab.get(word)
-            if found is not None:
-                by_trial[answer.trial] = found
-                continue
-            expected = lab_expected
-        elif localisation:
-            if word == "none":
-                by_trial[answer.trial] = word
-                continue
-            if _WHOLE.fullmatch(word) and 1 <= int(word) <= pins:
-                by_trial[answer.trial] = str(int(word))
-                continue
-            expected = f"a pin number from 1 to {pins} or 'none'"
-        else:
-            offered = ("none", *protocol.design.directions, "unsure")  # the waves' directions
-            if word in offered:
-                by_trial[answer.trial] = word
-                continue
-            expected = f"one of {', '.join(offered)}"
+        found = design.paradigm.sheet_answer(answer.response.lower(), design, grid)
+        if found is not None:
+            by_trial[answer.trial] = found
+            continue
         problems.append((answer.line, f"trial {answer.trial}: expected {expected}, found "
                                       f"{_shown(answer.response) if answer.response else 'nothing'}"))
     missing = [n for n in range(1, count + 1) if n not in by_trial]
@@ -154,25 +130,6 @@ def check_answers(
     if problems:
         raise AnswersError(source, problems)
     return by_trial
-
-
-def _lab_answers(protocol: Protocol) -> tuple[dict[str, str], str]:
-    """The lab's paradigms: each answer as a sheet may write it (in any case; an interval by
-    its number too, a pin first by its place), with the answer the session takes; and what
-    the sheet is expected to hold. Empty for the seed's paradigms."""
-    judgement = protocol.design.judgement
-    if judgement is None:
-        return {}, ""
-    answers = protocol.design.answers(protocol.device.grid.pin_count)
-    written = {answer.lower(): answer for answer in answers}
-    match judgement:
-        case Identification(answers=AnswerKind.COUNTS):
-            return written, f"a count from 1 to {protocol.device.grid.pin_count}"
-        case TwoInterval():
-            written |= {"1": FIRST, "2": SECOND}
-        case TemporalOrder(pins=pins, places=places):
-            written |= {place: str(pin) for pin, place in zip(pins, places, strict=True)}
-    return written, f"one of {', '.join(answers)}"
 
 
 def load_answers(path: str, protocols: Sequence[Protocol]) -> dict[int, str]:

@@ -19,10 +19,12 @@ if TYPE_CHECKING:  # the command imports what it runs when it runs
     from pinarray.session.trials import Session
 
 BATCH_EPILOG = """\
-Answers come from --responses FILE (CSV with columns trial,response; a pin number or 'none'
-for localisation, none/left/right/unsure for apparent motion) or from --observer MODEL, a
-simulated subject: 'default' reproduces the seed's figures, or override parameters such as
-'correct_10hz=0.7,motion_felt=0.9'.
+Answers come from --responses FILE (CSV with columns trial,response: an answer the protocol's
+paradigm takes, e.g. a pin number or 'none' for localisation, none/left/right/unsure for
+apparent motion) or from --observer MODEL, a simulated subject: 'default' reproduces the
+seed's figures, or override its paradigm's parameters, e.g. 'correct_10hz=0.7' (localisation)
+or 'motion_felt=0.9' (apparent motion); for an adaptive design its psychometric function, e.g.
+'threshold=120,slope=3'.
 
 Results go to DIR/sub-ID/ses-N/beh/ (a BIDS dataset); every trial is on disk the moment it
 ends. A run that was killed or aborted resumes with --resume: exactly the remaining trials, in
@@ -179,6 +181,7 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
     """One protocol's run on ``sitting``, answered from ``responses`` or ``--observer``; says
     what happens on stderr and where the rows went on stdout. The rig is closed after it."""
     from pinarray.journal.volumes import volume_log_path
+    from pinarray.player.simulators import simulation_level
     from pinarray.protocol.response import MeasuredResponse
     from pinarray.stop import Stopped, stop_on_signals
 
@@ -220,8 +223,10 @@ def run_batch(sitting: Sitting, request: SessionRequest, args: argparse.Namespac
                 print(f"pinarray: run {writer.paths.run} aborted, {resume_hint}", file=sys.stderr)
                 raise
             progress.close()
+            level = simulation_level(sitting.rig.bus) if sitting.rig is not None else None
+            simulated = f"; simulated, {level}" if level is not None else ""
             print(f"{protocol.name}: {len(run.records)} rows in {writer.paths.beh_tsv} (seed "
-                  f"{run.plan.seed}, run {writer.paths.run})")
+                  f"{run.plan.seed}, run {writer.paths.run}{simulated})")
             if scanner is not None:
                 print(f"scanner: {scanner.summary()}; every volume in "
                       f"{volume_log_path(writer.paths)}")

@@ -165,6 +165,7 @@ def _cmd_play(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
     from pinarray.player.playback import PlaybackReport
     from pinarray.player.rig import Rig, choose_clock
+    from pinarray.player.simulators import simulation_level
     from pinarray.protocol.load import load_protocol
     from pinarray.schedule import compile_trial
     from pinarray.stop import StopRequest, stop_on_signals
@@ -179,7 +180,10 @@ def _cmd_play(args: argparse.Namespace) -> int:
             for warning in rig.warnings:
                 say(f"pinarray: warning: {warning}", error=True)
             where = "a player process" if rig.isolated else "this process"
-            servos = f"SIMULATED servos ({rig.url})" if is_sim_url(rig.url) else rig.url
+            level = simulation_level(rig.bus)
+            servos = rig.url
+            if is_sim_url(rig.url):
+                servos = f"SIMULATED servos ({rig.url}{f'; {level}' if level else ''})"
             say(f"{protocol.name}: {len(trials)} trial(s) on {servos}, played by {where} "
                 f"(seed {plan.seed})")
             undelivered = []

@@ -109,12 +109,12 @@ def _validate(args: argparse.Namespace) -> int:
             design = protocol.design
             adaptive = design.adaptive
             if adaptive is None:
-                print(f"{path}: ok ({design.paradigm.value}, "
+                print(f"{path}: ok ({design.paradigm.name}, "
                       f"{len(design.conditions) * design.repetitions * design.blocks} trials in "
                       f"{design.blocks} block(s), {design.practice_trials} practice)")
             else:
                 values = adaptive.values
-                print(f"{path}: ok ({design.paradigm.value}, adaptive: "
+                print(f"{path}: ok ({design.paradigm.name}, adaptive: "
                       f"{adaptive.parameter.value} over {len(values)} values "
                       f"({float(values[0]):g}..{float(values[-1]):g} {adaptive.parameter.unit}), "
                       f"{len(adaptive.procedures)} procedures, at most {design.trial_count} trials "
@@ -396,16 +396,16 @@ def _preview(args: argparse.Namespace) -> int:
 
 def _plan(args: argparse.Namespace) -> int:
     from pinarray.plan import make_plan
-    from pinarray.protocol.described import COLUMNS, condition_cells
     from pinarray.protocol.load import load_protocol
 
     protocol = load_protocol(args.file)
     plan = make_plan(protocol, args.seed)
-    header = ["trial", "block", "practice", "stimulus", *COLUMNS[protocol.design.paradigm]]
+    paradigm = protocol.design.paradigm
+    header = ["trial", "block", "practice", "stimulus", *paradigm.plan_columns]
     rows = []
     for planned in plan.trials:
         c = planned.condition
-        what = condition_cells(c)
+        what = paradigm.plan_cells(c)
         rows.append([str(planned.trial), str(planned.block),
                      "yes" if planned.practice else "no", c.stimulus, *what])
     practice = sum(t.practice for t in plan.trials)

@@ -7,18 +7,14 @@ from typing import IO
 import numpy as np
 
 from pinarray.plan import PlannedTrial
-from pinarray.protocol import MotionCondition, Protocol
-from pinarray.protocol.described import describe_condition
+from pinarray.protocol import Protocol
+from pinarray.protocol.seam import paradigm_named
 from pinarray.schedule import TrialSchedule
 
 
 def describe_trial(planned: PlannedTrial) -> str:
     c = planned.condition
-    if isinstance(c, MotionCondition):
-        where = f"row {c.row}" if c.row is not None else "pins " + " ".join(map(str, c.pins))
-        what = f"{c.direction.value} wave on {where}"
-    else:
-        what = describe_condition(c)
+    what = paradigm_named(c.paradigm).describe(c)
     kind = "practice" if planned.practice else f"block {planned.block}"
     return f"trial {planned.trial} ({kind}): {c.stimulus}, {what}"
 

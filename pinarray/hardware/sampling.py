@@ -98,6 +98,14 @@ class PinGoals:
             left_ns, index = stop_ns, index + 1
         return NEVER_NS
 
+    def tightest_gap_ns(self, end_ns: int) -> int | None:
+        """The shortest gap between samples any of this servo's cycles allows, in ns (None:
+        no cycle starts)."""
+        stops = (*self.cycle_start_ns[1:], end_ns)
+        return min((int((stop_ns - start_ns) * MAX_GAP_FRACTION)
+                    for start_ns, stop_ns in zip(self.cycle_start_ns, stops, strict=True)),
+                   default=None)
+
     def gap_allowed_ns(self, time_ns: int, end_ns: int) -> int | None:
         """The longest gap between samples the cycle holding ``time_ns`` allows (None
         outside every cycle: before the first one starts)."""
@@ -153,6 +161,12 @@ class Holds:
         """Whether every moving pin's cycles allow no sample from ``from_ns`` to ``to_ns``
         (ns after onset): see `PinGoals.gap_fits`."""
         return all(goals.gap_fits(from_ns, to_ns, self.end_ns) for goals in self._goals.values())
+
+    def tightest_gap_ns(self) -> int | None:
+        """The shortest gap between samples any moving pin's cycle allows, in ns (None: no
+        pin has a cycle)."""
+        return min((gap for goals in self._goals.values()
+                    if (gap := goals.tightest_gap_ns(self.end_ns)) is not None), default=None)
 
     def reach_ns(self, from_ns: int) -> int:
         """The latest the next sample may follow one at ``from_ns`` (ns after onset) and keep

@@ -21,8 +21,7 @@ from typing import Protocol as Interface
 from pinarray.hardware.delivery import Presentation
 from pinarray.plan import PlannedTrial
 from pinarray.player.markers import TrialMarkers
-from pinarray.protocol import LocalisationCondition, MotionCondition, Protocol
-from pinarray.protocol.described import COLUMNS, condition_cells
+from pinarray.protocol.model import Protocol
 from pinarray.schedule import TrialSchedule
 
 
@@ -41,16 +40,8 @@ def marker_text(event: str, planned: PlannedTrial, protocol: Protocol, task: str
     condition = planned.condition
     data: dict[str, object] = {"event": event, "task": task, "trial": planned.trial,
                                "block": planned.block, "practice": planned.practice}
-    if isinstance(condition, LocalisationCondition):
-        data |= {"pin": condition.pin, "frequency_hz": _number(condition.frequency_hz)}
-    elif isinstance(condition, MotionCondition):
-        wave = protocol.wave(condition.stimulus)
-        data |= {"row": condition.row, "direction": condition.direction.value,
-                 "frequency_hz": _number(wave.train.frequency_hz)}
-    else:
-        data |= {"stimulus": condition.stimulus,
-                 "condition": dict(zip(COLUMNS[protocol.design.paradigm],
-                                       condition_cells(condition), strict=True))}
+    data |= protocol.design.paradigm.marker_fields(condition,
+                                                   protocol.stimulus(condition.stimulus))
     return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
 

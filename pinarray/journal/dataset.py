@@ -25,32 +25,14 @@ from pathlib import Path
 from typing import Any
 
 from pinarray.errors import ResultsError
+from pinarray.journal.columns import entry
 from pinarray.journal.files import write_atomically
 from pinarray.journal.lock import held
-from pinarray.journal.manifest import (
-    IdentificationEntry,
-    LocalisationEntry,
-    MotionEntry,
-    PlanEntry,
-    RunManifest,
-    TemporalOrderEntry,
-    TwoIntervalEntry,
-)
+from pinarray.journal.manifest import RunManifest
 from pinarray.journal.paths import SOURCEDATA, RunPaths
-from pinarray.journal.records import (
-    BEH_COLUMNS,
-    DIRECTION_MEANING,
-    EVENT_NAMES,
-    EVENT_ONLY,
-    MOTION_ANSWER_MEANING,
-    NOTHING_FELT,
-    Column,
-    condition_label,
-    number_text,
-)
+from pinarray.journal.records import EVENT_ONLY
+from pinarray.journal.seam import columns_of, rows_of
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
-from pinarray.protocol import Direction, MotionAnswer, Paradigm
-from pinarray.protocol.model import answered_directions
 from pinarray.version import __version__
 
 BIDS_VERSION = "1.10.0"
@@ -105,24 +87,6 @@ _PARTICIPANTS_JSON = {
     PARTICIPANT_ID: {"Description": "Subject label, as given when the session was started "
                                     "(letters and digits)."},
 }
-INSTRUCTIONS = {
-    Paradigm.LOCALISATION: "Rest your fingertip on the pins. After each stimulus, name the pin "
-                           "that moved by its number (1 = bottom-left as you feel it), or say "
-                           "'none' if you felt nothing.",
-    Paradigm.APPARENT_MOTION: "Rest your fingertip on the pins. After each stimulus, say whether "
-                              "you felt a dot moving and, if so, which way it went (left, right, "
-                              "up, down: the directions the experimenter named), or unsure; "
-                              "say 'none' if you felt no movement.",
-    # The lab's paradigms: what the protocol asks (the run's manifest holds its words).
-    Paradigm.IDENTIFICATION: "Rest your fingertip on the pins. After each stimulus, name the "
-                             "shape the raised pins made (or how many pins were raised).",
-    Paradigm.TWO_INTERVAL: "Rest your fingertip on the pins. Each trial plays two intervals; "
-                           "say which one, first or second, had more of what you were asked.",
-    Paradigm.TEMPORAL_ORDER: "Rest your fingertip on the pins. Two pins tap one after the "
-                             "other; say which came first.",
-}
-
-
 # -- dataset-level files -------------------------------------------------------------------------
 
 
@@ -201,76 +165,16 @@ def ensure_dataset(root: Path | str, subject: str) -> None:
 # -- per-run sidecars ----------------------------------------------------------------------------
 
 
-def _entry(column: Column) -> dict[str, Any]:
-    entry: dict[str, Any] = {"Description": column.description}
-    if column.levels is not None:
-        entry["Levels"] = {str(level): meaning for level, meaning in column.levels.items()}
-    if column.units is not None:
-        entry["Units"] = column.units
-    return entry
-
-
-def _trial_types(task: str, plan: tuple[PlanEntry, ...]) -> dict[str, str]:
-    levels: dict[str, str] = {}
-    for entry in plan:
-        match entry:
-            case LocalisationEntry():
-                label = condition_label(task, frequency_hz=float(entry.frequency_hz))
-                levels.setdefault(label, f"one pin moves at {float(entry.frequency_hz):g} Hz")
-            case MotionEntry():
-                label = condition_label(task, direction=entry.direction)
-                levels.setdefault(label, f"apparent motion: {entry.direction.value} "
-                                         f"({_direction_meaning(entry)})")
-            case IdentificationEntry():
-                levels.setdefault(f"{task}_{entry.stimulus}", f"pattern {entry.stimulus} on "
-                                  f"pins {' '.join(map(str, entry.pins))}")
-            case TwoIntervalEntry():
-                unit = entry.compared.rpartition("_")[2]
-                comparison = number_text(float(entry.comparison))
-                levels.setdefault(f"{task}_{comparison}{unit}",
-                                  f"two intervals: {entry.compared} {comparison} against the "
-                                  f"standard {number_text(float(entry.standard))}")
-            case TemporalOrderEntry():
-                soa = number_text(entry.soa_ns / 1e6)
-                levels.setdefault(f"{task}_soa{soa}ms", f"pin {entry.pins[1]} starts {soa} ms "
-                                  f"after pin {entry.pins[0]}")
-    return dict(sorted(levels.items()))
-
-
-def _direction_meaning(entry: MotionEntry) -> str:
-    return direction_meaning(entry.direction)
-
-
-def direction_meaning(direction: Direction) -> str:
-    """A direction column's level: the fixed ones, or a direction a sequence of pins declares."""
-    return DIRECTION_MEANING.get(direction, f"wave travels {direction} along a sequence of pins")
-
-
-def _answer_meaning(answer: str) -> str:
-    return MOTION_ANSWER_MEANING.get(MotionAnswer(answer), f"a dot moving {answer}")
-
-
 def _run_levels(manifest: RunManifest) -> dict[str, dict[str, str]]:
+    """The run's levels, by column: those its device gives (the pins of its grid), those its
+    paradigm gives (the answers offered...), and the task's."""
     info = manifest.task_info
-    pins = {str(p): f"row {(p - 1) // info.grid_columns + 1}, column "
-                    f"{(p - 1) % info.grid_columns + 1} (row 1 at the bottom)" for p in info.pins}
-    levels: dict[str, dict[str, str]] = {}
-    if info.paradigm is Paradigm.LOCALISATION:
-        response = {p: f"named pin {p}" for p in pins} | {NOTHING_FELT: "nothing felt"}
-    elif info.answers:  # the lab's paradigms: the answers the design offered
-        response = dict(info.answers)
-        patterns = {e.stimulus: f"pins {' '.join(map(str, e.pins))}" for e in manifest.plan
-                    if isinstance(e, IdentificationEntry)}
-        if patterns:
-            levels["pattern"] = patterns
-    else:
-        directions = [e.direction for e in manifest.plan if isinstance(e, MotionEntry)]
-        offered = [*answered_directions(directions), MotionAnswer.NONE, MotionAnswer.UNSURE]
-        response = {str(a): _answer_meaning(a) for a in offered}
-        levels["direction"] = {str(d): direction_meaning(d) for d in dict.fromkeys(directions)}
-    return levels | {"task": {manifest.task: info.name + (f": {info.description}" if info.description else "")},
-            "pin": pins, "response": response,
-            "row": {str(r): f"row {r} (1 = bottom)" for r in range(1, info.grid_rows + 1)}}
+    rows = rows_of(info.paradigm)
+    levels = {c.name: dict(c.levels_for(info)) for c in columns_of(rows).values()
+              if c.levels_for is not None}
+    return levels | rows.levels(manifest) | {
+        "task": {manifest.task: info.name + (f": {info.description}" if info.description
+                                             else "")}}
 
 
 def _sitting(sitting: Sitting) -> dict[str, Any]:
@@ -331,7 +235,7 @@ def _common(manifest: RunManifest) -> dict[str, Any]:
     return {
         "TaskName": info.name,
         "TaskDescription": info.description or info.name,
-        "Instructions": info.instructions or INSTRUCTIONS[info.paradigm],
+        "Instructions": info.instructions or rows_of(info.paradigm).instructions,
         "StimulusPresentation": {"OperatingSystem": platform.platform(),
                                  "SoftwareName": "pinarray",
                                  "SoftwareVersion": manifest.software_version or __version__},
@@ -348,14 +252,16 @@ def _common(manifest: RunManifest) -> dict[str, Any]:
 
 
 def beh_sidecar(manifest: RunManifest) -> dict[str, Any]:
-    """The BIDS JSON sidecar of a run's ``beh.tsv``."""
+    """The BIDS JSON sidecar of a run's ``beh.tsv``: every column of its paradigm's layout."""
+    rows = rows_of(manifest.task_info.paradigm)
     levels = _run_levels(manifest)
+    known = columns_of(rows)
     columns = {}
-    for column in BEH_COLUMNS:
-        entry = _entry(column)
-        if column.name in levels:
-            entry["Levels"] = levels[column.name]
-        columns[column.name] = entry
+    for name in rows.layout:
+        described = entry(known[name])
+        if name in levels:
+            described["Levels"] = levels[name]
+        columns[name] = described
     onset = columns["stimulus_onset"]
     onset["Description"] += f" Zero: {_time_base(manifest)['Zero']}."
     return _common(manifest) | columns
@@ -363,10 +269,11 @@ def beh_sidecar(manifest: RunManifest) -> dict[str, Any]:
 
 def events_sidecar(manifest: RunManifest) -> dict[str, Any]:
     """The BIDS JSON sidecar of a run's ``events.tsv``."""
+    rows = rows_of(manifest.task_info.paradigm)
     beh = beh_sidecar(manifest)
-    columns = {name: beh.get(name) or _entry(EVENT_ONLY[name]) for name in EVENT_NAMES}
+    columns = {name: beh.get(name) or entry(EVENT_ONLY[name]) for name in rows.event_layout}
     columns["onset"]["Description"] += f" Zero: {_time_base(manifest)['Zero']}."
-    columns["trial_type"] |= {"Levels": _trial_types(manifest.task, manifest.plan)}
+    columns["trial_type"] |= {"Levels": rows.trial_types(manifest.task, manifest.plan)}
     return _common(manifest) | columns
 
 

@@ -8,23 +8,23 @@ file boundary. Manifests written before the time base and the sum-typed plan (a 
 ``resumed_at`` list instead of sittings) are still read.
 
 Past 400 lines on purpose: the manifest's values and their JSON, written and read back by the
-same code (a plan entry per paradigm included); apart, they drift.
+same code; apart, they drift. A plan entry's condition is its paradigm's to check
+(`pinarray.journal.seam.ParadigmRows.check_entry`).
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
-from fractions import Fraction
 from pathlib import Path
-from typing import Any, TypeAlias
+from typing import Any
 
 from pinarray.errors import ResultsError
 from pinarray.journal.files import now_iso, write_atomically
 from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
-from pinarray.journal.records import Direction, TrialRecord, finished_trials
+from pinarray.journal.records import TrialRecord, TrialStatus
 from pinarray.journal.timebase import (
     ClockKind,
     Sitting,
@@ -34,9 +34,6 @@ from pinarray.journal.timebase import (
     seconds_text,
 )
 from pinarray.journal.volumes import ScannerRecord
-from pinarray.protocol import DIRECTION_OF_WAVE, Paradigm, WaveKind
-from pinarray.protocol.model import is_motion_answer
-from pinarray.protocol.paradigms import IntervalOrder
 from pinarray.version import __version__
 
 
@@ -54,59 +51,36 @@ class RunStatus(StrEnum):
 
 
 
+# The keys of a plan entry every paradigm's has; the rest are its paradigm's (`fields`).
+ENTRY_KEYS = ("trial", "block", "practice", "stimulus")
+# Keys every entry has had since the first release (null where the paradigm has none).
+FIRST_FIELDS = ("pin", "frequency_hz", "direction", "row")
+
+
 @dataclass(frozen=True, kw_only=True)
-class _Entry:
-    trial: int  # 1..N in plan order, the number every output uses
-    block: int = 1  # 0 for practice
+class PlanEntry:
+    """One trial of a run's plan, as its manifest keeps it: its number (1..N in plan order, the
+    number every output uses), block (0: practice), stimulus, whether it is a catch trial of
+    an adaptive design, and what its paradigm says of its condition (``fields``: plain JSON
+    values, `pinarray.protocol.seam.ParadigmDesign.plan_fields`, after the pin,
+    frequency_hz, direction and row every entry has had since the first release)."""
+
+    trial: int
+    block: int = 1
     practice: bool = False
     stimulus: str = ""
-    catch: bool = False  # a catch trial of an adaptive design
+    catch: bool = False
+    fields: Mapping[str, Any] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # The first release's keys are in every entry's JSON, null where they do not apply:
+        # an entry is the same whether they were written or not.
+        object.__setattr__(self, "fields", {k: v for k, v in self.fields.items()
+                                            if not (k in FIRST_FIELDS and v is None)})
 
-@dataclass(frozen=True, kw_only=True)
-class LocalisationEntry(_Entry):
-    pin: int
-    frequency_hz: Fraction
-
-
-@dataclass(frozen=True, kw_only=True)
-class MotionEntry(_Entry):
-    """A wave along ``row``; or, with ``row`` None, one visiting ``pins`` in order (up or down
-    a column, or a sequence going the ``direction`` it names)."""
-
-    row: int | None
-    wave: WaveKind
-    direction: Direction
-    pins: tuple[int, ...] = ()
-
-
-@dataclass(frozen=True, kw_only=True)
-class IdentificationEntry(_Entry):
-    """An identification trial: the pattern ``stimulus`` raising ``pins``."""
-
-    pins: tuple[int, ...]
-
-
-@dataclass(frozen=True, kw_only=True)
-class TwoIntervalEntry(_Entry):
-    """A two-interval trial: ``compared`` at ``standard`` and ``comparison``, in ``order``."""
-
-    compared: str
-    standard: Fraction
-    comparison: Fraction
-    order: IntervalOrder
-
-
-@dataclass(frozen=True, kw_only=True)
-class TemporalOrderEntry(_Entry):
-    """A temporal-order trial: ``pins`` (A, B), B starting ``soa_ns`` after A."""
-
-    pins: tuple[int, ...]
-    soa_ns: int
-
-
-PlanEntry: TypeAlias = (LocalisationEntry | MotionEntry | IdentificationEntry | TwoIntervalEntry
-                        | TemporalOrderEntry)
+    def __getitem__(self, name: str) -> Any:
+        """A field of the condition (None where the entry has none)."""
+        return self.fields.get(name)
 
 
 def entry_key(entry: PlanEntry) -> tuple[int, bool]:
@@ -114,75 +88,52 @@ def entry_key(entry: PlanEntry) -> tuple[int, bool]:
     return entry.trial, entry.practice
 
 
+def entry_from_record(record: Mapping[str, Any]) -> PlanEntry:
+    """A plan entry from the JSON a planned trial is described by (`PlannedTrial.record`)."""
+    return PlanEntry(trial=record["trial"], block=record["block"], practice=record["practice"],
+                     stimulus=record["stimulus"], catch=record.get("catch") is True,
+                     fields={k: v for k, v in record.items()
+                             if k not in ENTRY_KEYS and k != "catch"})
+
+
 def entry_to_json(entry: PlanEntry) -> dict[str, Any]:
     """The JSON a plan entry is stored as (the shape `pinarray compile` writes too)."""
     data: dict[str, Any] = {"trial": entry.trial, "block": entry.block,
                             "practice": entry.practice, "stimulus": entry.stimulus,
-                            "pin": None, "frequency_hz": None, "direction": None, "row": None}
-    match entry:
-        case LocalisationEntry():
-            data |= {"pin": entry.pin, "frequency_hz": str(entry.frequency_hz)}
-        case MotionEntry():
-            # "direction" holds the wave's kind (rightwards...), as it always has; a wave not
-            # along a row adds its pins and the direction a subject names.
-            data |= {"direction": entry.wave.value, "row": entry.row}
-            if entry.row is None:
-                data |= {"pins": list(entry.pins), "towards": entry.direction.value}
-        case IdentificationEntry():
-            data |= {"pattern": entry.stimulus, "pins": list(entry.pins)}
-        case TwoIntervalEntry():
-            data |= {"compare": entry.compared, "standard": str(entry.standard),
-                     "comparison": str(entry.comparison), "interval_order": entry.order.value}
-        case TemporalOrderEntry():
-            data |= {"pins": list(entry.pins), "soa_ns": entry.soa_ns}
+                            **dict.fromkeys(FIRST_FIELDS)}
+    data |= entry.fields
     if entry.catch:
         data["catch"] = True
     return data
 
 
-def entry_from_json(data: object, where: str) -> PlanEntry:
+def entry_from_json(data: object, where: str, paradigm: str) -> PlanEntry:
+    """A plan entry read back, its fields checked by its paradigm's room (``paradigm``)."""
+    from pinarray.journal.seam import rows_of
+
     if not isinstance(data, Mapping):
         raise ResultsError(f"{where}: expected a trial plan entry, found {data!r}")
     trial = data.get("trial")
     if isinstance(trial, bool) or not isinstance(trial, int):
         raise ResultsError(f"{where}: a trial plan entry needs an integer 'trial', found {data!r}")
-    common: dict[str, Any] = {"trial": trial, "block": int(data.get("block", 1)),
-                              "practice": bool(data.get("practice", False)),
-                              "stimulus": str(data.get("stimulus") or ""),
-                              "catch": data.get("catch") is True}
     try:
-        if data.get("pattern") is not None:
-            return IdentificationEntry(**common, pins=tuple(int(p) for p in data["pins"]))
-        if data.get("interval_order") is not None:
-            return TwoIntervalEntry(**common, compared=str(data["compare"]),
-                                    standard=Fraction(str(data["standard"])),
-                                    comparison=Fraction(str(data["comparison"])),
-                                    order=IntervalOrder(data["interval_order"]))
-        if data.get("soa_ns") is not None and not isinstance(data["soa_ns"], bool):
-            return TemporalOrderEntry(**common, pins=tuple(int(p) for p in data["pins"]),
-                                      soa_ns=int(data["soa_ns"]))
-        if data.get("pin") is not None:
-            return LocalisationEntry(**common, pin=int(data["pin"]),
-                                     frequency_hz=Fraction(str(data["frequency_hz"])))
-        if data.get("direction") is not None:
-            wave = WaveKind(data["direction"])
-            if data.get("row") is not None:
-                return MotionEntry(**common, row=int(data["row"]), wave=wave,
-                                   direction=DIRECTION_OF_WAVE[wave])
-            towards = str(data["towards"])
-            if not is_motion_answer(towards):
-                raise ValueError(towards)
-            return MotionEntry(**common, row=None, wave=wave, direction=Direction(towards),
-                               pins=tuple(int(p) for p in data["pins"]))
-    except (KeyError, TypeError, ValueError, ZeroDivisionError):
-        pass
-    raise ResultsError(f"{where}: trial {trial} of the plan names neither a pin and a frequency "
-                       f"nor a wave direction and a row (or pins): {dict(data)!r}")
+        entry = PlanEntry(trial=trial, block=int(data.get("block", 1)),
+                          practice=bool(data.get("practice", False)),
+                          stimulus=str(data.get("stimulus") or ""),
+                          catch=data.get("catch") is True,
+                          fields={k: v for k, v in data.items()
+                                  if k not in ENTRY_KEYS and k != "catch"})
+        rows_of(paradigm).check_entry(entry)
+        return entry
+    except (KeyError, TypeError, ValueError, ZeroDivisionError) as problem:
+        article = "an" if paradigm[:1] in "aeiou" else "a"
+        raise ResultsError(f"{where}: trial {trial} of the plan is not {article} {paradigm} "
+                           f"trial ({problem}): {dict(data)!r}") from None
 
 
 def remaining_plan(plan: Iterable[PlanEntry], records: Iterable[TrialRecord]) -> list[PlanEntry]:
     """The plan entries not yet finished (no ``ok`` row), in plan order."""
-    done = finished_trials(records)
+    done = frozenset(r.key for r in records if r.status is TrialStatus.OK)
     return [entry for entry in plan if entry_key(entry) not in done]
 
 
@@ -203,7 +154,7 @@ class TaskInfo:
     """What the sidecars say about the task and the device (BIDS TaskName, Instructions...)."""
 
     name: str
-    paradigm: Paradigm
+    paradigm: str  # what the protocol's design names: its room's name
     description: str = ""
     instructions: str = ""
     grid_rows: int = 4
@@ -212,8 +163,9 @@ class TaskInfo:
     # Each pin's travel for one position unit (servo step; us on a PWM board), mm, pin 1
     # first: what turns a stroke in the rows into millimetres. Empty in older manifests.
     mm_per_step: tuple[float, ...] = ()
-    # The lab's paradigms: every answer the design offers, each with what it means (the
-    # sidecar's response levels). Empty for the seed's paradigms and in older manifests.
+    # Every answer the design offers, each with what it means (the sidecar's response
+    # levels), where its paradigm keeps them here; empty where the plan says them, and in
+    # older manifests.
     answers: tuple[tuple[str, str], ...] = ()
 
     @property
@@ -280,7 +232,7 @@ class RunManifest:
             "seed": p.seed, "protocol_sha256": p.protocol_sha256, "protocol_file": p.protocol_file,
             "port": p.port, "servo_models": list(p.servo_models), "experimenter": p.experimenter,
             "software_version": self.software_version, "machine": dict(self.machine),
-            "task_info": {"name": t.name, "paradigm": t.paradigm.value,
+            "task_info": {"name": t.name, "paradigm": t.paradigm,
                           "description": t.description, "instructions": t.instructions,
                           "grid_rows": t.grid_rows, "grid_columns": t.grid_columns,
                           "pitch_mm": t.pitch_mm, "mm_per_step": list(t.mm_per_step),
@@ -298,10 +250,15 @@ class RunManifest:
         if not isinstance(data, Mapping):
             raise ResultsError(f"{where}: not a pinarray run manifest (expected a JSON object)")
         try:
-            plan = tuple(entry_from_json(e, f"{where}: plan entry {i + 1}")
+            paradigm = _paradigm(data.get("task_info"), data["plan"], where)
+            plan = tuple(entry_from_json(e, f"{where}: plan entry {i + 1}", paradigm)
                          for i, e in enumerate(data["plan"]))
+            seed = data["seed"]
+            if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
+                raise ResultsError(f"{where}: the plan's seed must be a whole number from 0 "
+                                   f"to 2**63 - 1, found {seed!r}")
             provenance = Provenance(
-                seed=data["seed"], protocol_sha256=str(data["protocol_sha256"]),
+                seed=seed, protocol_sha256=str(data["protocol_sha256"]),
                 port=str(data["port"]), protocol_file=str(data.get("protocol_file", "")),
                 servo_models=tuple(map(str, data.get("servo_models", ()))),
                 experimenter=str(data.get("experimenter", "")))
@@ -309,7 +266,7 @@ class RunManifest:
             return cls(
                 subject=str(data["subject"]), session=str(data["session"]),
                 task=str(data["task"]), run=int(data["run"]), plan=plan, provenance=provenance,
-                task_info=_task_info(data.get("task_info"), str(data["task"]), plan),
+                task_info=_task_info(data.get("task_info"), str(data["task"]), paradigm),
                 started_at=str(data.get("started_at", "")),
                 updated_at=str(data.get("updated_at", "")), status=data["status"],
                 abort_reason=str(data.get("abort_reason", "")),
@@ -352,11 +309,25 @@ def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
                          host) for number, at in enumerate(starts, start=1))
 
 
-def _task_info(data: Any, task: str, plan: Sequence[PlanEntry]) -> TaskInfo:
+def _paradigm(data: Any, plan: Any, where: str) -> str:
+    """The run's paradigm, as its manifest names it (a manifest older than the names: the
+    seed's two paradigms, told apart by the plan's first entry)."""
+    from pinarray import registry
+    from pinarray.journal.seam import paradigm_of_entry
+
+    if data is None:
+        return paradigm_of_entry(plan[0] if plan else {}, where)
+    name = str(data["paradigm"])
+    if not registry.is_known(name):
+        raise ResultsError(f"{where}: the run's paradigm {name!r} is not installed (expected "
+                           f"one of {', '.join(registry.names())})")
+    return name
+
+
+def _task_info(data: Any, task: str, paradigm: str) -> TaskInfo:
     if data is None:  # an older manifest (the seed's paradigms only): what the plan says
-        motion = bool(plan) and isinstance(plan[0], MotionEntry)
-        return TaskInfo(task, Paradigm.APPARENT_MOTION if motion else Paradigm.LOCALISATION)
-    return TaskInfo(name=str(data["name"]), paradigm=Paradigm(data["paradigm"]),
+        return TaskInfo(task, paradigm)
+    return TaskInfo(name=str(data["name"]), paradigm=paradigm,
                     description=str(data.get("description", "")),
                     instructions=str(data.get("instructions", "")),
                     grid_rows=int(data.get("grid_rows", 4)),

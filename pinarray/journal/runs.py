@@ -9,58 +9,31 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from pinarray.clock import Clock, MonotonicClock, PacedClock, ScaledClock, VirtualClock
 from pinarray.errors import PinArrayError
-from pinarray.journal.dataset import INSTRUCTIONS
 from pinarray.journal.lock import LockHolder, lock_holder
 from pinarray.journal.manifest import (
-    IdentificationEntry,
-    LocalisationEntry,
-    MotionEntry,
     PlanEntry,
     Provenance,
     RunManifest,
     TaskInfo,
-    TemporalOrderEntry,
-    TwoIntervalEntry,
+    entry_from_record,
     find_unfinished,
     remaining_plan,
 )
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.journal.timebase import REAL_TIME, ClockKind, TimeScale
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
-from pinarray.protocol import LocalisationCondition, Protocol
-from pinarray.protocol.paradigms import (
-    IdentificationCondition,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-    answer_meanings,
-    instructions,
-)
+from pinarray.protocol.model import Protocol
 
 
 def plan_entry(planned: PlannedTrial) -> PlanEntry:
     """The journal's record of one planned trial."""
-    c = planned.condition
-    common: dict[str, Any] = {"trial": planned.trial, "block": planned.block,
-                              "practice": planned.practice, "stimulus": c.stimulus,
-                              "catch": planned.catch}
-    match c:
-        case LocalisationCondition():
-            return LocalisationEntry(**common, pin=c.pin, frequency_hz=c.frequency_hz)
-        case IdentificationCondition():
-            return IdentificationEntry(**common, pins=c.pins)
-        case TwoIntervalCondition():
-            return TwoIntervalEntry(**common, compared=c.parameter.value, standard=c.standard,
-                                    comparison=c.comparison, order=c.order)
-        case TemporalOrderCondition():
-            return TemporalOrderEntry(**common, pins=c.pins, soa_ns=c.soa_ns)
-    return MotionEntry(**common, row=c.row, wave=c.kind, direction=c.direction, pins=c.pins)
+    return entry_from_record(planned.record())
 
 
 def plan_entries(plan: TrialPlan) -> tuple[PlanEntry, ...]:
@@ -71,15 +44,12 @@ def task_info(protocol: Protocol) -> TaskInfo:
     """What the sidecars say about the protocol's task and device."""
     grid = protocol.device.grid
     design = protocol.design
-    judgement = design.judgement
-    return TaskInfo(name=protocol.name, paradigm=design.paradigm,
+    return TaskInfo(name=protocol.name, paradigm=design.paradigm.name,
                     description=protocol.description,
-                    instructions=(INSTRUCTIONS[design.paradigm] if judgement is None
-                                  else instructions(judgement)),
+                    instructions=design.paradigm.instructions(design),
                     grid_rows=grid.rows, grid_columns=grid.columns, pitch_mm=grid.pitch_mm,
                     mm_per_step=tuple(protocol.device.mm_per_step(pin) for pin in grid.pins),
-                    answers=(() if judgement is None
-                             else answer_meanings(judgement, grid.pin_count)))
+                    answers=design.paradigm.answer_meanings(design, grid.pin_count))
 
 
 def time_scale_of(clock: Clock) -> TimeScale:
@@ -138,7 +108,8 @@ def unfinished_run(root: Path | str, subject: str, session: str, task: str) -> U
     if not found:
         return None
     paths, manifest = found[-1]
-    rows = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
+    rows = (read_trials(paths.beh_tsv, manifest.task_info.paradigm)
+            if paths.beh_tsv.exists() else [])
     left = remaining_plan(manifest.needed, rows)
 
     def finished(practice: bool) -> tuple[int, int]:

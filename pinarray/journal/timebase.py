@@ -126,16 +126,21 @@ def seconds_text(time_ns: int) -> str:
     return f"{sign}{whole}.{fraction:09d}".rstrip("0").rstrip(".") if fraction else f"{sign}{whole}"
 
 
+# A time in a results file: within 30 years either way (a run's time base continues across
+# sittings), so that nanoseconds stay within 64 bits and any arithmetic on them within a float.
+MAX_SECONDS = 10**9
+
+
 def ns_from_seconds(text: str) -> int:
     """Decimal seconds (as written by `seconds_text`, or any decimal) to whole nanoseconds.
 
-    Raises ValueError for text that is not a finite decimal number.
+    Raises ValueError for text that is not a finite decimal number of at most `MAX_SECONDS`.
     """
     try:
         value = Decimal(text)
     except InvalidOperation:
         raise ValueError(text) from None
-    if not value.is_finite():
+    if not value.is_finite() or abs(value) > MAX_SECONDS:
         raise ValueError(text)
     return int((value * NS_PER_S).to_integral_value())
 

@@ -28,6 +28,7 @@ from pathlib import Path
 from types import TracebackType
 
 from pinarray.errors import ResultsError
+from pinarray.journal.columns import NA, tsv_line
 from pinarray.journal.dataset import ensure_dataset, write_sidecars
 from pinarray.journal.files import (
     fsync_folder,
@@ -57,23 +58,20 @@ from pinarray.journal.physio import (
     motion_recording_path,
     motion_sidecar,
 )
-from pinarray.journal.records import (
-    BEH_NAMES,
-    EVENT_NAMES,
-    FIRST_NAMES,
-    NA,
-    TrialRecord,
-    TrialStatus,
+from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
+from pinarray.journal.rows import (
     beh_header,
+    check_run,
     event_row,
     finished_trials,
     finished_twice,
+    is_legacy_prefix,
     read_trials,
     split_torn_tail,
     todays_names,
     trial_row,
-    tsv_line,
 )
+from pinarray.journal.seam import ParadigmRows, rows_of
 from pinarray.journal.timebase import (
     FIRST_TRIAL_ONSET,
     REAL_TIME,
@@ -127,17 +125,17 @@ def _upgrade_columns(path: Path, added: int) -> None:
     pad = "\t".join([NA] * added)
     if added:
         rows = "".join(f"{row}\t{pad}\n" for row in rows.split("\n") if row)
-    write_atomically(path, tsv_line(BEH_NAMES) + rows)
+    write_atomically(path, tsv_line(LEGACY_LAYOUT) + rows)
 
 
-def _rebuild_events(path: Path, records: Sequence[TrialRecord]) -> None:
+def _rebuild_events(path: Path, records: Sequence[TrialRecord], rows: ParadigmRows) -> None:
     """Make ``events.tsv`` hold one row per trial row on file, rewriting it if it does not.
 
     Its rows are a function of beh.tsv's, which is fsync'd first: a crash between the two
     leaves events one row short (or a torn row), and a row deleted by hand from beh.tsv (a
     trial logged ok twice) leaves one too many. Either way it is rebuilt from the trial rows.
     """
-    text = tsv_line(EVENT_NAMES) + "".join(tsv_line(event_row(r)) for r in records)
+    text = tsv_line(rows.event_layout) + "".join(tsv_line(event_row(r, rows)) for r in records)
     try:
         same = path.read_text(encoding="utf-8") == text
     except (FileNotFoundError, UnicodeDecodeError):
@@ -221,8 +219,9 @@ class RunWriter:
         self._lock = lock
         self._wall = wall
         self._finished = set(finished_trials(records))
-        self._beh = _AppendOnlyTsv(paths.beh_tsv, BEH_NAMES)
-        self._events = _AppendOnlyTsv(paths.events_tsv, EVENT_NAMES)
+        self.rows = rows_of(manifest.task_info.paradigm)  # the run's paradigm's rows
+        self._beh = _AppendOnlyTsv(paths.beh_tsv, self.rows.layout)
+        self._events = _AppendOnlyTsv(paths.events_tsv, self.rows.event_layout)
         self._volumes: _AppendOnlyTsv | None = None
         self._motion: MotionRecording | None = None
         # The samples the rows on disk claim of the motion recording (None: some row does not
@@ -324,12 +323,16 @@ class RunWriter:
                                "crashed or aborted run can be resumed")
         header = beh_header(paths.beh_tsv)
         names = todays_names(header)
-        if header and (names != BEH_NAMES[: len(names)] or len(names) < len(FIRST_NAMES)):
+        rows = rows_of(manifest.task_info.paradigm)
+        if header and names != rows.layout and not (rows.layout == LEGACY_LAYOUT
+                                                    and is_legacy_prefix(names)):
             raise ResultsError(
                 f"{paths.beh_tsv}:1: this run was written by an earlier pinarray with the columns "
                 f"{', '.join(header)}; finish it with that version, or start a new run"
             )
-        records = read_trials(paths.beh_tsv) if paths.beh_tsv.exists() else []
+        records = (read_trials(paths.beh_tsv, manifest.task_info.paradigm)
+                   if paths.beh_tsv.exists() else [])
+        check_run(paths.beh_tsv, records, manifest)
         for (trial, practice), lines in finished_twice(records).items():
             kind = "practice trial" if practice else "trial"
             raise ResultsError(
@@ -339,10 +342,10 @@ class RunWriter:
             )
         # Every sample the rows claim must be in the recording, before anything is changed.
         claimed = claimed_samples(motion_recording_path(paths), records)
-        repaired = repair_tail(paths.beh_tsv, len(header) or len(BEH_NAMES))
-        if header and tuple(header) != BEH_NAMES:
-            _upgrade_columns(paths.beh_tsv, len(BEH_NAMES) - len(header))
-        _rebuild_events(paths.events_tsv, records)
+        repaired = repair_tail(paths.beh_tsv, len(header) or len(rows.layout))
+        if header and tuple(header) != rows.layout:
+            _upgrade_columns(paths.beh_tsv, len(rows.layout) - len(header))
+        _rebuild_events(paths.events_tsv, records, rows)
         ensure_dataset(paths.root, paths.subject)
         now = wall()
         zero_at = (datetime.fromisoformat(manifest.time_zero.at)
@@ -451,6 +454,10 @@ class RunWriter:
         """
         if not self._lock.held:
             raise ResultsError(f"{self.paths.label}: the run is closed; it has no writer now")
+        if not isinstance(record, self.rows.record_type):
+            raise ResultsError(f"{self.paths.label}: a {self.rows.name} run's rows are "
+                               f"{self.rows.record_type.__name__}s, not "
+                               f"{type(record).__name__}s")
         if record.status is TrialStatus.OK and record.key in self._finished:
             raise ResultsError(f"{self.paths.beh_tsv}: trial {record.trial} is already logged ok; "
                                "a trial counts once")
@@ -463,8 +470,8 @@ class RunWriter:
             self._write_motion(motion)
         try:
             with deferred_signals():  # a Ctrl-C must not fall between the two files
-                self._beh.append(trial_row(record))
-                self._events.append(event_row(record))
+                self._beh.append(trial_row(record, self.rows))
+                self._events.append(event_row(record, self.rows))
                 self.records.append(record)
                 if record.status is TrialStatus.OK:
                     self._finished.add(record.key)

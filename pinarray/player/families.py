@@ -22,13 +22,10 @@ from pinarray.player.simulators import SimulatedArrays
 from pinarray.protocol import (
     Device,
     HobbyServos,
-    LocalisationCondition,
-    MotionCondition,
     Pca9685Board,
     Protocol,
     ServoSettings,
 )
-from pinarray.protocol.described import describe_condition
 from pinarray.protocol.device import SIMULATED_BOARD_PORT
 from pinarray.units import NS_PER_US
 
@@ -120,15 +117,10 @@ def board_refusals(protocol: Protocol) -> tuple[str, ...]:
         try:
             plan_trial(setup, schedule.targets, schedule.pulses)
         except PinArrayError as refusal:
-            if isinstance(condition, LocalisationCondition):
-                name = f"{condition.stimulus} at {float(condition.frequency_hz):g} Hz"
-                pins, _ = refused.setdefault(name, ([], str(refusal)))
-                pins.append(condition.pin)
-            elif isinstance(condition, MotionCondition):
-                refused[f"{condition.stimulus} going {condition.direction}"] = ([], str(refusal))
-            else:
-                refused[f"{condition.stimulus}: {describe_condition(condition)}"] = (
-                    [], str(refusal))
+            name, pin = protocol.design.paradigm.grouped(condition)
+            pins, _ = refused.setdefault(name, ([], str(refusal)))
+            if pin is not None:
+                pins.append(pin)
     return tuple(f"{name}{f' on pins {_pin_list(pins)}' if len(pins) > 1 else ''}: {reason}"
                  for name, (pins, reason) in refused.items())
 

@@ -3,12 +3,16 @@
 Real servos keep their state when the port closes: releasing them only turns torque off, and
 what was written to them until power-off (a lowered return delay, a new id) stays. A
 simulated array opened again by the same program (the pre-flight's "Connect again", the next
-run of a batch) is therefore the one the last connection left, not a factory-new one.
+run of a batch) is therefore the one the last connection left, not a factory-new one. And how
+closely a simulated array is simulated (`simulation_level`), for a command to say so.
 """
 
 from __future__ import annotations
 
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
+
+if TYPE_CHECKING:
+    from pinarray.hardware.driver import ArrayDriver
 
 T = TypeVar("T")
 
@@ -31,3 +35,25 @@ class SimulatedArrays:
     def keep(self, url: str, simulator: object) -> None:
         """Remember ``simulator`` for the next connection to ``url``."""
         self._by_url[url] = simulator
+
+
+def simulation_level(driver: ArrayDriver) -> str | None:
+    """How closely ``driver``'s array is simulated, in words (None: real hardware, or a
+    simulator behind a port, which carries every byte).
+
+    Simulated bus servos run at the level their URL names, or the packet level
+    (`pinarray.hardware.feetech.sim_levels`); a simulated PWM board at its only one.
+    """
+    from pinarray.hardware.feetech.feetech import FeetechBus
+
+    if isinstance(driver, FeetechBus):
+        from pinarray.hardware.feetech.transport import fidelity_of
+
+        level = fidelity_of(driver)
+        return None if level is None else level.describe()
+    from pinarray.hardware.pca9685.driver import Pca9685Array
+    from pinarray.hardware.pca9685.sim import SimI2cLink
+
+    if isinstance(driver, Pca9685Array) and isinstance(driver.link, SimI2cLink):
+        return "every I2C message to the board's registers"
+    return None

@@ -11,14 +11,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 from fractions import Fraction
+from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.drives import stimulus_drives
 from pinarray.protocol.model import (
     Condition,
     Device,
     Frames,
-    LocalisationCondition,
     PathWave,
     Pattern,
     PatternStimulus,
@@ -31,9 +30,11 @@ from pinarray.protocol.model import (
     Wave,
     WaveStimulus,
 )
-from pinarray.protocol.paradigms import TemporalOrderCondition, TwoIntervalCondition
 from pinarray.protocol.procedures import Parameter
 from pinarray.units import NS_PER_MS
+
+if TYPE_CHECKING:
+    from pinarray.protocol.seam import ParadigmDesign
 
 
 def _train(train: Train | TrainShape, parameter: Parameter, value: Fraction) -> Train | TrainShape:
@@ -77,22 +78,14 @@ def _pattern(pattern: Pattern, parameter: Parameter, value: Fraction) -> Pattern
     return replace(pattern, train=train)
 
 
-def adapts_condition(condition: Condition) -> bool:
-    """Whether a value of the design's parameter changes the condition alone (the comparison
-    of two intervals, the SOA between two pins), not the stimulus the protocol states."""
-    return isinstance(condition, TwoIntervalCondition | TemporalOrderCondition)
-
-
-def adapted_condition(condition: Condition, parameter: Parameter, value: Fraction) -> Condition:
-    """The condition as its row tells it: a localisation trial's frequency is the one played."""
-    match condition:
-        case LocalisationCondition() if parameter is Parameter.FREQUENCY_HZ:
-            return replace(condition, frequency_hz=value)
-        case TwoIntervalCondition():
-            return replace(condition, comparison=value)
-        case TemporalOrderCondition(soa_ns=soa_ns):
-            return replace(condition, soa_ns=round(value * NS_PER_MS) * (-1 if soa_ns < 0 else 1))
-    return condition
+def drives_of(stimulus: Stimulus) -> tuple[PinDrive, ...]:
+    """What a stimulus with pins of its own plays (a pattern, a wave), as it is written."""
+    match stimulus:
+        case PatternStimulus(shape=shape):
+            return shape.drives()
+        case WaveStimulus(wave=wave):
+            return wave.drives()
+    raise PinArrayError(f"stimulus {stimulus.name!r} has no pins of its own to play")
 
 
 def stroke_device(device: Device, pins: set[int], train: Train, stroke: Fraction) -> Device:
@@ -119,12 +112,13 @@ def stroke_device(device: Device, pins: set[int], train: Train, stroke: Fraction
     return replace(device, pins=tuple(calibrations))
 
 
-def adapted_drives(device: Device, stimulus: Stimulus, condition: Condition, parameter: Parameter,
+def adapted_drives(paradigm: ParadigmDesign, device: Device, stimulus: Stimulus,
+                   condition: Condition, parameter: Parameter,
                    value: Fraction) -> tuple[Device, tuple[PinDrive, ...]]:
     """What one trial at ``value`` drives, and the device it plays on."""
-    played = stimulus if adapts_condition(condition) else adapted_stimulus(stimulus, parameter,
-                                                                           value)
-    drives = stimulus_drives(played, adapted_condition(condition, parameter, value))
+    played = (stimulus if paradigm.adapts_condition(condition)
+              else adapted_stimulus(stimulus, parameter, value))
+    drives = paradigm.drives(played, paradigm.adapt(condition, parameter, value))
     if parameter.is_stroke:
         device = stroke_device(device, {d.pin for d in drives}, drives[0].train, value)
     return device, drives
@@ -133,10 +127,11 @@ def adapted_drives(device: Device, stimulus: Stimulus, condition: Condition, par
 def adapted(protocol: Protocol, condition: Condition, parameter: Parameter,
             value: Fraction) -> tuple[Protocol, Condition]:
     """The protocol and condition of a trial presenting ``condition`` at ``value``."""
+    paradigm = protocol.design.paradigm
     stimulus = protocol.stimulus(condition.stimulus)
-    device, _ = adapted_drives(protocol.device, stimulus, condition, parameter, value)
+    device, _ = adapted_drives(paradigm, protocol.device, stimulus, condition, parameter, value)
     stimuli = tuple(adapted_stimulus(s, parameter, value)
-                    if s is stimulus and not adapts_condition(condition) else s
+                    if s is stimulus and not paradigm.adapts_condition(condition) else s
                     for s in protocol.stimuli)
     return (replace(protocol, device=device, stimuli=stimuli),
-            adapted_condition(condition, parameter, value))
+            paradigm.adapt(condition, parameter, value))

@@ -28,23 +28,12 @@ import re
 from collections.abc import Mapping, Sequence
 from fractions import Fraction
 from functools import partial
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.adapted import adapted_drives
 from pinarray.protocol.drives import check_no_overlap, pulse_slots
-from pinarray.protocol.model import (
-    Condition,
-    Device,
-    Direction,
-    LocalisationCondition,
-    MotionCondition,
-    Paradigm,
-    Stimulus,
-    Train,
-    WaveStimulus,
-    answered_directions,
-)
+from pinarray.protocol.model import Condition, Device, Stimulus, Train
 from pinarray.protocol.procedures import (
     CATCH,
     PRACTICE,
@@ -58,12 +47,14 @@ from pinarray.protocol.procedures import (
     QuestPlus,
     Staircase,
     StepSize,
-    Task,
     UniformPrior,
 )
 from pinarray.protocol.quest_grid import uninformative
 from pinarray.protocol.stimuli import check_bus, check_period, check_train_on_pins
 from pinarray.protocol.yaml_nodes import Invalid, MappingNode, Node, Reader
+
+if TYPE_CHECKING:
+    from pinarray.protocol.seam import ParadigmDesign
 
 ADAPTIVE_KEYS = {"parameter", "values", "task", "guess_rate", "catch_trials", "procedures"}
 STAIRCASE_KEYS = {"method", "start", "down", "up", "step_sizes", "stop_after_trials",
@@ -80,24 +71,15 @@ MAX_GRID = 4_000_000
 MAX_CHECKS = 20_000  # (value, stimulus) pairs checked as they would play
 RESERVED = (CATCH, PRACTICE)
 PROCEDURE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_-]{0,31}")
-TASKS_OF = {Paradigm.APPARENT_MOTION: (Task.DIRECTION, Task.DETECTION),
-            Paradigm.LOCALISATION: (Task.LOCALISATION, Task.DETECTION),
-            Paradigm.TWO_INTERVAL: (Task.DISCRIMINATION,),
-            Paradigm.TEMPORAL_ORDER: (Task.ORDER,)}
-PARAMETERS_OF = {Paradigm.APPARENT_MOTION: tuple(Parameter),
-                 Paradigm.LOCALISATION: tuple(p for p in Parameter if p is not Parameter.SOA_MS),
-                 # The comparison of two intervals (the design's compare), the SOA of two pins.
-                 Paradigm.TWO_INTERVAL: (Parameter.FREQUENCY_HZ, Parameter.DURATION_MS,
-                                         Parameter.SOA_MS),
-                 Paradigm.TEMPORAL_ORDER: (Parameter.SOA_MS,)}
 DEFAULT_SLOPES: tuple[Fraction, ...] = tuple(map(Fraction, (1, 2, 3, 4, 5)))
 DEFAULT_LAPSES: tuple[Fraction, ...] = (Fraction(0), Fraction(1, 50), Fraction(1, 25))
 
 
-def read_parameter(reader: Reader, node: Node, paradigm: Paradigm, device: Device) -> Parameter:
+def read_parameter(reader: Reader, node: Node, paradigm: ParadigmDesign,
+                   device: Device) -> Parameter:
     """The adapted parameter: one the paradigm's stimuli have, a stroke in the device's unit."""
-    allowed = tuple(p.value for p in PARAMETERS_OF[paradigm])
-    parameter = Parameter(reader.string(node, f"the adapted parameter of a {paradigm.value} "
+    allowed = tuple(p.value for p in paradigm.parameters)
+    parameter = Parameter(reader.string(node, f"the adapted parameter of a {paradigm.name} "
                                               "design", allowed))
     unit = device.servo.position_unit
     if parameter.is_stroke and parameter.unit != unit:
@@ -116,35 +98,24 @@ def read_values(reader: Reader, keys: Mapping[str, Node], parameter: Parameter) 
     return _values(reader, keys["values"], parameter.unit, parameter.is_stroke)
 
 
-def read_adaptive(reader: Reader, keys: Mapping[str, Node], paradigm: Paradigm, device: Device,
+def read_adaptive(reader: Reader, keys: Mapping[str, Node], paradigm: ParadigmDesign, device: Device,
                   parameter: Parameter, values: tuple[Fraction, ...],
                   conditions: Sequence[Condition], by_name: Mapping[str, Stimulus]) -> Adaptive:
     """The ``adaptive`` section (its ``keys``), every value checked on every condition it can
     present."""
-    task = Task(reader.string(keys["task"], f"the task of a {paradigm.value} design",
-                              tuple(t.value for t in TASKS_OF[paradigm])))
+    task = reader.string(keys["task"], f"the task of a {paradigm.name} design",
+                         tuple(paradigm.tasks))
     guess = reader.optional(
         keys, "guess_rate",
         lambda n: reader.number(n, "the guess rate", "", maximum=Fraction(99, 100), allow_zero=True),
-        _default_guess(task, conditions))
+        paradigm.default_guess(task, conditions))
     catch = reader.optional(keys, "catch_trials",
                             lambda n: _catch(reader, n, paradigm, parameter, by_name),
                             CatchTrials(0))
     procedures = _procedures(reader, keys["procedures"], values, guess)
-    _check_values(reader, keys["values"], device, parameter, values, conditions, by_name)
+    _check_values(reader, keys["values"], paradigm, device, parameter, values, conditions,
+                  by_name)
     return Adaptive(parameter, values, task, guess, procedures, catch)
-
-
-def _default_guess(task: Task, conditions: Sequence[Condition]) -> Fraction:
-    if task is Task.DIRECTION:
-        directions = answered_directions(c.direction for c in conditions
-                                         if isinstance(c, MotionCondition))
-        return Fraction(1, max(len(directions), 1))
-    if task is Task.LOCALISATION:
-        return Fraction(1, len({c.pin for c in conditions if isinstance(c, LocalisationCondition)}))
-    if task in (Task.DISCRIMINATION, Task.ORDER):
-        return Fraction(1, 2)  # one of two intervals, one of two pins
-    return Fraction(0)
 
 
 def _values(reader: Reader, node: Node, unit: str, whole: bool,
@@ -180,7 +151,7 @@ def _values(reader: Reader, node: Node, unit: str, whole: bool,
     return values
 
 
-def _catch(reader: Reader, node: Node, paradigm: Paradigm, parameter: Parameter,
+def _catch(reader: Reader, node: Node, paradigm: ParadigmDesign, parameter: Parameter,
            by_name: Mapping[str, Stimulus]) -> CatchTrials:
     keys = reader.mapping(node, {"count", "stimulus"}, {"count"}, "catch trials")
     count = reader.integer(keys["count"], "the catch trials' count", 0, MAX_PROCEDURE_TRIALS)
@@ -191,15 +162,10 @@ def _catch(reader: Reader, node: Node, paradigm: Paradigm, parameter: Parameter,
                                      "can be presented at 0 (nothing lifts)")
         return CatchTrials(count)
     name = reader.string(keys["stimulus"], "the catch trials' stimulus", tuple(by_name))
-    stimulus = by_name[name]
-    if paradigm is not Paradigm.APPARENT_MOTION or not isinstance(stimulus, WaveStimulus):
-        raise reader.error(keys["stimulus"], f"expected a wave stimulus of an apparent_motion "
-                                             f"design for catch trials, found {name!r}")
-    if stimulus.wave.direction != Direction.NONE:
-        # A catch trial's right answer is that nothing moved: a moving wave has a direction.
-        raise reader.error(keys["stimulus"], f"expected a no-wave control (wave: none) for catch "
-                                             f"trials, whose right answer is no motion; found "
-                                             f"{name!r}, a wave going {stimulus.wave.direction}")
+    try:
+        paradigm.catch_condition(by_name[name])
+    except PinArrayError as problem:
+        raise reader.error(keys["stimulus"], str(problem)) from None
     return CatchTrials(count, name)
 
 
@@ -358,7 +324,8 @@ def _listed(values: Sequence[Fraction]) -> str:
     return ", ".join(shown if len(shown) <= 6 else [*shown[:3], "...", *shown[-2:]])
 
 
-def _check_values(reader: Reader, node: Node, device: Device, parameter: Parameter,
+def _check_values(reader: Reader, node: Node, paradigm: ParadigmDesign, device: Device,
+                  parameter: Parameter,
                   values: tuple[Fraction, ...], conditions: Sequence[Condition],
                   by_name: Mapping[str, Stimulus]) -> None:
     """Every value on every condition, as the trial would play it; the first problem reported."""
@@ -373,8 +340,8 @@ def _check_values(reader: Reader, node: Node, device: Device, parameter: Paramet
         for condition in distinct:
             where = f"at {parameter.value} {float(value):g}: "
             try:
-                played, drives = adapted_drives(device, by_name[condition.stimulus], condition,
-                                                parameter, value)
+                played, drives = adapted_drives(paradigm, device, by_name[condition.stimulus],
+                                                condition, parameter, value)
                 check_no_overlap(drives)
             except PinArrayError as problem:
                 raise reader.error(node, where + str(problem)) from None

@@ -10,14 +10,7 @@ from __future__ import annotations
 from fractions import Fraction
 
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import (
-    Condition,
-    LocalisationCondition,
-    MotionCondition,
-    Paradigm,
-    Protocol,
-)
-from pinarray.protocol.paradigms import correct_answer
+from pinarray.protocol.model import Condition, Protocol
 from pinarray.units import NS_PER_S
 
 
@@ -27,19 +20,6 @@ def stimulus_duration_ns(protocol: Protocol, condition: Condition) -> int:
                default=0)
 
 
-def _answer(condition: Condition, protocol: Protocol) -> object:
-    """What a correct answer names: the pin (localisation), the wave's direction (motion), the
-    pattern or its count (identification)."""
-    match condition:
-        case LocalisationCondition():
-            return condition.pin
-        case MotionCondition():
-            return condition.direction
-    judgement = protocol.design.judgement
-    assert judgement is not None
-    return correct_answer(condition, judgement)
-
-
 def duration_cues(protocol: Protocol) -> list[str]:
     """Warnings (one line each, without the file name) when durations differ between answers.
 
@@ -47,15 +27,15 @@ def duration_cues(protocol: Protocol) -> list[str]:
     with different answers must not, or the duration tells them apart.
     """
     design = protocol.design
-    if design.paradigm in (Paradigm.TWO_INTERVAL, Paradigm.TEMPORAL_ORDER):
-        return []  # both intervals, or both pins, play in every trial: the answer is in neither
     durations: dict[object, set[int]] = {}
     names: dict[int, list[str]] = {}
     for condition in design.conditions:
+        cue = design.paradigm.cue(condition, design)
+        if cue is None:
+            continue  # its paradigm plays every answer's stimulus in every trial
+        answer, label = cue
         duration_ns = stimulus_duration_ns(protocol, condition)
-        durations.setdefault(_answer(condition, protocol), set()).add(duration_ns)
-        label = (f"pin {condition.pin}" if isinstance(condition, LocalisationCondition)
-                 else condition.stimulus)
+        durations.setdefault(answer, set()).add(duration_ns)
         if label not in names.setdefault(duration_ns, []):
             names[duration_ns].append(label)
     if len({frozenset(d) for d in durations.values()}) <= 1:
@@ -67,11 +47,11 @@ def duration_cues(protocol: Protocol) -> list[str]:
 
 
 def cut_lifts(protocol: Protocol) -> list[str]:
-    """Warnings (one line each) for the lab's paradigms' trains whose signal ends inside a
-    lift: the pin is lowered before the lift's time is up, so it may not finish its stroke,
-    and a trial whose pin falls short is judged not delivered. The seed's designs play one
-    train a trial, whose last lift no later change measures: they are not warned of."""
-    if protocol.design.judgement is None:
+    """Warnings (one line each) for trains whose signal ends inside a lift: the pin is lowered
+    before the lift's time is up, so it may not finish its stroke, and a trial whose pin falls
+    short is judged not delivered. A paradigm whose trials play one train a pin, whose last
+    lift no later change measures, is not warned of (`ParadigmDesign.warns_of_cut_lifts`)."""
+    if not protocol.design.paradigm.warns_of_cut_lifts:
         return []
     found: dict[tuple, str] = {}
     for condition in protocol.design.conditions:

@@ -10,23 +10,7 @@ import itertools
 from collections.abc import Sequence
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.model import (
-    Condition,
-    LocalisationCondition,
-    MotionCondition,
-    PatternStimulus,
-    PinDrive,
-    Protocol,
-    Stimulus,
-    Train,
-    TrainStimulus,
-    WaveStimulus,
-)
-from pinarray.protocol.paradigms import (
-    IdentificationCondition,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-)
+from pinarray.protocol.model import Condition, PinDrive, Protocol, Train
 
 
 def check_no_overlap(drives: Sequence[PinDrive]) -> None:
@@ -49,50 +33,11 @@ def check_no_overlap(drives: Sequence[PinDrive]) -> None:
 
 
 def trial_drives(protocol: Protocol, condition: Condition) -> tuple[PinDrive, ...]:
-    """The pin drives a design condition asks for."""
+    """The pin drives a design condition asks for (its paradigm says how its stimulus plays it)."""
     try:
-        return stimulus_drives(protocol.stimulus(condition.stimulus), condition)
+        return protocol.design.paradigm.drives(protocol.stimulus(condition.stimulus), condition)
     except PinArrayError as problem:
         raise PinArrayError(f"{protocol.source}: {problem}") from None
-
-
-def stimulus_drives(stimulus: Stimulus, condition: Condition) -> tuple[PinDrive, ...]:
-    """The pin drives ``stimulus`` plays for ``condition``."""
-    match stimulus, condition:
-        case WaveStimulus(wave=wave), MotionCondition():
-            return wave.drives()
-        case TrainStimulus(train=train), LocalisationCondition(pin=pin, frequency_hz=frequency_hz):
-            return (PinDrive(pin, train.with_frequency(frequency_hz), 0),)
-        case PatternStimulus(shape=shape), IdentificationCondition():
-            return shape.drives()
-        case PatternStimulus() | WaveStimulus(), TwoIntervalCondition():
-            return _two_intervals(stimulus, condition)
-        case TrainStimulus(train=Train() as train), TemporalOrderCondition(pins=(a, b)):
-            first, second = condition.delays_ns
-            return (PinDrive(a, train, first), PinDrive(b, train, second))
-    raise PinArrayError(f"stimulus {stimulus.name!r} cannot present a {type(condition).__name__}")
-
-
-def _two_intervals(stimulus: Stimulus, condition: TwoIntervalCondition) -> tuple[PinDrive, ...]:
-    """The stimulus at the first interval's value, then, ``gap_ns`` after it ends, at the
-    second's."""
-    # Here, not at the top: a stimulus at a value is the adaptive designs' (which import this).
-    from pinarray.protocol.adapted import adapted_stimulus
-
-    first_value, second_value = condition.values_in_order
-    first = _drives_of(adapted_stimulus(stimulus, condition.parameter, first_value))
-    second = _drives_of(adapted_stimulus(stimulus, condition.parameter, second_value))
-    start_ns = max(d.delay_ns + d.train.duration_ns for d in first) + condition.gap_ns
-    return (*first, *(PinDrive(d.pin, d.train, start_ns + d.delay_ns) for d in second))
-
-
-def _drives_of(stimulus: Stimulus) -> tuple[PinDrive, ...]:
-    match stimulus:
-        case PatternStimulus(shape=shape):
-            return shape.drives()
-        case WaveStimulus(wave=wave):
-            return wave.drives()
-    raise PinArrayError(f"stimulus {stimulus.name!r} has no pins of its own to play")
 
 
 def pulse_slots(train: Train) -> int:

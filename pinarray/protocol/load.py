@@ -89,7 +89,8 @@ def protocol_warnings(protocol: Protocol) -> list[str]:
     """What a valid protocol may still get wrong, one line each (e.g. a duration cue)."""
     from pinarray.protocol.cues import cut_lifts, duration_cues
 
-    return duration_cues(protocol) + cut_lifts(protocol)
+    return (duration_cues(protocol) + cut_lifts(protocol)
+            + protocol.design.paradigm.warnings(protocol))
 
 
 def validate_file(path: str | Path) -> tuple[Protocol | None, list[str]]:

@@ -5,14 +5,14 @@ compiler and the player never see a bad number. Frequencies and durations are ex
 (`fractions.Fraction` or integer nanoseconds): a 0.1 s period is not a binary float.
 
 Past 400 lines on purpose: the values every section of a protocol is made of, one frozen type
-each, read together; the lab's own paradigms' conditions live in `pinarray.protocol.paradigms`.
+each, read together. What a trial presents and asks is its paradigm's (`Condition`: each
+paradigm's room, `pinarray.paradigms`, defines its own).
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterable
 from dataclasses import dataclass, replace
 from enum import StrEnum
 from fractions import Fraction
@@ -20,19 +20,13 @@ from typing import TYPE_CHECKING, ClassVar, TypeAlias
 
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
-from pinarray.protocol.paradigms import (
-    IdentificationCondition,
-    Judgement,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-    offered_answers,
-)
 from pinarray.protocol.procedures import Adaptive
 from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
     from pinarray.protocol.imaging import ScannerSync
     from pinarray.protocol.response import MeasuredResponse
+    from pinarray.protocol.seam import ParadigmDesign
 
 # Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
 BAUD_RATES = (38_400, 57_600, 115_200, 128_000, 250_000, 500_000, 1_000_000)
@@ -269,7 +263,7 @@ class WaveKind(StrEnum):
 
 
 class Direction(str):
-    """Which way an apparent-motion wave travels, as the subject would name it.
+    """Which way a travelling wave goes, as a subject would name it.
 
     left, right (rows), up, down (columns), none (the no-wave control), or a name a sequence
     wave declares (``up-right``): lowercase words joined by hyphens.
@@ -297,30 +291,9 @@ DIRECTION_OF_WAVE = {WaveKind.RIGHTWARDS: Direction.RIGHT, WaveKind.LEFTWARDS: D
                      WaveKind.DOWNWARDS: Direction.DOWN}
 
 
-class MotionAnswer(str):
-    """The subject's answer to an apparent-motion trial: a direction, none or unsure."""
-
-    NONE: ClassVar[MotionAnswer]
-    UNSURE: ClassVar[MotionAnswer]
-    LEFT: ClassVar[MotionAnswer]
-    RIGHT: ClassVar[MotionAnswer]
-
-    @property
-    def value(self) -> str:
-        return str(self)
-
-
-MotionAnswer.NONE = MotionAnswer("none")  # felt no moving dot
-MotionAnswer.UNSURE = MotionAnswer("unsure")  # felt a moving dot, could not tell which way
-MotionAnswer.LEFT, MotionAnswer.RIGHT = MotionAnswer("left"), MotionAnswer("right")
-
-
-def is_motion_answer(text: str) -> bool:
-    """Whether ``text`` can be a motion answer: none, unsure, or a direction's name."""
-    return len(text) <= MAX_DIRECTION_CHARS and DIRECTION_NAME.fullmatch(text) is not None
-
-
-NOTHING_FELT = "none"  # a localisation answer: no pin felt
+# Words a sequence wave may not take for its direction: answers of their own ("none": felt
+# nothing move; "unsure": felt something move, could not say which way).
+RESERVED_DIRECTION_NAMES = ("none", "unsure")
 
 
 @dataclass(frozen=True)
@@ -445,14 +418,6 @@ class WaveStimulus:
 Stimulus = TrainStimulus | WaveStimulus | PatternStimulus
 
 
-class Paradigm(StrEnum):
-    LOCALISATION = "localisation"
-    APPARENT_MOTION = "apparent_motion"
-    IDENTIFICATION = "identification"  # which pattern (or how many pins)?
-    TWO_INTERVAL = "two_interval"  # which interval had more? (2IFC)
-    TEMPORAL_ORDER = "temporal_order"  # which pin came first?
-
-
 class Ordering(StrEnum):
     SEQUENTIAL = "sequential"  # conditions as listed, every block
     RANDOM = "random"  # shuffled within each block
@@ -461,44 +426,21 @@ class Ordering(StrEnum):
 
 
 @dataclass(frozen=True)
-class LocalisationCondition:
-    """What one localisation trial presents: the ``stimulus``'s train on one ``pin``, at one
-    frequency (``frequency_hz``, exact)."""
+class Condition:
+    """What one trial presents and asks: a stimulus of the protocol, as a paradigm presents it.
 
-    stimulus: str
-    pin: int
-    frequency_hz: Fraction
-
-    @property
-    def key(self) -> tuple:
-        """(stimulus, pin, frequency, direction): what tells conditions of a design apart."""
-        return (self.stimulus, self.pin, self.frequency_hz, None)
-
-
-@dataclass(frozen=True)
-class MotionCondition:
-    """What one apparent-motion trial presents: a wave stimulus going ``direction``.
-
-    ``kind`` and ``row`` say how it was written: a row's wave has its row (1 = bottom); a wave
-    up or down a column, or along a sequence, has ``row`` None and its ``pins`` in order.
+    Each paradigm's conditions are a frozen subclass of its own (its room in
+    `pinarray.paradigms` says what they hold and how they play: `ParadigmDesign.drives`),
+    which names the paradigm (``paradigm``, as a design's ``paradigm:`` does).
     """
 
+    paradigm: ClassVar[str] = ""
     stimulus: str
-    kind: WaveKind
-    direction: Direction
-    row: int | None  # 1 = bottom row, as the lab counts; None: not along a row
-    pins: tuple[int, ...] = ()  # in the order visited, for a wave not along a row
 
     @property
     def key(self) -> tuple:
-        """(stimulus, pin, frequency, direction): what tells conditions of a design apart."""
-        return (self.stimulus, None, None, self.direction)
-
-
-Condition = (LocalisationCondition | MotionCondition | IdentificationCondition
-             | TwoIntervalCondition | TemporalOrderCondition)
-"""What one trial presents: a train on a pin at a frequency, a wave going a direction, a
-pattern, two intervals, or a train on two pins an SOA apart (`pinarray.protocol.paradigms`)."""
+        """What tells the conditions of a design apart (and orders them alike in every plan)."""
+        raise NotImplementedError
 
 
 def condition_value(condition: Condition, attribute: str) -> object:
@@ -508,16 +450,6 @@ def condition_value(condition: Condition, attribute: str) -> object:
     that may not repeat a direction): all of them then share the value None.
     """
     return getattr(condition, attribute, None)
-
-
-def answered_directions(presented: Iterable[Direction]) -> tuple[Direction, ...]:
-    """The directions a subject may name, of the waves ``presented`` (the no-wave control's
-    none left out): left, right, up and down first in that order, then the directions
-    sequences name, in the order first met."""
-    named = list(presented)
-    usual = (Direction.LEFT, Direction.RIGHT, Direction.UP, Direction.DOWN)
-    return tuple(dict.fromkeys([*(d for d in usual if d in named),
-                                *(d for d in named if d != Direction.NONE)]))
 
 
 @dataclass(frozen=True)
@@ -540,9 +472,14 @@ class Constraints:
 
 @dataclass(frozen=True)
 class Design:
-    """Blocks of trials for one paradigm, how they are ordered, and the pauses between them."""
+    """Blocks of trials for one paradigm, how they are ordered, and the pauses between them.
 
-    paradigm: Paradigm
+    ``paradigm`` is the paradigm's room (`pinarray.protocol.seam.ParadigmDesign`): it read the
+    conditions and ``judgement`` (what the subject judges, in its own terms; None where the
+    conditions say it all) and says what a trial of the design asks.
+    """
+
+    paradigm: ParadigmDesign
     conditions: tuple[Condition, ...]  # one block's worth, before repetitions
     repetitions: int  # each condition this many times per block
     blocks: int
@@ -554,29 +491,12 @@ class Design:
     # An adaptive design: each trial's value of one parameter is chosen by its procedures
     # (``conditions`` are then what a trial draws from at random); None: a fixed design.
     adaptive: Adaptive | None = None
-    # What the subject judges in the lab's paradigms (identification, two-interval, temporal
-    # order); None in the seed's two, whose conditions say it all.
-    judgement: Judgement | None = None
-
-    @property
-    def directions(self) -> tuple[Direction, ...]:
-        """The wave directions the design's trials present: see `answered_directions`."""
-        return answered_directions(
-            c.direction for c in self.conditions if isinstance(c, MotionCondition))
-
-    @property
-    def motion_answers(self) -> tuple[MotionAnswer, ...]:
-        """Every answer an apparent-motion trial of this design takes."""
-        return (*map(MotionAnswer, self.directions), MotionAnswer.NONE, MotionAnswer.UNSURE)
+    judgement: object = None
 
     def answers(self, pin_count: int) -> tuple[str, ...]:
         """Every answer a trial of this design takes, as the results write it (``pin_count``:
-        the grid's pins, which a localisation or numerosity answer may name)."""
-        if self.judgement is not None:
-            return offered_answers(self.judgement, pin_count)
-        if self.paradigm is Paradigm.LOCALISATION:
-            return (*map(str, range(1, pin_count + 1)), NOTHING_FELT)
-        return tuple(self.motion_answers)
+        the grid's pins, which an answer may name)."""
+        return self.paradigm.answers(self, pin_count)
 
     @property
     def trial_count(self) -> int:
@@ -598,8 +518,8 @@ class Protocol:
         As the file gives them (the name is the results' task label, letters and digits kept).
     device : Device
         The pins' servos, calibration, limits and tolerances.
-    stimuli : tuple of TrainStimulus or WaveStimulus
-        The named pulse trains and travelling waves.
+    stimuli : tuple of TrainStimulus, WaveStimulus or PatternStimulus
+        The named pulse trains, travelling waves and patterns.
     design : Design
         The paradigm, its conditions, blocks, order, seed and adaptive procedures, if any.
     source : str

@@ -43,7 +43,7 @@ from pinarray.protocol.model import (
     TrainStimulus,
 )
 from pinarray.protocol.stimuli import check_drives, stimulus_kind, stimulus_named
-from pinarray.protocol.yaml_nodes import Node, Reader, shown
+from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, shown
 
 PATTERN_KEYS = {"pattern", "train", "phase_deg"}
 FRAMES_KEYS = {"frames", "soa_ms"}
@@ -94,7 +94,8 @@ def _pattern(reader: Reader, node: Node, device: Device | None, trains: Mapping[
             keys, "phase_deg",
             lambda n: reader.number(n, "the phase", "deg", minimum=0, allow_zero=True,
                                     maximum=36000), None)
-    assert stimulus is not None
+    if stimulus is None:  # a train whose own problem is already reported where it is written
+        raise Invalid(f"pattern on a broken train {keys['train'].value!r}")
     train = stimulus.train
     if not isinstance(train, Train):
         raise reader.error(keys["train"], f"expected a train with a frequency_hz for a pattern, "
@@ -179,7 +180,9 @@ def _frames(reader: Reader, node: Node, device: Device | None,
                                                         maximum=60_000), Fraction(0))
     frames: list[tuple[str, Pattern]] = []
     for stimulus in named:
-        assert stimulus is not None and isinstance(stimulus.shape, Pattern)  # a pattern's name
+        if stimulus is None:  # a pattern whose own problem is already reported
+            raise Invalid("frames of a broken pattern")
+        assert isinstance(stimulus.shape, Pattern)  # a pattern's name: stimulus_named saw it
         frames.append((stimulus.name, stimulus.shape))
     shape = Frames(tuple(frames), round(soa))
     if device is not None:

@@ -42,14 +42,11 @@ class Parameter(StrEnum):
         return self in (Parameter.STROKE_STEPS, Parameter.STROKE_US)
 
 
-class Task(StrEnum):
-    """What the subject answers, and so which answer counts as correct."""
-
-    DIRECTION = "direction"  # apparent motion: the wave's direction named
-    DETECTION = "detection"  # anything felt on a stimulus trial (nothing, on a catch trial)
-    LOCALISATION = "localisation"  # the moved pin named
-    DISCRIMINATION = "discrimination"  # two intervals: the one with the higher value named
-    ORDER = "order"  # temporal order: the pin that came first named
+Task = str
+"""What the subject answers in an adaptive design, which fixes the answer that counts as
+correct: each paradigm names its own (`pinarray.protocol.seam.ParadigmDesign.tasks`: ``order``
+for temporal order, ``discrimination`` for two intervals...)."""
+DETECTION: Task = "detection"  # anything felt on a stimulus trial (nothing, on a catch trial)
 
 
 class Function(StrEnum):

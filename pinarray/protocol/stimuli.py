@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Collection, Mapping, Sequence
 from fractions import Fraction
-from functools import partial
+from functools import lru_cache, partial
 from typing import TypeVar
 
 from pinarray.errors import PinArrayError
@@ -24,10 +24,10 @@ from pinarray.protocol.model import (
     DIRECTION_OF_WAVE,
     MAX_DIRECTION_CHARS,
     NS_PER_S,
+    RESERVED_DIRECTION_NAMES,
     AnyWave,
     Device,
     Direction,
-    MotionAnswer,
     PathWave,
     PatternStimulus,
     PinDrive,
@@ -296,9 +296,29 @@ def check_bus(reader: Reader, node: Node, drives: Sequence[PinDrive], device: De
     """On bus servos, every frame of the drives' goal changes is written and read back in
     time (`pinarray.protocol.bus`)."""
     if isinstance(device.servo, ServoSettings) and not reader.guessing:
+        if _deliverable(_bus_shape(drives), device.servo, device.delivery_tolerance_ns):
+            return
         problem = bus_problem(drives, device.servo, device.delivery_tolerance_ns)
         if problem is not None:
             raise reader.error(node, f"{what}the servo bus cannot deliver it: {problem}")
+
+
+BusShape = tuple[tuple[Train, int, int], ...]
+
+
+def _bus_shape(drives: Sequence[PinDrive]) -> BusShape:
+    """What the bus check sees of ``drives``: each train, when it starts, and its pin by rank
+    (which pins they are changes only the words of a problem, not whether there is one: the
+    same train on each of a design's pins is checked once)."""
+    rank = {pin: n for n, pin in enumerate(sorted({d.pin for d in drives}), start=1)}
+    return tuple(sorted(((d.train, d.delay_ns, rank[d.pin]) for d in drives),
+                        key=lambda item: (item[1], item[2])))
+
+
+@lru_cache(maxsize=4096)
+def _deliverable(shape: BusShape, servo: ServoSettings, tolerance_ns: int) -> bool:
+    return bus_problem([PinDrive(pin, train, delay) for train, delay, pin in shape], servo,
+                       tolerance_ns) is None
 
 
 def _wave(
@@ -462,7 +482,7 @@ def _path_direction(
         raise reader.error(node, "a sequence wave names the direction a subject would answer: "
                                  "expected a 'direction' key (e.g. up-right), found none")
     name = reader.string(keys["direction"], "the direction")
-    reserved = (Direction.NONE, MotionAnswer.UNSURE)
+    reserved = RESERVED_DIRECTION_NAMES
     if (name in reserved or len(name) > MAX_DIRECTION_CHARS
             or DIRECTION_NAME.fullmatch(name) is None):
         raise reader.error(

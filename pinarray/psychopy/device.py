@@ -264,7 +264,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
         Parameters
         ----------
-        stimulus : pinarray.PlannedTrial, LocalisationCondition or MotionCondition
+        stimulus : pinarray.PlannedTrial or pinarray.Condition (any paradigm's)
             A trial of the protocol's plan or a condition of its design
             (``pinarray.find_condition(device.protocol, stimulus="rightwards")``).
         wait : bool
@@ -295,7 +295,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
 
         Parameters
         ----------
-        stimulus : pinarray.PlannedTrial, LocalisationCondition or MotionCondition
+        stimulus : pinarray.PlannedTrial or pinarray.Condition (any paradigm's)
             As for `present`.
         win : psychopy.visual.Window
             The window whose next flip starts the stimulus. A touch whose flip is never made

@@ -29,7 +29,7 @@ import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING, NamedTuple, NotRequired, TypedDict
+from typing import TYPE_CHECKING, NamedTuple
 from typing import Protocol as Interface
 
 from pinarray.clock import Clock
@@ -40,31 +40,17 @@ from pinarray.hardware.motion import PinTrace, TrialStrokes, goal_at
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.physio import MotionSample
 from pinarray.journal.records import (
-    NOTHING_FELT,
-    AdaptiveCells,
     DeliveryCounts,
-    IdentificationRecord,
-    LocalisationRecord,
-    MotionAnswer,
-    MotionRecord,
     StrokeCounts,
-    TemporalOrderRecord,
+    TrialFields,
     TrialRecord,
     TrialStatus,
-    TwoIntervalRecord,
 )
 from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
-from pinarray.protocol import Condition, LocalisationCondition, MotionCondition, Paradigm, Protocol
-from pinarray.protocol.adapted import adapted, adapted_condition
-from pinarray.protocol.paradigms import (
-    AnswerKind,
-    Identification,
-    IdentificationCondition,
-    TemporalOrderCondition,
-    TwoIntervalCondition,
-)
+from pinarray.protocol.adapted import adapted
+from pinarray.protocol.model import Condition, Protocol
 from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
 from pinarray.session.procedures import Presented, Procedures
 
@@ -72,23 +58,6 @@ if TYPE_CHECKING:
     from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
-
-
-class _SharedFields(TypedDict):
-    """The fields both kinds of trial record share, as the session fills them in."""
-
-    trial: int
-    block: int
-    task: str
-    status: TrialStatus
-    onset_ns: int
-    duration_ns: int
-    response_time_ns: int | None
-    practice: bool
-    delivery: DeliveryCounts | None
-    status_reason: str | None
-    adaptive: NotRequired[AdaptiveCells]
-    stroke: StrokeCounts | None
 
 
 def _stroke(strokes: TrialStrokes | None) -> StrokeCounts | None:
@@ -446,10 +415,10 @@ class Session:
     def respond(self, response: str | int | None, response_time_ns: int | None | object = MEASURED) -> TrialOutcome:
         """Record the subject's answer to the current trial and move on.
 
-        Localisation takes a pin number (or None / "none" for "nothing felt"); apparent
-        motion takes none / left / right / unsure; identification a pattern's name (or a
-        count), two intervals first / second, temporal order the pin that came first
-        (`Design.answers`). ``response_time_ns`` defaults to the time
+        The answers the design's paradigm takes (`Design.answers`): localisation a pin number
+        (or None / "none" for "nothing felt"), apparent motion none / left / right / unsure,
+        identification a pattern's name (or a count), two intervals first / second, temporal
+        order the pin that came first; a paradigm of a lab's own, its own. ``response_time_ns`` defaults to the time
         since stimulus onset on the session's clock; None records it as not applicable
         (scripted answers have no response time).
         """
@@ -507,59 +476,13 @@ class Session:
     # -- rows ----------------------------------------------------------------------------------
 
     def _check_response(self, response: str | int | None) -> str:
-        if self.protocol.design.paradigm is Paradigm.LOCALISATION:
-            if response is None or response == NOTHING_FELT:
-                return NOTHING_FELT
-            try:
-                pin = int(response)
-            except (TypeError, ValueError):
-                raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {response!r}") from None
-            if not 1 <= pin <= self.grid.pin_count:
-                raise SessionError(f"expected a pin number from 1 to {self.grid.pin_count} or 'none', found {pin}")
-            return str(pin)
+        """The answer as the results write it, or a `SessionError` saying what the design
+        takes (its paradigm's words: `ParadigmDesign.take_answer`)."""
         design = self.protocol.design
-        if design.judgement is not None:
-            answers = design.answers(self.grid.pin_count)
-            text = str(response).strip()
-            if text not in answers:
-                counts = (isinstance(design.judgement, Identification)
-                          and design.judgement.answers is AnswerKind.COUNTS)
-                shown = (f"a count from 1 to {self.grid.pin_count}" if counts
-                         else f"one of {', '.join(answers)}")
-                raise SessionError(f"expected {shown}, found {response!r}")
-            return text
-        answers = ("none", *design.directions, "unsure")  # the waves' directions
-        if response not in answers:
-            raise SessionError(f"expected one of {', '.join(answers)}, found {response!r}")
-        return str(response)
-
-    def _record(self, condition: Condition, common: _SharedFields,
-                response: str | None) -> TrialRecord:
-        """The row of a trial presenting ``condition``, answered ``response``."""
-        match condition:
-            case LocalisationCondition():
-                named = None if response in (None, NOTHING_FELT) else int(str(response))
-                return LocalisationRecord(
-                    **common, pin=condition.pin, frequency_hz=float(condition.frequency_hz),
-                    response=response,
-                    error_class=None if named is None else self.grid.classify(condition.pin,
-                                                                              named))
-            case MotionCondition():
-                return MotionRecord(**common, row=condition.row, direction=condition.direction,
-                                    response=None if response is None else MotionAnswer(response))
-            case IdentificationCondition():
-                return IdentificationRecord(**common, pattern=condition.pattern,
-                                            pins=condition.pins, response=response)
-            case TwoIntervalCondition():
-                pins = tuple(sorted({d.pin for d in self.current_schedule().drives}))
-                return TwoIntervalRecord(
-                    **common, compared=condition.parameter.value,
-                    standard=float(condition.standard), comparison=float(condition.comparison),
-                    interval_order=condition.order, pins=pins, response=response)
-            case TemporalOrderCondition():
-                return TemporalOrderRecord(**common, pins=condition.pins,
-                                           soa_ns=condition.soa_ns, response=response)
-        raise AssertionError(condition)
+        try:
+            return design.paradigm.take_answer(response, design, self.grid)
+        except PinArrayError as problem:
+            raise SessionError(str(problem)) from None
 
     def _fix_zero(self, zero_ns: int, event: str) -> None:
         self._zero_ns = zero_ns
@@ -573,7 +496,7 @@ class Session:
             self._fix_zero(self._onset_ns, FIRST_TRIAL_ONSET)
         assert self._zero_ns is not None
         delivery = self._delivery
-        common: _SharedFields = {
+        common: TrialFields = {
             "trial": planned.trial, "block": planned.block, "task": self.task, "status": status,
             "onset_ns": self._onset_ns - self._zero_ns,
             "duration_ns": self._duration_ns if duration_ns is None else duration_ns,
@@ -588,11 +511,13 @@ class Session:
             common["adaptive"] = (self.procedures.cells(presented) if response is None else
                                   self.procedures.answer(planned, presented, response, status))
         condition = planned.condition
-        adaptive = self.protocol.design.adaptive
+        design = self.protocol.design
+        adaptive = design.adaptive
         if presented is not None and presented.value is not None and adaptive is not None:
             # As the row tells it (a frequency adapted is the one played): no protocol rebuilt.
-            condition = adapted_condition(condition, adaptive.parameter, presented.value)
-        record = self._record(condition, common, response)
+            condition = design.paradigm.adapt(condition, adaptive.parameter, presented.value)
+        pins = tuple(sorted({d.pin for d in self.current_schedule().drives}))
+        record = self.writer.rows.row(condition, common, response, pins, self.grid)
         traces, self._trace = self._trace, ()
         samples = _samples(planned.trial, self._onset_ns - self._zero_ns, traces,
                            self.current_schedule()) if traces else []

@@ -19,3 +19,13 @@ def simulated_array() -> Iterator[ArrayOpener]:
     closed (pins to rest, torque off). See `pinarray.testing.ArrayOpener`."""
     with ArrayOpener() as opener:
         yield opener
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    """The header line that says how closely ``simulated_array`` simulates the array."""
+    from pinarray.hardware.feetech.sim_levels import IN_PROCESS_DEFAULT, Fidelity
+
+    others = ", ".join(level.value for level in Fidelity if level is not IN_PROCESS_DEFAULT)
+    return (f"pinarray: simulated_array plays bus servos in virtual time at the "
+            f"{IN_PROCESS_DEFAULT.describe()} (the wire's results, byte for byte; a URL's "
+            f"fidelity= chooses {others})")

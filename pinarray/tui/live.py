@@ -6,20 +6,13 @@ without a terminal.
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from pinarray.journal.records import (
-    Direction,
-    LabRecord,
-    LocalisationRecord,
-    MotionRecord,
-    TrialRecord,
-    TrialStatus,
-)
+from pinarray.journal.records import TrialRecord, TrialStatus
+from pinarray.journal.seam import ParadigmRows
 from pinarray.protocol.procedures import CATCH, PRACTICE
 from pinarray.schedule import TargetList
 
@@ -67,58 +60,12 @@ class LiftTimeline:
         return frozenset(up)
 
 
-@dataclass(frozen=True)
-class LiveCounts:
-    """Counted trials so far (main trials with status ok; practice and redone rows aside)."""
-
-    counted: int
-    correct: int  # localisation: the stimulated pin named
-    error_classes: tuple[tuple[str, int], ...]  # localisation: A-D and "none" felt
-    felt: int  # motion: wave trials felt as motion
-    wave_trials: int  # motion: trials with a wave (left or right)
-    direction_right: int  # motion: felt wave trials named in the right direction
-    direction_named: int  # motion: felt wave trials with a direction answer
-    practice_done: int
-    judged: int = 0  # the lab's paradigms: counted trials with a right answer to give
-    judged_right: int = 0  # ... given
-
-    @classmethod
-    def of(cls, records: list[TrialRecord]) -> LiveCounts:
-        counted = [r for r in records if r.counts]
-        judged = [r.correct for r in counted if isinstance(r, LabRecord) and r.correct is not None]
-        classes = Counter(r.category for r in counted if isinstance(r, LocalisationRecord))
-        waves = [r for r in counted if isinstance(r, MotionRecord) and r.direction != Direction.NONE]
-        named = [r for r in waves if r.direction_correct is not None]
-        return cls(
-            counted=len(counted),
-            correct=classes.pop("correct", 0),
-            error_classes=tuple((c, classes.get(c, 0)) for c in ("A", "B", "C", "D", "none")),
-            felt=sum(1 for r in waves if r.perceived_motion),
-            wave_trials=len(waves),
-            direction_right=sum(1 for r in named if r.direction_correct),
-            direction_named=len(named),
-            practice_done=sum(1 for r in records if r.practice and r.status is TrialStatus.OK),
-            judged=len(judged),
-            judged_right=sum(judged),
-        )
-
-    def lines(self, localisation: bool) -> list[str]:
-        """Short lines for the counts panel."""
-        if localisation:
-            errors = "  ".join(f"{c} {n}" for c, n in self.error_classes if c != "none")
-            lines = [f"correct {self.correct}/{self.counted}", errors,
-                     f"nothing felt {dict(self.error_classes)['none']}"]
-        else:
-            lines = [f"motion felt {self.felt}/{self.wave_trials} wave trials",
-                     f"direction right {self.direction_right}/{self.direction_named}"]
-        return lines + self._practice()
-
-    def judged_lines(self) -> list[str]:
-        """The counts panel of the lab's paradigms: right answers of those that have one."""
-        return [f"correct {self.judged_right}/{self.judged}", *self._practice()]
-
-    def _practice(self) -> list[str]:
-        return [f"practice done {self.practice_done} (not counted)"] if self.practice_done else []
+def live_lines(rows: ParadigmRows, records: Sequence[TrialRecord]) -> list[str]:
+    """The counts panel: the paradigm's running counts of the counted trials (main trials
+    with status ok; practice and redone rows aside), and the practice trials done."""
+    lines = rows.live_lines([r for r in records if r.counts])
+    practice = sum(1 for r in records if r.practice and r.status is TrialStatus.OK)
+    return lines + ([f"practice done {practice} (not counted)"] if practice else [])
 
 
 TRACK_LENGTH = 8  # the last values of each procedure the run screen shows

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import NamedTuple
-
 from textual import events, on
 from textual.app import ComposeResult
 from textual.containers import Horizontal
@@ -13,54 +10,14 @@ from textual.reactive import reactive
 from textual.widget import Widget
 from textual.widgets import Button, Static
 
-# The usual motion answers: their keys (arrows too, since the subject says "left" or "up")
-# and buttons. u is unsure and d the run screen's redo, so up and down have their arrows only.
-USUAL_ANSWERS = {"left": (("l", "left"), "← left (l)"), "right": (("r", "right"), "right (r) →"),
-                 "up": (("up",), "↑ up"), "down": (("down",), "↓ down"),
-                 "none": (("n",), "no motion (n)"), "unsure": (("u",), "unsure (u)")}
-SEQUENCE_KEYS = "123456789"  # the directions sequence waves name, in the order first listed
-# Keys that answer on one paradigm or the other: typed while no answer is expected they are
-# refused with a notice by the run screen, not taken for something else.
-ANSWER_KEYS = frozenset({*(k for keys, _ in USUAL_ANSWERS.values() for k in keys),
-                         *"0123456789", "backspace"})
+from pinarray.protocol.seam import AnswerPad, Choice
 
 
-class Choice(NamedTuple):
-    """One answer the pad offers as a button (or a card): what it records, its keys, its
-    label, and for a pattern a small drawing of it (`pinarray.tui.answers`)."""
-
-    answer: str
-    keys: tuple[str, ...]
-    label: str
-    drawing: str = ""
-
-
-# What the entry (digits, then Enter) says it takes: a pin, or a count of pins.
-PIN_ENTRY = "type the pin number, Enter to confirm · 0 or n: nothing felt · or click a pin"
-COUNT_ENTRY = "type how many pins were raised, Enter to confirm"
-
-
-def motion_answer_keys(answers: Sequence[str]) -> tuple[tuple[str, tuple[str, ...], str], ...]:
-    """(answer, its keys, its button label) for each motion answer the protocol offers."""
-    named = iter(SEQUENCE_KEYS)
-    out = []
-    for answer in answers:
-        if answer in USUAL_ANSWERS:
-            keys, label = USUAL_ANSWERS[answer]
-        else:
-            key = next(named, None)  # a design names at most 9 of its own (ten would be keyless)
-            keys, label = ((key,), f"{answer} ({key})") if key else ((), answer)
-        out.append((answer, keys, label))
-    return tuple(out)
-
-
-def motion_hint(answers: Sequence[str]) -> str:
-    """The keys that answer, as the run screen's prompt says them: ``l / r / n (no motion)...``."""
-    names = {"left": "l", "right": "r", "up": "↑", "down": "↓"}
-    return " / ".join(
-        "n (no motion)" if answer == "none" else "u (unsure)" if answer == "unsure"
-        else names.get(answer, f"{keys[0] if keys else '?'} ({answer})")
-        for answer, keys, _ in motion_answer_keys(answers))
+def answer_keys(pad: AnswerPad) -> frozenset[str]:
+    """The keys that answer on ``pad``: typed while no answer is expected, they are refused
+    with a notice by the run screen, not taken for something else."""
+    typed = {*"0123456789", "backspace", *("n" if pad.nothing else "")} if pad.typed else set()
+    return frozenset({*typed, *(key for choice in pad.choices for key in choice.keys)})
 
 
 class ChoiceCard(Static):
@@ -85,22 +42,18 @@ class ChoiceCard(Static):
 class ResponsePad(Widget, can_focus=True):
     """The answer entry: typed digits (a pin, or a count of pins), or one key per answer.
 
-    Entry (localisation, counts): digits then Enter; for a pin ``0`` or ``n`` means nothing
-    felt, and a pin clicked on the grid is put in the entry (`choose`) and Enter confirms it.
-    Choices (motion, patterns, intervals, pins first): one key answers, or a click.
+    Entry (a pin, a count): digits then Enter; for a pin ``0`` or ``n`` means nothing felt,
+    and a pin clicked on the grid is put in the entry (`choose`) and Enter confirms it.
+    Choices (directions, patterns, intervals, the pin first...): one key answers, or a click.
     The pad only collects answers; the run screen decides whether they are accepted.
 
     Parameters
     ----------
-    localisation : bool
-        Whether answers are typed (a pin or a count) rather than chosen.
+    pad : AnswerPad
+        What the run's paradigm takes, and how (`pinarray.protocol.seam.ParadigmDesign.pad`):
+        typed digits (a pin or a count) or choices, and what the entry says it takes.
     pin_count : int
         Most digits a pin number (or count) can have follow from it.
-    answers : sequence of str or of Choice
-        The answers chosen between: motion answers by name (the directions the waves go,
-        none, unsure), or `Choice` values.
-    entry_hint : str
-        What the entry takes, said under it (`PIN_ENTRY` or `COUNT_ENTRY`).
     """
 
     DEFAULT_CSS = """
@@ -150,18 +103,13 @@ class ResponsePad(Widget, can_focus=True):
     entry: reactive[str] = reactive("")
     accepting: reactive[bool] = reactive(False)
 
-    def __init__(self, localisation: bool, pin_count: int = 16,
-                 answers: Sequence[str | Choice] = ("left", "right", "none", "unsure"),
-                 entry_hint: str = PIN_ENTRY, **kwargs):
+    def __init__(self, pad: AnswerPad, pin_count: int = 16, **kwargs):
         super().__init__(**kwargs)
-        self.localisation = localisation
-        self.entry_hint = entry_hint
-        self.nothing_felt = entry_hint == PIN_ENTRY  # 0 or n: a pin's entry only
+        self.localisation = pad.typed
+        self.entry_hint = pad.entry_hint
+        self.nothing = pad.nothing  # what 0 or n types (nothing felt), if anything
         self.digits = len(str(pin_count))
-        named = [a for a in answers if not isinstance(a, Choice)]
-        self.answers: tuple[Choice, ...] = (
-            *(Choice(*keyed) for keyed in motion_answer_keys(named)),
-            *(a for a in answers if isinstance(a, Choice)))
+        self.answers: tuple[Choice, ...] = pad.choices
         self.motion_keys = {key: choice.answer for choice in self.answers for key in choice.keys}
 
     def compose(self) -> ComposeResult:
@@ -197,7 +145,7 @@ class ResponsePad(Widget, can_focus=True):
     def _draw(self) -> None:
         if not self.localisation or not self.is_mounted:
             return
-        shown = "nothing felt" if self.entry == "none" else self.entry
+        shown = "nothing felt" if self.nothing and self.entry == self.nothing else self.entry
         cursor = "▏" if self.accepting else ""
         self.query_one("#entry", Static).update(f"answer: {shown}{cursor}")
 
@@ -232,15 +180,16 @@ class ResponsePad(Widget, can_focus=True):
                 event.stop()
                 self._answer(self.motion_keys[key])
             return
+        nothing = self.nothing
         if key == "backspace":
             event.stop()
-            self.entry = "" if self.entry == "none" else self.entry[:-1]
-        elif self.nothing_felt and (key == "n" or (key == "0" and self.entry in ("", "none"))):
+            self.entry = "" if nothing and self.entry == nothing else self.entry[:-1]
+        elif nothing and (key == "n" or (key == "0" and self.entry in ("", nothing))):
             event.stop()
-            self.entry = "none"
+            self.entry = nothing
         elif key.isdigit():
             event.stop()
-            base = "" if self.entry == "none" else self.entry
+            base = "" if nothing and self.entry == nothing else self.entry
             self.entry = key if len(base) >= self.digits else base + key
 
     @on(Button.Pressed)

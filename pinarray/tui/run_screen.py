@@ -21,18 +21,16 @@ from textual.screen import Screen
 from textual.widgets import Footer, ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
-from pinarray.journal.records import LocalisationRecord, MotionRecord, StrokeCounts
-from pinarray.protocol import Condition, Direction, LocalisationCondition, MotionCondition, WaveKind
-from pinarray.protocol.described import describe_condition
+from pinarray.journal.records import StrokeCounts
+from pinarray.protocol import Condition
 from pinarray.protocol.drives import trial_drives
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
-from pinarray.tui.answers import pad_answers
 from pinarray.tui.confirm import Confirm
-from pinarray.tui.live import LiftTimeline, LiveCounts, track_lines
+from pinarray.tui.live import LiftTimeline, live_lines, track_lines
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
-from pinarray.tui.response_pad import ANSWER_KEYS, PIN_ENTRY, ResponsePad
+from pinarray.tui.response_pad import ResponsePad, answer_keys
 from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
@@ -80,9 +78,10 @@ class RunScreen(KeyNotices, Screen):
         super().__init__()
         self.sitting = sitting
         self.session = session
-        self.answers = pad_answers(session.protocol)
+        design = session.protocol.design
+        self.answers = design.paradigm.pad(design, session.grid)
         self.localisation = self.answers.typed  # answers typed: a pin (or a count), then Enter
-        self.pins_answer = self.answers.entry_hint == PIN_ENTRY and self.localisation
+        self.pins_answer = self.answers.pins
         self._by_trial = {t.trial: t for t in session.plan.trials}
         self._timeline: LiftTimeline | None = None
         self._active: frozenset[int] = frozenset()
@@ -109,8 +108,7 @@ class RunScreen(KeyNotices, Screen):
                 yield Static(id="trial")
                 yield ProgressBar(total=self.session.total, show_eta=False, id="progress")
                 yield Static(id="phase")
-                yield ResponsePad(self.localisation, self.session.grid.pin_count,
-                                  self.answers.choices, self.answers.entry_hint, id="pad")
+                yield ResponsePad(self.answers, self.session.grid.pin_count, id="pad")
                 yield Notice()
                 yield Static(id="counts")
         yield Footer()
@@ -182,7 +180,7 @@ class RunScreen(KeyNotices, Screen):
         if phase is Phase.RESPONSE:
             return ("not an answer: a pin number + Enter, 0 or n for nothing felt"
                     if self.pins_answer else "not an answer: " + self.answers.hint)
-        if key not in ANSWER_KEYS and key != "enter":
+        if key not in answer_keys(self.answers) and key != "enter":
             return ""
         if phase is Phase.STIMULUS:
             return "the stimulus is still playing: answer once it ends"
@@ -217,9 +215,7 @@ class RunScreen(KeyNotices, Screen):
         phase_line.set_class(phase is Phase.PAUSED or session.pausing, "-paused")
         pad = self.query_one(ResponsePad)
         pad.accepting = phase is Phase.RESPONSE
-        live = LiveCounts.of(session.records)
-        counts = (live.lines(self.pins_answer) if session.protocol.design.judgement is None
-                  else live.judged_lines())
+        counts = live_lines(session.writer.rows, session.records)
         if session.procedures is not None:
             counts = [*counts, *track_lines(session.records)]
         self.query_one("#counts", Static).update("\n".join(counts))
@@ -299,16 +295,8 @@ class RunScreen(KeyNotices, Screen):
         return self._condition_text(current.condition)
 
     def _condition_text(self, condition: Condition) -> str:
-        if isinstance(condition, LocalisationCondition):
-            return f"stimulus: pin {condition.pin} at {condition.frequency_hz} Hz"
-        if not isinstance(condition, MotionCondition):
-            return f"stimulus: {describe_condition(condition)}"
-        pins = " ".join(map(str, _pins_of(self.session, condition)))
-        if condition.direction == Direction.NONE:
-            return f"stimulus: no wave (centre alternates with sides) on pins {pins}"
-        if condition.kind is WaveKind.SEQUENCE:
-            return f"stimulus: wave going {condition.direction} on pins {pins}"
-        return f"stimulus: {condition.kind} wave on pins {pins}"
+        return self.session.protocol.design.paradigm.screen_line(
+            condition, _pins_of(self.session, condition))
 
     def _describe_stroke(self, stroke: StrokeCounts | None) -> str:
         """``stroke 65/65 steps (1.00 mm)``: achieved of commanded, in mm through the pins'
@@ -336,13 +324,7 @@ class RunScreen(KeyNotices, Screen):
         record = self.session.last.record
         planned = self._by_trial.get(record.trial)
         name = str(self.session.number_of(planned)) if planned else f"trial #{record.trial}"
-        if isinstance(record, LocalisationRecord):
-            answer = "nothing felt" if record.nothing_felt else f"pin {record.response}"
-            return f"last: {name}, pin {record.pin} → {answer} ({record.category})"
-        if isinstance(record, MotionRecord):
-            return f"last: {name}, {record.direction} wave → {record.response}"
-        mark = {True: "✓", False: "✗", None: ""}[record.correct]
-        return f"last: {name} → {record.response} {mark}".rstrip()
+        return f"last: {name}{self.session.writer.rows.last_line(record)}"
 
     def _tick(self) -> None:
         if self._timeline is not None:
@@ -557,7 +539,5 @@ class RunScreen(KeyNotices, Screen):
 
 
 def _pins_of(session: Session, condition: Condition) -> tuple[int, ...]:
-    if isinstance(condition, LocalisationCondition):
-        return (condition.pin,)
     return tuple(sorted({d.pin for d in trial_drives(session.protocol, condition)}))
 

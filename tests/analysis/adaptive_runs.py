@@ -10,7 +10,9 @@ from pinarray.adaptive.interleave import pick_procedure
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
 from pinarray.adaptive.questplus import QuestPlus, QuestPlusRule
-from pinarray.journal.records import AdaptiveCells, LocalisationRecord, MotionRecord
+from pinarray.journal.records import AdaptiveCells
+from pinarray.paradigms.apparent_motion.rows import MotionRecord
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.protocol.procedures import CATCH
 from tests.runs import plan_of, start_run
 

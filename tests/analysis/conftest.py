@@ -2,7 +2,8 @@
 
 import pytest
 
-from pinarray.journal.records import LocalisationRecord, MotionRecord
+from pinarray.paradigms.apparent_motion.rows import MotionRecord
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from tests.runs import plan_of, start_run
 
 S = 1_000_000_000  # ns per s
@@ -76,3 +77,24 @@ def write_results(root):
         _write(root, subject, "localisation", localisation)
         _write(root, subject, "motion", motion)
     return root
+
+
+def keep_figures(monkeypatch, draw: bool = False) -> dict:
+    """Keep each figure analyse draws, by name, to inspect: every module that saves one saves
+    it through `pinarray.analysis.figures.save`, which this replaces wherever it was imported
+    (and calls as well, when ``draw``)."""
+    from pinarray.analysis import figures as drawing
+    from pinarray.analysis import plots
+    from pinarray.paradigms.identification import figures as identification
+    from pinarray.paradigms.localisation import figures as localisation
+
+    figures: dict = {}
+    save = drawing.save
+
+    def keep(figure, stem, caption):
+        figures[stem.name] = figure
+        return save(figure, stem, caption) if draw else []
+
+    for module in (drawing, plots, identification, localisation):
+        monkeypatch.setattr(module, "save", keep)
+    return figures

@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from pinarray.analysis.chance import localisation_chance
+from pinarray.paradigms.localisation.stats import localisation_chance
 
 
 def test_naming_any_of_16_pins_at_random_is_right_one_time_in_16():

@@ -17,22 +17,37 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from pinarray.adaptive.posterior import ThresholdStatus
-from pinarray.analysis.identification import (
+from pinarray.analysis.load import LoadedTrial, RunSelection
+from pinarray.analysis.seam import Context, EstimateStatus
+from pinarray.analysis.subjects import IntervalSettings
+from pinarray.grid import Grid
+from pinarray.paradigms.identification.analysis import (
     identifications,
     information_transferred,
     it_bias_bits,
 )
-from pinarray.analysis.judgements import JndStatus, judgements
-from pinarray.analysis.lab_observer import LabObserver, LabObserverModel
-from pinarray.analysis.lab_report import lab_sections, lab_tables
-from pinarray.analysis.load import LoadedTrial
-from pinarray.analysis.subjects import IntervalSettings
-from pinarray.journal.records import TemporalOrderRecord, TwoIntervalRecord
+from pinarray.paradigms.temporal_order.analysis import JndStatus, temporal_orders
+from pinarray.paradigms.temporal_order.design import TemporalOrderCondition
+from pinarray.paradigms.temporal_order.observer import (
+    TemporalOrderObserver,
+    TemporalOrderObserverModel,
+)
+from pinarray.paradigms.temporal_order.rows import TemporalOrderRecord
+from pinarray.paradigms.two_interval.analysis import two_intervals
+from pinarray.paradigms.two_interval.design import IntervalOrder, TwoIntervalCondition
+from pinarray.paradigms.two_interval.observer import TwoIntervalObserver, TwoIntervalObserverModel
+from pinarray.paradigms.two_interval.rows import TwoIntervalRecord
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
-from pinarray.protocol.paradigms import IntervalOrder, TemporalOrderCondition, TwoIntervalCondition
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
+CONTEXT = Context(RunSelection((), (), False), IntervalSettings(), Grid())
+
+
+def model(weber=0.2, slope=3.0, pss_ms=0.0, jnd_ms=40.0, lapse=0.02, subject_sd=0.3):
+    """A two-interval and a temporal-order subject, as one lab's subject answers both."""
+    return (TwoIntervalObserverModel(weber, slope, lapse, subject_sd),
+            TemporalOrderObserverModel(pss_ms, jnd_ms, lapse, subject_sd))
 
 
 @settings(max_examples=200, deadline=None)
@@ -65,25 +80,26 @@ def test_few_trials_per_cell_make_a_guessing_subject_look_informed_by_about_the_
     assert bits - bias < 0.6
 
 
-def simulated_rows(model: LabObserverModel, seed: int):
+def simulated_rows(subject, seed: int):
     """A subject of ``model`` answering 60 two-interval trials at each comparison around
     10 Hz, and 60 temporal-order trials at each SOA."""
+    two, temporal = subject
     rng = np.random.default_rng(seed)
     rows, trial = [], 0
     common = {"block": 1, "task": "lab", "onset_ns": 0, "duration_ns": 1}
     for comparison in (8.0, 9.0, 9.5, 10.5, 11.0, 12.0):
-        p = model.p_interval_right(10.0, comparison)
+        p = two.p_right(10.0, comparison)
         for _ in range(60):
             trial += 1
             right = rng.random() < p
-            order = IntervalOrder.COMPARISON_FIRST if trial % 2 else IntervalOrder.STANDARD_FIRST
-            higher_first = (order is IntervalOrder.COMPARISON_FIRST) == (comparison > 10)
+            first = IntervalOrder.COMPARISON_FIRST if trial % 2 else IntervalOrder.STANDARD_FIRST
+            higher_first = (first is IntervalOrder.COMPARISON_FIRST) == (comparison > 10)
             said = "first" if higher_first == right else "second"
             rows.append(TwoIntervalRecord(trial=trial, **common, compared="frequency_hz",
                                           standard=10.0, comparison=comparison,
-                                          interval_order=order, pins=(6,), response=said))
+                                          interval_order=first, pins=(6,), response=said))
     for soa_ms in (-90, -60, -30, -10, 10, 30, 60, 90):
-        p = model.p_a_first(soa_ms)
+        p = temporal.p_a_first(soa_ms)
         for _ in range(60):
             trial += 1
             said = "6" if rng.random() < p else "7"
@@ -93,19 +109,19 @@ def simulated_rows(model: LabObserverModel, seed: int):
 
 
 def test_the_fits_find_the_weber_fraction_pss_and_jnd_a_subject_was_given():
-    model = LabObserverModel(weber=Fraction(15, 100), pss_ms=-20.0, jnd_ms=30.0, lapse=0.0,
-                             subject_sd=0.0)
-    found = judgements(simulated_rows(model, 1), IntervalSettings())
-    (two,) = found.intervals
-    (order,) = found.orders
+    subject = model(weber=float(Fraction(15, 100)), pss_ms=-20.0, jnd_ms=30.0, lapse=0.0,
+                    subject_sd=0.0)
+    rows = simulated_rows(subject, 1)
+    (two,) = two_intervals(rows, CONTEXT).fits
+    (order,) = temporal_orders(rows, CONTEXT).fits
     weber = two.weber
-    assert weber.status is ThresholdStatus.ESTIMATED
+    assert weber.status is EstimateStatus.ESTIMATED
     assert weber.ci_low < 0.15 < weber.ci_high and 0.11 < weber.value < 0.2
     assert two.threshold.value == pytest.approx(10 * weber.value)
     pss = order.pss
     assert pss.ci_low < -20 < pss.ci_high and -30 < pss.value < -10
     jnd = order.jnd
-    assert jnd.status is JndStatus.ESTIMATED
+    assert jnd.words == JndStatus.ESTIMATED
     assert jnd.ci_low < 30 < jnd.ci_high and 22 < jnd.value < 40
 
 
@@ -117,14 +133,15 @@ def shipped_plans():
             for name, protocol in zip(("flutter_2ifc", "toj"), protocols, strict=True)]
 
 
-def shipped_design_rows(model: LabObserverModel, seed: int, subject: str = "01"):
-    """A subject of ``model`` running protocols/flutter_2ifc.yaml and protocols/toj.yaml as
-    planned, answering as `LabObserver` does."""
+def shipped_design_rows(models, seed: int, subject: str = "01"):
+    """A subject of ``models`` running protocols/flutter_2ifc.yaml and protocols/toj.yaml as
+    planned, answering as each paradigm's simulated subject does."""
     rows = []
-    for task, protocol, plan in shipped_plans():
-        observer = LabObserver(protocol, model, seed)
+    for (task, _, plan), observer in zip(shipped_plans(),
+                                        (TwoIntervalObserver(models[0], seed),
+                                         TemporalOrderObserver(models[1], seed)), strict=True):
         for planned in plan.trials:
-            c, said = planned.condition, observer.respond(planned.condition)
+            c, said = planned.condition, observer(planned.condition)
             common = {"trial": planned.trial, "block": planned.block, "task": task,
                       "onset_ns": 0, "duration_ns": 1, "practice": planned.practice}
             match c:
@@ -140,48 +157,51 @@ def shipped_design_rows(model: LabObserverModel, seed: int, subject: str = "01")
 
 
 def test_the_intervals_hold_the_truth_about_95_percent_of_the_time_on_the_shipped_designs():
-    # 40 subjects across the range a lab meets (judgements.COVERAGE: 900 of them).
+    # 40 subjects across the range a lab meets (each room's COVERAGE: 900 of them).
     rng = np.random.default_rng(40)
     held = {"weber": 0, "pss": 0, "jnd": 0}
     for subject in range(40):
-        model = LabObserverModel(weber=rng.uniform(0.1, 0.3), slope=rng.uniform(1.5, 5.0),
-                                 pss_ms=rng.uniform(-30, 30), jnd_ms=rng.uniform(20, 60),
-                                 lapse=rng.uniform(0, 0.04), subject_sd=0.0)
-        found = judgements(shipped_design_rows(model, subject), IntervalSettings())
-        (two,), (order,) = found.intervals, found.orders
-        for name, estimate, truth in (("weber", two.weber, model.weber),
-                                      ("pss", order.pss, model.pss_ms),
-                                      ("jnd", order.jnd, model.jnd_ms)):
+        two_model, order_model = models = model(
+            weber=rng.uniform(0.1, 0.3), slope=rng.uniform(1.5, 5.0),
+            pss_ms=rng.uniform(-30, 30), jnd_ms=rng.uniform(20, 60), lapse=rng.uniform(0, 0.04),
+            subject_sd=0.0)
+        rows = shipped_design_rows(models, subject)
+        (two,), (order,) = two_intervals(rows, CONTEXT).fits, temporal_orders(rows, CONTEXT).fits
+        for name, estimate, truth in (("weber", two.weber, two_model.weber),
+                                      ("pss", order.pss, order_model.pss_ms),
+                                      ("jnd", order.jnd, order_model.jnd_ms)):
             # A bound in words counts by the bound it states (n/a: no bound that side).
             low = -math.inf if math.isnan(estimate.ci_low) else estimate.ci_low
             high = math.inf if math.isnan(estimate.ci_high) else estimate.ci_high
-            held[name] += estimate.status is not None and low <= truth <= high
+            held[name] += estimate.words != "not fitted" and low <= truth <= high
     # 6 misses or fewer: a 95 % interval has 6 or fewer in 40 with probability 0.99.
     assert min(held.values()) >= 34, held
 
 
 def test_answers_that_cannot_place_a_value_give_words_and_the_bound_they_state(tmp_path):
-    steady = LabObserverModel(weber=0.2, pss_ms=0.0, jnd_ms=40.0, lapse=0.0, subject_sd=0.0)
-    keen = LabObserverModel(weber=0.01, pss_ms=0.0, jnd_ms=0.5, lapse=0.0, subject_sd=0.0)
+    steady = model(weber=0.2, pss_ms=0.0, jnd_ms=40.0, lapse=0.0, subject_sd=0.0)
+    keen = model(weber=0.01, pss_ms=0.0, jnd_ms=0.5, lapse=0.0, subject_sd=0.0)
     rows = shipped_design_rows(steady, 1, "01") + shipped_design_rows(keen, 2, "02")
-    found = judgements(rows, IntervalSettings())
-    two, order = ({f.subject: f for f in fits} for fits in (found.intervals, found.orders))
+    intervals, orders = two_intervals(rows, CONTEXT), temporal_orders(rows, CONTEXT)
+    two, order = ({f.subject: f for f in fits} for fits in (intervals.fits, orders.fits))
     # Subject 02 told every comparison apart: the threshold lies below the smallest
     # difference tested (1 Hz), and is no number.
-    assert two["02"].threshold.status is ThresholdStatus.BELOW
+    assert two["02"].threshold.status is EstimateStatus.BOUNDED
+    assert two["02"].threshold.words == ThresholdStatus.BELOW
     assert math.isnan(two["02"].threshold.value) and two["02"].threshold.ci_high < 1.0
     assert math.isnan(two["02"].weber.value) and two["02"].weber.ci_high < 0.1
     # ... and named the right pin at every SOA: the PSS lies between -15 and 15 ms, the JND
     # below what SOAs of 15 ms resolve.
-    assert order["02"].pss.status is ThresholdStatus.ESTIMATED
-    assert order["02"].jnd.status is JndStatus.BELOW and order["02"].jnd.ci_high < 15
-    across = {(m.task, m.measure): m for m in found.across}
+    assert order["02"].pss.status is EstimateStatus.ESTIMATED
+    assert order["02"].jnd.words == JndStatus.BELOW and order["02"].jnd.ci_high < 15
+    across = {(m.task, m.measure): m for m in (*intervals.across, *orders.across)}
     assert [s for s, _ in across["flutter2ifc", "weber_fraction"].per_subject] == ["01"]
     assert [s for s, _ in across["toj", "jnd_ms"].per_subject] == ["01"]
     assert [s for s, _ in across["toj", "pss_ms"].per_subject] == ["01", "02"]
 
-    none = identifications(rows, IntervalSettings())  # no identification rows among them
-    lab_tables(none, found, IntervalSettings(), tmp_path)
+    assert not identifications(rows, CONTEXT).per_subject  # no identification rows among them
+    intervals.tables(tmp_path)
+    orders.tables(tmp_path)
     table = {r["subject"]: r for r in csv.DictReader((tmp_path / "two_interval.csv").open())}
     assert (table["02"]["threshold"], table["02"]["status"]) == ("n/a", "below the lowest "
                                                                  "value tested")
@@ -192,6 +212,6 @@ def test_answers_that_cannot_place_a_value_give_words_and_the_bound_they_state(t
     sidecar = json.loads((tmp_path / "temporal_order.json").read_text())
     assert "Bayesian logistic fit" in sidecar["pss_ms"]["Description"]
     assert "below what the answers resolve" in sidecar["jnd_status"]["Levels"]
-    summary = "\n".join(lab_sections(none, found, IntervalSettings()))
+    summary = "\n".join([*intervals.sections(), *orders.sections()])
     assert "subject 02, task flutter2ifc: threshold *below the lowest value tested* (<" in summary
     assert "Bayesian Weibull fit" in summary and "credible interval" in summary

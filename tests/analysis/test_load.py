@@ -2,7 +2,7 @@
 
 from pinarray.analysis.load import ManifestState, load_runs, select_runs
 from pinarray.journal.manifest import RunPaths
-from pinarray.journal.records import trial_row
+from pinarray.journal.rows import trial_row
 from tests.analysis.conftest import localisation_row
 
 

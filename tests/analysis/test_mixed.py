@@ -7,7 +7,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import integrate
 
-from pinarray.analysis.mixed import (
+from pinarray.paradigms.localisation.frequency_effect import (
     QUADRATURE_NODES,
     Cell,
     FitSkipped,

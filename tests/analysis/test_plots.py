@@ -7,30 +7,22 @@ from matplotlib.collections import Collection, PathCollection
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
-from pinarray.analysis import plots
 from pinarray.analysis.load import load_runs, select_runs
 from pinarray.analysis.study import study
-from tests.analysis.conftest import localisation_row, write_results
+from pinarray.paradigms.localisation.figures import plot_correct_by_frequency
+from tests.analysis.conftest import keep_figures, localisation_row, write_results
 
 
 @pytest.fixture
 def drawn(monkeypatch):
-    """Draw figures through the real `_save` and keep each figure, by name, to inspect."""
-    figures = {}
-    save = plots._save
-
-    def keep(figure, stem, caption):
-        figures[stem.name] = figure
-        return save(figure, stem, caption)
-
-    monkeypatch.setattr(plots, "_save", keep)
-    return figures
+    """Draw figures through the real `save` and keep each figure, by name, to inspect."""
+    return keep_figures(monkeypatch, draw=True)
 
 
 def bar_labels_and_the_data_they_must_not_cover(figure):
     """Each bar's label (the text naming its subjects) and every data artist of the axes,
     each as its rendered extent in display pixels."""
-    canvas = FigureCanvasAgg(figure)  # `_save` closed the figure: draw it on a canvas again
+    canvas = FigureCanvasAgg(figure)  # `save` closed the figure: draw it on a canvas again
     canvas.draw()
     renderer = canvas.get_renderer()
     axes = figure.axes[0]
@@ -70,8 +62,8 @@ def test_bar_labels_cover_no_subject_line_dot_error_bar_or_bar(tmp_path, drawn):
     # Subject B's line falls from 50 % at 3 Hz to 0 % at 10 Hz, across where a label on
     # the bar stood.
     result = study(select_runs(load_runs([write_results(tmp_path / "results")])))
-    plots.plot_correct_by_frequency(result, tmp_path / "correct")
-    plots.plot_motion(result, tmp_path / "motion")
+    plot_correct_by_frequency(result.of("localisation"), tmp_path / "correct")
+    result.of("apparent_motion").figures(tmp_path)
     assert_labels_clear(drawn["correct"], bars=2)
     assert_labels_clear(drawn["motion"], bars=3)
 
@@ -86,5 +78,5 @@ def test_six_frequencies_keep_their_labels_apart_and_off_the_data(tmp_path, writ
                 for trial, f in enumerate(frequencies, start=1)]
         write_run(root, subject, "localisation", rows)
     result = study(select_runs(load_runs([root])))
-    plots.plot_correct_by_frequency(result, tmp_path / "correct")
+    plot_correct_by_frequency(result.of("localisation"), tmp_path / "correct")
     assert_labels_clear(drawn["correct"], bars=6)

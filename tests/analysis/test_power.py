@@ -11,19 +11,19 @@ from numpy.testing import assert_allclose
 from scipy import stats as scipy_stats
 
 from pinarray import cli
-from pinarray.analysis.observer import ObserverModel
-from pinarray.analysis.power import (
+from pinarray.analysis.power import caption, power_markdown, power_study, t_test_p
+from pinarray.grid import DEFAULT_GRID
+from pinarray.paradigms.apparent_motion.observer import MotionObserverModel
+from pinarray.paradigms.apparent_motion.power import power as motion_power
+from pinarray.paradigms.localisation.observer import ObserverModel
+from pinarray.paradigms.localisation.power import (
     PAIRED_FREQUENCY,
     Design,
     SubjectCounts,
     analyse_study,
-    caption,
-    power_markdown,
-    power_study,
+    power,
     protocol_design,
-    t_test_p,
 )
-from pinarray.grid import DEFAULT_GRID
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
@@ -39,18 +39,18 @@ def subject(correct_by_frequency, a_errors=1, pin_correct=(3, 1)):
     pin_hits = np.zeros(16, dtype=int)
     pin_trials[[0, 3]] = 4 * len(correct_by_frequency)
     pin_hits[[0, 3]] = pin_correct
-    return SubjectCounts(np.array(rows), pin_hits, pin_trials, 0, 0, 0, 0, 0)
+    return SubjectCounts(np.array(rows), pin_hits, pin_trials)
 
 
-DESIGN = Design(tuple((p, f) for p in PINS for f in (3.0, 10.0)) * 4, (), DEFAULT_GRID)
+DESIGN = Design(tuple((p, f) for p in PINS for f in (3.0, 10.0)) * 4, DEFAULT_GRID)
 
 
 def test_the_protocols_main_trials_are_what_the_simulated_subjects_answer():
     design = protocol_design(LOCALISATION)
-    assert len(design.localisation) == 24 and design.pins == (1, 4, 6, 7, 10, 11, 13, 16)
-    assert design.frequencies_hz == (3.0, 5.0, 10.0) and design.motion == ()
-    motion = protocol_design(MOTION)
-    assert sorted(set(motion.motion)) == ["left", "none", "right"] and len(motion.motion) == 12
+    assert len(design.trials) == 24 and design.pins == (1, 4, 6, 7, 10, 11, 13, 16)
+    assert design.frequencies_hz == (3.0, 5.0, 10.0)
+    motion = motion_power(MOTION, MotionObserverModel())
+    assert sorted(set(motion.trials)) == ["left", "none", "right"] and len(motion.trials) == 12
 
 
 def test_a_study_where_every_subject_improves_finds_the_frequency_effect():
@@ -86,11 +86,11 @@ def test_the_t_test_gives_scipys_p_value(values):
 
 
 def test_power_grows_with_subjects_and_the_simulation_repeats_with_its_seed():
-    model = ObserverModel().for_protocol(LOCALISATION)
-    curves = power_study(LOCALISATION, model, [4, 16], studies=40, seed=3)
+    model = power(LOCALISATION, ObserverModel().for_protocol(LOCALISATION))
+    curves = power_study("localisation", model, [4, 16], studies=40, seed=3)
     effect = {p.subjects: p.met.pct for p in curves.points if p.criterion == PAIRED_FREQUENCY}
     assert effect[16] > effect[4]
-    again = power_study(LOCALISATION, model, [4, 16], studies=40, seed=3)
+    again = power_study("localisation", model, [4, 16], studies=40, seed=3)
     assert again.points == curves.points
     ten = {p.subjects: p for p in curves.precision if p.measure == "correct at 10 Hz"}
     assert ten[16].t_half_width_pct < ten[4].t_half_width_pct
@@ -98,12 +98,12 @@ def test_power_grows_with_subjects_and_the_simulation_repeats_with_its_seed():
 
 
 def test_more_spread_between_subjects_makes_a_studys_estimate_vary_more():
-    narrow = power_study(LOCALISATION, ObserverModel(subject_sd_logit=0).for_protocol(
-        LOCALISATION), [8], studies=60, seed=4)
-    wide = power_study(LOCALISATION, ObserverModel(subject_sd_logit=2).for_protocol(
-        LOCALISATION), [8], studies=60, seed=4)
-    width = {c.model.subject_sd_logit: next(p.sd_pct for p in c.precision
-                                            if p.measure == "correct at 10 Hz")
+    narrow = power_study("localisation", power(LOCALISATION, ObserverModel(
+        subject_sd_logit=0).for_protocol(LOCALISATION)), [8], studies=60, seed=4)
+    wide = power_study("localisation", power(LOCALISATION, ObserverModel(
+        subject_sd_logit=2).for_protocol(LOCALISATION)), [8], studies=60, seed=4)
+    width = {c.model.subject_sd: next(p.sd_pct for p in c.precision
+                                      if p.measure == "correct at 10 Hz")
              for c in (narrow, wide)}
     assert width[2.0] > 1.5 * width[0.0]
 
@@ -126,8 +126,9 @@ def test_the_power_command_prints_the_table_and_writes_csv_and_figures(tmp_path,
 
 
 def small_localisation_study():
-    return power_study(LOCALISATION, ObserverModel().for_protocol(LOCALISATION), [4],
-                       studies=10, seed=2)
+    return power_study("localisation", power(LOCALISATION,
+                                             ObserverModel().for_protocol(LOCALISATION)),
+                       [4], studies=10, seed=2)
 
 
 def test_power_does_not_call_its_paired_t_test_the_frequency_effect_analyse_fits():
@@ -185,7 +186,8 @@ def test_power_refuses_an_out_it_could_not_write_before_simulating_anything(tmp_
 
 def test_power_hears_of_each_study_by_the_simulated_subjects_done():
     heard = []
-    power_study(MOTION, ObserverModel(), [2, 3], 10, seed=1, progress=heard.append)
+    model = motion_power(MOTION, MotionObserverModel())
+    power_study("apparent_motion", model, [2, 3], 10, seed=1, progress=heard.append)
     assert heard == [2 * k for k in range(1, 11)] + [20 + 3 * k for k in range(1, 11)]
 
 

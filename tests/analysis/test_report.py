@@ -13,11 +13,10 @@ from pathlib import Path
 import pytest
 
 from pinarray import cli
-from pinarray.analysis import plots
 from pinarray.cli.analysis import register
 from pinarray.errors import ResultsError
 from pinarray.journal.manifest import RunPaths
-from tests.analysis.conftest import localisation_row, write_results
+from tests.analysis.conftest import keep_figures, localisation_row, write_results
 
 # One worker builds the module's fixture once (make test runs --dist loadgroup).
 pytestmark = pytest.mark.xdist_group("report")
@@ -58,7 +57,7 @@ def analysed(tmp_path_factory):
 
 def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them(analysed):
     out, printed = analysed.out, analysed.printed
-    assert "counted 4 run(s): 2 subject(s), 11 localisation and 8 motion trials" in printed
+    assert "counted 4 run(s): 2 subject(s), 11 localisation trials and 8 motion trials" in printed
     page = (out / "summary.md").read_text()
     for name in FIGURES:
         assert f"({name}.png)" in page and f"({name}.pdf)" in page
@@ -192,13 +191,7 @@ def test_pin_accuracy_numbers_pins_rows_and_columns_from_1(analysed):
 
 def test_the_error_figure_draws_nothing_felt_and_the_chance_levels(results_root, tmp_path,
                                                                    monkeypatch):
-    drawn = {}
-
-    def keep(figure, stem, caption):
-        drawn[stem.name] = figure
-        return []
-
-    monkeypatch.setattr(plots, "_save", keep)
+    drawn = keep_figures(monkeypatch)
     analyse(str(results_root), "--out", str(tmp_path / "analysis"))
     errors = drawn["error_types"].axes[0]
     _, labels = errors.get_legend_handles_labels()

@@ -9,13 +9,14 @@ from numpy.testing import assert_allclose
 
 from pinarray.analysis import summary_lines
 from pinarray.analysis.load import load_results
-from pinarray.analysis.stats import (
+from pinarray.analysis.stats import wilson_interval
+from pinarray.paradigms.apparent_motion.analysis import motion_summary
+from pinarray.paradigms.localisation.rows import LocalisationRecord
+from pinarray.paradigms.localisation.stats import (
     confusion_matrix,
     localisation_by_frequency,
     summarise_subjects,
-    wilson_interval,
 )
-from pinarray.journal.records import LocalisationRecord
 
 
 def summaries_of(root):
@@ -74,8 +75,9 @@ def test_pin_accuracy_is_laid_out_as_the_subject_feels_the_grid(results_root):
 
 
 def test_motion_felt_and_direction_right_per_subject_and_pooled(results_root):
-    groups = summaries_of(results_root)
-    pooled, a, b = groups["all"].motion, groups["sub-A"].motion, groups["sub-B"].motion
+    trials = load_results([results_root])
+    pooled, a, b = (motion_summary(t.record for t in trials if t.subject in subjects)
+                    for subjects in ("AB", "A", "B"))
     assert (pooled.felt.successes, pooled.felt.trials) == (5, 6)
     assert (pooled.direction_right.successes, pooled.direction_right.trials) == (3, 5)
     assert (pooled.no_wave_felt.successes, pooled.no_wave_felt.trials) == (1, 2)

@@ -9,8 +9,9 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy import stats as scipy_stats
 
-from pinarray.analysis.load import load_runs, select_runs
-from pinarray.analysis.stats import Proportion, summarise_subjects
+from pinarray.analysis.load import RunSelection, load_results, load_runs, select_runs
+from pinarray.analysis.seam import Context
+from pinarray.analysis.stats import Proportion
 from pinarray.analysis.study import study
 from pinarray.analysis.subjects import (
     DEFAULT_SETTINGS,
@@ -18,12 +19,15 @@ from pinarray.analysis.subjects import (
     IntervalSettings,
     across_subjects,
     bootstrap_interval,
-    subject_level,
     t_interval,
 )
 from pinarray.errors import PinArrayError
+from pinarray.grid import Grid
+from pinarray.paradigms.apparent_motion.analysis import motions
+from pinarray.paradigms.localisation.stats import subject_level, summarise_subjects
 from tests.analysis.conftest import localisation_row
 
+CONTEXT = Context(RunSelection((), (), False), IntervalSettings(), Grid())
 
 def level_of(root):
     _, *per_subject = summarise_subjects((t.subject, t.record)
@@ -68,7 +72,7 @@ def test_two_subjects_at_25_and_50_percent_give_a_bootstrap_interval_from_25_to_
 
 
 def test_motion_direction_is_judged_per_subject_among_the_trials_they_felt(results_root):
-    motion = level_of(results_root).motion
+    motion = motions(load_results([results_root]), CONTEXT)
     assert_allclose(motion.felt.values_pct, [75.0, 100.0])
     assert_allclose(motion.direction_right.values_pct, [100 / 3, 100.0])
     # Subject B had no no-wave trial: left out of that mean, which then has no interval.
@@ -99,7 +103,7 @@ def test_the_interval_method_and_the_bootstrap_seed_are_named():
 def test_the_study_draws_the_chosen_interval_and_keeps_both(results_root):
     chosen = IntervalSettings(IntervalMethod.BOOTSTRAP, bootstrap_seed=3)
     result = study(select_runs(load_runs([results_root])), chosen)
-    correct = result.subject_level.localisation[0].share("correct")
+    correct = result.of("localisation").level.localisation[0].share("correct")
     assert correct.interval_pct(IntervalMethod.BOOTSTRAP) == correct.bootstrap_interval_pct
     assert correct.interval_pct(IntervalMethod.T) == correct.t_interval_pct
 

@@ -258,7 +258,7 @@ def test_answers_that_cannot_place_the_threshold_give_words_not_a_zero_width_int
     found = study(select_runs(load_runs([root])))
     out = tmp_path / "analysis"
     out.mkdir()
-    tables = write_tables(found, out)
+    tables = write_tables(found.thresholds, found.runs, out)
     rows = read_csv(out / "thresholds.csv")
     fits = {r["subject"]: r for r in rows if r["procedure"] == "pooled"}
     assert (fits["01"]["status"], fits["02"]["status"]) == (

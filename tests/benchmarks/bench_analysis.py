@@ -2,7 +2,7 @@
 
 Timings are printed, never asserted: each beside a reference measured in the same run, with
 the ratio, min/median/max over repeats. The study tables answer "how many subjects do I
-need?" with simulated subjects who differ from one another (`pinarray.analysis.observer`), analysed
+need?" with simulated subjects who differ from one another (`pinarray.paradigms.localisation.observer`), analysed
 with subjects as the unit (`pinarray.analysis.power`), as `pinarray power` prints them.
 """
 
@@ -15,12 +15,15 @@ from dataclasses import replace
 from pathlib import Path
 
 from pinarray.analysis.load import load_runs, select_runs
-from pinarray.analysis.mixed import Cell, _Data, fit_frequency_effect
-from pinarray.analysis.observer import ObserverModel, SimulatedObserver
-from pinarray.analysis.power import power_study, protocol_design, simulate_subject
+from pinarray.analysis.power import power_study
+from pinarray.analysis.seam import analysis_of
 from pinarray.analysis.study import study
 from pinarray.grid import classify
-from pinarray.journal.records import LocalisationRecord, trial_row
+from pinarray.journal.rows import trial_row
+from pinarray.paradigms.localisation.frequency_effect import Cell, _Data, fit_frequency_effect
+from pinarray.paradigms.localisation.observer import ObserverModel, SimulatedObserver
+from pinarray.paradigms.localisation.power import protocol_design, simulate_subject
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.protocol.load import load_protocol
 from tests.runs import plan_of, start_run
 
@@ -94,7 +97,7 @@ def costs(root: Path) -> None:
             writer.write_trial(record)
         writer.finish()
     files = sorted(data.rglob("*_beh.tsv"))
-    trials = 24 * len(design.localisation)
+    trials = 24 * len(design.trials)
 
     def analysed() -> None:
         study(select_runs(load_runs([data])))
@@ -116,7 +119,7 @@ def costs(root: Path) -> None:
     bare = SimulatedObserver(model, seed=1)
 
     def bare_answers() -> None:
-        for pin, frequency in design.localisation * 50:
+        for pin, frequency in design.trials * 50:
             bare.respond_localisation(pin, frequency)
 
     def fresh_subjects() -> None:
@@ -130,10 +133,13 @@ def costs(root: Path) -> None:
 def study_tables(studies: int) -> None:
     for name in ("localisation.yaml", "apparent_motion.yaml"):
         protocol = load_protocol(PROTOCOLS / name)
-        model = ObserverModel().for_protocol(protocol)
-        curves = power_study(protocol, model, [4, 6, 8, 12, 16, 24, 32], studies, seed=2024)
+        # each paradigm's own power model, as `pinarray power` builds it (its default subjects)
+        model = analysis_of(protocol.design.paradigm.name).power(protocol, "default")
+        assert model is not None
+        curves = power_study(protocol.name, model, [4, 6, 8, 12, 16, 24, 32], studies,
+                             seed=2024)
         print(f"\n{protocol.name}: {studies} simulated studies per number of subjects, "
-              f"subject SD {model.subject_sd_logit:g} logit, seed 2024")
+              f"subject SD {model.subject_sd:g} logit, seed 2024")
         for line in curves.table_lines():
             print(line)
 

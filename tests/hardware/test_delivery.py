@@ -13,7 +13,11 @@ MS = 1_000_000
 
 
 class GoalLog:
-    """What the simulated servos really hold: (time, servo, goal) each time a goal changes."""
+    """What the simulated servos really hold: (time, servo, goal) each time a goal changes.
+
+    It watches the bytes reaching the servos (`SimBus.receive`): the bus must be simulated at
+    the wire level (``fidelity=wire``), where every packet arrives as bytes.
+    """
 
     def __init__(self, bus):
         self.sim = bus.sim
@@ -48,7 +52,7 @@ def changes_of(target_list):
 
 
 def test_a_lost_sync_write_is_read_back_written_again_and_counted_as_healed():
-    bus = sim_bus()
+    bus = sim_bus("fidelity=wire")
     log = GoalLog(bus)
     schedule = pulse_train([3], 5, 3)
     original = bus.sim.receive
@@ -75,7 +79,7 @@ def test_a_lost_sync_write_is_read_back_written_again_and_counted_as_healed():
 @settings(max_examples=25, deadline=None)
 @given(st.integers(0, 10_000), st.sampled_from([3, 5, 10]), st.sampled_from([0.1, 0.3]))
 def test_at_heavy_packet_loss_a_trial_is_as_scheduled_or_reported_not_delivered(seed, rate_hz, loss):
-    bus = sim_bus(f"seed={seed}")
+    bus = sim_bus(f"seed={seed}&fidelity=wire")
     bus.sim.drop_rate = loss  # after the handshake, which would rightly give up at 30 % loss
     log = GoalLog(bus)
     schedule = pulse_train([2, 7], rate_hz, 6)
@@ -147,8 +151,8 @@ def test_the_verdict_counts_every_change_once():
 def test_a_pin_whose_last_change_was_never_confirmed_is_sent_back_to_rest():
     # The trial's final "down" of pin 3 is lost, and the bus says nothing for longer than the
     # player's read-backs go on after the trial: the verdict is "not delivered", and the pin
-    # is sent to rest (and confirmed there) anyway.
-    bus = sim_bus()
+    # is sent to rest (and confirmed there) anyway. The servos go deaf on the wire.
+    bus = sim_bus("fidelity=wire")
     schedule = pulse_train([3], 5, 2)
     last_frame_ns = int(schedule.time_ns[-1])
     receive = bus.sim.receive
@@ -174,7 +178,7 @@ def test_a_pin_whose_last_change_was_never_confirmed_is_sent_back_to_rest():
 
 
 def test_servos_that_never_answer_a_sync_read_are_read_back_one_by_one():
-    bus = sim_bus()
+    bus = sim_bus("fidelity=wire")  # servos deaf to SYNC READ bytes
     receive = bus.sim.receive
     bus.sim.receive = lambda data, at_ns: [] if data[4] == 0x82 else receive(data, at_ns)
     first = play_trial(bus, pulse_train([1, 2, 3], 5, 2), bus.clock, release_at_end=False)

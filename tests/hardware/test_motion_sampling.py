@@ -13,11 +13,12 @@ from pinarray.hardware.motion import PinTrace, measure_trial
 from pinarray.hardware.sampling import Holds
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.physio import motion_recording_path, read_motion
-from pinarray.journal.records import TrialStatus, read_trials
+from pinarray.journal.records import TrialStatus
+from pinarray.journal.rows import read_trials
+from pinarray.paradigms.localisation.design import LocalisationCondition
 from pinarray.plan import PlannedTrial
 from pinarray.player.playback import play_prepared, play_trial, prepare_trial
 from pinarray.player.rig import Rig
-from pinarray.protocol import LocalisationCondition
 from pinarray.protocol.load import parse_protocol
 from pinarray.schedule import compile_trial
 from tests.runs import REPO

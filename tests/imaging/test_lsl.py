@@ -10,8 +10,8 @@ import pytest
 from pinarray.clock import MonotonicClock
 from pinarray.imaging.lsl import STREAM_TYPE, MarkerOutlet
 from pinarray.imaging.markers import marker_text
+from pinarray.paradigms.localisation.design import LocalisationCondition
 from pinarray.plan import make_plan
-from pinarray.protocol import LocalisationCondition
 from pinarray.protocol.load import load_protocol
 from tests.imaging.lsl_inlet import MarkerInlet, unique_stream_name
 from tests.lsl_local import MACHINE_ONLY

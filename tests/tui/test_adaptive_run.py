@@ -2,7 +2,7 @@
 
 import pytest
 
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.session.trials import Phase
 from pinarray.tui.run_screen import RunScreen
 from tests.tui.conftest import PROTOCOLS, SIZE, make_app, settle, to_run_screen

@@ -11,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pinarray.journal.manifest import RunStatus, read_manifest
-from pinarray.journal.records import TrialStatus, read_trials
+from pinarray.journal.records import TrialStatus
+from pinarray.journal.rows import read_trials
 from pinarray.tui.outcome import Crashed
 from tests.tui.conftest import SIZE, make_app, settle, to_run_screen, write_short_localisation
 

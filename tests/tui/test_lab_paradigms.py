@@ -16,13 +16,14 @@ PARADIGMS = {
                "stimulus: pattern "),
     "flutter_2ifc": ("12", ["first", "second"], "stimulus: frequency "),
     "toj": ("lr", ["6", "7"], "stimulus: pin "),
+    "two_point": ("12", ["one", "two"], "stimulus: pin"),
 }
 
 
 @pytest.mark.parametrize(("name", "size"), [
     *((name, SMALL) for name in PARADIGMS),
     ("shapes", SIZE),  # the most answers, drawn: the layout that changes most with the size
-], ids=["shapes-80x24", "flutter_2ifc-80x24", "toj-80x24", "shapes-120x40"])
+], ids=["shapes-80x24", "flutter_2ifc-80x24", "toj-80x24", "two_point-80x24", "shapes-120x40"])
 async def test_every_answer_of_the_paradigm_is_in_view_and_answered_by_its_key(
         results, tmp_path, size, name):
     keys, answers, stimulus = PARADIGMS[name]

@@ -1,10 +1,11 @@
 """The run screen's computed parts: which pins are up at a moment, and the running counts."""
 
-from pinarray.journal.records import LocalisationRecord
+from pinarray.journal.seam import rows_of
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
 from pinarray.schedule import compile_trial
-from pinarray.tui.live import LiftTimeline, LiveCounts
+from pinarray.tui.live import LiftTimeline, live_lines
 from tests.tui.conftest import LOCALISATION
 
 MS = 1_000_000
@@ -39,8 +40,8 @@ def record(trial, error_class, practice=False, status="ok"):
 
 
 def test_counts_leave_out_practice_and_redone_trials():
-    counts = LiveCounts.of([record(1, "A", practice=True), record(2, "correct"),
-                            record(3, "B", status="redone"), record(3, "B"), record(4, "none")])
-    assert (counts.counted, counts.correct, counts.practice_done) == (3, 1, 1)
-    assert counts.lines(localisation=True)[:3] == ["correct 1/3", "A 0  B 1  C 0  D 0",
-                                                   "nothing felt 1"]
+    lines = live_lines(rows_of("localisation"),
+                       [record(1, "A", practice=True), record(2, "correct"),
+                        record(3, "B", status="redone"), record(3, "B"), record(4, "none")])
+    assert lines == ["correct 1/3", "A 0  B 1  C 0  D 0", "nothing felt 1",
+                     "practice done 1 (not counted)"]

@@ -5,7 +5,7 @@ import pytest
 
 from pinarray.errors import BusError
 from pinarray.journal.manifest import read_manifest
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.player.rig import Rig
 from pinarray.session.trials import Phase
 from pinarray.tui.confirm import Confirm

@@ -4,7 +4,8 @@ where the servos report no position (PWM boards); whole at 80x24 as at 120x40.""
 
 import pytest
 
-from pinarray.journal.records import TrialStatus, read_trials
+from pinarray.journal.records import TrialStatus
+from pinarray.journal.rows import read_trials
 from pinarray.session.trials import Phase
 from pinarray.tui.run_screen import RunScreen
 from tests.tui.conftest import PROTOCOLS, SIZE, make_app, settle, to_run_screen

@@ -4,7 +4,7 @@ import pytest
 
 from pinarray.grid import classify
 from pinarray.journal.manifest import read_manifest
-from pinarray.journal.records import read_trials
+from pinarray.journal.rows import read_trials
 from pinarray.session.trials import Phase
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.run_screen import RunScreen

@@ -31,6 +31,10 @@ Every key is optional:
                     ids whose status packets carry that error bit
 ``vanish_after``    the port disappears after this many instruction packets (USB unplugged)
 ``seed``            random seed for the random faults (default 0), so they are reproducible
+``fidelity``        how closely it is simulated (`pinarray.hardware.feetech.sim_levels`):
+                    ``wire`` (every byte at its time), ``packet`` (each exchange computed whole;
+                    the same results), ``motion`` (the pins' motion samples computed, not read;
+                    no faults); default ``packet`` in-process, ``wire`` behind `sim-serve`
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ from urllib.parse import urlsplit
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.models import DEFAULT_MODEL, MODELS
 from pinarray.hardware.feetech.registers import BAUD_RATE_BY_CODE, MAX_SERVO_ID, StatusError
+from pinarray.hardware.feetech.sim_levels import Fidelity
 from pinarray.hardware.sim_urls import sim_query
 
 SIM_SCHEME = "sim"
@@ -144,6 +149,7 @@ class SimConfig:
     backlash_deg: float | None = None
     load_fraction: float = 0.0
     speed_steps_per_s: float | None = None  # None: the model's at the supply voltage
+    fidelity: Fidelity | None = None  # None: the level the use defaults to
 
     def __post_init__(self) -> None:
         if self.baud_rate is not None and self.baud_rate not in BAUD_RATE_BY_CODE:
@@ -163,6 +169,10 @@ class SimConfig:
         _check("load", self.load_fraction, -1.0, 1.0, " (a fraction of stall torque)")
         if self.speed_steps_per_s is not None:
             _check("speed", self.speed_steps_per_s, 1.0, MAX_SPEED_STEPS_PER_S, " steps/s")
+        if self.fidelity is Fidelity.MOTION and self.faults != Faults():
+            raise PinArrayError(
+                "sim URL key fidelity: motion computes every motion sample and injects no "
+                "faults; expected fidelity=packet or wire with faults, found fidelity=motion")
 
     @property
     def answering_ids(self) -> tuple[int, ...]:
@@ -204,7 +214,7 @@ _NUMBER_KEYS = {
     "load": float, "drop": float, "drop_writes": float, "corrupt": float, "late": float,
     "late_ms": float, "vanish_after": int, "seed": int, "speed": float,
 }
-_KNOWN_KEYS = {"ids", "missing", "extra", "model", *_NUMBER_KEYS, *_ERROR_KEYS}
+_KNOWN_KEYS = {"ids", "missing", "extra", "model", "fidelity", *_NUMBER_KEYS, *_ERROR_KEYS}
 
 
 def parse_sim_url(url: str) -> SimConfig:
@@ -266,7 +276,19 @@ def parse_sim_url(url: str) -> SimConfig:
             backlash_deg=numbers.get("backlash_deg"),
             load_fraction=float(numbers.get("load", 0.0)),
             speed_steps_per_s=numbers.get("speed"),
+            fidelity=_fidelity(query.get("fidelity")),
         )
     except PinArrayError as error:
         raise PinArrayError(f"{url}: {error}") from None
 
+
+
+def _fidelity(text: str | None) -> Fidelity | None:
+    if text is None:
+        return None
+    try:
+        return Fidelity(text)
+    except ValueError:
+        levels = ", ".join(level.value for level in Fidelity)
+        raise PinArrayError(f"sim URL key fidelity: expected one of {levels}, found {text!r}"
+                            ) from None

@@ -199,6 +199,9 @@ class PolledWire:
         self.name = name
         self._readable_at_ns: Callable[[], int | None] | None = getattr(
             port, "readable_at_ns", None)
+        # The simulator's port does the wait below in one call: the same bytes at the same
+        # times, for a fraction of the calls (this runs for every exchange of a batch).
+        self._read_arrived: Callable[[int], bytes] | None = getattr(port, "read_arrived", None)
 
     def write(self, data: bytes) -> None:
         try:
@@ -209,6 +212,8 @@ class PolledWire:
     def read_some(self, deadline_ns: int) -> bytes:
         port, clock, readable_at_ns = self.port, self.clock, self._readable_at_ns
         try:
+            if self._read_arrived is not None:
+                return self._read_arrived(deadline_ns)
             while True:
                 waiting = port.in_waiting
                 if waiting:
@@ -417,14 +422,13 @@ class Link:
             The replies that arrived and fit; a missing id means no fitting reply in time.
         """
         self.drain()
-        wire, reader, counters = self.wire, self.reader, self.counters
         asked, wanted, longest = self._wanted
         if asked is not expected:
             wanted = {e.servo_id: e.params_length for e in expected}
             longest = max(wanted.values(), default=0)
             if type(expected) is tuple:
                 self._wanted = expected, wanted, longest
-        reader.longest_params = longest
+        self.reader.longest_params = longest
         start_ns = self.clock.now_ns()
         # Bytes still leaving ahead of the request (a frame just written) hold it back.
         queued_ns = max(0, self._wire_free_ns - start_ns)
@@ -432,11 +436,29 @@ class Link:
                                                              patience=patience)
         if deadline_ns is not None and deadline_ns < limit_ns:
             limit_ns = deadline_ns
-        wire.write(packet)
-        counters.bytes_written += len(packet)
         self._wire_free_ns = start_ns + queued_ns + self.wire_ns(len(packet))
-        counters.exchanges += 1
-        replies: dict[int, StatusPacket] = {}
+        replies = self._send_and_collect(packet, wanted, limit_ns)
+        if self.latency.learns and replies and len(replies) == len(wanted):
+            # The adapter's part of the exchange: what it took beyond the wire and the servos'
+            # return delays.
+            used_ns = self.clock.now_ns() - start_ns - queued_ns
+            wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
+            self.latency.record(max(0, used_ns - wire_and_delays_ns))
+        return replies
+
+    def _send_and_collect(self, packet: bytes, wanted: dict[int, int],
+                          limit_ns: int) -> dict[int, StatusPacket]:
+        """Put the request on the wire, then `collect` its replies until ``limit_ns``."""
+        self.wire.write(packet)
+        self.counters.bytes_written += len(packet)
+        self.counters.exchanges += 1
+        return self.collect(wanted, limit_ns, {})
+
+    def collect(self, wanted: dict[int, int], limit_ns: int,
+                replies: dict[int, StatusPacket]) -> dict[int, StatusPacket]:
+        """Read status packets into ``replies`` until each servo in ``wanted`` (id -> data
+        length) has answered, or ``limit_ns``; what does not fit is counted as mismatched."""
+        wire, reader, counters = self.wire, self.reader, self.counters
         while len(replies) < len(wanted):
             data = wire.read_some(limit_ns)
             if not data:
@@ -449,12 +471,6 @@ class Link:
                     counters.mismatched_replies += 1
                     continue
                 replies[status.servo_id] = status
-        if self.latency.learns and replies and len(replies) == len(wanted):
-            # The adapter's part of the exchange: what it took beyond the wire and the servos'
-            # return delays.
-            used_ns = self.clock.now_ns() - start_ns - queued_ns
-            wire_and_delays_ns = self.reply_time_ns(len(packet), expected) - self.latency.allowance_ns
-            self.latency.record(max(0, used_ns - wire_and_delays_ns))
         return replies
 
     def close(self) -> None:

@@ -28,6 +28,7 @@ from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.faults import SimConfig
 from pinarray.hardware.feetech.registers import Instruction
 from pinarray.hardware.feetech.sim import InstructionPacket, SimBus
+from pinarray.hardware.feetech.sim_levels import Fidelity
 from pinarray.hardware.feetech.sim_wire import byte_time_ns, schedule
 
 DEFAULT_BAUD = 1_000_000
@@ -125,6 +126,9 @@ class PtyServer:
     def __init__(
         self, config: SimConfig, clock: Clock | None = None, record_arrivals: bool = False
     ):
+        if config.fidelity not in (None, Fidelity.WIRE):
+            raise PinArrayError(f"sim URL key fidelity: a pseudo-terminal carries bytes; expected "
+                                f"fidelity=wire, found fidelity={config.fidelity}")
         self.sim = SimBus(config, clock or MonotonicClock(), follow_host_baud=False)
         # The pseudo-terminal lives in real time whatever clock the servos' motion runs on.
         self._wall = MonotonicClock()

@@ -1,20 +1,12 @@
 """A simulated STS servo bus, byte-faithful, that the real ``scservo_sdk`` (or any client) talks to.
 
-Two layers:
-
-`SimBus`
-    The servos on the wire: it takes the bytes the host sends, finds instruction packets in
-    them byte by byte, applies them to `SimServo` control tables and returns the status
-    packets the servos would send, with checksums, error bits and injected faults. It knows
-    nothing about time except the instant each packet finished arriving.
-`SimSerial`
-    An object with pyserial's ``Serial`` interface (``write``, ``read``, ``in_waiting``,
-    ``flush``, ...) that the driver sets as ``PortHandler.ser``. It charges wire time at the
-    baud rate (10 bits a byte) and each servo's return delay against a `Clock`, so a read
-    returns only the bytes that have arrived by now; with a `VirtualClock`, waiting for them
-    advances virtual time instead of sleeping.
-
-`pinarray.hardware.feetech.serve` puts the same `SimBus` behind a pseudo-terminal instead.
+`SimBus` is the servos on the wire: it takes the bytes the host sends, finds instruction
+packets in them byte by byte, applies them to `SimServo` control tables and returns the status
+packets the servos would send, with checksums, error bits and injected faults. It knows
+nothing about time except the instant each packet finished arriving. In front of it:
+`pinarray.hardware.feetech.sim_serial.SimSerial` (pyserial's face, charging wire time against
+a clock), `pinarray.hardware.feetech.serve` (a pseudo-terminal), and the coarser levels of
+`pinarray.hardware.feetech.sim_levels` (exchanges computed whole, without bytes).
 
 Who answers what (Feetech communication protocol manual V1.01): PING always answers, also at
 the broadcast id; READ and SYNC READ answer with data; WRITE, REG WRITE, ACTION and RESET
@@ -24,20 +16,15 @@ cannot carry out (an unknown instruction, parameters missing, a READ whose answe
 longer than the longest packet the firmware sends) gets no answer: the STS error byte has no
 bit for it.
 
-Past 400 lines on purpose: the simulated wire (packet framing, faults, replies) and its
-pyserial face are one device as a client sees it.
+Past 400 lines on purpose: packet framing, faults and every instruction's answer are one
+device as a client sees it.
 """
 
 from __future__ import annotations
 
 import random
-from bisect import bisect_right, insort
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from operator import itemgetter
-
-import serial
 
 from pinarray.clock import Clock
 from pinarray.hardware.feetech.faults import SimConfig
@@ -51,13 +38,9 @@ from pinarray.hardware.feetech.registers import (
     StatusError,
     checksum,
 )
+from pinarray.hardware.feetech.sim_serial import POLL_NS, WRITE_LOG, SimSerial
 from pinarray.hardware.feetech.sim_servo import SimServo
-from pinarray.hardware.feetech.sim_wire import (
-    StatusReply,
-    Transmission,
-    byte_time_ns,
-    schedule,
-)
+from pinarray.hardware.feetech.sim_wire import Answer, StatusReply, status_packet
 
 # Instructions that only ask: no servo's id can change by them.
 ASKING = frozenset({Instruction.PING, Instruction.READ, Instruction.SYNC_READ})
@@ -66,15 +49,9 @@ _PING, _READ = int(Instruction.PING), int(Instruction.READ)
 _SYNC_READ, _SYNC_WRITE = int(Instruction.SYNC_READ), int(Instruction.SYNC_WRITE)
 # The longest READ answer one status packet can carry, in data bytes.
 _LONGEST_READ = MAX_PACKET_BYTES - status_size(0)
-# How long a read on an empty line waits before returning nothing; the SDK polls in a loop.
-POLL_NS = 500_000
-# The port keeps the last this many writes for a test to look at (a log, bounded: a long
-# batch writes hundreds of thousands of packets).
-WRITE_LOG = 1024
-# Bytes read are dropped from the incoming queue once there are this many.
-COMPACT_BYTES = 4096
 
-__all__ = ["InstructionPacket", "SimBus", "SimSerial", "StatusReply", "status_packet"]
+__all__ = ["POLL_NS", "WRITE_LOG", "Answer", "InstructionPacket", "SimBus", "SimSerial",
+           "StatusReply", "status_packet"]
 
 
 @dataclass(frozen=True)
@@ -90,12 +67,6 @@ class InstructionPacket:
     instruction: int
     params: bytes
     delivered: bool
-
-
-def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
-    """``FF FF id len err params chk`` with ``len = len(params) + 2``."""
-    body = bytes((servo_id, len(params) + 2, error)) + params
-    return b"\xff\xff" + body + bytes((checksum(body),))
 
 
 def _fits(length: int) -> bool:
@@ -157,6 +128,14 @@ class SimBus:
         limit = self.vanish_after_packets
         return limit is not None and self.packets_received >= limit
 
+    @property
+    def whole_packets(self) -> bool:
+        """Whether packets can be taken whole, their bytes unseen (the packet level): no half
+        packet waiting for its rest, no fault that acts on bytes (corrupt or late answers, a
+        vanishing port), no host speed still to learn."""
+        return not (self._buffer or self._follow_baud or self.vanish_after_packets is not None
+                    or self.corrupt_rate or self.corrupt_next or self.late_rate or self.late_next)
+
     def receive(
         self, data: bytes, at_ns: int, byte_ns: float | None = None, baud_rate: int | None = None
     ) -> list[StatusReply]:
@@ -177,29 +156,65 @@ class SimBus:
         """
         byte_ns = self.byte_ns if byte_ns is None else byte_ns
         baud_rate = self.host_baud_rate if baud_rate is None else baud_rate
-        self._buffer.extend(data)
         if self._follow_baud and baud_rate in BAUD_RATE_BY_CODE:
             self._follow_baud = False
             self._setup_baud_rate = baud_rate
             for servo in self.all_servos():
                 servo.set_up_baud(baud_rate)
+        buffer = self._buffer
+        size = len(data)
+        if (not buffer and size >= 6 and data[0] == 0xFF and data[1] == 0xFF and data[2] != 0xFF
+                and data[3] >= 2 and size == data[3] + 4):
+            # The usual write: one whole packet and nothing else (`_next_packet`'s first round).
+            if checksum(data[2:-1]) != data[-1]:
+                self.packets_rejected += 1
+                return []
+            return self.deliver(data[2], data[4], data[5:-1], at_ns, baud_rate)
+        buffer.extend(data)
         replies: list[StatusReply] = []
-        if len(self._buffer) < 4:  # the tail of a packet to come: nothing whole yet
+        if len(buffer) < 4:  # the tail of a packet to come: nothing whole yet
             return replies
         while (packet := self._next_packet()) is not None:
             servo_id, instruction, params = packet
-            end_ns = at_ns - round(len(self._buffer) * byte_ns)
-            self.packets_received += 1
-            delivered = not self._lost(instruction)
-            if self.packet_listener is not None:
-                self.packet_listener(
-                    InstructionPacket(end_ns, servo_id, instruction, params, delivered)
-                )
-            if delivered:
-                replies.extend(self._execute(servo_id, instruction, params, end_ns, baud_rate))
-                if instruction not in ASKING:
-                    self._renumber()
+            end_ns = at_ns - round(len(buffer) * byte_ns)
+            replies.extend(self.deliver(servo_id, instruction, params, end_ns, baud_rate))
         return replies
+
+    def deliver(self, servo_id: int, instruction: int, params: bytes, end_ns: int,
+                baud_rate: int | None) -> list[StatusReply]:
+        """One well-formed instruction packet, whole at the servos at ``end_ns``: counted, lost
+        to an injected fault or carried out; returns the answers, as the servos send them.
+
+        Parameters
+        ----------
+        servo_id, instruction : int
+            Whom it addresses (maybe the broadcast id) and what it asks.
+        params : bytes
+            Its parameters.
+        end_ns : int
+            When its last byte arrived, in nanoseconds.
+        baud_rate : int or None
+            The host's speed in bit/s; servos listening at another speed hear only noise.
+        """
+        answers = self.carry_out(servo_id, instruction, params, end_ns, baud_rate)
+        if len(answers) == 1:  # the usual: one servo answers
+            return [self.reply(answers[0], end_ns)]
+        return [self.reply(answer, end_ns) for answer in answers]
+
+    def carry_out(self, servo_id: int, instruction: int, params: bytes, end_ns: int,
+                  baud_rate: int | None) -> list[Answer]:
+        """`deliver`, the answers not yet bytes (see `reply`)."""
+        self.packets_received += 1
+        delivered = not ((self.drop_next or self.drop_rate or self.drop_writes_next
+                          or self.drop_write_rate) and self._lost(instruction))
+        if self.packet_listener is not None:
+            self.packet_listener(InstructionPacket(end_ns, servo_id, instruction, params, delivered))
+        if not delivered:
+            return []
+        answers = self._execute(servo_id, instruction, params, end_ns, baud_rate)
+        if instruction not in ASKING:
+            self._renumber()
+        return answers
 
     def _lost(self, instruction: int) -> bool:
         if not (self.drop_next or self.drop_rate or self.drop_writes_next
@@ -344,12 +359,18 @@ class SimBus:
 
     def _execute(
         self, servo_id: int, instruction: int, params: bytes, end_ns: int, baud: int | None
-    ) -> list[StatusReply]:
+    ) -> list[Answer]:
         broadcast = servo_id == BROADCAST_ID
         if instruction == _READ and not broadcast:  # the usual request: one servo's bytes
             if len(params) != 2 or not _fits(params[1]):
                 return []
-            return [self._reply(servo, servo_id, servo.read(params[0], params[1], end_ns), end_ns)
+            if not self._shadowed:  # one servo at most answers at an id
+                servo = self.servos.get(servo_id)
+                if servo is None or not servo.hears(baud):
+                    return []
+                data = servo.read(params[0], params[1], end_ns)  # `_answer`, inline
+                return [Answer(servo_id, servo.status_error_byte, data, servo.return_delay_ns)]
+            return [_answer(servo, servo_id, servo.read(params[0], params[1], end_ns))
                     for servo in self._at(servo_id, baud)]
         if instruction == _SYNC_WRITE:
             if broadcast and len(params) >= 2:
@@ -360,7 +381,7 @@ class SimBus:
                 return []
             address, length = params[0], params[1]
             return [
-                self._reply(servo, target, servo.read(address, length, end_ns), end_ns, True)
+                _answer(servo, target, servo.read(address, length, end_ns), chained=True)
                 for target in params[2:]
                 for servo in self._at(target, baud)
             ]
@@ -368,19 +389,19 @@ class SimBus:
             [s for s in self.all_servos() if s.hears(baud)] if broadcast
             else self._at(servo_id, baud)
         )
-        replies = []
+        answers = []
         for servo in targets:
-            answer = self._apply(servo, instruction, params, end_ns)
-            if answer is None:
+            carried = self._apply(servo, instruction, params, end_ns)
+            if carried is None:
                 continue
             if instruction == Instruction.PING:
                 # PING answers at the broadcast id too, with the servo's own id.
-                replies.append(self._reply(servo, servo.servo_id, b"", end_ns))
+                answers.append(_answer(servo, servo.servo_id, b""))
             elif not broadcast and (
                 instruction == Instruction.READ or servo.status_return_level >= 1
             ):
-                replies.append(self._reply(servo, servo_id, answer, end_ns))
-        return replies
+                answers.append(_answer(servo, servo_id, carried))
+        return answers
 
     def _apply(
         self, servo: SimServo, instruction: int, params: bytes, end_ns: int
@@ -417,12 +438,12 @@ class SimBus:
             for servo in self._at(body[offset], baud):
                 servo.write(address, body[offset + 1 : offset + 1 + length], end_ns)
 
-    def _reply(
-        self, servo: SimServo, reply_id: int, params: bytes, end_ns: int, chained: bool = False
-    ) -> StatusReply:
-        packet = status_packet(reply_id, servo.status_error_byte, params)
+    def reply(self, answer: Answer, end_ns: int) -> StatusReply:
+        """``answer`` as the servo sends it after an instruction whole at ``end_ns``: its bytes,
+        corrupted or made late where the faults say."""
+        packet = status_packet(answer.reply_id, answer.error, answer.params)
         if not (self.corrupt_next or self.corrupt_rate or self.late_next or self.late_rate):
-            return StatusReply(servo.return_delay_ns, packet, end_ns, chained, 0)
+            return StatusReply(answer.delay_ns, packet, end_ns, answer.chained, 0)
         corrupt = self.corrupt_next > 0 or (
             self.corrupt_rate and self._random.random() < self.corrupt_rate
         )
@@ -433,160 +454,10 @@ class SimBus:
         if late:
             self.late_next = max(0, self.late_next - 1)
         return StatusReply(
-            servo.return_delay_ns, packet, end_ns, chained, self.late_ns if late else 0
+            answer.delay_ns, packet, end_ns, answer.chained, self.late_ns if late else 0
         )
 
 
-class SimSerial:
-    """pyserial's ``Serial`` interface over a `SimBus`, charging wire time against a clock.
-
-    Parameters
-    ----------
-    bus : SimBus
-        The simulated servos.
-    clock : Clock
-        Time source; a `VirtualClock` makes every wait instantaneous and deterministic.
-    baud_rate : int
-        Bits per second; each byte costs 10 bit times (start, 8 data, stop). Changing
-        ``baudrate`` later (as pyserial allows) changes the wire speed.
-    """
-
-    def __init__(self, bus: SimBus, clock: Clock, baud_rate: int, port: str = "sim://"):
-        self.bus = bus
-        self.clock = clock
-        self.port = port
-        self.baudrate = baud_rate
-        self.timeout = 0
-        self.is_open = True
-        self.bytes_written = 0
-        self.bytes_read = 0
-        self.writes: deque[bytes] = deque(maxlen=WRITE_LOG)
-        self._tx_done_ns = 0
-        self._wire_free_ns = 0
-        # Bytes on their way to the host, in arrival order: each byte's arrival time (rising)
-        # and value; everything before `_head` has been read.
-        self._arrival_ns: list[int] = []
-        self._data = bytearray()
-        self._head = 0
-        # When each transmission queued (a status packet, or garbled ones merged) is whole at
-        # the host, rising: what `readable_at_ns` tells a reader that waits for bytes.
-        self._ends_ns: list[int] = []
-
-    @property
-    def baudrate(self) -> int:
-        return self._baud_rate
-
-    @baudrate.setter
-    def baudrate(self, baud_rate: int) -> None:
-        if not baud_rate > 0:
-            raise ValueError(f"baud rate must be positive, found {baud_rate}")
-        self._baud_rate = baud_rate
-        self._byte_ns = byte_time_ns(baud_rate)
-
-    def _check_alive(self, what: str) -> None:
-        if not self.is_open:
-            raise serial.PortNotOpenError()
-        if self.bus.vanished:
-            # The words pyserial uses when a USB adapter is pulled out mid-run.
-            raise serial.SerialException(f"{what} failed: [Errno 5] Input/output error")
-
-    def write(self, data: bytes) -> int:
-        if not self.is_open or self.bus.vanished:
-            self._check_alive("write")
-        if type(data) is not bytes:
-            data = bytes(data)
-        start_ns = max(self.clock.now_ns(), self._wire_free_ns)
-        end_ns = start_ns + round(len(data) * self._byte_ns)
-        self._tx_done_ns = self._wire_free_ns = end_ns
-        self.bytes_written += len(data)
-        self.writes.append(data)
-        self.bus.byte_ns, self.bus.host_baud_rate = self._byte_ns, self._baud_rate
-        replies = self.bus.receive(data, end_ns)
-        if replies:
-            arriving, self._wire_free_ns = schedule(replies, self._wire_free_ns, self._byte_ns)
-            self._queue(arriving, any(reply.late_ns for reply in replies))
-        return len(data)
-
-    def _queue(self, arriving: list[Transmission], late: bool) -> None:
-        """Put transmissions on their way to the host, every byte at its own arrival time
-        (``late``: one of them was made late, and may overlap or overtake the others)."""
-        times, data, head = self._arrival_ns, self._data, self._head
-        if head == len(times):
-            if head:  # everything queued so far was read: start the queue again
-                times.clear()
-                data.clear()
-                self._head = head = 0
-        elif head > COMPACT_BYTES and 2 * head > len(times):
-            del times[:head], data[:head]
-            self._head = head = 0
-        in_order = len(times) == head or times[-1] <= arriving[0].arrival_ns(0)
-        for sent in arriving:
-            start_ns, byte_ns = sent.start_ns, sent.byte_ns  # `Transmission.arrival_ns`, inline
-            step_ns = int(byte_ns)
-            if step_ns == byte_ns:  # 1 Mbit/s and the other round rates: whole ns a byte
-                times.extend(range(start_ns + step_ns, start_ns + step_ns * len(sent.data) + 1,
-                                   step_ns))
-            else:
-                times.extend([start_ns + round(index * byte_ns)
-                              for index in range(1, len(sent.data) + 1)])
-            data += sent.data
-            insort(self._ends_ns, times[-1])
-        if late or not in_order:
-            # Bytes reach the host in time order; of two arriving together, the one queued
-            # first is read first.
-            pending = sorted(zip(times[head:], data[head:], strict=True), key=itemgetter(0))
-            times[head:] = [arrival_ns for arrival_ns, _ in pending]
-            data[head:] = bytes(byte for _, byte in pending)
-        ends, now_ns = self._ends_ns, self.clock.now_ns()
-        if ends[0] <= now_ns:
-            del ends[: bisect_right(ends, now_ns)]
-
-    def _arrived(self, now_ns: int) -> int:
-        return bisect_right(self._arrival_ns, now_ns, self._head) - self._head
-
-    @property
-    def in_waiting(self) -> int:
-        if not self.is_open or self.bus.vanished:
-            self._check_alive("read")
-        return bisect_right(self._arrival_ns, self.clock.now_ns(), self._head) - self._head
-
-    def readable_at_ns(self) -> int | None:
-        """When the next transmission still on its way is whole at the host (None: none is).
-
-        A reader waiting for bytes waits on the clock until then (in virtual time, one jump)
-        instead of polling; the bytes and their arrival times are the same either way.
-        """
-        ends = self._ends_ns
-        index = bisect_right(ends, self.clock.now_ns())
-        return ends[index] if index < len(ends) else None
-
-    def read(self, size: int = 1) -> bytes:
-        if not self.is_open or self.bus.vanished:
-            self._check_alive("read")
-        now_ns = self.clock.now_ns()
-        pending = len(self._arrival_ns) - self._head
-        if size > 0 and self._arrived(now_ns) == 0:
-            # Nothing yet: wait for the bytes asked for, but at most one poll period, so a
-            # late answer stays late and the host's own timeout decides.
-            wait_until_ns = now_ns + POLL_NS
-            if pending:
-                wanted = min(size, pending)
-                wait_until_ns = min(wait_until_ns, self._arrival_ns[self._head + wanted - 1])
-            self.clock.sleep_until_ns(wait_until_ns)
-            now_ns = self.clock.now_ns()
-        count = min(size, self._arrived(now_ns))
-        head = self._head
-        data = bytes(self._data[head : head + count])
-        self._head = head + count
-        self.bytes_read += count
-        return data
-
-    def flush(self) -> None:
-        """Wait until everything written has left the adapter (pyserial: ``tcdrain``)."""
-        self.clock.sleep_until_ns(self._tx_done_ns)
-
-    def reset_input_buffer(self) -> None:
-        self._head += self._arrived(self.clock.now_ns())
-
-    def close(self) -> None:
-        self.is_open = False
+def _answer(servo: SimServo, reply_id: int, params: bytes, chained: bool = False) -> Answer:
+    """What ``servo`` answers now (its error bits and return delay as they are)."""
+    return Answer(reply_id, servo.status_error_byte, params, servo.return_delay_ns, chained)

@@ -21,7 +21,6 @@ goal in the direction of approach and the horn stops on the goal itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 from pinarray.units import NS_PER_S
@@ -35,8 +34,7 @@ class MotionState(NamedTuple):
     horn_steps: float
 
 
-@dataclass(frozen=True)
-class Drive:
+class Drive(NamedTuple):
     """How the servo may move: limits in steps/s and steps/s^2, backlash and load.
 
     Attributes
@@ -62,8 +60,7 @@ class Drive:
         return self.up_speed_steps_per_s if direction > 0 else self.down_speed_steps_per_s
 
 
-@dataclass(frozen=True)
-class Piece:
+class Piece(NamedTuple):
     """Constant acceleration from ``start_ns`` on; positions in steps, speeds signed."""
 
     start_ns: int
@@ -101,8 +98,7 @@ def horn_for(drive_steps: float, horn_before: float, direction: int, lash: Drive
     return horn_before
 
 
-@dataclass(frozen=True)
-class Move:
+class Move(NamedTuple):
     """A planned motion: pieces in time order, the last one at rest and open-ended."""
 
     pieces: tuple[Piece, ...]
@@ -129,10 +125,11 @@ class Move:
 
     def state_at(self, time_ns: int) -> MotionState:
         """Drive, drive speed and horn at ``time_ns``."""
-        piece = self._piece_at(time_ns)
+        final = self.pieces[-1]
+        piece = final if final.start_ns <= time_ns else self._piece_at(time_ns)
+        if piece is final:  # at rest (the usual case: a servo holding its goal)
+            return MotionState(final.drive_steps, 0.0, final.horn_steps)
         drive, speed = piece.drive_at(time_ns)
-        if piece is self.pieces[-1]:
-            return MotionState(piece.drive_steps, 0.0, piece.horn_steps)
         horn = horn_for(drive, piece.horn_steps, piece.direction, self.drive)
         return MotionState(drive, speed, horn)
 
@@ -198,7 +195,7 @@ def _landed(pieces: list[Piece], goal_steps: float, drive: Drive) -> Move:
     """The move, with the last rounding error taken off the horn's final position."""
     final = pieces[-1]
     if abs(final.horn_steps - goal_steps) < 1e-6:
-        pieces[-1] = replace(final, horn_steps=goal_steps)
+        pieces[-1] = final._replace(horn_steps=goal_steps)
     return Move(tuple(pieces), drive)
 
 

@@ -39,6 +39,7 @@ from pinarray.hardware.feetech.registers import (
     BAUD_RATE_BY_CODE,
     FIRST_RAM_ADDRESS,
     OFFSET_SIGN_BIT,
+    POSITION_SIGN_BIT,
     Register,
     StatusError,
     decode_position,
@@ -74,6 +75,9 @@ _PRESENT_VOLTAGE = Register.PRESENT_VOLTAGE.address
 _PRESENT_TEMPERATURE = Register.PRESENT_TEMPERATURE.address
 _SERVO_STATUS = Register.SERVO_STATUS.address
 _MOVING = Register.MOVING.address
+_OFFSET_SIGN = 1 << OFFSET_SIGN_BIT
+_OFFSET_MAGNITUDE = _OFFSET_SIGN - 1
+_POSITION_SIGN = 1 << POSITION_SIGN_BIT
 # The feedback block (present position .. present current), refreshed when read.
 FEEDBACK_START, FEEDBACK_END = 56, 71
 # Addresses a write cannot change: version and model (0-4), and the feedback block.
@@ -169,6 +173,8 @@ class SimServo:
         start = MotionState(float(position_steps), 0.0, float(position_steps))
         self._move: Move = at_rest(start_ns, start, self._drive())
         self._history: list[Move] | None = None
+        # Moves planned since someone asked (`log_moves`): the motion level's samples.
+        self._move_log: list[Move] | None = None
         self._recording_from_ns: int | None = None
         self._last_ns = start_ns
 
@@ -255,12 +261,15 @@ class SimServo:
 
     def read(self, address: int, length: int, now_ns: int) -> bytes:
         """Answer a READ: ``length`` bytes of the table from ``address``."""
-        self._touch(now_ns)
+        if now_ns > self._last_ns:
+            self._last_ns = now_ns
         end = address + length
         if address < FEEDBACK_END and end > FEEDBACK_START:
             self._refresh_feedback(now_ns, address, end)  # only then does the motion matter
+        if end <= TABLE_SIZE:
+            return bytes(self.table[address:end])
         data = bytes(self.table[address:end])
-        return data if len(data) == length else data + bytes(length - len(data))
+        return data + bytes(length - len(data))
 
     def write(self, address: int, data: bytes, now_ns: int) -> None:
         """Apply a WRITE; writes to EEPROM addresses are remembered so tests can forbid them."""
@@ -354,6 +363,20 @@ class SimServo:
             TrajectorySample(t, self.position_at_ns(t)) for t in range(start, end + 1, STEP_NS)
         ]
 
+    def log_moves(self) -> list[Move]:
+        """The move in force now and every move planned from now on, in a list that grows
+        until `stop_logging_moves`."""
+        self._move_log = [self._move]
+        return self._move_log
+
+    def stop_logging_moves(self) -> None:
+        self._move_log = None
+
+    @property
+    def folds_position(self) -> bool:
+        """Whether Present Position is folded into one turn (phase bit 4 clear)."""
+        return not self.table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK
+
     def carry_on_at(self, now_ns: int) -> None:
         """Go on from ``now_ns`` on another clock's time line, as if time had passed with
         nobody talking to the servo: a move in progress has ended, the table is as it was."""
@@ -410,6 +433,8 @@ class SimServo:
             self._move = at_rest(now_ns, state, drive)  # limp: the horn stays where it is
         if self._history is not None:
             self._history.append(self._move)
+        if self._move_log is not None:
+            self._move_log.append(self._move)
 
     def _calibrate_to_2048(self, now_ns: int) -> None:
         actual = round(self._move.state_at(now_ns).horn_steps)
@@ -418,17 +443,32 @@ class SimServo:
         self._set(Register.POSITION_OFFSET, encode_sign_magnitude(offset, OFFSET_SIGN_BIT))
         self._set(Register.GOAL_POSITION, 2048)  # hold still: the goal follows the new frame
 
+    def present_position_word(self, now_ns: int) -> int:
+        """What the Present Position register (56) reads at ``now_ns``: where the horn is,
+        less the position correction, folded into one turn unless phase bit 4 says not,
+        sign-magnitude (bit 15)."""
+        table = self.table
+        raw = table[_OFFSET] | table[_OFFSET + 1] << 8
+        magnitude = raw & _OFFSET_MAGNITUDE
+        offset = -magnitude if raw & _OFFSET_SIGN else magnitude
+        present = round(self._move.state_at(now_ns).horn_steps) - offset
+        if not table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK:
+            present %= 4096
+        if present < 0:
+            return min(32767, -present) | _POSITION_SIGN
+        return min(32767, present)
+
     def _refresh_feedback(self, now_ns: int, start: int = FEEDBACK_START,
                           end: int = FEEDBACK_END) -> None:
         """Bring the feedback registers within ``start .. end - 1`` up to ``now_ns`` (the
         others are not read: working them out would cost a sampled bus its every exchange)."""
         table, move = self.table, self._move
         if start < _PRESENT_POSITION + 2 and end > _PRESENT_POSITION:
-            present = round(move.state_at(now_ns).horn_steps) - self.offset_steps
-            if not table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK:
-                present %= 4096
-            present = max(-32767, min(32767, present))
-            self._put_word(_PRESENT_POSITION, encode_sign_magnitude(present, 15))
+            word = self.present_position_word(now_ns)
+            table[_PRESENT_POSITION] = word & 0xFF
+            table[_PRESENT_POSITION + 1] = word >> 8
+            if end <= _PRESENT_POSITION + 2:  # a motion sample: nothing else is read
+                return
         if start < _PRESENT_SPEED + 2 and end > _PRESENT_SPEED:
             speed = max(-32767, min(32767, round(move.horn_speed_at(now_ns))))
             self._put_word(_PRESENT_SPEED, encode_sign_magnitude(speed, 15))

@@ -14,12 +14,38 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NamedTuple
 
+from pinarray.hardware.feetech.registers import checksum
+
 BITS_PER_BYTE = 10
+# A status packet with no parameters: FF FF id len error checksum.
+STATUS_OVERHEAD_BYTES = 6
 
 
 def byte_time_ns(baud_rate: float) -> float:
     """Nanoseconds one byte occupies the wire at ``baud_rate`` bit/s."""
     return BITS_PER_BYTE * 1e9 / baud_rate
+
+
+def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
+    """``FF FF id len err params chk`` with ``len = len(params) + 2``."""
+    body = bytes((servo_id, len(params) + 2, error)) + params
+    return b"\xff\xff" + body + bytes((checksum(body),))
+
+
+class Answer(NamedTuple):
+    """A status packet a servo is to send, before it is bytes: its id, error byte and data,
+    the servo's return delay (ns), and whether it waits for the line (a SYNC READ's)."""
+
+    reply_id: int
+    error: int
+    params: bytes
+    delay_ns: int
+    chained: bool = False
+
+    @property
+    def size(self) -> int:
+        """Its bytes on the wire."""
+        return STATUS_OVERHEAD_BYTES + len(self.params)
 
 
 class StatusReply(NamedTuple):

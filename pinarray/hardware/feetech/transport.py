@@ -2,8 +2,10 @@
 
 ``url`` is either a serial device (``/dev/ttyUSB0``, ``COM3``, or any pyserial URL such as
 ``spy:///dev/ttyUSB0``) or a simulated bus ``sim://?ids=1-16&...`` (grammar in
-`pinarray.hardware.feetech.faults`). Both end up as a `FeetechBus` over a `Link`; only the `Wire` under
-it differs: the device's file descriptor, or the in-process simulator's pyserial look-alike.
+`pinarray.hardware.feetech.faults`). Both end up as a `FeetechBus` over a `Link`; only what is
+under it differs: the device's file descriptor, or the in-process simulator at the level its
+URL asks for (`pinarray.hardware.feetech.sim_levels`: its pyserial look-alike at the wire
+level, exchanges computed whole at the packet level, the default).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pinarray.errors import BusError
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.faults import is_sim_url, parse_sim_url
 from pinarray.hardware.feetech.link import FdWire, Latency, Link, PolledWire, Wire
+from pinarray.hardware.feetech.sim_levels import IN_PROCESS_DEFAULT, Fidelity
 
 if TYPE_CHECKING:
     from pinarray.hardware.feetech.feetech import FeetechBus
@@ -89,26 +92,14 @@ def open_bus(
 
     warnings: list[str] = []
     if is_sim_url(url):
-        from pinarray.hardware.feetech.sim import SimBus, SimSerial
-
-        config = parse_sim_url(url)
-        clock = clock or VirtualClock()
-        baud_rate = config.baud_rate or baud_rate
-        if sim is None:
-            sim = SimBus(config, clock)
-        else:
-            sim.reopen(clock)
-        wire: Wire = PolledWire(SimSerial(sim, clock, baud_rate, port=url), clock, url)
-        latency = Latency(timer_ms=0, learns=False)
+        bus = _open_simulated(url, clock, baud_rate, retries, sim)
     else:
-        sim = None  # real servos keep their state themselves
         clock = clock or MonotonicClock()
         wire = _open_device(url, baud_rate, clock)
         latency = Latency(timer_ms=latency_timer_ms(url))
         if (message := latency_warning(url)) is not None:
             warnings.append(message)
-    bus = FeetechBus(Link(wire, clock, baud_rate, latency), clock, retries=retries)
-    bus.sim = sim
+        bus = FeetechBus(Link(wire, clock, baud_rate, latency), clock, retries=retries)
     bus.warnings.extend(warnings)
     if setup is not None:
         try:
@@ -117,6 +108,52 @@ def open_bus(
             bus.close()
             raise
     return bus
+
+
+def _open_simulated(url: str, clock: Clock | None, baud_rate: int, retries: int,
+                    sim: SimBus | None) -> FeetechBus:
+    """The in-process simulator for a ``sim://`` URL, at the level it asks for (the packet
+    level unless it says: `pinarray.hardware.feetech.sim_levels`)."""
+    from pinarray.hardware.feetech.feetech import FeetechBus
+    from pinarray.hardware.feetech.sim import SimBus, SimSerial
+
+    config = parse_sim_url(url)
+    clock = clock or VirtualClock()
+    baud_rate = config.baud_rate or baud_rate
+    if sim is None:
+        sim = SimBus(config, clock)
+    else:
+        sim.reopen(clock)
+    port = SimSerial(sim, clock, baud_rate, port=url)
+    latency = Latency(timer_ms=0, learns=False)  # no adapter: nothing to learn
+    level = config.fidelity or IN_PROCESS_DEFAULT
+    if level is Fidelity.WIRE:
+        bus = FeetechBus(Link(PolledWire(port, clock, url), clock, baud_rate, latency), clock,
+                         retries=retries)
+    else:
+        from pinarray.hardware.feetech.sim_packet import PacketLink
+
+        link = PacketLink(port, clock, baud_rate, latency, url)
+        if level is Fidelity.MOTION:
+            from pinarray.hardware.feetech.sim_samples import MotionLevelBus
+
+            bus = MotionLevelBus(link, clock, sim, retries=retries)
+        else:
+            bus = FeetechBus(link, clock, retries=retries)
+    bus.sim = sim
+    return bus
+
+
+def fidelity_of(bus: FeetechBus) -> Fidelity | None:
+    """The level a bus is simulated at (None: real servos, or a pseudo-terminal's)."""
+    if bus.sim is None:
+        return None
+    from pinarray.hardware.feetech.sim_packet import PacketLink
+    from pinarray.hardware.feetech.sim_samples import MotionLevelBus
+
+    if isinstance(bus, MotionLevelBus):
+        return Fidelity.MOTION
+    return Fidelity.PACKET if isinstance(bus.link, PacketLink) else Fidelity.WIRE
 
 
 def _open_device(url: str, baud_rate: int, clock: Clock) -> Wire:

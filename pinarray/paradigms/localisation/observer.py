@@ -1,6 +1,7 @@
-"""A simulated subject, for piloting a protocol and testing the runner without people.
+"""A simulated subject naming the pin that moved, for piloting a protocol and testing the runner
+without people.
 
-Localisation: a subject who feels the stimulus reports pin ``r`` for stimulated pin ``s``
+A subject who feels the stimulus reports pin ``r`` for stimulated pin ``s``
 with probability proportional to ``exp(-d(s, r) / sigma)``, where ``d`` is the distance
 between the pins in grid pitches and ``sigma`` (the spatial spread) shrinks as frequency
 rises. ``sigma`` is not given directly: it is solved, per anchor frequency, so that the mean
@@ -11,27 +12,21 @@ and the centre worst without being told to; a per-pin acuity factor scales ``sig
 single pins (the seed found pin 4 best localised). Calibrate on the pins a protocol uses
 (`ObserverModel.for_protocol`): averaged over other pins the same spread gives other rates.
 
-Motion: on a wave trial the subject feels motion with probability ``motion_felt``; having
-felt it, names the right direction with ``direction_given_felt``, says "unsure" with
-``unsure_given_felt``, and otherwise names the wrong one. On a no-wave trial motion is felt
-with ``no_wave_felt`` and the named direction is left or right with equal odds.
-
-Subjects differ. Each simulated subject draws three independent offsets from a normal
-distribution with standard deviation ``subject_sd_logit``: one shifts the logit of the share
-of the way from chance to perfect localisation (the same offset at every frequency, so a good
-subject is good everywhere), one the logit of ``motion_felt``, one the logit of the share of
-the way from 0 to ``1 - unsure_given_felt`` of ``direction_given_felt``. The population is
-calibrated so the *average subject's* rates are the targets: the model's anchors and motion
-probabilities are population means, not the rates of a subject with offset 0.
+Subjects differ. A simulated subject of the seed's experiments draws three independent offsets
+from a normal distribution with standard deviation ``subject_sd_logit`` (`OFFSETS`, drawn
+alike whichever of the two experiments it answers, so one seed is one subject): the first,
+localisation's, shifts the logit of the share of the way from chance to perfect localisation
+(the same offset at every frequency, so a good subject is good everywhere). The population is calibrated so the *average subject's*
+rates are the targets: the model's anchors are population means, not the rates of a subject
+with offset 0.
 
 The defaults reproduce the seed's reported figures in expectation (section 9.7.1): 62.5 %
 correct at 10 Hz, rising with frequency (the 3 and 5 Hz targets, 40 % and 50 %, are this
 model's assumptions: the seed shows them only in a figure), error A the most frequent error
-at every frequency, 77 % motion felt and 65 % of those naming the direction right. The seed
-reports no spread between its subjects; the default ``subject_sd_logit`` of 0.5 is an
-assumption that puts the middle 95 % of subjects between about 41 % and 82 % correct at
-10 Hz on the localisation protocol's 8 pins (`ObserverModel.subject_range`). Set it to 0 for
-identical subjects.
+at every frequency. The seed reports no spread between its subjects; the default
+``subject_sd_logit`` of 0.5 is an assumption that puts the middle 95 % of subjects between
+about 41 % and 82 % correct at 10 Hz on the localisation protocol's 8 pins
+(`ObserverModel.subject_range`). Set it to 0 for identical subjects.
 
 Past 400 lines on purpose: the model of one simulated subject and the arithmetic that
 calibrates a population of them on the seed's figures belong together; apart, neither reads.
@@ -41,36 +36,45 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from functools import cache, lru_cache
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from pinarray.analysis.observers import (
+    QUADRATURE_NODES,
+    centre,
+    check_fraction,
+    draw_offsets,
+    expit,
+    hermite,
+    observer_items,
+    observer_number,
+)
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
-from pinarray.protocol.model import Direction, LocalisationCondition, MotionAnswer
+from pinarray.paradigms.localisation.design import LocalisationCondition
+from pinarray.protocol.model import Condition
 from pinarray.protocol.yaml_nodes import exact_number
 
 if TYPE_CHECKING:
     from pinarray.protocol import Protocol
 
-# The directions a subject may name when a protocol does not say (the seed's rows).
-ROW_DIRECTIONS = (Direction.LEFT, Direction.RIGHT)
-_OPPOSITE_WORD = {"left": "right", "right": "left", "up": "down", "down": "up"}
 DEFAULT_SUBJECT_SD_LOGIT = 0.5
 _MAX_SUBJECT_SD_LOGIT = 5.0
-_QUADRATURE_NODES = 40  # Gauss-Hermite nodes for averages over subjects
-_LOGIT_LIMIT = 30.0  # expit(30) = 1 - 1e-13: keeps a subject's rates strictly inside (0, 1)
+OFFSETS = 3  # a subject of the seed's experiments draws three, whichever it answers
 
 
 class SubjectOffsets(NamedTuple):
-    """One simulated subject's random effects, on the logit scale (0 = the median subject)."""
+    """One simulated subject's random effects, on the logit scale (0 = the median subject):
+    the seed's three, of which localisation takes the first (the others are the other
+    experiment's)."""
 
     localisation_logit: float = 0.0
-    motion_felt_logit: float = 0.0
-    direction_logit: float = 0.0
+    second_logit: float = 0.0
+    third_logit: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -88,8 +92,6 @@ class ObserverModel:
         Multiplies ``sigma`` for single pins; below 1 localises that pin better.
     calibration_pins : tuple of int, optional
         Pins the anchors average over; all pins of ``grid`` when empty.
-    motion_felt, direction_given_felt, unsure_given_felt, no_wave_felt : float
-        Motion-task probabilities (population means), described in the module docstring.
     subject_sd_logit : float
         Standard deviation of the subject random effects, in logit units (module docstring);
         0 makes every subject the same. Default 0.5.
@@ -101,10 +103,6 @@ class ObserverModel:
     pin_acuity: tuple[tuple[int, float], ...] = ((4, 0.8),)
     calibration_pins: tuple[int, ...] = ()
     grid: Grid = DEFAULT_GRID
-    motion_felt: float = 0.77
-    direction_given_felt: float = 0.65
-    unsure_given_felt: float = 0.10
-    no_wave_felt: float = 0.30
     subject_sd_logit: float = DEFAULT_SUBJECT_SD_LOGIT
 
     def __post_init__(self) -> None:
@@ -114,18 +112,11 @@ class ObserverModel:
         object.__setattr__(self, "pin_acuity",
                            tuple((int(p), float(a)) for p, a in self.pin_acuity))
         object.__setattr__(self, "calibration_pins", tuple(self.calibration_pins))
-        for name in ("miss_rate", "motion_felt", "direction_given_felt", "unsure_given_felt",
-                     "no_wave_felt"):
-            _check_fraction(name, getattr(self, name))
+        check_fraction("miss_rate", self.miss_rate)
         if not 0 <= self.subject_sd_logit <= _MAX_SUBJECT_SD_LOGIT:
             raise PinArrayError(
                 f"observer: subject_sd_logit must lie from 0 to {_MAX_SUBJECT_SD_LOGIT:g} "
                 f"(logit units), found {self.subject_sd_logit}"
-            )
-        if self.direction_given_felt + self.unsure_given_felt > 1:
-            raise PinArrayError(
-                "observer: direction_given_felt + unsure_given_felt must be at most 1, found "
-                f"{self.direction_given_felt} + {self.unsure_given_felt}"
             )
         anchors = sorted(self.correct_by_frequency)
         if not anchors:
@@ -185,28 +176,19 @@ class ObserverModel:
 
     def draw_subject(self, rng: np.random.Generator) -> SubjectOffsets:
         """One subject's offsets, drawn from ``rng`` (nothing is drawn when the SD is 0)."""
-        if self.subject_sd_logit == 0:
-            return SubjectOffsets()
-        return SubjectOffsets(*(float(u) for u in rng.normal(0.0, self.subject_sd_logit, 3)))
+        return SubjectOffsets(*draw_offsets(rng, self.subject_sd_logit, OFFSETS))
 
     def individual(self, offsets: SubjectOffsets) -> ObserverModel:
-        """The model of one subject: its own anchors and motion rates, no further spread."""
+        """The model of one subject: its own anchors, no further spread."""
         if self.subject_sd_logit == 0 and offsets == SubjectOffsets():
             return self  # every subject of a population without spread is the same one
-        centres = _population_centres(self)
         anchors = tuple(
             (f, self.chance + (self.ceiling - self.chance)
-             * _expit(centre + offsets.localisation_logit))
-            for (f, _), centre in zip(sorted(self.correct_by_frequency), centres.anchors,
-                                      strict=True)
+             * expit(at + offsets.localisation_logit))
+            for (f, _), at in zip(sorted(self.correct_by_frequency), _anchor_centres(self),
+                                  strict=True)
         )
-        top = 1 - self.unsure_given_felt
-        return replace(
-            self, correct_by_frequency=anchors, subject_sd_logit=0.0,
-            motion_felt=_shifted(self.motion_felt, 1.0, centres.felt, offsets.motion_felt_logit),
-            direction_given_felt=_shifted(self.direction_given_felt, top, centres.direction,
-                                          offsets.direction_logit),
-        )
+        return replace(self, correct_by_frequency=anchors, subject_sd_logit=0.0)
 
     def subject_range(self, frequency_hz: float, coverage: float = 0.95) -> tuple[float, float]:
         """Correct fractions between which the middle ``coverage`` of subjects fall."""
@@ -304,100 +286,19 @@ class ObserverModel:
         correct = np.diag(self.report_probabilities(frequency_hz)[:, 1:])
         return correct.reshape(self.grid.rows, self.grid.columns)
 
-    def motion_probabilities(
-        self, direction: Direction | str, directions: Sequence[Direction] = ROW_DIRECTIONS
-    ) -> dict[MotionAnswer, float]:
-        """Exact answer probabilities for a wave going ``direction`` (one of ``directions``,
-        the ones the subject may name, or none), in the order none, ``directions``, unsure.
-
-        A felt no-wave is named any of the directions alike; a wave's direction named wrongly
-        is named opposite (right for left, down-left for up-right) when that may be answered,
-        else any other direction alike, else unsure. For a population these are the averages
-        over subjects: felt and direction offsets are independent, so the average of their
-        product is the product of the averages.
-        """
-        direction = _direction(direction, directions)
-        unsure = self.unsure_given_felt
-        answers = dict.fromkeys(
-            (MotionAnswer.NONE, *map(MotionAnswer, directions), MotionAnswer.UNSURE), 0.0)
-        if direction == Direction.NONE:
-            felt = self.no_wave_felt
-            for named in directions:
-                answers[MotionAnswer(named)] = felt * ((1 - unsure) / len(directions))
-            if not directions:  # nothing to name but unsure
-                answers[MotionAnswer.UNSURE] = felt * (1 - unsure)
-        else:
-            felt = self.motion_felt
-            opposite = "-".join(_OPPOSITE_WORD.get(w, w) for w in direction.split("-"))
-            others: list[str] = ([opposite] if opposite in directions
-                                 else [d for d in directions if d != direction]
-                                 or [MotionAnswer.UNSURE])
-            wrong = felt * (1 - self.direction_given_felt - unsure)
-            answers[MotionAnswer(direction)] = felt * self.direction_given_felt
-            for other in others:
-                answers[MotionAnswer(other)] += wrong / len(others)
-        answers[MotionAnswer.NONE] = 1 - felt
-        answers[MotionAnswer.UNSURE] += felt * unsure
-        return answers
-
-
-class _Centres(NamedTuple):
-    anchors: tuple[float, ...]  # logit centre of each anchor's share above chance
-    felt: float
-    direction: float
-
-
-def _expit(x: float) -> float:
-    x = min(max(x, -_LOGIT_LIMIT), _LOGIT_LIMIT)
-    return 1 / (1 + math.exp(-x))
-
-
-def _shifted(mean: float, top: float, centre: float, offset: float) -> float:
-    """A subject's rate on (0, top) whose population mean is ``mean``; ends stay put."""
-    if mean <= 0 or mean >= top:
-        return mean
-    return top * _expit(centre + offset)
-
 
 @cache
-def _hermite(nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """Nodes and weights for the mean of f(Z), Z standard normal: sum(w * f(z))."""
-    x, w = np.polynomial.hermite.hermgauss(nodes)
-    return math.sqrt(2) * x, w / math.sqrt(math.pi)
-
-
-def _centre(share: float, sd: float) -> float:
-    """The logit centre m with E[expit(m + sd * Z)] = share, Z standard normal."""
-    if share <= 0 or share >= 1:
-        return 0.0  # unused: `_shifted` keeps a rate at 0 or at its top where it is
-    if sd == 0:
-        return math.log(share / (1 - share))
-    z, w = _hermite(_QUADRATURE_NODES)
-    low, high = -2 * _LOGIT_LIMIT, 2 * _LOGIT_LIMIT
-    for _ in range(100):  # the mean rises with m, so bisection finds it
-        middle = (low + high) / 2
-        mean = float(w @ (1 / (1 + np.exp(-np.clip(middle + sd * z, -700, 700)))))
-        low, high = (middle, high) if mean < share else (low, middle)
-    return (low + high) / 2
-
-
-@cache
-def _population_centres(model: ObserverModel) -> _Centres:
+def _anchor_centres(model: ObserverModel) -> tuple[float, ...]:
+    """Each anchor's logit centre of its share above chance, over the population."""
     sd = model.subject_sd_logit
     span = model.ceiling - model.chance
-    return _Centres(
-        anchors=tuple(_centre((c - model.chance) / span, sd)
-                      for _, c in sorted(model.correct_by_frequency)),
-        felt=_centre(model.motion_felt, sd),
-        direction=_centre(model.direction_given_felt / (1 - model.unsure_given_felt)
-                          if model.unsure_given_felt < 1 else 0.0, sd),
-    )
+    return tuple(centre((c - model.chance) / span, sd) for _, c in sorted(model.correct_by_frequency))
 
 
 @cache
 def _population(model: ObserverModel) -> tuple[tuple[float, ObserverModel], ...]:
     """Quadrature weights and the subjects at their nodes, for averages over subjects."""
-    z, w = _hermite(_QUADRATURE_NODES)
+    z, w = hermite(QUADRATURE_NODES)
     sd = model.subject_sd_logit
     return tuple((float(weight), model.individual(SubjectOffsets(float(sd * node))))
                  for node, weight in zip(z, w, strict=True))
@@ -429,19 +330,6 @@ def _log_anchor_sigmas(model: ObserverModel) -> tuple[list[float], list[float]]:
     anchors = sorted(model.correct_by_frequency)
     sigmas = model._solve_sigmas([c for _, c in anchors])
     return [math.log(f) for f, _ in anchors], [math.log(s) for s in sigmas]
-
-
-def _direction(direction: Direction | str, directions: Sequence[Direction]) -> Direction:
-    """A wave direction the subject may name (or none), or a one-line error naming what came."""
-    if direction != Direction.NONE and direction not in directions:
-        raise PinArrayError(f"observer: wave direction must be {', '.join(directions)} or none, "
-                            f"found {direction!r}")
-    return Direction(direction)
-
-
-def _check_fraction(name: str, value: float) -> None:
-    if not 0 <= value <= 1:
-        raise PinArrayError(f"observer: {name} must be a fraction from 0 to 1, found {value}")
 
 
 class SimulatedObserver:
@@ -481,52 +369,23 @@ class SimulatedObserver:
         answer = min(int(np.searchsorted(row, self.rng.random(), side="right")), len(row) - 1)
         return answer or None
 
-    def respond_motion(
-        self, direction: Direction | str, directions: Sequence[Direction] = ROW_DIRECTIONS
-    ) -> MotionAnswer:
-        """What the subject says of a wave going ``direction`` (one of ``directions``, those
-        the subject may name) or not at all (`Direction.NONE`)."""
-        probabilities = self.subject.motion_probabilities(direction, directions)
-        draw, total = self.rng.random(), 0.0
-        for answer, probability in probabilities.items():
-            total += probability
-            if draw < total:
-                return answer
-        return MotionAnswer.UNSURE
-
-
-def observer_number(item: str, text: str) -> float:
-    """The number of an ``--observer`` item ``name=text``, written as a protocol writes its
-    numbers (ASCII decimal, ``1/3``; not ``1_000``, ``inf`` or ``1e400``)."""
-    try:
-        return float(exact_number(text))
-    except ValueError as problem:
-        raise PinArrayError(f"observer: {item.strip()!r}: {problem}") from None
-
-
-def observer_items(spec: str) -> list[tuple[str, str, str]]:
-    """``name=value,...`` as (item, name, value text), each name once."""
-    found: list[tuple[str, str, str]] = []
-    for item in spec.split(","):
-        name, equals, text = (part.strip() for part in item.partition("="))
-        if not equals:
-            raise PinArrayError(f"observer: {item.strip()!r}: expected name=number")
-        if any(name == seen for _, seen, _ in found):
-            raise PinArrayError(f"observer: {name!r} is given twice; give each parameter once")
-        found.append((item, name, text))
-    return found
+    def __call__(self, condition: Condition) -> str:
+        """The subject's answer to a trial presenting ``condition``: a pin, or none."""
+        assert isinstance(condition, LocalisationCondition)
+        named = self.respond_localisation(condition.pin, float(condition.frequency_hz))
+        return "none" if named is None else str(named)
 
 
 def parse_observer(spec: str) -> ObserverModel:
     """An `ObserverModel` from command-line text: ``default`` or ``name=value,...`` overrides.
 
-    Scalar parameters are set by name (``motion_felt=0.9,subject_sd_logit=0``); an anchor by
+    Scalar parameters are set by name (``miss_rate=0.1,subject_sd_logit=0``); an anchor by
     ``correct_<f>hz=<fraction>`` (``correct_10hz=0.7``), replacing or adding that frequency.
     """
     model = ObserverModel()
     if spec.strip() in ("", "default"):
         return model
-    scalars = {f.name for f in fields(ObserverModel) if f.type == "float"}
+    scalars = {"miss_rate", "subject_sd_logit"}
     anchors = dict(model.correct_by_frequency)
     changes: dict[str, Any] = {}
     for item, name, text in observer_items(spec):
@@ -548,3 +407,9 @@ def parse_observer(spec: str) -> ObserverModel:
                 f"{sorted(scalars)} or correct_<Hz>hz"
             )
     return replace(model, correct_by_frequency=tuple(sorted(anchors.items())), **changes)
+
+
+def observer(protocol: Protocol, spec: str, seed: int | None) -> SimulatedObserver:
+    """The simulated subject ``--observer`` names for a localisation design, calibrated on its
+    pins."""
+    return SimulatedObserver(parse_observer(spec).for_protocol(protocol), seed=seed)

@@ -1,12 +1,12 @@
-"""The stimulus actually delivered: each pin's achieved stroke by frequency, from the rows.
+"""The stimulus actually delivered: each pin's achieved stroke by frequency, from localisation's
+rows.
 
 The source is ``beh.tsv``'s stroke columns (``stroke_commanded``, ``stroke_achieved``,
 ``cycles_short``): the run measured them from each trial's sampled positions against the
 exact times of its goal changes (`pinarray.hardware.motion`), which the motion recording
 keeps only as the goal in force at each sample. A row describes one pin: in a localisation
 trial the one pin that moved (its ``pin``), at the row's ``frequency_hz``, so localisation
-rows give each pin's frequency response. A motion trial moves several pins and has no single
-frequency: its strokes are counted (`StrokeTable.motion_trials`) but not tabled.
+rows give each pin's frequency response.
 
 Every row of the counted runs with a measured stroke counts, practice and invalid rows too: a
 stroke below the protocol's tolerance makes a trial invalid, and leaving those out would
@@ -22,7 +22,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from statistics import median
 
-from pinarray.journal.records import LocalisationRecord, TrialRecord
+from pinarray.journal.records import TrialRecord
+from pinarray.paradigms.localisation.rows import LocalisationRecord
 
 
 @dataclass(frozen=True)
@@ -55,32 +56,25 @@ class StrokeRow:
 
 @dataclass(frozen=True)
 class StrokeTable:
-    """`StrokeRow` s by pin, frequency and commanded stroke, and the measured rows not in them.
-
-    ``motion_trials``: motion rows with a measured stroke (no single frequency);
-    ``not_measured``: localisation rows whose pin was sampled too sparsely to judge a cycle.
-    """
+    """`StrokeRow` s by pin, frequency and commanded stroke, and the measured rows not in them
+    (``not_measured``: rows whose pin was sampled too sparsely to judge a cycle)."""
 
     rows: tuple[StrokeRow, ...]
-    motion_trials: int = 0
     not_measured: int = 0
 
     @property
     def measured(self) -> bool:
-        return bool(self.rows or self.motion_trials or self.not_measured)
+        return bool(self.rows or self.not_measured)
 
 
 def stroke_table(rows: Iterable[tuple[TrialRecord, Sequence[float]]]) -> StrokeTable:
     """Each pin's achieved strokes by frequency from ``rows``: a row with its run's
     ``mm_per_step`` (pin 1 first; empty where the manifest does not say)."""
-    groups: dict[tuple[int, float, int, float | None], list[TrialRecord]] = {}
-    motion = not_measured = 0
+    groups: dict[tuple[int, float, int, float | None], list[LocalisationRecord]] = {}
+    not_measured = 0
     for record, mm_per_step in rows:
         stroke = record.stroke
-        if stroke is None:
-            continue
-        if not isinstance(record, LocalisationRecord):
-            motion += stroke.achieved_steps is not None
+        if stroke is None or not isinstance(record, LocalisationRecord):
             continue
         if stroke.achieved_steps is None:
             not_measured += 1
@@ -96,4 +90,4 @@ def stroke_table(rows: Iterable[tuple[TrialRecord, Sequence[float]]]) -> StrokeT
         short = sum(1 for r in records if r.stroke is not None and r.stroke.short_cycles)
         table.append(StrokeRow(pin, frequency_hz, commanded, per_step, min(achieved),
                                float(median(achieved)), max(achieved), len(achieved), short))
-    return StrokeTable(tuple(table), motion, not_measured)
+    return StrokeTable(tuple(table), not_measured)

@@ -1,0 +1,19 @@
+"""Identification: a pattern of pins; which one was it, or how many pins?
+
+The room: `design` (its conditions and how its design section is read; pure), `rows` (its
+results' records and columns), `analysis` (what its rows show) and `observer` (its
+simulated subject).
+"""
+
+from __future__ import annotations
+
+from pinarray.paradigms.base import Room
+from pinarray.paradigms.identification.design import IdentificationDesign
+
+
+class IdentificationParadigm(Room, IdentificationDesign):
+    """The paradigm (`pinarray.paradigms.base.Paradigm`): its design here, its rows and
+    analysis imported when first asked for."""
+
+
+PARADIGM = IdentificationParadigm()

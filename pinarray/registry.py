@@ -1,0 +1,93 @@
+"""Which paradigms there are, by the name a protocol's ``paradigm:`` gives: a registry.
+
+A paradigm is one room (`pinarray.paradigms`): a package that implements the paradigm seam
+(`pinarray.paradigms.base.Paradigm`). pinarray's own rooms are listed here, by module; a
+lab's own paradigm, in a package of its own, is found by its entry point in the group
+``pinarray.paradigms`` (``name = "package.module:PARADIGM"``), e.g. in its pyproject.toml::
+
+    [project.entry-points."pinarray.paradigms"]
+    vibration_count = "pinarray_vibration_count:PARADIGM"
+
+Rooms are imported when first asked for, and entry points are read only when a name is not
+one of pinarray's own (or every paradigm is asked for), so reading a protocol of a shipped
+paradigm costs one import. Nothing here knows what a paradigm does: the layers that use one
+check it implements their part of the seam (`pinarray.protocol.seam`, `pinarray.journal.seam`,
+`pinarray.analysis.seam`). Pure Python.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from functools import cache
+
+from pinarray.errors import PinArrayError
+
+GROUP = "pinarray.paradigms"
+# pinarray's own rooms, each module's `PARADIGM`, in the order results files older than the
+# seam tell their rows apart (a row names at most one of them).
+BUILT_IN = {
+    "identification": "pinarray.paradigms.identification",
+    "two_interval": "pinarray.paradigms.two_interval",
+    "temporal_order": "pinarray.paradigms.temporal_order",
+    "localisation": "pinarray.paradigms.localisation",
+    "apparent_motion": "pinarray.paradigms.apparent_motion",
+    "two_point": "pinarray.paradigms.two_point",
+}
+# The order people read them in (validate's list of what a design may name).
+LISTED = ("localisation", "apparent_motion", "identification", "two_interval", "temporal_order",
+          "two_point")
+NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
+
+
+@cache
+def _plug_ins() -> dict[str, str]:
+    """Installed packages' paradigms: name -> entry point value, pinarray's own names left
+    out (a plug-in cannot replace a shipped paradigm)."""
+    from importlib.metadata import entry_points
+
+    found: dict[str, str] = {}
+    for point in entry_points(group=GROUP):
+        if point.name not in BUILT_IN and NAME.fullmatch(point.name):
+            found.setdefault(point.name, point.value)
+    return dict(sorted(found.items()))
+
+
+def names() -> tuple[str, ...]:
+    """Every paradigm a protocol may name: pinarray's own, then the installed plug-ins'."""
+    return (*LISTED, *_plug_ins())
+
+
+def is_known(name: str) -> bool:
+    """Whether ``name`` is a paradigm (pinarray's own, or an installed plug-in's)."""
+    return name in BUILT_IN or name in _plug_ins()
+
+
+@cache
+def room(name: str) -> object:
+    """The paradigm called ``name``, its room imported on first use; a `PinArrayError` naming
+    the paradigms there are when there is none, or the plug-in when it cannot be loaded."""
+    if name in BUILT_IN:
+        return importlib.import_module(BUILT_IN[name]).PARADIGM
+    value = _plug_ins().get(name)
+    if value is None:
+        raise PinArrayError(f"expected a paradigm ({', '.join(names())}), found {name!r}")
+    module, _, attribute = value.partition(":")
+    try:
+        found = importlib.import_module(module)
+        for part in attribute.split(".") if attribute else ():
+            found = getattr(found, part)
+    except Exception as problem:  # a lab's package: whatever it raises, said in one line
+        raise PinArrayError(f"paradigm {name!r}: its package ({value}, entry point group "
+                            f"{GROUP}) cannot be loaded: {type(problem).__name__}: "
+                            f"{problem}") from None
+    if getattr(found, "name", None) != name:
+        raise PinArrayError(f"paradigm {name!r}: the entry point ({value}) gives "
+                            f"{type(found).__name__}, whose name is "
+                            f"{getattr(found, 'name', None)!r}, not {name!r}")
+    return found
+
+
+def rooms() -> tuple[object, ...]:
+    """Every paradigm, pinarray's own first (in the order `BUILT_IN` lists them)."""
+    return tuple(room(name) for name in (*BUILT_IN, *_plug_ins()))
