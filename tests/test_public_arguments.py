@@ -230,6 +230,9 @@ def test_an_onset_that_has_passed_is_said_to_have_passed(array, protocol):
     assert f"at_ns {now_ns - 5_000_000} had passed 5.0 ms ago" in refused(
         array.arm, condition, at_ns=now_ns - 5_000_000)
     assert "is only 5.0 ms ahead" in refused(array.arm, condition, at_ns=now_ns + 5_000_000)
+    # Just short of the lead: never "20.0 ms ahead: arm it at least 20 ms ahead".
+    assert f"is only {array.lead_ns / 1e6 - 0.02:.3f} ms ahead" in refused(
+        array.arm, condition, at_ns=now_ns + array.lead_ns - 20_000)
 
 
 def test_the_array_names_its_port_as_the_script_gave_it(protocol):

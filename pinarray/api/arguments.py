@@ -194,9 +194,11 @@ def onset_ns(call: str, value: object, now_ns: int, lead_ns: int) -> int:
                             f"the array's clock ({now_ns} ns): arm it at least "
                             f"{lead_ns / 1e6:g} ms ahead")
     if ahead_ns < lead_ns:
-        raise PinArrayError(f"{call}: at_ns {at_ns} is only {ahead_ns / 1e6:.1f} ms ahead of "
-                            f"the array's clock ({now_ns} ns): arm it at least "
-                            f"{lead_ns / 1e6:g} ms ahead")
+        ahead_ms = f"{ahead_ns / 1e6:.1f}"
+        if float(ahead_ms) >= lead_ns / 1e6:  # 19.98 ms is not "20.0 ms", short of 20 ms
+            ahead_ms = f"{ahead_ns / 1e6:.3f}"
+        raise PinArrayError(f"{call}: at_ns {at_ns} is only {ahead_ms} ms ahead of the array's "
+                            f"clock ({now_ns} ns): arm it at least {lead_ns / 1e6:g} ms ahead")
     if ahead_ns > MAX_AHEAD_NS:
         raise PinArrayError(f"{call}: at_ns {at_ns} is {ahead_ns / 1e9:.1f} s ahead of the "
                             f"array's clock ({now_ns} ns): at most {MAX_AHEAD_NS / 1e9:g} s "
