@@ -4,7 +4,8 @@ player process that stops answering, a script suspended mid-stimulus), a port ha
 whatever names it, a stimulus cut is reported cut, the stimulus after a stop is ready when
 armed, an array let go of is closed. On both ways to the pins where the way matters (the
 in-process simulator, a serial port served on a pseudo-terminal with the player process
-playing). How fast each of these is is `make bench`'s (bench_stop), never asserted here."""
+playing). How fast each of these is is `make bench`'s (bench_stop, bench_ways_out), never
+asserted here."""
 
 import gc
 import os
@@ -376,7 +377,7 @@ def test_an_array_let_go_of_without_close_is_closed_its_pins_released_its_port_f
 
 @realtime
 def test_open_array_where_no_servo_answers_gives_up_after_asking_each_id_twice(tmp_path):
-    # Servo power off, the wrong adapter: every id named at once, soon (bench: bench_stop).
+    # Servo power off, the wrong adapter: every id named at once, soon (bench: bench_ways_out).
     protocol = buzz(tmp_path, 0.4)
     server = PtyServer(SimConfig(ids=(200,)), record_arrivals=True).start()
     try:

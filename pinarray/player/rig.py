@@ -265,9 +265,9 @@ class Rig:
 
     def ready(self) -> None:
         """Ready to play: the player process running, torque on (after a fault or a stop
-        released it, the handshake turns it back on, checking every servo: tens of ms on
-        real servos). `present` does this first; a stimulus armed for a time does it before
-        its onset is taken."""
+        released it, the driver turns it back on: `ArrayDriver.reconnect`, on bus servos a
+        few exchanges of the whole bus, the handshake only where they fall short). `present`
+        does this first; `PinArray.arm` before it returns, its onset checked."""
         with self._port:
             if self.player is not None and not self.player.alive:
                 # Started again before torque can come back on, so that it guards it.

@@ -123,8 +123,9 @@ def hold_again(bus: FeetechBus) -> None:
     The light way: one SYNC READ of where the horns are (every servo answering, none with an
     error bit, is what the handshake's pings would have found: ids, models and EEPROM limits
     cannot have changed under a port this array holds), then the registers `hold` writes, in
-    three SYNC WRITEs, read back in one SYNC READ. A few milliseconds, against the
-    handshake's tens. Wherever that falls short (a servo silent or reporting an error, a
+    three SYNC WRITEs, read back in one SYNC READ: for 16 servos some 8 ms where they answer
+    at once (return delay 0), 24 ms at the factory's 500 us (`make bench`: bench_ways_out),
+    against the handshake's 100-170 ms, every servo asked in turn. Wherever that falls short (a servo silent or reporting an error, a
     value not taken, a bus without SYNC READ), the whole handshake (`check`, `hold`), which
     names what is wrong.
     """
