@@ -224,6 +224,15 @@ def test_a_condition_not_found_is_said_in_a_line_of_reasonable_length(protocol, 
     assert len(refused(pinarray.find_condition, protocol, **filters)) < 600
 
 
+@pytest.mark.parametrize("model", ["x" * 10_000, "x" * 10_000 + "=1",
+                                   "correct_" + "9" * 1000 + "hz=0.5"],
+                         ids=["no name=number", "a long name", "a long frequency"])
+def test_a_simulated_subject_model_refused_is_said_in_a_line_of_reasonable_length(protocol,
+                                                                                   model):
+    said = refused(pinarray.simulated_observer, protocol, model)
+    assert said.startswith("observer: ") and len(said) < 300
+
+
 def test_an_onset_that_has_passed_is_said_to_have_passed(array, protocol):
     condition = pinarray.find_condition(protocol, pin=6, frequency_hz=3)
     now_ns = array.now_ns()
