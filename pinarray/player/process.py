@@ -426,7 +426,8 @@ class PlayerProcess:
         raise PlayerDied(f"{text}; {safe.describe()}", safe, noticed_ns)
 
     def close(self) -> None:
-        """Stop what the child is doing, ask it to leave, make sure it has.
+        """Stop what the child is doing, ask it to leave, make sure it has; a second close
+        does nothing more.
 
         The caller makes the pins safe through its own port afterwards. In a forked copy of
         the process that started it, nothing: the player is the original's.
@@ -453,7 +454,8 @@ class PlayerProcess:
             wake_fds = (self._wake_read, self._wake_write)
             self._wake_read = self._wake_write = -1  # a late stop callback writes nowhere
             for fd in wake_fds:
-                os.close(fd)
+                if fd >= 0:  # not closed already
+                    os.close(fd)
 
     def _forked(self) -> None:
         """In a forked copy of the process that started this player: let go of its channel

@@ -270,7 +270,9 @@ class Rig:
         does this first; `PinArray.arm` before it returns, its onset checked."""
         with self._port:
             if self.player is not None and not self.player.alive:
-                # Started again before torque can come back on, so that it guards it.
+                # Started again before torque can come back on, so that it guards it. (A
+                # Ctrl-C between the two leaves the dead one in place, isolated still: its
+                # close is done once, however often it is asked for.)
                 self.player.close()
                 self._start_player()
             if self._released:
