@@ -422,8 +422,9 @@ def _asked_for(port: str | None, sim: str | None) -> str:
 
 
 def _device_key(asked_for: str) -> str:
-    """A serial device's real path (the same whichever link names it); a URL as it is."""
-    if "://" in asked_for or not os.path.exists(asked_for):
+    """A serial device's real path (the same whichever link names it); a URL, or what is no
+    path at all (refused as the array opens, in pinarray's words), as it is."""
+    if not isinstance(asked_for, str) or "://" in asked_for or not os.path.exists(asked_for):
         return asked_for
     return os.path.realpath(asked_for)
 

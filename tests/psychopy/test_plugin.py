@@ -193,6 +193,15 @@ def test_a_touch_refuses_a_timeout_that_is_not_one_in_its_own_name(win):
         touch.wait()
 
 
+@pytest.mark.parametrize("port", [5, b"/dev/ttyUSB0", "/dev/ttyUSB0\0"],
+                         ids=["an int", "bytes", "a NUL"])
+def test_a_port_that_is_no_path_is_refused_in_pinarrays_words(port):
+    with pytest.raises(pinarray.PinArrayError, match=r"^open_array: port: expected a serial "
+                                                     r"device's path") as refused:
+        PinArrayDevice(APPARENT_MOTION, port=port)
+    assert "\n" not in str(refused.value)
+
+
 def test_a_port_asked_for_by_another_name_hands_back_the_device_holding_it(way, tmp_path):
     settings, served = way
     if served is None:
