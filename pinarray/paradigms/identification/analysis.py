@@ -110,7 +110,7 @@ def confusion(records: Iterable[IdentificationRecord]) -> Confusion:
     (counts ascending when subjects named counts), answers in the patterns' order, then any
     answer no trial presented."""
     pairs = [(_presented(r), r.response) for r in records if r.response is not None]
-    by_count = all(answer.isdigit() for _, answer in pairs) and bool(pairs)
+    by_count = all(_is_count(answer) for _, answer in pairs) and bool(pairs)
     presented = _ordered((p for p, _ in pairs), by_count)
     answered = _ordered((*presented, *(a for _, a in pairs)), by_count)
     counts = np.zeros((len(presented), len(answered)), dtype=np.int64)
@@ -122,7 +122,12 @@ def confusion(records: Iterable[IdentificationRecord]) -> Confusion:
 def _presented(record: IdentificationRecord) -> str:
     """What a right answer names: the pattern, or its count of pins for a count answer."""
     assert record.response is not None
-    return str(len(record.pins)) if record.response.isdigit() else record.pattern
+    return str(len(record.pins)) if _is_count(record.response) else record.pattern
+
+
+def _is_count(answer: str) -> bool:
+    """Whether an answer is a count of pins: ASCII digits (`str.isdigit` takes ² and १ too)."""
+    return answer.isascii() and answer.isdigit()
 
 
 def _ordered(items: Iterable[str], by_count: bool) -> tuple[str, ...]:
