@@ -46,7 +46,7 @@ from pinarray.protocol.procedures import Parameter
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, close_match, describe
 
 if TYPE_CHECKING:
-    from pinarray.protocol.seam import Adapting, DesignSection, ParadigmDesign
+    from pinarray.protocol.seam import Adapting, DesignSection, ParadigmDesign, Rehearse
 
 MAX_TRIALS = 20_000
 MAX_PULSES_PER_TRIAL = 1_000_000
@@ -68,12 +68,14 @@ def read_design(
     stimuli: Sequence[Stimulus],
     declared: Mapping[str, Node],
     long_trials: bool = False,
+    rehearse: Rehearse | None = None,
 ) -> Design:
     """The design, checked against the device and stimuli; ``declared`` names every stimulus
     written in the file, broken ones included (their problems are already reported).
 
     ``long_trials``: the design is compiled to a file, never played, so one trial may hold
-    more than `MAX_PULSES_PER_TRIAL` pulses (up to the plan's `MAX_PULSES`).
+    more than `MAX_PULSES_PER_TRIAL` pulses (up to the plan's `MAX_PULSES`). ``rehearse``:
+    every condition is also played on the model it stands for (`check_conditions`).
     """
     from pinarray.protocol.seam import DesignSection, check_conditions
 
@@ -90,7 +92,7 @@ def read_design(
     found = reader.attempt(lambda: paradigm.read(section), None)
     read = None if found is None else reader.attempt(lambda: check_conditions(
         reader, found, device, by_name, paradigm,
-        partial(_check_pulses, reader, long_trials=long_trials)), None)
+        partial(_check_pulses, reader, long_trials=long_trials), rehearse), None)
     _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
@@ -127,7 +129,7 @@ def read_design(
         slots = (max(slots, default=0),) * len(conditions)
         adaptive = read_adaptive(reader, adaptive_keys(reader, keys["adaptive"]), paradigm,
                                  device, adapting.parameter, adapting.values, conditions,
-                                 by_name)
+                                 by_name, rehearse)
     design = Design(
         paradigm,
         conditions,

@@ -290,6 +290,8 @@ def _address(reader: Reader, node: Node) -> int:
     # Written as a quoted "0x40" (YAML 1.2 reads bare hex as a string; we refuse YAML 1.1 hex).
     text = reader.string(node, 'the board\'s I2C address ("0x40" to "0x7f")')
     try:
+        if not text.isascii():  # int() reads other scripts' digits (０x４０)
+            raise ValueError(text)
         address = int(text, 16) if text.lower().startswith("0x") else int(text)
     except ValueError:
         raise reader.error(node, f'expected an I2C address such as "0x40", found {text!r}') from None
