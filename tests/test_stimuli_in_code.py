@@ -22,7 +22,7 @@ from pinarray.testing import assert_delivered, assert_pin_moved
 from tests import test_library_paths as paths
 
 way = paths.way  # each way to the pins in turn: the simulator, and a port served on a pty
-realtime = paths.realtime
+realtime = pytest.mark.realtime  # the wall clock and pseudo-terminals: run apart (tests/suite.py)
 
 # A small stroke (12 steps), so that the servos could follow 80 Hz: what refuses 16 pins at
 # 80 Hz is then the servo bus alone. A wide tolerance and no stroke judged: these tests are

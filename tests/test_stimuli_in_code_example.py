@@ -14,9 +14,9 @@ import pytest
 import pinarray
 from pinarray.hardware.feetech.faults import SimConfig
 from pinarray.hardware.feetech.serve import PtyServer
-from tests.test_library_paths import realtime
 from tests.test_stimuli_in_code import RIG
 
+realtime = pytest.mark.realtime  # the wall clock and a pseudo-terminal: run apart (tests/suite.py)
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "stimuli_in_code.py"
 
 
