@@ -83,6 +83,7 @@ lint: $(STAMP)
 examples: $(STAMP)
 	results=$$(mktemp -d) && $(BIN)/python examples/which_pin.py --subject ci --seed 1 \
 		--results $$results && rm -rf $$results
+	log=$$(mktemp) && $(BIN)/python examples/stimuli_in_code.py --log $$log && rm -f $$log
 	cd examples && ../$(BIN)/python -m pytest -q -p no:cacheprovider --ignore=tap_count .
 	$(BIN)/python -m tests.typing_canary
 

@@ -92,7 +92,7 @@ def read_design(
     found = reader.attempt(lambda: paradigm.read(section), None)
     read = None if found is None else reader.attempt(lambda: check_conditions(
         reader, found, device, by_name, paradigm,
-        partial(_check_pulses, reader, long_trials=long_trials), rehearse), None)
+        partial(check_trial_pulses, reader, long_trials=long_trials), rehearse), None)
     _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
@@ -243,7 +243,7 @@ def _check_shapes_completed(reader: Reader, section: DesignSection,
             )
 
 
-def _check_pulses(reader: Reader, node: Node, count: int, *, long_trials: bool) -> None:
+def check_trial_pulses(reader: Reader, node: Node, count: int, *, long_trials: bool) -> None:
     if long_trials and count > MAX_PULSES:
         raise reader.error(
             node,

@@ -125,4 +125,4 @@ def _stimulus_name(stimulus: pinarray.Presentable | None) -> str | None:
     if stimulus is None:
         return None
     condition = stimulus.condition if isinstance(stimulus, pinarray.PlannedTrial) else stimulus
-    return condition.stimulus
+    return condition.stimulus if isinstance(condition, pinarray.Condition) else repr(condition)
