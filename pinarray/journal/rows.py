@@ -175,6 +175,11 @@ def layout_rows(names: Sequence[str], paradigm: str | None,
         if not fits:
             raise ResultsError(f"{where}:1: expected the columns {list(rows.layout)}, found "
                                f"{list(names)}")
+        # An older layout's header is a prefix of today's, but it holds the paradigm's own
+        # columns (its marker): a header cut before them is no file of its rows.
+        if rows.marker not in names:
+            raise ResultsError(f"{where}:1: expected the column {rows.marker!r} of a "
+                               f"{rows.name} file, found the header ending at {names[-1]!r}")
         return rows, columns_of(rows)
     if is_legacy_prefix(names):
         found: dict[str, Column] = {}

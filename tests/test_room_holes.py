@@ -1,0 +1,55 @@
+"""The holes a hostile pass found in the paradigm seam (issue 45), each tested as the pass
+found it: results edited by hand or emptied, protocols that validated and could not run, a
+simulated subject that overflowed, plug-ins that broke or exited, an answer pad whose keys
+were not its answers."""
+
+from pathlib import Path
+
+import pytest
+
+from pinarray.analysis.load import DamagedResults, load_runs
+from pinarray.errors import ResultsError
+from tests.lab_protocols import short_copy
+from tests.test_paradigm_holes import run_cut_short
+
+
+@pytest.fixture(scope="module")
+def cut_short(tmp_path_factory):
+    """A run of each shortened protocol stopped after three answers (made once): copy it
+    before editing (`copy_of`)."""
+    made: dict[str, Path] = {}
+
+    def run(name: str) -> Path:
+        if name not in made:
+            folder = tmp_path_factory.mktemp(name)
+            run_cut_short(short_copy(name, folder), folder / "results")
+            made[name] = folder
+        return made[name]
+    return run
+
+
+def copy_of(cut_short, name: str, into: Path) -> tuple[Path, Path, Path]:
+    """A fresh copy of ``name``'s cut-short run: (its protocol, its results, its beh.tsv)."""
+    import shutil
+
+    shutil.copytree(cut_short(name), into, dirs_exist_ok=True)
+    (beh,) = (into / "results").rglob("*_beh.tsv")
+    return into / f"{name}.yaml", into / "results", beh
+
+
+def refusal(results: Path) -> str:
+    with pytest.raises((DamagedResults, ResultsError)) as raised:
+        load_runs([results])
+    problem = raised.value
+    return str(problem.damaged[0].reason) if isinstance(problem, DamagedResults) else str(problem)
+
+
+# -- 0. a temporal-order file cut before its own column ---------------------------------
+
+def test_a_temporal_order_file_without_its_soa_column_is_refused_at_its_header(
+        cut_short, tmp_path):
+    _, results, beh = copy_of(cut_short, "toj", tmp_path)
+    beh.write_text("".join(line.rsplit("\t", 1)[0] + "\n"
+                           for line in beh.read_text().splitlines()))
+    said = refusal(results)
+    assert said.startswith(f"{beh}:1: expected the column 'soa'"), said
