@@ -11,6 +11,7 @@ from pinarray.analysis.load import DamagedResults, load_runs
 from pinarray.errors import ResultsError
 from tests.lab_protocols import short_copy
 from tests.test_paradigm_holes import run_cut_short
+from tests.test_two_point import designed, problems
 
 
 @pytest.fixture(scope="module")
@@ -53,3 +54,18 @@ def test_a_temporal_order_file_without_its_soa_column_is_refused_at_its_header(
                            for line in beh.read_text().splitlines()))
     said = refusal(results)
     assert said.startswith(f"{beh}:1: expected the column 'soa'"), said
+
+
+# -- 1. a two-point pitch too small to tell its distances apart --------------------------
+
+@pytest.mark.parametrize(("pitch", "said"), [
+    ("0.00001", "p.yaml:11:11: expected pins at least 0.01 mm apart (the grid's pitch_mm), "
+                "found pins 6 and 7 0 mm apart at a pitch of 1e-05 mm"),
+    ("1e-9", "p.yaml:11:11: expected pins at least 0.01 mm apart"),
+    ("0.01", "p.yaml:11:19: expected distances 0.01 mm apart or more (the grid's pitch_mm), "
+             "found pins 6 and 11 0.0141 mm apart beside pins 6 and 7 0.01 mm apart"),
+])
+def test_a_two_point_pitch_whose_distances_rows_cannot_tell_apart_is_refused_at_validate(
+        pitch, said):
+    found = problems(designed("  stimulus: press\n  pairs: [[6, 7], [6, 11]]\n", pitch))
+    assert found[0].startswith(said), found
