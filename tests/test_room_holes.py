@@ -8,7 +8,9 @@ from pathlib import Path
 import pytest
 
 from pinarray.analysis.load import DamagedResults, load_runs
+from pinarray.cli import main
 from pinarray.errors import ResultsError
+from pinarray.paradigms.two_point.observer import TwoPointObserverModel
 from tests.lab_protocols import short_copy
 from tests.test_paradigm_holes import run_cut_short
 from tests.test_two_point import designed, problems
@@ -69,3 +71,24 @@ def test_a_two_point_pitch_whose_distances_rows_cannot_tell_apart_is_refused_at_
         pitch, said):
     found = problems(designed("  stimulus: press\n  pairs: [[6, 7], [6, 11]]\n", pitch))
     assert found[0].startswith(said), found
+
+
+# -- 2. a simulated two-point subject with a steep slope or a far threshold ---------------
+
+@pytest.mark.parametrize(("threshold_mm", "slope"), [
+    (0.01, 200), (3, 1e90), (0.0001, 1000), (1e300, 1e10), (1e-300, 50), (3, 1e-300)])
+def test_a_two_point_subject_answers_for_any_legal_slope_and_threshold(threshold_mm, slope):
+    model = TwoPointObserverModel(threshold_mm=threshold_mm, slope=slope, subject_sd=0)
+    for distance_mm in (0.01, 2.0, 2.8284, 6.0, 1e6):
+        p = model.p_two(distance_mm)
+        assert model.false_alarm <= p <= 1 - model.lapse, (distance_mm, p)
+    far, near = model.p_two(1e6), model.p_two(0.01)
+    assert far >= near  # further apart is never felt as two less often
+
+
+def test_a_batch_run_with_a_steep_two_point_subject_ends_in_its_rows(tmp_path):
+    results = tmp_path / "results"
+    assert main(["batch", str(short_copy("two_point", tmp_path)), "--subject", "01",
+                 "--observer", "threshold_mm=0.01,slope=200", "--seed", "2",
+                 "--results", str(results)]) == 0
+    assert next(results.rglob("*_beh.tsv")).read_text().count("\n") > 1
