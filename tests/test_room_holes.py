@@ -7,11 +7,14 @@ from pathlib import Path
 
 import pytest
 
+from pinarray import registry
 from pinarray.analysis.load import DamagedResults, load_runs
 from pinarray.cli import main
-from pinarray.errors import ResultsError
+from pinarray.errors import PinArrayError, ResultsError
+from pinarray.journal.rows import read_trials
 from pinarray.paradigms.two_point.observer import TwoPointObserverModel
-from tests.lab_protocols import short_copy
+from pinarray.stop import StopRequest, stop_on_signals
+from tests.lab_protocols import PROTOCOLS, short_copy
 from tests.test_paradigm_holes import run_cut_short
 from tests.test_two_point import designed, problems
 
@@ -92,3 +95,64 @@ def test_a_batch_run_with_a_steep_two_point_subject_ends_in_its_rows(tmp_path):
                  "--observer", "threshold_mm=0.01,slope=200", "--seed", "2",
                  "--results", str(results)]) == 0
     assert next(results.rglob("*_beh.tsv")).read_text().count("\n") > 1
+
+
+# -- 3 and 4. a lab's package that cannot be loaded, or exits as it is ------------------
+
+PLUG_INS = {
+    "missing": "pinarray_no_such_module:PARADIGM",
+    "exits": "room_holes_exits:PARADIGM",
+    "interrupts": "room_holes_interrupts:PARADIGM",
+}
+
+
+@pytest.fixture
+def broken_plug_ins(tmp_path, monkeypatch):
+    """Installed plug-ins that cannot be loaded: one names no module, one's module raises
+    SystemExit(0) as it is imported, one KeyboardInterrupt."""
+    (tmp_path / "room_holes_exits.py").write_text("raise SystemExit(0)\n")
+    (tmp_path / "room_holes_interrupts.py").write_text("raise KeyboardInterrupt\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(registry, "_plug_ins", lambda: dict(PLUG_INS))
+    registry.room.cache_clear()
+    yield
+    registry.room.cache_clear()
+
+
+def test_results_of_pinarrays_own_paradigms_are_read_beside_a_broken_plug_in(
+        broken_plug_ins, cut_short, tmp_path, monkeypatch):
+    broken = {name: PLUG_INS[name] for name in ("missing", "exits")}
+    monkeypatch.setattr(registry, "_plug_ins", lambda: broken)
+    _, _, beh = copy_of(cut_short, "two_point", tmp_path)
+    read = read_trials(beh)  # handed over alone: no manifest says whose rows they are
+    assert len(read) == 4 and {r.paradigm for r in read} == {"two_point"}
+    header, *rows = beh.read_text().splitlines()
+    beh.write_text("\n".join([header + "\textra", *(row + "\tx" for row in rows)]) + "\n")
+    with pytest.raises(ResultsError) as raised:
+        read_trials(beh)  # no paradigm writes these columns: the file may be a plug-in's
+    said = str(raised.value)
+    assert said.startswith(f"{beh}:1: expected the columns ") and "\n" not in said
+    assert all(f"paradigm {name!r}: its package" in said for name in broken)
+
+
+def test_a_plug_in_that_exits_as_it_is_imported_is_said_in_one_line_exit_2(
+        broken_plug_ins, tmp_path, capsys):
+    protocol = (PROTOCOLS / "two_point.yaml").read_text().replace(
+        "paradigm: two_point", "paradigm: exits")
+    (tmp_path / "p.yaml").write_text(protocol)
+    assert main(["validate", str(tmp_path / "p.yaml")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "paradigm 'exits': its package (room_holes_exits:PARADIGM" in line
+    assert "SystemExit" in line
+
+
+def test_a_plug_ins_keyboard_interrupt_is_its_fault_where_ctrl_c_cannot_raise_one(
+        broken_plug_ins):
+    # A run takes Ctrl-C through its stop request: the interrupt can only be the package's.
+    with stop_on_signals(StopRequest()), pytest.raises(
+            PinArrayError, match="paradigm 'interrupts': its package .* KeyboardInterrupt"):
+        registry.room("interrupts")
+    # Where Ctrl-C raises KeyboardInterrupt (validate, plan, analyse), it is let through: it
+    # may be the person at the keyboard, and Ctrl-C must stop any command.
+    with pytest.raises(KeyboardInterrupt):
+        registry.room("interrupts")

@@ -26,7 +26,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pinarray.errors import ResultsError
+from pinarray.errors import PinArrayError, ResultsError
 from pinarray.journal.columns import Column, cell_text, cell_value
 from pinarray.journal.records import (
     EVENT_ONLY,
@@ -188,12 +188,22 @@ def layout_rows(names: Sequence[str], paradigm: str | None,
         return None, found
     from pinarray import registry
 
-    for room in registry.rooms():
-        rows = rows_of(getattr(room, "name", ""))
+    # pinarray's own first: a lab's package that cannot be loaded hides none of their files,
+    # and is named only when no other paradigm writes these columns (the file may be its).
+    for name in registry.BUILT_IN:
+        if tuple(names) == rows_of(name).layout:
+            return rows_of(name), columns_of(rows_of(name))
+    broken = []
+    for name in registry.plug_ins():
+        try:
+            rows = rows_of(name)
+        except PinArrayError as problem:
+            broken.append(f"; {problem}")
+            continue
         if tuple(names) == rows.layout:
             return rows, columns_of(rows)
     raise ResultsError(f"{where}:1: expected the columns {list(LEGACY_LAYOUT)} (or a "
-                       f"paradigm's own), found {list(names)}")
+                       f"paradigm's own), found {list(names)}{''.join(broken)}")
 
 
 def _rows_of_row(values: Mapping[str, Any], where: str) -> ParadigmRows:
