@@ -11,8 +11,10 @@ from pinarray import registry
 from pinarray.analysis.load import DamagedResults, load_runs
 from pinarray.cli import main
 from pinarray.errors import PinArrayError, ResultsError
+from pinarray.grid import Grid
 from pinarray.journal.rows import read_trials
 from pinarray.paradigms.two_point.observer import TwoPointObserverModel
+from pinarray.protocol.seam import DesignDefaults
 from pinarray.stop import StopRequest, stop_on_signals
 from tests.lab_protocols import PROTOCOLS, short_copy
 from tests.test_paradigm_holes import run_cut_short
@@ -156,3 +158,29 @@ def test_a_plug_ins_keyboard_interrupt_is_its_fault_where_ctrl_c_cannot_raise_on
     # may be the person at the keyboard, and Ctrl-C must stop any command.
     with pytest.raises(KeyboardInterrupt):
         registry.room("interrupts")
+
+
+# -- 5. the answer pad a paradigm need not draw -----------------------------------------
+
+class _Counting(DesignDefaults):
+    """A design whose answers are counts, as a lab's tap counting is (2 to 5), and a word."""
+
+    name = "counting"
+
+    def answers(self, design, pin_count):
+        return ("2", "3", "4", "5", "many")
+
+
+class _Asked:
+    """What the default pad asks of a design: its answers."""
+
+    def answers(self, pin_count):
+        return _Counting().answers(self, pin_count)
+
+
+def test_the_default_pad_gives_a_digit_answer_its_own_key():
+    pad = _Counting().pad(_Asked(), Grid())  # type: ignore[arg-type]
+    keys = {choice.answer: choice.keys for choice in pad.choices}
+    # The subject says three, the experimenter presses 3: the row records 3.
+    assert keys == {"2": ("2",), "3": ("3",), "4": ("4",), "5": ("5",), "many": ("1",)}
+    assert [c.label for c in pad.choices] == ["2", "3", "4", "5", "many (1)"]
