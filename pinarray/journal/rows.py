@@ -309,6 +309,11 @@ def check_run(path: Path | str, records: Sequence[TrialRecord], manifest: RunMan
             raise ResultsError(f"{where}: expected an answer the design offered ("
                                f"{', '.join(sorted(offered)) or 'none'}), found "
                                f"{record.response!r}")
+    together = getattr(rows, "check_together", None)  # optional: RowsDefaults has it
+    found = together(records) if together is not None else None
+    if found is not None:
+        index, problem = found
+        raise ResultsError(f"{path}:{index + 2}: trial {records[index].trial}: {problem}")
 
 
 def _not_a_table(path: Path, data: bytes, problem: csv.Error) -> str:
