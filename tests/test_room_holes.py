@@ -17,7 +17,7 @@ from pinarray.paradigms.two_point.observer import TwoPointObserverModel
 from pinarray.protocol.seam import DesignDefaults
 from pinarray.stop import StopRequest, stop_on_signals
 from tests.lab_protocols import PROTOCOLS, short_copy
-from tests.test_paradigm_holes import run_cut_short
+from tests.test_paradigm_holes import edited, run_cut_short
 from tests.test_two_point import designed, problems
 
 
@@ -184,3 +184,24 @@ def test_the_default_pad_gives_a_digit_answer_its_own_key():
     # The subject says three, the experimenter presses 3: the row records 3.
     assert keys == {"2": ("2",), "3": ("3",), "4": ("4",), "5": ("5",), "many": ("1",)}
     assert [c.label for c in pad.choices] == ["2", "3", "4", "5", "many (1)"]
+
+
+# -- 6 and 7. rows read back hold what the run presented and what the design asks -------
+
+def test_a_two_interval_row_whose_pins_were_edited_is_refused(cut_short, tmp_path):
+    _, results, beh = copy_of(cut_short, "flutter_2ifc", tmp_path)
+    edited(beh, "pins", "16")
+    assert refusal(results).startswith(f"{beh}:3: trial ") and \
+        "the run's other trials play pins 6 7 10 11, the row says 16" in refusal(results)
+
+
+def test_an_apparent_motion_answer_that_is_no_direction_of_the_run_is_refused(
+        cut_short, tmp_path):
+    _, results, beh = copy_of(cut_short, "apparent_motion", tmp_path)
+    # The derived cells as a banana would make them: felt motion, in a wrong direction.
+    for column, value in (("response", "banana"), ("perceived_motion", "true"),
+                          ("direction_correct", "false")):
+        edited(beh, column, value)
+    said = refusal(results)
+    assert said.startswith(f"{beh}:3: trial ") and "expected an answer the design offered (" \
+        in said and "found 'banana'" in said, said
