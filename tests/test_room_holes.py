@@ -205,3 +205,29 @@ def test_an_apparent_motion_answer_that_is_no_direction_of_the_run_is_refused(
     said = refusal(results)
     assert said.startswith(f"{beh}:3: trial ") and "expected an answer the design offered (" \
         in said and "found 'banana'" in said, said
+
+
+# -- 8. the cells every row has, read back -----------------------------------------------
+
+@pytest.mark.parametrize(("column", "value", "said"), [
+    ("goals_missing", "3", "expected status invalid for a trial with goal changes missing"),
+    ("goals_confirmed", "999", "expected at most the 4 goal change(s) scheduled to be "
+                               "confirmed, healed or missing, found 1002"),
+    ("block", "7", "expected the plan's block 1, found 7"),
+    ("stimulus_onset", "-5", "expected stimulus_onset of at least 0, found -5 s"),
+    ("response_time", "-0.5", "expected response_time of at least 0, found -0.5 s"),
+    ("stroke_achieved", "-40", "expected stroke_achieved of at least 0, found -40 steps"),
+])
+@pytest.mark.parametrize("name", ["two_point", "toj"])
+def test_a_common_cell_edited_beyond_what_a_trial_can_hold_is_refused(
+        cut_short, tmp_path, name, column, value, said):
+    _, results, beh = copy_of(cut_short, name, tmp_path)
+    header, _, second, *_ = beh.read_text().splitlines()
+    cells = dict(zip(header.split("\t"), second.split("\t"), strict=True))
+    if column == "goals_confirmed":  # what 999 makes with the row's other counts
+        said = said.replace("1002", str(999 + int(cells["goals_healed"])
+                                        + int(cells["goals_missing"])))
+        said = said.replace("the 4 ", f"the {cells['goals_scheduled']} ")
+    edited(beh, column, value)
+    got = refusal(results)
+    assert got.startswith(f"{beh}:3: ") and said in got and "\n" not in got, got
