@@ -12,11 +12,14 @@ from pinarray.analysis.load import DamagedResults, load_runs
 from pinarray.cli import main
 from pinarray.errors import PinArrayError, ResultsError
 from pinarray.grid import Grid
+from pinarray.journal.physio import motion_recording_path
 from pinarray.journal.rows import read_trials
+from pinarray.journal.writer import RunWriter
 from pinarray.paradigms.two_point.observer import TwoPointObserverModel
 from pinarray.protocol.seam import DesignDefaults
 from pinarray.stop import StopRequest, stop_on_signals
 from tests.lab_protocols import PROTOCOLS, short_copy
+from tests.test_motion_results import localisation, samples, start_paths, three_trials
 from tests.test_paradigm_holes import edited, run_cut_short
 from tests.test_two_point import designed, problems
 
@@ -231,3 +234,36 @@ def test_a_common_cell_edited_beyond_what_a_trial_can_hold_is_refused(
     edited(beh, column, value)
     got = refusal(results)
     assert got.startswith(f"{beh}:3: ") and said in got and "\n" not in got, got
+
+
+# -- 9. a resume of a run whose rows were emptied ----------------------------------------
+
+@pytest.mark.parametrize("emptied", ["to nothing", "to its header"])
+def test_a_run_whose_rows_were_emptied_is_not_presented_again_on_resume(tmp_path, emptied):
+    writer = three_trials(tmp_path)
+    for trial in (1, 2, 3):
+        writer.write_trial(localisation(trial), samples(trial))
+    writer.close()
+    beh = writer.paths.beh_tsv
+    beh.write_text("" if emptied == "to nothing" else beh.read_text().splitlines()[0] + "\n")
+    before = {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()}
+    with pytest.raises(ResultsError) as refused:
+        RunWriter.resume(start_paths(tmp_path))
+    said = str(refused.value)
+    assert said.startswith(f"{motion_recording_path(writer.paths)}: holds samples of trials "
+                           "1, 2, 3 that no row of the run's beh.tsv claims"), said
+    assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def test_rows_moved_are_said_as_moved_not_as_a_recording_that_holds_what_they_claim(tmp_path):
+    writer = three_trials(tmp_path)
+    for trial in (1, 2, 3):
+        writer.write_trial(localisation(trial), samples(trial))
+    writer.close()
+    beh = writer.paths.beh_tsv
+    header, one, two, three = beh.read_text().splitlines()
+    beh.write_text("\n".join([header, two, one, three]) + "\n")
+    with pytest.raises(ResultsError, match="holds trial 1's samples where the rows of the run's "
+                                           "beh.tsv, in their order, put trial 2's: rows were "
+                                           "deleted or moved"):
+        RunWriter.resume(start_paths(tmp_path))
