@@ -3,6 +3,7 @@ found it: results edited by hand or emptied, protocols that validated and could 
 simulated subject that overflowed, plug-ins that broke or exited, an answer pad whose keys
 were not its answers."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -267,3 +268,15 @@ def test_rows_moved_are_said_as_moved_not_as_a_recording_that_holds_what_they_cl
                                            "beh.tsv, in their order, put trial 2's: rows were "
                                            "deleted or moved"):
         RunWriter.resume(start_paths(tmp_path))
+
+
+# -- 10. a grid with more pins than a bus has servo ids ----------------------------------
+
+def test_a_grid_of_more_pins_than_servo_ids_is_refused_where_it_is_written():
+    text = (PROTOCOLS / "localisation.yaml").read_text()
+    assert "grid: {rows: 4, columns: 4" in text
+    found = problems(text.replace("grid: {rows: 4, columns: 4",
+                                       "grid: {rows: 16, columns: 16"))
+    (line,) = [p for p in found if "servo id" in p]
+    assert re.fullmatch(r"p\.yaml:\d+:\d+: expected a grid of at most 252 pins \(one bus servo "
+                        r"id each\), found 256", line), found
