@@ -280,3 +280,12 @@ def test_a_grid_of_more_pins_than_servo_ids_is_refused_where_it_is_written():
     (line,) = [p for p in found if "servo id" in p]
     assert re.fullmatch(r"p\.yaml:\d+:\d+: expected a grid of at most 252 pins \(one bus servo "
                         r"id each\), found 256", line), found
+
+
+# -- 11. small slips -----------------------------------------------------------------------
+
+def test_an_attribute_named_twice_in_no_repeat_is_refused_where_it_is_written_again():
+    found = problems(designed("  stimulus: press\n  pairs: [[6, 7]]\n"
+                              "  constraints: {no_repeat: [pins, pins]}\n"))
+    assert found == ["p.yaml:12:35: expected each attribute once in no_repeat, found 'pins' "
+                     "again"], found
