@@ -264,10 +264,12 @@ def _constraints(reader: Reader, node: Node, paradigm: ParadigmDesign) -> Constr
     keys = reader.mapping(node, {"no_repeat", "max_run"}, what="constraints")
     no_repeat: tuple[str, ...] = ()
     if "no_repeat" in keys:
-        no_repeat = tuple(
-            _attribute(reader, n, "an attribute that may not repeat", paradigm)
-            for n in reader.sequence(keys["no_repeat"], "no_repeat")
-        )
+        for n in reader.sequence(keys["no_repeat"], "no_repeat"):
+            attribute = _attribute(reader, n, "an attribute that may not repeat", paradigm)
+            if attribute in no_repeat:
+                raise reader.error(n, f"expected each attribute once in no_repeat, found "
+                                      f"{attribute!r} again")
+            no_repeat += (attribute,)
     max_run: list[tuple[str, int]] = []
     if "max_run" in keys:
         for key_node, value_node in reader.items(keys["max_run"], "max_run"):

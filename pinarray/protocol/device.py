@@ -106,6 +106,10 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
                                        f"one PCA9685 board, found {grid.pin_count}")
             else:
                 servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
+                if grid.pin_count > MAX_SERVO_ID:
+                    raise reader.error(keys["grid"], f"expected a grid of at most {MAX_SERVO_ID} "
+                                       "pins (one bus servo id each), found "
+                                       f"{grid.pin_count}")
     except Invalid:
         return None
     port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"),

@@ -435,11 +435,17 @@ class DesignDefaults:
         return f"one of {', '.join(design.answers(grid.pin_count))}"
 
     def pad(self, design: Design, grid: Grid) -> AnswerPad:
-        """One key each, 1 to 9, in the order `answers` gives them."""
+        """One key each: an answer that is one digit its own (a subject who says "3" is
+        given 3), the others the digits 1 to 9 no answer is, in the order `answers` gives them."""
         answers = design.answers(grid.pin_count)
-        choices = tuple(Choice(a, (str(n),) if n <= 9 else (), f"{a} ({n})" if n <= 9 else a)
-                        for n, a in enumerate(answers, start=1))
-        return AnswerPad(False, choices, "", choices_hint(choices))
+        own = {a for a in answers if len(a) == 1 and a in DIGITS}
+        free = iter([d for d in DIGITS[1:] if d not in own])
+        choices = []
+        for answer in answers:
+            key = answer if answer in own else next(free, None)
+            choices.append(Choice(answer, (key,) if key else (),
+                                  answer if key in (None, answer) else f"{answer} ({key})"))
+        return AnswerPad(False, tuple(choices), "", choices_hint(choices))
 
     def cue(self, condition: Condition, design: Design) -> tuple[object, str] | None:
         return (self.correct_answer(condition, design), condition.stimulus)
@@ -470,6 +476,9 @@ class DesignDefaults:
 
 
 KEY_NAMES = {"left": "←", "right": "→", "up": "↑", "down": "↓"}
+
+
+DIGITS = "0123456789"
 
 
 def choices_hint(choices: Sequence[Choice]) -> str:
