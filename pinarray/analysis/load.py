@@ -18,13 +18,13 @@ is left out like any unfinished run, with the trials that are missing.
 
 from __future__ import annotations
 
-import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
+from pinarray.journal.files import results_file
 from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
@@ -210,12 +210,11 @@ def load_run(beh: Path) -> LoadedRun:
     mm_per_step: tuple[float, ...] = ()
     try:
         paths = RunPaths.from_file(beh)
-        mode = beh.stat().st_mode  # (through a link: what it leads to)
-    except (ResultsError, ValueError, OSError) as problem:
+        # Looked at, never opened, through a link: a FIFO would wait for a writer for ever.
+        if not results_file(beh):
+            raise ResultsError(f"{beh}: no such results file")
+    except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    if not stat.S_ISREG(mode):  # never opened: a FIFO would wait for a writer for ever
-        raise DamagedResults([DamagedRun(beh, f"{beh}: expected a results file, found "
-                                              f"{kind_of(mode)}")])
     manifest_path = paths.manifest_on_disk()
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
