@@ -113,12 +113,22 @@ class LoadedRun:
         return sum(r.counts for r in self.records)
 
     @property
+    def countable_on_request(self) -> bool:
+        """Whether ``--include-incomplete`` counts the run: one with counted trials, but not
+        one whose manifest cannot be read (rows edited by hand, an answer never offered or a
+        pattern that is not the plan's, pass every check a row makes on its own: only the
+        manifest says what they must be)."""
+        return bool(self.counted) and self.state is not ManifestState.UNREADABLE
+
+    @property
     def incomplete_reason(self) -> str | None:
         """Why the run is left out by default, or None when it counts."""
         if self.state is ManifestState.UNFINISHED:
             return f"manifest says {self.status}"
         if self.state is ManifestState.UNREADABLE:
-            return f"manifest unreadable ({self.status})"
+            return (f"manifest unreadable ({self.status}): its rows cannot be checked against "
+                    "the run's plan and the answers it offered, so it is not counted, even "
+                    "with --include-incomplete")
         if self.state is ManifestState.COMPLETED and self.unfinished:
             shown = ", ".join(map(str, self.unfinished[:10]))
             more = " ..." if len(self.unfinished) > 10 else ""
@@ -280,12 +290,13 @@ def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> 
 
     Incomplete runs (see `LoadedRun.incomplete_reason`) are left out unless
     ``include_incomplete``; a run with no counted trial is left out either way, since it
-    would add a subject who answered nothing.
+    would add a subject who answered nothing, and so is one whose manifest cannot be read,
+    since its rows cannot be checked against the run.
     """
     included, excluded = [], []
     for run in runs:
         reason = run.incomplete_reason
-        if reason is None or (include_incomplete and run.counted):
+        if reason is None or (include_incomplete and run.countable_on_request):
             included.append(run)
         else:
             excluded.append(run)

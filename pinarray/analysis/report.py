@@ -45,7 +45,7 @@ def run_lines(runs: RunSelection) -> list[str]:
     """The runs left out and the runs counted with a caveat, one line each."""
     lines = []
     for run in runs.excluded:
-        hint = "; --include-incomplete counts it" if run.counted else ""
+        hint = "; --include-incomplete counts it" if run.countable_on_request else ""
         lines.append(f"left out: {run.label}: {run.incomplete_reason} "
                      f"({run.counted} counted trial(s)){hint}")
     for run in runs.incomplete_included:
