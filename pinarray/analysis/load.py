@@ -113,14 +113,6 @@ class LoadedRun:
         return sum(r.counts for r in self.records)
 
     @property
-    def countable_on_request(self) -> bool:
-        """Whether ``--include-incomplete`` counts the run: one with counted trials, but not
-        one whose manifest cannot be read (rows edited by hand, an answer never offered or a
-        pattern that is not the plan's, pass every check a row makes on its own: only the
-        manifest says what they must be)."""
-        return bool(self.counted) and self.state is not ManifestState.UNREADABLE
-
-    @property
     def incomplete_reason(self) -> str | None:
         """Why the run is left out by default, or None when it counts."""
         if self.state is ManifestState.UNFINISHED:
@@ -285,6 +277,14 @@ def load_runs(paths: Iterable[Path | str]) -> list[LoadedRun]:
     return runs
 
 
+def countable_on_request(run: LoadedRun) -> bool:
+    """Whether ``--include-incomplete`` counts ``run``: one with counted trials, but not one
+    whose manifest cannot be read (rows edited by hand, an answer never offered or a pattern
+    that is not the plan's, pass every check a row makes on its own: only the manifest says
+    what they must be)."""
+    return bool(run.counted) and run.state is not ManifestState.UNREADABLE
+
+
 def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> RunSelection:
     """Split runs into those that count and those left out.
 
@@ -296,7 +296,7 @@ def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> 
     included, excluded = [], []
     for run in runs:
         reason = run.incomplete_reason
-        if reason is None or (include_incomplete and run.countable_on_request):
+        if reason is None or (include_incomplete and countable_on_request(run)):
             included.append(run)
         else:
             excluded.append(run)

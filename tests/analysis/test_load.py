@@ -1,6 +1,6 @@
 """Which runs count: incomplete runs are listed and left out, a trial finished twice counts once."""
 
-from pinarray.analysis.load import ManifestState, load_runs, select_runs
+from pinarray.analysis.load import ManifestState, countable_on_request, load_runs, select_runs
 from pinarray.journal.manifest import RunPaths
 from pinarray.journal.rows import trial_row
 from tests.analysis.conftest import localisation_row
@@ -87,5 +87,5 @@ def test_a_run_whose_manifest_cannot_be_read_is_not_counted_even_on_request(tmp_
     runs = select_runs(load_runs([root]), include_incomplete=True)
     assert runs.included == ()
     (run,) = runs.excluded
-    assert run.state is ManifestState.UNREADABLE and not run.countable_on_request
+    assert run.state is ManifestState.UNREADABLE and not countable_on_request(run)
     assert "not counted, even with --include-incomplete" in run.incomplete_reason
