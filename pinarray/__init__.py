@@ -33,6 +33,7 @@ __all__ = [
     "Delivery",
     "DeliveryRecord",
     "Ending",
+    "Frames",
     "IdentificationCondition",
     "IdentificationRecord",
     "LoadedRun",
@@ -46,6 +47,7 @@ __all__ = [
     "NotStarted",
     "NothingToResume",
     "Paradigm",
+    "Pattern",
     "PinArray",
     "PinArrayError",
     "PinStroke",
@@ -66,6 +68,7 @@ __all__ = [
     "ServoPort",
     "TemporalOrderCondition",
     "TemporalOrderRecord",
+    "Train",
     "TrialPlan",
     "TrialRecord",
     "TrialStatus",
@@ -74,11 +77,13 @@ __all__ = [
     "TwoPointCondition",
     "TwoPointRecord",
     "VirtualClock",
+    "Wave",
     "find_condition",
     "find_servo_ports",
     "load_protocol",
     "open_array",
     "plan_trials",
+    "protocol_from_text",
     "read_results",
     "run_session",
     "simulated_observer",
@@ -87,7 +92,8 @@ __all__ = [
 # The module of `pinarray.api` each public name lives in, imported when the name is first used.
 _HOMES = {
     "pinarray.api.protocols": ("Condition", "PlannedTrial", "Protocol", "TrialPlan",
-                               "find_condition", "load_protocol", "plan_trials"),
+                               "find_condition", "load_protocol", "plan_trials",
+                               "protocol_from_text"),
     "pinarray.api.paradigms": ("IdentificationCondition", "IdentificationRecord",
                                "LocalisationCondition", "LocalisationRecord", "MotionCondition",
                                "MotionRecord", "Paradigm", "TemporalOrderCondition",
@@ -95,6 +101,7 @@ _HOMES = {
                                "TwoIntervalRecord", "TwoPointCondition", "TwoPointRecord"),
     "pinarray.api.array": ("Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
                            "Presentable", "SafeStopReport", "VirtualClock", "open_array"),
+    "pinarray.api.stimuli": ("Frames", "Pattern", "Train", "Wave"),
     "pinarray.api.armed": ("Armed",),
     "pinarray.api.delivery": ("Cut", "Delivery", "Ending", "NotStarted", "Played"),
     "pinarray.api.ports": ("ServoPort", "find_servo_ports"),
@@ -173,6 +180,7 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         find_condition,
         load_protocol,
         plan_trials,
+        protocol_from_text,
     )
     from pinarray.api.results import (
         LoadedRun,
@@ -190,3 +198,4 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
         run_session,
         simulated_observer,
     )
+    from pinarray.api.stimuli import Frames, Pattern, Train, Wave

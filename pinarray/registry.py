@@ -13,15 +13,26 @@ one of pinarray's own (or every paradigm is asked for), so reading a protocol of
 paradigm costs one import. Nothing here knows what a paradigm does: the layers that use one
 check it implements their part of the seam (`pinarray.protocol.seam`, `pinarray.journal.seam`,
 `pinarray.analysis.seam`). Pure Python.
+
+A lab's package is imported behind one boundary (`room`): whatever its import raises is a
+`PinArrayError` naming it, ``SystemExit`` included (a command would otherwise end at once,
+status 0, having done nothing). Two exceptions pass through, because they may be the person at
+the keyboard: pinarray's own stop (`pinarray.errors.Interrupted`, a signal under the stop
+handlers) and ``KeyboardInterrupt`` where Ctrl-C raises it (SIGINT at Python's default
+handler: validate, plan, analyse). There a plug-in raising it cannot be told from Ctrl-C
+without a handler of the registry's own (signal handlers are `pinarray.stop`'s alone), and
+Ctrl-C must stop any command; where the stop handlers take SIGINT (a run), it can only be the
+package's, and is said as its fault.
 """
 
 from __future__ import annotations
 
 import importlib
 import re
+import signal
 from functools import cache
 
-from pinarray.errors import PinArrayError
+from pinarray.errors import Interrupted, PinArrayError
 
 GROUP = "pinarray.paradigms"
 # pinarray's own rooms, each module's `PARADIGM`, in the order results files older than the
@@ -77,7 +88,10 @@ def room(name: str) -> object:
         found = importlib.import_module(module)
         for part in attribute.split(".") if attribute else ():
             found = getattr(found, part)
-    except Exception as problem:  # a lab's package: whatever it raises, said in one line
+    except BaseException as problem:  # a lab's package: whatever it raises, said in one line
+        if isinstance(problem, Interrupted) or (isinstance(problem, KeyboardInterrupt)
+                                                and _ctrl_c_raises()):
+            raise  # maybe the person at the keyboard (the module says why)
         raise PinArrayError(f"paradigm {name!r}: its package ({value}, entry point group "
                             f"{GROUP}) cannot be loaded: {type(problem).__name__}: "
                             f"{problem}") from None
@@ -88,6 +102,14 @@ def room(name: str) -> object:
     return found
 
 
-def rooms() -> tuple[object, ...]:
-    """Every paradigm, pinarray's own first (in the order `BUILT_IN` lists them)."""
-    return tuple(room(name) for name in (*BUILT_IN, *_plug_ins()))
+def _ctrl_c_raises() -> bool:
+    """Whether Ctrl-C raises KeyboardInterrupt here (SIGINT at Python's default handler)."""
+    try:
+        return signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    except ValueError:  # not the main interpreter: take it as the default
+        return True
+
+
+def plug_ins() -> tuple[str, ...]:
+    """The installed plug-ins' paradigm names (none imported)."""
+    return tuple(_plug_ins())

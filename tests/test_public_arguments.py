@@ -147,7 +147,7 @@ def test_every_parameter_of_every_public_function_given_a_stranger_is_refused(pr
     # object() is no valid value of any parameter: whichever it is given to, a public call
     # refuses it in one line (each other argument a valid one).
     valid = {"protocol": protocol, "path": LOCALISATION, "answer": lambda q: "none",
-             "subject": "01"}
+             "subject": "01", "text": LOCALISATION.read_text()}
     functions = [getattr(pinarray, name) for name in pinarray.__all__
                  if inspect.isfunction(getattr(pinarray, name))]
     assert {f.__name__ for f in functions} >= {"open_array", "find_condition", "run_session"}

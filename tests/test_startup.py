@@ -1,5 +1,8 @@
 """`pinarray validate` starts light: it loads the protocol reader and its own command, nothing
-else of pinarray and none of the heavy libraries, whichever way the command is started.
+else of pinarray and none of the heavy libraries, whichever way the command is started; a
+protocol that reads without a problem then has its stimuli played on the simulated array
+(`pinarray.player.rehearsal`), which loads the simulator and numpy, and still nothing of the
+sessions, results, analysis, UI or plotting.
 
 What a process imports is read from ``-X importtime`` (``PYTHONPROFILEIMPORTTIME`` for the
 installed script), so the check sees the whole start-up, the entry point's own imports included.
@@ -28,6 +31,10 @@ NEEDED = ("pinarray", "pinarray.version", "pinarray.cli", "pinarray.cli.common",
 # ... and of the protocol's paradigm (found by the registry), its room's design alone: not its
 # rows, analysis or observer, nor any other room, nor the installed packages' entry points.
 ROOM = ("pinarray.paradigms.localisation", "pinarray.paradigms.localisation.design")
+# What playing a valid protocol's stimuli on the simulated array needs beside them.
+REHEARSAL = ("pinarray.player", "pinarray.hardware", "pinarray.schedule", "pinarray.clock",
+             "pinarray.stop")
+REHEARSAL_LIBRARIES = ("numpy", "serial")  # the simulated bus is opened as a port is
 
 
 def imported_by(command: list[str]) -> set[str]:
@@ -66,9 +73,14 @@ def test_validate_loads_the_protocol_reader_and_nothing_else_of_pinarray_nor_hea
     modules = imported_by([*start, "validate", str(path)])
 
     assert "pinarray.protocol.load" in modules  # the listing is read right: it did validate
-    assert sorted(m for m in modules if m.split(".")[0] in HEAVY) == []
+    played = protocol != "a broken one"
+    assert ("pinarray.player.rehearsal" in modules) is played
+    allowed = REHEARSAL_LIBRARIES if played else ()
+    assert sorted(m for m in modules if m.split(".")[0] in HEAVY
+                  and m.split(".")[0] not in allowed) == []
+    parts = ("pinarray.protocol", *(REHEARSAL if played else ()))
     others = {m for m in modules if m.split(".")[0] == "pinarray" and m not in ROOM
-              and not any(m == n or m.startswith("pinarray.protocol.") for n in NEEDED)}
+              and m not in NEEDED and not any(m == p or m.startswith(p + ".") for p in parts)}
     assert sorted(others) == []
     assert "importlib.metadata" not in modules  # a shipped paradigm: no entry points read
 

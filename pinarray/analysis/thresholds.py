@@ -77,7 +77,8 @@ class ThresholdMethod(StrEnum):
 # subjects whose fit's 95 % interval held their true threshold. Measured again there each run.
 COVERAGE = ("95 % credible intervals measured to hold the true threshold for {motion} of "
             "simulated subjects running protocols/staircase_motion.yaml and {stroke} running "
-            "protocols/quest_stroke.yaml (thresholds across the tested range, slopes 1.5-5, "
+            "protocols/quest_stroke.yaml (thresholds log-uniform over the tested values, 20-300 "
+            "ms and 4-120 steps, slopes 1.5-5, "
             "lapse rates 0-0.04; a threshold given in words counted by the bound it states)")
 MEASURED = {"motion": "96.3 % (289 of 300)", "stroke": "98.0 % (294 of 300)"}
 

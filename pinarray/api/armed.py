@@ -8,14 +8,13 @@ from typing import TYPE_CHECKING
 
 from pinarray.api import arguments
 from pinarray.api.delivery import Cut, Delivery
-from pinarray.api.protocols import describe_condition
+from pinarray.api.stimuli import described
 from pinarray.errors import PinArrayError
 from pinarray.player.playback import Onset, OnsetAt
 from pinarray.player.process import StartCue
-from pinarray.protocol.model import Condition
 
 if TYPE_CHECKING:
-    from pinarray.api.array import PinArray
+    from pinarray.api.array import PinArray, Stimulus
 
 __all__ = ["Armed"]
 
@@ -28,9 +27,9 @@ class Armed:
     Made by `PinArray.arm`.
     """
 
-    def __init__(self, array: PinArray, condition: Condition, onset: Onset | StartCue) -> None:
+    def __init__(self, array: PinArray, stimulus: Stimulus, onset: Onset | StartCue) -> None:
         self._array = array
-        self._condition = condition
+        self._stimulus = stimulus
         self._onset = onset
         self._future: Future[Delivery] = Future()
         self._cut: Cut | None = None  # what cut it, once something has
@@ -124,4 +123,4 @@ class Armed:
 
     def _described(self) -> str:
         when = f" armed for {self.onset_ns} ns" if self.onset_ns is not None else ""
-        return f"{describe_condition(self._condition)}{when}"
+        return f"{described(self._stimulus)}{when}"

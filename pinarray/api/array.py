@@ -47,7 +47,8 @@ from pinarray.api.delivery import (
     tell,
     unplayed,
 )
-from pinarray.api.protocols import describe_condition
+from pinarray.api.protocols import default_protocol
+from pinarray.api.stimuli import Built, Frames, Pattern, Train, Wave, code_stimulus, described
 from pinarray.clock import Clock, MonotonicClock, VirtualClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import DeliveryRecord, PreparedTrial
@@ -66,15 +67,20 @@ from pinarray.player.playback import (
 from pinarray.player.process import StartCue
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.drives import trial_drives
-from pinarray.protocol.model import Condition, Protocol, is_simulated
+from pinarray.protocol.in_code import drives_on
+from pinarray.protocol.model import Condition, PinDrive, Protocol, is_simulated
 from pinarray.schedule import compile_drives
 from pinarray.stop import Stopped, signal_name
 
 __all__ = ["Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
            "Presentable", "SafeStopReport", "VirtualClock", "open_array"]
 
-Presentable = PlannedTrial | Condition
-"""What `PinArray.present` plays: a trial of the protocol's plan, or one of its conditions."""
+Presentable = PlannedTrial | Condition | Pattern | Frames | Wave
+"""What `PinArray.present` plays: a trial of the protocol's plan, one of its conditions, or a
+stimulus built in code (`Pattern`, `Frames`, `Wave`)."""
+
+# What an array plays: a condition of its protocol, or a stimulus built in code.
+Stimulus = Condition | Built
 
 # Arrays still open, closed as the interpreter exits (a stimulus armed at the script's end).
 _open_arrays: weakref.WeakSet[PinArray] = weakref.WeakSet()
@@ -99,7 +105,8 @@ class PinArray:
         self._lock = threading.RLock()  # one change of state at a time: arm, stop, close
         self._current: Armed | None = None
         self._safe_stop: SafeStopReport | None = None  # set once closed
-        self._trials: dict[Condition, PreparedTrial] = {}
+        self._trials: dict[Stimulus, PreparedTrial] = {}
+        self._built: dict[Built, tuple[PinDrive, ...]] = {}  # read against this array's device
         self._preparing = threading.Lock()
         # Armed stimuli play in one thread of their own, started once: starting a thread per
         # stimulus would hand it the interpreter for up to a switch interval (5 ms) while the
@@ -161,20 +168,25 @@ class PinArray:
 
         Parameters
         ----------
-        stimulus : PlannedTrial or Condition
-            As for `present`.
+        stimulus : PlannedTrial, Condition, Pattern, Frames or Wave
+            As for `present`: checked in full here (a stimulus built in code, against this
+            array's device).
         """
-        self._trial(self._condition("prepare", stimulus))
+        self._trial(self._stimulus("prepare", stimulus))
 
     def present(self, stimulus: Presentable, *, at_ns: int | None = None) -> Delivery:
         """Play one stimulus and wait until it has played.
 
         Parameters
         ----------
-        stimulus : PlannedTrial or Condition
+        stimulus : PlannedTrial, Condition, Pattern, Frames or Wave
             A trial of the protocol's plan (`plan_trials`) or a condition of its design
             (`find_condition`). A trial of an adaptive design plays its condition as the
             protocol writes it: the values its procedures choose are `run_session`'s.
+            Or a stimulus built in code: its pins numbered on this array's grid, and checked
+            as a protocol's stimulus is (each pin's calibrated stroke and the servos' speed,
+            no pin driven twice at once, the servo bus, a trial's pulses) before anything
+            moves.
         at_ns : int or None
             The stimulus's time zero on the array's clock, in integer ns, at least `lead_ns`
             and at most a minute ahead; None: `lead_ns` after the call.
@@ -182,7 +194,8 @@ class PinArray:
         Returns
         -------
         Delivery
-            Its onset, its delivery record and the strokes measured. A stimulus not delivered
+            Its onset, what was presented (`Delivery.stimulus`), its delivery record and
+            the strokes measured. A stimulus not delivered
             as scheduled (late, short, cut by `stop` from another thread) is returned
             (``delivered`` False, with the reason), not raised.
 
@@ -192,10 +205,11 @@ class PinArray:
             The bus failing mid-stimulus (the message says at which frame it stopped and how
             the pins were left: they were put to rest first).
         PinArrayError
-            A stimulus the protocol does not hold, an onset too soon or too far, another
-            stimulus still armed, a closed array.
+            A condition the protocol does not hold, a stimulus built in code that this
+            array cannot play as specified (saying why, the argument at fault named), an
+            onset too soon or too far, another stimulus still armed, a closed array.
         """
-        condition = self._condition("present", stimulus)
+        condition = self._stimulus("present", stimulus)
         with self._lock:
             self._check_idle("present")
             onset: Onset = (OnsetAfter(self.lead_ns) if at_ns is None else
@@ -211,7 +225,7 @@ class PinArray:
 
         Parameters
         ----------
-        stimulus : PlannedTrial or Condition
+        stimulus : PlannedTrial, Condition, Pattern, Frames or Wave
             As for `present`.
         at_ns : int or None
             The stimulus's time zero on the array's clock, in integer ns, at least `lead_ns`
@@ -229,7 +243,7 @@ class PinArray:
         PinArrayError
             As for `present`, before anything is armed.
         """
-        condition = self._condition("arm", stimulus)
+        condition = self._stimulus("arm", stimulus)
         with self._lock:
             self._check_idle("arm")
             onset: Onset | StartCue = (StartCue() if at_ns is None else
@@ -301,11 +315,22 @@ class PinArray:
                 log.info("%s: closed by %s: %s", self.url, by, self._safe_stop.describe())
             return self._safe_stop
 
-    def _condition(self, call: str, stimulus: object) -> Condition:
-        """The stimulus's condition, once it is known to be one the protocol holds (and so was
-        checked when the protocol was read)."""
+    def _stimulus(self, call: str, stimulus: object) -> Stimulus:
+        """What ``stimulus`` plays, once it is known to be safe to: a condition the protocol
+        holds (checked when the protocol was read), or a stimulus built in code read against
+        this array's device (`pinarray.protocol.in_code`)."""
         protocol = self.protocol
         match stimulus:
+            case Pattern() | Frames() | Wave():
+                if stimulus not in self._built:
+                    self._built[stimulus] = drives_on(
+                        protocol.device, f"{call}: {type(stimulus).__name__}",
+                        code_stimulus(stimulus))
+                return stimulus
+            case Train():
+                raise PinArrayError(f"{call}: stimulus: a Train plays on pins: present "
+                                    "pinarray.Pattern(pins=[...], train=...) or a "
+                                    "pinarray.Wave")
             case PlannedTrial(catch=True):
                 raise PinArrayError(f"{protocol.source}: trial {stimulus.trial} is a catch trial "
                                     "of an adaptive design: run_session presents those")
@@ -315,22 +340,25 @@ class PinArray:
                 condition = stimulus
             case _:
                 arguments.refuse(call, "stimulus", "a planned trial or a condition of the "
-                                 "protocol (pinarray.find_condition)", stimulus)
+                                 "protocol (pinarray.find_condition), or a stimulus built in "
+                                 "code (pinarray.Pattern, Frames, Wave)", stimulus)
         if condition not in protocol.design.conditions:
-            raise PinArrayError(f"{protocol.source}: {describe_condition(condition)} is not a "
+            raise PinArrayError(f"{protocol.source}: {described(condition)} is not a "
                                 "condition of the protocol's design: write it into the protocol "
                                 "(find_condition names what it holds)")
         return condition
 
-    def _trial(self, condition: Condition) -> PreparedTrial:
-        trial = self._trials.get(condition)
+    def _trial(self, stimulus: Stimulus) -> PreparedTrial:
+        trial = self._trials.get(stimulus)
         if trial is None:
             with self._preparing:
-                trial = self._trials.get(condition)
+                trial = self._trials.get(stimulus)
                 if trial is None:
                     protocol = self.protocol
-                    schedule = compile_drives(trial_drives(protocol, condition), protocol.device)
-                    trial = self._trials[condition] = self._rig.prepare(schedule)
+                    drives = (trial_drives(protocol, stimulus) if isinstance(stimulus, Condition)
+                              else self._built[stimulus])
+                    schedule = compile_drives(drives, protocol.device)
+                    trial = self._trials[stimulus] = self._rig.prepare(schedule)
         return trial
 
     def _check_open(self, call: str) -> None:
@@ -354,7 +382,8 @@ class PinArray:
             armed._future.set_exception(error)
 
     def _play(self, armed: Armed) -> Delivery:
-        condition = armed._condition
+        condition = armed._stimulus
+        what = described(condition)
         trial = self._trial(condition)
         rig = self._rig
         planned_ns = armed.onset_ns if armed.onset_ns is not None else self.now_ns()
@@ -363,19 +392,19 @@ class PinArray:
                 raise Stopped(f"cut short by {armed._cut.by}")
             presentation = rig.play(trial, onset=armed._onset)
         except Stopped as stopped:
-            return self._cut_short(armed, trial, planned_ns,
+            return self._cut_short(armed, trial, planned_ns, what,
                                    armed._cut or Cut(self.now_ns(), _stopped_by(stopped)))
         except Suspended as suspended:  # real servos: the player process cut it
-            return self._cut_short(armed, trial, planned_ns,
+            return self._cut_short(armed, trial, planned_ns, what,
                                    armed._cut or Cut(suspended.noticed_ns, SUSPENSION))
         except OnsetPassed as passed:
             why = (f"its onset had passed {passed.late_ns / 1e6:.1f} ms before playback could "
                    "begin (the host was busy): nothing moved")
-            log.warning("%s: %s: %s", self.url, describe_condition(condition), why)
+            log.warning("%s: %s: %s", self.url, what, why)
             return unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
-                            NotStarted(why), why)
+                            NotStarted(why), why, what)
         except PlaybackAborted as aborted:
-            log.error("%s: %s: %s", self.url, describe_condition(condition), aborted)
+            log.error("%s: %s: %s", self.url, what, aborted)
             if type(aborted) is PlaybackAborted:
                 raise
             raise PlaybackAborted(str(aborted), aborted.safe_stop) from None  # the public class
@@ -383,24 +412,23 @@ class PinArray:
         # frames and samples for as long as the script runs.
         report = rig.reports.pop()
         delivery = Delivery(presentation.onset_ns, trial.end_ns, onset_write_late_ns(report),
-                            presentation.delivery)
-        tell(self.url, describe_condition(condition), delivery, report)
+                            presentation.delivery, stimulus=what)
+        tell(self.url, what, delivery, report)
         return delivery
 
-    def _cut_short(self, armed: Armed, trial: PreparedTrial, planned_ns: int,
+    def _cut_short(self, armed: Armed, trial: PreparedTrial, planned_ns: int, what: str,
                    cut: Cut) -> Delivery:
-        """The delivery of a stimulus ``cut``: `Cut` if it had begun by then, else
+        """The delivery of the stimulus ``what``, ``cut``: `Cut` if it had begun by then, else
         `NotStarted` (nothing moved)."""
         rig = self._rig
         if armed._began(cut.at_ns, rig.last_from_ns):
             delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
-                                cut, f"cut short by {cut.by}")
+                                cut, f"cut short by {cut.by}", what)
         else:
             delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
                                 NotStarted(f"cancelled by {cut.by} before it started"),
-                                f"cancelled by {cut.by} before it started: nothing moved")
-        log.warning("%s: %s: %s", self.url, describe_condition(armed._condition),
-                    delivery.problem)
+                                f"cancelled by {cut.by} before it started: nothing moved", what)
+        log.warning("%s: %s: %s", self.url, what, delivery.problem)
         return delivery
 
     def _cut_current(self, by: str) -> None:
@@ -427,8 +455,8 @@ class PinArray:
                 self._rig.rest_and_release()
 
 
-def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None = None,
-               clock: Clock | None = None) -> PinArray:
+def open_array(protocol: Protocol | None = None, *, port: str | None = None,
+               sim: str | None = None, clock: Clock | None = None) -> PinArray:
     """Connect the protocol's pin array: real servos on ``port``, or simulated ones.
 
     The port is held for this array until it is closed: any other opener, in this script or
@@ -439,9 +467,13 @@ def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None =
 
     Parameters
     ----------
-    protocol : Protocol
-        From `load_protocol`: its device section says which servos, their calibration and
-        the delivery tolerance.
+    protocol : Protocol or None
+        From `load_protocol` or `protocol_from_text`: its device section says which servos,
+        their calibration (the limits no command leaves) and the delivery tolerance; the
+        pins of a stimulus built in code are numbered on its grid and checked against its
+        servos. None: simulated bus servos with pinarray's default device (the 4x4 grid,
+        STS3215 servos, the seed's calibration), for stimuli built in code; real servos
+        always need the protocol that calibrates them.
     port : str or None
         A serial device of real bus servos (``/dev/ttyUSB0``), or the I2C bus of a PWM board
         (``/dev/i2c-1``).
@@ -467,12 +499,18 @@ def open_array(protocol: Protocol, *, port: str | None = None, sim: str | None =
         Servos missing or failing, naming their ids and registers; a port that cannot be
         opened.
     PinArrayError
-        A wrong argument (named), both a port and a sim URL, a URL that cannot be read, or a
-        clock real servos cannot play on.
+        A wrong argument (named), both a port and a sim URL, a URL that cannot be read, a
+        clock real servos cannot play on, or a port without a protocol.
     """
     from pinarray.hardware.pca9685.sim import is_shared_board_url
 
     call = "open_array"
+    if protocol is None:
+        if port is not None:
+            raise PinArrayError(f"{call}: {port}: real servos need the protocol that calibrates "
+                                "them (its device section: servo ids, rest, limits): give one "
+                                "(pinarray.load_protocol or pinarray.protocol_from_text)")
+        protocol = default_protocol()
     protocol = arguments.protocol(call, protocol)
     port = arguments.port(call, port)
     sim = arguments.sim_for(call, protocol, sim)

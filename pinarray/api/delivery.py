@@ -88,6 +88,10 @@ class Delivery:
         cut short or never started, no goal change counts as confirmed and its problem says why.
     ending : Ending
         How it ended: `Played` to its end, `Cut` short (when, by what) or `NotStarted`.
+    stimulus : str
+        What was presented, in full: a protocol's condition as its paradigm names it
+        (``seed_train on pin 6 at 10 Hz``); a stimulus built in code as the code that builds
+        it, every value given (``Pattern(pins=[6, 7], train=Train(frequency_hz=5, ...))``).
     """
 
     onset_ns: int
@@ -95,6 +99,7 @@ class Delivery:
     onset_write_late_ns: int
     record: DeliveryRecord
     ending: Ending = PLAYED
+    stimulus: str = ""
 
     @property
     def delivered(self) -> bool:
@@ -135,11 +140,11 @@ class Delivery:
 
 
 def unplayed(onset_ns: int, duration_ns: int, changes: int, tolerance_ns: int,
-             ending: Cut | NotStarted, problem: str) -> Delivery:
+             ending: Cut | NotStarted, problem: str, stimulus: str) -> Delivery:
     """The delivery of a stimulus cut short or never started: not delivered, saying why."""
     record = DeliveryRecord(scheduled=changes, confirmed=0, healed=0, missing=changes,
                             worst_lateness_ns=0, tolerance_ns=tolerance_ns, problem=problem)
-    return Delivery(onset_ns, duration_ns, 0, record, ending)
+    return Delivery(onset_ns, duration_ns, 0, record, ending, stimulus)
 
 
 def onset_write_late_ns(report: PlaybackReport) -> int:

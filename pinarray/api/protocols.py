@@ -8,6 +8,7 @@ presents from it is safe to play. A stimulus the protocol does not hold is writt
 
 from __future__ import annotations
 
+import functools
 from fractions import Fraction
 from os import PathLike, fspath
 
@@ -18,7 +19,7 @@ from pinarray.protocol.model import Condition, Protocol
 from pinarray.protocol.seam import paradigm_named
 
 __all__ = ["Condition", "PlannedTrial", "Protocol", "TrialPlan", "find_condition",
-           "load_protocol", "plan_trials"]
+           "load_protocol", "plan_trials", "protocol_from_text"]
 
 
 def load_protocol(path: str | PathLike[str]) -> Protocol:
@@ -43,6 +44,69 @@ def load_protocol(path: str | PathLike[str]) -> Protocol:
     from pinarray.protocol.load import load_protocol as load
 
     return load(fspath(arguments.path("load_protocol", "path", path)))
+
+
+def protocol_from_text(text: str, *, name: str = "<text>") -> Protocol:
+    """Read a protocol written in a script (YAML text) and check it whole, as a file is.
+
+    A separate call from `load_protocol`, so that a path is never read as YAML nor YAML as a
+    path.
+
+    Parameters
+    ----------
+    text : str
+        The protocol, as a file would hold it (at most 1 MiB).
+    name : str
+        What its problems are located in (``<text>:LINE:COL: ...``) and what the protocol's
+        `Protocol.source` says; lines count from the text's first. A ``response:`` file the
+        device names is found from the current directory.
+
+    Returns
+    -------
+    Protocol
+        As `load_protocol` gives it for a file holding ``text`` (its ``sha256`` the text's,
+        in UTF-8, line ends as ``\n``).
+
+    Raises
+    ------
+    ProtocolErrors
+        Every problem found, each a `ProtocolError` at ``name:line:col``, as a file's are.
+    PinArrayError
+        A text that is not a str, or larger than 1 MiB; a name that is empty or not a str.
+    """
+    from pinarray.protocol.load import MAX_PROTOCOL_BYTES, parse_protocol
+
+    call = "protocol_from_text"
+    text = arguments.text(call, "text", text)
+    name = arguments.text(call, "name", name)
+    if not name.strip() or "\n" in name:
+        arguments.refuse(call, "name", "a name for the text on one line, not empty", name)
+    if len(text.encode("utf-8", "surrogatepass")) > MAX_PROTOCOL_BYTES:
+        raise PinArrayError(f"{call}: text: expected a protocol of at most "
+                            f"{MAX_PROTOCOL_BYTES:,} bytes, found {len(text):,} characters")
+    return parse_protocol(text.replace("\r\n", "\n").replace("\r", "\n"), name)
+
+
+# The protocol of an array opened without one (`open_array()`, simulated servos only): the
+# device every protocol without a device section has (the 4x4 grid, STS3215 servos at their
+# datasheet speed, the seed's calibration: rest at 2048 steps, a 2 ms pulse lifting the pin
+# 114 steps), for stimuli built in code. Its one condition is there because a protocol has a
+# design; a script presents its own stimuli.
+DEFAULTS = """\
+protocol: defaults
+description: pinarray's default device, for stimuli built in code (no protocol given)
+stimuli:
+  tap: {frequency_hz: 5, duration_s: 1}
+design: {paradigm: localisation, stimulus: tap, pins: [1], frequencies_hz: [5]}
+"""
+
+
+@functools.cache
+def default_protocol() -> Protocol:
+    """The protocol an array opened without one plays its stimuli on (`DEFAULTS`)."""
+    from pinarray.protocol.load import parse_protocol
+
+    return parse_protocol(DEFAULTS, "<pinarray's defaults>")
 
 
 def plan_trials(protocol: Protocol, seed: int | None = None) -> TrialPlan:

@@ -96,7 +96,7 @@ def parse_jog(line: str, step: int) -> _By | _To | JogWord:
     if text in ("+", "-"):
         return _By(step if text == "+" else -step)
     sign, number = text[0], text[1:].strip()
-    if sign in "+-=" and number.isdigit() and len(number) <= 5:
+    if sign in "+-=" and number.isascii() and number.isdigit() and len(number) <= 5:
         value = int(number)
         if sign == "=":
             return _To(value)

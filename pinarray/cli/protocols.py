@@ -6,14 +6,18 @@ Only argparse at import: `validate` must answer fast and never load Textual or m
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING
 
 from pinarray.cli import common
 
 if TYPE_CHECKING:
+    from pinarray.player.rehearsal import Rehearsal
     from pinarray.protocol import Protocol
+    from pinarray.protocol.model import Device, PinDrive
+    from pinarray.protocol.seam import Rehearse
 
 # Plans hold at most 20 000 trials (`pinarray.protocol.design.MAX_TRIALS`); a number past
 # them is refused by the plan with the plan's own range.
@@ -93,7 +97,8 @@ def _validate(args: argparse.Namespace) -> int:
 
     status = 0
     for path in args.files:
-        protocol, problems = validate_file(path)
+        with _rehearsal() as rehearse:
+            protocol, problems = validate_file(path, rehearse)
         if problems:
             status = 2
             for line in problems:
@@ -125,6 +130,28 @@ def _validate(args: argparse.Namespace) -> int:
             for warning in protocol_warnings(protocol):
                 print(f"{path}: warning: {warning}", file=sys.stderr)
     return status
+
+
+@contextlib.contextmanager
+def _rehearsal() -> Iterator[Rehearse]:
+    """Each condition that passes every check played on the simulated array, as a run plays
+    it (`pinarray.player.rehearsal`); the simulator and numpy are loaded only when a
+    protocol's stimuli are played there."""
+    rehearsal: Rehearsal | None = None
+
+    def rehearse(drives: Sequence[PinDrive], device: Device) -> str | None:
+        nonlocal rehearsal
+        from pinarray.player.rehearsal import Rehearsal
+
+        if rehearsal is None:
+            rehearsal = Rehearsal()
+        return rehearsal(drives, device)
+
+    try:
+        yield rehearse
+    finally:
+        if rehearsal is not None:
+            rehearsal.close()
 
 
 def _board_refusals(protocol) -> tuple[str, ...]:

@@ -63,9 +63,18 @@ def pins_text(pins: Sequence[int]) -> str:
 def pins_cell(text: str, where: str) -> tuple[int, ...]:
     """The pins of a pins cell, or a `ResultsError` naming where it cannot hold them."""
     try:
-        return tuple(int(p) for p in text.split())
+        return tuple(_ascii(int)(p) for p in text.split())
     except ValueError:
         raise ResultsError(f"{where}: column 'pins' cannot hold {text!r}") from None
+
+
+def _ascii(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """``parse`` of ASCII text only: int() and float() also read other scripts' digits (１)."""
+    def parsed(text: str) -> Any:
+        if not text.isascii():
+            raise ValueError(text)
+        return parse(text)
+    return parsed
 
 
 _FORMAT: dict[Cell, Callable[[Any], str]] = {
@@ -76,9 +85,9 @@ _FORMAT: dict[Cell, Callable[[Any], str]] = {
     Cell.TEXT: str,
 }
 _PARSE: dict[Cell, Callable[[str], Any]] = {
-    Cell.INTEGER: int,
+    Cell.INTEGER: _ascii(int),
     Cell.SECONDS: ns_from_seconds,
-    Cell.NUMBER: float,
+    Cell.NUMBER: _ascii(float),
     Cell.BOOLEAN: _BOOLEAN.__getitem__,
     Cell.TEXT: str,
 }

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from pinarray.errors import ResultsError
+from pinarray.journal.files import read_results_file, results_file
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
 from pinarray.units import NS_PER_S
@@ -33,6 +34,8 @@ if TYPE_CHECKING:
     from pinarray.journal.records import TrialRecord
 
 NA = "n/a"
+# A run's recording, compressed: hours of every pin's samples, far more than any design.
+MAX_RECORDING_BYTES = 1 << 30
 
 
 class MotionSample(NamedTuple):
@@ -102,7 +105,7 @@ class MotionRecording:
 
     def __init__(self, path: Path, keep: int | None = None):
         self.path = path
-        kept = read_text(path) if path.exists() else b""
+        kept = read_text(path) if results_file(path, "motion recording") else b""
         if keep is not None:
             kept = b"".join(kept.splitlines(keepends=True)[:keep])
         self._stream = zlib.compressobj(wbits=31)  # 31: a gzip header and trailer
@@ -146,7 +149,7 @@ class MotionRecording:
 def read_text(path: Path | str) -> bytes:
     """What a motion recording holds, uncompressed: all of it, or as far as it reads whole
     (a stream a killed process left without its end, or with a torn last block)."""
-    data = Path(path).read_bytes()
+    data = read_results_file(Path(path), "motion recording", MAX_RECORDING_BYTES)
     stream = zlib.decompressobj(wbits=31)
     try:
         text = stream.decompress(data)
@@ -177,28 +180,43 @@ def claimed_samples(path: Path, records: Sequence[TrialRecord]) -> int | None:
     """How many samples of the recording at ``path`` the rows ``records`` claim (each row's
     ``motion_samples``, in row order), checked against what it holds; None when some row does
     not say (written before the count was kept: nothing to check). `ResultsError` naming
-    both files when the recording holds fewer, or other trials' samples, than the rows say: it
-    was deleted, cut or replaced, and resuming would lose their samples in silence."""
+    both files when the recording holds fewer, or other trials' samples, than the rows say (it
+    was deleted, cut or replaced), or samples of more than one presentation after them (rows
+    were deleted: a crash leaves at most one presentation without its row), where resuming
+    would lose samples, or present trials again, in silence."""
     counts = [r.motion_samples for r in records if r.motion_samples is not None]
     if len(counts) != len(records):
         return None
     claimed = sum(counts)
-    if not claimed:
-        return 0
     try:
-        held = read_motion(path) if path.exists() else []
+        held = read_motion(path) if results_file(path, "motion recording") else []
     except (OSError, ValueError) as problem:  # not a recording any more (UnicodeError too)
         raise ResultsError(f"{path}: cannot be read as the run's motion recording ({problem}); "
                            "put it back as it was to resume this run, or start a new run") from None
+    keep = ("put it back as it was to resume this run, or start a new run (this one is left as "
+            "it is)")
     at = 0
     for record, count in zip(records, counts, strict=True):
         mine = held[at:at + count]
-        if len(mine) < count or any(s.trial != record.trial for s in mine):
+        if len(mine) < count:
             found = "is missing" if not path.exists() else f"holds {len(held):,} samples"
             raise ResultsError(
                 f"{path}: {found}, but the rows of the run's beh.tsv claim {claimed:,} (trial "
                 f"{record.trial}'s are not all there): the motion recording was deleted, cut or "
-                "replaced; put it back as it was to resume this run, or start a new run (this "
-                "one is left as it is)")
+                f"replaced; {keep}")
+        other = next((s.trial for s in mine if s.trial != record.trial), None)
+        if other is not None:
+            raise ResultsError(
+                f"{path}: holds trial {other}'s samples where the rows of the run's beh.tsv, in "
+                f"their order, put trial {record.trial}'s: rows were deleted or moved, or the "
+                f"recording replaced; put them back as they were to resume this run, or start a "
+                "new run (this one is left as it is)")
         at += count
+    unclaimed = sorted({s.trial for s in held[at:]})
+    if len(unclaimed) > 1:
+        raise ResultsError(
+            f"{path}: holds samples of trials {', '.join(map(str, unclaimed))} that no row of "
+            f"the run's beh.tsv claims (its {len(records)} row(s) claim {claimed:,} samples): "
+            "rows were deleted from the beh.tsv; put them back to resume this run, or start a "
+            "new run (this one is left as it is)")
     return claimed

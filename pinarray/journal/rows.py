@@ -19,15 +19,14 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 import re
-import stat
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from pinarray.errors import ResultsError
+from pinarray.errors import PinArrayError, ResultsError
 from pinarray.journal.columns import Column, cell_text, cell_value
+from pinarray.journal.files import read_results_file, results_file
 from pinarray.journal.records import (
     EVENT_ONLY,
     FIRST_NAMES,
@@ -40,7 +39,7 @@ from pinarray.journal.records import (
     common_fields,
 )
 from pinarray.journal.seam import ParadigmRows, columns_of, legacy_rooms, rows_of
-from pinarray.text_files import NotText, kind_of, position_of, read_bounded
+from pinarray.text_files import position_of
 
 if TYPE_CHECKING:
     from pinarray.journal.manifest import RunManifest
@@ -95,34 +94,16 @@ def split_torn_tail(data: bytes, columns: int) -> tuple[int, bytes]:
     return end, data[end:]
 
 
-MAX_RESULTS_BYTES = 256 << 20  # a run's beh.tsv: a million rows, far more than any design
-
-
 def _regular(path: Path) -> bool:
-    """Whether ``path`` is a regular file (through a link); False when there is none; a
-    `ResultsError` for anything else, looked at before it is opened (opening a FIFO waits
-    for a writer, reading /dev/zero never ends)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        return False
-    except OSError as problem:
-        raise ResultsError(f"{path}: cannot read the results: {problem.strerror}") from None
-    if not stat.S_ISREG(mode):
-        raise ResultsError(f"{path}: expected a results file, found {kind_of(mode)}")
-    return True
+    """Whether ``path`` is a regular file (`pinarray.journal.files.results_file`)."""
+    return results_file(path)
 
 
 def results_bytes(path: Path) -> bytes:
-    """The bytes of a ``beh.tsv``: a regular file of UTF-8 text within `MAX_RESULTS_BYTES`
+    """The bytes of a ``beh.tsv``: a regular file of UTF-8 text within
+    `pinarray.journal.files.MAX_RESULTS_BYTES`
     (zeros after a power cut belong to its torn tail); else a `ResultsError` saying where."""
-    if not _regular(path):
-        raise ResultsError(f"{path}: no such results file")
-    try:
-        data = read_bounded(path, MAX_RESULTS_BYTES, "results")
-    except NotText as problem:
-        where = f":{problem.line}:{problem.col}" if problem.line else ""
-        raise ResultsError(f"{path}{where}: {problem.message}") from None
+    data = read_results_file(path)
     body = data.rstrip(b"\0")
     if b"\0" in body:
         line, col = position_of(body, body.index(b"\0"))
@@ -175,6 +156,11 @@ def layout_rows(names: Sequence[str], paradigm: str | None,
         if not fits:
             raise ResultsError(f"{where}:1: expected the columns {list(rows.layout)}, found "
                                f"{list(names)}")
+        # An older layout's header is a prefix of today's, but it holds the paradigm's own
+        # columns (its marker): a header cut before them is no file of its rows.
+        if rows.marker not in names:
+            raise ResultsError(f"{where}:1: expected the column {rows.marker!r} of a "
+                               f"{rows.name} file, found the header ending at {names[-1]!r}")
         return rows, columns_of(rows)
     if is_legacy_prefix(names):
         found: dict[str, Column] = {}
@@ -183,12 +169,22 @@ def layout_rows(names: Sequence[str], paradigm: str | None,
         return None, found
     from pinarray import registry
 
-    for room in registry.rooms():
-        rows = rows_of(getattr(room, "name", ""))
+    # pinarray's own first: a lab's package that cannot be loaded hides none of their files,
+    # and is named only when no other paradigm writes these columns (the file may be its).
+    for name in registry.BUILT_IN:
+        if tuple(names) == rows_of(name).layout:
+            return rows_of(name), columns_of(rows_of(name))
+    broken = []
+    for name in registry.plug_ins():
+        try:
+            rows = rows_of(name)
+        except PinArrayError as problem:
+            broken.append(f"; {problem}")
+            continue
         if tuple(names) == rows.layout:
             return rows, columns_of(rows)
     raise ResultsError(f"{where}:1: expected the columns {list(LEGACY_LAYOUT)} (or a "
-                       f"paradigm's own), found {list(names)}")
+                       f"paradigm's own), found {list(names)}{''.join(broken)}")
 
 
 def _rows_of_row(values: Mapping[str, Any], where: str) -> ParadigmRows:
@@ -207,12 +203,41 @@ def _same(read: Any, written: Any) -> bool:
     return bool(read == written)
 
 
+# Cells read back that cannot be below 0: times (ns) and counts.
+NOT_NEGATIVE = {"stimulus_onset": "s", "stimulus_duration": "s", "response_time": "s",
+                "goals_scheduled": "", "goals_confirmed": "", "goals_healed": "",
+                "goals_missing": "", "stroke_commanded": "steps", "stroke_achieved": "steps",
+                "stroke_median": "steps", "motion_lag": "s", "cycles_short": ""}
+
+
+def check_common(values: Mapping[str, Any], where: str) -> None:
+    """The common cells of a row read back, against each other: times and counts not below
+    0, no more goal changes accounted for than were scheduled, and none missing from a trial
+    that counts (a trial with a change never confirmed was not delivered as scheduled)."""
+    for name, unit in NOT_NEGATIVE.items():
+        value = values.get(name)
+        if value is not None and value < 0:
+            shown = f"{value / 1e9:g} s" if unit == "s" else f"{value:g} {unit}".rstrip()
+            raise ResultsError(f"{where}: expected {name} of at least 0, found {shown}")
+    scheduled, missing = values.get("goals_scheduled"), values.get("goals_missing")
+    fates = [values.get(n) for n in ("goals_confirmed", "goals_healed", "goals_missing")]
+    accounted = sum(f for f in fates if f is not None)
+    if missing and values.get("status") == TrialStatus.OK:
+        raise ResultsError(f"{where}: expected status {TrialStatus.INVALID} for a trial with "
+                           f"goal changes missing (not delivered as scheduled), found "
+                           f"{TrialStatus.OK} with {missing} missing")
+    if scheduled is not None and accounted > scheduled:
+        raise ResultsError(f"{where}: expected at most the {scheduled} goal change(s) scheduled "
+                           f"to be confirmed, healed or missing, found {accounted}")
+
+
 def row_record(values: Mapping[str, Any], names: Sequence[str], columns: Mapping[str, Column],
                rows: ParadigmRows | None, where: str,
                cells: Sequence[str] | None = None) -> TrialRecord:
     """The record of a row read back (``values``: its cells parsed, by column; ``cells``:
     their text, when at hand), checked to write exactly the cells it was read from."""
     rows = rows or _rows_of_row(values, where)
+    check_common(values, where)
     try:
         record = rows.record(common_fields(dict(values), where), values, where)
     except ResultsError as problem:
@@ -287,6 +312,9 @@ def check_run(path: Path | str, records: Sequence[TrialRecord], manifest: RunMan
                 continue  # a trial presented again, never finished: nothing counts it
             kind = "practice trial" if record.practice else "trial"
             raise ResultsError(f"{where}: the run's plan has no {kind} {record.trial}")
+        if record.block != entry.block:
+            raise ResultsError(f"{where}: expected the plan's block {entry.block}, found "
+                               f"{record.block}")
         problem = rows.check_row(record, entry, manifest)
         if problem:
             raise ResultsError(f"{where}: {problem}")
@@ -294,6 +322,11 @@ def check_run(path: Path | str, records: Sequence[TrialRecord], manifest: RunMan
             raise ResultsError(f"{where}: expected an answer the design offered ("
                                f"{', '.join(sorted(offered)) or 'none'}), found "
                                f"{record.response!r}")
+    together = getattr(rows, "check_together", None)  # optional: RowsDefaults has it
+    found = together(records) if together is not None else None
+    if found is not None:
+        index, problem = found
+        raise ResultsError(f"{path}:{index + 2}: trial {records[index].trial}: {problem}")
 
 
 def _not_a_table(path: Path, data: bytes, problem: csv.Error) -> str:

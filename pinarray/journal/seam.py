@@ -200,6 +200,11 @@ class RowsDefaults:
                   manifest: RunManifest) -> str | None:
         return None
 
+    def check_together(self, records: Sequence[TrialRecord]) -> tuple[int, str] | None:
+        """What a run's rows must agree on that no plan entry says (optional: `check_run`
+        asks where a room has it): the index of the first row that does not, and why."""
+        return None
+
     def live_lines(self, counted: Sequence[TrialRecord]) -> list[str]:
         """Right answers of the rows that have one (``correct``)."""
         judged = [c for c in (getattr(r, "correct", None) for r in counted) if c is not None]

@@ -137,6 +137,8 @@ def ns_from_seconds(text: str) -> int:
     Raises ValueError for text that is not a finite decimal number of at most `MAX_SECONDS`.
     """
     try:
+        if not text.isascii():  # Decimal() reads other scripts' digits (１.５)
+            raise InvalidOperation(text)
         value = Decimal(text)
     except InvalidOperation:
         raise ValueError(text) from None

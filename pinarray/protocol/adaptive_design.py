@@ -54,7 +54,7 @@ from pinarray.protocol.stimuli import check_bus, check_period, check_train_on_pi
 from pinarray.protocol.yaml_nodes import Invalid, MappingNode, Node, Reader
 
 if TYPE_CHECKING:
-    from pinarray.protocol.seam import ParadigmDesign
+    from pinarray.protocol.seam import ParadigmDesign, Rehearse
 
 ADAPTIVE_KEYS = {"parameter", "values", "task", "guess_rate", "catch_trials", "procedures"}
 STAIRCASE_KEYS = {"method", "start", "down", "up", "step_sizes", "stop_after_trials",
@@ -100,9 +100,11 @@ def read_values(reader: Reader, keys: Mapping[str, Node], parameter: Parameter) 
 
 def read_adaptive(reader: Reader, keys: Mapping[str, Node], paradigm: ParadigmDesign, device: Device,
                   parameter: Parameter, values: tuple[Fraction, ...],
-                  conditions: Sequence[Condition], by_name: Mapping[str, Stimulus]) -> Adaptive:
+                  conditions: Sequence[Condition], by_name: Mapping[str, Stimulus],
+                  rehearse: Rehearse | None = None) -> Adaptive:
     """The ``adaptive`` section (its ``keys``), every value checked on every condition it can
-    present."""
+    present (``rehearse``: and played on the model it stands for, as
+    `pinarray.protocol.seam.check_conditions` plays a fixed design's conditions)."""
     task = reader.string(keys["task"], f"the task of a {paradigm.name} design",
                          tuple(paradigm.tasks))
     guess = reader.optional(
@@ -114,7 +116,7 @@ def read_adaptive(reader: Reader, keys: Mapping[str, Node], paradigm: ParadigmDe
                             CatchTrials(0))
     procedures = _procedures(reader, keys["procedures"], values, guess)
     _check_values(reader, keys["values"], paradigm, device, parameter, values, conditions,
-                  by_name)
+                  by_name, rehearse)
     return Adaptive(parameter, values, task, guess, procedures, catch)
 
 
@@ -327,8 +329,9 @@ def _listed(values: Sequence[Fraction]) -> str:
 def _check_values(reader: Reader, node: Node, paradigm: ParadigmDesign, device: Device,
                   parameter: Parameter,
                   values: tuple[Fraction, ...], conditions: Sequence[Condition],
-                  by_name: Mapping[str, Stimulus]) -> None:
-    """Every value on every condition, as the trial would play it; the first problem reported."""
+                  by_name: Mapping[str, Stimulus], rehearse: Rehearse | None = None) -> None:
+    """Every value on every condition, as the trial would play it (played on ``rehearse``'s
+    model last, when nothing else in the file is wrong); the first problem reported."""
     distinct = list(dict.fromkeys(conditions))
     if len(distinct) * len(values) > MAX_CHECKS:
         raise reader.error(node, f"expected at most {MAX_CHECKS:,} values x stimuli, found "
@@ -362,3 +365,7 @@ def _check_values(reader: Reader, node: Node, paradigm: ParadigmDesign, device: 
                 check_bus(probe, node, drives, played)
             except Invalid:
                 raise reader.error(node, where + probe.errors[0].message) from None
+            if rehearse is not None and not reader.errors and not reader.guessing:
+                undelivered = rehearse(drives, played)
+                if undelivered is not None:
+                    raise reader.error(node, where + undelivered)

@@ -46,7 +46,7 @@ from pinarray.protocol.procedures import Parameter
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, close_match, describe
 
 if TYPE_CHECKING:
-    from pinarray.protocol.seam import Adapting, DesignSection, ParadigmDesign
+    from pinarray.protocol.seam import Adapting, DesignSection, ParadigmDesign, Rehearse
 
 MAX_TRIALS = 20_000
 MAX_PULSES_PER_TRIAL = 1_000_000
@@ -68,12 +68,14 @@ def read_design(
     stimuli: Sequence[Stimulus],
     declared: Mapping[str, Node],
     long_trials: bool = False,
+    rehearse: Rehearse | None = None,
 ) -> Design:
     """The design, checked against the device and stimuli; ``declared`` names every stimulus
     written in the file, broken ones included (their problems are already reported).
 
     ``long_trials``: the design is compiled to a file, never played, so one trial may hold
-    more than `MAX_PULSES_PER_TRIAL` pulses (up to the plan's `MAX_PULSES`).
+    more than `MAX_PULSES_PER_TRIAL` pulses (up to the plan's `MAX_PULSES`). ``rehearse``:
+    every condition is also played on the model it stands for (`check_conditions`).
     """
     from pinarray.protocol.seam import DesignSection, check_conditions
 
@@ -88,9 +90,14 @@ def read_design(
             raise Invalid("adaptive")
     section = DesignSection(reader, node, keys, device, by_name, declared, adapting)
     found = reader.attempt(lambda: paradigm.read(section), None)
+    # An adaptive design's trials play its conditions at its values (practice at the easiest),
+    # never as written (a stroke_steps design never plays the calibration's full stroke):
+    # each value is rehearsed on each condition (`read_adaptive`), the conditions as written
+    # are not.
     read = None if found is None else reader.attempt(lambda: check_conditions(
         reader, found, device, by_name, paradigm,
-        partial(_check_pulses, reader, long_trials=long_trials)), None)
+        partial(check_trial_pulses, reader, long_trials=long_trials),
+        rehearse if adapting is None else None), None)
     _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1
@@ -127,7 +134,7 @@ def read_design(
         slots = (max(slots, default=0),) * len(conditions)
         adaptive = read_adaptive(reader, adaptive_keys(reader, keys["adaptive"]), paradigm,
                                  device, adapting.parameter, adapting.values, conditions,
-                                 by_name)
+                                 by_name, rehearse)
     design = Design(
         paradigm,
         conditions,
@@ -241,7 +248,7 @@ def _check_shapes_completed(reader: Reader, section: DesignSection,
             )
 
 
-def _check_pulses(reader: Reader, node: Node, count: int, *, long_trials: bool) -> None:
+def check_trial_pulses(reader: Reader, node: Node, count: int, *, long_trials: bool) -> None:
     if long_trials and count > MAX_PULSES:
         raise reader.error(
             node,
@@ -262,10 +269,12 @@ def _constraints(reader: Reader, node: Node, paradigm: ParadigmDesign) -> Constr
     keys = reader.mapping(node, {"no_repeat", "max_run"}, what="constraints")
     no_repeat: tuple[str, ...] = ()
     if "no_repeat" in keys:
-        no_repeat = tuple(
-            _attribute(reader, n, "an attribute that may not repeat", paradigm)
-            for n in reader.sequence(keys["no_repeat"], "no_repeat")
-        )
+        for n in reader.sequence(keys["no_repeat"], "no_repeat"):
+            attribute = _attribute(reader, n, "an attribute that may not repeat", paradigm)
+            if attribute in no_repeat:
+                raise reader.error(n, f"expected each attribute once in no_repeat, found "
+                                      f"{attribute!r} again")
+            no_repeat += (attribute,)
     max_run: list[tuple[str, int]] = []
     if "max_run" in keys:
         for key_node, value_node in reader.items(keys["max_run"], "max_run"):

@@ -106,6 +106,10 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
                                        f"one PCA9685 board, found {grid.pin_count}")
             else:
                 servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
+                if grid.pin_count > MAX_SERVO_ID:
+                    raise reader.error(keys["grid"], f"expected a grid of at most {MAX_SERVO_ID} "
+                                       "pins (one bus servo id each), found "
+                                       f"{grid.pin_count}")
     except Invalid:
         return None
     port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"),
@@ -290,6 +294,8 @@ def _address(reader: Reader, node: Node) -> int:
     # Written as a quoted "0x40" (YAML 1.2 reads bare hex as a string; we refuse YAML 1.1 hex).
     text = reader.string(node, 'the board\'s I2C address ("0x40" to "0x7f")')
     try:
+        if not text.isascii():  # int() reads other scripts' digits (０x４０)
+            raise ValueError(text)
         address = int(text, 16) if text.lower().startswith("0x") else int(text)
     except ValueError:
         raise reader.error(node, f'expected an I2C address such as "0x40", found {text!r}') from None

@@ -33,7 +33,7 @@ MAX_WAIT_TIMEOUT_NS = 3600 * NS_PER_S
 SYNC_KEYS = {"trigger", "dummy_volumes", "repetition_time_s", "lock_to_volumes", "baud_rate",
              "wait_timeout_s"}
 _T = TypeVar("_T")
-_DECIMAL = re.compile(r"\d{1,9}(\.\d{1,9})?")
+_DECIMAL = re.compile(r"\d{1,9}(\.\d{1,9})?", re.ASCII)  # \d alone takes any script's digits
 
 
 class SyncError(PinArrayError):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pinarray.errors import ProtocolError, ProtocolErrors
 from pinarray.protocol.design import read_design
@@ -19,15 +20,21 @@ from pinarray.protocol.stimuli import read_stimuli
 from pinarray.protocol.yaml_nodes import Node, Reader
 from pinarray.text_files import NotText, decode_text, read_bounded
 
+if TYPE_CHECKING:
+    from pinarray.protocol.seam import Rehearse
+
 # The seed's protocols are about 1 KiB; a 64x64 grid calibrated pin by pin stays well below.
 MAX_PROTOCOL_BYTES = 1 << 20
 
 
-def load_protocol(path: str | Path, *, long_trials: bool = False) -> Protocol:
+def load_protocol(path: str | Path, *, long_trials: bool = False,
+                  rehearse: Rehearse | None = None) -> Protocol:
     """Read and validate a protocol file; raise `ProtocolErrors` listing every problem.
 
     ``long_trials``: read to be compiled to a file, never played, so a trial may hold more
-    pulses than one may play (see `pinarray.protocol.design`).
+    pulses than one may play (see `pinarray.protocol.design`). ``rehearse``: every condition
+    is also played on the model it stands for, and refused where it is not delivered there
+    (`pinarray validate` gives it the simulated array: `pinarray.player.rehearsal`).
     """
     try:
         text = decode_text(read_bounded(path, MAX_PROTOCOL_BYTES, "protocol"))
@@ -35,11 +42,12 @@ def load_protocol(path: str | Path, *, long_trials: bool = False) -> Protocol:
         raise ProtocolErrors(
             [ProtocolError(problem.message, str(path), problem.line, problem.col)]
         ) from None
-    return parse_protocol(text, str(path), long_trials=long_trials)
+    return parse_protocol(text, str(path), long_trials=long_trials, rehearse=rehearse)
 
 
 def parse_protocol(
-    text: str, source: str = "<protocol>", *, long_trials: bool = False
+    text: str, source: str = "<protocol>", *, long_trials: bool = False,
+    rehearse: Rehearse | None = None,
 ) -> Protocol:
     reader = Reader(source)
     root = reader.compose(text)
@@ -67,7 +75,8 @@ def parse_protocol(
     design = None
     if device is not None:
         design = reader.optional(
-            top, "design", lambda n: read_design(reader, n, device, stimuli, declared, long_trials),
+            top, "design", lambda n: read_design(reader, n, device, stimuli, declared, long_trials,
+                                  rehearse),
             None,
         )
     sync = reader.optional(top, "sync", lambda n: read_sync(reader, n), None)
@@ -93,10 +102,12 @@ def protocol_warnings(protocol: Protocol) -> list[str]:
             + protocol.design.paradigm.warnings(protocol))
 
 
-def validate_file(path: str | Path) -> tuple[Protocol | None, list[str]]:
-    """(protocol, problem lines) for the CLI: problems are ``file:line:col: message`` lines."""
+def validate_file(path: str | Path, rehearse: Rehearse | None = None,
+                  ) -> tuple[Protocol | None, list[str]]:
+    """(protocol, problem lines) for the CLI: problems are ``file:line:col: message`` lines
+    (``rehearse``: as `load_protocol`'s)."""
     try:
-        return load_protocol(path), []
+        return load_protocol(path, rehearse=rehearse), []
     except ProtocolErrors as problems:
         return None, [e.located() for e in problems.errors]
     except ProtocolError as problem:

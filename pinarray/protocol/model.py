@@ -210,7 +210,14 @@ class Train:
     Each cycle of ``1/frequency_hz`` holds ``pulses_per_cycle`` servo pulses in equal slots; the
     first ``up_pulses`` have width ``up_width_ns`` (pin lifted), the rest ``down_width_ns``.
     The seed's train is 10 pulses a cycle, 5 up (2 ms) and 5 down (1.5 ms).
-    ``phase`` delays the pattern by that fraction of a cycle, in [0, 1).
+    ``phase``, a fraction of a cycle in [0, 1), shifts the cycle circularly within the signal:
+    pulse ``k`` of the endless train (``k = 0`` the first up pulse of a cycle) starts
+    ``(k + phase * pulses_per_cycle)`` slots after the signal starts, and those that start at
+    or after that and end within ``duration_ns`` play. The signal's start and length do not
+    move: the first up pulse comes ``phase`` of a period late, the slots before it playing the
+    end of a cycle (at phase 1/2, the seed's train begins with its five down pulses), and
+    where ``phase * pulses_per_cycle`` is not whole every pulse is off the slot grid by its
+    remainder, the signal's first fraction of a slot left without a pulse.
     """
 
     frequency_hz: Fraction

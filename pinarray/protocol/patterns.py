@@ -60,7 +60,7 @@ def read_patterns(reader: Reader, nodes: Mapping[str, Node], device: Device | No
     for name, node in nodes.items():
         if stimulus_kind(node) is PatternStimulus and not _is_frames(node):
             pattern = reader.attempt(
-                partial(_pattern, reader, node, device, trains, declared_trains), None)
+                partial(read_pattern, reader, node, device, trains, declared_trains), None)
             if pattern is not None:
                 patterns[name] = PatternStimulus(name, pattern)
     declared = {name: node for name, node in nodes.items()
@@ -68,7 +68,7 @@ def read_patterns(reader: Reader, nodes: Mapping[str, Node], device: Device | No
     found = list(patterns.values())
     for name, node in nodes.items():
         if stimulus_kind(node) is PatternStimulus and _is_frames(node):
-            frames = reader.attempt(partial(_frames, reader, node, device, patterns, declared),
+            frames = reader.attempt(partial(read_frames, reader, node, device, patterns, declared),
                                     None)
             if frames is not None:
                 found.append(PatternStimulus(name, frames))
@@ -80,7 +80,7 @@ def _is_frames(node: Node) -> bool:
         getattr(pair[0], "value", None) == "frames" for pair in node.value)
 
 
-def _pattern(reader: Reader, node: Node, device: Device | None, trains: Mapping[str, Stimulus],
+def read_pattern(reader: Reader, node: Node, device: Device | None, trains: Mapping[str, Stimulus],
              declared_trains: Mapping[str, Node]) -> Pattern:
     keys = reader.mapping(node, PATTERN_KEYS, {"pattern", "train"}, "pattern")
     grid = device.grid if device is not None else Grid()
@@ -166,7 +166,7 @@ def _line_node(reader: Reader, node: ScalarNode, index: int, line: str) -> Node:
     return ScalarNode(node.tag, line, start_mark=at, end_mark=at)
 
 
-def _frames(reader: Reader, node: Node, device: Device | None,
+def read_frames(reader: Reader, node: Node, device: Device | None,
             patterns: Mapping[str, Stimulus], declared: Mapping[str, Node]) -> Frames:
     keys = reader.mapping(node, FRAMES_KEYS, {"frames", "soa_ms"}, "frames")
     items = reader.sequence(keys["frames"], "the frames", 2)

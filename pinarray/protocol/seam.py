@@ -293,9 +293,16 @@ DESIGN_MEMBERS = tuple(sorted({*ParadigmDesign.__annotations__,
                                *(m for m in vars(ParadigmDesign) if not m.startswith("_"))}))
 
 
+# Plays a trial's drives on a model of the device (the simulated array: `pinarray.player.
+# rehearsal`) and says why they are not delivered there, or None: what `check_conditions`
+# asks last, of conditions that pass every other check, when it is given one.
+Rehearse = Callable[[Sequence[PinDrive], Device], "str | None"]
+
+
 def check_conditions(reader: Reader, read: ReadDesign, device: Device,
                      stimuli: Mapping[str, Stimulus], paradigm: ParadigmDesign,
                      check_pulses: Callable[[Node, int], None],
+                     rehearse: Rehearse | None = None,
                      ) -> tuple[tuple[Condition, ...], tuple[int, ...]]:
     """Every condition a paradigm read, checked as it would play: its pulses within a trial's
     limit (``check_pulses``), its trains followed by its pins, no pin driven twice at once,
@@ -303,11 +310,23 @@ def check_conditions(reader: Reader, read: ReadDesign, device: Device,
     conditions that pass, with the pulse slots each plays. A problem is reported where its
     condition is written, once for the place (the first condition written there that fails)
     and once for the words (the same problem at each of a design's frequencies is said once).
+    With ``rehearse``, the conditions that pass are then played on the model it stands for,
+    when nothing else in the file is wrong, and those it does not deliver are refused in the
+    same way.
     """
-    conditions: list[Condition] = []
-    slots: list[int] = []
+    passed: list[tuple[Condition, Node, str, int]] = []
     failed: set[int] = set()
     said: set[str] = set()
+
+    def refused(before: int, node: Node) -> None:
+        failed.add(id(node))
+        new = reader.errors[before:]
+        if new and all(e.message in said for e in new):
+            # The same problem at another place (a stroke too large at each of a design's
+            # frequencies): said once, where it is first written.
+            del reader.errors[before:]
+        said.update(e.message for e in new)
+
     with reader.section():
         for condition, node, what in read.written:
             if id(node) in failed:
@@ -316,17 +335,22 @@ def check_conditions(reader: Reader, read: ReadDesign, device: Device,
             count = reader.attempt(partial(_checked, reader, node, condition, stimuli, device,
                                            paradigm, what, check_pulses), None)
             if count is None:
-                failed.add(id(node))
-                new = reader.errors[before:]
-                if new and all(e.message in said for e in new):
-                    # The same problem at another place (a stroke too large at each of a
-                    # design's frequencies): said once, where it is first written.
-                    del reader.errors[before:]
-                said.update(e.message for e in new)
+                refused(before, node)
             else:
-                conditions.append(condition)
-                slots.append(count)
-    return tuple(conditions), tuple(slots)
+                passed.append((condition, node, what, count))
+        if rehearse is not None and not reader.errors and not reader.guessing:
+            for condition, node, what, _ in passed:
+                if id(node) in failed:
+                    continue
+                before = len(reader.errors)
+                problem = rehearse(paradigm.drives(stimuli[condition.stimulus], condition),
+                                   device)
+                if problem is not None:
+                    reader.error(node, what + problem)
+                    refused(before, node)
+    kept = [(condition, count) for condition, node, _, count in passed
+            if id(node) not in failed]
+    return tuple(c for c, _ in kept), tuple(n for _, n in kept)
 
 
 def _checked(reader: Reader, node: Node, condition: Condition, stimuli: Mapping[str, Stimulus],
@@ -411,11 +435,17 @@ class DesignDefaults:
         return f"one of {', '.join(design.answers(grid.pin_count))}"
 
     def pad(self, design: Design, grid: Grid) -> AnswerPad:
-        """One key each, 1 to 9, in the order `answers` gives them."""
+        """One key each: an answer that is one digit its own (a subject who says "3" is
+        given 3), the others the digits 1 to 9 no answer is, in the order `answers` gives them."""
         answers = design.answers(grid.pin_count)
-        choices = tuple(Choice(a, (str(n),) if n <= 9 else (), f"{a} ({n})" if n <= 9 else a)
-                        for n, a in enumerate(answers, start=1))
-        return AnswerPad(False, choices, "", choices_hint(choices))
+        own = {a for a in answers if len(a) == 1 and a in DIGITS}
+        free = iter([d for d in DIGITS[1:] if d not in own])
+        choices = []
+        for answer in answers:
+            key = answer if answer in own else next(free, None)
+            choices.append(Choice(answer, (key,) if key else (),
+                                  answer if key in (None, answer) else f"{answer} ({key})"))
+        return AnswerPad(False, tuple(choices), "", choices_hint(choices))
 
     def cue(self, condition: Condition, design: Design) -> tuple[object, str] | None:
         return (self.correct_answer(condition, design), condition.stimulus)
@@ -446,6 +476,9 @@ class DesignDefaults:
 
 
 KEY_NAMES = {"left": "←", "right": "→", "up": "↑", "down": "↓"}
+
+
+DIGITS = "0123456789"
 
 
 def choices_hint(choices: Sequence[Choice]) -> str:

@@ -77,7 +77,7 @@ def read_stimuli(
         if stimulus_kind(value_node) is not TrainStimulus:
             waves.append((name, value_node))
             continue
-        train = reader.attempt(partial(_train, reader, value_node), None)
+        train = reader.attempt(partial(read_train, reader, value_node), None)
         if train is not None:
             trains[name] = TrainStimulus(name, train)
             stimuli.append(trains[name])
@@ -87,7 +87,7 @@ def read_stimuli(
         if stimulus_kind(value_node) is not WaveStimulus:
             continue
         wave = reader.attempt(
-            partial(_wave, reader, value_node, device, trains, declared_trains), None
+            partial(read_wave, reader, value_node, device, trains, declared_trains), None
         )
         if wave is not None:
             stimuli.append(WaveStimulus(name, wave))
@@ -150,7 +150,7 @@ def stimulus_named(
     return stimulus
 
 
-def _train(reader: Reader, node: Node) -> Train | TrainShape:
+def read_train(reader: Reader, node: Node) -> Train | TrainShape:
     """A train; one without ``frequency_hz`` is a shape a localisation design's frequencies
     complete (whether one does is checked with the design)."""
     required = {"duration_s"}
@@ -321,7 +321,7 @@ def _deliverable(shape: BusShape, servo: ServoSettings, tolerance_ns: int) -> bo
                        tolerance_ns) is None
 
 
-def _wave(
+def read_wave(
     reader: Reader,
     node: Node,
     device: Device | None,

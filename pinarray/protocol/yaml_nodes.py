@@ -98,6 +98,21 @@ def _expected_found(problem: str, found: str) -> str:
     return f"expected well-formed YAML, found {problem}"
 
 
+# PyYAML reads a key only within this many characters of its start (YAML 1.1's limit for a
+# "simple key"); past it, its messages name a ':' it cannot place ("expected ':', found ':'").
+MAX_KEY_CHARS = 1024
+
+
+def _check_key_length(reader: Reader, text: str, line_index: int) -> None:
+    """Refuse, where it starts, a key on line ``line_index`` (from 0) longer than YAML reads."""
+    line = text.split("\n", line_index + 1)[line_index] if line_index < text.count("\n") + 1 else ""
+    start = len(line) - len(line.lstrip(" -"))
+    key = re.match(r"[^\n]*?(?=:(?: |$))", line[start:])
+    if key is not None and len(key[0]) > MAX_KEY_CHARS:
+        reader._fail(f"expected a key of at most {MAX_KEY_CHARS} characters (the longest YAML "
+                     f"reads), found one of {len(key[0])}", line_index + 1, start + 1)
+
+
 class Invalid(Exception):
     """Raised inside a reader after an error was recorded, to skip the rest of a section."""
 
@@ -184,6 +199,8 @@ class Reader:
             root = compose_tree(text)
         except yaml.MarkedYAMLError as problem:
             mark = problem.problem_mark or problem.context_mark
+            if mark is not None:
+                _check_key_length(self, text, mark.line)
             what = " ".join(str(problem.problem or problem.context or "malformed YAML").split())
             found = _found_at(text, mark.index) if mark else "an unreadable file"
             if "quoted scalar" in str(problem.context):

@@ -147,15 +147,17 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         else:
             logging.exp(f"pinarray {self._asked_for}: set up, to be opened for a protocol")
 
-    def open(self, protocol: str | PathLike[str] | pinarray.Protocol) -> PinArrayDevice:
+    def open(self, protocol: str | PathLike[str] | pinarray.Protocol | None) -> PinArrayDevice:
         """Open the array for ``protocol``, if it is not open yet: its servos checked, held,
         pins at rest, every stimulus of the protocol prepared. A device open already for the
-        same protocol is left as it is.
+        same protocol (or asked for with None) is left as it is.
 
         Parameters
         ----------
-        protocol : str, path-like or pinarray.Protocol
-            As for the class.
+        protocol : str, path-like, pinarray.Protocol or None
+            As for the class. None: no protocol, the simulated array with pinarray's default
+            device (`pinarray.open_array` without one), for stimuli built in code; real
+            servos are refused without the protocol that calibrates them.
 
         Returns
         -------
@@ -168,23 +170,24 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
             A device open already for another protocol; as for the class.
         """
         if self._array is not None and self._array.is_open:
-            self._check_same_protocol(protocol)
+            if protocol is not None:
+                self._check_same_protocol(protocol)
             return self
-        if not isinstance(protocol, pinarray.Protocol):
+        if protocol is not None and not isinstance(protocol, pinarray.Protocol):
             protocol = pinarray.load_protocol(protocol)
         self._array = pinarray.open_array(protocol, port=self._port, sim=self._sim,
                                           clock=self._clock)
         PinArrayDevice._open[self._key] = self  # again, after a close
         # Every stimulus compiled and encoded now: arming one on a flip then costs the frame
         # loop only the call.
-        for condition in protocol.design.conditions:
+        for condition in self._array.protocol.design.conditions:
             self._array.prepare(condition)
         self._watch = _QuitWatch(self)
         self._watch.start()
         _ready_for_quit()
         for warning in self._array.warnings:
             logging.warning(f"pinarray {self.url}: {warning}")
-        logging.exp(f"pinarray {self.url}: open for protocol {protocol.name!r}, pins at rest")
+        logging.exp(f"pinarray {self.url}: open for protocol {self.protocol.name!r}, pins at rest")
         return self
 
     @property

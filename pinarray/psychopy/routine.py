@@ -3,14 +3,18 @@ for it from one repeat of its routine to the next.
 
 The script Builder compiles does what a hand-written one does (docs/programmers/psychopy.md):
 the array named in Builder's Device Manager, opened for the component's protocol as the
-experiment starts; each repeat, the stimulus found in the protocol's design by name
-(`pinarray.find_condition`); on the frame it starts, `PinArrayDevice.armOnFlip` on the window,
-so that the flip showing that frame starts it; at the routine's end, `Touch.addData`.
+experiment starts (or, with none, the simulated array with pinarray's default device); each
+repeat, the stimulus found in the protocol's design by name (`pinarray.find_condition`) or
+built from the dialog's pins and train (`pinarray.Pattern`), and prepared on the array
+(`PinArrayTouch.repeat`); on the frame it starts, `PinArrayDevice.armOnFlip` on the window, so
+that the flip showing that frame starts it; at the routine's end, `Touch.addData`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Collection
+import weakref
+from collections.abc import Collection, Iterator
+from contextlib import contextmanager
 from os import PathLike
 from typing import Any
 
@@ -24,6 +28,12 @@ from pinarray.psychopy.touch import COLUMN_GROUPS, DataSink, Touch
 
 __all__ = ["PinArrayTouch"]
 
+# The arrays a component opened without a protocol (pinarray's default device), by id (a
+# device is not hashable: PsychoPy's devices compare by what they are connected to): a
+# component that gives one opens the array again for it, whichever the script reaches first.
+_WITHOUT_PROTOCOL: weakref.WeakValueDictionary[int, PinArrayDevice] = (
+    weakref.WeakValueDictionary())
+
 
 class PinArrayTouch:
     """One Pin array touch component of a compiled Builder experiment.
@@ -35,16 +45,18 @@ class PinArrayTouch:
         device. ``""``: the one pin array the Device Manager holds.
     protocol : str, path-like, pinarray.Protocol or ""
         The protocol to open the array for (a path relative to the experiment's folder, where
-        its script runs); ``""``: the protocol the array is open for already (another
-        component's, or a Code component's).
+        its script runs). ``""``: the protocol the array is open for already (another
+        component's, or a Code component's); if it is not open, no protocol: the simulated
+        array with pinarray's default device (`pinarray.open_array` without one), for patterns
+        built in the dialog, until a component that gives a protocol opens it for that one.
     name : str
         The component's name: its data columns begin with it (``touch.delivered``).
 
     Raises
     ------
     pinarray.PinArrayError
-        No pin array of that name, none open for a protocol and none given, or one open for
-        another protocol; as for `PinArrayDevice`.
+        No pin array of that name, real servos and no protocol, or one open for another
+        protocol; as for `PinArrayDevice`.
     """
 
     def __init__(self, device: str | PinArrayDevice,
@@ -54,18 +66,105 @@ class PinArrayTouch:
         self.device = _named_array(device, name)
         """The pin array (`PinArrayDevice`)."""
         if protocol != "" and protocol is not None:
+            if _WITHOUT_PROTOCOL.pop(id(self.device), None) is not None:  # opened with none
+                logging.exp(f"{name}: opening the pin array {self.device.url} again, for "
+                            f"{name}'s protocol")
+                self.device.close()
             self.device.open(protocol)
         elif not self.device.is_open:
-            raise pinarray.PinArrayError(
-                f"{name}: the pin array {self.device.url} is open for no protocol: give {name} "
-                "one (its Protocol field)")
+            if not self.device.url.startswith(SIMULATED):
+                raise pinarray.PinArrayError(
+                    f"{name}: the pin array {self.device.url} has real servos, which need the "
+                    f"protocol that calibrates them (servo ids, rest, limits): give {name} "
+                    "one (its Protocol field)")
+            self.device.open(None)
+            _WITHOUT_PROTOCOL[id(self.device)] = self.device
         self.status = NOT_STARTED
         """Builder's status of the component in its routine (NOT_STARTED, STARTED,
         FINISHED)."""
         self.stimulus: pinarray.Presentable | None = None
-        """The stimulus this repeat presents (set as the routine starts)."""
+        """The stimulus this repeat presents (set in `repeat`)."""
         self.touch: Touch | None = None
-        """The touch armed this repeat (None before its start)."""
+        """The touch armed this repeat (None before its start, or for a refused stimulus)."""
+        self.refused: str | None = None
+        """Why the array refused this repeat's stimulus, in its words (None: it did not)."""
+
+    @property
+    def protocol(self) -> pinarray.Protocol:
+        """The protocol the array is open for, whose design a stimulus is found in.
+
+        Raises
+        ------
+        pinarray.PinArrayError
+            The array open with no protocol (pinarray's default device has no stimuli to
+            choose from).
+        """
+        if id(self.device) in _WITHOUT_PROTOCOL:
+            raise pinarray.PinArrayError(
+                f"a stimulus of a protocol needs a protocol, and the pin array "
+                f"{self.device.url} is open with none: give {self.name} one (its Protocol "
+                "field), or Pins to build a pattern")
+        return self.device.protocol
+
+    @contextmanager
+    def repeat(self) -> Iterator[None]:
+        """This repeat's stimulus, set in the block (`stimulus`): a problem there stops the
+        experiment in one line naming the component (a $variable the protocol does not hold,
+        a train's argument out of range); then the stimulus is prepared on the array, checked
+        against its device before anything moves. One the array cannot play as specified
+        (a pin off its grid, a stroke its servos cannot follow, a bus that cannot carry it) is
+        refused: never armed, and its row says so (`addData`).
+
+        Raises
+        ------
+        pinarray.PinArrayError
+            What went wrong in the block, after the component's name.
+        """
+        self.stimulus, self.touch, self.refused = None, None, None
+        try:
+            yield
+            if self.stimulus is None:
+                raise pinarray.PinArrayError("no stimulus was set for this repeat")
+        except pinarray.PinArrayError as error:
+            raise pinarray.PinArrayError(f"{self.name}: {error}") from None
+        try:
+            self.device.array.prepare(self.stimulus)
+        except pinarray.PinArrayError as error:
+            self.refused = str(error)
+            logging.warning(f"{self.name}: {_stimulus_name(self.stimulus)} refused by the "
+                            f"array, not armed: {error}")
+
+    def armOnFlip(self, win: Any) -> Touch | None:
+        """Arm this repeat's stimulus on the window's next flip (`PinArrayDevice.armOnFlip`),
+        unless the array refused it.
+
+        Returns
+        -------
+        Touch or None
+            The touch (`touch`); None for a refused stimulus.
+        """
+        if self.refused is None:
+            self.touch = self.device.armOnFlip(self._stimulus(), win)
+        return self.touch
+
+    def present(self) -> Touch | None:
+        """Start this repeat's stimulus now, not locked to a flip
+        (`PinArrayDevice.present` without waiting), unless the array refused it.
+
+        Returns
+        -------
+        Touch or None
+            The touch (`touch`); None for a refused stimulus.
+        """
+        if self.refused is None:
+            self.touch = self.device.present(self._stimulus(), wait=False)
+        return self.touch
+
+    @property
+    def done(self) -> bool:
+        """Whether this repeat's stimulus has ended (played, cut, never started) or was
+        refused; False before its start."""
+        return self.refused is not None if self.touch is None else self.touch.done
 
     def addData(self, experiment: DataSink,
                 columns: Collection[str] = COLUMN_GROUPS) -> pinarray.Delivery | None:
@@ -88,7 +187,8 @@ class PinArrayTouch:
         """
         if self.touch is not None:
             return self.touch.addData(experiment, self.name, columns)
-        problem = "never started: the routine ended before its start"
+        problem = ("never started: the routine ended before its start" if self.refused is None
+                   else f"refused before it played: {self.refused}")
         experiment.addData(f"{self.name}.stimulus", _stimulus_name(self.stimulus))
         if "delivered" in columns:
             experiment.addData(f"{self.name}.delivered", False)
@@ -99,6 +199,12 @@ class PinArrayTouch:
 
     def __repr__(self) -> str:
         return f"<PinArrayTouch {self.name} on {self.device!r}>"
+
+    def _stimulus(self) -> pinarray.Presentable:
+        if self.stimulus is None:
+            raise pinarray.PinArrayError(f"{self.name}: no stimulus for this repeat: set it in "
+                                         f"`with {self.name}.repeat():`")
+        return self.stimulus
 
 
 def _named_array(device: str | PinArrayDevice, name: str) -> PinArrayDevice:
@@ -125,4 +231,4 @@ def _stimulus_name(stimulus: pinarray.Presentable | None) -> str | None:
     if stimulus is None:
         return None
     condition = stimulus.condition if isinstance(stimulus, pinarray.PlannedTrial) else stimulus
-    return condition.stimulus
+    return condition.stimulus if isinstance(condition, pinarray.Condition) else repr(condition)

@@ -66,10 +66,11 @@ class Touch:
 
     @property
     def stimulus(self) -> str:
-        """The stimulus's name in the protocol."""
+        """The stimulus's name in the protocol; a stimulus built in code, as the code that
+        builds it (``Pattern(pins=[6, 7], train=Train(...))``)."""
         stimulus = self._stimulus
         condition = stimulus.condition if isinstance(stimulus, pinarray.PlannedTrial) else stimulus
-        return condition.stimulus
+        return condition.stimulus if isinstance(condition, pinarray.Condition) else repr(condition)
 
     @property
     def armed_on_flip(self) -> bool:

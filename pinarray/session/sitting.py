@@ -38,6 +38,7 @@ from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
+from pinarray.player.rehearsal import MAX_ATTEMPTS  # the retry policy, which validate plays too
 from pinarray.player.rig import Rig
 from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import CheckSkipped, Verdict
@@ -54,8 +55,6 @@ QUIT_REASON = "quit from the UI"
 PAUSE_REASON = "paused by the experimenter"
 END_REASON = "the sitting ended"
 INTERRUPTED_REASON = "interrupted (Ctrl-C)"
-# How many times a trial whose stimulus failed is presented before the run stops.
-MAX_ATTEMPTS = 3
 # How long closing waits for a cut-short stimulus to rest its pins, in seconds.
 STOP_WAIT_S = 30.0
 

@@ -187,7 +187,7 @@ class ResponsePad(Widget, can_focus=True):
         elif nothing and (key == "n" or (key == "0" and self.entry in ("", nothing))):
             event.stop()
             self.entry = nothing
-        elif key.isdigit():
+        elif key.isascii() and key.isdigit():
             event.stop()
             base = "" if nothing and self.entry == nothing else self.entry
             self.entry = key if len(base) >= self.digits else base + key

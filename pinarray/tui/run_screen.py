@@ -275,7 +275,7 @@ class RunScreen(KeyNotices, Screen):
     def _draw_grid(self, lifted: frozenset[int]) -> None:
         chosen = None
         entry = self.query_one(ResponsePad).entry
-        if self.pins_answer and entry.isdigit():
+        if self.pins_answer and entry.isascii() and entry.isdigit():
             chosen = int(entry)
         showing = self.session.phase in (Phase.STIMULUS, Phase.RESPONSE)
         active = self._active if showing else frozenset()

@@ -15,6 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from builder import set_up_device_manager
+
+from pinarray.psychopy.components.pinArrayTouch import PinArrayDeviceBackend
 
 REPO = Path(__file__).resolve().parents[2]
 APPARENT_MOTION = REPO / "protocols" / "apparent_motion.yaml"
@@ -82,3 +85,10 @@ def way(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[tuple[dict[s
         yield {"port": served.path}, served
     finally:
         served.stop()
+
+
+@pytest.fixture
+def device_manager(tmp_path, monkeypatch):
+    """The Device Manager holding the simulated array as it lists it, named 'touch'."""
+    profile = next(p for p in PinArrayDeviceBackend.getAvailableDevices() if "sim" in p)
+    return set_up_device_manager(tmp_path, monkeypatch, profile)

@@ -1,13 +1,14 @@
-"""The Pin array touch component's dialog as a picture for the docs, drawn from its parameters:
+"""The Pin array touch component's dialog as pictures for the docs, drawn from its parameters:
 each tab Builder shows, in Builder's order, each field with its label, its control (text box,
-file box, drop-down, check box) holding the example experiment's value, and its hint (Builder
-shows it as a tooltip).
+file box, drop-down, check box) holding an example experiment's value, and its hint (Builder
+shows it as a tooltip). One picture per example: a protocol's stimulus by name
+(psychopy_congruency), and a pattern built in the dialog without a protocol (psychopy_patterns).
 
-    .venv-psychopy/bin/python tests/psychopy/dialog_picture.py     # writes the picture
+    .venv-psychopy/bin/python tests/psychopy/dialog_picture.py     # writes the pictures
 
 A screenshot needs Builder's app (wx), which psychopy-lib does not have: this picture is drawn
 from the same `Param`s the dialog is built from, and tests/psychopy/test_builder.py checks that
-the committed file is what the component's parameters draw now.
+the committed files are what the component's parameters draw now.
 """
 
 from __future__ import annotations
@@ -17,8 +18,12 @@ from pathlib import Path
 from xml.sax.saxutils import escape
 
 REPO = Path(__file__).resolve().parents[2]
-EXAMPLE = REPO / "examples" / "psychopy_congruency.psyexp"
-PICTURE = REPO / "docs" / "programmers" / "pin-array-touch-dialog.svg"
+DOCS = REPO / "docs" / "programmers"
+EXAMPLES = REPO / "examples"
+PICTURES = {  # the example experiment -> the picture of its Pin array touch's dialog
+    EXAMPLES / "psychopy_congruency.psyexp": DOCS / "pin-array-touch-dialog.svg",
+    EXAMPLES / "psychopy_patterns.psyexp": DOCS / "pin-array-touch-pattern-dialog.svg",
+}
 TABS = ("Basic", "Device", "Stimulus", "Data")
 
 WIDTH = 760
@@ -27,18 +32,18 @@ ROW_H, HINT_LINE_H, TAB_H = 30, 15, 36
 FONT = "font-family='DejaVu Sans, Arial, sans-serif'"
 
 
-def example_component():
-    """The example experiment's Pin array touch, as Builder loads it."""
+def example_component(example: Path):
+    """The Pin array touch of the ``example`` experiment, as Builder loads it."""
     from psychopy import experiment, plugins
 
     plugins.activatePlugins()
     exp = experiment.Experiment()
-    exp.loadFromXML(str(EXAMPLE))
+    exp.loadFromXML(str(example))
     for routine in exp.routines.values():
         for component in routine:
             if type(component).__name__ == "PinArrayTouchComponent":
                 return component
-    raise LookupError(f"no Pin array touch in {EXAMPLE}")
+    raise LookupError(f"no Pin array touch in {example}")
 
 
 def fields(component) -> dict[str, list[tuple[str, object]]]:
@@ -128,7 +133,8 @@ def picture(component) -> str:
 
 
 def main() -> None:
-    PICTURE.write_text(picture(example_component()), encoding="utf-8")
+    for example, drawn in PICTURES.items():
+        drawn.write_text(picture(example_component(example)), encoding="utf-8")
 
 
 if __name__ == "__main__":

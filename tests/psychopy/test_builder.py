@@ -2,26 +2,31 @@
 by Builder's Device Manager, imported without PsychoPy's app or hardware, passing PsychoPy's
 own component tests, and the example experiment (examples/psychopy_congruency.psyexp)
 compiled as Builder compiles it and its script run on the simulated array under the virtual
-display, its data file holding the tactile columns."""
+display, its data file holding the tactile columns. Patterns built in the dialog:
+test_builder_patterns.py."""
 
-import csv
 import importlib.metadata
 import json
 import re
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from builder import (
+    assert_every_servo_released,
+    compile_and_run,
+    headless_experiment,
+    minimal,
+    rows_of,
+    set_up_device_manager,
+)
 from conftest import APPARENT_MOTION, REPO
-from dialog_picture import PICTURE, example_component, picture
-from psychopy import experiment, prefs
+from dialog_picture import PICTURES, example_component, picture
+from psychopy import experiment
 from psychopy.experiment.components import getAllComponents
 from psychopy.experiment.devices import DeviceBackend
-from psychopy.experiment.loops import TrialHandler
 from psychopy.experiment.utils import CodeGenerationException
-from psychopy.preferences.devices import DeviceConfig
 from psychopy.tests.test_experiment.test_components.test_base_components import (
     BaseComponentTests,
 )
@@ -33,7 +38,6 @@ from pinarray.psychopy.components.pinArrayTouch import (
     PinArrayTouchComponent,
 )
 
-EXAMPLE = REPO / "examples" / "psychopy_congruency.psyexp"
 TACTILE_COLUMNS = ["tactile.stimulus", "tactile.flip_t", "tactile.onset_t",
                    "tactile.onset_from_flip_ms", "tactile.onset_write_late_ms",
                    "tactile.delivered", "tactile.problem", "tactile.ending",
@@ -108,7 +112,8 @@ def test_the_dialog_offers_what_a_lab_expects():
     exp = experiment.Experiment()
     component = PinArrayTouchComponent(exp, "trial")
     tabs = dialog(component)
-    assert tabs["Stimulus"] == ["Protocol", "Stimulus", "Pin", "Frequency (Hz)"]
+    assert tabs["Stimulus"] == ["Protocol", "Stimulus", "Pin", "Pins", "Frequency (Hz)",
+                                "Duration (s)", "Duty cycle", "Pulses per cycle"]
     assert tabs["Device"] == ["Device"]
     assert {"Start", "Stop", "Start on the flip", "Wait for the end"} <= set(tabs["Basic"])
     assert tabs["Data"] == ["Save delivered", "Save onset from flip", "Save strokes",
@@ -117,26 +122,17 @@ def test_the_dialog_offers_what_a_lab_expects():
     assert component.params["waitForEnd"].val is True
 
 
-def minimal(**params):
-    """An experiment of one routine in a loop, holding one Pin array touch."""
-    exp = experiment.Experiment()
-    routine = exp.addRoutine(routineName="trial")
-    exp.flow.addRoutine(routine, 0)
-    exp.flow.addLoop(TrialHandler(exp=exp, name="trials"), 0, -1)
-    routine.append(PinArrayTouchComponent(exp, "trial", name="tactile", **params))
-    return exp
-
-
 def test_the_compiled_frame_arms_the_touch_on_the_flip_that_shows_its_start():
     script = minimal(deviceLabel="touch", protocol="apparent_motion.yaml",
                      stimulus="$wave").writeScript(target="PsychoPy")
     start = script.index("if tactile.status == NOT_STARTED and tThisFlip >= 0.5") \
         if "tThisFlip >= 0.5" in script else script.index("if tactile.status == NOT_STARTED")
-    armed = script.index("tactile.touch = tactile.device.armOnFlip(tactile.stimulus, win)")
+    armed = script.index("tactile.armOnFlip(win)")
     flipped = script.index("win.flip()", armed)
     assert start < armed < flipped  # armed in the start test, the frame's flip after it
+    assert "with tactile.repeat():\n" in script
     assert "tactile.stimulus = pinarray.find_condition(\n" in script
-    assert "tactile.device.protocol, stimulus=wave, pin=None," in script
+    assert "tactile.protocol, stimulus=wave, pin=None," in script
     assert "tactile = PinArrayTouch(\n" in script and "device='touch'," in script
     assert "protocol='apparent_motion.yaml'," in script
     assert "tactile.addData(thisExp, columns=['delivered', 'onset', 'strokes'])" in script
@@ -147,7 +143,7 @@ def test_unchecked_start_on_the_flip_starts_at_once_and_columns_follow_the_data_
     script = minimal(deviceLabel="touch", protocol="apparent_motion.yaml", stimulus="leftwards",
                      syncScreenRefresh=False, saveOnset=False, saveStrokes=False,
                      waitForEnd=False, stopVal="0.2").writeScript(target="PsychoPy")
-    assert "tactile.touch = tactile.device.present(tactile.stimulus, wait=False)" in script
+    assert "tactile.present()" in script
     assert "armOnFlip" not in script
     assert "tactile.device.stop('its stop time')" in script
     assert "tactile.device.stop(\"the routine's end\")" in script
@@ -166,48 +162,6 @@ def test_a_stimulus_the_protocol_does_not_hold_stops_the_compiling_in_the_protoc
         script = minimal(deviceLabel="touch", protocol=str(APPARENT_MOTION),
                          stimulus=known).writeScript(target="PsychoPy")
         assert "tactile = PinArrayTouch(" in script
-
-
-def set_up_device_manager(folder: Path, monkeypatch, profile: dict) -> DeviceConfig:
-    """Builder's Device Manager on this machine, as a lab sets it up: the array of
-    ``profile`` (one `getAvailableDevices` lists) named 'touch' (the Device Manager's file
-    kept in ``folder``, not the user's)."""
-    devices = DeviceConfig(folder / "devices.json")
-    backend = PinArrayDeviceBackend(profile)
-    backend.name = "touch"
-    devices["touch"] = backend
-    devices.save()
-    monkeypatch.setattr(prefs, "_devices", DeviceConfig(folder / "devices.json"), raising=False)
-    return devices
-
-
-@pytest.fixture
-def device_manager(tmp_path, monkeypatch):
-    """The Device Manager holding the simulated array as it lists it, named 'touch'."""
-    profile = next(p for p in PinArrayDeviceBackend.getAvailableDevices() if "sim" in p)
-    return set_up_device_manager(tmp_path, monkeypatch, profile)
-
-
-def compile_and_run(exp_file: Path, folder: Path) -> Path:
-    """Compile ``exp_file`` as Builder does (`Experiment.loadFromXML`, `writeScript`), run the
-    script in a process of its own (as Builder's Runner does), and return its data file."""
-    exp = experiment.Experiment()
-    exp.loadFromXML(str(exp_file))
-    script = exp_file.with_suffix(".py")
-    script.write_text(exp.writeScript(target="PsychoPy"), encoding="utf-8")
-    run = subprocess.run([sys.executable, str(script)], cwd=script.parent, capture_output=True,
-                         text=True, timeout=300)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    data_files = sorted((script.parent / "data").glob("*.csv"))
-    assert len(data_files) == 1, data_files
-    return data_files[0]
-
-
-def rows_of(data_file: Path) -> tuple[list[str], list[dict[str, str]]]:
-    with data_file.open(newline="", encoding="utf-8-sig") as opened:
-        reader = csv.DictReader(opened)
-        rows = list(reader)
-    return list(reader.fieldnames or []), rows
 
 
 def test_the_example_psyexp_compiles_and_runs_on_the_simulated_array_writing_the_tactile_columns(
@@ -259,20 +213,14 @@ def test_the_example_psyexp_compiles_and_runs_on_the_simulated_array_writing_the
             assert row[f"tactile.pin{pin}.achieved_steps"]
     log = data_file.with_suffix(".log").read_text(encoding="utf-8")
     assert log.count("DATA \ttactile: ") == 8
-    if served is not None:  # as the servos saw it: every one released once the script ended
-        released = served.torque_off_at_ns()
-        assert sorted(released) == list(range(1, 17)) and all(released.values()), released
+    if served is not None:
+        assert_every_servo_released(served)
 
 
 def test_a_routine_ended_early_waits_for_the_touch_or_cuts_it_and_a_stop_time_cuts_it(
         tmp_path, device_manager):
     # Three routines, each ended by a Code component 0.2 s in, while an 0.8 s wave plays.
-    exp = experiment.Experiment()
-    exp.settings.params["Show info dlg"].val = False
-    exp.settings.params["Full-screen window"].val = False
-    exp.settings.params["Window size (pixels)"].val = [200, 150]
-    exp.settings.params["keyboardBackend"].val = "Pyglet"
-    exp.settings.params["Save psydat file"].val = False
+    exp = headless_experiment()
     code = getAllComponents()["CodeComponent"]
     cases = {"waits": {"waitForEnd": True}, "cuts": {"waitForEnd": False},
              "stops": {"waitForEnd": True, "stopVal": "0.1"}}
@@ -299,20 +247,42 @@ def test_a_routine_ended_early_waits_for_the_touch_or_cuts_it_and_a_stop_time_cu
     assert value["tactile_stops.problem"] == "cut short by its stop time"
 
 
-def test_a_touch_needs_a_pin_array_in_the_device_manager_and_a_protocol():
+def test_a_touch_needs_a_pin_array_in_the_device_manager_and_real_servos_their_protocol():
     with pytest.raises(pinarray.PinArrayError, match="tactile: expected a pin array named "
                                                      "'nowhere' in PsychoPy's Device Manager, "
                                                      "found none: add it in Builder's Device "
                                                      "Manager"):
         PinArrayTouch("nowhere", protocol=APPARENT_MOTION, name="tactile")
+    rig = PinArrayDevice(port="/dev/pinarray-rig")  # set up only: nothing opened yet
+    try:
+        with pytest.raises(pinarray.PinArrayError) as raised:
+            PinArrayTouch(rig, name="tactile")
+        assert str(raised.value) == (
+            "tactile: the pin array /dev/pinarray-rig has real servos, which need the protocol "
+            "that calibrates them (servo ids, rest, limits): give tactile one (its Protocol "
+            "field)")
+        assert not rig.is_open
+    finally:
+        rig.close()
+
+
+def test_with_no_protocol_the_simulated_array_opens_with_the_default_device_until_one_gives_one():
     device = PinArrayDevice(sim="sim://?seed=7")  # set up, as the Device Manager's script does
     try:
         assert not device.is_open
-        with pytest.raises(pinarray.PinArrayError, match="tactile: the pin array sim://.seed=7 "
-                                                         "is open for no protocol"):
-            PinArrayTouch(device, name="tactile")
+        plain = PinArrayTouch(device, name="plain")  # no protocol: pinarray's default device
+        assert device.is_open and device.protocol.name == "defaults"
+        with pytest.raises(pinarray.PinArrayError) as raised, plain.repeat():
+            plain.stimulus = pinarray.find_condition(plain.protocol, stimulus="rightwards")
+        assert str(raised.value) == (
+            f"plain: a stimulus of a protocol needs a protocol, and the pin array {device.url} "
+            "is open with none: give plain one (its Protocol field), or Pins to build a "
+            "pattern")
+        # A component that gives a protocol, later in the script, opens the array for it:
+        # the one without then finds its stimuli there too.
         touch = PinArrayTouch(device, protocol=APPARENT_MOTION, name="tactile")
-        assert touch.device is device and device.is_open
+        assert touch.device is plain.device is device and device.is_open
+        assert plain.protocol.name == "apparent_motion"
         assert PinArrayTouch(device, name="again").device.protocol.name == "apparent_motion"
     finally:
         device.close()
@@ -340,20 +310,23 @@ def test_the_device_managers_file_names_pinarrays_backend(device_manager, tmp_pa
     assert stored["touch"]["profile"]["sim"] == "sim://"
 
 
-def test_the_docs_picture_of_the_dialog_is_what_the_components_parameters_draw():
-    assert PICTURE.read_text(encoding="utf-8") == picture(example_component()), (
+@pytest.mark.parametrize("example", PICTURES, ids=lambda example: example.stem)
+def test_the_docs_pictures_of_the_dialog_are_what_the_components_parameters_draw(example):
+    assert PICTURES[example].read_text(encoding="utf-8") == picture(example_component(example)), (
         "run .venv-psychopy/bin/python tests/psychopy/dialog_picture.py")
 
 
-def test_the_docs_excerpt_of_the_compiled_script_is_in_the_example_compiled(tmp_path,
-                                                                              device_manager):
+@pytest.mark.parametrize("example, least", [("psychopy_congruency", 20),
+                                            ("psychopy_patterns", 8)])
+def test_the_docs_excerpts_of_the_compiled_scripts_are_in_the_examples_compiled(
+        example, least, device_manager):
     exp = experiment.Experiment()
-    exp.loadFromXML(str(EXAMPLE))
+    exp.loadFromXML(str(REPO / "examples" / f"{example}.psyexp"))
     compiled = {line.strip() for line in exp.writeScript(target="PsychoPy").splitlines()}
     page = (REPO / "docs" / "programmers" / "psychopy.md").read_text(encoding="utf-8")
-    excerpt = re.search(r"<!-- compiled: examples/psychopy_congruency.psyexp -->\n```python\n"
+    excerpt = re.search(rf"<!-- compiled: examples/{example}.psyexp -->\n```python\n"
                         r"(.*?)```", page, re.S)
     assert excerpt is not None
     lines = [line.strip() for line in excerpt.group(1).splitlines()]
     code = [line for line in lines if line and not line.startswith("#")]
-    assert len(code) > 20 and [line for line in code if line not in compiled] == []
+    assert len(code) > least and [line for line in code if line not in compiled] == []

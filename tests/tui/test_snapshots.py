@@ -6,6 +6,7 @@ import pytest
 from textual.widgets import Input
 
 from pinarray.session.trials import Phase
+from tests.runs import write_short_localisation
 from tests.tui.conftest import SIZE, fill_start, make_app, settle, to_run_screen
 
 
@@ -56,7 +57,12 @@ def test_run_screen_with_a_pin_typed_after_two_practice_trials(app, snap_compare
 
 
 @pytest.mark.long
-def test_end_screen_of_a_whole_localisation_run(app, snap_compare):
+def test_end_screen_of_a_whole_localisation_run(tmp_path, monkeypatch, snap_compare):
+    # The seed's plan with 1 s stimuli: the end screen shows the answers, not the stimuli's
+    # length, and ten seconds of simulated servos per trial were most of this test's time.
+    monkeypatch.chdir(tmp_path)
+    app = make_app(Path("results"), protocol=write_short_localisation(tmp_path))
+
     async def run_before(pilot):
         await to_run_screen(pilot)
         session = pilot.app.screen.session

@@ -100,7 +100,7 @@ class TapCountDesign(DesignDefaults):
         raise PinArrayError(f"stimulus {stimulus.name!r} cannot present {condition!r}")
 # --8<-- [end:design]
 
-    # -- answers: the count, one key each (DesignDefaults gives the pad and the sheets) -----
+    # -- answers: the count, on its own digit (DesignDefaults gives the pad and the sheets) -
 
     def answers(self, design: Design, pin_count: int) -> tuple[str, ...]:
         return tuple(str(t) for t in sorted({c.taps for c in design.conditions

@@ -190,6 +190,8 @@ def parse_ids(text: str, allow_none: bool = False) -> tuple[int, ...]:
     for part in filter(None, (p.strip() for p in text.split(","))):
         low, _, high = part.partition("-")
         try:
+            if not part.isascii():  # int() reads other scripts' digits (１)
+                raise ValueError(part)
             first, last = int(low), int(high or low)
         except ValueError:
             raise PinArrayError(
@@ -239,6 +241,8 @@ def parse_sim_url(url: str) -> SimConfig:
     for key, kind in _NUMBER_KEYS.items():
         if key in query:
             try:
+                if not query[key].isascii():  # int() and float() read other scripts' digits
+                    raise ValueError(query[key])
                 numbers[key] = kind(query[key])
             except ValueError:
                 what = "a whole number" if kind is int else "a number"

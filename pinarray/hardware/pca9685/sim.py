@@ -83,6 +83,8 @@ def is_shared_board_url(url: str | None) -> bool:
 def _number(url: str, key: str, text: str, kind: type[int] | type[float], low: float,
             high: float) -> float:
     try:
+        if not text.isascii():  # int() and float() read other scripts' digits (１)
+            raise ValueError(text)
         value: float = kind(text)
     except ValueError:
         what = "a whole number" if kind is int else "a number"
@@ -104,7 +106,7 @@ def _addresses(url: str, text: str) -> tuple[int, ...]:
     found: list[int] = []
     for part in filter(None, (p.strip() for p in text.split(","))):
         try:
-            address = int(part, 0)
+            address = int(part, 0) if part.isascii() else -1
         except ValueError:
             address = -1
         if not r.FIRST_ADDRESS <= address <= r.LAST_ADDRESS or address == r.ALL_CALL_ADDRESS:

@@ -173,9 +173,11 @@ class ApparentMotionRows(RowsDefaults):
                 "direction": {str(d): direction_meaning(d) for d in dict.fromkeys(directions)}}
 
     def offered(self, manifest: RunManifest) -> tuple[str, ...] | None:
-        # The design's directions are not in the manifest (the plan may not draw every wave
-        # its design offers an answer for): a direction's name is all a row can be held to.
-        return None
+        # The design's directions are not in the manifest, and its plan may not draw every
+        # wave the design offers an answer for: the plan's directions, the usual four words,
+        # none and unsure are what a row may say.
+        usual = (Direction.LEFT, Direction.RIGHT, Direction.UP, Direction.DOWN)
+        return tuple(dict.fromkeys([*map(str, usual), *map(str, self._offered(manifest))]))
 
     def check_entry(self, entry: PlanEntry) -> None:
         kind = WaveKind(entry["direction"])

@@ -10,7 +10,8 @@ likelihood::
 which lies between 0 and log2 of the smaller of the numbers of patterns and answers. With few
 trials per cell it is **biased upward** (Miller 1955; Rabinowitz & Houtsma): chance pairings
 look like information. The first-order bias, ``(R - 1)(C - 1) / (2 n ln 2)`` bits for ``R``
-patterns and ``C`` answers seen in ``n`` trials, is reported beside it (and subtracted in
+patterns presented and ``C`` answers given (the matrix's columns that hold a trial: an answer
+offered but never given does not count) in ``n`` trials, is reported beside it (and subtracted in
 ``it_corrected_bits``, floored at 0), as a warning of its size rather than an exact repair.
 Across subjects (subject ``all``): the mean of the subjects' values, with the interval the
 analysis's settings name (subject bootstrap or t); the pooled matrix (every subject's trials
@@ -50,7 +51,8 @@ def information_transferred(counts: np.ndarray) -> float:
 
 
 def it_bias_bits(counts: np.ndarray) -> float:
-    """The first-order upward bias of `information_transferred` (the module says whose)."""
+    """The first-order upward bias of `information_transferred` (the module says whose): R the
+    rows and C the columns of ``counts`` that hold a trial (the answers used, not offered)."""
     n = float(counts.sum())
     if n == 0:
         return 0.0
@@ -110,7 +112,7 @@ def confusion(records: Iterable[IdentificationRecord]) -> Confusion:
     (counts ascending when subjects named counts), answers in the patterns' order, then any
     answer no trial presented."""
     pairs = [(_presented(r), r.response) for r in records if r.response is not None]
-    by_count = all(answer.isdigit() for _, answer in pairs) and bool(pairs)
+    by_count = all(_is_count(answer) for _, answer in pairs) and bool(pairs)
     presented = _ordered((p for p, _ in pairs), by_count)
     answered = _ordered((*presented, *(a for _, a in pairs)), by_count)
     counts = np.zeros((len(presented), len(answered)), dtype=np.int64)
@@ -122,7 +124,12 @@ def confusion(records: Iterable[IdentificationRecord]) -> Confusion:
 def _presented(record: IdentificationRecord) -> str:
     """What a right answer names: the pattern, or its count of pins for a count answer."""
     assert record.response is not None
-    return str(len(record.pins)) if record.response.isdigit() else record.pattern
+    return str(len(record.pins)) if _is_count(record.response) else record.pattern
+
+
+def _is_count(answer: str) -> bool:
+    """Whether an answer is a count of pins: ASCII digits (`str.isdigit` takes ² and १ too)."""
+    return answer.isascii() and answer.isdigit()
 
 
 def _ordered(items: Iterable[str], by_count: bool) -> tuple[str, ...]:
@@ -229,8 +236,9 @@ class Identifications:
                  "Per subject: percent correct and the information transferred (IT, bits) "
                  "from the confusion matrix of patterns presented and answers given. IT is "
                  "biased upward when there are few trials per cell (Miller 1955): its "
-                 "first-order bias, (R - 1)(C - 1) / (2 n ln 2) bits for R patterns, C "
-                 "answers and n trials, is given beside it, and subtracted in the corrected "
+                 "first-order bias, (R - 1)(C - 1) / (2 n ln 2) bits for R patterns presented, "
+                 "C answers given (an answer never given does not count) and n trials, is "
+                 "given beside it, and subtracted in the corrected "
                  f"IT; read both as bounds. Across subjects: the mean with the "
                  f"{self.settings.describe()}.", "",
                  _row(["task", "subjects", "trials", "percent correct", "IT (bits)",
@@ -249,10 +257,13 @@ class Identifications:
         lines = []
         for a in self.across:
             means = {m: mean for m, mean, _ in a.means}
+            bias = float(np.mean([s.confusion.it_bias_bits for s in self.per_subject
+                                  if s.task == a.task]))
             lines.append(f"identification {a.task}: {_n(means['percent_correct'], 1)} % correct, "
-                         f"information transferred {_n(means['it_bits'])} bits (corrected for "
-                         f"its small-sample bias {_n(means['it_corrected_bits'])}) of "
-                         f"{_n(a.pooled.it_max_bits)}, mean of {a.subjects} subject(s)")
+                         f"information transferred {_n(means['it_bits'])} bits of "
+                         f"{_n(a.pooled.it_max_bits)} (its small-sample bias {_n(bias)} bits; "
+                         f"less the bias, floored at 0: {_n(means['it_corrected_bits'])} bits), "
+                         f"mean of {a.subjects} subject(s)")
         return lines
 
     def captions(self) -> dict[str, str]:

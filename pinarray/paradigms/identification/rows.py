@@ -52,7 +52,7 @@ class IdentificationRecord(TrialRecord):
         """Whether the answer names the pattern (or, a count, how many pins it raised)."""
         if self.response is None:
             return None
-        if self.response.isdigit():
+        if self.response.isascii() and self.response.isdigit():
             return int(self.response) == len(self.pins)
         return self.response == self.pattern
 

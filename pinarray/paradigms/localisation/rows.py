@@ -64,7 +64,8 @@ class LocalisationRecord(TrialRecord):
         where = f"trial {self.trial}"
         coerce(self, "error_class", ErrorClass, where)
         text = self.response
-        if text is not None and text != NOTHING_FELT and not (text.isdigit() and int(text) >= 1):
+        if text is not None and text != NOTHING_FELT and not (
+                text.isascii() and text.isdigit() and int(text) >= 1):
             raise ResultsError(f"{where}: a localisation response must be a pin number or "
                                f"'{NOTHING_FELT}', found {text!r}")
         if self.error_class is not None and self.reported_pin is None:
@@ -74,7 +75,8 @@ class LocalisationRecord(TrialRecord):
     @property
     def reported_pin(self) -> int | None:
         """The pin the subject named; None for nothing felt or no answer."""
-        return int(self.response) if self.response and self.response.isdigit() else None
+        response = self.response
+        return int(response) if response and response.isascii() and response.isdigit() else None
 
     @property
     def nothing_felt(self) -> bool:

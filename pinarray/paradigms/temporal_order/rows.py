@@ -89,7 +89,8 @@ class TemporalOrderRows(RowsDefaults):
     def record(self, fields: TrialFields, values: Mapping[str, Any], where: str) -> TrialRecord:
         pins = pins_cell(required(dict(values), "pins", where), where)
         return TemporalOrderRecord(**fields, pins=pins,  # type: ignore[arg-type]
-                                   soa_ns=values["soa"], response=values.get("response"))
+                                   soa_ns=required(dict(values), "soa", where),
+                                   response=values.get("response"))
 
     def row(self, condition: Condition, fields: TrialFields, response: str | None,
             pins: tuple[int, ...], grid: Grid) -> TrialRecord:

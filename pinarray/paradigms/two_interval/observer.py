@@ -3,10 +3,13 @@
 
 The interval with the higher value is named with a Weibull probability of the difference
 ``|comparison - standard|`` (guess rate 1/2): threshold ``weber`` x the standard, shape
-``slope``, lapse rate ``lapse``; otherwise the other interval. The default Weber fraction of
-0.2 is an assumption (vibrotactile frequency discrimination near 10 Hz is usually reported at
-0.2-0.3); note that a Weibull's threshold is its 1 - 1/e point (81.6 % correct without lapses
-at a guess rate of 1/2), above the 75 % point such reports usually give. Subjects differ:
+``slope``, lapse rate ``lapse``; otherwise the other interval. ``weber`` is the Weibull's
+threshold over the standard: the difference answered right 1/2 + (1/2 - ``lapse``)(1 - 1/e)
+of the time, 81.6 % at a lapse rate of 0 (80.3 % at the default 0.02). Reports of a Weber
+fraction at 75 % correct (the usual point) correspond to ``weber`` x (ln 2)^(1/``slope``) at a
+lapse rate of 0: 0.885 x ``weber`` at the default slope 3, so the default ``weber`` of 0.2 (an
+assumption) is a 75 % Weber fraction of 0.177, and the 0.2-0.3 usually reported near 10 Hz
+for vibrotactile frequency discrimination are ``weber`` 0.23-0.34. Subjects differ:
 each draws, from its seed, the four normal offsets of SD ``subject_sd`` the lab's paradigms
 draw alike; this paradigm's is the second, on the log of ``weber``.
 """

@@ -9,6 +9,7 @@ adaptive design's comparison is its intensity).
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -173,6 +174,20 @@ class TwoIntervalRows(RowsDefaults):
         if comparison is not None and record.comparison != comparison:
             return (f"the trial presents the comparison {number_text(comparison)}, the row "
                     f"says {number_text(record.comparison)}")
+        return None
+
+    def check_together(self, records: Sequence[TrialRecord]) -> tuple[int, str] | None:
+        # The design plays one stimulus, so every trial moves the same pins; the plan does
+        # not list them (its entries are the same since 0.3): the pins most rows hold are
+        # the run's, and a row that says others was edited.
+        pins = Counter(r.pins for r in records if isinstance(r, TwoIntervalRecord))
+        if len(pins) < 2:
+            return None
+        (common, _), = pins.most_common(1)
+        for index, record in enumerate(records):
+            if isinstance(record, TwoIntervalRecord) and record.pins != common:
+                return index, (f"the run's other trials play pins {pins_text(common)}, the row "
+                               f"says {pins_text(record.pins)}")
         return None
 
 

@@ -53,6 +53,9 @@ if TYPE_CHECKING:
 ONE, TWO = "one", "two"
 MAX_PAIRS = 120  # every pair of a 4 x 4 grid
 DISTANCE_DIGITS = 4  # a distance in mm, to 0.1 um: exact in a plan, a row and a table
+# The distances a design may tell apart: a row's trial_type names its distance to 0.01 mm,
+# so two distances that round alike there (or a pair at 0 mm) would be one level.
+LABEL_DIGITS = 2
 
 
 @dataclass(frozen=True)
@@ -107,6 +110,7 @@ class TwoPointDesign(DesignDefaults):
                                               f"{len(pair_nodes)}")
         written: list[Written] = []
         seen: set[tuple[int, ...]] = set()
+        labels: dict[float, tuple[float, tuple[int, ...]]] = {}
         for item in pair_nodes:
             pins = reader.attempt(partial(self._pair, reader, item, grid), None)
             if pins is None:
@@ -117,6 +121,8 @@ class TwoPointDesign(DesignDefaults):
                 continue
             seen.add(pins)
             d = distance_mm(grid, *pins)
+            if reader.attempt(partial(self._apart, reader, item, pins, d, grid.pitch_mm, labels), None) is None:
+                continue
             written.append(Written(TwoPointCondition(stimulus.name, pins, d), item,
                                    f"pins {pins[0]} and {pins[1]} ({d:g} mm apart): "))
         if "single_pins" in keys:
@@ -152,6 +158,24 @@ class TwoPointDesign(DesignDefaults):
         if len(pins) != 2 or pins[0] == pins[1]:
             raise reader.error(node, f"expected two different pins, found {list(pins)}")
         return pins
+
+    @staticmethod
+    def _apart(reader: Reader, node: Node, pins: tuple[int, ...], d: float, pitch_mm: float,
+               labels: dict[float, tuple[float, tuple[int, ...]]]) -> float:
+        """``d``, a pair's distance, checked to be one its rows can name (`LABEL_DIGITS`)
+        apart from every other distance of the design (``labels``: those seen, by label)."""
+        label = round(d, LABEL_DIGITS)
+        if label <= 0:
+            raise reader.error(node, f"expected pins at least {10 ** -LABEL_DIGITS:g} mm apart "
+                                     f"(the grid's pitch_mm), found pins {pins[0]} and "
+                                     f"{pins[1]} {d:g} mm apart at a pitch of {pitch_mm:g} mm")
+        other_d, other = labels.setdefault(label, (d, pins))
+        if other_d != d:
+            raise reader.error(node, f"expected distances {10 ** -LABEL_DIGITS:g} mm apart or "
+                                     f"more (the grid's pitch_mm), found pins {pins[0]} and "
+                                     f"{pins[1]} {d:g} mm apart beside pins {other[0]} and "
+                                     f"{other[1]} {other_d:g} mm apart")
+        return d
 
     def drives(self, stimulus: Stimulus, condition: Condition) -> tuple[PinDrive, ...]:
         match stimulus, condition:

@@ -27,6 +27,7 @@ from pinarray.paradigms.two_point.design import ONE, TWO, TwoPointCondition
 from pinarray.protocol.model import Condition, Protocol
 
 OFFSETS = 4  # every paradigm's subjects draw four, whichever paradigm they answer
+MAX_POWER_LOG = 700.0  # exp(700) is finite; exp(-exp(700)) is 0 in any float
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,11 @@ class TwoPointObserverModel:
         """The probability of saying two when pins ``distance_mm`` apart press (0: one pin)."""
         if distance_mm <= 0:
             return self.false_alarm
-        unfelt = (1 - self.intensity_cue) * math.exp(-((distance_mm / self.threshold_mm)
-                                                       ** self.slope))
+        # (d / threshold) ** slope in the log domain: a steep slope or a far threshold would
+        # overflow the power itself, where the probability is only ever 0 or 1.
+        power_log = self.slope * (math.log(distance_mm) - math.log(self.threshold_mm))
+        unfelt = (1 - self.intensity_cue) * (
+            0.0 if power_log > MAX_POWER_LOG else math.exp(-math.exp(power_log)))
         return self.false_alarm + (1 - self.false_alarm - self.lapse) * (1 - unfelt)
 
 

@@ -19,7 +19,7 @@ from pinarray.journal.columns import Cell, Column, number_text, pins_cell, pins_
 from pinarray.journal.manifest import PlanEntry, RunManifest
 from pinarray.journal.records import TrialFields, TrialRecord, check_pins, required
 from pinarray.journal.seam import RowsDefaults
-from pinarray.paradigms.two_point.design import ONE, TWO, TwoPointCondition
+from pinarray.paradigms.two_point.design import LABEL_DIGITS, ONE, TWO, TwoPointCondition
 from pinarray.protocol.model import Condition
 
 COLUMNS = (
@@ -72,7 +72,7 @@ class TwoPointRecord(TrialRecord):
 
 
 def _distance_text(distance_mm: float) -> str:
-    return number_text(round(distance_mm, 2))
+    return number_text(round(distance_mm, LABEL_DIGITS))
 
 
 class TwoPointRows(RowsDefaults):

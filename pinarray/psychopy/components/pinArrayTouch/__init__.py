@@ -1,23 +1,32 @@
-"""Builder's "Pin array touch": a protocol's stimulus on the pin array, started by the flip
-that shows its frame, its delivery checked and written to the data file.
+"""Builder's "Pin array touch": a stimulus on the pin array, a protocol's or a pattern built
+in the dialog, started by the flip that shows its frame, its delivery checked and written to
+the data file.
 
 The dialog: the array (a device of Builder's Device Manager: `PinArrayDeviceBackend` offers
-every port where bus servos answer, and the simulated array), the protocol to open it for,
-the stimulus by name (and, for a localisation design, its pin and frequency), when it starts
-and stops, whether the routine waits for its end, and which data columns to write. The script
-compiled from it does what docs/programmers/psychopy.md's hand-written one does: each repeat,
-`pinarray.find_condition` in the protocol's design; on its start frame,
+every port where bus servos answer, and the simulated array), the protocol to open it for (or
+none), the stimulus, when it starts and stops, whether the routine waits for its end, and
+which data columns to write. The stimulus is one of two kinds, and Pins chooses (`CHOICE`):
+
+- Pins blank: a stimulus of the protocol's design, by name (Stimulus) and, for a localisation
+  design, its pin (Pin) and frequency (Frequency); `pinarray.find_condition` at each repeat.
+- Pins given: a pattern built here, those pins raised together on a train of Frequency,
+  Duration, Duty cycle and Pulses per cycle; `pinarray.Pattern(pins=..., train=
+  pinarray.Train(...))` at each repeat, checked against the array's device then.
+
+A dialog that mixes the two kinds stops the compiling (`CodeGenerationException`, one line),
+as does a pattern whose values, given as constants, `pinarray.Train` or `pinarray.Pattern`
+refuse; $variables are read at their repeat, where a problem stops the experiment in one line
+naming the component (`PinArrayTouch.repeat`).
+
+The script compiled from it does what docs/programmers/psychopy.md's hand-written one does:
+each repeat, the stimulus found or built and prepared on the array (one the array cannot play
+as specified is refused there, never armed, and its row says so); on its start frame,
 `PinArrayDevice.armOnFlip` (the flip showing that frame starts it and checks it); at the
 routine's end, the touch's columns (`pinarray.psychopy.PinArrayTouch.addData`).
 
 Builder imports this module to show the panel and to compile: it imports PsychoPy's
 experiment classes and nothing of PsychoPy's hardware or of pinarray's array. The icons are
 drawn by tests/psychopy/icons.py.
-
-Stimuli built in the dialog from pins and a train, without a protocol's design, come with
-stimuli built in code (issue 47, part 2): their fields will sit beside Stimulus, Pin and
-Frequency in the Stimulus tab, and `writeRoutineStartCode` will build them where it now finds
-a condition.
 """
 
 from __future__ import annotations
@@ -40,10 +49,20 @@ HERE = Path(__file__).parent
 # with the parameter that chooses it.
 SAVE_PARAMS = {"saveDelivered": "delivered", "saveOnset": "onset", "saveStrokes": "strokes"}
 
+# Which fields make which kind of stimulus: Pins given, a pattern built from these (the
+# train's arguments after Pins, each a `pinarray.Train` keyword); Pins blank, a stimulus of the
+# protocol's design chosen by those. Frequency serves both: the pattern's train, or a
+# localisation condition's. (Not "duration": Builder's loader takes a parameter of that name
+# for the stop time of experiments older than PsychoPy 1.70.)
+TRAIN_PARAMS = {"frequency": "frequency_hz", "trainDuration": "duration_s",
+                "dutyCycle": "duty_cycle", "pulsesPerCycle": "pulses_per_cycle"}
+CHOICE = {"pattern": ("pins", *TRAIN_PARAMS), "design": ("stimulus", "pin", "frequency")}
+
 
 class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # PsychoPy is untyped
-    """A touch on the pin array: a protocol's stimulus, started by the flip that shows the
-    frame it starts on, checked against that flip, its delivery in the data file."""
+    """A touch on the pin array: a protocol's stimulus or a pattern built in the dialog,
+    started by the flip that shows the frame it starts on, checked against that flip, its
+    delivery in the data file."""
 
     categories = ["Stimuli", "I/O"]
     targets = ["PsychoPy"]
@@ -59,8 +78,9 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                  stopType: str = "duration (s)", stopVal: str = "",
                  startEstim: str = "", durationEstim: str = "",
                  deviceLabel: str = "",
-                 protocol: str = "", stimulus: str = "", pin: str = "", frequency: str = "",
-                 waitForEnd: bool = True,
+                 protocol: str = "", stimulus: str = "", pin: str = "", pins: str = "",
+                 frequency: str = "", trainDuration: str = "", dutyCycle: str = "",
+                 pulsesPerCycle: str = "", waitForEnd: bool = True,
                  saveDelivered: bool = True, saveOnset: bool = True, saveStrokes: bool = True,
                  saveStartStop: bool = True, syncScreenRefresh: bool = True,
                  disabled: bool = False) -> None:
@@ -88,7 +108,7 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
             "comes, not locked to a flip")
 
         self.order += ["syncScreenRefresh", "waitForEnd", "protocol", "stimulus", "pin",
-                       "frequency", *SAVE_PARAMS, "saveStartStop"]
+                       "pins", *TRAIN_PARAMS, *SAVE_PARAMS, "saveStartStop"]
         self.params["waitForEnd"] = Param(
             waitForEnd, valType="bool", inputType="bool", categ="Basic", direct=False,
             label=_translate("Wait for the end"),
@@ -96,22 +116,39 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                 "The touch keeps its routine going until its stop (blank: its own end). When "
                 "another component ends the routine first (a key press), checked: the routine "
                 "ends once the touch has; unchecked: the routine's end cuts it"))
-        # What it presents: found in the protocol's design at every repeat, so each may be a
-        # $variable of the loop's conditions file.
+        # What it presents: a stimulus of the protocol's design, or a pattern built from Pins
+        # and the train's fields (`CHOICE`); found or built again at every repeat, so that each
+        # field may be a $variable of the loop's conditions file.
         for param, (value, valType, label, hint) in {
             "protocol": (protocol, "file", _translate("Protocol"), _translate(
                 "The protocol file (YAML) to open the array for, relative to the experiment's "
-                "folder: its servos, calibration and stimuli. Blank: the protocol the array is "
-                "open for already (another Pin array touch component's)")),
+                "folder: its servos, calibration and stimuli. Blank: the protocol another Pin "
+                "array touch component opens the array for; if none does, no protocol: the "
+                "simulated array with pinarray's default device, for patterns built here "
+                "(real servos need their protocol)")),
             "stimulus": (stimulus, "str", _translate("Stimulus"), _translate(
-                "The stimulus's name in the protocol (rightwards), or $variable from the loop's "
-                "conditions file; found again at every repeat. Blank: chosen by pin and "
-                "frequency alone")),
+                "A stimulus of the protocol: its name (rightwards), or $variable from the "
+                "loop's conditions file; found again at every repeat. Blank: chosen by Pin and "
+                "Frequency alone. Leave blank for a pattern built from Pins")),
             "pin": (pin, "code", _translate("Pin"), _translate(
                 "A localisation design's pin (1-16, 1 bottom-left as the subject sees them), or "
-                "$variable; blank: any")),
+                "$variable; blank: any. Leave blank for a pattern built from Pins")),
+            "pins": (pins, "list", _translate("Pins"), _translate(
+                "A pattern built here, not a stimulus of the protocol: the pins raised "
+                "together (6, 7, 10, 11), or $variable (a cell [6, 7, 10, 11] of the "
+                "conditions file), on the train below. Blank: the protocol's stimulus "
+                "(Stimulus, Pin)")),
             "frequency": (frequency, "code", _translate("Frequency (Hz)"), _translate(
-                "A localisation design's train frequency in Hz, or $variable; blank: any")),
+                "With Pins: the train's cycles a second, in Hz (needed). Without: a "
+                "localisation design's train frequency, blank for any. Or $variable")),
+            "trainDuration": (trainDuration, "code", _translate("Duration (s)"), _translate(
+                "With Pins: the train's length in s (needed), or $variable")),
+            "dutyCycle": (dutyCycle, "code", _translate("Duty cycle"), _translate(
+                "With Pins: the share of each cycle's pulses that lift the pins, a whole "
+                "number of them (0.5 of 10), or $variable; blank: 0.5")),
+            "pulsesPerCycle": (pulsesPerCycle, "code", _translate("Pulses per cycle"),
+                               _translate("With Pins: servo pulses in one cycle of the train "
+                                          "(2-1000), or $variable; blank: 10")),
         }.items():
             self.params[param] = Param(
                 value, valType=valType, inputType="file" if valType == "file" else "single",
@@ -130,11 +167,15 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                                        direct=False, label=label, hint=hint)
 
     def writeInitCode(self, buff: Any) -> None:
-        self._check_stimulus()
+        if self._builds_pattern():
+            self._check_pattern()
+        else:
+            self._check_stimulus()
         inits = getInitVals(self.params)
         code = (
             "# *%(name)s*: touches on the pin array %(deviceLabel)s of Builder's Device Manager,\n"
-            "# opened for its protocol now (servos checked, pins at rest, stimuli prepared)\n"
+            "# opened now for its protocol (none: the simulated array, pinarray's default\n"
+            "# device): servos checked, pins at rest, stimuli prepared\n"
             "%(name)s = PinArrayTouch(\n"
             "    device=%(deviceLabel)s,\n"
             "    protocol=%(protocol)s,\n"
@@ -145,13 +186,27 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
 
     def writeRoutineStartCode(self, buff: Any) -> None:
         inits = getInitVals(self.params)
-        code = (
-            "# *%(name)s*: this repeat's stimulus, found in the protocol's design\n"
-            "%(name)s.stimulus = pinarray.find_condition(\n"
-            "    %(name)s.device.protocol, stimulus=%(stimulus)s, pin=%(pin)s,\n"
-            "    frequency_hz=%(frequency)s)\n"
-            "%(name)s.touch = None\n"
-        )
+        if self._builds_pattern():
+            train = ", ".join(f"{keyword}={inits[param]}" for param, keyword in TRAIN_PARAMS.items()
+                              if self._given(param))
+            code = (
+                "# *%(name)s*: this repeat's stimulus, the dialog's pins raised together on its "
+                "train,\n"
+                "# checked against the array's device (one it refuses is not armed: its row "
+                "says why)\n"
+                "with %(name)s.repeat():\n"
+                "    %(name)s.stimulus = pinarray.Pattern(\n"
+                "        pins=%(pins)s,\n"
+                f"        train=pinarray.Train({train}))\n"
+            )
+        else:
+            code = (
+                "# *%(name)s*: this repeat's stimulus, found in the protocol's design\n"
+                "with %(name)s.repeat():\n"
+                "    %(name)s.stimulus = pinarray.find_condition(\n"
+                "        %(name)s.protocol, stimulus=%(stimulus)s, pin=%(pin)s,\n"
+                "        frequency_hz=%(frequency)s)\n"
+            )
         buff.writeIndentedLines(code % inits)
 
     def writeFrameCode(self, buff: Any) -> None:
@@ -162,24 +217,25 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                 code = (
                     "# armed now: the flip that shows this frame starts it, and its stamp "
                     "checks it\n"
-                    "%(name)s.touch = %(name)s.device.armOnFlip(%(name)s.stimulus, win)\n"
+                    "%(name)s.armOnFlip(win)\n"
                 )
             else:
                 code = (
                     "# started now, not locked to a flip\n"
-                    "%(name)s.touch = %(name)s.device.present(%(name)s.stimulus, wait=False)\n"
+                    "%(name)s.present()\n"
                 )
             buff.writeIndentedLines(code % self.params)
             buff.setIndentLevel(-indented, relative=True)
-        # It finishes at its stop, or when the stimulus has ended (played, cut, never started).
-        indented = self.writeStopTestCode(buff, extra="or %(name)s.touch.done")
+        # It finishes at its stop, or when the stimulus has ended (played, cut, never started,
+        # refused).
+        indented = self.writeStopTestCode(buff, extra="or %(name)s.done")
         if indented:
             if self._has_stop_time():
                 # Cut now, not on the coming flip: the routine may end without one (every
                 # component finished), and a callback left for the next routine's first flip
                 # would cut the next touch.
                 code = (
-                    "if not %(name)s.touch.done:  # its stop came first: cut short\n"
+                    "if not %(name)s.done:  # its stop came first: cut short\n"
                     "    %(name)s.device.stop('its stop time')\n"
                 )
                 buff.writeIndentedLines(code % self.params)
@@ -192,15 +248,14 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
             # the routine's end, the check in the frame code may never have run.
             code = (
                 "# *%(name)s*: the routine ended on its clock at the stop time: cut there too\n"
-                "if (%(name)s.touch is not None and %(name)s.status != FINISHED\n"
-                "        and not routineForceEnded and not %(name)s.touch.done):\n"
+                "if %(name)s.status == STARTED and not routineForceEnded and not %(name)s.done:\n"
                 "    %(name)s.device.stop('its stop time')\n"
             )
             buff.writeIndentedLines(code % self.params)
         if not self.params["waitForEnd"].val:
             code = (
                 "# *%(name)s*: the routine's end cuts it if it is still playing\n"
-                "if %(name)s.touch is not None and not %(name)s.touch.done:\n"
+                "if not %(name)s.done:\n"
                 "    %(name)s.device.stop(\"the routine's end\")\n"
             )
             buff.writeIndentedLines(code % self.params)
@@ -212,6 +267,56 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         buff.writeIndentedLines(code % self.params)
         super().writeRoutineEndCode(buff)
 
+    def _given(self, param: str) -> bool:
+        return str(self.params[param].val).strip() not in ("", "None")
+
+    def _builds_pattern(self) -> bool:
+        """Whether the dialog builds a pattern (Pins given), not a stimulus of the protocol's
+        design; a dialog that gives fields of both kinds stops the compiling."""
+        pattern, design = ([name for name in CHOICE[kind] if self._given(name)
+                            and name != "frequency"] for kind in ("pattern", "design"))
+        label = {name: str(param.label) for name, param in self.params.items()}
+        if pattern and design:
+            raise CodeGenerationException(self.params["name"].val, (
+                "expected a stimulus of the protocol (Stimulus, Pin) or a pattern built here "
+                "(Pins and its train), found both: "
+                f"{', '.join(label[name] for name in design + pattern)} given"))
+        if pattern and "pins" not in pattern:
+            given = ", ".join(label[name] for name in pattern)
+            raise CodeGenerationException(self.params["name"].val, (
+                f"expected Pins beside {given} (a pattern's train), found Pins blank: give "
+                f"Pins, or leave {given} blank"))
+        missing = [label[name] for name in ("frequency", "trainDuration")
+                   if not self._given(name)]
+        if pattern and missing:
+            raise CodeGenerationException(self.params["name"].val, (
+                "expected Frequency (Hz) and Duration (s) for a pattern built from Pins, "
+                f"found {' and '.join(missing)} blank"))
+        return bool(pattern)
+
+    def _check_pattern(self) -> None:
+        """A pattern given as constants that `pinarray.Train` or `pinarray.Pattern` refuse
+        stops the compiling in their words; what depends on the array (its grid, each pin's
+        stroke, the servo bus) is checked where it runs, and $variables at their repeat."""
+        values: dict[str, Any] = {}
+        for name in ("pins", *TRAIN_PARAMS):
+            if not self._given(name):
+                continue
+            if str(self.params[name].val).strip().startswith("$"):
+                return
+            try:
+                values[name] = ast.literal_eval(str(self.params[name]))
+            except (ValueError, SyntaxError):
+                return  # code, not a value: it is known at run time only
+        import pinarray  # only now: Builder imports this module without the array
+
+        try:
+            train = pinarray.Train(**{keyword: values[param]
+                                      for param, keyword in TRAIN_PARAMS.items()
+                                      if param in values})
+            pinarray.Pattern(pins=values["pins"], train=train)
+        except pinarray.PinArrayError as error:
+            raise CodeGenerationException(self.params["name"].val, str(error)) from None
 
     def _has_stop_time(self) -> bool:
         """Whether the dialog gives the touch a stop (it is cut there if still playing)."""

@@ -1,0 +1,147 @@
+"""What `pinarray validate` accepts, `pinarray batch` delivers; what batch cannot deliver,
+validate refuses, where the condition is written (issue 46, item 2).
+
+Validate plays every condition that passes its other checks on the simulated array the run
+uses (`pinarray.player.rehearsal`): the servo's acceleration and backlash, the bus's frames
+and read-backs at the protocol's baud rate, and the measurement of each moving pin's stroke.
+"""
+
+import re
+from pathlib import Path
+
+import pytest
+
+from pinarray.cli import main
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
+FLUTTER = (PROTOCOLS / "flutter_2ifc.yaml").read_text()
+LOCATED = re.compile(r"^(?P<file>[^:\n]+):(?P<line>\d+):(?P<col>\d+): (?P<message>[^\n]+)$")
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    try:
+        status = main([str(a) for a in argv])
+    except SystemExit as stop:
+        status = stop.code
+    out, err = capsys.readouterr()
+    return status, out, err
+
+
+def written(tmp_path: Path, text: str, name: str = "p.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def changed(text: str, *edits: tuple[str, str]) -> str:
+    for old, new in edits:
+        assert old in text, old
+        text = text.replace(old, new)
+    return text
+
+
+COMPARISON_40 = ("comparisons: [7, 8, 9, 11, 12, 13]", "comparisons: [40]")
+ALL_PINS = ("pattern: [6, 7, 10, 11]", "pattern: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16]")
+SLOW_BUS = ("device:\n", "device:\n  servo: {baud_rate: 38400}\n")
+
+
+def refusal(tmp_path: Path, capsys, text: str) -> tuple[int, int, str]:
+    """(line, column, message) of validate's one refusal of ``text``; exit status 2."""
+    path = written(tmp_path, text)
+    status, out, err = run(capsys, "validate", path)
+    assert (status, out) == (2, ""), err
+    lines = err.splitlines()
+    found = LOCATED.match(lines[0])
+    assert found is not None and found["file"] == str(path), lines[0]
+    assert "Traceback" not in err
+    return int(found["line"]), int(found["col"]), found["message"]
+
+
+def test_a_comparison_of_40_hz_is_refused_at_validate_where_it_is_written(tmp_path, capsys):
+    text = changed(FLUTTER, COMPARISON_40)
+    line, col, message = refusal(tmp_path, capsys, text)
+    assert (line, col) == (text.splitlines().index("  comparisons: [40]") + 1, 17)
+    assert message.startswith("at frequency_hz 40: played as a run plays it, on simulated "
+                              "STS3215 servos (1000000 baud, 3000 steps/s, return delay 500 us), "
+                              "it was not delivered in 3 attempts: pin 6")
+
+
+def test_sixteen_pins_at_40_hz_are_refused_at_validate(tmp_path, capsys):
+    text = changed(FLUTTER, COMPARISON_40, ALL_PINS)
+    line, _, message = refusal(tmp_path, capsys, text)
+    assert line == text.splitlines().index("  comparisons: [40]") + 1
+    assert "it was not delivered in 3 attempts: pin 1" in message
+    assert "(and 15 more pin(s))" in message
+
+
+def test_the_two_interval_protocol_at_38400_baud_is_refused_at_each_comparison(tmp_path, capsys):
+    text = changed(FLUTTER, SLOW_BUS)
+    path = written(tmp_path, text)
+    status, out, err = run(capsys, "validate", path)
+    assert (status, out) == (2, "")
+    line = text.splitlines().index("  comparisons: [7, 8, 9, 11, 12, 13]") + 1
+    lines = err.splitlines()
+    assert [LOCATED.match(x)["line"] for x in lines] == [str(line)] * 6  # type: ignore[index]
+    assert all("on simulated STS3215 servos (38400 baud" in x and ": pin 6" in x for x in lines)
+
+
+# --- validate accepts <=> batch delivers ------------------------------------------------------
+
+SMALL = {"repetitions": 1, "blocks": 1, "practice_trials": 0}
+
+
+def small(name: str, *edits: tuple[str, str]) -> str:
+    """A shipped protocol, one block of each condition once, no practice, with ``edits``."""
+    text = (PROTOCOLS / name).read_text()
+    for key, value in SMALL.items():
+        text = re.sub(rf"(\n  {key}: )\d+", rf"\g<1>{value}", text)
+    return changed(text, *edits)
+
+
+CASES = {
+    "flutter at 12 Hz": small("flutter_2ifc.yaml", ("[7, 8, 9, 11, 12, 13]", "[12]")),
+    "flutter at 40 Hz": small("flutter_2ifc.yaml", ("[7, 8, 9, 11, 12, 13]", "[40]")),
+    "flutter at 13 Hz, 38400 baud": small("flutter_2ifc.yaml", ("[7, 8, 9, 11, 12, 13]", "[13]"),
+                                          SLOW_BUS),
+    "flutter at 13 Hz, 500000 baud": small("flutter_2ifc.yaml", ("[7, 8, 9, 11, 12, 13]", "[13]"),
+                                           ("device:\n", "device:\n  servo: {baud_rate: 500000}\n")),
+    "temporal order": small("toj.yaml", ("[-120, -60, -30, -15, 15, 30, 60, 120]", "[-30, 60]")),
+    "temporal order at 20 Hz": small("toj.yaml", ("[-120, -60, -30, -15, 15, 30, 60, 120]", "[60]"),
+                                     ("frequency_hz: 10", "frequency_hz: 20")),
+    "localisation at 10 Hz, 1 s": small("localisation.yaml", ("pins: [1, 4, 6, 7, 10, 11, 13, 16]",
+                                                              "pins: [6]"),
+                                        ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [10]"),
+                                        ("duration_s: 10", "duration_s: 1")),
+    "localisation at 20 Hz, 1 s": small("localisation.yaml", ("pins: [1, 4, 6, 7, 10, 11, 13, 16]",
+                                                              "pins: [6]"),
+                                        ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [20]"),
+                                        ("duration_s: 10", "duration_s: 1"),
+                                        ("2.0: 2113", "2.0: 2080")),
+    # The adapted strokes (4 to 60 steps) are what its trials play, never the calibration's
+    # full 114 steps, which the servos cannot reach at 10 Hz: validate refused it, batch
+    # delivered every trial.
+    "quest stroke at 10 Hz, 4 to 60 steps": small(
+        "quest_stroke.yaml", ("frequency_hz: 5", "frequency_hz: 10"),
+        ("frequencies_hz: [5]", "frequencies_hz: [10]"),
+        ("values: {from: 4, to: 120, step: 4}", "values: {from: 4, to: 60, step: 4}"),
+        ("threshold_prior: {mean: 40, sd: 30}", "threshold_prior: {mean: 30, sd: 15}"),
+        ("stop_after_trials: 60", "stop_after_trials: 6"), ("count: 6", "count: 1")),
+}
+
+
+# The cases validate refuses (the others it accepts): both sides of the property are tested.
+REFUSED = {"flutter at 40 Hz", "flutter at 13 Hz, 38400 baud", "temporal order at 20 Hz",
+           "localisation at 20 Hz, 1 s"}
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_validate_accepts_exactly_what_batch_delivers(case, tmp_path, capsys):
+    path = written(tmp_path, CASES[case])
+    status, _, err = run(capsys, "validate", path)
+    assert status in (0, 2) and "Traceback" not in err
+    accepted = status == 0
+    assert accepted is (case not in REFUSED), err
+    status, _, err = run(capsys, "batch", path, "--subject", "s1", "--observer", "default",
+                         "--seed", "7", "--results", tmp_path / "results")
+    delivered = status == 0 and "not delivered" not in err
+    assert accepted is delivered, err
