@@ -116,7 +116,8 @@ else:
     if helper_pid == 0:
         helper()
         os._exit(0)
-armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**8)
+# A second ahead: the fork must not make a busy host miss the onset (nothing would move).
+armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**9)
 print(helper_pid, flush=True)
 time.sleep(600)
 """
