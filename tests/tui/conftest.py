@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import pytest
+from textual.geometry import Size
 
 from pinarray.clock import VirtualClock
 from pinarray.player.rig import Rig
@@ -13,6 +14,7 @@ PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 LOCALISATION = PROTOCOLS / "localisation.yaml"
 MOTION = PROTOCOLS / "apparent_motion.yaml"
 SIZE = (120, 40)
+SMALL = (80, 24)  # the smallest terminal a lab laptop opens (tmux): everything needed must show
 
 
 def make_app(results, protocol=LOCALISATION, seed=3, sim_url=None, rig_factory=Rig,
@@ -64,6 +66,26 @@ async def to_run_screen(pilot, subject="01", resume=False):
     await to_preflight(pilot, subject, resume)
     await pilot.press("b")
     await settle(pilot)
+
+
+async def resize(pilot, size):
+    """The terminal resized to ``size`` (columns, rows), as a lab's tmux pane is: the app lays
+    its screens out again (and sets its size classes) before this returns."""
+    await pilot.resize_terminal(*size)
+    while pilot.app.screen.region.size != Size(*size):  # the app passes it on after a timer
+        await pilot.pause(0.01)
+    await pilot.pause()
+
+
+async def both_sizes(pilot):
+    """The screen at the terminal's size, then at the other of 80x24 and 120x40: the same state
+    checked at both sizes without driving the app there twice (a screen is laid out for its
+    size whenever the terminal's changes, as when it opens). The terminal stays at the other."""
+    here = (pilot.app.size.width, pilot.app.size.height)
+    yield here
+    other = SIZE if here == SMALL else SMALL
+    await resize(pilot, other)
+    yield other
 
 
 def delay_column(app) -> list[str]:

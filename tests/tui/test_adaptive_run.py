@@ -5,23 +5,26 @@ import pytest
 from pinarray.journal.rows import read_trials
 from pinarray.session.trials import Phase
 from pinarray.tui.run_screen import RunScreen
-from tests.tui.conftest import PROTOCOLS, SIZE, make_app, settle, to_run_screen
+from tests.tui.conftest import PROTOCOLS, SIZE, SMALL, make_app, resize, settle, to_run_screen
 
 QUEST = PROTOCOLS / "quest_stroke.yaml"
 
 
 @pytest.mark.long
-@pytest.mark.parametrize("size", [(80, 24), SIZE], ids=["80x24", "120x40"])
-async def test_the_run_screen_shows_the_value_presented_and_each_procedures_track(results, size):
+async def test_the_run_screen_shows_the_value_presented_and_each_procedures_track(results):
     app = make_app(results, protocol=QUEST, seed=4)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await to_run_screen(pilot)
         screen = app.screen
         assert isinstance(screen, RunScreen)
         session = screen.session
         await pilot.press("space")  # leave the instructions
         await settle(pilot)
-        for _ in range(6):  # 2 practice, then the procedure's trials
+        for trial in range(6):  # 2 practice, then the procedure's trials
+            # Practice and the procedure's first trial at 80x24, the others at 120x40: each
+            # kind of line drawn at both sizes in one run.
+            if trial == 3:
+                await resize(pilot, SIZE)
             await pilot.press("space")
             await settle(pilot)
             assert session.phase is Phase.RESPONSE
@@ -33,8 +36,10 @@ async def test_the_run_screen_shows_the_value_presented_and_each_procedures_trac
             pin = session.current.condition.pin
             await pilot.press(*str(pin), "enter")  # felt it, every time
             await settle(pilot)
-        counts = str(screen.query_one("#counts").render())
-        assert "quest " in counts and "· est " in counts
+        for size in (SIZE, SMALL):
+            await resize(pilot, size)
+            counts = str(screen.query_one("#counts").render())
+            assert "quest " in counts and "· est " in counts, size
         await pilot.press("q")
         await settle(pilot)
     (beh,) = results.rglob("*_beh.tsv")

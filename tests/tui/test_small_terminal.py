@@ -35,13 +35,14 @@ from tests.tui.conftest import (
     MOTION,
     PROTOCOLS,
     SIZE,
+    SMALL,
+    both_sizes,
     fill_start,
     make_app,
     settle,
     to_run_screen,
 )
 
-SMALL = (80, 24)
 SIZES = pytest.mark.parametrize("size", [SMALL, SIZE], ids=["80x24", "120x40"])
 PARADIGMS = pytest.mark.parametrize("protocol", [LOCALISATION, MOTION],
                                     ids=["localisation", "motion"])
@@ -153,83 +154,84 @@ async def answer_one(pilot, protocol):
 # -- start and pre-flight --------------------------------------------------------------------
 
 
-@SIZES
-async def test_the_start_form_shows_every_field_and_button_and_what_is_wrong(results, size):
+async def test_the_start_form_shows_every_field_and_button_and_what_is_wrong(results):
     app = make_app(results)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot, subject="a-b")
         await pilot.click("#start")
         await settle(pilot)
-        assert isinstance(app.screen, StartScreen)
-        assert "subject label 'a-b' is not allowed" in says(app.screen, "#start-error")
-        assert unseen(app.screen) == []
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, StartScreen)
+            assert "subject label 'a-b' is not allowed" in says(app.screen, "#start-error")
+            assert unseen(app.screen) == [], size
 
 
-@SIZES
-async def test_the_start_form_offering_to_resume_an_aborted_run_shows_every_button(results,
-                                                                                  size):
+async def test_the_start_form_offering_to_resume_an_aborted_run_shows_every_button(results):
     app = make_app(results)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await to_run_screen(pilot)
         await answer_one(pilot, LOCALISATION)
         await pilot.press("a", "y")
         await settle(pilot)
-        assert isinstance(app.screen, EndScreen)
-        assert unseen(app.screen) == []  # the aborted run's end screen too
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, EndScreen)
+            assert unseen(app.screen) == [], size  # the aborted run's end screen too
         await pilot.press("n")
         await settle(pilot)
-        assert isinstance(app.screen, StartScreen)
-        assert "unfinished" in says(app.screen, "#resume-info").lower()
-        assert unseen(app.screen) == []
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, StartScreen)
+            assert "unfinished" in says(app.screen, "#resume-info").lower()
+            assert unseen(app.screen) == [], size
         await pilot.click("#resume")
         await settle(pilot)
         await pilot.press("b")
         await settle(pilot)
-        assert "Resumed:" in says(app.screen, "#phase")
-        assert unseen(app.screen) == []
+        async for size in both_sizes(pilot):
+            assert "Resumed:" in says(app.screen, "#phase")
+            assert unseen(app.screen) == [], size
 
 
-@SIZES
-async def test_the_preflight_shows_every_button_the_table_and_the_pin_test_hint(results, size):
+async def test_the_preflight_shows_every_button_the_table_and_the_pin_test_hint(results):
     app = make_app(results)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot)
         await pilot.click("#start")
         await settle(pilot)
         screen = app.screen
         assert isinstance(screen, PreflightScreen) and screen.connected
         await pilot.press("x")  # not a key here: the notice says so
-        assert screen.notice.text
-        assert unseen(screen) == []
-        table = screen.query_one(DataTable)
-        assert table.scrollable_content_region.height >= table.header_height + 5
-        assert table.scrollable_content_region.width >= table.virtual_size.width  # every column
+        async for size in both_sizes(pilot):
+            assert screen.notice.text
+            assert unseen(screen) == [], size
+            table = screen.query_one(DataTable)
+            assert table.scrollable_content_region.height >= table.header_height + 5
+            assert table.scrollable_content_region.width >= table.virtual_size.width  # all columns
 
 
-@SIZES
-async def test_the_preflight_after_a_not_ok_timing_check_still_shows_every_button(results, size):
+async def test_the_preflight_after_a_not_ok_timing_check_still_shows_every_button(results):
     app = make_app(results, rig_factory=ArrayRig, timing_check_ns=1)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot)
         await pilot.click("#start")
         await settle(pilot)
         screen = app.screen
-        assert "NOT OK" in says(screen, "#timing")
-        assert "NOT OK: stimuli may be reported not delivered" in on_screen(app)
-        assert unseen(screen) == []
-        table = screen.query_one(DataTable)
-        assert table.scrollable_content_region.height >= table.header_height + 5
+        async for size in both_sizes(pilot):
+            assert "NOT OK" in says(screen, "#timing")
+            assert "NOT OK: stimuli may be reported not delivered" in on_screen(app)
+            assert unseen(screen) == [], size
+            table = screen.query_one(DataTable)
+            assert table.scrollable_content_region.height >= table.header_height + 5
 
 
-@SIZES
-async def test_the_preflight_that_cannot_connect_shows_every_button(results, size):
+async def test_the_preflight_that_cannot_connect_shows_every_button(results):
     app = make_app(results, sim_url="sim://?ids=1-15")
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot)
         await pilot.click("#start")
         await settle(pilot)
-        assert "Could not connect" in says(app.screen, "#preflight-status")
-        assert unseen(app.screen) == []
+        async for size in both_sizes(pilot):
+            assert "Could not connect" in says(app.screen, "#preflight-status")
+            assert unseen(app.screen) == [], size
 
 
 def lock_is_free(paths) -> bool:
@@ -273,21 +275,21 @@ async def test_a_begin_that_fails_says_why_in_view_every_time_and_leaves_the_run
     assert (results / "participants.tsv").read_text().count("sub-01") == 1
 
 
-@SIZES
-async def test_the_scanner_wait_shows_what_it_waits_for_and_how_to_stop(results, size):
+async def test_the_scanner_wait_shows_what_it_waits_for_and_how_to_stop(results):
     options = TuiOptions(protocol_path=LOCALISATION, protocols_dir=PROTOCOLS, results_root=results,
                          time_scale=0, seed=3, timing_check_ns=0,
                          sync=SyncOverrides(parse_trigger("serial:/dev/no-such-trigger"), 4))
     app = PinArrayApp(options, list_ports=lambda: [])
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot)
         await pilot.click("#start")
         await settle(pilot)
         await pilot.press("b")
         await settle(pilot)
-        assert isinstance(app.screen, ScannerScreen)
-        assert "cannot open the trigger device" in says(app.screen, "#scanner-state")
-        assert unseen(app.screen) == []
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, ScannerScreen)
+            assert "cannot open the trigger device" in says(app.screen, "#scanner-state")
+            assert unseen(app.screen) == [], size
 
 
 # -- the run ---------------------------------------------------------------------------------
@@ -402,11 +404,10 @@ async def test_every_phase_of_a_run_shows_every_key_answer_and_notice_whole(resu
         assert unseen(screen) == []
 
 
-@SIZES
 async def test_waves_going_every_way_offer_every_direction_as_an_answer_all_in_view(
-        results, tmp_path, size):
+        results, tmp_path):
     app = make_app(results, protocol=write_many_ways(tmp_path))
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await to_run_screen(pilot)
         await pilot.press("space")
         await settle(pilot)
@@ -417,7 +418,8 @@ async def test_waves_going_every_way_offer_every_direction_as_an_answer_all_in_v
         answers = [str(b.id).removeprefix("answer-") for b in screen.query("#pad Button")]
         assert answers == ["left", "right", "up", "down", "up-right", "none", "unsure"]
         assert "↑ / ↓ / 1 (up-right)" in says(screen, "#phase")
-        assert unseen(screen) == []
+        async for size in both_sizes(pilot):
+            assert unseen(screen) == [], size
         await pilot.press("1")  # the first direction a sequence names
         await settle(pilot)
         assert screen.session.last.record.response == "up-right"
@@ -426,14 +428,13 @@ async def test_waves_going_every_way_offer_every_direction_as_an_answer_all_in_v
 # -- the end ---------------------------------------------------------------------------------
 
 
-@SIZES
 @PARADIGMS
-async def test_the_end_of_a_whole_run_shows_its_summary_files_and_buttons(results, size, protocol,
+async def test_the_end_of_a_whole_run_shows_its_summary_files_and_buttons(results, protocol,
                                                                          short_localisation):
     if protocol == LOCALISATION:
         protocol = short_localisation  # the same plan; the end screen is the point
     app = make_app(results, protocol=protocol)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await to_run_screen(pilot)
         session = app.screen.session
         session.begin()
@@ -444,13 +445,13 @@ async def test_the_end_of_a_whole_run_shows_its_summary_files_and_buttons(result
         await settle(pilot)
         await pilot.press("x")
         assert isinstance(app.screen, EndScreen)
-        assert unseen(app.screen) == []
+        async for size in both_sizes(pilot):
+            assert unseen(app.screen) == [], size
 
 
-@SIZES
-async def test_the_error_screen_shows_what_happened_and_how_to_leave(results, size):
+async def test_the_error_screen_shows_what_happened_and_how_to_leave(results):
     app = make_app(results)
-    async with app.run_test(size=size) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         screen = ErrorScreen(Crashed(
             "RuntimeError: the player process ended without a word (exit status -9) while "
             "presenting practice 1 of 2",
@@ -459,5 +460,6 @@ async def test_the_error_screen_shows_what_happened_and_how_to_leave(results, si
         screen.closed("16 servo(s) at rest, 16 released")
         await pilot.pause()
         await pilot.press("x")
-        assert unseen(screen) == []
+        async for size in both_sizes(pilot):
+            assert unseen(screen) == [], size
 
