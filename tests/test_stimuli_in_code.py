@@ -8,6 +8,7 @@ process driving it), as tests/test_library_paths.py opens both."""
 from __future__ import annotations
 
 import math
+import re
 from fractions import Fraction
 
 import numpy as np
@@ -102,6 +103,64 @@ def test_a_stimulus_the_array_cannot_play_is_refused_before_anything_moves(way, 
         assert "\n" not in message
     assert sum(written) == 0  # not a goal reached any servo
     assert "open, idle" in repr(array)
+
+
+# pinarray's default device (STS3215 servos at their datasheet speed, the seed's 114-step
+# stroke), written as a protocol with no device section: the analytic check lets one pin
+# follow up to 13.16 Hz, but the simulated servos also limit acceleration and lag.
+DEFAULT_DEVICE = """\
+protocol: default-device
+stimuli:
+  tap: {frequency_hz: 5, duration_s: 0.4}
+design: {paradigm: localisation, stimulus: tap, pins: [6], frequencies_hz: [5]}
+"""
+# RIG's 12-step stroke, its stroke judged (the default tolerance): fast trains of many pins
+# leave the verifier too few samples between frames to measure a cycle.
+SMALL_STROKE = RIG.replace("  delivery_tolerance_ms: 500\n  stroke_tolerance_percent: 0\n", "")
+
+
+def pattern(pins, frequency_hz, duration_s=0.5):
+    return pinarray.Pattern(pins=list(pins), train=pinarray.Train(frequency_hz=frequency_hz,
+                                                                  duration_s=duration_s))
+
+
+@realtime
+@pytest.mark.parametrize(("device", "stimulus", "because"), [
+    (DEFAULT_DEVICE, pattern([6], 10, 1), r"pin 6 moved \d+ of 114 commanded steps"),
+    (SMALL_STROKE, pattern(range(1, 17), 20), r"pin 1's stroke not measured in"),
+    (SMALL_STROKE, pattern(range(1, 5), 40), r"pin 1's stroke not measured in"),
+], ids=["the default servos cannot lift a pin at 10 Hz", "16 pins at 20 Hz are not measured",
+        "4 pins at 40 Hz are not measured"])
+def test_a_stimulus_the_simulated_servos_would_not_deliver_is_refused_before_anything_moves(
+        way, device, stimulus, because):
+    array = way.open(pinarray.protocol_from_text(device, name="rig"))
+    written = goal_writes(way.servos(array))
+    for call in (array.prepare, array.arm, array.present):
+        with pytest.raises(pinarray.PinArrayError) as refused:
+            call(stimulus)
+        message = str(refused.value)
+        assert message.startswith(f"{call.__name__}: Pattern: played as a run plays it, on "
+                                  "simulated STS3215 servos")
+        assert re.search(because, message) and "\n" not in message, message
+    assert sum(written) == 0  # not a goal reached any servo
+    assert "open, idle" in repr(array)
+
+
+@pytest.mark.parametrize("pins", [[6], [6, 7, 10, 11]])
+def test_what_the_default_device_refuses_is_what_it_would_not_deliver(pins):
+    # Across the frequencies where the servos stop keeping up: every stimulus accepted is
+    # delivered, and the faster ones are refused before they play.
+    outcomes = {}
+    with pinarray.open_array() as array:
+        for frequency_hz in range(6, 14):
+            try:
+                delivery = array.present(pattern(pins, frequency_hz, 1))
+            except pinarray.PinArrayError:
+                outcomes[frequency_hz] = "refused"
+            else:
+                assert_delivered(delivery)
+                outcomes[frequency_hz] = "delivered"
+    assert outcomes[6] == "delivered" and outcomes[13] == "refused", outcomes
 
 
 def test_an_array_opened_without_a_protocol_plays_code_on_the_default_device():

@@ -152,16 +152,22 @@ def test_the_patterns_example_compiles_and_runs_writing_every_pins_stroke(tmp_pa
     for row in trials:
         pins = ast.literal_eval(row["pins"])
         built = pinarray.Pattern(pins=pins, train=pinarray.Train(
-            frequency_hz=int(row["frequency_hz"]), duration_s=0.4, duty_cycle=0.5))
+            frequency_hz=float(row["frequency_hz"]), duration_s=0.4, duty_cycle=0.5))
         assert row["tactile.stimulus"] == repr(built)  # this repeat's, in full
-        assert row["tactile.ending"] == "played"
+        assert row["tactile.ending"] == "played"  # none refused: the device delivers them all
         from_flip_ms = float(row["tactile.onset_from_flip_ms"])
         assert from_flip_ms >= 0  # started by the flip, never before it
         within = from_flip_ms <= float(row["tactile.tolerance_ms"])
         if row["tactile.delivered"] == "True":
             assert within and row["tactile.missing"] == "0" and not row["tactile.problem"]
-        else:  # whether it kept up on a machine this busy is the benchmark's
+        else:
+            # PsychoPy's flips are on the wall clock, so the simulated servos play in real
+            # time on either way (not virtual time): a host too busy to keep the frames or
+            # sample a stroke is the benchmark's. A stroke the servos fall short of is not:
+            # tests/test_stimuli_in_code_example.py delivers these very patterns in full in
+            # virtual time, and the array refuses before it plays what they cannot.
             assert row["tactile.problem"], row
+            assert "commanded steps" not in row["tactile.problem"], row
         for pin in range(1, 17):  # every pin of its pattern measured, and only those
             commanded = row.get(f"tactile.pin{pin}.commanded_steps", "")
             achieved = row.get(f"tactile.pin{pin}.achieved_steps", "")
