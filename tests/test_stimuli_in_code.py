@@ -280,6 +280,13 @@ GOOD = {"frequency_hz": 5, "duration_s": 1}
     (lambda: pinarray.Wave("rightwards", row=1.0, train=TAP), "row"),
     (lambda: pinarray.Wave("sequence", pins=[1, 2], direction=5, train=TAP), "direction"),
     (lambda: pinarray.Wave("rightwards", row=1, train=TAP, soa_ms=-math.inf), "soa_ms"),
+    # Past 4300 digits Python will not write an int as text: refused before it is.
+    (lambda: pinarray.Train(frequency_hz=10**5000, duration_s=1), "frequency_hz"),
+    (lambda: pinarray.Train(**GOOD, pulses_per_cycle=10**5000), "pulses_per_cycle"),
+    (lambda: pinarray.Train(frequency_hz=Fraction(10**5000, 3), duration_s=1), "frequency_hz"),
+    (lambda: pinarray.Pattern(pins=[10**5000], train=TAP), "pins[0]"),
+    (lambda: pinarray.Frames(frames=[SQUARE, SQUARE], soa_ms=10**5000), "soa_ms"),
+    (lambda: pinarray.Wave("rightwards", row=10**5000, train=TAP), "row"),
 ], ids=lambda value: value if isinstance(value, str) else "")
 def test_a_wrong_argument_is_a_one_line_error_naming_it(build, named):
     with pytest.raises(pinarray.PinArrayError) as refused:
@@ -353,3 +360,23 @@ def test_a_protocol_from_text_locates_its_problems_at_name_line_col():
     for text, name in ((5, "x"), (RIG, ""), (RIG, "two\nlines"), ("x" * (1 << 20 + 1), "x")):
         with pytest.raises(pinarray.PinArrayError, match="^protocol_from_text: (text|name): "):
             pinarray.protocol_from_text(text, name=name)
+
+
+def test_a_value_refused_for_its_digits_is_shown_with_the_digits_that_refuse_it():
+    # A float32's 0.3 is 0.30000001192092896: not 3 of 10 pulses, and the message says so.
+    with pytest.raises(pinarray.PinArrayError) as refused:
+        pinarray.Train(**GOOD, duty_cycle=np.float32(0.3))
+    assert str(refused.value).endswith("found 0.30000001192092896 (3.0000001192092896 pulses)")
+    with pinarray.open_array() as array, pytest.raises(pinarray.PinArrayError) as refused:
+        array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
+            **GOOD, pulse_width_ms={"up": 2.000001, "down": 1.5})))
+    assert str(refused.value).endswith("pin 6: no calibrated position for a 2.000001 ms pulse; "
+                                       "calibrated widths: 1.5 ms, 2 ms")
+
+
+def test_a_stimulus_too_long_for_one_trial_says_what_a_script_can_do_instead():
+    with pinarray.open_array() as array, pytest.raises(pinarray.PinArrayError) as refused:
+        array.present(pattern([6], 5, 172800))
+    assert "--allow-long" not in str(refused.value)
+    assert str(refused.value).endswith("shorten the signal, or present it as several shorter "
+                                       "stimuli, one after another")

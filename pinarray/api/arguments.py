@@ -31,6 +31,8 @@ MAX_SEED = 2**63 - 1
 
 def found(value: object) -> str:
     """A value as a message shows what was found: its repr (shortened) and its type."""
+    if isinstance(value, int) and value.bit_length() > 200:  # repr fails past 4300 digits
+        return f"an int of {value.bit_length()} bits ({type(value).__name__})"
     shown = repr(value)
     if len(shown) > 60:
         shown = shown[:57] + "..."
