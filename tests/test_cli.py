@@ -1,5 +1,6 @@
 """The `pinarray` command as a user meets it: help, version, one-line errors, exit status 2."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -48,3 +49,12 @@ def test_preview_prints_the_seed_of_the_plan_it_drew_so_the_same_plan_can_be_see
     assert main(["preview", localisation, "--trial", "5", "--seed", seed]) == 0
     again = capsys.readouterr().out
     assert again.splitlines()[:-1] == first.splitlines()[:-1]
+
+
+def test_sim_serve_help_lists_every_url_key_the_simulator_takes():
+    from pinarray.cli.bus import SERVE_EPILOG
+    from pinarray.hardware.feetech.faults import _KNOWN_KEYS
+
+    # ids has its own option; fidelity behind sim-serve is always wire.
+    said = set(re.findall(r"([a-z_]+)=", SERVE_EPILOG))
+    assert sorted(_KNOWN_KEYS - {"ids", "fidelity"} - said) == []

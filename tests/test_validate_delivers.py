@@ -117,6 +117,15 @@ CASES = {
                                         ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [20]"),
                                         ("duration_s: 10", "duration_s: 1"),
                                         ("2.0: 2113", "2.0: 2080")),
+    # The adapted strokes (4 to 60 steps) are what its trials play, never the calibration's
+    # full 114 steps, which the servos cannot reach at 10 Hz: validate refused it, batch
+    # delivered every trial.
+    "quest stroke at 10 Hz, 4 to 60 steps": small(
+        "quest_stroke.yaml", ("frequency_hz: 5", "frequency_hz: 10"),
+        ("frequencies_hz: [5]", "frequencies_hz: [10]"),
+        ("values: {from: 4, to: 120, step: 4}", "values: {from: 4, to: 60, step: 4}"),
+        ("threshold_prior: {mean: 40, sd: 30}", "threshold_prior: {mean: 30, sd: 15}"),
+        ("stop_after_trials: 60", "stop_after_trials: 6"), ("count: 6", "count: 1")),
 }
 
 

@@ -9,7 +9,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pinarray.paradigms.identification.analysis import Confusion, it_bias_bits
+from pinarray.analysis.fits import AcrossMeasure, across_text
+from pinarray.analysis.load import LoadedTrial, RunSelection
+from pinarray.analysis.seam import Context
+from pinarray.analysis.subjects import IntervalSettings
+from pinarray.analysis.tables import number
+from pinarray.grid import Grid
+from pinarray.paradigms.identification.analysis import (
+    Confusion,
+    confusion,
+    identifications,
+    it_bias_bits,
+)
+from pinarray.paradigms.identification.rows import IdentificationRecord
+from pinarray.paradigms.temporal_order.analysis import temporal_orders
+from pinarray.paradigms.temporal_order.rows import TemporalOrderRecord
 from pinarray.paradigms.two_interval.observer import TwoIntervalObserverModel
 from pinarray.protocol.load import load_protocol
 from pinarray.protocol.model import Train
@@ -82,3 +96,52 @@ def test_the_staircase_interval_width_states_the_thresholds_it_comes_from():
     assert spread == "20-300 ms"
     words = " ".join((REPO / "docs" / "experimenters" / "adaptive.md").read_text().split())
     assert re.search(rf"median width 56 ms over thresholds spread across {spread}", words)
+
+
+def test_the_across_subject_row_says_no_subject_resolved_it_not_one_subject():
+    # Six subjects whose answers ignore the SOA: each PSS is not resolved, and the
+    # across-subject cell says so of all six (it said "n/a n/a (one subject)").
+    rows = [LoadedTrial(f"s{subject}", "1", 1, None, TemporalOrderRecord(
+        trial=n, block=1, task="toj", onset_ns=0, duration_ns=1, pins=(6, 7),
+        soa_ns=soa * 1_000_000, response="6" if n % 2 else "7"))
+        for subject in range(6)
+        for n, soa in enumerate([s for s in (-120, -60, -30, 30, 60, 120) for _ in range(8)],
+                                start=1)]
+    found = temporal_orders(rows, Context(RunSelection((), (), False), IntervalSettings(),
+                                          Grid()))
+    (all_row,) = [line for line in found.sections() if line.startswith("| all |")]
+    assert "not resolved in any of 6 subjects" in all_row and "one subject" not in all_row
+
+
+@pytest.mark.parametrize(("values", "subjects", "said"), [
+    ((), 1, "not resolved (one subject)"),
+    ((), 4, "not resolved in any of 4 subjects"),
+    ((("a", 2.0),), 1, "2.00, no interval (one subject with a number)"),
+    ((("a", 2.0),), 3, "2.00, no interval (one subject with a number of 3)"),
+    ((("a", 2.0), ("b", 4.0)), 3, "3.00 [1.00, 5.00] (2 subjects with a number of 3)"),
+    ((("a", 2.0), ("b", 4.0)), 2, "3.00 [1.00, 5.00]"),
+])
+def test_an_across_subject_cell_says_how_many_subjects_it_is_the_mean_of(values, subjects, said):
+    numbers = [v for _, v in values]
+    interval = (1.0, 5.0) if len(numbers) > 1 else (math.nan, math.nan)
+    measure = AcrossMeasure("toj", "pss_ms", "ms", values,
+                            float(np.mean(numbers)) if numbers else math.nan, interval)
+    assert across_text(measure, subjects, 2) == said
+
+
+def test_the_corrected_information_is_said_as_the_bias_subtracted_and_floored_at_zero():
+    # Few trials, answers spread: the bias exceeds the estimate, the corrected value is 0.
+    records = [IdentificationRecord(trial=n, block=1, task="shapes", onset_ns=0, duration_ns=1,
+                                    pins=(1,), pattern=pattern, response=answer)
+               for n, (pattern, answer) in enumerate(
+                   [("L", "L"), ("L", "T"), ("T", "T"), ("T", "square"), ("square", "L"),
+                    ("square", "square"), ("L", "square")], start=1)]
+    matrix = confusion(records)
+    assert matrix.it_bias_bits > matrix.it_bits and matrix.it_corrected_bits == 0
+    found = identifications([LoadedTrial("a", "1", 1, None, r) for r in records],
+                            Context(RunSelection((), (), False), IntervalSettings(), Grid()))
+    (line,) = found.lines()
+    assert (f"its small-sample bias {number(matrix.it_bias_bits, 3)} bits; less the bias, "
+            "floored at 0: 0.000 bits" in line)
+    words = (REPO / "docs" / "experimenters" / "results.md").read_text()
+    assert "`it_corrected_bits`, which is floored at 0" in words

@@ -160,6 +160,15 @@ class FittedFindings:
     def measures_of(self, task: str) -> dict[str, AcrossMeasure]:
         return {m.measure: m for m in self.across if m.task == task}
 
+    def task_subjects(self, task: str) -> int:
+        """How many subjects have a fit of ``task`` (with a number or not)."""
+        return len({f.subject for f in self.fits if f.task == task})
+
+    def across_text(self, measure: AcrossMeasure, digits: int = 3) -> str:
+        """The across-subject cell of ``measure``: its mean and interval, or what is true
+        when there is none (`across_text`)."""
+        return across_text(measure, self.task_subjects(measure.task), digits)
+
     @property
     def estimates(self) -> tuple[Reported, ...]:
         found = [Reported(f.task, f.subject, measure, unit, f.trials, e)
@@ -241,6 +250,16 @@ def markdown_row(cells: Sequence[object]) -> str:
     return "| " + " | ".join(map(str, cells)) + " |"
 
 
-def mean_interval_text(low: float, high: float) -> str:
-    """An across-subject interval, or why there is none."""
-    return "n/a (one subject)" if math.isnan(low) else f"[{_n(low, 3)}, {_n(high, 3)}]"
+def across_text(measure: AcrossMeasure, subjects: int, digits: int = 3) -> str:
+    """An across-subject mean with its interval, of ``subjects`` subjects fitted, or what is
+    true when there is none: no subject with a number, or only one."""
+    with_number = len(measure.per_subject)
+    if not with_number:
+        return ("not resolved (one subject)" if subjects == 1
+                else f"not resolved in any of {subjects} subjects")
+    low, high = measure.interval
+    of = f" of {subjects}" if subjects > with_number else ""
+    if math.isnan(low):
+        return f"{_n(measure.mean, digits)}, no interval (one subject with a number{of})"
+    shown = f"{_n(measure.mean, digits)} [{_n(low, digits)}, {_n(high, digits)}]"
+    return shown + (f" ({with_number} subjects with a number{of})" if of else "")

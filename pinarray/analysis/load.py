@@ -18,13 +18,13 @@ is left out like any unfinished run, with the trials that are missing.
 
 from __future__ import annotations
 
-import stat
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
 from pinarray.errors import ResultsError
+from pinarray.journal.files import results_file
 from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
@@ -118,7 +118,9 @@ class LoadedRun:
         if self.state is ManifestState.UNFINISHED:
             return f"manifest says {self.status}"
         if self.state is ManifestState.UNREADABLE:
-            return f"manifest unreadable ({self.status})"
+            return (f"manifest unreadable ({self.status}): its rows cannot be checked against "
+                    "the run's plan and the answers it offered, so it is not counted, even "
+                    "with --include-incomplete")
         if self.state is ManifestState.COMPLETED and self.unfinished:
             shown = ", ".join(map(str, self.unfinished[:10]))
             more = " ..." if len(self.unfinished) > 10 else ""
@@ -210,12 +212,11 @@ def load_run(beh: Path) -> LoadedRun:
     mm_per_step: tuple[float, ...] = ()
     try:
         paths = RunPaths.from_file(beh)
-        mode = beh.stat().st_mode  # (through a link: what it leads to)
-    except (ResultsError, ValueError, OSError) as problem:
+        # Looked at, never opened, through a link: a FIFO would wait for a writer for ever.
+        if not results_file(beh):
+            raise ResultsError(f"{beh}: no such results file")
+    except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    if not stat.S_ISREG(mode):  # never opened: a FIFO would wait for a writer for ever
-        raise DamagedResults([DamagedRun(beh, f"{beh}: expected a results file, found "
-                                              f"{kind_of(mode)}")])
     manifest_path = paths.manifest_on_disk()
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
@@ -276,17 +277,26 @@ def load_runs(paths: Iterable[Path | str]) -> list[LoadedRun]:
     return runs
 
 
+def countable_on_request(run: LoadedRun) -> bool:
+    """Whether ``--include-incomplete`` counts ``run``: one with counted trials, but not one
+    whose manifest cannot be read (rows edited by hand, an answer never offered or a pattern
+    that is not the plan's, pass every check a row makes on its own: only the manifest says
+    what they must be)."""
+    return bool(run.counted) and run.state is not ManifestState.UNREADABLE
+
+
 def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> RunSelection:
     """Split runs into those that count and those left out.
 
     Incomplete runs (see `LoadedRun.incomplete_reason`) are left out unless
     ``include_incomplete``; a run with no counted trial is left out either way, since it
-    would add a subject who answered nothing.
+    would add a subject who answered nothing, and so is one whose manifest cannot be read,
+    since its rows cannot be checked against the run.
     """
     included, excluded = [], []
     for run in runs:
         reason = run.incomplete_reason
-        if reason is None or (include_incomplete and run.counted):
+        if reason is None or (include_incomplete and countable_on_request(run)):
             included.append(run)
         else:
             excluded.append(run)

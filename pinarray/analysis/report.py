@@ -14,7 +14,7 @@ from pathlib import Path
 
 from pinarray.adaptive.posterior import ThresholdPosterior, ThresholdStatus
 from pinarray.analysis import captions
-from pinarray.analysis.load import RunSelection
+from pinarray.analysis.load import RunSelection, countable_on_request
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import IntervalMethod
 from pinarray.analysis.tables import markdown_row, number, write_csv, write_tables
@@ -45,7 +45,7 @@ def run_lines(runs: RunSelection) -> list[str]:
     """The runs left out and the runs counted with a caveat, one line each."""
     lines = []
     for run in runs.excluded:
-        hint = "; --include-incomplete counts it" if run.counted else ""
+        hint = "; --include-incomplete counts it" if countable_on_request(run) else ""
         lines.append(f"left out: {run.label}: {run.incomplete_reason} "
                      f"({run.counted} counted trial(s)){hint}")
     for run in runs.incomplete_included:

@@ -48,7 +48,8 @@ SERVE_EPILOG = """\
 URL keys (also usable in --sim URLs of play/scan), given to --faults in URL query style:
   wire and servos: baud=RATE (an STS rate; default 1000000, the factory setting),
     return_delay_us=US (0-508), model=sts3215|sts3215-12v|sts3250, supply_v=V,
-    backlash_deg=DEG, load=F (-1 to 1 of stall torque)
+    backlash_deg=DEG, load=F (-1 to 1 of stall torque), speed=STEPS_PER_S (the horns' top
+    speed, 1-10000: a worn, hot or under-volted servo)
   faults: drop=P, drop_writes=P (only WRITE/REG_WRITE/SYNC_WRITE lost), corrupt=P,
     late=P with late_ms=MS (status packets that arrive MS ms late), missing=IDS, extra=IDS,
     overload=IDS, overheat=IDS, voltage=IDS, angle=IDS, overcurrent=IDS,

@@ -26,7 +26,12 @@ from typing import Any
 
 from pinarray.errors import ResultsError
 from pinarray.journal.columns import entry
-from pinarray.journal.files import write_atomically
+from pinarray.journal.files import (
+    read_results_json,
+    read_results_text,
+    results_file,
+    write_atomically,
+)
 from pinarray.journal.lock import held
 from pinarray.journal.manifest import RunManifest
 from pinarray.journal.paths import SOURCEDATA, RunPaths
@@ -96,26 +101,16 @@ def generated_by() -> dict[str, str]:
                            "trial as it ends."}
 
 
-def _read_json(path: Path) -> Any:
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as error:
-        raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
-    except UnicodeDecodeError as error:
-        raise ResultsError(f"{path}: expected UTF-8 JSON, found byte "
-                           f"0x{error.object[error.start]:02x} at offset {error.start}") from None
-
-
 def _dump(data: Any) -> str:
     return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
 
 
 def _description(path: Path) -> None:
-    if not path.exists():
+    if not results_file(path, "dataset description"):
         write_atomically(path, _dump({"Name": NAME, "BIDSVersion": BIDS_VERSION,
                                       "DatasetType": "raw", "GeneratedBy": [generated_by()]}))
         return
-    data = _read_json(path)
+    data = read_results_json(path, "dataset description")
     if not isinstance(data, dict):
         raise ResultsError(f"{path}:1:1: expected a JSON object, found {type(data).__name__}")
     mine = generated_by()
@@ -131,9 +126,9 @@ def _description(path: Path) -> None:
 def _participants(tsv: Path, subject: str) -> None:
     participant = f"sub-{subject}"
     rows: list[list[str]] = []
-    if tsv.exists():
-        # utf-8-sig: a spreadsheet may have saved it with a byte-order mark; it is written without.
-        rows = list(csv.reader(io.StringIO(tsv.read_text(encoding="utf-8-sig")), delimiter="\t"))
+    if results_file(tsv, "participants"):
+        text = read_results_text(tsv, "participants")
+        rows = list(csv.reader(io.StringIO(text), delimiter="\t"))
     if not rows:
         rows = [[PARTICIPANT_ID]]
     if rows[0][:1] != [PARTICIPANT_ID]:
@@ -147,6 +142,11 @@ def _participants(tsv: Path, subject: str) -> None:
     write_atomically(tsv, out.getvalue())
 
 
+DESCRIPTION, PARTICIPANTS, PARTICIPANTS_JSON = (
+    "dataset_description.json", "participants.tsv", "participants.json")
+DATASET_FILES = (DESCRIPTION, PARTICIPANTS, PARTICIPANTS_JSON)  # the root's, but its README
+
+
 def ensure_dataset(root: Path | str, subject: str) -> None:
     """Create or complete the dataset's root files, with ``subject`` listed as a participant."""
     root = Path(root)
@@ -154,12 +154,12 @@ def ensure_dataset(root: Path | str, subject: str) -> None:
         raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR), str(root))
     root.mkdir(parents=True, exist_ok=True)
     with held(root / SOURCEDATA / "dataset.lock"):
-        _description(root / "dataset_description.json")
+        _description(root / DESCRIPTION)
         if not any(root.glob("README*")):
             write_atomically(root / "README.md", DATASET_README)
-        _participants(root / "participants.tsv", subject)
-        if not (root / "participants.json").exists():
-            write_atomically(root / "participants.json", _dump(_PARTICIPANTS_JSON))
+        _participants(root / PARTICIPANTS, subject)
+        if not results_file(root / PARTICIPANTS_JSON, "participants description"):
+            write_atomically(root / PARTICIPANTS_JSON, _dump(_PARTICIPANTS_JSON))
 
 
 # -- per-run sidecars ----------------------------------------------------------------------------

@@ -1,19 +1,35 @@
-"""Files that survive a crash: atomic replacement, durable names, and the wall clock's reading.
+"""Results files: read checked and bounded, replaced atomically, named durably; the wall clock.
 
 A file replaced with `write_atomically` is either the old or the new version after a crash at
 any moment, never half of one: the new text goes to a temporary file in the same folder, is
 fsync'd, and takes the old one's name with ``os.replace``; the folder is then fsync'd so the
 new name is durable too.
+
+Every results file is read through `read_results_file` (or `read_results_json`): a name can
+lead anywhere (a folder, a FIFO whose open waits for a writer for ever, ``/dev/zero``, a link
+to nothing), so only a regular file is opened, and no more than a bound is read. Whatever
+else is found is a one-line `ResultsError` naming the file.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import socket
+import stat
 import tempfile
 from datetime import datetime
 from pathlib import Path
+from typing import Any
+
+from pinarray.errors import ResultsError
+from pinarray.text_files import NotText, kind_of, position_of, read_bounded
+
+# A run's tables: a million rows, far more than any design.
+MAX_RESULTS_BYTES = 256 << 20
+# A manifest holds a plan of at most 20 000 trials, a few hundred bytes each; sidecars less.
+MAX_JSON_BYTES = 64 << 20
 
 
 def wall_now() -> datetime:
@@ -90,3 +106,59 @@ def fsync_folder(folder: Path) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def results_file(path: Path, what: str = "results") -> bool:
+    """Whether a regular file is at ``path`` (through a link); False when nothing is there;
+    a `ResultsError` for anything else, looked at without opening it (opening a FIFO waits
+    for a writer, reading ``/dev/zero`` never ends) and for a link that leads nowhere."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        if os.path.islink(path):
+            raise ResultsError(f"{path}: expected a {what} file, found a link to "
+                               f"{os.readlink(path)}, which does not exist") from None
+        return False
+    except OSError as problem:  # a loop of links, a folder on the way that is not one
+        raise ResultsError(f"{path}: cannot read the {what}: {problem.strerror}") from None
+    if not stat.S_ISREG(mode):
+        raise ResultsError(f"{path}: expected a {what} file, found {kind_of(mode)}")
+    return True
+
+
+def read_results_file(path: Path, what: str = "results",
+                      limit_bytes: int = MAX_RESULTS_BYTES) -> bytes:
+    """The bytes of the results file at ``path``: a regular file of at most ``limit_bytes``;
+    a one-line `ResultsError` naming it for anything else (nothing there included)."""
+    if not results_file(path, what):
+        raise ResultsError(f"{path}: no such {what} file")
+    try:
+        return read_bounded(path, limit_bytes, what)
+    except NotText as problem:
+        raise ResultsError(f"{path}: {problem.message}") from None
+
+
+def read_results_text(path: Path, what: str = "results",
+                      limit_bytes: int = MAX_RESULTS_BYTES) -> str:
+    """The text of the results file at ``path`` (`read_results_file`): UTF-8, with or without
+    the byte-order mark a spreadsheet may save; a `ResultsError` at the first byte that is not."""
+    data = read_results_file(path, what, limit_bytes)
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as problem:
+        line, col = position_of(data, problem.start)
+        raise ResultsError(f"{path}:{line}:{col}: expected UTF-8 text, found byte "
+                           f"0x{data[problem.start]:02x}") from None
+
+
+def read_results_json(path: Path, what: str) -> Any:
+    """The JSON value of the results file at ``path`` (`read_results_text`); a `ResultsError`
+    at the line and column of what is not JSON."""
+    text = read_results_text(path, what, MAX_JSON_BYTES)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as error:
+        raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
+    except RecursionError:
+        raise ResultsError(f"{path}: expected a {what}, found JSON nested deeper than any "
+                           "pinarray writes") from None

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from pinarray.errors import ResultsError
-from pinarray.journal.files import now_iso, write_atomically
+from pinarray.journal.files import now_iso, read_results_json, results_file, write_atomically
 from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
 from pinarray.journal.records import TrialRecord, TrialStatus
 from pinarray.journal.timebase import (
@@ -248,7 +248,8 @@ class RunManifest:
     @classmethod
     def from_json(cls, data: object, where: str = "<manifest>") -> RunManifest:
         if not isinstance(data, Mapping):
-            raise ResultsError(f"{where}: not a pinarray run manifest (expected a JSON object)")
+            raise ResultsError(f"{where}: expected a pinarray run manifest (a JSON object), "
+                               f"found {_json_kind(data)}")
         try:
             paradigm = _paradigm(data.get("task_info"), data["plan"], where)
             plan = tuple(entry_from_json(e, f"{where}: plan entry {i + 1}", paradigm)
@@ -278,8 +279,18 @@ class RunManifest:
                          else None),
                 needed_until=int(data.get("needed_until", 0)),
             )
-        except (TypeError, KeyError, ValueError) as error:
-            raise ResultsError(f"{where}: not a pinarray run manifest ({error!r})") from None
+        except KeyError as error:
+            raise ResultsError(f"{where}: expected a pinarray run manifest, found one without "
+                               f"the key {error.args[0]!r}") from None
+        except (TypeError, ValueError, AttributeError) as error:
+            raise ResultsError(f"{where}: expected a pinarray run manifest, found a damaged "
+                               f"one ({error})") from None
+
+
+def _json_kind(data: object) -> str:
+    kinds = {list: "a list", str: "a string", bool: "true or false", int: "a number",
+             float: "a number", type(None): "null"}
+    return kinds.get(type(data), type(data).__name__)
 
 
 def _sitting_to_json(sitting: Sitting) -> dict[str, Any]:
@@ -346,13 +357,9 @@ def write_manifest(path: Path, manifest: RunManifest) -> None:
 def read_manifest(path: Path | str) -> RunManifest:
     """Read a manifest written by `write_manifest`; a clear `ResultsError` if it is not one."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ResultsError(f"{path}: no run manifest here") from None
-    except json.JSONDecodeError as error:
-        raise ResultsError(f"{path}:{error.lineno}:{error.colno}: {error.msg}") from None
-    return RunManifest.from_json(data, str(path))
+    if not results_file(path, "run manifest"):
+        raise ResultsError(f"{path}: no run manifest here")
+    return RunManifest.from_json(read_results_json(path, "run manifest"), str(path))
 
 
 def updated(manifest: RunManifest, **changes: Any) -> RunManifest:

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from pinarray.errors import ResultsError
+from pinarray.journal.files import read_results_file, results_file
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.timebase import ns_from_seconds, seconds_text
 from pinarray.units import NS_PER_S
@@ -33,6 +34,8 @@ if TYPE_CHECKING:
     from pinarray.journal.records import TrialRecord
 
 NA = "n/a"
+# A run's recording, compressed: hours of every pin's samples, far more than any design.
+MAX_RECORDING_BYTES = 1 << 30
 
 
 class MotionSample(NamedTuple):
@@ -102,7 +105,7 @@ class MotionRecording:
 
     def __init__(self, path: Path, keep: int | None = None):
         self.path = path
-        kept = read_text(path) if path.exists() else b""
+        kept = read_text(path) if results_file(path, "motion recording") else b""
         if keep is not None:
             kept = b"".join(kept.splitlines(keepends=True)[:keep])
         self._stream = zlib.compressobj(wbits=31)  # 31: a gzip header and trailer
@@ -146,7 +149,7 @@ class MotionRecording:
 def read_text(path: Path | str) -> bytes:
     """What a motion recording holds, uncompressed: all of it, or as far as it reads whole
     (a stream a killed process left without its end, or with a torn last block)."""
-    data = Path(path).read_bytes()
+    data = read_results_file(Path(path), "motion recording", MAX_RECORDING_BYTES)
     stream = zlib.decompressobj(wbits=31)
     try:
         text = stream.decompress(data)
@@ -186,7 +189,7 @@ def claimed_samples(path: Path, records: Sequence[TrialRecord]) -> int | None:
         return None
     claimed = sum(counts)
     try:
-        held = read_motion(path) if path.exists() else []
+        held = read_motion(path) if results_file(path, "motion recording") else []
     except (OSError, ValueError) as problem:  # not a recording any more (UnicodeError too)
         raise ResultsError(f"{path}: cannot be read as the run's motion recording ({problem}); "
                            "put it back as it was to resume this run, or start a new run") from None

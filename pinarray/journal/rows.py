@@ -19,15 +19,14 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 import re
-import stat
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pinarray.errors import PinArrayError, ResultsError
 from pinarray.journal.columns import Column, cell_text, cell_value
+from pinarray.journal.files import read_results_file, results_file
 from pinarray.journal.records import (
     EVENT_ONLY,
     FIRST_NAMES,
@@ -40,7 +39,7 @@ from pinarray.journal.records import (
     common_fields,
 )
 from pinarray.journal.seam import ParadigmRows, columns_of, legacy_rooms, rows_of
-from pinarray.text_files import NotText, kind_of, position_of, read_bounded
+from pinarray.text_files import position_of
 
 if TYPE_CHECKING:
     from pinarray.journal.manifest import RunManifest
@@ -95,34 +94,16 @@ def split_torn_tail(data: bytes, columns: int) -> tuple[int, bytes]:
     return end, data[end:]
 
 
-MAX_RESULTS_BYTES = 256 << 20  # a run's beh.tsv: a million rows, far more than any design
-
-
 def _regular(path: Path) -> bool:
-    """Whether ``path`` is a regular file (through a link); False when there is none; a
-    `ResultsError` for anything else, looked at before it is opened (opening a FIFO waits
-    for a writer, reading /dev/zero never ends)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        return False
-    except OSError as problem:
-        raise ResultsError(f"{path}: cannot read the results: {problem.strerror}") from None
-    if not stat.S_ISREG(mode):
-        raise ResultsError(f"{path}: expected a results file, found {kind_of(mode)}")
-    return True
+    """Whether ``path`` is a regular file (`pinarray.journal.files.results_file`)."""
+    return results_file(path)
 
 
 def results_bytes(path: Path) -> bytes:
-    """The bytes of a ``beh.tsv``: a regular file of UTF-8 text within `MAX_RESULTS_BYTES`
+    """The bytes of a ``beh.tsv``: a regular file of UTF-8 text within
+    `pinarray.journal.files.MAX_RESULTS_BYTES`
     (zeros after a power cut belong to its torn tail); else a `ResultsError` saying where."""
-    if not _regular(path):
-        raise ResultsError(f"{path}: no such results file")
-    try:
-        data = read_bounded(path, MAX_RESULTS_BYTES, "results")
-    except NotText as problem:
-        where = f":{problem.line}:{problem.col}" if problem.line else ""
-        raise ResultsError(f"{path}{where}: {problem.message}") from None
+    data = read_results_file(path)
     body = data.rstrip(b"\0")
     if b"\0" in body:
         line, col = position_of(body, body.index(b"\0"))

@@ -20,19 +20,24 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import stat
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
 from types import TracebackType
+from typing import TextIO
 
 from pinarray.errors import ResultsError
 from pinarray.journal.columns import NA, tsv_line
-from pinarray.journal.dataset import ensure_dataset, write_sidecars
+from pinarray.journal.dataset import DATASET_FILES, ensure_dataset, write_sidecars
 from pinarray.journal.files import (
     fsync_folder,
     iso,
+    read_results_file,
+    read_results_text,
+    results_file,
     this_host,
     this_machine,
     wall_now,
@@ -90,6 +95,7 @@ from pinarray.journal.volumes import (
     volume_sidecar,
 )
 from pinarray.stop import deferred_signals
+from pinarray.text_files import kind_of
 from pinarray.version import __version__
 
 Wall = Callable[[], datetime]
@@ -105,10 +111,9 @@ def unwritable(problem: OSError, where: Path, *, mid_run: bool = False) -> Resul
 
 def repair_tail(path: Path, columns: int) -> str:
     """Drop a torn last row of the TSV at ``path`` in place; return the dropped text."""
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
+    if not results_file(path):
         return ""
+    data = read_results_file(path)
     end, torn = split_torn_tail(data, columns)
     if torn:
         with open(path, "r+b") as handle:
@@ -121,7 +126,7 @@ def repair_tail(path: Path, columns: int) -> str:
 def _upgrade_columns(path: Path, added: int) -> None:
     """Give an earlier pinarray's ``beh.tsv`` today's column names, its rows ``added`` n/a
     cells for the columns appended since (its whole rows; a torn tail is already dropped)."""
-    rows = path.read_text(encoding="utf-8").split("\n", 1)[1]
+    rows = read_results_text(path).split("\n", 1)[1]
     pad = "\t".join([NA] * added)
     if added:
         rows = "".join(f"{row}\t{pad}\n" for row in rows.split("\n") if row)
@@ -137,8 +142,8 @@ def _rebuild_events(path: Path, records: Sequence[TrialRecord], rows: ParadigmRo
     """
     text = tsv_line(rows.event_layout) + "".join(tsv_line(event_row(r, rows)) for r in records)
     try:
-        same = path.read_text(encoding="utf-8") == text
-    except (FileNotFoundError, UnicodeDecodeError):
+        same = results_file(path) and read_results_text(path) == text
+    except ResultsError:  # not text, or not a table's size: rebuilt all the same
         same = False
     if not same:
         write_atomically(path, text)
@@ -149,7 +154,7 @@ class _AppendOnlyTsv:
 
     def __init__(self, path: Path, header: Sequence[str]):
         created = not path.exists()
-        self._file = open(path, "a", encoding="utf-8", newline="")  # noqa: SIM115
+        self._file = _open_to_append(path)
         if self._file.tell() == 0:
             self.append(header)
         if created:
@@ -166,6 +171,30 @@ class _AppendOnlyTsv:
 
     def close(self) -> None:
         self._file.close()
+
+
+def _open_to_append(path: Path) -> TextIO:
+    """``path`` opened for appending text, never waiting: a FIFO put in a results file's
+    place would block a plain open until something reads it."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK | os.O_NOCTTY,
+                 0o666)
+    mode = os.fstat(fd).st_mode
+    if not stat.S_ISREG(mode):
+        os.close(fd)
+        raise ResultsError(f"{path}: expected a results file, found {kind_of(mode)}")
+    os.set_blocking(fd, True)
+    return os.fdopen(fd, "a", encoding="utf-8", newline="")
+
+
+def run_files(paths: RunPaths) -> tuple[Path, ...]:
+    """Every file a resume of the run at ``paths`` may read or write, but its lock."""
+    motion = motion_recording_path(paths)
+    volumes = volume_log_path(paths)
+    return (paths.manifest, paths.legacy_manifest, paths.beh_tsv, paths.events_tsv,
+            paths.beh_json, paths.events_json, motion,
+            motion.with_name(motion.name.removesuffix(".tsv.gz") + ".json"),
+            volumes, volumes.with_suffix(".json"),
+            *(paths.root / name for name in DATASET_FILES))
 
 
 def _command() -> str:
@@ -321,6 +350,11 @@ class RunWriter:
         if not manifest.status.unfinished:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
+        # Everything is looked at before anything is written: a resume refused leaves every
+        # file of the run as it found it.
+        for path in run_files(paths):
+            results_file(path, "run manifest" if path.name.endswith("_manifest.json")
+                         else "results")
         header = beh_header(paths.beh_tsv)
         names = todays_names(header)
         rows = rows_of(manifest.task_info.paradigm)
@@ -342,11 +376,13 @@ class RunWriter:
             )
         # Every sample the rows claim must be in the recording, before anything is changed.
         claimed = claimed_samples(motion_recording_path(paths), records)
+        # The dataset's own files are read (and refused) before the run's are changed; it
+        # writes only what they lack (another version's name, a new participant's row).
+        ensure_dataset(paths.root, paths.subject)
         repaired = repair_tail(paths.beh_tsv, len(header) or len(rows.layout))
         if header and tuple(header) != rows.layout:
             _upgrade_columns(paths.beh_tsv, len(rows.layout) - len(header))
         _rebuild_events(paths.events_tsv, records, rows)
-        ensure_dataset(paths.root, paths.subject)
         now = wall()
         zero_at = (datetime.fromisoformat(manifest.time_zero.at)
                    if manifest.time_zero is not None else None)

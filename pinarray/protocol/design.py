@@ -90,9 +90,14 @@ def read_design(
             raise Invalid("adaptive")
     section = DesignSection(reader, node, keys, device, by_name, declared, adapting)
     found = reader.attempt(lambda: paradigm.read(section), None)
+    # An adaptive design's trials play its conditions at its values (practice at the easiest),
+    # never as written (a stroke_steps design never plays the calibration's full stroke):
+    # each value is rehearsed on each condition (`read_adaptive`), the conditions as written
+    # are not.
     read = None if found is None else reader.attempt(lambda: check_conditions(
         reader, found, device, by_name, paradigm,
-        partial(check_trial_pulses, reader, long_trials=long_trials), rehearse), None)
+        partial(check_trial_pulses, reader, long_trials=long_trials),
+        rehearse if adapting is None else None), None)
     _check_shapes_completed(reader, section, paradigm)
     repetitions = reader.optional(
         keys, "repetitions", lambda n: reader.integer(n, "repetitions", 1, 1000), 1

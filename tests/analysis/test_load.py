@@ -1,6 +1,6 @@
 """Which runs count: incomplete runs are listed and left out, a trial finished twice counts once."""
 
-from pinarray.analysis.load import ManifestState, load_runs, select_runs
+from pinarray.analysis.load import ManifestState, countable_on_request, load_runs, select_runs
 from pinarray.journal.manifest import RunPaths
 from pinarray.journal.rows import trial_row
 from tests.analysis.conftest import localisation_row
@@ -76,3 +76,16 @@ def test_an_unreadable_manifest_makes_the_run_incomplete_with_the_reason(tmp_pat
     (run,) = select_runs(load_runs([root])).excluded
     assert run.state is ManifestState.UNREADABLE
     assert run.incomplete_reason.startswith("manifest unreadable (") and ":1:2:" in run.status
+
+
+def test_a_run_whose_manifest_cannot_be_read_is_not_counted_even_on_request(tmp_path, write_run):
+    # Its rows can only be checked against the manifest (the plan, the answers offered): a
+    # pin or an answer edited to one the run never had would be counted unchecked.
+    root = tmp_path / "results"
+    paths = write_run(root, "H", "localisation", [localisation_row(1, 4, "4")])
+    paths.manifest.write_text("[]")
+    runs = select_runs(load_runs([root]), include_incomplete=True)
+    assert runs.included == ()
+    (run,) = runs.excluded
+    assert run.state is ManifestState.UNREADABLE and not countable_on_request(run)
+    assert "not counted, even with --include-incomplete" in run.incomplete_reason

@@ -257,10 +257,13 @@ class Identifications:
         lines = []
         for a in self.across:
             means = {m: mean for m, mean, _ in a.means}
+            bias = float(np.mean([s.confusion.it_bias_bits for s in self.per_subject
+                                  if s.task == a.task]))
             lines.append(f"identification {a.task}: {_n(means['percent_correct'], 1)} % correct, "
-                         f"information transferred {_n(means['it_bits'])} bits (corrected for "
-                         f"its small-sample bias {_n(means['it_corrected_bits'])}) of "
-                         f"{_n(a.pooled.it_max_bits)}, mean of {a.subjects} subject(s)")
+                         f"information transferred {_n(means['it_bits'])} bits of "
+                         f"{_n(a.pooled.it_max_bits)} (its small-sample bias {_n(bias)} bits; "
+                         f"less the bias, floored at 0: {_n(means['it_corrected_bits'])} bits), "
+                         f"mean of {a.subjects} subject(s)")
         return lines
 
     def captions(self) -> dict[str, str]:

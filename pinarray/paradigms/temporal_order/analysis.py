@@ -36,7 +36,6 @@ from pinarray.analysis.fits import (
     estimate_text,
     fit,
     markdown_row,
-    mean_interval_text,
     not_fitted_notes,
     placed,
     points,
@@ -175,8 +174,8 @@ class TemporalOrders(FittedFindings):
             measures = self.measures_of(task)
             pss, jnd = measures["pss_ms"], measures["jnd_ms"]
             lines.append(markdown_row([ALL_SUBJECTS, task, "",
-                                       f"{_n(pss.mean, 1)} {mean_interval_text(*pss.interval)}",
-                                       f"{_n(jnd.mean, 1)} {mean_interval_text(*jnd.interval)}",
+                                       self.across_text(pss, 1),
+                                       self.across_text(jnd, 1),
                                        self.task_trials(task)]))
         notes = not_fitted_notes([(f.subject, f.task, f.fit, [("PSS", f.pss), ("JND", f.jnd)])
                                   for f in self.fits])

@@ -34,7 +34,6 @@ from pinarray.analysis.fits import (
     estimate_text,
     fit,
     markdown_row,
-    mean_interval_text,
     not_fitted_notes,
     points,
     threshold_estimate,
@@ -168,7 +167,7 @@ class TwoIntervals(FittedFindings):
         for m in self.across:
             if m.measure == "weber_fraction":
                 lines.append(markdown_row([ALL_SUBJECTS, m.task, "", "",
-                                           f"{_n(m.mean)} {mean_interval_text(*m.interval)}", "",
+                                           self.across_text(m), "",
                                            self.task_trials(m.task)]))
         notes = not_fitted_notes([(f.subject, f.task, f.fit, [("threshold", f.threshold)])
                                   for f in self.fits])

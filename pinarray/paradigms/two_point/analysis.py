@@ -31,7 +31,6 @@ from pinarray.analysis.fits import (
     estimate_text,
     fit,
     markdown_row,
-    mean_interval_text,
     not_fitted_notes,
     points,
     threshold_estimate,
@@ -141,8 +140,8 @@ class TwoPoints(FittedFindings):
             threshold, false_alarm = measures["threshold_mm"], measures["false_alarm"]
             lines.append(markdown_row([
                 ALL_SUBJECTS, task,
-                f"{_n(threshold.mean, 2)} {mean_interval_text(*threshold.interval)}",
-                f"{_n(false_alarm.mean, 2)} {mean_interval_text(*false_alarm.interval)}",
+                self.across_text(threshold, 2),
+                self.across_text(false_alarm, 2),
                 self.task_trials(task)]))
         notes = not_fitted_notes([(f.subject, f.task, f.fit, [("threshold", f.threshold)])
                                   for f in self.fits])
