@@ -11,7 +11,9 @@ what the pins did: the tactile onset from the flip, the delivery verdict, each p
 
 Needs ``pip install 'pinarray[psychopy]'`` and a display (``make psychopy`` runs it under a
 virtual one). Keys: S same, D different, Escape quits (a wave still playing is cut, the pins
-rest, torque off: so does Ctrl-C).
+rest, torque off: so does Ctrl-C). Should the array fail (the port lost mid-run), the run ends
+with one line saying why, exit status 2; the data written so far stay, the failed trial's
+row marked not delivered.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import argparse
 import random
 import statistics
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -109,7 +112,8 @@ def run(args: argparse.Namespace) -> Path:
         DeviceManager.removeDevice("touch")  # a wave still playing cut, pins to rest, torque off
     # --8<-- [end:run]
         win.close()
-    experiment.saveAsWideText(str(data_file) + ".csv", delim=",")
+        # Every row so far, however the run ended (a row whose touch failed says so).
+        experiment.saveAsWideText(str(data_file) + ".csv", delim=",")
     return Path(str(data_file) + ".csv")
 
 
@@ -140,7 +144,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--fullscreen", action="store_true")
     parser.add_argument("--seed", type=int, default=None)
     args = parser.parse_args(argv)
-    print(summary(run(args)))
+    try:
+        print(summary(run(args)))
+    except pinarray.PinArrayError as error:  # the array failed (the port lost): one line
+        print(f"psychopy_congruency: {error}", file=sys.stderr)
+        return 2
     return 0
 
 

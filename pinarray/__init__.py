@@ -29,6 +29,7 @@ __all__ = [
     "Clock",
     "Condition",
     "Cut",
+    "DamagedResults",
     "Delivery",
     "DeliveryRecord",
     "Ending",
@@ -44,6 +45,7 @@ __all__ = [
     "MotionRecord",
     "NotDelivered",
     "NotStarted",
+    "NothingToResume",
     "Paradigm",
     "Pattern",
     "PinArray",
@@ -53,12 +55,14 @@ __all__ = [
     "PlaybackAborted",
     "Played",
     "PortInUse",
+    "PortLost",
     "Presentable",
     "Protocol",
     "ProtocolError",
     "ProtocolErrors",
     "Question",
     "ResultsError",
+    "RunLocked",
     "RunPaths",
     "SafeStopReport",
     "ServoPort",
@@ -105,8 +109,9 @@ _HOMES = {
                               "run_session", "simulated_observer"),
     "pinarray.api.results": ("LoadedRun", "ManifestState", "RunPaths", "TrialRecord",
                              "TrialStatus", "read_results"),
-    "pinarray.api.errors": ("BusError", "PinArrayError", "PlaybackAborted", "PortInUse",
-                            "ProtocolError", "ProtocolErrors", "ResultsError"),
+    "pinarray.api.errors": ("BusError", "DamagedResults", "NothingToResume", "PinArrayError",
+                            "PlaybackAborted", "PortInUse", "PortLost", "ProtocolError",
+                            "ProtocolErrors", "ResultsError", "RunLocked"),
 }
 _HOME_OF = {name: module for module, names in _HOMES.items() for name in names}
 
@@ -140,12 +145,16 @@ if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
     from pinarray.api.delivery import Cut, Delivery, Ending, NotStarted, Played
     from pinarray.api.errors import (
         BusError,
+        DamagedResults,
+        NothingToResume,
         PinArrayError,
         PlaybackAborted,
         PortInUse,
+        PortLost,
         ProtocolError,
         ProtocolErrors,
         ResultsError,
+        RunLocked,
     )
     from pinarray.api.paradigms import (
         IdentificationCondition,

@@ -217,7 +217,7 @@ def test_a_port_has_one_owner_named_to_any_other_opener_until_that_owner_dies(tm
     protocol = buzz(tmp_path, 0.4)
     server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import pinarray, sys; pinarray.open_array("
+        [sys.executable, "-c", "import pinarray, sys; array = pinarray.open_array("
          f"pinarray.load_protocol({str(protocol.source)!r}), port={server.path!r}); "
          "print('held', flush=True); sys.stdin.read()"],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)

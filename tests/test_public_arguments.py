@@ -161,3 +161,148 @@ def test_every_parameter_of_every_public_function_given_a_stranger_is_refused(pr
                 refused(function, **arguments, **{name: object()})
             else:
                 refused(function, **{**arguments, name: object()})
+
+
+def test_numpy_numbers_are_numbers_to_every_call_and_numpy_bools_are_not(array, protocol):
+    import numpy as np
+
+    condition = pinarray.find_condition(protocol, pin=6, frequency_hz=3)
+    assert pinarray.find_condition(protocol, pin=np.int64(6), frequency_hz=np.float64(3.0)) \
+        is condition
+    assert pinarray.find_condition(protocol, pin=np.uint8(6), frequency_hz=np.int32(3)) \
+        is condition
+    assert pinarray.plan_trials(protocol, seed=np.uint32(3)) == pinarray.plan_trials(protocol, 3)
+    armed = array.arm(condition, at_ns=np.int64(array.now_ns() + 10**8))
+    delivery = armed.result(np.float64(30))
+    assert delivery.delivered and delivery.stroke(np.int8(6)).pin == 6
+    said = refused(pinarray.find_condition, protocol, pin=np.bool_(True))
+    assert said.startswith("find_condition: pin: expected a pin number from 1 to 16")
+
+
+class Unprintable:
+    def __repr__(self) -> str:
+        raise RuntimeError("its own repr fails")
+
+
+class Unpathable:
+    def __fspath__(self) -> str:
+        raise RuntimeError("its own __fspath__ fails")
+
+
+class Incomparable:
+    def __eq__(self, other: object) -> bool:
+        raise RuntimeError("its own __eq__ fails")
+
+    __hash__ = object.__hash__
+
+
+@pytest.mark.parametrize("call", [
+    lambda p, a: pinarray.load_protocol(Unprintable()),
+    lambda p, a: pinarray.find_condition(p, pin=Unprintable()),
+    lambda p, a: pinarray.open_array(p, clock=Unprintable()),
+    lambda p, a: a.arm(Unprintable()),
+    lambda p, a: pinarray.load_protocol(Unpathable()),
+    lambda p, a: pinarray.open_array(p, port=Unpathable()),
+    lambda p, a: pinarray.read_results(Unpathable()),
+    lambda p, a: pinarray.load_protocol("\0"),
+    lambda p, a: pinarray.load_protocol("x" * 10_000),
+    lambda p, a: pinarray.read_results("x" * 10_000),
+    lambda p, a: pinarray.open_array(p, port="/dev/" + "x" * 300),
+    lambda p, a: a.arm(pinarray.find_condition(p, pin=6, frequency_hz=3)).result(2**200),
+    lambda p, a: a.present(pinarray.find_condition(p, pin=6, frequency_hz=3)).stroke(
+        Incomparable()),
+], ids=lambda call: inspect.getsource(call).split("lambda p, a: ")[1].strip().rstrip(","))
+def test_values_the_system_or_their_own_methods_cannot_take_are_refused_in_one_line(
+        array, protocol, call):
+    assert len(refused(call, protocol, array)) < 300
+    if array._current is not None and not array._current.done:
+        array._current.cancel()
+
+
+@pytest.mark.parametrize("filters", [{"stimulus": "x" * 10_000}, {"frequency_hz": 1e-320}])
+def test_a_condition_not_found_is_said_in_a_line_of_reasonable_length(protocol, filters):
+    assert len(refused(pinarray.find_condition, protocol, **filters)) < 600
+
+
+@pytest.mark.parametrize("model", ["x" * 10_000, "x" * 10_000 + "=1",
+                                   "correct_" + "9" * 1000 + "hz=0.5"],
+                         ids=["no name=number", "a long name", "a long frequency"])
+def test_a_simulated_subject_model_refused_is_said_in_a_line_of_reasonable_length(protocol,
+                                                                                   model):
+    said = refused(pinarray.simulated_observer, protocol, model)
+    assert said.startswith("observer: ") and len(said) < 300
+
+
+def test_an_onset_that_has_passed_is_said_to_have_passed(array, protocol):
+    condition = pinarray.find_condition(protocol, pin=6, frequency_hz=3)
+    now_ns = array.now_ns()
+    assert f"at_ns {now_ns - 5_000_000} had passed 5.0 ms ago" in refused(
+        array.arm, condition, at_ns=now_ns - 5_000_000)
+    assert "is only 5.0 ms ahead" in refused(array.arm, condition, at_ns=now_ns + 5_000_000)
+    # Just short of the lead: never "20.0 ms ahead: arm it at least 20 ms ahead".
+    assert f"is only {array.lead_ns / 1e6 - 0.02:.3f} ms ahead" in refused(
+        array.arm, condition, at_ns=now_ns + array.lead_ns - 20_000)
+
+
+def test_the_array_names_its_port_as_the_script_gave_it(protocol):
+    with pinarray.open_array(protocol) as array:
+        assert array.url == "sim://" and repr(array).startswith("<PinArray sim:// for ")
+    assert refused(array.present, pinarray.find_condition(protocol, pin=6, frequency_hz=3)) \
+        == "present: sim://: the array is closed"
+    with pinarray.open_array(protocol, sim="sim://?seed=3") as array:
+        assert array.url == "sim://?seed=3"
+
+
+def tiny(tmp_path: Path) -> pinarray.Protocol:
+    """One trial: pin 6."""
+    from tests.test_library_paths import buzz
+
+    return buzz(tmp_path, 0.4)
+
+
+@pytest.mark.parametrize(("answer", "found"), [
+    (True, "found True (bool)"), (False, "found False (bool)"), (6.7, "found 6.7 (float)"),
+    (math.nan, "found nan (float)"), ([6], "found [6] (list)"),
+])
+def test_run_session_refuses_an_answer_that_is_no_pin_never_recording_another(tmp_path, answer,
+                                                                             found):
+    # True is 1 to Python and 6.7 rounds down to 6: never pins to a lab.
+    said = refused(pinarray.run_session, tiny(tmp_path), lambda question: answer,
+                   subject="01", results=tmp_path / "results")
+    assert said.startswith("run_session: answer: expected a pin's number") and found in said
+
+
+def test_run_session_takes_numpy_pins_and_says_an_answer_its_paradigm_refuses(tmp_path):
+    import numpy as np
+
+    protocol = tiny(tmp_path)
+    run = pinarray.run_session(protocol, lambda question: np.int64(6), subject="01",
+                               results=tmp_path / "results")
+    assert [row.response for row in run.records] == ["6"]
+    said = refused(pinarray.run_session, protocol, lambda question: 17, subject="02",
+                   results=tmp_path / "results")
+    assert said == ("run_session: answer: expected a pin number from 1 to 16 or 'none', "
+                    "found 17")
+
+
+@pytest.mark.parametrize("subject", ["../x", "", "a_b"])
+def test_run_session_refuses_a_label_in_the_librarys_words(tmp_path, subject):
+    said = refused(pinarray.run_session, tiny(tmp_path), print, subject=subject,
+                   results=tmp_path)
+    assert said.startswith("run_session: subject: expected letters and digits only")
+
+
+def test_every_error_these_public_calls_raise_is_a_public_class(tmp_path):
+    # The port lost mid-run; results that are not results; nothing to resume.
+    protocol = tiny(tmp_path)
+    condition = pinarray.find_condition(protocol, pin=6)
+    with pinarray.open_array(protocol, sim="sim://?vanish_after=250") as array:
+        with pytest.raises(pinarray.PlaybackAborted):
+            while True:
+                array.present(condition)
+        assert "lost" in refused(array.present, condition)  # PortLost, public
+    assert "not a pinarray run file" in refused(pinarray.read_results, protocol.source)
+    assert "no unfinished" in refused(pinarray.run_session, protocol, print, subject="01",
+                                      results=tmp_path, resume=True)
+    said = refused(pinarray.open_array, protocol, sim="sim://?vanish_after=3")
+    assert "lost while pinging servo 2" in said

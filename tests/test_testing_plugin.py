@@ -74,3 +74,40 @@ def test_a_labs_test_holds_the_array_either_way_faults_included(simulated_array,
     assert type(aborted.value) is pinarray.PlaybackAborted  # the public class, on either path
     assert aborted.value.safe_stop.complete
     assert_left_safe(array)
+
+
+PWM = LOCALISATION.with_name("localisation_pwm.yaml")
+
+
+@pytest.mark.realtime
+@pytest.mark.parametrize(("arguments", "expected"), [
+    ((LOCALISATION, 5), "simulated_array: url: expected a sim:// URL"),
+    ((LOCALISATION, b"sim://"), "simulated_array: url: expected a sim:// URL"),
+    ((LOCALISATION, "sim://pca9685"), "simulated_array: url: protocol 'localisation' takes a "
+                                      "sim:// URL of bus servos"),
+    ((LOCALISATION, "sim://?bogus=1"), "sim://?bogus=1: unknown key(s) bogus"),
+    ((LOCALISATION, "sim://?drop=1.5"), "sim://?drop=1.5: sim URL key drop: expected 0 to 1"),
+    ((None,), "simulated_array: protocol: expected a Protocol (pinarray.load_protocol) or a "
+              "protocol file's path, found None"),
+    ((5,), "simulated_array: protocol: expected a Protocol"),
+    ((b"/x",), "simulated_array: protocol: expected a Protocol"),
+    ((PWM,), "simulated_array: over_serial: protocol 'localisation_pwm' drives hobby servos on "
+             "a PCA9685 board, which sits on an I2C bus, not a serial port: open it without "
+             "over_serial"),
+])
+def test_an_array_over_a_serial_port_checks_its_arguments_as_open_array_does(arguments,
+                                                                             expected):
+    with ArrayOpener() as opener, pytest.raises(pinarray.PinArrayError) as refused:
+        opener(*arguments, over_serial=True)
+    said = str(refused.value)
+    assert said.startswith(expected), said
+    assert "\n" not in said and "ids=1," not in said and "pinarray pwm" not in said
+    assert not opener._servers  # refused before a bus was served
+
+
+@pytest.mark.parametrize("over_serial", [1, "no", None, 0.0])
+def test_over_serial_is_true_or_false_never_something_taken_for_either(over_serial):
+    with ArrayOpener() as opener, pytest.raises(pinarray.PinArrayError,
+                                                match="simulated_array: over_serial: expected "
+                                                      "True or False"):
+        opener(LOCALISATION, over_serial=over_serial)

@@ -17,7 +17,7 @@ from fractions import Fraction
 
 from pinarray.adaptive.observer import PsychometricObserver
 from pinarray.adaptive.psychometric import Psychometric
-from pinarray.analysis.observers import observer_items, observer_number
+from pinarray.analysis.observers import observer_items, observer_number, quoted
 from pinarray.errors import PinArrayError
 from pinarray.protocol.model import Condition, Protocol
 from pinarray.protocol.procedures import Adaptive, Function
@@ -43,13 +43,13 @@ def parse_psychometric(spec: str, adaptive: Adaptive) -> Psychometric:
     for item, name, text in observer_items(spec):
         if name == "function":
             if text not in tuple(Function):
-                raise PinArrayError(f"observer: {item!r}: expected function=weibull or "
+                raise PinArrayError(f"observer: {quoted(item)}: expected function=weibull or "
                                     "function=logistic")
             changes["kind"] = text
             continue
         if name not in KEYS:
-            raise PinArrayError(f"observer: unknown parameter {name!r} for an adaptive design; "
-                                f"expected one of {', '.join(KEYS)}")
+            raise PinArrayError(f"observer: unknown parameter {quoted(name)} for an adaptive "
+                                f"design; expected one of {', '.join(KEYS)}")
         changes[name] = observer_number(item, text)
     try:
         return replace(function, **changes)  # type: ignore[arg-type]

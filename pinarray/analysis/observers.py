@@ -37,7 +37,13 @@ def observer_number(item: str, text: str) -> float:
     try:
         return float(exact_number(text))
     except ValueError as problem:
-        raise PinArrayError(f"observer: {item.strip()!r}: {problem}") from None
+        raise PinArrayError(f"observer: {quoted(item)}: {problem}") from None
+
+
+def quoted(item: str, limit: int = 60) -> str:
+    """An item as a message quotes it, cut to ``limit`` characters ("..." marking the cut)."""
+    shown = repr(item.strip())
+    return shown if len(shown) <= limit else shown[:limit - 3] + "..."
 
 
 def observer_items(spec: str) -> list[tuple[str, str, str]]:
@@ -46,9 +52,10 @@ def observer_items(spec: str) -> list[tuple[str, str, str]]:
     for item in spec.split(","):
         name, equals, text = (part.strip() for part in item.partition("="))
         if not equals:
-            raise PinArrayError(f"observer: {item.strip()!r}: expected name=number")
+            raise PinArrayError(f"observer: {quoted(item)}: expected name=number")
         if any(name == seen for _, seen, _ in found):
-            raise PinArrayError(f"observer: {name!r} is given twice; give each parameter once")
+            raise PinArrayError(f"observer: {quoted(name)} is given twice; give each parameter "
+                                "once")
         found.append((item, name, text))
     return found
 
@@ -64,7 +71,7 @@ def parse_overrides(spec: str, model: Model, what: str,
     changes: dict[str, Any] = {}
     for item, name, text in observer_items(spec):
         if name not in known:
-            raise PinArrayError(f"observer: unknown parameter {name!r} for {what}; expected "
+            raise PinArrayError(f"observer: unknown parameter {quoted(name)} for {what}; expected "
                                 f"one of {', '.join(known)}")
         changes[name] = observer_number(item, text)
     return replace(model, **changes)  # type: ignore[type-var]

@@ -54,6 +54,10 @@ class Armed:
         A stimulus that could not start in time, or was cut short, is returned as not
         delivered (its `Delivery.ending` says why), not raised.
 
+        A stimulus armed to start on `start`, not started yet, cannot end while this waits
+        without a limit in the thread that would start it: that is refused at once (a thread
+        that waits while another starts it gives a ``timeout_s``).
+
         Parameters
         ----------
         timeout_s : float or None
@@ -65,9 +69,17 @@ class Armed:
             The bus failed while it played (the message says where; the pins were put to
             rest first).
         PinArrayError
-            A wait that timed out.
+            A wait that timed out; a stimulus waiting for its `start` waited for without a
+            limit.
         """
         timeout = arguments.timeout_s("Armed.result", timeout_s)
+        cue = self._onset
+        if (timeout is None and isinstance(cue, StartCue) and not cue.given
+                and not cue.withdrawn and not self.done):
+            raise PinArrayError(f"Armed.result: the stimulus {self._described()} waits for "
+                                "Armed.start(), which has not been called: start it first, or "
+                                "cancel() it (or give a timeout_s while another thread starts "
+                                "it)")
         try:
             return self._future.result(timeout)
         except TimeoutError:

@@ -9,7 +9,12 @@ process of their own, which also rests the pins if the script's process is kille
 A stop stops: `PinArray.stop`, `Armed.cancel`, `PinArray.close` and leaving the ``with``
 block (at its end or by an error) cut a stimulus still armed or playing, put every pin to
 rest and switch torque off; its `Delivery` says it was cut, and when. An array still open
-when the script ends is closed as the interpreter exits, the same way.
+when the script ends is closed as the interpreter exits, the same way; one the script lets go
+of without closing it is closed as it is collected (its port free again). On real servos a
+script suspended (Ctrl-Z) while a stimulus plays gets it cut the same way (`Cut`, by "the
+script's suspension"): nobody could stop it while the script is suspended. A forked copy of
+the script (``multiprocessing`` workers) holds nothing of the array: only the script drives
+it, and its end rests the pins whatever the copies do.
 
 Times are integer nanoseconds on the array's clock (`PinArray.now_ns`): on real servos that
 is ``time.monotonic_ns()`` (CLOCK_MONOTONIC, the clock PsychoPy's flips are stamped on under
@@ -25,6 +30,7 @@ built from; the stimulus armed (`armed`) and what it delivered (`delivery`) live
 from __future__ import annotations
 
 import atexit
+import os
 import queue
 import threading
 import weakref
@@ -56,6 +62,7 @@ from pinarray.player.playback import (
     OnsetAt,
     OnsetPassed,
     PlaybackAborted,
+    Suspended,
 )
 from pinarray.player.process import StartCue
 from pinarray.player.rehearsal import Rehearsal
@@ -64,7 +71,7 @@ from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.in_code import drives_on
 from pinarray.protocol.model import Condition, PinDrive, Protocol, is_simulated
 from pinarray.schedule import compile_drives
-from pinarray.stop import Stopped
+from pinarray.stop import Stopped, signal_name
 
 __all__ = ["Clock", "DeliveryRecord", "MonotonicClock", "PinArray", "PinStroke",
            "Presentable", "SafeStopReport", "VirtualClock", "open_array"]
@@ -78,6 +85,8 @@ Stimulus = Condition | Built
 
 # Arrays still open, closed as the interpreter exits (a stimulus armed at the script's end).
 _open_arrays: weakref.WeakSet[PinArray] = weakref.WeakSet()
+# What cut a stimulus when the script was suspended while it played (real servos).
+SUSPENSION = "the script's suspension (Ctrl-Z)"
 
 
 class PinArray:
@@ -91,8 +100,9 @@ class PinArray:
     """How far ahead of the array's clock a stimulus is armed for a time at least, in ns; a
     stimulus presented at once starts this long after the call."""
 
-    def __init__(self, rig: Rig) -> None:
+    def __init__(self, rig: Rig, asked: str | None = None) -> None:
         self._rig = rig
+        self._asked = asked or rig.url  # the port or sim:// URL as the script gave it
         self._lock = threading.RLock()  # one change of state at a time: arm, stop, close
         self._current: Armed | None = None
         self._safe_stop: SafeStopReport | None = None  # set once closed
@@ -109,8 +119,12 @@ class PinArray:
         self._armed: queue.SimpleQueue[Armed | None] = queue.SimpleQueue()
         self._player: threading.Thread | None = None
         _open_arrays.add(self)
+        # Let go of without close(): closed as it is collected (at the interpreter's exit,
+        # `_close_left_open` closes those still open, cutting what plays).
+        self._finalizer = weakref.finalize(self, _let_go, rig, self._asked)
+        self._finalizer.atexit = False
         for warning in rig.warnings:
-            log.warning("%s: %s", rig.url, warning)
+            log.warning("%s: %s", self._asked, warning)
 
     @property
     def protocol(self) -> Protocol:
@@ -119,8 +133,9 @@ class PinArray:
 
     @property
     def url(self) -> str:
-        """The serial device of real servos, or the ``sim://`` URL of the simulated array."""
-        return self._rig.url
+        """The serial device of real servos, or the ``sim://`` URL of the simulated array, as
+        `open_array` was given it (``"sim://"`` when it was given neither)."""
+        return self._asked
 
     @property
     def simulated(self) -> bool:
@@ -236,15 +251,20 @@ class PinArray:
         condition = self._stimulus("arm", stimulus)
         with self._lock:
             self._check_idle("arm")
-            if at_ns is not None:
-                self._rig.ready()  # torque on again after a stop, before the onset is taken
             onset: Onset | StartCue = (StartCue() if at_ns is None else
                                        OnsetAt(arguments.onset_ns("arm", at_ns, self.now_ns(),
                                                                   self.lead_ns)))
+            # Torque on again after a stop (one exchange of a few ms: the servos' own state
+            # read back), here rather than in the lead time or after a flip's cue: the
+            # stimulus starts when it is due. After a fault, the whole handshake: its error
+            # is raised here, before anything is armed.
+            self._rig.ready()
             armed = self._current = Armed(self, condition, onset)
             if self._player is None:
-                self._player = threading.Thread(target=self._play_armed, daemon=True,
-                                                name=f"pinarray: stimuli armed on {self.url}")
+                # The thread holds the array weakly: an array let go of is still collected.
+                self._player = threading.Thread(
+                    target=_play_armed, args=(weakref.ref(self), self._armed), daemon=True,
+                    name=f"pinarray: stimuli armed on {self.url}")
                 self._player.start()
         self._armed.put(armed)
         return armed
@@ -293,6 +313,7 @@ class PinArray:
                 try:
                     self._cut_current(by)
                 finally:
+                    self._finalizer.detach()
                     self._safe_stop = self._rig.close()
                     _open_arrays.discard(self)
                     self._close_rehearsal()
@@ -377,10 +398,6 @@ class PinArray:
                                 "wait for its result or cancel it first (one stimulus "
                                 "plays at a time)")
 
-    def _play_armed(self) -> None:
-        while (armed := self._armed.get()) is not None:
-            self._run(armed)
-
     def _run(self, armed: Armed) -> None:
         """Play ``armed`` in this thread and hand its outcome to whoever waits for it."""
         armed._runner = threading.get_ident()
@@ -400,17 +417,11 @@ class PinArray:
                 raise Stopped(f"cut short by {armed._cut.by}")
             presentation = rig.play(trial, onset=armed._onset)
         except Stopped as stopped:
-            cut = armed._cut or Cut(self.now_ns(), str(stopped))
-            if armed._began(cut.at_ns, rig.playing_from_ns):
-                delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
-                                    cut, f"cut short by {cut.by}", what)
-            else:
-                delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
-                                    NotStarted(f"cancelled by {cut.by} before it started"),
-                                    f"cancelled by {cut.by} before it started: nothing moved",
-                                    what)
-            log.warning("%s: %s: %s", self.url, what, delivery.problem)
-            return delivery
+            return self._cut_short(armed, trial, planned_ns, what,
+                                   armed._cut or Cut(self.now_ns(), _stopped_by(stopped)))
+        except Suspended as suspended:  # real servos: the player process cut it
+            return self._cut_short(armed, trial, planned_ns, what,
+                                   armed._cut or Cut(suspended.noticed_ns, SUSPENSION))
         except OnsetPassed as passed:
             why = (f"its onset had passed {passed.late_ns / 1e6:.1f} ms before playback could "
                    "begin (the host was busy): nothing moved")
@@ -428,6 +439,21 @@ class PinArray:
         delivery = Delivery(presentation.onset_ns, trial.end_ns, onset_write_late_ns(report),
                             presentation.delivery, stimulus=what)
         tell(self.url, what, delivery, report)
+        return delivery
+
+    def _cut_short(self, armed: Armed, trial: PreparedTrial, planned_ns: int, what: str,
+                   cut: Cut) -> Delivery:
+        """The delivery of the stimulus ``what``, ``cut``: `Cut` if it had begun by then, else
+        `NotStarted` (nothing moved)."""
+        rig = self._rig
+        if armed._began(cut.at_ns, rig.last_from_ns):
+            delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
+                                cut, f"cut short by {cut.by}", what)
+        else:
+            delivery = unplayed(planned_ns, trial.end_ns, len(trial.changes), rig.tolerance_ns,
+                                NotStarted(f"cancelled by {cut.by} before it started"),
+                                f"cancelled by {cut.by} before it started: nothing moved", what)
+        log.warning("%s: %s: %s", self.url, what, delivery.problem)
         return delivery
 
     def _cut_current(self, by: str) -> None:
@@ -523,7 +549,40 @@ def open_array(protocol: Protocol | None = None, *, port: str | None = None,
                             "clock, or a MonotonicClock")
     rig = Rig(protocol, port, sim, clock,
               holder=f"an array of protocol {protocol.name!r} (pinarray.open_array)")
-    return PinArray(rig)
+    return PinArray(rig, port or sim or "sim://")
+
+
+def _stopped_by(stopped: Stopped) -> str:
+    """What cut a stimulus the script did not cut (by stop(), cancel() or close()): a signal
+    sent to the player process itself."""
+    if stopped.signal_number:
+        return f"{signal_name(stopped.signal_number)} sent to the player process"
+    return str(stopped) or "a stop"
+
+
+def _play_armed(array_ref: weakref.ref[PinArray], armed_queue: queue.SimpleQueue[Armed | None]
+                ) -> None:
+    """The thread playing an array's armed stimuli, in turn, until it closes."""
+    while (armed := armed_queue.get()) is not None:
+        array = array_ref()  # alive: the stimulus armed holds it
+        if array is None:
+            return
+        array._run(armed)
+        del array, armed  # not held while waiting: the script may let go of the array
+
+
+def _let_go(rig: Rig, url: str) -> None:
+    """An array the script let go of without closing it, collected: closed now (pins to rest,
+    torque off, its port free for the next opener)."""
+    if rig.forked_away:
+        return  # a forked copy's: the original closes it
+    try:
+        report = rig.close()
+    except Exception:  # a finalizer has nobody to raise to
+        log.exception("%s: closing an array let go of without close() failed", url)
+        return
+    log.info("%s: closed as the script let go of it without close(): %s", url,
+             report.describe())
 
 
 @atexit.register
@@ -534,3 +593,7 @@ def _close_left_open() -> None:
             array._close("the script's end")
         except Exception:  # one array's failure must not keep the others' torque on
             log.exception("%s: closing at the script's end failed", array.url)
+
+
+# A forked copy of the script closes none of its arrays as it ends: they are the script's.
+os.register_at_fork(after_in_child=_open_arrays.clear)

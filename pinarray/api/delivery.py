@@ -125,13 +125,17 @@ class Delivery:
         Raises
         ------
         PinArrayError
-            When the pin did not move in this stimulus or its motion was not measured.
+            When the pin did not move in this stimulus or its motion was not measured; a pin
+            that is not a number from 1 to 16.
         """
+        from pinarray.api import arguments
+
+        pin = arguments.pin("Delivery.stroke", pin)
         for stroke in self.strokes:
             if stroke.pin == pin:
                 return stroke
         moved = ", ".join(str(s.pin) for s in self.strokes) or "none"
-        raise PinArrayError(f"pin {pin!r}: no stroke measured in this stimulus (pins measured: "
+        raise PinArrayError(f"pin {pin}: no stroke measured in this stimulus (pins measured: "
                             f"{moved})")
 
 

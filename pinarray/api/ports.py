@@ -15,7 +15,7 @@ from pinarray.api import arguments
 from pinarray.errors import BusError
 from pinarray.hardware.feetech.bringup import scan, sweep_timeout_ns
 from pinarray.hardware.feetech.transport import is_sim_url, open_bus
-from pinarray.hardware.port_lock import PortInUse, hold_port
+from pinarray.hardware.port_lock import hold_port
 
 __all__ = ["ServoPort", "find_servo_ports"]
 
@@ -82,8 +82,8 @@ def _answering_ids(port: str) -> tuple[int, ...]:
     """The ids that answer on ``port``; none where it cannot be opened or asked."""
     try:
         held = hold_port(port, "pinarray.find_servo_ports")  # held while asked
-    except PortInUse:
-        return ()  # an array drives it: not a byte from here
+    except BusError:
+        return ()  # an array drives it (PortInUse), or it cannot be held: not a byte from here
     try:
         bus = open_bus(port)
     except BusError:

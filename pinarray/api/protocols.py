@@ -171,7 +171,8 @@ def find_condition(protocol: Protocol, *, pin: int | None = None,
              if all(getattr(c, name, None) == value for name, value in given.items())]
     if len(found) == 1:
         return found[0]
-    asked = ", ".join(f"{name} {value}" for name, value in given.items()) or "no filter"
+    asked = ", ".join(f"{name} {arguments.shortened(str(value))}"
+                      for name, value in given.items()) or "no filter"
     held = "; ".join(describe_condition(c) for c in (found or protocol.design.conditions)[:8])
     if not found:
         raise PinArrayError(f"{protocol.source}: no condition of the design has {asked} "

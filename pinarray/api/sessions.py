@@ -18,10 +18,10 @@ from pinarray.analysis.load import LoadedRun, load_run
 from pinarray.api import arguments
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
-from pinarray.journal.paths import check_label
 from pinarray.player.rig import choose_clock
 from pinarray.protocol.model import Protocol
 from pinarray.session.sitting import Answer, NotDelivered, Question, SessionRequest, Sitting
+from pinarray.session.trials import SessionError
 
 __all__ = ["Answer", "AnswerSource", "NotDelivered", "Question", "run_session",
            "simulated_observer"]
@@ -82,9 +82,9 @@ def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, sessi
     """
     call = "run_session"
     protocol = arguments.protocol(call, protocol)
-    answer = arguments.answer_source(call, answer)
-    subject = arguments.text(call, "subject", subject)
-    session = arguments.text(call, "session", session)
+    source = arguments.answer_source(call, answer)
+    subject = arguments.label(call, "subject", subject)
+    session = arguments.label(call, "session", session)
     results = arguments.path(call, "results", results)
     port = arguments.port(call, port)
     sim = arguments.sim_for(call, protocol, sim)
@@ -97,18 +97,22 @@ def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, sessi
     if protocol.sync is not None:
         raise PinArrayError(f"{protocol.source}: a protocol with a sync: section waits for the "
                             "scanner's triggers: run it with `pinarray batch` or the UI")
-    request = SessionRequest(protocol, check_label("subject", subject),
-                             check_label("session", session), experimenter, port, sim, seed,
-                             resume)
+    request = SessionRequest(protocol, subject, session, experimenter, port, sim, seed, resume)
 
     def clock_for(chosen_port: str | None) -> Clock:
         return clock if clock is not None else choose_clock(chosen_port, None, paced=True,
                                                             sim_url=sim)
 
-    with Sitting(Path(results), clock_for) as sitting:
-        sitting.connect(request)
-        beh = sitting.open_session().writer.paths.beh_tsv
-        sitting.run_scripted(answer)
+    def checked(question: Question) -> Answer:
+        return arguments.answer(call, source(question))  # True is never pin 1, 6.7 never 6
+
+    try:
+        with Sitting(Path(results), clock_for) as sitting:
+            sitting.connect(request)
+            beh = sitting.open_session().writer.paths.beh_tsv
+            sitting.run_scripted(checked)
+    except SessionError as error:  # an answer the paradigm does not take (the run is kept)
+        raise PinArrayError(f"{call}: answer: {error}") from None
     return load_run(beh)
 
 

@@ -9,8 +9,15 @@ last process that drives it (the one resting the pins) has ended. A refusal name
 an array of this process by what it was opened for, another process by its id and command
 line (read from ``/proc``).
 
-A port that is not a file (a pyserial URL such as ``rfc2217://``, a ``sim://`` URL) is not
-locked: nothing else can open the same thing by its path.
+A pyserial URL that wraps a device of this machine (``spy:///dev/ttyUSB0?file=log``,
+``alt:///dev/ttyUSB0?class=...``) holds that device; ``hwgrep://``, which picks a device by a
+pattern only as it opens it, is refused (name the device). A port that is not a file (a
+network URL such as ``rfc2217://``, a ``sim://`` URL) is not locked: nothing else can open the
+same thing by its path.
+
+A forked copy of the holder (a lab's ``multiprocessing`` workers) lets go of the lock at once:
+the port is held by the process that opened the array and its player process, not by copies
+that outlive them.
 """
 
 from __future__ import annotations
@@ -26,6 +33,8 @@ from pinarray.errors import BusError
 __all__ = ["PortInUse", "PortLock", "hold_port"]
 
 PROC = Path("/proc")
+# pyserial URL handlers that open a device of this machine given by its path.
+WRAPPING_URLS = ("spy://", "alt://")
 
 
 class PortInUse(BusError):
@@ -71,10 +80,20 @@ class PortLock:
 
 
 def _key(port: str) -> str | None:
-    """The port's real path, the same whichever link names it (``/dev/serial/by-id/...``);
-    None for what is not a file."""
-    if "://" in port:
-        return None
+    """The real path of the device ``port`` opens, the same whichever link or pyserial URL
+    names it (``/dev/serial/by-id/...``, ``spy:///dev/ttyUSB0``); None for what is not a
+    file."""
+    for scheme in WRAPPING_URLS:
+        if port.startswith(scheme):
+            port = port[len(scheme):].split("?", 1)[0]
+            break
+    else:
+        if port.startswith("hwgrep://"):
+            raise BusError(f"{port}: hwgrep:// picks a serial port by a pattern as it opens it, "
+                           "so it cannot be held for one owner first: give the device itself "
+                           "(pinarray.find_servo_ports lists those where servos answer)")
+        if "://" in port:
+            return None
     path = os.path.realpath(port)
     return path if os.path.exists(path) else None
 
@@ -104,32 +123,68 @@ def hold_port(port: str, holder: str) -> PortLock:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise PortInUse(f"{port} is in use by {_other_holders(key)}: one owner per port; "
+            raise PortInUse(f"{port} is in use by {_lock_holders(key)}: one owner per port; "
                             "close it there first") from None
         _held[key] = _Holding(fd, holder)
         return PortLock(key, fd)
 
 
-def _other_holders(key: str) -> str:
-    """The processes with ``key`` open, by id and command line, as far as /proc shows them."""
-    found = []
+def _lock_holders(key: str) -> str:
+    """Who holds the lock on ``key``, in words, as far as /proc shows it: the processes with a
+    descriptor of it that carries the lock (not every program that merely has the device
+    open), a player process named as its script's."""
     me = os.getpid()
     try:
-        pids = [int(entry.name) for entry in PROC.iterdir() if entry.name.isdigit()]
+        pids = sorted(int(entry.name) for entry in PROC.iterdir() if entry.name.isdigit())
     except OSError:
         pids = []
-    for pid in sorted(pids):
-        if pid == me:
+    holders = [pid for pid in pids if pid != me and _holds_lock(pid, key)]
+    players = {pid: _parent(pid) for pid in holders if _is_player(pid)}
+    named = []
+    for pid in holders:
+        if pid in players:
+            if players[pid] not in holders:  # its script has ended: it is resting the pins
+                named.append(f"the player process {pid} of a script that has ended (it is "
+                             "putting the pins to rest; the port is free once it has)")
             continue
-        try:
-            links = [os.readlink(fd) for fd in (PROC / str(pid) / "fd").iterdir()]
-        except OSError:
-            continue  # gone, or another user's
-        if key in links:
-            found.append(f"process {pid} ({_command(pid)})")
-    if not found:
+        its_players = [player for player, parent in players.items() if parent == pid]
+        player = f" and its player process {its_players[0]}" if its_players else ""
+        named.append(f"process {pid} ({_command(pid)}){player}")
+    if not named:
         return "another process (not one this user can name)"
-    return " and ".join(found)
+    return " and ".join(named)
+
+
+def _holds_lock(pid: int, key: str) -> bool:
+    """Whether process ``pid`` has a descriptor of ``key`` that carries a lock (its fdinfo
+    lists it)."""
+    fds = PROC / str(pid) / "fd"
+    try:
+        entries = list(fds.iterdir())
+    except OSError:
+        return False  # gone, or another user's
+    for entry in entries:
+        try:
+            if os.readlink(entry) != key:
+                continue
+            info = (PROC / str(pid) / "fdinfo" / entry.name).read_text()
+        except OSError:
+            continue
+        if any(line.startswith("lock:") for line in info.splitlines()):
+            return True
+    return False
+
+
+def _is_player(pid: int) -> bool:
+    return "pinarray.player.child" in _command(pid)
+
+
+def _parent(pid: int) -> int | None:
+    try:
+        stat = (PROC / str(pid) / "stat").read_bytes()
+    except OSError:
+        return None
+    return int(stat[stat.rfind(b")") + 2:].split()[1])
 
 
 def _command(pid: int) -> str:
@@ -140,3 +195,31 @@ def _command(pid: int) -> str:
     words = [word.decode(errors="replace") for word in raw.split(b"\0") if word]
     text = " ".join(words) or "?"
     return text if len(text) <= 120 else text[:117] + "..."
+
+
+def blank_descriptors(*fds: int) -> None:
+    """Point each descriptor at ``/dev/null`` (negative ones are skipped): what it held is let
+    go (a lock, a port, a channel), and the number stays taken, so that a later close by its
+    old owner closes nothing of anyone else's."""
+    devnull = os.open(os.devnull, os.O_RDWR | os.O_CLOEXEC)
+    try:
+        for fd in fds:
+            if fd >= 0:
+                try:
+                    os.dup2(devnull, fd, inheritable=False)
+                except OSError:
+                    pass  # closed already
+    finally:
+        os.close(devnull)
+
+
+def _let_go_in_forked_child() -> None:
+    """A forked copy of this process holds no port (the original and its player do)."""
+    global _held_lock
+    _held_lock = threading.Lock()  # another thread may have held it as the process forked
+    holdings = list(_held.values())
+    _held.clear()
+    blank_descriptors(*(holding.fd for holding in holdings))
+
+
+os.register_at_fork(after_in_child=_let_go_in_forked_child)

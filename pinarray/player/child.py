@@ -1,9 +1,16 @@
 """The player process itself: plays trials it is sent on the port it inherited.
 
-Run as ``python -m pinarray.player.child CONTROL_FD PORT_FD`` by `pinarray.player.process`;
-never by hand. It asks for real-time priority, then serves numbered requests until told to
-quit; however it ends (a stop, its parent gone, a signal, an error) it rests the pins and
-releases torque through its own descriptor first.
+Run as ``python -m pinarray.player.child CONTROL_FD PORT_FD PARENT_PID`` by
+`pinarray.player.process`; never by hand. It asks for real-time priority, then serves
+numbered requests until told to quit; however it ends (a stop, its parent gone, a signal, an
+error) it rests the pins and releases torque through its own descriptor first.
+
+It watches its parent process itself (a pidfd, readable the moment the parent ends), not only
+the channel, whose other end a forked copy of the parent may still hold. While it works on a
+stimulus it also looks, every `PARENT_WATCH_NS`, whether its parent was suspended (Ctrl-Z,
+SIGSTOP): a script nobody can stop while it is suspended gets no stimulus played on its
+behalf; the child cuts it, rests the pins and releases torque (`PlaySuspended`). Between
+stimuli the pins hold at rest, as they do while a script waits for anything else.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from pinarray.player.messages import (
     Played,
     PlayFailed,
     PlayStopped,
+    PlaySuspended,
     Quit,
     Ready,
     StopPlaying,
@@ -38,6 +46,7 @@ from pinarray.player.messages import (
 )
 from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
 from pinarray.stop import Stopped, raise_on_signals
+from pinarray.units import NS_PER_S
 
 # SCHED_FIFO priority of the player: above every normal process, below the kernel's own
 # interrupt threads (50), so a stuck loop cannot lock the serial driver out.
@@ -47,12 +56,64 @@ REALTIME_HOWTO = ("grant it with `sudo setcap cap_sys_nice+ep \"$(readlink -f .v
                   "or an rtprio limit in /etc/security/limits.conf (docs/rig/timing.md: real-time priority)")
 
 
+# How often a player at work looks whether its parent was suspended (and, where the system
+# gives no pidfd, whether its parent still lives), in ns.
+PARENT_WATCH_NS = 20_000_000
+SUSPENDED = "the script was suspended (Ctrl-Z or SIGSTOP)"
+
+
 class _AskedToStop(Stopped):
     """The parent passed on a stop request: end this trial, answer, wait for the next."""
 
 
 class _ParentGone(Stopped):
-    """The parent's end of the socket closed: nobody else will make the pins safe."""
+    """The parent ended (or its end of the socket closed): nobody else will make the pins
+    safe."""
+
+
+class _Suspended(Stopped):
+    """The parent was suspended while a trial played or waited for its onset."""
+
+    def __init__(self, noticed_ns: int):
+        super().__init__(SUSPENDED)
+        self.noticed_ns = noticed_ns
+
+
+class Parent:
+    """The process that started this player: a descriptor readable once it has ended (a
+    pidfd; None where the system has none: then `gone` is looked at), and whether it is
+    suspended."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        self.fd: int | None
+        try:
+            self.fd = os.pidfd_open(pid)
+        except (AttributeError, OSError):
+            self.fd = None
+
+    @property
+    def gone(self) -> bool:
+        """Whether it has ended (this process was handed to another parent)."""
+        return os.getppid() != self.pid
+
+    def suspended(self) -> bool:
+        """Whether it is stopped by job control (Ctrl-Z, SIGSTOP): state ``T``, not ``t`` (a
+        debugger's or a profiler's brief stop)."""
+        return process_state(self.pid) == "T"
+
+
+def process_state(pid: int) -> str:
+    """The state letter /proc gives process ``pid`` (``R``, ``S``, ``T`` stopped, ``t``
+    traced, ...); empty when it cannot be read (gone)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat_file:
+            stat = stat_file.read()
+    except OSError:
+        return ""
+    # "pid (command) state ...": the command may hold spaces and parentheses.
+    end = stat.rfind(b")")
+    return stat[end + 2:end + 3].decode(errors="replace")
 
 
 def make_realtime(priority: int) -> str:
@@ -80,23 +141,54 @@ class ControlledClock(MonotonicClock):
     `_ParentGone` (the child rests the pins and leaves).
     """
 
-    def __init__(self, conn: Connection, spin_ns: int):
+    def __init__(self, conn: Connection, spin_ns: int, parent: Parent):
         super().__init__(spin_ns, sleep=self._wait_for_message)
         self.conn = conn
+        self.parent = parent
         self._fd = conn.fileno()
+        self._watched = [self._fd] + ([parent.fd] if parent.fd is not None else [])
         self.working = 0  # number of the request being worked on, 0 between requests
         self._cued = 0  # number of the last request a cue came for
+        self.playing = False  # a trial is being played (or waits for its onset)
+        self._waiting_for_cue = False  # a trial held ready: nothing plays until its cue
+        self._looked_ns = 0  # when the parent's state was last looked at
 
     def _wait_for_message(self, seconds: float | None) -> None:
+        watching = self.playing and not self._waiting_for_cue
+        if watching or self.parent.fd is None:
+            if watching and self.now_ns() - self._looked_ns >= PARENT_WATCH_NS:
+                self._looked_ns = self.now_ns()
+                if self.parent.suspended():
+                    raise _Suspended(self._looked_ns)
+            slice_s = PARENT_WATCH_NS / NS_PER_S
+            seconds = slice_s if seconds is None else min(seconds, slice_s)
         # select, not Connection.poll: the latter rounds its timeout up to whole ms.
-        if select.select([self._fd], [], [], seconds)[0]:
+        ready = select.select(self._watched, [], [], seconds)[0]
+        if self.parent.fd in ready or (self.parent.fd is None and self.parent.gone):
+            raise _ParentGone("the process controlling the player ended")
+        if self._fd in ready:
             self._message()
+
+    def wait_for_request(self) -> None:
+        """Until the parent sends something; `_ParentGone` if it ends first (a request it
+        sent before it ended is not served)."""
+        timeout_s = None if self.parent.fd is not None else PARENT_WATCH_NS / NS_PER_S
+        while True:
+            ready = select.select(self._watched, [], [], timeout_s)[0]
+            if self.parent.fd in ready or (self.parent.fd is None and self.parent.gone):
+                raise _ParentGone("the process controlling the player ended")
+            if self._fd in ready:
+                return
 
     def wait_for_cue(self) -> None:
         """Return when the cue for the request being worked on comes (no time limit: the
         parent stops or cancels a stimulus whose cue never comes)."""
-        while self._cued != self.working:
-            self._wait_for_message(None)
+        self._waiting_for_cue = True
+        try:
+            while self._cued != self.working:
+                self._wait_for_message(None)
+        finally:
+            self._waiting_for_cue = False
 
     def doze_until_ns(self, deadline_ns: int) -> None:
         """Sleep (no spin) until ``deadline_ns``, waking for messages."""
@@ -120,15 +212,17 @@ class ProtocolMismatch(Exception):
     """The parent sent something this child does not understand (a different pinarray?)."""
 
 
-def _serve(conn: Connection, port_fd: int) -> int:
+def _serve(conn: Connection, port_fd: int, parent: Parent) -> int:
     try:
+        if parent.gone:
+            return 0  # the parent ended before this could watch it: it never turned torque on
         hello = conn.recv()
     except (EOFError, OSError):
         return 0  # the parent ended before saying anything: it never turned torque on
     if not isinstance(hello, Hello):
         raise ProtocolMismatch(f"expected a Hello, found {hello!r}")
     problem = make_realtime(hello.realtime_priority) if hello.realtime_priority else ""
-    clock = ControlledClock(conn, hello.spin_ns)
+    clock = ControlledClock(conn, hello.spin_ns, parent)
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
     bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
@@ -149,6 +243,7 @@ def _serve(conn: Connection, port_fd: int) -> int:
             return 0  # the parent is gone
         while True:
             try:
+                clock.wait_for_request()  # `_ParentGone` when the parent ends meanwhile
                 message = conn.recv()
             except (EOFError, OSError):
                 return 0  # the parent is gone: `finally` makes the pins safe
@@ -173,13 +268,19 @@ def _serve(conn: Connection, port_fd: int) -> int:
 
 
 def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) -> Answer:
-    """Do one numbered request; a stop for it becomes a `PlayStopped` answer."""
+    """Do one numbered request; a stop for it becomes a `PlayStopped` answer, a suspended
+    parent a `PlaySuspended`."""
     clock.working = number
     try:
         return work()
     except _AskedToStop as stopped:
         safe = stopped.safe_stop if isinstance(stopped.safe_stop, SafeStopReport) else None
         return PlayStopped(str(stopped), stopped.signal_number, safe)
+    except _Suspended as suspended:
+        # Cut before it began: nothing moved, the pins hold at rest as between stimuli.
+        safe = (suspended.safe_stop if isinstance(suspended.safe_stop, SafeStopReport)
+                else SafeStopReport((), (), ()))
+        return PlaySuspended(str(suspended), safe, suspended.noticed_ns)
     finally:
         clock.working = 0
 
@@ -190,6 +291,7 @@ def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
     if isinstance(onset, OnCue):
         clock.wait_for_cue()
         onset = OnsetAfter(0)  # at once: the time zero is when the cue came, as measured
+    clock.playing = True  # from here a suspended parent cuts it
     try:
         report = play_prepared(bus, play.trial, clock, onset=onset,
                                tolerance_ns=play.tolerance_ns, release_at_end=False,
@@ -199,6 +301,8 @@ def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
         return OnsetMissed(str(passed), passed.late_ns)
     except PlaybackAborted as aborted:
         return PlayFailed(str(aborted), aborted.safe_stop)
+    finally:
+        clock.playing = False
     return Played(report)
 
 
@@ -214,7 +318,8 @@ def _wake_ups(clock: ControlledClock, duration_ns: int, period_ns: int) -> WakeU
 
 
 def main(argv: list[str]) -> int:
-    control_fd, port_fd = int(argv[0]), int(argv[1])
+    control_fd, port_fd, parent_pid = int(argv[0]), int(argv[1]), int(argv[2])
+    parent = Parent(parent_pid)
     # The channel blocks, whatever its creator's defaults were: a recv that found nothing to
     # read would be taken for the parent gone (a host program's socket timeout made it
     # non-blocking: PsychoPy sets one on import).
@@ -222,7 +327,7 @@ def main(argv: list[str]) -> int:
     conn = Connection(control_fd)
     try:
         with raise_on_signals("the player process"):
-            return _serve(conn, port_fd)
+            return _serve(conn, port_fd, parent)
     except Stopped as stopped:
         return stopped.exit_status
 

@@ -87,6 +87,17 @@ class PlayStopped:
 
 
 @dataclass(frozen=True)
+class PlaySuspended:
+    """The parent was suspended (Ctrl-Z, SIGSTOP) while the trial played or waited for its
+    onset: the child cut it, rested the pins and released torque, noticing at ``noticed_ns``
+    (``time.monotonic_ns()``)."""
+
+    message: str
+    safe_stop: SafeStopReport
+    noticed_ns: int
+
+
+@dataclass(frozen=True)
 class OnsetMissed:
     """The onset had passed by the time playback could begin: nothing was sent."""
 
@@ -106,7 +117,8 @@ class WakeUpsMeasured:
 
 
 # What the child answers, one per request (and Ready once, to Hello).
-Answer = Ready | Played | PlayStopped | PlayFailed | OnsetMissed | WakeUpsMeasured
+Answer = (Ready | Played | PlayStopped | PlaySuspended | PlayFailed | OnsetMissed
+          | WakeUpsMeasured)
 # What the parent asks, numbered where a stop or a cue may name it.
 Request = Play | StopPlaying | Cue | MeasureWakeUps | Quit
-ANSWERS = (Ready, Played, PlayStopped, PlayFailed, OnsetMissed, WakeUpsMeasured)
+ANSWERS = (Ready, Played, PlayStopped, PlaySuspended, PlayFailed, OnsetMissed, WakeUpsMeasured)

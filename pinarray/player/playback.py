@@ -57,8 +57,8 @@ from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE, PinTrace, measure
 from pinarray.player.markers import Announcer, MarkerPush, TrialMarkers
 from pinarray.schedule import PulseList, TargetList
 
-__all__ = ["SOON", "Onset", "OnsetAfter", "OnsetAt", "check_limits", "play_prepared", "play_trial",
-           "prepare_trial"]
+__all__ = ["SOON", "Onset", "OnsetAfter", "OnsetAt", "Suspended", "check_limits", "play_prepared",
+           "play_trial", "prepare_trial"]
 
 NO_PULSES = PulseList(np.zeros(0, dtype=np.int16), np.zeros(0, dtype=np.int64),
                       np.zeros(0, dtype=np.int64))
@@ -110,6 +110,20 @@ class OnsetPassed(PlaybackAborted):
     def __init__(self, message: str, late_ns: int):
         super().__init__(message, SafeStopReport((), (), ()))
         self.late_ns = late_ns
+
+
+class Suspended(PlaybackAborted):
+    """The process controlling a player process was suspended (Ctrl-Z, SIGSTOP) while a
+    stimulus played or waited for its onset: the player process cut it, rested the pins and
+    released torque rather than play on with nobody able to stop it.
+
+    ``noticed_ns`` is when the player saw it (``time.monotonic_ns()``): whether the stimulus
+    had begun by then says whether it was cut or never started.
+    """
+
+    def __init__(self, message: str, safe_stop: SafeStopReport, noticed_ns: int):
+        super().__init__(message, safe_stop)
+        self.noticed_ns = noticed_ns
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,8 +12,18 @@ Every way out stays safe:
   trial at its next wake-up and puts the pins at rest before answering;
 - the child dies (killed, crashed): the parent sees the socket close at once, puts the pins at
   rest through its own descriptor and reports the trial as not delivered;
-- the parent dies: the child sees the socket close, rests the pins and releases torque itself;
-- the child is sent a signal: it rests the pins, releases torque and exits.
+- the parent dies: the child sees it end (it watches the parent process itself, not only the
+  socket, which a forked copy of the parent may still hold), rests the pins and releases
+  torque itself;
+- the child is sent a signal: it rests the pins, releases torque and exits;
+- the child stops answering (frozen, SIGSTOP): the parent gives it until the trial's scheduled
+  end and a margin (`ANSWER_MARGIN_NS`), or `STOP_BUDGET_NS` once told to stop, then kills it
+  and rests the pins through its own descriptor;
+- the parent is suspended (Ctrl-Z) while a stimulus plays or waits for its onset: the child
+  cuts it, rests the pins and releases torque (`Suspended`); between stimuli the pins hold at
+  rest, as they do while a script waits for anything else;
+- the parent forks (a lab's ``multiprocessing`` workers): the copy lets go of the channel at
+  once (`pinarray.player.forks`), so that only the parent's own end keeps the player going.
 
 The channel is a socket pair whose blocking mode is set here, whatever defaults the host
 program set for new sockets (PsychoPy sets a 20 s timeout on import, which makes every new
@@ -43,7 +53,8 @@ from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
-from pinarray.player.child import REALTIME_PRIORITY
+from pinarray.player.child import REALTIME_PRIORITY, process_state
+from pinarray.player.forks import blank_descriptors, let_go_in_forks
 from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.messages import (
     ANSWERS,
@@ -57,6 +68,7 @@ from pinarray.player.messages import (
     Played,
     PlayFailed,
     PlayStopped,
+    PlaySuspended,
     Quit,
     Ready,
     Request,
@@ -64,13 +76,16 @@ from pinarray.player.messages import (
     WakeUpsMeasured,
 )
 from pinarray.player.playback import (
+    SETTLE_NS,
     SOON,
     Onset,
     OnsetAfter,
+    OnsetAt,
     OnsetPassed,
     PlaybackAborted,
     PlaybackReport,
     PreparedTrial,
+    Suspended,
 )
 from pinarray.stop import STOP_SIGNALS, Stopped, StopRequest, signal_name
 
@@ -79,8 +94,12 @@ SPIN_NS = 200_000
 # How often the parent looks at the stop request and the child while a trial plays, in s.
 WATCH_S = 0.02
 START_TIMEOUT_NS = 30_000_000_000
-# Once told to stop, the player process has this long to rest the pins and answer.
-STOP_BUDGET_NS = 5_000_000_000
+# Once told to stop, the player process has this long to rest the pins and answer; then it is
+# killed and the parent rests them itself (a stop takes torque off within half a second).
+STOP_BUDGET_NS = 300_000_000
+# A trial's answer is due this long after its scheduled end at the latest (the read-backs'
+# settling, telemetry, a player's own safe stop): a player silent past it is taken for hung.
+ANSWER_MARGIN_NS = SETTLE_NS + 1_000_000_000
 # How long a player process whose socket closed may take to finish exiting, in s.
 EXIT_WAIT_S = 1.0
 # A cue given before its trial reached the child: the child starts it as soon as it can.
@@ -110,12 +129,14 @@ class StartCue:
         self._given = threading.Event()
         self._withdrawn = False
         self._tell: Callable[[], None] | None = None
+        self.given_ns: int | None = None  # when it was given (``time.monotonic_ns()``)
 
     def give(self) -> bool:
         """Start it now; False when withdrawn or given already."""
         with self._lock:
             if self._withdrawn or self._given.is_set():
                 return False
+            self.given_ns = time.monotonic_ns()
             self._given.set()
             tell = self._tell
         if tell is not None:
@@ -187,6 +208,7 @@ class PlayerProcess:
         self._one_at_a_time = threading.Lock()
         self._sending = threading.Lock()  # a cue is sent from another thread than the trial's
         self._errors = tempfile.TemporaryFile()
+        self._forked_away = False  # True in a forked copy of the process that started it
         parent_end, child_end = socket.socketpair()
         for end in (parent_end, child_end):
             end.setblocking(True)  # whatever the host's default timeout: see the docstring
@@ -197,17 +219,19 @@ class PlayerProcess:
         stop.when_requested(lambda: (method := wake()) is not None and method())
         passed = (child_end.fileno(),) + ((fd,) if fd is not None else ()) + keep_fds
         command = [sys.executable, "-m", "pinarray.player.child", str(child_end.fileno()),
-                   str(fd if fd is not None else -1)]
+                   str(fd if fd is not None else -1), str(os.getpid())]
         self.process = subprocess.Popen(
             command, pass_fds=passed, start_new_session=True, stdin=subprocess.DEVNULL,
             stdout=subprocess.DEVNULL, stderr=self._errors,
         )
         child_end.close()
         self.conn = Connection(parent_end.detach())
+        let_go_in_forks(self)
         handover = bus.handover() if bus is not None else None
         self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
                              markers))
-        ready = self._answer("starting", START_TIMEOUT_NS)
+        ready_due_ns = self._clock.now_ns() + START_TIMEOUT_NS
+        ready = self._answer("starting", lambda: ready_due_ns)
         if not isinstance(ready, Ready):
             raise PlayerDied(f"the player process answered {ready!r} when starting",
                              SafeStopReport((), (), ()), time.monotonic_ns())
@@ -238,7 +262,22 @@ class PlayerProcess:
                             stroke_tolerance)
             return Play(number, trial, OnCue(), tolerance_ns, markers, stroke_tolerance)
 
-        answer = self._ask(request, "playing a trial")
+        asked_ns = self._clock.now_ns()
+
+        def due_ns() -> int | None:
+            """When the answer is due at the latest (None: a cue not given yet)."""
+            match onset:
+                case OnsetAt(onset_ns=zero_ns):
+                    pass
+                case StartCue(given_ns=given_ns):
+                    if given_ns is None:
+                        return None
+                    zero_ns = given_ns
+                case _:
+                    zero_ns = asked_ns + onset.lead_ns
+            return max(zero_ns, asked_ns) + trial.end_ns + ANSWER_MARGIN_NS
+
+        answer = self._ask(request, "playing a trial", due_ns)
         match answer:
             case Played(report=report):
                 if self.bus is not None:
@@ -250,27 +289,35 @@ class PlayerProcess:
                 raise PlaybackAborted(message, safe)
             case OnsetMissed(message=message, late_ns=late_ns):
                 raise OnsetPassed(message, late_ns)
+            case PlaySuspended(message=message, safe_stop=safe, noticed_ns=noticed_ns):
+                raise Suspended(message, safe, noticed_ns)
         raise PlayerDied(f"the player process answered {answer!r} to a trial",
                          SafeStopReport((), (), ()), time.monotonic_ns())
 
     def measure_wake_ups(self, duration_ns: int, period_ns: int) -> tuple[int, ...]:
         """How late the child wakes for deadlines every ``period_ns``, for ``duration_ns``."""
+        due_ns = self._clock.now_ns() + period_ns + duration_ns + ANSWER_MARGIN_NS
         answer = self._ask(lambda number: MeasureWakeUps(number, duration_ns, period_ns),
-                           "measuring wake-ups")
+                           "measuring wake-ups", lambda: due_ns)
         if not isinstance(answer, WakeUpsMeasured):
             raise PlayerDied(f"the player process answered {answer!r} to a measurement",
                              SafeStopReport((), (), ()), time.monotonic_ns())
         return answer.lateness_ns
 
-    def _ask(self, request: Callable[[int], Request], doing: str) -> Answer:
-        """Send a numbered request and wait for its answer; a stop ends it with `Stopped`."""
+    def _ask(self, request: Callable[[int], Request], doing: str,
+             due_ns: Callable[[], int | None]) -> Answer:
+        """Send a numbered request and wait for its answer, due by ``due_ns()`` at the latest
+        (None: not yet known); a stop ends it with `Stopped`."""
+        if self._forked_away:
+            raise PinArrayError("this process is a forked copy of the one that opened the "
+                                "array: only that one plays on it")
         with self._one_at_a_time:
             self._requests += 1
             self._working = self._requests
             self._stop_sent = False
             try:
                 self._send(request(self._requests))
-                answer = self._answer(doing)
+                answer = self._answer(doing, due_ns)
             except OSError:
                 self._died(doing)
             finally:
@@ -297,14 +344,15 @@ class PlayerProcess:
         except OSError:
             pass  # full (woken already) or closed (this player has ended)
 
-    def _answer(self, doing: str, timeout_ns: int | None = None) -> Answer:
+    def _answer(self, doing: str, due_ns: Callable[[], int | None]) -> Answer:
         """The child's next message, passing a stop request on; a dead child is a `PlayerDied`.
 
-        Once a stop is passed on, the child has `STOP_BUDGET_NS` to answer; after that it is
-        killed and the parent makes the pins safe itself.
+        An answer not come by ``due_ns()`` (None: no limit yet), or within `STOP_BUDGET_NS` of
+        a stop passed on, is never coming: the child is killed and the parent makes the pins
+        safe itself.
         """
         clock = self._clock
-        give_up_ns = None if timeout_ns is None else clock.now_ns() + timeout_ns
+        stop_due_ns: int | None = None
         while True:
             try:
                 ready = wait([self.conn, self._wake_read], WATCH_S)
@@ -320,9 +368,26 @@ class PlayerProcess:
                 self._died(doing)
             if self.stop.requested and self._working and not self._stop_sent:
                 self._send_stop()
-                give_up_ns = clock.now_ns() + STOP_BUDGET_NS
-            if not self.alive or (give_up_ns is not None and clock.now_ns() > give_up_ns):
+                stop_due_ns = clock.now_ns() + STOP_BUDGET_NS
+            if not self.alive:
                 self._died(doing)
+            now_ns = clock.now_ns()
+            if stop_due_ns is not None and self._frozen():
+                self._died(doing, hung="it was stopped (SIGSTOP) and could not stop the trial: "
+                                       "killed")
+            if stop_due_ns is not None and now_ns > stop_due_ns:
+                self._died(doing, hung=f"it did not answer within {STOP_BUDGET_NS // 10**6} ms "
+                                       "of a stop: killed")
+            answer_due_ns = due_ns()
+            if answer_due_ns is not None and now_ns > answer_due_ns:
+                self._died(doing, hung=f"it stopped answering: no answer "
+                                       f"{ANSWER_MARGIN_NS / 1e9:g} s after the trial's "
+                                       "scheduled end: killed")
+
+    def _frozen(self) -> bool:
+        """Whether the child is stopped (SIGSTOP, a debugger): it cannot answer, however long
+        it is given."""
+        return process_state(self.process.pid) in ("T", "t")
 
     def _send_stop(self) -> None:
         self._stop_sent = True
@@ -330,8 +395,12 @@ class PlayerProcess:
         self._send(StopPlaying(self._working, self.stop.reason, self.stop.signal_number),
                    quietly=True)
 
-    def _died(self, doing: str) -> NoReturn:
+    def _died(self, doing: str, hung: str = "") -> NoReturn:
+        """The child ended, or (``hung``: why it is taken for hung) is killed now; the pins
+        made safe from here."""
         noticed_ns = time.monotonic_ns()
+        if hung:
+            self.process.kill()  # a stopped process too: SIGKILL needs no cooperation
         try:
             status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
         except subprocess.TimeoutExpired:
@@ -345,20 +414,29 @@ class PlayerProcess:
             # Asked to stop, or stopped by a signal meant for both (pkill, systemd): a stop.
             number = self.stop.signal_number or stop_signal
             reason = self.stop.reason or (f"stopped by {signal_name(number)}" if number else "stopped")
-            raise Stopped(reason, number)
+            stopped = Stopped(reason, number)
+            if self.bus is not None and not self._closing:
+                stopped.safe_stop = safe  # made here: whoever asked need not make another
+            raise stopped
         self._errors.seek(0)
         last_words = self._errors.read().decode(errors="replace").strip().splitlines()[-1:]
-        how = (f"killed by signal {-status}" if status < 0 else f"exit status {status}")
+        how = hung or (f"killed by signal {-status}" if status < 0 else f"exit status {status}")
         text = f"the player process ended while {doing} ({how}"
         text += f": {last_words[0]})" if last_words else ")"
         raise PlayerDied(f"{text}; {safe.describe()}", safe, noticed_ns)
 
     def close(self) -> None:
-        """Stop what the child is doing, ask it to leave, make sure it has.
+        """Stop what the child is doing, ask it to leave, make sure it has; a second close
+        does nothing more.
 
-        The caller makes the pins safe through its own port afterwards.
+        The caller makes the pins safe through its own port afterwards. In a forked copy of
+        the process that started it, nothing: the player is the original's.
         """
+        if self._forked_away:
+            return
         self._closing = True
+        if self.alive and self._frozen():
+            self.process.kill()  # stopped (SIGSTOP): it cannot leave by itself
         if self.alive:
             try:
                 if self._working:
@@ -376,6 +454,13 @@ class PlayerProcess:
             wake_fds = (self._wake_read, self._wake_write)
             self._wake_read = self._wake_write = -1  # a late stop callback writes nowhere
             for fd in wake_fds:
-                os.close(fd)
+                if fd >= 0:  # not closed already
+                    os.close(fd)
 
-
+    def _forked(self) -> None:
+        """In a forked copy of the process that started this player: let go of its channel
+        (and the wake-up pipe), so that the player hears of its parent's end when the parent
+        ends, not when the last copy does; the copy never plays."""
+        self._forked_away = True
+        blank_descriptors(-1 if self.conn.closed else self.conn.fileno(), self._wake_read,
+                          self._wake_write)

@@ -33,6 +33,7 @@ from pinarray.hardware.delivery import PreparedTrial, Presentation
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
 from pinarray.hardware.port_lock import PortLock, hold_port
 from pinarray.player.families import board_refusals, open_array
+from pinarray.player.forks import blank_descriptors, let_go_in_forks
 from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
     SOON,
@@ -41,6 +42,7 @@ from pinarray.player.playback import (
     OnsetAt,
     OnsetPassed,
     PlaybackReport,
+    Suspended,
     play_prepared,
     prepare_trial,
 )
@@ -189,11 +191,16 @@ class Rig:
         self._safe: SafeStopReport | None = None
         # The stimulus playing now: its time zero on the rig's clock (None: none is playing).
         self._playing_from_ns: int | None = None
+        # The time zero of the last stimulus played (or begun), kept after it ended: whether
+        # a stimulus cut at some moment had begun by then.
+        self.last_from_ns: int | None = None
+        self._forked_away = False  # True in a forked copy of the process that opened it
         self._wall_time = markers is not None  # see `keep_wall_time`
         self._fd = self.bus.descriptor
         self._isolate = self._fd is not None if isolate is None else isolate
         self._realtime = realtime
         self.player: PlayerProcess | None = None
+        let_go_in_forks(self)
         try:
             if self._isolate:
                 # The player process guards the servos before torque comes on: if this process
@@ -208,6 +215,12 @@ class Rig:
         except BaseException:
             self.close()  # torque may be on: nobody else holds this rig to release it
             raise
+
+    @property
+    def forked_away(self) -> bool:
+        """Whether this is a forked copy of the process that opened the rig (which alone
+        drives it)."""
+        return self._forked_away
 
     @property
     def isolated(self) -> bool:
@@ -252,12 +265,14 @@ class Rig:
 
     def ready(self) -> None:
         """Ready to play: the player process running, torque on (after a fault or a stop
-        released it, the handshake turns it back on, checking every servo: tens of ms on
-        real servos). `present` does this first; a stimulus armed for a time does it before
-        its onset is taken."""
+        released it, the driver turns it back on: `ArrayDriver.reconnect`, on bus servos a
+        few exchanges of the whole bus, the handshake only where they fall short). `present`
+        does this first; `PinArray.arm` before it returns, its onset checked."""
         with self._port:
             if self.player is not None and not self.player.alive:
-                # Started again before torque can come back on, so that it guards it.
+                # Started again before torque can come back on, so that it guards it. (A
+                # Ctrl-C between the two leaves the dead one in place, isolated still: its
+                # close is done once, however often it is asked for.)
                 self.player.close()
                 self._start_player()
             if self._released:
@@ -267,6 +282,7 @@ class Rig:
 
     def _present(self, trial: PreparedTrial, markers: TrialMarkers | None,
                  onset: Onset | StartCue) -> Presentation:
+        self.last_from_ns = None
         self.ready()
         self._safe = None
         match onset:
@@ -274,6 +290,7 @@ class Rig:
                 self._playing_from_ns = onset_ns
             case OnsetAfter(lead_ns=lead_ns):
                 self._playing_from_ns = self.clock.now_ns() + lead_ns
+        self.last_from_ns = self._playing_from_ns
         try:
             if self.player is not None:
                 report = self.player.play(trial, onset=onset, tolerance_ns=self.tolerance_ns,
@@ -293,7 +310,8 @@ class Rig:
             # However it ended (a fault, a stop, Ctrl-C), the player made the pins safe on
             # its way out: the next stimulus turns torque on again through the handshake.
             self._released = True
-            if isinstance(error, Interrupted) and isinstance(error.safe_stop, SafeStopReport):
+            if isinstance(error, Interrupted | Suspended) and isinstance(error.safe_stop,
+                                                                          SafeStopReport):
                 self._safe = error.safe_stop
             raise
         finally:
@@ -447,6 +465,8 @@ class Rig:
             return self._close()
 
     def _close(self) -> SafeStopReport:
+        if self._forked_away:
+            return SafeStopReport((), (), ())  # the array is the original process's to close
         try:
             player, self.player = self.player, None
             try:
@@ -470,6 +490,13 @@ class Rig:
         lock, self._port_lock = self._port_lock, None
         if lock is not None:
             lock.release()
+
+    def _forked(self) -> None:
+        """In a forked copy of the process that opened the rig: let go of the port (the
+        player's channel and the port's lock let go of themselves), and never close what the
+        original drives."""
+        self._forked_away = True
+        blank_descriptors(self._fd if self._fd is not None else -1)
 
     def __enter__(self) -> Rig:
         return self

@@ -10,8 +10,9 @@ A device may be set up before it is opened: Builder's Device Manager names a por
 simulated array) on this machine, and the experiment's Pin array touch component opens it for
 its protocol (`open`) as the experiment starts.
 
-One device per port, as PsychoPy's own `SerialDevice`: asking for a port (or ``sim://`` URL)
-already open hands back the device holding it, and `DeviceManager.addDevice` under a name a
+One device per port, as PsychoPy's own `SerialDevice`: asking for a port (by any name: a
+link such as ``/dev/serial/by-id/...``) or ``sim://`` URL already open hands back the device
+holding it, and `DeviceManager.addDevice` under a name a
 pin array already has closes that array first (PsychoPy's manager would store the new device
 over the old one and leave the old one open, its pins torqued).
 
@@ -22,6 +23,7 @@ Ctrl-C cut a stimulus still playing: every pin to rest and torque off.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import weakref
@@ -110,11 +112,11 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         port asked for with another protocol, servos missing (named), a protocol with problems.
     """
 
-    _open: ClassVar[dict[str, PinArrayDevice]] = {}  # port or sim URL -> its device
+    _open: ClassVar[dict[str, PinArrayDevice]] = {}  # port's real path or sim URL -> device
 
     def __new__(cls, protocol: str | PathLike[str] | pinarray.Protocol | None = None,
                 port: str | None = None, sim: str | None = None) -> PinArrayDevice:
-        existing = cls._open.get(_asked_for(port, sim))
+        existing = cls._open.get(_device_key(_asked_for(port, sim)))
         _close_another_array_of_the_same_name(sys._getframe(1), existing)
         if existing is not None:
             return existing  # as PsychoPy's SerialDevice does for a port it has open
@@ -131,12 +133,13 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
             sim = SIMULATED
         self._port, self._sim = port, sim
         self._asked_for = _asked_for(port, sim)  # as a profile names it
+        self._key = _device_key(self._asked_for)  # the same whichever link names the port
         self._clock = pinarray.MonotonicClock()
         self._array: pinarray.PinArray | None = None
         self._last_touch: Touch | None = None
         self._windows: weakref.WeakKeyDictionary[Any, None] = weakref.WeakKeyDictionary()
         self._watch: _QuitWatch | None = None
-        PinArrayDevice._open[self._asked_for] = self
+        PinArrayDevice._open[self._key] = self
         if port is not None:
             self.portString = port  # where PsychoPy's device manager looks for ports in use
         if protocol is not None and protocol != "":
@@ -174,7 +177,7 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
             protocol = pinarray.load_protocol(protocol)
         self._array = pinarray.open_array(protocol, port=self._port, sim=self._sim,
                                           clock=self._clock)
-        PinArrayDevice._open[self._asked_for] = self  # again, after a close
+        PinArrayDevice._open[self._key] = self  # again, after a close
         # Every stimulus compiled and encoded now: arming one on a flip then costs the frame
         # loop only the call.
         for condition in self._array.protocol.design.conditions:
@@ -309,12 +312,23 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         Raises
         ------
         pinarray.PinArrayError
-            A stimulus the protocol does not hold, another one still playing, a closed device.
+            A stimulus the protocol does not hold, another one still playing, a closed device,
+            a ``win`` that is not a window (nothing is left armed).
         """
+        if not all(callable(getattr(win, method, None)) for method in ("timeOnFlip", "callOnFlip")):
+            raise pinarray.PinArrayError(
+                f"armOnFlip: win: expected a psychopy.visual.Window, found a "
+                f"{type(win).__name__}")
         armed = self.array.arm(stimulus)
         touch = Touch(stimulus, self._timeline(), armed, _clock_zero_s(), on_flip=True)
-        win.timeOnFlip(touch._flip_stamp, "flip")
-        win.callOnFlip(touch._flipped)  # after the stamp: PsychoPy calls them in this order
+        try:
+            win.timeOnFlip(touch._flip_stamp, "flip")
+            win.callOnFlip(touch._flipped)  # after the stamp: PsychoPy calls them in this order
+        except Exception as error:  # a look-alike that failed: nothing is left armed
+            armed.cancel()
+            raise pinarray.PinArrayError(
+                f"armOnFlip: win: {type(win).__name__} did not take the flip's callbacks "
+                f"({type(error).__name__}: {error}); nothing is armed") from None
         self._last_touch = touch
         self._windows[win] = None
         touch._window = weakref.ref(win)
@@ -342,8 +356,8 @@ class PinArrayDevice(BaseDevice, aliases=["pinarray"]):  # type: ignore[call-arg
         pinarray.SafeStopReport or None
             What the safe stop confirmed; None for a device never opened (no pin was held).
         """
-        if PinArrayDevice._open.get(self._asked_for) is self:
-            del PinArrayDevice._open[self._asked_for]
+        if PinArrayDevice._open.get(self._key) is self:
+            del PinArrayDevice._open[self._key]
         if self._watch is not None:
             self._watch.end()
         if self._array is None:
@@ -408,6 +422,14 @@ def _ready_for_quit() -> None:
 
 def _asked_for(port: str | None, sim: str | None) -> str:
     return port if port is not None else sim if sim is not None else SIMULATED
+
+
+def _device_key(asked_for: str) -> str:
+    """A serial device's real path (the same whichever link names it); a URL, or what is no
+    path at all (refused as the array opens, in pinarray's words), as it is."""
+    if not isinstance(asked_for, str) or "://" in asked_for or not os.path.exists(asked_for):
+        return asked_for
+    return os.path.realpath(asked_for)
 
 
 def _close_another_array_of_the_same_name(caller: Any, kept: PinArrayDevice | None) -> None:

@@ -5,10 +5,16 @@ A touch armed on a flip is checked against that flip: PsychoPy's stamp of the fl
 actually happened beside the pins' measured onset. One whose onset lay further from its flip
 than the protocol's delivery tolerance was not delivered as scheduled, in the data and the
 log, with the reason; as is one whose flip was never made (it was cancelled, nothing moved).
+One the array failed (the bus failing mid-stimulus, the port lost) goes into the data as not
+delivered, with the error, before `Touch.addData` raises it: the row is never left without
+its touch.
 """
 
 from __future__ import annotations
 
+import math
+import numbers
+import threading
 import weakref
 from collections.abc import Collection
 from typing import Any, Protocol
@@ -56,6 +62,7 @@ class Touch:
         self._window: weakref.ref[Any] | None = None  # the window armed on
         self._never_flipped = False
         self._cut_by = ""  # what the device cut it for (PsychoPy quitting, its window closing)
+        self._failure: pinarray.PinArrayError | None = None  # what the array raised, if it did
 
     @property
     def stimulus(self) -> str:
@@ -119,9 +126,15 @@ class Touch:
         Raises
         ------
         pinarray.PinArrayError
-            What stopped it (the bus failed mid-stimulus: `pinarray.PlaybackAborted`), or a
-            wait that timed out.
+            What stopped it (the bus failed mid-stimulus: `pinarray.PlaybackAborted`), a wait
+            that timed out, a timeout that is not a number of seconds from 0.
         """
+        if timeout is not None and (
+                isinstance(timeout, bool) or not isinstance(timeout, numbers.Real)
+                or not math.isfinite(timeout) or not 0 <= timeout <= threading.TIMEOUT_MAX):
+            raise pinarray.PinArrayError(
+                f"Touch.wait: timeout: expected a number of seconds from 0, or None, found "
+                f"{_shown(timeout)} ({type(timeout).__name__})")
         result = self._result
         if not isinstance(result, pinarray.Armed):
             return result
@@ -129,6 +142,25 @@ class Touch:
             self._never_flipped = True
             result.cancel()
         return result.result(timeout)
+
+    @property
+    def failure(self) -> pinarray.PinArrayError | None:
+        """What the array raised for this stimulus (the bus failing mid-stimulus, the port
+        lost), once it has ended; None when it raised nothing. Waits until it has ended."""
+        self._ended()
+        return self._failure
+
+    def _ended(self) -> pinarray.Delivery | None:
+        """`wait`, the array's error kept (`failure`) rather than raised: None then."""
+        if self._failure is not None:
+            return None
+        try:
+            return self.wait()
+        except pinarray.PinArrayError as error:
+            if not self.done:
+                raise  # not an outcome of the stimulus (a wait refused): the caller's
+            self._failure = error
+            return None
 
     @property
     def delivered(self) -> bool:
@@ -141,7 +173,9 @@ class Touch:
     def problem(self) -> str:
         """Empty when delivered; otherwise what went wrong first, in words. Waits until the
         stimulus has ended."""
-        delivery = self.wait()
+        delivery = self._ended()
+        if delivery is None:
+            return f"the array failed: {self._failure}"
         if not self.armed_on_flip:
             return delivery.problem
         if self._never_flipped:
@@ -175,7 +209,9 @@ class Touch:
             raise pinarray.PinArrayError(
                 f"Touch.columns: expected groups among {', '.join(COLUMN_GROUPS)}, found "
                 f"{', '.join(map(repr, unknown))}")
-        delivery = self.wait()
+        delivery = self._ended()
+        if delivery is None:
+            return {f"{name}.{key}": value for key, value in self._failed_columns(groups).items()}
         record = delivery.record
         from_flip = self.onsetFromFlip
         values: dict[str, object] = {"stimulus": self.stimulus}
@@ -217,19 +253,30 @@ class Touch:
         -------
         pinarray.Delivery
             What the array delivered.
+
+        Raises
+        ------
+        pinarray.PinArrayError
+            What the array raised for it (`failure`: the bus failed mid-stimulus, the port was
+            lost), once its columns are in the row, saying it was not delivered and why.
         """
-        delivery = self.wait()
+        delivery = self._ended()
         for column, value in self.columns(name, columns).items():
             experiment.addData(column, value)
         logging.data(self.describe(name))
         if not self.delivered:
             logging.warning(f"{name}: {self.stimulus} not delivered as scheduled: "
                             f"{self.problem}")
+        if delivery is None:
+            assert self._failure is not None
+            raise self._failure
         return delivery
 
     def describe(self, name: str = "touch") -> str:
         """One line for the log: the stimulus, its onset from the flip, what was delivered."""
-        delivery = self.wait()
+        delivery = self._ended()
+        if delivery is None:
+            return f"{name}: {self.stimulus}: NOT DELIVERED: {self.problem}"
         from_flip = self.onsetFromFlip
         when = ("presented at once" if not self.armed_on_flip
                 else "never started" if from_flip is None
@@ -239,11 +286,30 @@ class Touch:
                    if problem and problem != delivery.problem else "")
         return f"{name}: {self.stimulus}, {when}; {delivery.record.summary()}{verdict}"
 
+    def _failed_columns(self, groups: Collection[str]) -> dict[str, object]:
+        """The columns of a stimulus the array failed: not delivered, the error, nothing
+        measured."""
+        values: dict[str, object] = {"stimulus": self.stimulus}
+        if "onset" in groups:
+            values |= {"flip_t": self.flipTime, "onset_t": None, "onset_from_flip_ms": None,
+                       "onset_write_late_ms": None}
+        if "delivered" in groups:
+            values |= {"delivered": False, "problem": self.problem, "ending": "failed",
+                       "goal_changes": None, "confirmed": None, "healed": None,
+                       "missing": None, "latest_ms": None, "tolerance_ms": None}
+        return values
+
     def _delivery_if_ended(self) -> pinarray.Delivery | None:
         result = self._result
         if not isinstance(result, pinarray.Armed):
             return result
-        return result.result() if result.done else None
+        if not result.done or self._failure is not None:
+            return None
+        try:
+            return result.result()
+        except pinarray.PinArrayError as error:
+            self._failure = error
+            return None
 
     def _flipped(self) -> None:
         """Called by the window right after the flip it was armed on (`win.callOnFlip`),
@@ -265,3 +331,12 @@ def _ending(ending: pinarray.Ending, cut_by: str) -> str:
         case pinarray.NotStarted():
             return "not started"
     return "played"
+
+
+def _shown(value: object) -> str:
+    """A value as a message shows it: its repr, shortened (one that fails, named)."""
+    try:
+        text = repr(value)
+    except Exception:  # the value's own repr failed: the message must not
+        return f"<a {type(value).__name__} whose repr fails>"
+    return text if len(text) <= 60 else text[:57] + "..."

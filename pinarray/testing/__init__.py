@@ -83,20 +83,35 @@ class ArrayOpener:
         Raises
         ------
         PinArrayError
-            A protocol that cannot be read, a URL that cannot, a clock given over a serial port.
+            A wrong argument (named, as `open_array` names them), a protocol that cannot be
+            read, a URL that cannot, a clock given over a serial port, a PWM board's protocol
+            over a serial port.
         """
+        from pinarray.api import arguments
         from pinarray.api.array import VirtualClock, open_array
-        from pinarray.api.protocols import load_protocol
+        from pinarray.api.protocols import Protocol, load_protocol
         from pinarray.errors import PinArrayError
+        from pinarray.protocol.model import HobbyServos
 
+        call = "simulated_array"
         if isinstance(protocol, str | PathLike):
             protocol = load_protocol(protocol)
+        if not isinstance(protocol, Protocol):
+            arguments.refuse(call, "protocol", "a Protocol (pinarray.load_protocol) or a "
+                                               "protocol file's path", protocol)
+        over_serial = arguments.flag(call, "over_serial", over_serial)
+        url = arguments.sim_for(call, protocol, url, "url")  # as written, before the ids
+        clock = arguments.clock(call, clock)
         if not over_serial:
             array = open_array(protocol, sim=url,
                                clock=clock if clock is not None else VirtualClock())
         elif clock is not None:
-            raise PinArrayError("simulated_array: over_serial: a serial port plays in real time: "
-                                "give no clock")
+            raise PinArrayError(f"{call}: over_serial: a serial port plays in real time: give "
+                                "no clock")
+        elif isinstance(protocol.device.servo, HobbyServos):
+            raise PinArrayError(f"{call}: over_serial: protocol {protocol.name!r} drives hobby "
+                                "servos on a PCA9685 board, which sits on an I2C bus, not a "
+                                "serial port: open it without over_serial")
         else:
             array = open_array(protocol, port=self._serve(protocol, url))
         self._opened.append(array)

@@ -119,6 +119,7 @@ def test_a_player_process_killed_mid_trial_is_noticed_and_the_parent_rests_the_p
         player.play(prepare_trial(bus, pulse_train(IDS, 5, 20)), tolerance_ns=10**7)
     assert died.value.safe_stop.complete  # how soon it is noticed: `make bench`
     player.close()
+    player.close()  # again (a rig's close after a Ctrl-C as it replaced it): nothing more
     bus.close()
     wait_until_safe(server, IDS)
 

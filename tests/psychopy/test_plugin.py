@@ -159,6 +159,66 @@ def test_a_touch_whose_flip_never_comes_is_cancelled_not_delivered_nothing_moved
         assert touch.onsetTime is None
 
 
+class FailingWindow:
+    """A window look-alike whose flip callbacks cannot be registered."""
+
+    def timeOnFlip(self, stamps, name):  # noqa: N802  (PsychoPy's names)
+        raise RuntimeError("no flips here")
+
+    callOnFlip = timeOnFlip  # noqa: N815
+
+
+@pytest.mark.parametrize("window", [None, "the window", FailingWindow()],
+                         ids=["None", "a str", "a look-alike that fails"])
+def test_arming_on_what_is_not_a_window_is_refused_leaving_nothing_armed(win, window):
+    with PinArrayDevice(APPARENT_MOTION) as device:
+        wave = pinarray.find_condition(device.protocol, stimulus="leftwards")
+        with pytest.raises(pinarray.PinArrayError, match=r"^armOnFlip: win: ") as refused:
+            device.armOnFlip(wave, window)
+        assert "\n" not in str(refused.value)
+        touch = device.armOnFlip(wave, win)  # the array is free: nothing was left armed
+        win.flip()
+        assert touch.wait().record.missing == 0
+
+
+def test_a_touch_refuses_a_timeout_that_is_not_one_in_its_own_name(win):
+    with PinArrayDevice(APPARENT_MOTION) as device:
+        touch = device.armOnFlip(pinarray.find_condition(device.protocol, stimulus="leftwards"),
+                                 win)
+        for timeout in (-1, float("nan"), "1", True):
+            with pytest.raises(pinarray.PinArrayError,
+                               match=r"^Touch.wait: timeout: expected a number of seconds"):
+                touch.wait(timeout)
+        win.flip()
+        touch.wait()
+
+
+@pytest.mark.parametrize("port", [5, b"/dev/ttyUSB0", "/dev/ttyUSB0\0"],
+                         ids=["an int", "bytes", "a NUL"])
+def test_a_port_that_is_no_path_is_refused_in_pinarrays_words(port):
+    with pytest.raises(pinarray.PinArrayError, match=r"^open_array: port: expected a serial "
+                                                     r"device's path") as refused:
+        PinArrayDevice(APPARENT_MOTION, port=port)
+    assert "\n" not in str(refused.value)
+
+
+def test_a_port_asked_for_by_another_name_hands_back_the_device_holding_it(way, tmp_path):
+    settings, served = way
+    if served is None:
+        pytest.skip("a serial device's names")
+    link = tmp_path / "ttyUSB-array"
+    link.symlink_to(served.path)
+    first = DeviceManager.addDevice("pinarray", "touch", protocol=str(APPARENT_MOTION),
+                                    **settings)
+    try:
+        again = DeviceManager.addDevice("pinarray", "touch by its link",
+                                        protocol=str(APPARENT_MOTION), port=str(link))
+        assert again is first and first.array.is_open
+    finally:
+        DeviceManager.removeDevice("touch by its link")
+        DeviceManager.removeDevice("touch")
+
+
 def playing(device: PinArrayDevice, win: visual.Window):
     """A 10 s train armed on a flip and playing: its touch."""
     touch = device.armOnFlip(pinarray.find_condition(device.protocol, pin=6, frequency_hz=3), win)
@@ -241,6 +301,36 @@ def test_the_example_delivers_through_a_serial_port_with_psychopy_imported_first
     assert all(served.torque_off_at_ns().values())
 
 
+def test_the_example_losing_its_port_mid_run_ends_in_one_line_the_row_marked_not_delivered(
+        tmp_path, way):
+    settings, served = way
+    if served is None:
+        pytest.skip("a serial port that can be lost")
+    process = example_mid_run(tmp_path, served.path)
+    served.process.kill()  # the adapter pulled out
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 2, err
+    (line,) = err.strip().splitlines()
+    assert line.startswith("psychopy_congruency: ") and "Traceback" not in err
+    with (tmp_path / "sub-ci_congruency.csv").open(newline="", encoding="utf-8-sig") as rows:
+        trials = [row for row in csv.DictReader(rows) if row["flash"]]
+    last = trials[-1]
+    assert last["touch.delivered"] == "False" and last["touch.ending"] == "failed", last
+    assert last["touch.problem"].startswith("the array failed: ")
+    assert all(row["touch.ending"] == "played" for row in trials[:-1])
+
+
+def example_mid_run(tmp_path, port):
+    """The example on servos behind ``port``, its array open and trials running: its process."""
+    process = example(tmp_path, port)
+    deadline = time.monotonic() + 120  # a bound against a hang, not a timing target
+    while not player_of(process.pid):  # the array open: its player process started
+        assert process.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    time.sleep(1.5)  # trials running
+    return process
+
+
 def player_of(pid: int) -> bool:
     """Whether process ``pid`` has a player process (pinarray's, started as an array opens)."""
     for entry in os.listdir("/proc"):
@@ -260,12 +350,7 @@ def test_ctrl_c_in_the_example_mid_run_takes_every_servos_torque_off(tmp_path, w
     settings, served = way
     if served is None:
         pytest.skip("a serial port's servos tell what reached them")
-    process = example(tmp_path, served.path)
-    deadline = time.monotonic() + 120
-    while not player_of(process.pid):  # the array open: its player process started
-        assert process.poll() is None and time.monotonic() < deadline
-        time.sleep(0.05)
-    time.sleep(1.5)  # trials running
+    process = example_mid_run(tmp_path, served.path)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=60)
     assert "KeyboardInterrupt" in err

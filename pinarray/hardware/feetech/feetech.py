@@ -147,7 +147,8 @@ class FeetechBus:
             try:
                 replies = self.link.exchange(packet, expected, patience=PATIENCE_GROWTH ** attempt)
             except WireLost as error:
-                raise self._lost(f"{action} of servo {servo_id}", error) from None
+                raise self._lost(f"{action} servo {servo_id}" if action == "pinging"
+                                 else f"{action} of servo {servo_id}", error) from None
             if servo_id in replies:
                 return replies[servo_id]
         mismatched = self.link.counters.mismatched_replies - before
@@ -195,6 +196,12 @@ class FeetechBus:
             return None
         return from_bytes(data)
 
+    def ping_attempt(self, servo_id: int, attempt: int) -> int | None:
+        """Model number of the servo at ``servo_id``, or None: one PING, waiting as long as
+        the ``attempt``-th try of `ping` would (0: one latency allowance), then the model
+        number's read, retried as usual."""
+        return self._ping_once(servo_id, None, PATIENCE_GROWTH ** attempt)
+
     def ping_within(self, servo_id: int, timeout_ns: int) -> int | None:
         """Model number of the servo at ``servo_id``, or None if no PING answer by ``timeout_ns``.
 
@@ -202,14 +209,18 @@ class FeetechBus:
         together), for sweeping many ids quickly; the model-number read of a servo that
         answered is retried as usual.
         """
-        packet = packets.ping(servo_id)
         # As many latency allowances as the timeout holds: the wait is the timeout, not the
         # allowance learnt while the host was quiet.
         allowance_ns = max(1, self.link.latency.allowance_ns)
         patience = min(-(-timeout_ns // allowance_ns), sum(PATIENCE_GROWTH ** k for k in range(4)))
+        return self._ping_once(servo_id, self.clock.now_ns() + timeout_ns, max(1, patience))
+
+    def _ping_once(self, servo_id: int, deadline_ns: int | None, patience: int) -> int | None:
+        """One PING (no answer by ``deadline_ns``, or the reply time with ``patience``: None),
+        then the model number's read, retried as usual."""
         try:
-            replies = self.link.exchange(packet, (Expected(servo_id, 0),),
-                                         self.clock.now_ns() + timeout_ns, patience=max(1, patience))
+            replies = self.link.exchange(packets.ping(servo_id), (Expected(servo_id, 0),),
+                                         deadline_ns, patience=patience)
         except WireLost as error:
             raise self._lost(f"pinging servo {servo_id}", error) from None
         if servo_id not in replies:
@@ -308,8 +319,9 @@ class FeetechBus:
         handshake.hold(self)
 
     def reconnect(self) -> None:
-        """The handshake again, after a fault released torque."""
-        self.connect(self.setup)
+        """Torque on again after a safe stop: the light way where every servo answers as it
+        should, else the whole handshake (`pinarray.hardware.feetech.handshake.hold_again`)."""
+        handshake.hold_again(self)
 
     # -- playback ------------------------------------------------------------------------
 

@@ -52,6 +52,7 @@ from pinarray.analysis.observers import (
     hermite,
     observer_items,
     observer_number,
+    quoted,
 )
 from pinarray.errors import PinArrayError
 from pinarray.grid import DEFAULT_GRID, Grid
@@ -396,14 +397,14 @@ def parse_observer(spec: str) -> ObserverModel:
             except ValueError:
                 frequency = Fraction(0)
             if not 0 < frequency <= 1000:
-                raise PinArrayError(f"observer: {name!r}: expected correct_<Hz>hz with a "
+                raise PinArrayError(f"observer: {quoted(name)}: expected correct_<Hz>hz with a "
                                     "frequency above 0 and at most 1000 Hz")
             anchors[float(frequency)] = value
         elif name in scalars:
             changes[name] = value
         else:
             raise PinArrayError(
-                f"observer: unknown parameter {name!r}; expected one of "
+                f"observer: unknown parameter {quoted(name)}; expected one of "
                 f"{sorted(scalars)} or correct_<Hz>hz"
             )
     return replace(model, correct_by_frequency=tuple(sorted(anchors.items())), **changes)

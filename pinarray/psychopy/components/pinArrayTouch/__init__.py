@@ -237,7 +237,7 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         # refused).
         indented = self.writeStopTestCode(buff, extra="or %(name)s.done")
         if indented:
-            if self.params["stopVal"].val not in ("", None, -1, "None"):
+            if self._has_stop_time():
                 # Cut now, not on the coming flip: the routine may end without one (every
                 # component finished), and a callback left for the next routine's first flip
                 # would cut the next touch.
@@ -249,6 +249,16 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
             buff.setIndentLevel(-indented, relative=True)
 
     def writeRoutineEndCode(self, buff: Any) -> None:
+        if self._has_stop_time():
+            # A routine of known duration ends on its own clock, which started before this
+            # component's first flip (the stop time counts from it): at a stop time that is
+            # the routine's end, the check in the frame code may never have run.
+            code = (
+                "# *%(name)s*: the routine ended on its clock at the stop time: cut there too\n"
+                "if %(name)s.status == STARTED and not routineForceEnded and not %(name)s.done:\n"
+                "    %(name)s.device.stop('its stop time')\n"
+            )
+            buff.writeIndentedLines(code % self.params)
         if not self.params["waitForEnd"].val:
             code = (
                 "# *%(name)s*: the routine's end cuts it if it is still playing\n"
@@ -330,6 +340,10 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
             raise CodeGenerationException(self.params["name"].val, (
                 f"{self.params[name].label}: expected {expected}, or a $variable, found "
                 f"{text!r}")) from None
+
+    def _has_stop_time(self) -> bool:
+        """Whether the dialog gives the touch a stop (it is cut there if still playing)."""
+        return self.params["stopVal"].val not in ("", None, -1, "None")
 
     def _check_stimulus(self) -> None:
         """A stimulus given as constants that the protocol does not hold stops the compiling,

@@ -1,0 +1,422 @@
+"""What a hostile pass over issue 44's surfaces found, held: on every way out the pins rest and
+torque goes off as the servos themselves show it (a script killed with forked helpers alive, a
+player process that stops answering, a script suspended mid-stimulus), a port has one owner
+whatever names it, a stimulus cut is reported cut, the stimulus after a stop is ready when
+armed, an array let go of is closed. On both ways to the pins where the way matters (the
+in-process simulator, a serial port served on a pseudo-terminal with the player process
+playing). How fast each of these is is `make bench`'s (bench_stop, bench_ways_out), never
+asserted here."""
+
+import gc
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections import Counter
+from contextlib import contextmanager
+
+import pytest
+
+import pinarray
+from pinarray.hardware.feetech.faults import SimConfig
+from pinarray.hardware.feetech.serve import PtyServer
+from tests.test_library_paths import (
+    at_rest_and_released,
+    buzz,
+    wait_moving,
+    way,  # noqa: F401  (a fixture: each way to the pins)
+)
+
+realtime = pytest.mark.realtime  # the wall clock and pseudo-terminals: run apart
+PING = 0x01
+
+
+def until(condition, timeout_s: float = 30.0, what: str = "the condition") -> None:
+    """Wait for ``condition()``; a generous bound against a hang, not a timing target."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, f"{what}: not within {timeout_s} s"
+        time.sleep(0.02)
+
+
+def served():
+    return PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+
+
+@contextmanager
+def script_on_a_port(tmp_path, text: str, protocol: pinarray.Protocol, *args: str):
+    """``text`` run as a lab's script (its arguments: the protocol's file, the port, ``args``)
+    on servos behind a pseudo-terminal: its process and the served bus."""
+    server = served()
+    script = tmp_path / "script.py"
+    script.write_text(text)
+    process = subprocess.Popen([sys.executable, str(script), str(protocol.source), server.path,
+                                *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        yield process, server
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        server.stop()
+
+
+@contextmanager
+def array_on_a_port(protocol: pinarray.Protocol):
+    """The protocol's array opened on servos behind a pseudo-terminal: it and the served bus."""
+    server = served()
+    array = pinarray.open_array(protocol, port=server.path)
+    try:
+        yield array, server
+    finally:
+        array.close()
+        server.stop()
+
+
+def armed_and_moving(array: pinarray.PinArray, servos) -> pinarray.Armed:
+    """Pin 6's stimulus armed 100 ms ahead, once it moves."""
+    armed = array.arm(pinarray.find_condition(array.protocol, pin=6),
+                      at_ns=array.now_ns() + 10**8)
+    wait_moving(servos)
+    return armed
+
+
+def alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+    except OSError:
+        return False
+
+
+def player_pid(array: pinarray.PinArray) -> int:
+    player = array._rig.player
+    assert player is not None, "no player process on this way"
+    return player.process.pid
+
+
+FORKING_SCRIPT = """\
+import multiprocessing, os, sys, time
+import pinarray
+
+protocol = pinarray.load_protocol(sys.argv[1])
+array = pinarray.open_array(protocol, port=sys.argv[2])
+
+def helper():
+    time.sleep(600)
+
+if sys.argv[3] == "multiprocessing":
+    worker = multiprocessing.get_context("fork").Process(target=helper)
+    worker.start()
+    helper_pid = worker.pid
+else:
+    helper_pid = os.fork()
+    if helper_pid == 0:
+        helper()
+        os._exit(0)
+# A second ahead: the fork must not make a busy host miss the onset (nothing would move).
+armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**9)
+print(helper_pid, flush=True)
+time.sleep(600)
+"""
+
+
+@realtime
+@pytest.mark.parametrize("forked_by", ["multiprocessing", "os.fork"])
+def test_a_script_killed_mid_stimulus_while_its_forked_helpers_live_leaves_the_servos_released(
+        tmp_path, forked_by):
+    # A lab's recorder or analysis workers forked after the array opened: they must not keep
+    # the stimulus playing, torque on or the port held once the script itself is gone.
+    protocol = buzz(tmp_path, 10)
+    helper = None
+    with script_on_a_port(tmp_path, FORKING_SCRIPT, protocol, forked_by) as (process, server):
+        try:
+            helper = int(process.stdout.readline())
+            wait_moving(server.sim.servos)
+            process.kill()
+            process.wait(timeout=30)
+            until(lambda: not at_rest_and_released(server.sim.servos),
+                  what="every servo at rest and released")
+            assert alive(helper)  # the helper lives on: it held nothing
+            until(lambda: _opens(protocol, server.path), what="the port free to open")
+        finally:
+            if helper is not None and alive(helper):
+                os.kill(helper, signal.SIGKILL)
+
+
+def _opens(protocol, port) -> bool:
+    try:
+        pinarray.open_array(protocol, port=port).close()
+    except pinarray.PortInUse:
+        return False
+    return True
+
+
+COPY_SCRIPT = """\
+import os, sys
+import pinarray
+
+protocol = pinarray.load_protocol(sys.argv[1])
+array = pinarray.open_array(protocol, port=sys.argv[2])
+# A second ahead: the fork and the copy's end must not make a busy host miss the onset.
+armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**9)
+if os.fork() == 0:
+    sys.exit(0)  # a copy that ends as any script does: its interpreter's exit runs
+os.wait()
+delivery = armed.result(timeout_s=60)
+print(delivery.delivered, type(delivery.ending).__name__, flush=True)
+print(delivery.problem, flush=True)
+array.close()
+"""
+
+
+@realtime
+def test_a_forked_copy_that_ends_leaves_the_scripts_stimulus_and_array_alone(tmp_path):
+    protocol = buzz(tmp_path, 1)
+    with script_on_a_port(tmp_path, COPY_SCRIPT, protocol) as (process, server):
+        out, err = process.communicate(timeout=120)
+        assert process.returncode == 0, err
+        assert out.splitlines()[0].split() == ["True", "Played"], out
+        assert at_rest_and_released(server.sim.servos) == []
+
+
+@realtime
+def test_a_player_process_that_stops_answering_mid_stimulus_is_killed_and_the_pins_rest(
+        tmp_path):
+    protocol = buzz(tmp_path, 1)
+    outcome: dict[str, object] = {}
+    with array_on_a_port(protocol) as (array, server):
+        def present() -> None:
+            try:
+                outcome["delivery"] = array.present(pinarray.find_condition(protocol, pin=6))
+            except pinarray.PinArrayError as error:
+                outcome["error"] = error
+
+        presenting = threading.Thread(target=present, daemon=True)
+        presenting.start()
+        wait_moving(server.sim.servos)
+        frozen = player_pid(array)
+        os.kill(frozen, signal.SIGSTOP)  # frozen: alive, silent
+        presenting.join(timeout=60)
+        assert not presenting.is_alive(), "present() waited on a frozen player for ever"
+        error = outcome.get("error")
+        assert isinstance(error, pinarray.PlaybackAborted), outcome
+        assert "stopped answering" in str(error) and "killed" in str(error)
+        assert at_rest_and_released(server.sim.servos) == []
+        assert not alive(frozen)
+        # A new player process for the next stimulus, which plays.
+        assert array.present(pinarray.find_condition(protocol, pin=6)).delivered
+
+
+@realtime
+def test_a_stop_while_the_player_process_is_frozen_still_releases_every_servo(tmp_path):
+    with array_on_a_port(buzz(tmp_path, 10)) as (array, server):
+        armed = armed_and_moving(array, server.sim.servos)
+        os.kill(player_pid(array), signal.SIGSTOP)
+        report = array.stop()
+        assert report.complete and at_rest_and_released(server.sim.servos) == []
+        ending = armed.result(timeout_s=30).ending
+        assert isinstance(ending, pinarray.Cut) and ending.by == "stop()"
+
+
+SUSPENDED_SCRIPT = """\
+import sys
+import pinarray
+
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    print("open", flush=True)
+    delivery = array.present(pinarray.find_condition(protocol, pin=6))
+    print(type(delivery.ending).__name__, getattr(delivery.ending, "by", ""), flush=True)
+    again = array.present(pinarray.find_condition(protocol, pin=6))
+    print(again.delivered, flush=True)
+"""
+
+
+@realtime
+def test_a_script_suspended_mid_stimulus_gets_it_cut_and_every_servo_released(tmp_path):
+    # Ctrl-Z: nobody can stop a suspended script's stimulus, so none plays on its behalf.
+    protocol = buzz(tmp_path, 3)
+    with script_on_a_port(tmp_path, SUSPENDED_SCRIPT, protocol) as (process, server):
+        assert process.stdout.readline().strip() == "open"
+        wait_moving(server.sim.servos)
+        process.send_signal(signal.SIGTSTP)
+        until(lambda: not at_rest_and_released(server.sim.servos),
+              what="every servo at rest and released while the script is suspended")
+        process.send_signal(signal.SIGCONT)
+        out, err = process.communicate(timeout=60)
+        assert process.returncode == 0, err
+        assert out.splitlines() == ["Cut the script's suspension (Ctrl-Z)", "True"]
+
+
+@realtime
+def test_a_port_held_is_refused_whatever_url_or_link_names_it(tmp_path):
+    protocol = buzz(tmp_path, 0.4)
+    server = served()
+    link = tmp_path / "ttyUSB-array"
+    link.symlink_to(server.path)
+    try:
+        with pinarray.open_array(protocol, port=server.path):
+            for name in (f"spy://{server.path}?file=/dev/null", f"alt://{server.path}",
+                         str(link), f"/dev/pts/../pts/{server.path.rsplit('/', 1)[1]}"):
+                with pytest.raises(pinarray.PortInUse, match="in this process: close it first"):
+                    pinarray.open_array(protocol, port=name)
+            # Nothing sent to the held port, whatever names it.
+            assert pinarray.find_servo_ports([f"spy://{server.path}?file=/dev/null"]) == ()
+            with pytest.raises(pinarray.BusError, match="hwgrep:// picks a serial port"):
+                pinarray.open_array(protocol, port="hwgrep://pts")
+    finally:
+        server.stop()
+
+
+@realtime
+@pytest.mark.parametrize("cutting", ["stop()", "close()"])
+def test_a_presentation_cut_from_another_thread_is_reported_cut_not_unstarted(
+        way, tmp_path, cutting):  # noqa: F811
+    protocol = buzz(tmp_path, 10)
+    array = way.open(protocol)
+    delivered: list[pinarray.Delivery] = []
+    presenting = threading.Thread(
+        target=lambda: delivered.append(array.present(pinarray.find_condition(protocol, pin=6))))
+    presenting.start()
+    wait_moving(way.servos(array))
+    asked_ns = array.now_ns()
+    array.stop() if cutting == "stop()" else array.close()
+    presenting.join(timeout=30)
+    (delivery,) = delivered
+    assert isinstance(delivery.ending, pinarray.Cut), delivery.ending
+    assert delivery.ending.by == cutting and delivery.ending.at_ns >= asked_ns
+    assert delivery.problem == f"cut short by {cutting}"
+    assert at_rest_and_released(way.servos(array)) == []
+
+
+@realtime
+def test_a_signal_to_the_player_process_mid_presentation_is_a_cut_naming_it(tmp_path):
+    with array_on_a_port(buzz(tmp_path, 10)) as (array, server):
+        armed = armed_and_moving(array, server.sim.servos)
+        os.kill(player_pid(array), signal.SIGTERM)
+        delivery = armed.result(timeout_s=30)
+        assert isinstance(delivery.ending, pinarray.Cut)
+        assert delivery.problem == "cut short by SIGTERM sent to the player process"
+        assert at_rest_and_released(server.sim.servos) == []
+
+
+def packets_received(array: pinarray.PinArray, server: PtyServer | None) -> int:
+    """Instruction packets the servos have received so far, as they count them."""
+    bus = server.sim if server is not None else array._rig.bus.sim
+    return bus.packets_received
+
+
+@realtime
+@pytest.mark.parametrize("armed_for", ["a time", "a cue"])
+def test_after_a_stop_the_next_stimulus_is_held_again_as_it_is_armed_in_a_few_exchanges(
+        way, tmp_path, armed_for):  # noqa: F811
+    # Not the connect handshake (every servo pinged and read one by one, tens of ms on real
+    # servos): the stimulus armed after a stop must start when it is due.
+    protocol = buzz(tmp_path, 0.4)
+    array = way.open(protocol)
+    condition = pinarray.find_condition(protocol, pin=6)
+    array.stop()
+    assert at_rest_and_released(way.servos(array)) == []
+    before = packets_received(array, way.server)
+    armed = (array.arm(condition, at_ns=array.now_ns() + 10**9) if armed_for == "a time"
+             else array.arm(condition))
+    held_again = packets_received(array, way.server) - before
+    servos = way.servos(array)
+    assert all(servos[i].torque_enabled for i in range(1, 17))  # holding when arm returned
+    assert held_again <= 8, f"{held_again} packets to hold 16 servos again"
+    if armed_for == "a cue":
+        armed.start()
+    assert armed.result(timeout_s=30).delivered
+
+
+def test_the_result_of_a_stimulus_waiting_for_its_start_is_refused_at_once_not_waited_for(
+        tmp_path):
+    protocol = buzz(tmp_path, 0.4)
+    with pinarray.open_array(protocol) as array:
+        armed = array.arm(pinarray.find_condition(protocol, pin=6))
+        outcome: list[BaseException] = []
+
+        def wait() -> None:
+            try:
+                armed.result()
+            except pinarray.PinArrayError as error:
+                outcome.append(error)
+
+        waiting = threading.Thread(target=wait, daemon=True)
+        waiting.start()
+        waiting.join(timeout=30)
+        assert not waiting.is_alive(), "result() waited for a start nobody could give"
+        assert "waits for Armed.start(), which has not been called" in str(outcome[0])
+        armed.cancel()
+        assert isinstance(armed.result().ending, pinarray.NotStarted)
+
+
+@realtime
+def test_an_array_let_go_of_without_close_is_closed_its_pins_released_its_port_free(
+        way, tmp_path):  # noqa: F811
+    protocol = buzz(tmp_path, 0.4)
+    seen = {}
+
+    def use_once() -> None:
+        if way.server is not None:
+            array = pinarray.open_array(protocol, port=way.server.path)
+        else:
+            array = pinarray.open_array(protocol, sim="sim://", clock=pinarray.MonotonicClock())
+        seen["servos"] = way.servos(array)
+        assert array.present(pinarray.find_condition(protocol, pin=6)).delivered
+        # ... and the script forgets to close it
+
+    use_once()
+    gc.collect()
+    assert at_rest_and_released(seen["servos"]) == []
+    if way.server is not None:
+        pinarray.open_array(protocol, port=way.server.path).close()  # the port is free
+
+
+@realtime
+def test_open_array_where_no_servo_answers_gives_up_after_asking_each_id_twice(tmp_path):
+    # Servo power off, the wrong adapter: every id named at once, soon (bench: bench_ways_out).
+    protocol = buzz(tmp_path, 0.4)
+    server = PtyServer(SimConfig(ids=(200,)), record_arrivals=True).start()
+    try:
+        with pytest.raises(pinarray.BusError,
+                           match=r"no answer from servo id\(s\) 1, 2, .*, 16 \(answered: none\)"):
+            pinarray.open_array(protocol, port=server.path)
+        pings = Counter(a.servo_id for a in server.arrivals if a.instruction == PING)
+        assert sorted(pings) == list(range(1, 17)) and max(pings.values()) == 2, pings
+    finally:
+        server.stop()
+
+
+@realtime
+def test_a_port_in_use_names_the_holder_and_its_player_not_a_program_that_has_it_open(
+        tmp_path):
+    protocol = buzz(tmp_path, 0.4)
+    server = served()
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import pinarray, sys; array = pinarray.open_array("
+         f"pinarray.load_protocol({str(protocol.source)!r}), port={server.path!r}); "
+         "print('held', flush=True); sys.stdin.read()"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    # A program that merely has the device open (a terminal, ModemManager): not the holder.
+    bystander = subprocess.Popen(
+        [sys.executable, "-c", f"import sys; port = open({server.path!r}, 'rb', buffering=0); "
+         "print('open', flush=True); sys.stdin.read()"],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        assert bystander.stdout.readline().strip() == "open"
+        with pytest.raises(pinarray.PortInUse) as refused:
+            pinarray.open_array(protocol, port=server.path)
+        said = str(refused.value)
+        assert f"in use by process {holder.pid} (" in said
+        assert "and its player process " in said
+        assert str(bystander.pid) not in said
+    finally:
+        for process in (holder, bystander):
+            process.kill()
+            process.wait()
+        server.stop()
