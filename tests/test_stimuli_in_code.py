@@ -8,6 +8,7 @@ process driving it), as tests/test_library_paths.py opens both."""
 from __future__ import annotations
 
 import math
+import re
 from fractions import Fraction
 
 import numpy as np
@@ -102,6 +103,64 @@ def test_a_stimulus_the_array_cannot_play_is_refused_before_anything_moves(way, 
         assert "\n" not in message
     assert sum(written) == 0  # not a goal reached any servo
     assert "open, idle" in repr(array)
+
+
+# pinarray's default device (STS3215 servos at their datasheet speed, the seed's 114-step
+# stroke), written as a protocol with no device section: the analytic check lets one pin
+# follow up to 13.16 Hz, but the simulated servos also limit acceleration and lag.
+DEFAULT_DEVICE = """\
+protocol: default-device
+stimuli:
+  tap: {frequency_hz: 5, duration_s: 0.4}
+design: {paradigm: localisation, stimulus: tap, pins: [6], frequencies_hz: [5]}
+"""
+# RIG's 12-step stroke, its stroke judged (the default tolerance): fast trains of many pins
+# leave the verifier too few samples between frames to measure a cycle.
+SMALL_STROKE = RIG.replace("  delivery_tolerance_ms: 500\n  stroke_tolerance_percent: 0\n", "")
+
+
+def pattern(pins, frequency_hz, duration_s=0.5):
+    return pinarray.Pattern(pins=list(pins), train=pinarray.Train(frequency_hz=frequency_hz,
+                                                                  duration_s=duration_s))
+
+
+@realtime
+@pytest.mark.parametrize(("device", "stimulus", "because"), [
+    (DEFAULT_DEVICE, pattern([6], 10, 1), r"pin 6 moved \d+ of 114 commanded steps"),
+    (SMALL_STROKE, pattern(range(1, 17), 20), r"pin 1's stroke not measured in"),
+    (SMALL_STROKE, pattern(range(1, 5), 40), r"pin 1's stroke not measured in"),
+], ids=["the default servos cannot lift a pin at 10 Hz", "16 pins at 20 Hz are not measured",
+        "4 pins at 40 Hz are not measured"])
+def test_a_stimulus_the_simulated_servos_would_not_deliver_is_refused_before_anything_moves(
+        way, device, stimulus, because):
+    array = way.open(pinarray.protocol_from_text(device, name="rig"))
+    written = goal_writes(way.servos(array))
+    for call in (array.prepare, array.arm, array.present):
+        with pytest.raises(pinarray.PinArrayError) as refused:
+            call(stimulus)
+        message = str(refused.value)
+        assert message.startswith(f"{call.__name__}: Pattern: played as a run plays it, on "
+                                  "simulated STS3215 servos")
+        assert re.search(because, message) and "\n" not in message, message
+    assert sum(written) == 0  # not a goal reached any servo
+    assert "open, idle" in repr(array)
+
+
+@pytest.mark.parametrize("pins", [[6], [6, 7, 10, 11]])
+def test_what_the_default_device_refuses_is_what_it_would_not_deliver(pins):
+    # Across the frequencies where the servos stop keeping up: every stimulus accepted is
+    # delivered, and the faster ones are refused before they play.
+    outcomes = {}
+    with pinarray.open_array() as array:
+        for frequency_hz in range(6, 14):
+            try:
+                delivery = array.present(pattern(pins, frequency_hz, 1))
+            except pinarray.PinArrayError:
+                outcomes[frequency_hz] = "refused"
+            else:
+                assert_delivered(delivery)
+                outcomes[frequency_hz] = "delivered"
+    assert outcomes[6] == "delivered" and outcomes[13] == "refused", outcomes
 
 
 def test_an_array_opened_without_a_protocol_plays_code_on_the_default_device():
@@ -221,6 +280,13 @@ GOOD = {"frequency_hz": 5, "duration_s": 1}
     (lambda: pinarray.Wave("rightwards", row=1.0, train=TAP), "row"),
     (lambda: pinarray.Wave("sequence", pins=[1, 2], direction=5, train=TAP), "direction"),
     (lambda: pinarray.Wave("rightwards", row=1, train=TAP, soa_ms=-math.inf), "soa_ms"),
+    # Past 4300 digits Python will not write an int as text: refused before it is.
+    (lambda: pinarray.Train(frequency_hz=10**5000, duration_s=1), "frequency_hz"),
+    (lambda: pinarray.Train(**GOOD, pulses_per_cycle=10**5000), "pulses_per_cycle"),
+    (lambda: pinarray.Train(frequency_hz=Fraction(10**5000, 3), duration_s=1), "frequency_hz"),
+    (lambda: pinarray.Pattern(pins=[10**5000], train=TAP), "pins[0]"),
+    (lambda: pinarray.Frames(frames=[SQUARE, SQUARE], soa_ms=10**5000), "soa_ms"),
+    (lambda: pinarray.Wave("rightwards", row=10**5000, train=TAP), "row"),
 ], ids=lambda value: value if isinstance(value, str) else "")
 def test_a_wrong_argument_is_a_one_line_error_naming_it(build, named):
     with pytest.raises(pinarray.PinArrayError) as refused:
@@ -294,3 +360,23 @@ def test_a_protocol_from_text_locates_its_problems_at_name_line_col():
     for text, name in ((5, "x"), (RIG, ""), (RIG, "two\nlines"), ("x" * (1 << 20 + 1), "x")):
         with pytest.raises(pinarray.PinArrayError, match="^protocol_from_text: (text|name): "):
             pinarray.protocol_from_text(text, name=name)
+
+
+def test_a_value_refused_for_its_digits_is_shown_with_the_digits_that_refuse_it():
+    # A float32's 0.3 is 0.30000001192092896: not 3 of 10 pulses, and the message says so.
+    with pytest.raises(pinarray.PinArrayError) as refused:
+        pinarray.Train(**GOOD, duty_cycle=np.float32(0.3))
+    assert str(refused.value).endswith("found 0.30000001192092896 (3.0000001192092896 pulses)")
+    with pinarray.open_array() as array, pytest.raises(pinarray.PinArrayError) as refused:
+        array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
+            **GOOD, pulse_width_ms={"up": 2.000001, "down": 1.5})))
+    assert str(refused.value).endswith("pin 6: no calibrated position for a 2.000001 ms pulse; "
+                                       "calibrated widths: 1.5 ms, 2 ms")
+
+
+def test_a_stimulus_too_long_for_one_trial_says_what_a_script_can_do_instead():
+    with pinarray.open_array() as array, pytest.raises(pinarray.PinArrayError) as refused:
+        array.present(pattern([6], 5, 172800))
+    assert "--allow-long" not in str(refused.value)
+    assert str(refused.value).endswith("shorten the signal, or present it as several shorter "
+                                       "stimuli, one after another")

@@ -66,3 +66,32 @@ def test_the_example_plays_its_stimuli_through_a_serial_port(tmp_path, capsys):
 def test_real_servos_without_their_protocol_are_refused_before_the_port_is_opened(tmp_path):
     with pytest.raises(pinarray.PinArrayError, match="real servos need the protocol that calibrates them"):
         example().main(["--port", "/dev/ttyUSB9", "--log", str(tmp_path / "log.csv")])
+
+
+PATTERNS = EXAMPLE.with_name("psychopy_patterns.psyexp")
+
+
+def test_the_builder_patterns_example_asks_only_for_what_the_default_device_delivers():
+    # The Builder example's patterns (its conditions file's pins and frequencies on the
+    # dialog's train), each delivered in full on the simulated default device in virtual time,
+    # where no load can make one late: what its PsychoPy run presents (tests/psychopy).
+    import xml.etree.ElementTree as ElementTree
+
+    touch = ElementTree.parse(PATTERNS).find(".//PinArrayTouchComponent")
+    assert touch is not None
+    dialog = {param.get("name"): param.get("val") for param in touch.iter("Param")}
+    assert (dialog["pins"], dialog["frequency"], dialog["protocol"]) == ("$pins",
+                                                                          "$frequency_hz", "")
+    conditions = rows_written(PATTERNS.with_name("psychopy_patterns.csv"))
+    assert len(conditions) == 6
+    with pinarray.open_array(clock=pinarray.VirtualClock()) as array:
+        for row in conditions:
+            pins = [int(pin) for pin in row["pins"].strip("[]").split(",")]
+            stimulus = pinarray.Pattern(pins=pins, train=pinarray.Train(
+                frequency_hz=float(row["frequency_hz"]),
+                duration_s=float(dialog["trainDuration"]),
+                duty_cycle=float(dialog["dutyCycle"])))
+            delivery = array.present(stimulus)
+            assert delivery.delivered, (row, delivery.problem)
+            for stroke in delivery.strokes:
+                assert stroke.unmeasured_cycles == 0 and stroke.achieved_steps == 114, stroke

@@ -53,6 +53,8 @@ def shown(value: object) -> str:
 
 def found(value: object) -> str:
     """A value as a message shows what was found: its repr (shortened) and its type."""
+    if isinstance(value, int) and value.bit_length() > 200:  # too long to show in a line
+        return f"an int of {value.bit_length()} bits ({type(value).__name__})"
     return f"{shown(value)} ({type(value).__name__})"
 
 

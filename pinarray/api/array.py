@@ -65,6 +65,7 @@ from pinarray.player.playback import (
     Suspended,
 )
 from pinarray.player.process import StartCue
+from pinarray.player.rehearsal import Rehearsal
 from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.in_code import drives_on
@@ -108,6 +109,10 @@ class PinArray:
         self._trials: dict[Stimulus, PreparedTrial] = {}
         self._built: dict[Built, tuple[PinDrive, ...]] = {}  # read against this array's device
         self._preparing = threading.Lock()
+        # Code-built stimuli played first on the simulated array, as `pinarray validate` plays
+        # a protocol's (opened on first use, one play per distinct shape on the bus).
+        self._rehearsal: Rehearsal | None = None
+        self._rehearsing = threading.Lock()
         # Armed stimuli play in one thread of their own, started once: starting a thread per
         # stimulus would hand it the interpreter for up to a switch interval (5 ms) while the
         # script's frame loop waited in `arm`.
@@ -311,6 +316,7 @@ class PinArray:
                     self._finalizer.detach()
                     self._safe_stop = self._rig.close()
                     _open_arrays.discard(self)
+                    self._close_rehearsal()
                     self._armed.put(None)  # the thread playing armed stimuli ends
                 log.info("%s: closed by %s: %s", self.url, by, self._safe_stop.describe())
             return self._safe_stop
@@ -323,9 +329,10 @@ class PinArray:
         match stimulus:
             case Pattern() | Frames() | Wave():
                 if stimulus not in self._built:
-                    self._built[stimulus] = drives_on(
-                        protocol.device, f"{call}: {type(stimulus).__name__}",
-                        code_stimulus(stimulus))
+                    what = f"{call}: {type(stimulus).__name__}"
+                    drives = drives_on(protocol.device, what, code_stimulus(stimulus))
+                    self._rehearse(what, drives)
+                    self._built[stimulus] = drives
                 return stimulus
             case Train():
                 raise PinArrayError(f"{call}: stimulus: a Train plays on pins: present "
@@ -347,6 +354,24 @@ class PinArray:
                                 "condition of the protocol's design: write it into the protocol "
                                 "(find_condition names what it holds)")
         return condition
+
+    def _rehearse(self, what: str, drives: tuple[PinDrive, ...]) -> None:
+        """Refuse ``drives`` that the simulated array does not deliver (`pinarray.player.
+        rehearsal`: what the analytic checks of `drives_on` cannot see, the servos'
+        acceleration and lag, a stroke the verifier cannot sample), before anything moves."""
+        with self._rehearsing:
+            self._check_open(what.partition(":")[0])
+            if self._rehearsal is None:
+                self._rehearsal = Rehearsal()
+            problem = self._rehearsal(drives, self.protocol.device)
+        if problem is not None:
+            raise PinArrayError(f"{what}: {problem}")
+
+    def _close_rehearsal(self) -> None:
+        with self._rehearsing:
+            if self._rehearsal is not None:
+                self._rehearsal.close()
+                self._rehearsal = None
 
     def _trial(self, stimulus: Stimulus) -> PreparedTrial:
         trial = self._trials.get(stimulus)

@@ -327,12 +327,19 @@ def _code_pattern(pattern: Pattern) -> CodePattern:
 # -- the door: each argument of the right kind, or a one-line error naming it -------------------
 
 
+# No number a stimulus takes comes near this many bits (a protocol's are at most 40 characters);
+# Python refuses to write an int past 4300 digits as text, so longer ones are refused first.
+_MAX_BITS = 1000
+
+
 def _number(call: str, name: str, value: object) -> Number:
     """A finite number, as the exact text a protocol would write for it (a float's shortest
     decimal: 0.1 is 1/10)."""
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        return Number(str(int(value)))
+        return Number(str(_short(call, name, int(value))))
     if isinstance(value, Fraction):
+        _short(call, name, value.numerator)
+        _short(call, name, value.denominator)
         return _exact(value)
     if isinstance(value, numbers.Real) and not isinstance(value, bool) \
             and math.isfinite(float(value)):
@@ -345,9 +352,15 @@ def _exact(value: Fraction) -> Number:
                   else str(value.numerator))
 
 
+def _short(call: str, name: str, value: int) -> int:
+    if value.bit_length() > _MAX_BITS:
+        arguments.refuse(call, name, f"a number of at most {_MAX_BITS} bits", value)
+    return value
+
+
 def _whole(call: str, name: str, value: object) -> int:
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        return int(value)
+        return _short(call, name, int(value))
     arguments.refuse(call, name, "a whole number (int)", value)
 
 

@@ -248,7 +248,13 @@ def _check_shapes_completed(reader: Reader, section: DesignSection,
             )
 
 
-def check_trial_pulses(reader: Reader, node: Node, count: int, *, long_trials: bool) -> None:
+# What a trial of too many pulses can do instead, in a protocol (its default) and in code.
+LONGER_IN_A_FILE = "or, to write a longer schedule to a file, use pinarray compile --allow-long"
+LONGER_IN_CODE = "or present it as several shorter stimuli, one after another"
+
+
+def check_trial_pulses(reader: Reader, node: Node, count: int, *, long_trials: bool,
+                       longer: str = LONGER_IN_A_FILE) -> None:
     if long_trials and count > MAX_PULSES:
         raise reader.error(
             node,
@@ -260,8 +266,8 @@ def check_trial_pulses(reader: Reader, node: Node, count: int, *, long_trials: b
         raise reader.error(
             node,
             f"expected at most {MAX_PULSES_PER_TRIAL:,} pulses in one trial, found {count:,} "
-            "(frequency x pulses per cycle x signal length, for each pin); shorten the signal, "
-            "or, to write a longer schedule to a file, use pinarray compile --allow-long",
+            f"(frequency x pulses per cycle x signal length, for each pin); shorten the signal, "
+            f"{longer}",
         )
 
 

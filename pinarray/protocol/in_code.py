@@ -23,7 +23,7 @@ from typing import TypeAlias
 from yaml import MappingNode, Mark, Node, ScalarNode, SequenceNode
 
 from pinarray.errors import PinArrayError, ProtocolError
-from pinarray.protocol.design import check_trial_pulses
+from pinarray.protocol.design import LONGER_IN_CODE, check_trial_pulses
 from pinarray.protocol.drives import pulse_slots
 from pinarray.protocol.model import (
     AnyWave,
@@ -164,7 +164,8 @@ def drives_on(device: Device, what: str, stimulus: CodeStimulus) -> tuple[PinDri
     drives = shape.drives()
     where = _fields({}, "")
     reader.attempt(lambda: check_trial_pulses(
-        reader, where, sum(pulse_slots(d.train) for d in drives), long_trials=False), None)
+        reader, where, sum(pulse_slots(d.train) for d in drives), long_trials=False,
+        longer=LONGER_IN_CODE), None)
     reader.raise_first()
     return drives
 

@@ -137,11 +137,22 @@ class PinCalibration:
         for width, position in self.positions_by_width_ns:
             if width == width_ns:
                 return position
-        known = ", ".join(f"{w / 1e6:g} ms" for w, _ in self.positions_by_width_ns)
+        known = ", ".join(f"{exact_words(Fraction(w, 1_000_000))} ms"
+                          for w, _ in self.positions_by_width_ns)
         raise PinArrayError(
-            f"pin {self.pin}: no calibrated position for a {width_ns / 1e6:g} ms pulse; "
-            f"calibrated widths: {known}"
+            f"pin {self.pin}: no calibrated position for a "
+            f"{exact_words(Fraction(width_ns, 1_000_000))} ms pulse; calibrated widths: {known}"
         )
+
+
+def exact_words(value: Fraction) -> str:
+    """A number for a message: short (``0.3``, ``2``) when that is the number exactly, else as
+    many digits as tell it apart (``2.000001``, ``0.30000001192092896``; a float32's 0.3)."""
+    short = f"{float(value):g}"
+    if Fraction(short) == value:
+        return short
+    closest = repr(float(value))
+    return closest if Fraction(closest) == value else f"{float(value):.17g}"
 
 
 SIMULATED_PORT = "sim://"  # a protocol without a port plays on the simulated array

@@ -39,6 +39,7 @@ from pinarray.protocol.model import (
     Wave,
     WaveKind,
     WaveStimulus,
+    exact_words,
 )
 from pinarray.protocol.yaml_nodes import Invalid, Node, Reader, close_match, shown
 
@@ -190,7 +191,7 @@ def read_train(reader: Reader, node: Node) -> Train | TrainShape:
     if up_pulses.denominator != 1:
         raise reader.error(
             where,
-            f"expected a duty cycle that is a whole number of the {per_cycle} pulses per cycle, found {float(duty):g} ({float(up_pulses):g} pulses)",
+            f"expected a duty cycle that is a whole number of the {per_cycle} pulses per cycle, found {exact_words(duty)} ({exact_words(up_pulses)} pulses)",
         )
     if not 0 < up_pulses < per_cycle:
         raise reader.error(

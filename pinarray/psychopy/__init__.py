@@ -16,7 +16,7 @@ PsychoPy's plugin manager finds it by entry point (group ``psychopy.hardware``) 
 
 Builder's "Pin array touch" component is `pinarray.psychopy.components` (entry point
 ``psychopy.experiment.components``); a compiled experiment holds each one as a
-`PinArrayTouch`.
+`PinArrayTouch`, a problem there ending the experiment in one line (`endOnProblem`).
 
 A composition root of its own: it builds on the public face (`import pinarray`) and nothing
 in pinarray imports it, so the rest of the package never imports PsychoPy. Its names are
@@ -29,12 +29,13 @@ import importlib
 # typing.TYPE_CHECKING without importing typing: type checkers take this name as true.
 TYPE_CHECKING = False
 
-__all__ = ["PinArrayDevice", "PinArrayTouch", "Touch"]
+__all__ = ["PinArrayDevice", "PinArrayTouch", "Touch", "endOnProblem"]
 
 _HOME_OF = {
     "PinArrayDevice": "pinarray.psychopy.device",
     "PinArrayTouch": "pinarray.psychopy.routine",
     "Touch": "pinarray.psychopy.touch",
+    "endOnProblem": "pinarray.psychopy.routine",
 }
 
 
@@ -53,5 +54,5 @@ def __dir__() -> list[str]:
 
 if TYPE_CHECKING:  # what type checkers and documentation tools see; never run
     from pinarray.psychopy.device import PinArrayDevice
-    from pinarray.psychopy.routine import PinArrayTouch
+    from pinarray.psychopy.routine import PinArrayTouch, endOnProblem
     from pinarray.psychopy.touch import Touch

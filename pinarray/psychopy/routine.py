@@ -12,6 +12,7 @@ that the flip showing that frame starts it; at the routine's end, `Touch.addData
 
 from __future__ import annotations
 
+import sys
 import weakref
 from collections.abc import Collection, Iterator
 from contextlib import contextmanager
@@ -26,7 +27,7 @@ import pinarray
 from pinarray.psychopy.device import SIMULATED, PinArrayDevice
 from pinarray.psychopy.touch import COLUMN_GROUPS, DataSink, Touch
 
-__all__ = ["PinArrayTouch"]
+__all__ = ["PinArrayTouch", "endOnProblem"]
 
 # The arrays a component opened without a protocol (pinarray's default device), by id (a
 # device is not hashable: PsychoPy's devices compare by what they are connected to): a
@@ -88,6 +89,7 @@ class PinArrayTouch:
         """The touch armed this repeat (None before its start, or for a refused stimulus)."""
         self.refused: str | None = None
         """Why the array refused this repeat's stimulus, in its words (None: it did not)."""
+        self._written = True  # this repeat's row (nothing to write before the first repeat)
 
     @property
     def protocol(self) -> pinarray.Protocol:
@@ -121,6 +123,7 @@ class PinArrayTouch:
             What went wrong in the block, after the component's name.
         """
         self.stimulus, self.touch, self.refused = None, None, None
+        self._written = False
         try:
             yield
             if self.stimulus is None:
@@ -185,6 +188,7 @@ class PinArrayTouch:
         pinarray.Delivery or None
             What the array delivered; None for a touch never armed.
         """
+        self._written = True
         if self.touch is not None:
             return self.touch.addData(experiment, self.name, columns)
         problem = ("never started: the routine ended before its start" if self.refused is None
@@ -197,6 +201,26 @@ class PinArrayTouch:
         logging.warning(f"{self.name}: {_stimulus_name(self.stimulus)} not delivered: {problem}")
         return None
 
+    def experimentEnded(self, experiment: DataSink,
+                        columns: Collection[str] = COLUMN_GROUPS) -> None:
+        """The experiment ends (Escape, or its last routine; the compiled script calls this
+        from PsychoPy's ``endExperiment``, before the data are saved): a touch still playing is
+        cut (pins to rest, torque off), and this repeat's row, if its routine did not write it,
+        says what became of it (`addData`: cut, or never started).
+
+        Parameters
+        ----------
+        experiment : psychopy.data.ExperimentHandler
+            Where the row is (``thisExp``).
+        columns : collection of str
+            The column groups to write, as for `addData`.
+        """
+        if self._written:
+            return
+        if self.touch is not None and not self.touch.done:
+            self.device.stop("the experiment ending (Escape)")
+        self.addData(experiment, columns)
+
     def __repr__(self) -> str:
         return f"<PinArrayTouch {self.name} on {self.device!r}>"
 
@@ -205,6 +229,33 @@ class PinArrayTouch:
             raise pinarray.PinArrayError(f"{self.name}: no stimulus for this repeat: set it in "
                                          f"`with {self.name}.repeat():`")
         return self.stimulus
+
+
+@contextmanager
+def endOnProblem(experiment: Any, name: str) -> Iterator[None]:
+    """A problem in the block (a `pinarray.PinArrayError`: an array that cannot be opened, a
+    $variable's value refused) ends the experiment as bad input ends a pinarray command: one
+    line naming the component on stderr and in the log, exit status 2. The data so far are
+    saved as the script exits (PsychoPy's ``ExperimentHandler`` saves at the interpreter's
+    exit) and the array is closed, pins at rest.
+
+    Parameters
+    ----------
+    experiment : psychopy.data.ExperimentHandler
+        The experiment (``thisExp``), whose data file the line names.
+    name : str
+        The component's name.
+    """
+    try:
+        yield
+    except pinarray.PinArrayError as error:
+        line = str(error) if str(error).startswith(f"{name}: ") else f"{name}: {error}"
+        saved = getattr(experiment, "dataFileName", None)
+        logging.error(line)
+        logging.flush()
+        sys.stderr.write(line + (f" (the data so far are saved as {saved}.csv)" if saved
+                                 else "") + "\n")
+        raise SystemExit(2) from None
 
 
 def _named_array(device: str | PinArrayDevice, name: str) -> PinArrayDevice:

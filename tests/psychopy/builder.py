@@ -59,19 +59,30 @@ def set_up_device_manager(folder: Path, monkeypatch, profile: dict) -> DeviceCon
     return devices
 
 
-def compile_and_run(exp_file: Path, folder: Path) -> Path:
-    """Compile ``exp_file`` as Builder does (`Experiment.loadFromXML`, `writeScript`), run the
-    script in a process of its own (as Builder's Runner does), and return its data file."""
+def run_compiled(exp_file: Path, edit=lambda script: script) -> subprocess.CompletedProcess:
+    """Compile ``exp_file`` as Builder does (`Experiment.loadFromXML`, `writeScript`; the
+    script passed through ``edit``), and run it in a process of its own (as Builder's Runner
+    does)."""
     exp = experiment.Experiment()
     exp.loadFromXML(str(exp_file))
     script = exp_file.with_suffix(".py")
-    script.write_text(exp.writeScript(target="PsychoPy"), encoding="utf-8")
-    run = subprocess.run([sys.executable, str(script)], cwd=script.parent, capture_output=True,
-                         text=True, timeout=300)
-    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
-    data_files = sorted((script.parent / "data").glob("*.csv"))
+    script.write_text(edit(exp.writeScript(target="PsychoPy")), encoding="utf-8")
+    return subprocess.run([sys.executable, str(script)], cwd=script.parent, capture_output=True,
+                          text=True, timeout=300)
+
+
+def data_file_of(exp_file: Path) -> Path:
+    data_files = sorted((exp_file.parent / "data").glob("*.csv"))
     assert len(data_files) == 1, data_files
     return data_files[0]
+
+
+def compile_and_run(exp_file: Path, folder: Path) -> Path:
+    """Compile and run ``exp_file`` (`run_compiled`), which must end well, and return its data
+    file."""
+    run = run_compiled(exp_file)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    return data_file_of(exp_file)
 
 
 def rows_of(data_file: Path) -> tuple[list[str], list[dict[str, str]]]:

@@ -130,10 +130,10 @@ def test_the_compiled_frame_arms_the_touch_on_the_flip_that_shows_its_start():
     armed = script.index("tactile.armOnFlip(win)")
     flipped = script.index("win.flip()", armed)
     assert start < armed < flipped  # armed in the start test, the frame's flip after it
-    assert "with tactile.repeat():\n" in script
+    assert "with endOnProblem(thisExp, 'tactile'), tactile.repeat():\n" in script
     assert "tactile.stimulus = pinarray.find_condition(\n" in script
     assert "tactile.protocol, stimulus=wave, pin=None," in script
-    assert "tactile = PinArrayTouch(\n" in script and "device='touch'," in script
+    assert "    tactile = PinArrayTouch(\n" in script and "device='touch'," in script
     assert "protocol='apparent_motion.yaml'," in script
     assert "tactile.addData(thisExp, columns=['delivered', 'onset', 'strokes'])" in script
     compile(script, "compiled", "exec")

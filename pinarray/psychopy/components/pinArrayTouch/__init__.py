@@ -14,9 +14,10 @@ which data columns to write. The stimulus is one of two kinds, and Pins chooses 
   pinarray.Train(...))` at each repeat, checked against the array's device then.
 
 A dialog that mixes the two kinds stops the compiling (`CodeGenerationException`, one line),
-as does a pattern whose values, given as constants, `pinarray.Train` or `pinarray.Pattern`
-refuse; $variables are read at their repeat, where a problem stops the experiment in one line
-naming the component (`PinArrayTouch.repeat`).
+as does a field that is neither a value nor a $variable, and a pattern's fixed value that
+`pinarray.Train` or `pinarray.Pattern` refuse (each on its own, beside $variables too);
+$variables are read at their repeat, where a problem ends the experiment in one line naming
+the component, exit status 2 (`pinarray.psychopy.endOnProblem`).
 
 The script compiled from it does what docs/programmers/psychopy.md's hand-written one does:
 each repeat, the stimulus found or built and prepared on the array (one the array cannot play
@@ -92,6 +93,7 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
             disabled=disabled)
         self.exp.requireImport(importName="pinarray")
         self.exp.requireImport(importName="PinArrayTouch", importFrom="pinarray.psychopy")
+        self.exp.requireImport(importName="endOnProblem", importFrom="pinarray.psychopy")
         self.params["deviceLabel"].hint = _translate(
             "The pin array, as named in Builder's Device Manager (add it there: a serial port "
             "where bus servos answer, or the simulated array, 'pin array@sim://'); blank: the "
@@ -175,14 +177,19 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         code = (
             "# *%(name)s*: touches on the pin array %(deviceLabel)s of Builder's Device Manager,\n"
             "# opened now for its protocol (none: the simulated array, pinarray's default\n"
-            "# device): servos checked, pins at rest, stimuli prepared\n"
-            "%(name)s = PinArrayTouch(\n"
-            "    device=%(deviceLabel)s,\n"
-            "    protocol=%(protocol)s,\n"
-            "    name='%(name)s',\n"
-            ")\n"
+            "# device): servos checked, pins at rest, stimuli prepared; a problem ends the\n"
+            "# experiment in one line (exit status 2)\n"
+            "with endOnProblem(thisExp, '%(name)s'):\n"
+            "    %(name)s = PinArrayTouch(\n"
+            "        device=%(deviceLabel)s,\n"
+            "        protocol=%(protocol)s,\n"
+            "        name='%(name)s',\n"
+            "    )\n"
+            "# the experiment ending (Escape) cuts a touch still playing, and its row says so\n"
+            "runAtExit.append(lambda: %(name)s.experimentEnded(thisExp, columns=%(columns)s))\n"
         )
-        buff.writeIndentedLines(code % _blank_as_text(inits, "deviceLabel", "protocol"))
+        buff.writeIndentedLines(code % {**_blank_as_text(inits, "deviceLabel", "protocol"),
+                                        "columns": repr(self._columns())})
 
     def writeRoutineStartCode(self, buff: Any) -> None:
         inits = getInitVals(self.params)
@@ -194,7 +201,7 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                 "train,\n"
                 "# checked against the array's device (one it refuses is not armed: its row "
                 "says why)\n"
-                "with %(name)s.repeat():\n"
+                "with endOnProblem(thisExp, '%(name)s'), %(name)s.repeat():\n"
                 "    %(name)s.stimulus = pinarray.Pattern(\n"
                 "        pins=%(pins)s,\n"
                 f"        train=pinarray.Train({train}))\n"
@@ -202,7 +209,7 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         else:
             code = (
                 "# *%(name)s*: this repeat's stimulus, found in the protocol's design\n"
-                "with %(name)s.repeat():\n"
+                "with endOnProblem(thisExp, '%(name)s'), %(name)s.repeat():\n"
                 "    %(name)s.stimulus = pinarray.find_condition(\n"
                 "        %(name)s.protocol, stimulus=%(stimulus)s, pin=%(pin)s,\n"
                 "        frequency_hz=%(frequency)s)\n"
@@ -259,13 +266,15 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
                 "    %(name)s.device.stop(\"the routine's end\")\n"
             )
             buff.writeIndentedLines(code % self.params)
-        columns = [group for param, group in SAVE_PARAMS.items() if self.params[param].val]
         code = (
             "# *%(name)s*: its data (once it has ended), and a line in the log\n"
-            f"%(name)s.addData(thisExp, columns={columns!r})\n"
+            f"%(name)s.addData(thisExp, columns={self._columns()!r})\n"
         )
         buff.writeIndentedLines(code % self.params)
         super().writeRoutineEndCode(buff)
+
+    def _columns(self) -> list[str]:
+        return [group for param, group in SAVE_PARAMS.items() if self.params[param].val]
 
     def _given(self, param: str) -> bool:
         return str(self.params[param].val).strip() not in ("", "None")
@@ -295,28 +304,42 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         return bool(pattern)
 
     def _check_pattern(self) -> None:
-        """A pattern given as constants that `pinarray.Train` or `pinarray.Pattern` refuse
-        stops the compiling in their words; what depends on the array (its grid, each pin's
-        stroke, the servo bus) is checked where it runs, and $variables at their repeat."""
-        values: dict[str, Any] = {}
-        for name in ("pins", *TRAIN_PARAMS):
-            if not self._given(name):
-                continue
-            if str(self.params[name].val).strip().startswith("$"):
-                return
-            try:
-                values[name] = ast.literal_eval(str(self.params[name]))
-            except (ValueError, SyntaxError):
-                return  # code, not a value: it is known at run time only
+        """A pattern's fixed values (not $variables) that are not values, or that
+        `pinarray.Train` or `pinarray.Pattern` refuse, stop the compiling in one line: each on
+        its own, whatever the other fields are; what depends on the array (its grid, each
+        pin's stroke, the servo bus) is checked where it runs, and $variables at their repeat."""
+        values = {name: self._value(name) for name in ("pins", *TRAIN_PARAMS)
+                  if self._given(name) and not self._variable(name)}
         import pinarray  # only now: Builder imports this module without the array
 
+        fixed = {keyword: values[param] for param, keyword in TRAIN_PARAMS.items()
+                 if param in values}
+        variable = {keyword for param, keyword in TRAIN_PARAMS.items()
+                    if self._given(param) and self._variable(param)}
         try:
-            train = pinarray.Train(**{keyword: values[param]
-                                      for param, keyword in TRAIN_PARAMS.items()
-                                      if param in values})
-            pinarray.Pattern(pins=values["pins"], train=train)
+            train = pinarray.Train(**_completed(fixed, variable))
+            if "pins" in values:
+                pinarray.Pattern(pins=values["pins"], train=train)
         except pinarray.PinArrayError as error:
             raise CodeGenerationException(self.params["name"].val, str(error)) from None
+
+    def _variable(self, name: str) -> bool:
+        return str(self.params[name].val).strip().startswith("$")
+
+    def _value(self, name: str) -> Any:
+        """A field's fixed value, read as the Python literal it must be (``6, 7`` a tuple of
+        pins); one that is not stops the compiling, naming the field."""
+        text = str(self.params[name].val).strip()
+        try:
+            return ast.literal_eval(text if name != "pins" or text.startswith(("[", "("))
+                                    else f"[{text}]")
+        except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+            expected = ("pin numbers such as 6, 7, 10, 11" if name in ("pins",)
+                        else "a pin number such as 6" if name == "pin"
+                        else "a number such as 5")
+            raise CodeGenerationException(self.params["name"].val, (
+                f"{self.params[name].label}: expected {expected}, or a $variable, found "
+                f"{text!r}")) from None
 
     def _has_stop_time(self) -> bool:
         """Whether the dialog gives the touch a stop (it is cut there if still playing)."""
@@ -330,15 +353,15 @@ class PinArrayTouchComponent(BaseDeviceComponent):  # type: ignore[misc]  # Psyc
         the run."""
         given = {name: str(self.params[name].val).strip()
                  for name in ("protocol", "stimulus", "pin", "frequency")}
+        for name in ("pin", "frequency"):
+            if given[name] and not given[name].startswith("$"):
+                self._value(name)  # a value, not words: stops the compiling if not
         if not given["protocol"] or any(value.startswith("$") for value in given.values()):
             return
         folder = Path(self.exp.filename).parent if self.exp.filename else Path.cwd()
         protocol_file = folder / given["protocol"]
-        try:
-            pin, frequency_hz = (ast.literal_eval(given[name]) if given[name] else None
-                                 for name in ("pin", "frequency"))
-        except (ValueError, SyntaxError):
-            return  # code, not a value: it is known at run time only
+        pin, frequency_hz = (self._value(name) if given[name] else None
+                             for name in ("pin", "frequency"))
         if not protocol_file.is_file():
             return
         import pinarray  # only now: Builder imports this module without the array
@@ -366,6 +389,33 @@ class PinArrayDeviceBackend(DeviceBackend):  # type: ignore[misc]  # PsychoPy is
 
     def writeDeviceCode(self, buff: Any) -> None:
         self.writeBaseDeviceCode(buff, close=True)
+
+
+def _completed(fixed: dict[str, Any], variable: set[str]) -> dict[str, Any]:
+    """A train's fixed arguments with its ``variable`` ones ($variables, known at their repeat)
+    filled in so that every fixed one passes if any value of those could: as many pulses a
+    cycle as make a fixed duty cycle whole (else two, the longest pulse period), one of them
+    up, at the frequency whose pulse period fits the seed's 2 ms pulse, for a minute. A train
+    with no $variable: exactly its arguments."""
+    from fractions import Fraction
+
+    completed = dict(fixed)
+    if "pulses_per_cycle" in variable:
+        try:
+            pulses = Fraction(str(fixed["duty_cycle"])).denominator
+        except (KeyError, ValueError, TypeError, ZeroDivisionError):
+            pulses = 2
+        completed["pulses_per_cycle"] = pulses if 2 <= pulses <= 1000 else 2
+    pulses = completed.get("pulses_per_cycle", 10)
+    if not isinstance(pulses, int) or isinstance(pulses, bool) or not 2 <= pulses <= 1000:
+        return completed  # refused for itself
+    if "duty_cycle" in variable:
+        completed["duty_cycle"] = Fraction(1, pulses)
+    if "frequency_hz" in variable:
+        completed["frequency_hz"] = Fraction(500, pulses)  # a pulse period of 2 ms
+    if "duration_s" in variable:
+        completed["duration_s"] = 60
+    return completed
 
 
 def _blank_as_text(inits: dict[str, Any], *names: str) -> dict[str, Any]:
