@@ -237,8 +237,10 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
 
 @realtime
 def test_a_script_suspended_mid_stimulus_gets_it_cut_and_every_servo_released(tmp_path):
-    # Ctrl-Z: nobody can stop a suspended script's stimulus, so none plays on its behalf.
-    protocol = buzz(tmp_path, 3)
+    # Ctrl-Z: nobody can stop a suspended script's stimulus, so none plays on its behalf. The
+    # stimulus is long (10 s, cut at once when the test passes): on a busy machine a 3 s one
+    # had ended, played whole, before the suspension reached the script (once in a make test).
+    protocol = buzz(tmp_path, 10)
     with script_on_a_port(tmp_path, SUSPENDED_SCRIPT, protocol) as (process, server):
         assert process.stdout.readline().strip() == "open"
         wait_moving(server.sim.servos)
