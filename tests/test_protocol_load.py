@@ -93,6 +93,20 @@ def test_decimals_are_exact_and_fractions_are_accepted():
     assert protocol.stimulus("buzz").train.frequency_hz == Fraction(1, 10)
 
 
+def test_a_quoted_number_is_read_as_the_number_it_writes_whole_or_not():
+    # A spreadsheet or a colleague may quote any number: "1/3" is read exactly, and so is a
+    # quoted count (hostile pass on issue 45, finding 11d: pitch_mm: "2" was read, but
+    # repetitions: "10" refused).
+    plain = parse_protocol(MINIMAL + "  repetitions: 10\n  seed: 7\n", "p.yaml")
+    quoted = parse_protocol(MINIMAL.replace("pins: [1, 2]", "pins: ['1', \"2\"]")
+                            .replace("[5]", "['5']") + "  repetitions: \"10\"\n  seed: ' 7'\n",
+                            "p.yaml")
+    assert quoted.design == plain.design and quoted.design.repetitions == 10
+    assert problems(MINIMAL + "  repetitions: '10.5'\n  blocks: '1_0'\n") == [
+        "p.yaml:11:16: expected a whole number for repetitions, found '10.5'",
+        "p.yaml:12:11: expected a whole number for blocks, found '1_0'"]
+
+
 def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
     protocol = parse_protocol(MINIMAL.replace("duration_s: 1", "duration_s: 1\n    phase_deg: 450"))
     assert protocol.stimulus("buzz").train.phase == Fraction(1, 4)

@@ -50,6 +50,7 @@ _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?", re.ASCII)
 # YAML 1.1 also reads 0x10 as 16, 017 as 15 (octal), 0b101, 1_000 and 1:00 as 60; a protocol
 # writes its numbers in decimal, as the lab (and a YAML 1.2 reader) reads them.
 _NOT_DECIMAL = re.compile(r"[_:xb]|^[+-]?0[0-9]+$")
+_WHOLE = re.compile(r"[+-]?\d+", re.ASCII)  # a whole number written in quotes
 _RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)", re.ASCII)
 
 
@@ -371,6 +372,12 @@ class Reader:
         self, node: Node, what: str, minimum: int | None = None, maximum: int | None = None
     ) -> int:
         value = self.decimal_value(node)
+        if isinstance(value, str) and _WHOLE.fullmatch(value.strip()):
+            # quoted, as a number with a unit may be ("1/3"): read as the number it writes
+            if len(value) > MAX_NUMBER_CHARS:
+                raise self.error(node, f"expected a number of at most {MAX_NUMBER_CHARS} "
+                                 f"characters, found {shown(node.value)}")
+            value = int(value)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(node, f"expected a whole number for {what}, found {describe(node)}")
         if minimum is not None and value < minimum:
