@@ -165,6 +165,8 @@ def _paradigm(reader: Reader, node: Node) -> ParadigmDesign:
         if isinstance(key_node, ScalarNode) and key_node.value == "paradigm":
             name = reader.string(value_node, "the paradigm")
             if not registry.is_known(name):
+                if any(plug_in.name == name for plug_in in registry.ignored()):
+                    raise reader.error(value_node, registry.why_not(name))  # and why not
                 reader.string(value_node, "the paradigm", registry.names())  # says which
             try:
                 return paradigm_named(name)
