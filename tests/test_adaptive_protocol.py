@@ -55,8 +55,8 @@ MISTAKES = [
     (STAIRCASES, "{count: 4, stimulus: no_wave}", "{count: 4}", "catch_trials:",
      "only a stroke can be presented at 0"),
     (QUEST, "{from: 4, to: 120, step: 4}", "{from: 4, to: 160, step: 4}", "values:",
-     "at stroke_steps 156: pin 6: a stroke of 156 steps lifts it to 2204, outside its "
-     "calibrated limits 2000..2200"),
+     "at stroke_steps 156: pin 6: expected a stroke within its calibrated limits 2000..2200, "
+     "found 156 steps, which lifts it to 2204"),
     (QUEST, "parameter: stroke_steps", "parameter: stroke_us", "parameter:",
      "expected stroke_steps (this device's positions are in steps)"),
     (QUEST, "lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0, 0.6]", "lapse_rates:",

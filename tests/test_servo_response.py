@@ -280,7 +280,8 @@ def test_servos_response_refuses_strokes_past_the_pins_limits_before_anything_mo
     status, out, err = run(capsys, "servos", "response", protocol, "--pin", 4, "--sim",
                            "--strokes", "500")
     assert status == 2 and err.count("\n") == 1
-    assert "pin 4: a stroke of 500 steps lifts it to 2548, outside its calibrated limits" in err
+    assert ("pin 4: expected a stroke within its calibrated limits 2000..2200, found 500 steps, "
+            "which lifts it to 2548") in err
     assert not (tmp_path / "p_response_pin4.yaml").exists()
 
 
