@@ -10,7 +10,9 @@ lab's own paradigm, in a package of its own, is found by its entry point in the 
 
 Rooms are imported when first asked for, and entry points are read only when a name is not
 one of pinarray's own (or every paradigm is asked for), so reading a protocol of a shipped
-paradigm costs one import. Nothing here knows what a paradigm does: the layers that use one
+paradigm costs one import. An entry point whose name pinarray ships, is no paradigm's name, or
+was given by a package found earlier is left out, and kept with why (`ignored`: the commands
+say it). Nothing here knows what a paradigm does: the layers that use one
 check it implements their part of the seam (`pinarray.protocol.seam`, `pinarray.journal.seam`,
 `pinarray.analysis.seam`). Pure Python.
 
@@ -31,6 +33,7 @@ import importlib
 import re
 import signal
 from functools import cache
+from typing import NamedTuple
 
 from pinarray.errors import Interrupted, PinArrayError
 
@@ -51,17 +54,65 @@ LISTED = ("localisation", "apparent_motion", "identification", "two_interval", "
 NAME = re.compile(r"[a-z][a-z0-9_]{0,31}")
 
 
-@cache
+class Ignored(NamedTuple):
+    """An installed plug-in the registry leaves out: its name, its package, and why."""
+
+    name: str
+    package: str
+    why: str
+
+    def warning(self) -> str:
+        """The one line a command says of it (after ``pinarray: warning: ``)."""
+        return f"paradigm plug-in {self.name} from {self.package} ignored: {self.why}"
+
+
 def _plug_ins() -> dict[str, str]:
-    """Installed packages' paradigms: name -> entry point value, pinarray's own names left
-    out (a plug-in cannot replace a shipped paradigm)."""
+    """Installed packages' paradigms: name -> entry point value (read once, `_entry_points`)."""
+    return _entry_points()[0]
+
+
+@cache
+def _entry_points() -> tuple[dict[str, str], tuple[Ignored, ...]]:
+    """Installed packages' paradigms (name -> entry point value), and those left out: a name
+    pinarray ships (a plug-in cannot replace a shipped paradigm), one that is no paradigm's
+    name, or one a package found earlier already gives."""
     from importlib.metadata import entry_points
 
-    found: dict[str, str] = {}
+    found: dict[str, tuple[str, str]] = {}
+    ignored: list[Ignored] = []
     for point in entry_points(group=GROUP):
-        if point.name not in BUILT_IN and NAME.fullmatch(point.name):
-            found.setdefault(point.name, point.value)
-    return dict(sorted(found.items()))
+        package = point.dist.name if point.dist is not None else "an unnamed package"
+        if point.name in BUILT_IN:
+            ignored.append(Ignored(point.name, package, "pinarray ships a paradigm of that "
+                                   "name, which a package cannot replace; rename the entry point"))
+        elif not NAME.fullmatch(point.name):
+            ignored.append(Ignored(point.name, package, "expected a paradigm's name (a lowercase "
+                                   "letter, then at most 31 lowercase letters, digits or _), "
+                                   f"found {point.name!r}"))
+        elif point.name in found:
+            ignored.append(Ignored(point.name, package, f"{found[point.name][1]} gives a "
+                                   "paradigm of that name too, and was found first"))
+        else:
+            found[point.name] = (point.value, package)
+    return ({name: value for name, (value, _) in sorted(found.items())}, tuple(ignored))
+
+
+def ignored() -> tuple[Ignored, ...]:
+    """The installed plug-ins left out, once the installed packages' entry points have been
+    read (nothing is read for them: a command says what its paradigms' reading found)."""
+    if not _entry_points.cache_info().currsize:
+        return ()
+    return _entry_points()[1]
+
+
+def why_not(name: str) -> str:
+    """Why a paradigm called ``name`` cannot be had, for a refusal: the paradigms there are,
+    and the installed plug-in of that name that was left out, if any."""
+    said = f"expected a paradigm ({', '.join(names())}), found {name!r}"
+    for plug_in in _entry_points()[1]:
+        if plug_in.name == name:
+            return f"{said}: the {plug_in.warning()}"
+    return said
 
 
 def names() -> tuple[str, ...]:
@@ -82,7 +133,7 @@ def room(name: str) -> object:
         return importlib.import_module(BUILT_IN[name]).PARADIGM
     value = _plug_ins().get(name)
     if value is None:
-        raise PinArrayError(f"expected a paradigm ({', '.join(names())}), found {name!r}")
+        raise PinArrayError(why_not(name))
     module, _, attribute = value.partition(":")
     try:
         found = importlib.import_module(module)

@@ -39,7 +39,7 @@ def line_of(text, fragment):
 
 MISTAKES = [
     (STAIRCASES, "        stop_after_trials: 40               # every procedure needs a trial limit\n",
-     "", "method: staircase", "needs a 'stop_after_trials' key, found none"),
+     "", "method: staircase", "expected a 'stop_after_trials' key in procedure 'from_above', found none"),
     (STAIRCASES, "start: 300", "start: 310", "start: 310",
      "expected the start to be one of the values (20, 40, 60, ..., 280, 300), found 310"),
     (STAIRCASES, "{from: 20, to: 300, step: 20}", "[20, 60, 40]", "values:",
@@ -55,8 +55,8 @@ MISTAKES = [
     (STAIRCASES, "{count: 4, stimulus: no_wave}", "{count: 4}", "catch_trials:",
      "only a stroke can be presented at 0"),
     (QUEST, "{from: 4, to: 120, step: 4}", "{from: 4, to: 160, step: 4}", "values:",
-     "at stroke_steps 156: pin 6: a stroke of 156 steps lifts it to 2204, outside its "
-     "calibrated limits 2000..2200"),
+     "at stroke_steps 156: pin 6: expected a stroke within its calibrated limits 2000..2200, "
+     "found 156 steps, which lifts it to 2204"),
     (QUEST, "parameter: stroke_steps", "parameter: stroke_us", "parameter:",
      "expected stroke_steps (this device's positions are in steps)"),
     (QUEST, "lapse_rates: [0, 0.02, 0.05]", "lapse_rates: [0, 0.6]", "lapse_rates:",
@@ -112,7 +112,8 @@ def test_a_soa_that_drives_a_pin_twice_at_once_is_refused_at_that_value(tmp_path
                              "configurations: [rightwards, leftwards, no_wave]")
     path = tmp_path / "bad.yaml"
     path.write_text(bad)
-    with pytest.raises(ProtocolErrors, match="at soa_ms 20: pin 6 is driven twice at once"):
+    with pytest.raises(ProtocolErrors, match="at soa_ms 20: expected one train at a time on each "
+                                               "pin, found pin 6 driven twice at once"):
         load_protocol(path)
 
 

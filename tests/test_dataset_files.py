@@ -74,6 +74,13 @@ def test_a_damaged_root_file_is_refused_in_one_line_and_left_as_it_was(tmp_path)
     with pytest.raises(ResultsError, match=r"participants.tsv:1:1: expected the first column "
                                            r"participant_id, found \['subject'\]"):
         start_run(tmp_path, "01", "localisation", localisation_plan((4, 10)))
+    # a cell longer than Python's csv module reads: said at its line, not in csv's words
+    long_cell = "participant_id\tnote\nsub-01\t" + "x" * 200_000 + "\n"
+    (tmp_path / "participants.tsv").write_text(long_cell)
+    with pytest.raises(ResultsError, match=r"participants.tsv:2:8: expected cells of at most "
+                                           r"131,072 characters, found one of 200,000$"):
+        start_run(tmp_path, "01", "localisation", localisation_plan((4, 10)))
+    assert (tmp_path / "participants.tsv").read_text() == long_cell
 
 
 def test_a_subject_is_listed_once_however_many_runs_and_resumes(tmp_path):

@@ -180,7 +180,8 @@ def test_a_one_pattern_stimulus_asked_for_an_soa_is_said_where_the_value_is_writ
     with pytest.raises(ProtocolErrors) as raised:
         parse_protocol(text, "p.yaml")
     first = raised.value.errors[0]
-    assert first.line == 32 and "stimulus 'flutter' is one pattern: it has no SOA" in first.message
+    assert first.line == 32 and ("expected a stimulus with an SOA (frames or a wave), found "
+                                 "'flutter', one pattern") in first.message
 
 
 @pytest.mark.parametrize(("protocol", "spec"), [

@@ -77,6 +77,56 @@ def test_a_plug_in_is_found_by_its_entry_point_and_one_that_is_no_room_is_said_i
         registry.room.cache_clear()
 
 
+@pytest.fixture
+def installed_plug_ins(tmp_path, monkeypatch):
+    """A package installed with three paradigm entry points the registry leaves out: one
+    taking a name pinarray ships, one that is no paradigm's name, one another package gives
+    first (its own ``tap_count``); its entry points are read afresh."""
+    for package, points in (("pinarray-first", "tap_count = first_room:PARADIGM\n"),
+                            ("pinarray-clash", "two_point = clash_room:PARADIGM\n"
+                                               "Bad-Name = clash_room:PARADIGM\n"
+                                               "tap_count = clash_room:PARADIGM\n")):
+        info = tmp_path / package / f"{package.replace('-', '_')}-0.1.dist-info"
+        info.mkdir(parents=True)
+        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {package}\nVersion: 0.1\n")
+        (info / "entry_points.txt").write_text(f"[pinarray.paradigms]\n{points}")
+        monkeypatch.syspath_prepend(str(tmp_path / package))
+    monkeypatch.syspath_prepend(str(tmp_path / "pinarray-first"))  # found first
+    registry._entry_points.cache_clear()
+    registry.room.cache_clear()
+    yield
+    registry._entry_points.cache_clear()
+    registry.room.cache_clear()
+
+
+def test_an_installed_plug_in_left_out_is_named_and_a_protocol_asking_for_it_told_why(
+        installed_plug_ins, tmp_path, capsys):
+    from pinarray.cli import main
+
+    warnings = [
+        "pinarray: warning: paradigm plug-in two_point from pinarray-clash ignored: pinarray "
+        "ships a paradigm of that name, which a package cannot replace; rename the entry point",
+        "pinarray: warning: paradigm plug-in Bad-Name from pinarray-clash ignored: expected a "
+        "paradigm's name (a lowercase letter, then at most 31 lowercase letters, digits or _), "
+        "found 'Bad-Name'",
+        "pinarray: warning: paradigm plug-in tap_count from pinarray-clash ignored: "
+        "pinarray-first gives a paradigm of that name too, and was found first"]
+    text = (Path(__file__).parent.parent / "protocols" / "two_point.yaml").read_text()
+    capsys.readouterr()
+    for name, said in (("Bad-Name", f"expected a paradigm ({', '.join(registry.LISTED)}, "
+                                    f"tap_count), found 'Bad-Name': the {warnings[1][19:]}"),
+                       ("tow_point", "expected the paradigm to be one of ")):
+        asking = tmp_path / f"{name}.yaml"
+        asking.write_text(text.replace("paradigm: two_point", f"paradigm: {name}"))
+        assert main(["validate", str(asking)]) == 2
+        refusal, *rest = capsys.readouterr().err.splitlines()
+        assert refusal.startswith(f"{asking}:33:13: {said}"), refusal
+        assert sorted(rest) == sorted(warnings)  # each once, whatever order they were found in
+    # entry points not read (a shipped paradigm's protocol: test_startup): nothing to say
+    registry._entry_points.cache_clear()
+    assert registry.ignored() == ()
+
+
 # -- every condition checked against the bus at validate -------------------------------------
 
 @pytest.mark.parametrize("paradigm", sorted(SHIPPED))

@@ -84,7 +84,7 @@ def test_frames_play_their_patterns_one_soa_after_another():
 def test_frames_that_drive_a_pin_twice_at_once_are_refused():
     found = problems(stimuli("row: {pattern: [1, 2], train: buzz}\n"
                              "  wipe: {frames: [row, row], soa_ms: 100}"))
-    assert len(found) == 1 and "pin 1 is driven twice at once" in found[0]
+    assert len(found) == 1 and "found pin 1 driven twice at once" in found[0]
 
 
 def test_sixteen_pins_at_115200_baud_are_refused_with_the_bus_s_numbers():

@@ -93,6 +93,20 @@ def test_decimals_are_exact_and_fractions_are_accepted():
     assert protocol.stimulus("buzz").train.frequency_hz == Fraction(1, 10)
 
 
+def test_a_quoted_number_is_read_as_the_number_it_writes_whole_or_not():
+    # A spreadsheet or a colleague may quote any number: "1/3" is read exactly, and so is a
+    # quoted count (hostile pass on issue 45, finding 11d: pitch_mm: "2" was read, but
+    # repetitions: "10" refused).
+    plain = parse_protocol(MINIMAL + "  repetitions: 10\n  seed: 7\n", "p.yaml")
+    quoted = parse_protocol(MINIMAL.replace("pins: [1, 2]", "pins: ['1', \"2\"]")
+                            .replace("[5]", "['5']") + "  repetitions: \"10\"\n  seed: ' 7'\n",
+                            "p.yaml")
+    assert quoted.design == plain.design and quoted.design.repetitions == 10
+    assert problems(MINIMAL + "  repetitions: '10.5'\n  blocks: '1_0'\n") == [
+        "p.yaml:11:16: expected a whole number for repetitions, found '10.5'",
+        "p.yaml:12:11: expected a whole number for blocks, found '1_0'"]
+
+
 def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
     protocol = parse_protocol(MINIMAL.replace("duration_s: 1", "duration_s: 1\n    phase_deg: 450"))
     assert protocol.stimulus("buzz").train.phase == Fraction(1, 4)
@@ -105,7 +119,8 @@ def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
             "frequency_hz: 5\n",
             "frequncy_hz: 5\n",
             "4:5",
-            "unknown key 'frequncy_hz' in the pulse train; did you mean 'frequency_hz'?",
+            "expected a key of the pulse train, found 'frequncy_hz'; did you mean "
+            "'frequency_hz'?",
         ),
         ("frequency_hz: 5\n", "frequency_hz: .nan\n", "4:19", "expected a finite number of Hz"),
         ("frequency_hz: 5\n", "frequency_hz: -.inf\n", "4:19", "expected a finite number of Hz"),
@@ -162,7 +177,8 @@ def test_a_phase_beyond_360_degrees_wraps_onto_the_cycle():
             "duration_s: 1\n",
             "duration_s: 1\n    pulse_width_ms: {up: 30, down: 1.5}\n",
             "6:21",
-            "the up pulse of 30 ms does not fit the 20 ms period",
+            "expected pulse widths within the pulse period, found the up pulse of 30 ms, which "
+            "does not fit the 20 ms period",
         ),
         ("pins: [1, 2]", "pins: 1", "9:9", "expected a list for the pins, found '1'"),
     ],
@@ -186,12 +202,20 @@ def test_malformed_yaml_and_duplicate_keys_are_located():
     (line,) = problems("protocol: x\nstimuli: [1,\n")
     assert line.startswith("p.yaml:3:1: malformed YAML")
     lines = problems(MINIMAL.replace("protocol: mini\n", "protocol: mini\nprotocol: again\n"))
-    assert lines[0].startswith("p.yaml:2:1: duplicate key 'protocol'")
+    assert lines[0] == ("p.yaml:2:1: expected each key once in the protocol, found 'protocol' "
+                        "again (first at line 1)")
+    lines = problems(MINIMAL.replace("  paradigm:", "  blocks: 2\n  blocks: 3\n  paradigm:"))
+    assert lines == ["p.yaml:8:3: expected each key once in the design, found 'blocks' again "
+                     "(first at line 7)"]
 
 
-def test_an_empty_file_is_a_clear_error():
-    (line,) = problems("")
-    assert "expected a protocol, found an empty file" in line
+@pytest.mark.parametrize(("text", "found"), [
+    ("", "an empty file"), ("\n  \n", "an empty file"),
+    ("# nothing yet\n\n", "only comments and blank lines")])
+def test_an_empty_file_is_a_clear_error_at_its_first_line(text, found):
+    (line,) = problems(text)
+    assert line == ("p.yaml:1:1: expected a protocol mapping (protocol:, stimuli:, design:), "
+                    f"found {found}")
 
 
 def test_a_stroke_the_servo_cannot_follow_is_refused_with_what_is_achievable():
@@ -219,7 +243,8 @@ def test_an_impossible_ordering_constraint_is_reported_at_validation():
     )
     (line,) = problems(text)
     assert line.startswith("p.yaml:12:")
-    assert "impossible order constraint: pin 1 appears 2 times among 2 trials" in line
+    assert ("expected order constraints a shuffle can meet, found pin 1 on 2 of the 2 trials "
+            "shuffled together: with runs of at most 1, the other 0 can separate at most 1") in line
 
 
 def test_a_no_wave_needs_a_central_pin():
@@ -343,10 +368,12 @@ def test_calibration_outside_the_limits_and_shared_servo_ids_are_refused():
     )
     assert (
         lines[0].startswith("p.yaml:7:")
-        and "pin 4: position 2300 steps is outside its limits [2000, 2200]" in lines[0]
+        and "pin 4: expected its position within its limits [2000, 2200] steps, found 2300"
+        in lines[0]
     )
     assert (
-        lines[1].startswith("p.yaml:8:") and "servo id 3 drives both pin 3 and pin 16" in lines[1]
+        lines[1].startswith("p.yaml:8:")
+        and "expected one pin for each servo id, found 3 driving both pin 3 and pin 16" in lines[1]
     )
 
 
@@ -383,7 +410,8 @@ def test_a_no_wave_whose_centre_taps_overlap_is_refused_at_validation():
     design: {paradigm: apparent_motion, configurations: [still]}
     """
     (line,) = problems(text)
-    assert line.startswith("p.yaml:4:") and "pin 2 is driven twice at once" in line
+    assert line.startswith("p.yaml:4:") and ("expected one train at a time on each pin, found "
+                                             "pin 2 driven twice at once") in line
 
 
 def test_yaml_tags_and_impossible_dates_are_located_errors_not_tracebacks():
@@ -411,7 +439,8 @@ def test_every_independent_problem_is_reported_in_one_pass():
                                   ("  inter_trial_interval_s: 3", "  inter_trial_interval_s: 2s"))
     found = problems(text)
     assert len(found) == 4, found
-    assert "unknown key 'duraton_s' in the pulse train; did you mean 'duration_s'?" in found[0]
+    assert ("expected a key of the pulse train, found 'duraton_s'; did you mean 'duration_s'?"
+            in found[0])
     assert "duty cycle that is a whole number of the 10 pulses per cycle, found 0.55" in found[1]
     # Its train is broken, yet still the name meant:
     assert "found 'seed_trian'; did you mean 'seed_train'?" in found[2]
@@ -424,7 +453,7 @@ def test_a_typo_in_the_device_section_does_not_hide_the_designs_problems():
                                   ("13, 16]", "13, 17]"))
     found = problems(text)
     assert [line.split(": ", 1)[1] for line in found] == [
-        "unknown key 'baud_rat' in the servo section; did you mean 'baud_rate'?",
+        "expected a key of the servo section, found 'baud_rat'; did you mean 'baud_rate'?",
         "expected a pin from 1 to 16 on the 4x4 grid, found 17",
         "expected repetitions of at least 1, found 0"]
 
@@ -443,5 +472,5 @@ def test_a_misspelt_servo_key_is_reported_alone_not_with_problems_of_the_default
                                   ("frequencies_hz: [3, 5, 10]", "frequencies_hz: [3, 5, 10, 20]"),
                                   ("  repetitions: 1", "  repetitions: 0"))
     found = [line.split(": ", 1)[1] for line in problems(text)]
-    assert found == ["unknown key 'sped_steps_per_s' in the servo section; did you mean "
-                     "'speed_steps_per_s'?", "expected repetitions of at least 1, found 0"]
+    assert found == ["expected a key of the servo section, found 'sped_steps_per_s'; did you "
+                     "mean 'speed_steps_per_s'?", "expected repetitions of at least 1, found 0"]

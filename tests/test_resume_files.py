@@ -15,7 +15,7 @@ import pytest
 import pinarray
 from pinarray.errors import ResultsError
 from tests.lab_protocols import short_copy
-from tests.test_paradigm_holes import RESUME_TIMEOUT_S, run_cut_short
+from tests.test_paradigm_holes import RESUME_TIMEOUT_S, edited, run_cut_short
 
 
 def snapshot(results: Path) -> dict[str, str]:
@@ -108,3 +108,26 @@ def test_a_fifo_in_a_results_files_place_is_refused_not_waited_on(tmp_path, wher
     (line,) = result.stderr.strip().splitlines()
     assert line.endswith("file, found a FIFO (named pipe)") and str(results) in line
     assert snapshot(results) == before
+
+
+# A cell longer than Python's csv module reads (131,072 characters) leaked its words, with no
+# line (hostile pass on issue 45, finding 11b): said at its row and column, by both readers.
+def test_a_results_cell_too_long_to_read_is_refused_at_its_row_by_analyse_and_resume(
+        tmp_path, capsys):
+    from pinarray.cli import main
+
+    protocol_path, results = damaged_run(tmp_path, "beh", lambda beh: edited(
+        beh, "response", "1" * 200_000))
+    (beh,) = results.rglob("*_beh.tsv")
+    column = beh.read_text().splitlines()[2].index("1" * 200_000) + 1
+    said = (f"{beh}:3:{column}: expected cells of at most 131,072 characters, found one of "
+            "200,000")
+    before = snapshot(results)
+    capsys.readouterr()
+    assert main(["analyse", str(results), "--out", str(tmp_path / "analysis")]) == 2
+    first, *rest = capsys.readouterr().err.splitlines()
+    assert first == f"pinarray: {said}" and all(str(beh) not in line for line in rest)
+    assert main(["batch", str(protocol_path), "--subject", "01", "--observer", "default",
+                 "--results", str(results), "--resume"]) == 2
+    assert capsys.readouterr().err.splitlines() == [f"pinarray: {said}"]
+    assert snapshot(results) == before and not (tmp_path / "analysis").exists()

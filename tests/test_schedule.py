@@ -160,7 +160,7 @@ def test_a_leftwards_wave_mirrors_it_and_the_no_wave_alternates_centre_and_sides
 
 def test_a_pin_driven_twice_at_once_is_refused():
     still = Wave(WaveKind.NONE, 2, (5, 6, 7), seed_train(5, Fraction(2, 5)), 100_000_000)
-    with pytest.raises(PinArrayError, match="pin 6 is driven twice at once"):
+    with pytest.raises(PinArrayError, match="found pin 6 driven twice at once"):
         compile_drives(still.drives(), device())
 
 

@@ -208,13 +208,14 @@ def test_a_measured_response_named_by_the_protocol_refuses_the_train_the_servo_d
 @pytest.mark.parametrize(("change", "where", "expected"), [
     (("stroke_achieved_steps: 80", "stroke_achieved_steps: lots"), 10,
      "expected a whole number for a stroke (steps), found"),
-    (("duty_cycle: 1/2\n", ""), 1, "the servo response needs a 'duty_cycle' key, found none"),
-    (("points:", "ponts:"), 8, "unknown key 'ponts' in the servo response; did you mean 'points'?"),
+    (("duty_cycle: 1/2\n", ""), 1, "expected a 'duty_cycle' key in the servo response, found none"),
+    (("points:", "ponts:"), 8,
+     "expected a key of the servo response, found 'ponts'; did you mean 'points'?"),
     (("pin: 4", "pin: 99"), 1, "expected a pin from 1 to 16 (the protocol's grid), found 99"),
     (("stroke_achieved_steps: 80", "stroke_achieved_steps: 800"), 10,
      "expected a stroke achieved of at most 125 steps (114 commanded, and a tenth of it for an "
      "overshoot), found 800"),
-    (("", ""), 0, "expected a servo response (`pinarray servos response` writes one), found an "
+    (("", ""), 1, "expected a servo response (`pinarray servos response` writes one), found an "
      "empty file"),
 ])
 def test_a_broken_response_file_is_refused_with_its_own_line_and_column(tmp_path, capsys, change,
@@ -279,7 +280,8 @@ def test_servos_response_refuses_strokes_past_the_pins_limits_before_anything_mo
     status, out, err = run(capsys, "servos", "response", protocol, "--pin", 4, "--sim",
                            "--strokes", "500")
     assert status == 2 and err.count("\n") == 1
-    assert "pin 4: a stroke of 500 steps lifts it to 2548, outside its calibrated limits" in err
+    assert ("pin 4: expected a stroke within its calibrated limits 2000..2200, found 500 steps, "
+            "which lifts it to 2548") in err
     assert not (tmp_path / "p_response_pin4.yaml").exists()
 
 

@@ -213,7 +213,8 @@ def test_a_stimulus_built_in_code_is_read_on_the_arrays_own_grid_and_calibration
              "present: Pattern: pins: expected each pin of a pattern once, found 6 more than "
              "once"),
             (pinarray.Frames(frames=[SQUARE, SQUARE], soa_ms=100),
-             "present: Frames: soa_ms: pin 6 is driven twice at once"),
+             "present: Frames: soa_ms: expected one train at a time on each pin, found pin 6 "
+             "driven twice at once"),
             (pinarray.Wave("rightwarsd", row=2, train=TAP),
              "present: Wave: wave: expected the wave to be one of rightwards"),
             (pinarray.Wave("upwards", pins=[2, 7], train=TAP),
@@ -370,8 +371,8 @@ def test_a_value_refused_for_its_digits_is_shown_with_the_digits_that_refuse_it(
     with pinarray.open_array() as array, pytest.raises(pinarray.PinArrayError) as refused:
         array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
             **GOOD, pulse_width_ms={"up": 2.000001, "down": 1.5})))
-    assert str(refused.value).endswith("pin 6: no calibrated position for a 2.000001 ms pulse; "
-                                       "calibrated widths: 1.5 ms, 2 ms")
+    assert str(refused.value).endswith("pin 6: expected a pulse width it is calibrated for "
+                                       "(1.5 ms, 2 ms), found 2.000001 ms")
 
 
 def test_a_stimulus_too_long_for_one_trial_says_what_a_script_can_do_instead():

@@ -105,7 +105,7 @@ def test_every_problem_of_the_design_is_said_where_it_is_written():
         "p.yaml:12:33: expected the name of a pulse train, found 'nothing'; the stimuli section "
         "has firm, press"]
     assert problems(designed("  stimulus: press\n"))[0] == (
-        "p.yaml:9:3: a two_point design needs a 'pairs' key, found none")
+        "p.yaml:9:3: expected a 'pairs' key in a two_point design, found none")
 
 
 def test_every_pair_is_checked_against_the_servo_bus_where_it_is_written():

@@ -66,6 +66,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
+        return _run(args)
+    finally:
+        _warn_of_ignored_plug_ins()
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command ``args`` name, its errors said in one line each; its exit status."""
+    try:
         return int(args.func(args) or 0)
     except _stopped() as stopped:
         print(f"pinarray: {stopped}", file=sys.stderr)
@@ -86,6 +94,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         import signal
 
         return 128 + signal.SIGPIPE
+
+
+def _warn_of_ignored_plug_ins() -> None:
+    """One line for each installed paradigm plug-in left out, where the command read them
+    (listing the paradigms there are, or loading one not pinarray's own)."""
+    from pinarray import registry
+
+    for plug_in in registry.ignored():
+        print(f"pinarray: warning: {plug_in.warning()}", file=sys.stderr)
 
 
 def _stopped() -> type[Stopped]:

@@ -29,6 +29,7 @@ from pinarray.journal.columns import entry
 from pinarray.journal.files import (
     read_results_json,
     read_results_text,
+    read_tsv,
     results_file,
     write_atomically,
 )
@@ -128,7 +129,7 @@ def _participants(tsv: Path, subject: str) -> None:
     rows: list[list[str]] = []
     if results_file(tsv, "participants"):
         text = read_results_text(tsv, "participants")
-        rows = list(csv.reader(io.StringIO(text), delimiter="\t"))
+        rows = read_tsv(tsv, text)
     if not rows:
         rows = [[PARTICIPANT_ID]]
     if rows[0][:1] != [PARTICIPANT_ID]:

@@ -13,9 +13,12 @@ else is found is a one-line `ResultsError` naming the file.
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import os
 import platform
+import re
 import socket
 import stat
 import tempfile
@@ -162,3 +165,43 @@ def read_results_json(path: Path, what: str) -> Any:
     except RecursionError:
         raise ResultsError(f"{path}: expected a {what}, found JSON nested deeper than any "
                            "pinarray writes") from None
+
+
+def read_tsv(path: Path, text: str) -> list[list[str]]:
+    """The rows of ``text``, the tab-separated table in the results file at ``path``; a
+    one-line `ResultsError` at the row that is not one: a carriage return inside it, or a cell
+    longer than Python's csv module reads (`csv.field_size_limit`, no cell pinarray writes)."""
+    reader = csv.reader(io.StringIO(text), delimiter="\t")
+    rows: list[list[str]] = []
+    start = 1  # the line the next row begins on
+    try:
+        for cells in reader:
+            rows.append(cells)
+            start = reader.line_num + 1
+    except csv.Error as problem:
+        raise ResultsError(_not_a_table(path, text, start, problem)) from None
+    return rows
+
+
+def _not_a_table(path: Path, text: str, start: int, problem: csv.Error) -> str:
+    """Where and why ``text`` cannot be read as tab-separated rows (``start``: the line the
+    row that failed begins on)."""
+    lone = re.search(r"\r(?!\n)", text)
+    if lone is not None:
+        line = text.count("\n", 0, lone.start()) + 1
+        col = lone.start() - (text.rfind("\n", 0, lone.start()) + 1) + 1
+        return (f"{path}:{line}:{col}: expected a tab-separated results table, found a "
+                "carriage return inside a row")
+    limit = csv.field_size_limit()
+    if "field limit" in str(problem):
+        row = text.split("\n", start)[start - 1] if start <= text.count("\n") + 1 else ""
+        col, longest = 1, ""
+        for cell in row.split("\t"):
+            if len(cell) > limit:
+                longest = cell
+                break
+            col += len(cell) + 1
+        where = f"{path}:{start}:{col}" if longest else f"{path}:{start}"
+        found = f"one of {len(longest):,}" if longest else "a longer one"
+        return f"{where}: expected cells of at most {limit:,} characters, found {found}"
+    return f"{path}:{start}: expected a tab-separated results table, found {problem}"

@@ -330,8 +330,8 @@ def _paradigm(data: Any, plan: Any, where: str) -> str:
         return paradigm_of_entry(plan[0] if plan else {}, where)
     name = str(data["paradigm"])
     if not registry.is_known(name):
-        raise ResultsError(f"{where}: the run's paradigm {name!r} is not installed (expected "
-                           f"one of {', '.join(registry.names())})")
+        raise ResultsError(f"{where}: the run's paradigm is not installed: "
+                           f"{registry.why_not(name)}")
     return name
 
 

@@ -17,16 +17,14 @@ reader leaves it out.
 from __future__ import annotations
 
 import csv
-import io
 import math
-import re
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pinarray.errors import PinArrayError, ResultsError
 from pinarray.journal.columns import Column, cell_text, cell_value
-from pinarray.journal.files import read_results_file, results_file
+from pinarray.journal.files import read_results_file, read_tsv, results_file
 from pinarray.journal.records import (
     EVENT_ONLY,
     FIRST_NAMES,
@@ -273,10 +271,7 @@ def read_trials(path: Path | str, paradigm: str | None = None) -> list[TrialReco
     data = results_bytes(path)
     header_names = beh_header(path)
     end, _ = split_torn_tail(data, len(header_names) or len(LEGACY_LAYOUT))
-    try:
-        table = list(csv.reader(io.StringIO(data[:end].decode("utf-8")), delimiter="\t"))
-    except csv.Error as problem:
-        raise ResultsError(_not_a_table(path, data[:end], problem)) from None
+    table = read_tsv(path, data[:end].decode("utf-8"))
     if not table:
         return []
     names = todays_names(table[0])
@@ -327,16 +322,6 @@ def check_run(path: Path | str, records: Sequence[TrialRecord], manifest: RunMan
     if found is not None:
         index, problem = found
         raise ResultsError(f"{path}:{index + 2}: trial {records[index].trial}: {problem}")
-
-
-def _not_a_table(path: Path, data: bytes, problem: csv.Error) -> str:
-    """Where and why ``data`` cannot be read as tab-separated rows."""
-    lone = re.search(rb"\r(?!\n)", data)
-    if lone is None:
-        return f"{path}: expected a tab-separated results table, found {problem}"
-    line, col = position_of(data, lone.start())
-    return (f"{path}:{line}:{col}: expected a tab-separated results table, found a carriage "
-            "return inside a row")
 
 
 def finished_trials(records: Iterable[TrialRecord]) -> frozenset[tuple[int, bool]]:

@@ -57,7 +57,8 @@ def adapted_stimulus(stimulus: Stimulus, parameter: Parameter, value: Fraction) 
             return replace(stimulus, wave=replace(wave, train=train))
         case TrainStimulus(train=train):
             if parameter is Parameter.SOA_MS:
-                raise PinArrayError(f"stimulus {stimulus.name!r} is a pulse train: it has no SOA")
+                raise PinArrayError(f"expected a stimulus with an SOA (frames or a wave), found "
+                                    f"{stimulus.name!r}, a pulse train")
             return replace(stimulus, train=_train(train, parameter, value))
         case PatternStimulus(shape=Frames() as frames) if parameter is Parameter.SOA_MS:
             return replace(stimulus, shape=replace(frames, soa_ns=round(value * NS_PER_MS)))
@@ -66,8 +67,8 @@ def adapted_stimulus(stimulus: Stimulus, parameter: Parameter, value: Fraction) 
                 (name, _pattern(pattern, parameter, value)) for name, pattern in frames.frames)))
         case PatternStimulus(shape=Pattern() as pattern):
             if parameter is Parameter.SOA_MS:
-                raise PinArrayError(f"stimulus {stimulus.name!r} is one pattern: it has no SOA "
-                                    "(frames have one)")
+                raise PinArrayError(f"expected a stimulus with an SOA (frames or a wave), found "
+                                    f"{stimulus.name!r}, one pattern")
             return replace(stimulus, shape=_pattern(pattern, parameter, value))
     raise AssertionError(stimulus)
 
@@ -85,7 +86,8 @@ def drives_of(stimulus: Stimulus) -> tuple[PinDrive, ...]:
             return shape.drives()
         case WaveStimulus(wave=wave):
             return wave.drives()
-    raise PinArrayError(f"stimulus {stimulus.name!r} has no pins of its own to play")
+    raise PinArrayError(f"expected a stimulus with pins of its own (a pattern or a wave), found "
+                        f"{stimulus.name!r}, a pulse train")
 
 
 def stroke_device(device: Device, pins: set[int], train: Train, stroke: Fraction) -> Device:
@@ -103,9 +105,9 @@ def stroke_device(device: Device, pins: set[int], train: Train, stroke: Fraction
         lifted = down + (1 if up >= down else -1) * int(stroke)
         if not calibration.min_steps <= lifted <= calibration.max_steps:
             raise PinArrayError(
-                f"pin {pin}: a stroke of {stroke} {device.servo.position_unit} lifts it to "
-                f"{lifted}, outside its calibrated limits {calibration.min_steps}.."
-                f"{calibration.max_steps}")
+                f"pin {pin}: expected a stroke within its calibrated limits "
+                f"{calibration.min_steps}..{calibration.max_steps}, found {stroke} "
+                f"{device.servo.position_unit}, which lifts it to {lifted}")
         positions = dict(calibration.positions_by_width_ns) | {train.up_width_ns: lifted}
         calibrations[pin - 1] = replace(calibration,
                                         positions_by_width_ns=tuple(sorted(positions.items())))

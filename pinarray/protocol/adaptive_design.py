@@ -212,8 +212,8 @@ def _procedure(reader: Reader, node: Node, name: str, values: tuple[Fraction, ..
         raise reader.error(keys[key], f"expected the keys of a {method} ("
                                       f"{', '.join(sorted(allowed))}), found {key!r}")
     if "stop_after_trials" not in keys:
-        raise reader.error(node, f"procedure {name!r} needs a 'stop_after_trials' key, found "
-                                 "none: one that stops on "
+        raise reader.error(node, f"expected a 'stop_after_trials' key in procedure {name!r}, "
+                                 "found none: one that stops on "
                                  + ("reversals" if method == "staircase" else "its posterior")
                                  + " alone may never end")
     trials = reader.integer(keys["stop_after_trials"], "the trial limit", 1, MAX_PROCEDURE_TRIALS)
@@ -226,7 +226,7 @@ def _staircase(reader: Reader, node: Node, keys: dict[str, Node], name: str,
                values: tuple[Fraction, ...], trials: int) -> Staircase:
     for key in ("start", "down", "up", "estimate_reversals"):
         if key not in keys:
-            raise reader.error(node, f"staircase {name!r} needs a {key!r} key, found none")
+            raise reader.error(node, f"expected a {key!r} key in staircase {name!r}, found none")
     start = reader.number(keys["start"], "the start", "")
     if start not in values:
         raise reader.error(keys["start"], f"expected the start to be one of the values "

@@ -165,12 +165,14 @@ def _paradigm(reader: Reader, node: Node) -> ParadigmDesign:
         if isinstance(key_node, ScalarNode) and key_node.value == "paradigm":
             name = reader.string(value_node, "the paradigm")
             if not registry.is_known(name):
+                if any(plug_in.name == name for plug_in in registry.ignored()):
+                    raise reader.error(value_node, registry.why_not(name))  # and why not
                 reader.string(value_node, "the paradigm", registry.names())  # says which
             try:
                 return paradigm_named(name)
             except PinArrayError as problem:
                 raise reader.error(value_node, str(problem)) from None
-    raise reader.error(node, "the design needs a 'paradigm' key, found none")
+    raise reader.error(node, "expected a 'paradigm' key in the design, found none")
 
 
 def _keys(reader: Reader, node: Node, paradigm: ParadigmDesign) -> dict[str, Node]:
@@ -308,8 +310,8 @@ def ordering_problem(design: Design) -> str | None:
         return None
     if design.ordering in (Ordering.SEQUENTIAL, Ordering.LATIN_SQUARE):
         return (
-            f"order constraints ({', '.join(limits)}) need a random order; "
-            f"'{design.ordering.value}' fixes the order itself"
+            f"expected a random order for order constraints ({', '.join(limits)}), found "
+            f"'{design.ordering.value}', which fixes the order itself"
         )
     main_trials = len(design.conditions) * design.repetitions * design.blocks
     if main_trials * len(design.conditions) > MAX_SHUFFLE_WORK:
@@ -330,8 +332,8 @@ def ordering_problem(design: Design) -> str | None:
         if count > limit * (size - count + 1):
             others = size - count
             return (
-                f"impossible order constraint: {attribute} {value} appears {count} times among "
-                f"{size} trials, but with runs of at most {limit} the other {others} trials can "
-                f"separate at most {limit * (others + 1)}"
+                f"expected order constraints a shuffle can meet, found {attribute} {value} on "
+                f"{count} of the {size} trials shuffled together: with runs of at most {limit}, "
+                f"the other {others} can separate at most {limit * (others + 1)}"
             )
     return None

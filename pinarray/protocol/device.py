@@ -418,8 +418,8 @@ def _pin_calibrations(
             if not low <= position <= high:
                 reader.error(
                     node or limits_node,
-                    f"pin {pin}: {what} {position} {unit.suffix} is outside its limits "
-                    f"[{low}, {high}]",
+                    f"pin {pin}: expected its {what} within its limits [{low}, {high}] "
+                    f"{unit.suffix}, found {position}",
                 )
                 ok = False
         # STS ids default to the pin's number; board channels count from 0.
@@ -441,8 +441,9 @@ def _pin_calibrations(
             node = ids[calibration.pin][1] if calibration.pin in ids else ids_node
             reader.error(
                 node,
-                f"{'channel' if unit is WIDTH_US else 'servo id'} {calibration.servo_id} drives "
-                f"both pin {seen[calibration.servo_id]} and pin {calibration.pin}",
+                f"expected one pin for each {'channel' if unit is WIDTH_US else 'servo id'}, "
+                f"found {calibration.servo_id} driving both pin {seen[calibration.servo_id]} "
+                f"and pin {calibration.pin}",
             )
             ok = False
         seen[calibration.servo_id] = calibration.pin

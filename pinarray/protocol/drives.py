@@ -26,8 +26,9 @@ def check_no_overlap(drives: Sequence[PinDrive]) -> None:
         for before, after in itertools.pairwise(pin_drives):
             if before.delay_ns + before.train.duration_ns > after.delay_ns:
                 raise PinArrayError(
-                    f"pin {pin} is driven twice at once: a train from {before.delay_ns / 1e6:g} ms "
-                    f"lasting {before.train.duration_ns / 1e6:g} ms overlaps one starting at "
+                    f"expected one train at a time on each pin, found pin {pin} driven twice at "
+                    f"once: a train from {before.delay_ns / 1e6:g} ms lasting "
+                    f"{before.train.duration_ns / 1e6:g} ms overlaps one starting at "
                     f"{after.delay_ns / 1e6:g} ms; lengthen the SOA or shorten the train"
                 )
 

@@ -50,7 +50,7 @@ def parse_protocol(
     rehearse: Rehearse | None = None,
 ) -> Protocol:
     reader = Reader(source)
-    root = reader.compose(text)
+    root = reader.compose(text, "a protocol mapping (protocol:, stimuli:, design:)")
     none: dict[str, Node] = {}
     top = reader.attempt(
         lambda: reader.mapping(

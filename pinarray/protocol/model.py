@@ -140,8 +140,8 @@ class PinCalibration:
         known = ", ".join(f"{exact_words(Fraction(w, 1_000_000))} ms"
                           for w, _ in self.positions_by_width_ns)
         raise PinArrayError(
-            f"pin {self.pin}: no calibrated position for a "
-            f"{exact_words(Fraction(width_ns, 1_000_000))} ms pulse; calibrated widths: {known}"
+            f"pin {self.pin}: expected a pulse width it is calibrated for ({known}), found "
+            f"{exact_words(Fraction(width_ns, 1_000_000))} ms"
         )
 
 

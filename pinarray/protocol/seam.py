@@ -64,8 +64,8 @@ class DesignSection:
         """A `ProtocolError` at the design for the first of ``names`` it lacks."""
         for key in names:
             if key not in self.keys:
-                raise self.reader.error(self.node, f"a {paradigm} design needs a {key!r} key, "
-                                                   "found none")
+                raise self.reader.error(self.node, f"expected a {key!r} key in a {paradigm} "
+                                                   "design, found none")
 
 
 class Written(NamedTuple):

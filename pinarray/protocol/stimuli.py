@@ -244,8 +244,8 @@ def check_widths_fit(reader: Reader, node: Node, train: Train) -> None:
         if width > slot_ns:
             raise reader.error(
                 node,
-                f"expected pulse widths within the pulse period: the {label} pulse of "
-                f"{width / 1e6:g} ms does not fit the {float(slot_ns) / 1e6:g} ms period of "
+                f"expected pulse widths within the pulse period, found the {label} pulse of "
+                f"{width / 1e6:g} ms, which does not fit the {float(slot_ns) / 1e6:g} ms period of "
                 f"{train.pulses_per_cycle} pulses per cycle at {float(train.frequency_hz):g} Hz",
             )
 
@@ -337,7 +337,8 @@ def read_wave(
             raise reader.error(
                 keys["direction"],
                 f"expected no 'direction' for a {kind.value} wave (it goes "
-                f"{DIRECTION_OF_WAVE[kind].value}); name a direction with 'wave: sequence'",
+                f"{DIRECTION_OF_WAVE[kind].value}), found one; name a direction with 'wave: "
+                "sequence'",
             )
         if "row" not in keys:
             raise reader.error(node, f"a {kind.value} wave runs along a row: expected a 'row' "
@@ -347,8 +348,8 @@ def read_wave(
         if "row" in keys:
             raise reader.error(
                 keys["row"],
-                f"expected no 'row' for a {kind.value} wave: it visits its 'pins' in the order "
-                "listed",
+                f"expected no 'row' for a {kind.value} wave, found one: it visits its 'pins' in "
+                "the order listed",
             )
         pins = _path_pins(reader, node, keys, kind, grid)
         direction = _path_direction(reader, node, keys, kind)
@@ -476,7 +477,8 @@ def _path_direction(
             raise reader.error(
                 keys["direction"],
                 f"expected no 'direction' for a {kind.value} wave (it goes "
-                f"{DIRECTION_OF_WAVE[kind].value}); name a direction with 'wave: sequence'",
+                f"{DIRECTION_OF_WAVE[kind].value}), found one; name a direction with 'wave: "
+                "sequence'",
             )
         return DIRECTION_OF_WAVE[kind]
     if "direction" not in keys:

@@ -50,6 +50,7 @@ _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?", re.ASCII)
 # YAML 1.1 also reads 0x10 as 16, 017 as 15 (octal), 0b101, 1_000 and 1:00 as 60; a protocol
 # writes its numbers in decimal, as the lab (and a YAML 1.2 reader) reads them.
 _NOT_DECIMAL = re.compile(r"[_:xb]|^[+-]?0[0-9]+$")
+_WHOLE = re.compile(r"[+-]?\d+", re.ASCII)  # a whole number written in quotes
 _RATIO = re.compile(r"([+-]?)(\d+)\s*/\s*(\d+)", re.ASCII)
 
 
@@ -210,7 +211,8 @@ class Reader:
         except yaml.YAMLError as problem:
             self._fail(f"malformed YAML: {' '.join(str(problem).split())}")
         if root is None:
-            self._fail(f"expected {what}, found an empty file")
+            found = "an empty file" if not text.strip() else "only comments and blank lines"
+            self._fail(f"expected {what}, found {found}", 1, 1)
         return root
 
     def _fail(self, message: str, line: int = 0, col: int = 0) -> NoReturn:
@@ -234,28 +236,30 @@ class Reader:
         if not isinstance(node, MappingNode):
             raise self.error(node, f"expected a mapping for the {what}, found {describe(node)}")
         out: dict[str, Node] = {}
+        first: dict[str, Node] = {}  # each key's node, where it is first written
         suggested: set[str] = set()
         for key_node, value_node in node.value:
             key_text = str(self.scalar_value(key_node))
-            if key_text in out:
-                self.error(key_node, f"duplicate key {shown(key_text)} in the {what}")
+            if key_text in first:
+                self._again(key_node, key_text, first[key_text], f"the {what}")
                 continue
+            first[key_text] = key_node
             if key_text not in allowed:
                 hint = close_match(key_text, sorted(allowed))
                 suggested.update(hint)
-                suggestion = (
-                    f"; did you mean {hint[0]!r}?"
-                    if hint
-                    else f"; expected one of {', '.join(sorted(allowed))}"
-                )
-                self.error(key_node, f"unknown key {shown(key_text)} in the {what}{suggestion}")
+                if hint:
+                    said = f"found {shown(key_text)}; did you mean {hint[0]!r}?"
+                else:
+                    said = f"(one of {', '.join(sorted(allowed))}), found {shown(key_text)}"
+                self.error(key_node, f"expected a key of the {what}"
+                                     f"{', ' if hint else ' '}{said}")
                 self.harmless += 1
                 continue
             out[key_text] = value_node
         missing = sorted(required - out.keys())
         for key in missing:
             if key not in suggested:  # a misspelt key was already reported with its hint
-                self.error(node, f"the {what} needs a {key!r} key, found none")
+                self.error(node, f"expected a {key!r} key in the {what}, found none")
         if missing and stop_if_missing:
             raise Invalid(f"missing {missing}")
         return out
@@ -264,16 +268,21 @@ class Reader:
         """(key node, value node) pairs of a mapping whose keys are data (names, pins)."""
         if not isinstance(node, MappingNode):
             raise self.error(node, f"expected a mapping for {what}, found {describe(node)}")
-        seen: set[str] = set()
+        first: dict[str, Node] = {}
         pairs = []
         for key_node, value_node in node.value:
             key_text = str(self.scalar_value(key_node))
-            if key_text in seen:
-                self.error(key_node, f"duplicate key {shown(key_text)} in {what}")
+            if key_text in first:
+                self._again(key_node, key_text, first[key_text], what)
                 continue
-            seen.add(key_text)
+            first[key_text] = key_node
             pairs.append((key_node, value_node))
         return pairs
+
+    def _again(self, key_node: Node, key_text: str, first: Node, what: str) -> None:
+        """A key written a second time in one mapping (``what``), said where it is again."""
+        self.error(key_node, f"expected each key once in {what}, found {shown(key_text)} again "
+                             f"(first at line {first.start_mark.line + 1})")
 
     def sequence(self, node: Node, what: str, min_items: int = 1) -> list[Node]:
         if not isinstance(node, SequenceNode):
@@ -371,6 +380,12 @@ class Reader:
         self, node: Node, what: str, minimum: int | None = None, maximum: int | None = None
     ) -> int:
         value = self.decimal_value(node)
+        if isinstance(value, str) and _WHOLE.fullmatch(value.strip()):
+            # quoted, as a number with a unit may be ("1/3"): read as the number it writes
+            if len(value) > MAX_NUMBER_CHARS:
+                raise self.error(node, f"expected a number of at most {MAX_NUMBER_CHARS} "
+                                 f"characters, found {shown(node.value)}")
+            value = int(value)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(node, f"expected a whole number for {what}, found {describe(node)}")
         if minimum is not None and value < minimum:

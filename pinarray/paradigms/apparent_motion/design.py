@@ -175,8 +175,8 @@ class ApparentMotionDesign(DesignDefaults):
     def read(self, section: DesignSection) -> ReadDesign:
         reader, keys = section.reader, section.keys
         if "configurations" not in keys:
-            raise reader.error(section.node, "an apparent_motion design needs a "
-                                             "'configurations' key (wave stimuli), found none")
+            raise reader.error(section.node, "expected a 'configurations' key (wave stimuli) "
+                                             "in an apparent_motion design, found none")
         items = reader.sequence(keys["configurations"], "the configurations")
         if len(items) > MAX_TRIALS:
             raise reader.error(keys["configurations"], f"expected at most {MAX_TRIALS:,} "

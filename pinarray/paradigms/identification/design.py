@@ -101,9 +101,9 @@ class IdentificationDesign(DesignDefaults):
     def read(self, section: DesignSection) -> ReadDesign:
         reader, keys = section.reader, section.keys
         if "patterns" not in keys:
-            raise reader.error(section.node, "an identification design needs a 'patterns' key "
-                                             "(the pattern stimuli a subject tells apart), found "
-                                             "none")
+            raise reader.error(section.node, "expected a 'patterns' key (the pattern stimuli a "
+                                             "subject tells apart) in an identification design, "
+                                             "found none")
         answers = AnswerKind(reader.optional(
             keys, "answers", lambda n: reader.string(n, "the answers", tuple(AnswerKind)),
             AnswerKind.NAMES.value))
