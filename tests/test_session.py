@@ -26,6 +26,7 @@ from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError, task_label
 from pinarray.stop import StoppableClock, StopRequest
+from tests.commands import pinarray_here
 from tests.runs import VIRTUAL, write_short_localisation
 
 S = 1_000_000_000  # ns per s
@@ -323,9 +324,9 @@ def test_a_bus_fault_marks_the_trial_invalid_and_retry_presents_it_again(tmp_pat
     assert [r.status for r in rows] == ["invalid", "ok"] and rows[0].trial == rows[1].trial
 
 
-def batch(*args, timeout=120):
-    return subprocess.run([sys.executable, "-m", "pinarray", "batch", *args],
-                          capture_output=True, text=True, timeout=timeout)
+def batch(*args):
+    """`pinarray batch` in this process; the tests of a kill or a signal start one of its own."""
+    return pinarray_here("batch", *args)
 
 
 def test_batch_with_a_responses_file_runs_the_session_it_describes(tmp_path):
