@@ -4,8 +4,6 @@ figure, a section of the page); results without measured strokes say there is no
 
 import contextlib
 import io
-import subprocess
-import sys
 
 import pytest
 
@@ -16,6 +14,7 @@ from pinarray.paradigms.localisation.analysis import write_stroke_table
 from pinarray.paradigms.localisation.strokes import stroke_table
 from tests.analysis.conftest import S, localisation_row, write_results
 from tests.analysis.test_report import analyse, read_csv
+from tests.commands import pinarray_here
 from tests.runs import REPO
 
 MM_PER_STEP = (0.01,) * 16  # each pin's travel per step, as a manifest records it
@@ -100,10 +99,8 @@ def test_a_batch_run_on_slow_servos_gives_each_pin_s_frequency_response_in_steps
     protocol = tmp_path / "slow.yaml"
     protocol.write_text(SLOW_PROTOCOL)
     results, out = tmp_path / "results", tmp_path / "analysis"
-    ran = subprocess.run([sys.executable, "-m", "pinarray", "batch", str(protocol), "--subject",
-                          "01", "--observer", "default", "--seed", "5", "--results",
-                          str(results), "--sim", "sim://?speed=1500"],
-                         capture_output=True, text=True, timeout=300, cwd=REPO)
+    ran = pinarray_here("batch", protocol, "--subject", "01", "--observer", "default", "--seed",
+                        "5", "--results", results, "--sim", "sim://?speed=1500")
     assert ran.returncode == 0, ran.stderr
     with contextlib.redirect_stdout(io.StringIO()):
         assert analyse(str(results), "--out", str(out)) == 0
