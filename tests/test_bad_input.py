@@ -61,10 +61,21 @@ def scratch(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("fuzz") / "p.yaml"
 
 
+# One property over each generated file, of the loader and of `pinarray validate` (which adds
+# the rehearsal on the simulated array and the printing): the strategy's file drawn once.
 @FUZZ
 @given(data=protocol_files())
-def test_any_protocol_file_is_accepted_or_refused_one_located_line_per_problem(data, scratch):
+def test_any_protocol_file_is_accepted_or_refused_in_located_lines_and_validate_exits_0_or_2(
+        data, scratch):
     scratch.write_bytes(data)
+    status, out, err = run("validate", str(scratch))
+    if status == 0:
+        assert out.startswith(f"{scratch}: ok")
+        # A valid protocol may still be warned about (a duration cue), one located line each.
+        assert all(line.startswith(f"{scratch}: warning: ") for line in err.splitlines())
+    else:
+        assert status == 2 and out == ""
+        assert_located_lines(err.splitlines(), str(scratch))
     protocol, lines = validate_file(scratch)
     if lines:
         assert protocol is None
@@ -76,20 +87,6 @@ def test_any_protocol_file_is_accepted_or_refused_one_located_line_per_problem(d
         compile_trial(protocol, plan.trials[0])
     except PinArrayError as problem:
         assert "\n" not in str(problem)
-
-
-@FUZZ
-@given(data=protocol_files())
-def test_validate_exits_0_or_2_and_prints_only_ok_or_located_lines(data, scratch):
-    scratch.write_bytes(data)
-    status, out, err = run("validate", str(scratch))
-    if status == 0:
-        assert out.startswith(f"{scratch}: ok")
-        # A valid protocol may still be warned about (a duration cue), one located line each.
-        assert all(line.startswith(f"{scratch}: warning: ") for line in err.splitlines())
-    else:
-        assert status == 2 and out == ""
-        assert_located_lines(err.splitlines(), str(scratch))
 
 
 number_texts = st.one_of(
