@@ -79,6 +79,15 @@ def test_a_fixed_design_writes_no_thresholds_and_no_threshold_figures(analysed):
     assert "thresholds" not in analysed.printed
 
 
+def test_results_without_measured_strokes_are_analysed_and_say_there_is_no_stroke_table(
+        analysed):
+    out = analysed.out
+    assert not (out / "stroke_by_frequency.csv").exists()
+    assert not (out / "stroke_by_frequency.png").exists()
+    page = (out / "summary.md").read_text()
+    assert "No stroke table: nothing was measured" in page
+
+
 def test_no_figures_writes_the_same_tables_and_printout_and_the_page_says_none_were_drawn(
         analysed):
     out = analysed.out.parent / "tables-only"
