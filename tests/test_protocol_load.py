@@ -11,6 +11,7 @@ import pytest
 from pinarray.errors import ProtocolErrors
 from pinarray.protocol import WaveKind
 from pinarray.protocol.load import load_protocol, parse_protocol
+from tests.commands import pinarray_here
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 
@@ -261,12 +262,7 @@ def test_validate_loads_neither_the_ui_nor_plotting():
 
 
 def test_a_missing_file_is_one_line():
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "validate", "nowhere.yaml"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    result = pinarray_here("validate", "nowhere.yaml")
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "nowhere.yaml: no such protocol file" in result.stderr
 
