@@ -283,7 +283,7 @@ CHILD = textwrap.dedent("""
 
     root, mode = Path(sys.argv[1]), sys.argv[2]
     if mode == "start":
-        plan = localisation_plan(*((n % 16 + 1, 5) for n in range(1, 3001)))
+        plan = localisation_plan(*((n % 16 + 1, 5) for n in range(1, 1501)))
         writer = start_run(root, "S01", "localisation", plan)
     else:
         writer = RunWriter.resume(RunPaths(root, "S01", "1", "localisation", 1), VIRTUAL)
@@ -311,7 +311,7 @@ def _run_and_kill(root, mode, rows_before_kill):
 
 def test_a_run_sigkilled_while_writing_resumes_with_no_row_lost_or_repeated(tmp_path):
     kills = 0
-    for mode, rows in (("start", 400), ("resume", 1200), ("resume", 2200)):
+    for mode, rows in (("start", 200), ("resume", 600), ("resume", 1100)):
         kills += _run_and_kill(tmp_path, mode, rows) == -signal.SIGKILL
     finisher = subprocess.run([sys.executable, "-c", CHILD, str(tmp_path), "resume"],
                               timeout=120, cwd=REPO)
@@ -319,8 +319,8 @@ def test_a_run_sigkilled_while_writing_resumes_with_no_row_lost_or_repeated(tmp_
     assert kills >= 1  # the test is only meaningful if a kill landed mid-run
     paths = RunPaths(tmp_path, "S01", "1", "localisation", 1)
     rows = read_trials(paths.beh_tsv)
-    assert [r.trial for r in rows] == list(range(1, 3001))
-    assert paths.events_tsv.read_text().count("\n") == 3001
+    assert [r.trial for r in rows] == list(range(1, 1501))
+    assert paths.events_tsv.read_text().count("\n") == 1501
     assert read_manifest(paths.manifest).status is RunStatus.COMPLETED
     assert any(r.resumed for r in rows)
 
