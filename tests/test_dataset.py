@@ -4,8 +4,8 @@ Four subjects do both tasks with `pinarray batch` (simulated array, simulated ob
 sub-01 and sub-04 in one go; sub-02's localisation run is killed with SIGKILL mid-run and
 resumed; sub-03's is killed, then resumed by two processes at once (the second is refused,
 the first is stopped with SIGTERM) and finished by a third. The runs killed or stopped are
-processes of their own; the others run in the test's process (tests/commands.py), the other
-subjects' beside sub-03's first resumer. The dataset is built once for the module; the
+processes of their own, forked from the test's; the others run in the test's process
+(tests/commands.py), the other subjects' beside sub-03's first resumer. The dataset is built once for the module; the
 official BIDS validator runs once on it.
 """
 
@@ -31,7 +31,7 @@ from pinarray.journal.records import TrialStatus
 from pinarray.journal.rows import read_trials
 from pinarray.journal.timebase import ClockKind, seconds_text
 from pinarray.paradigms.localisation.rows import LocalisationRecord
-from tests.commands import pinarray_here
+from tests.commands import Forked, pinarray_here
 from tests.runs import REPO, write_short_localisation
 
 # One worker builds the module's fixture once (make test runs --dist loadgroup).
@@ -85,8 +85,9 @@ def study(tmp_path_factory):
     localisation = write_short_localisation(root.parent)
 
     def background(subject, *files, more=()):
-        return subprocess.Popen(batch_command(root, subject, *files, more=more), cwd=REPO,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        """`pinarray batch` in a process forked from this one (tests/commands.py)."""
+        folder = root.parent / f"sub-{subject}-{len(list(root.parent.glob('sub-*')))}"
+        return Forked(folder, *batch_command(root, subject, *files, more=more)[3:], cwd=REPO)
 
     # sub-02 and sub-03 begin their localisation, paced at 50x real time, and are killed.
     killed = background("02", localisation, more=["--time-scale", "50"])
