@@ -1,7 +1,5 @@
 """An adaptive design as a lab writes it: what is accepted, and every mistake located in the file."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -9,6 +7,7 @@ import pytest
 from pinarray.errors import ProtocolErrors
 from pinarray.protocol.load import load_protocol
 from pinarray.protocol.procedures import Parameter, QuestPlus, Staircase
+from tests.commands import pinarray_here
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 STAIRCASES = (PROTOCOLS / "staircase_motion.yaml").read_text()
@@ -118,9 +117,7 @@ def test_a_soa_that_drives_a_pin_twice_at_once_is_refused_at_that_value(tmp_path
 
 
 def test_validate_says_an_adaptive_design_runs_up_to_its_procedures_limits():
-    done = subprocess.run([sys.executable, "-m", "pinarray", "validate",
-                           str(PROTOCOLS / "staircase_motion.yaml")],
-                          capture_output=True, text=True, timeout=120)
+    done = pinarray_here("validate", PROTOCOLS / "staircase_motion.yaml")
     assert done.returncode == 0, done.stderr
     assert "adaptive: soa_ms over 15 values (20..300 ms), 2 procedures" in done.stdout
     assert "at most 86 trials with 4 catch and 2 practice" in done.stdout
@@ -131,9 +128,7 @@ def test_compile_and_preview_refuse_an_adaptive_design_in_one_line_and_write_not
         tmp_path, command):
     out = tmp_path / "schedules.json"
     args = [part.format(out=out) for part in command]
-    done = subprocess.run([sys.executable, "-m", "pinarray", args[0],
-                           str(PROTOCOLS / "quest_stroke.yaml"), *args[1:]],
-                          capture_output=True, text=True, timeout=120)
+    done = pinarray_here(args[0], PROTOCOLS / "quest_stroke.yaml", *args[1:])
     assert done.returncode == 2 and done.stderr.count("\n") == 1
     assert "adapts stroke_steps as the run goes" in done.stderr
     assert not out.exists()

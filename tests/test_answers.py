@@ -3,7 +3,6 @@ any of Excel's formats, and every answer checked against the protocol before a r
 
 import codecs
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +13,7 @@ from pinarray.cli.answer_sheets import AnswersError, check_answers, load_answers
 from pinarray.journal.rows import read_trials
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
+from tests.commands import pinarray_here
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 MOTION = PROTOCOLS / "apparent_motion.yaml"  # 13 trials, one of them practice
@@ -26,8 +26,7 @@ def motion_sheet(answer="left", header="trial,response", separator=",") -> str:
 
 
 def batch(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pinarray", "batch", *args],
-                          capture_output=True, text=True, timeout=120)
+    return pinarray_here("batch", *args)
 
 
 def test_an_excel_unicode_text_sheet_runs_the_session(tmp_path):

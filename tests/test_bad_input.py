@@ -11,8 +11,9 @@ import contextlib
 import io
 import os
 import re
+import shutil
 import subprocess
-import sys
+import tempfile
 import textwrap
 from collections.abc import Iterator
 from pathlib import Path
@@ -29,6 +30,7 @@ from pinarray.protocol.load import MAX_PROTOCOL_BYTES, parse_protocol, validate_
 from pinarray.protocol.yaml_nodes import MAX_PROBLEMS
 from pinarray.protocol.yaml_tree import MAX_ALIASES, MAX_DEPTH
 from pinarray.schedule import compile_trial
+from tests.commands import pinarray_forked
 from tests.strategies import alias_bomb, protocol_files
 from tests.test_protocol_load import MINIMAL, problems
 
@@ -265,9 +267,13 @@ def fifo_with_a_writer(path: Path) -> Iterator[Path]:
 
 
 def pinarray_process(*argv: str) -> subprocess.CompletedProcess:
-    # The timeout is a generous bound on a hang, not a timing check.
-    return subprocess.run([sys.executable, "-m", "pinarray", *argv], capture_output=True,
-                          text=True, timeout=60, cwd=REPO)
+    """``pinarray ARGV`` in a process of its own (forked), where a hang fails the test: the
+    timeout is a generous bound on a hang, not a timing check."""
+    folder = Path(tempfile.mkdtemp(prefix="pinarray-fifo-"))
+    try:
+        return pinarray_forked(folder, *argv, timeout=60, cwd=REPO)
+    finally:
+        shutil.rmtree(folder)
 
 
 def test_a_fifo_is_refused_at_once_whether_or_not_anyone_writes_to_it(tmp_path):

@@ -10,8 +10,9 @@ parsed only here (their handlers have tests of their own).
 import argparse
 import contextlib
 import io
+import shutil
 import subprocess
-import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -19,6 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from pinarray.cli import build_parser, common, main
+from tests.commands import pinarray_forked
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 DEMO = str(PROTOCOLS / "demo.yaml")
@@ -169,10 +171,13 @@ def test_no_help_text_shows_a_doubled_percent_sign():
 
 
 def sim_serve(*args: str) -> subprocess.CompletedProcess:
-    """``pinarray sim-serve ARGS`` in its own process, expected to refuse at once (a server
-    that started instead is stopped by the timeout, which fails the test)."""
-    return subprocess.run([sys.executable, "-m", "pinarray", "sim-serve", *args],
-                          capture_output=True, text=True, timeout=60)
+    """``pinarray sim-serve ARGS`` in its own process (forked), expected to refuse at once (a
+    server that started instead is stopped by the timeout, which fails the test)."""
+    folder = Path(tempfile.mkdtemp(prefix="pinarray-sim-serve-"))
+    try:
+        return pinarray_forked(folder, "sim-serve", *args, timeout=60)
+    finally:
+        shutil.rmtree(folder)
 
 
 @pytest.mark.parametrize("ids", ["", ",", " , "])

@@ -209,7 +209,11 @@ def test_rest_and_up_land_on_the_narrowest_and_widest_widths_and_the_rest_keep_t
 def test_any_calibration_reads_back_exactly_and_keeps_every_comment(pin, rest, stroke):
     after = calibrate(DEVICE, pin, rest, rest + stroke)
     assert comments(after) == comments(DEVICE)
-    got = calibration(after, pin)
+    # Each file read once, every pin's calibration taken from it.
+    device_after, device_before = (parse_protocol(text, "bench.yaml").device
+                                   for text in (after, DEVICE))
+    got = device_after.calibration(pin)
     assert (got.rest_steps, got.positions_by_width_ns[-1][1]) == (rest, rest + stroke)
     others = [p for p in range(1, 17) if p != pin]
-    assert [calibration(after, p) for p in others] == [calibration(DEVICE, p) for p in others]
+    assert [device_after.calibration(p) for p in others] == [
+        device_before.calibration(p) for p in others]

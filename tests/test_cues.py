@@ -1,10 +1,8 @@
 """A stimulus must not give its answer away by how long it lasts."""
 
-import subprocess
-import sys
-
 from pinarray.protocol.cues import duration_cues, stimulus_duration_ns
 from pinarray.protocol.load import load_protocol
+from tests.commands import pinarray_here
 from tests.runs import REPO
 
 PROTOCOLS = REPO / "protocols"
@@ -35,8 +33,7 @@ def _longer_no_wave(tmp_path):
 
 def test_validate_warns_when_the_no_wave_lasts_longer_than_the_waves(tmp_path):
     path = _longer_no_wave(tmp_path)
-    result = subprocess.run([sys.executable, "-m", "pinarray", "validate", str(path)],
-                            capture_output=True, text=True, timeout=60, cwd=REPO)
+    result = pinarray_here("validate", path)
     assert result.returncode == 0  # a warning, not a refusal: the lab may have its reasons
     assert result.stdout.startswith(f"{path}: ok")
     assert result.stderr.splitlines() == [
@@ -47,10 +44,8 @@ def test_validate_warns_when_the_no_wave_lasts_longer_than_the_waves(tmp_path):
 
 def test_batch_shows_the_duration_cue_warning_before_it_runs(tmp_path):
     path = _longer_no_wave(tmp_path)
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "batch", str(path), "--subject", "01", "--observer",
-         "default", "--results", str(tmp_path / "out")],
-        capture_output=True, text=True, timeout=120, cwd=REPO)
+    result = pinarray_here("batch", path, "--subject", "01", "--observer", "default",
+                           "--results", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     first = result.stderr.splitlines()[0]
     assert first.startswith(f"pinarray: warning: {path}: the stimuli a subject must tell apart "

@@ -3,8 +3,10 @@
 Four subjects do both tasks with `pinarray batch` (simulated array, simulated observer):
 sub-01 and sub-04 in one go; sub-02's localisation run is killed with SIGKILL mid-run and
 resumed; sub-03's is killed, then resumed by two processes at once (the second is refused,
-the first is stopped with SIGTERM) and finished by a third. The dataset is built once for
-the module; the official BIDS validator runs once on it.
+the first is stopped with SIGTERM) and finished by a third. The runs killed or stopped are
+processes of their own, forked from the test's; the others run in the test's process
+(tests/commands.py), the other subjects' beside sub-03's first resumer. The dataset is built once for the module; the
+official BIDS validator runs once on it.
 """
 
 import csv
@@ -29,6 +31,7 @@ from pinarray.journal.records import TrialStatus
 from pinarray.journal.rows import read_trials
 from pinarray.journal.timebase import ClockKind, seconds_text
 from pinarray.paradigms.localisation.rows import LocalisationRecord
+from tests.commands import Forked, pinarray_here
 from tests.runs import REPO, write_short_localisation
 
 # One worker builds the module's fixture once (make test runs --dist loadgroup).
@@ -46,8 +49,8 @@ def batch_command(root, subject, *files, more=()):
 
 
 def batch(root, subject, *files, more=()):
-    return subprocess.run(batch_command(root, subject, *files, more=more), capture_output=True,
-                          text=True, timeout=180, cwd=REPO)
+    """`pinarray batch` in this process (``batch_command``'s arguments)."""
+    return pinarray_here(*batch_command(root, subject, *files, more=more)[3:])
 
 
 def localisation_run(root, subject):
@@ -82,35 +85,36 @@ def study(tmp_path_factory):
     localisation = write_short_localisation(root.parent)
 
     def background(subject, *files, more=()):
-        return subprocess.Popen(batch_command(root, subject, *files, more=more), cwd=REPO,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        """`pinarray batch` in a process forked from this one (tests/commands.py)."""
+        folder = root.parent / f"sub-{subject}-{len(list(root.parent.glob('sub-*')))}"
+        return Forked(folder, *batch_command(root, subject, *files, more=more)[3:], cwd=REPO)
 
-    # All at once, as on a lab's shared results folder: sub-01 and sub-04 do both tasks,
-    # sub-02 and sub-03 their motion task and, paced at 50x real time, their localisation.
-    others = [background("01", localisation, MOTION), background("04", localisation, MOTION),
-              background("02", MOTION), background("03", MOTION)]
+    # sub-02 and sub-03 begin their localisation, paced at 50x real time, and are killed.
     killed = background("02", localisation, more=["--time-scale", "50"])
     killed3 = background("03", localisation, more=["--time-scale", "50"])
     paths3 = localisation_run(root, "03")
     before_kill = kill_when(killed, localisation_run(root, "02"), rows=6)
     kill_when(killed3, paths3, rows=3)
 
-    # sub-02 resumes; meanwhile two processes resume sub-03 at once.
-    resumed = background("02", localisation, more=["--resume"])
-    others.append(resumed)
+    # sub-02 resumes; then two processes resume sub-03 at once.
+    resumed = batch(root, "02", localisation, more=["--resume"])
     first = background("03", localisation, more=["--resume", "--time-scale", "1"])
     wait_for(lambda: getattr(lock_holder(paths3.lock), "pid", None) == first.pid, first,
              "the first resumer holding the run")
     second = batch(root, "03", localisation, more=["--resume"])
+    # Beside the first resumer, on the same results folder as in a lab: sub-01 and sub-04 do
+    # both tasks, sub-02 and sub-03 their motion task.
+    others = [resumed, batch(root, "01", localisation, MOTION), batch(root, "04", localisation, MOTION),
+              batch(root, "02", MOTION), batch(root, "03", MOTION)]
+    assert first.poll() is None, "the first resumer ended before it was stopped"
     first.send_signal(signal.SIGTERM)  # the experimenter stops the first one ...
     _, first_stderr = first.communicate(timeout=60)
     last = batch(root, "03", localisation, more=["--resume"])  # ... and finishes the run later
     assert last.returncode == 0, last.stderr
-
-    stderr = {process: process.communicate(timeout=180)[1] for process in others}
-    assert [p.returncode for p in others] == [0] * len(others), stderr
+    assert [done.returncode for done in others] == [0] * len(others), [
+        done.stderr for done in others]
     return SimpleNamespace(root=root, killed=killed, before_kill=before_kill,
-                           resumed_stderr=stderr[resumed], killed3=killed3, first=first,
+                           resumed_stderr=resumed.stderr, killed3=killed3, first=first,
                            first_stderr=first_stderr, second=second)
 
 
@@ -213,10 +217,8 @@ def test_participants_lists_every_subject_once(study):
 
 
 def test_analyse_gives_subject_level_numbers_counting_every_trial_once(study, tmp_path):
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "analyse", str(study.root), "--out", str(tmp_path),
-         "--bootstrap-resamples", "1000", "--no-figures"],
-        capture_output=True, text=True, timeout=300, cwd=REPO)
+    result = pinarray_here("analyse", study.root, "--out", tmp_path,
+                           "--bootstrap-resamples", "1000", "--no-figures")
     assert result.returncode == 0, result.stderr
 
     def table(name):

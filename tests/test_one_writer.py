@@ -5,8 +5,6 @@ import json
 import os
 import signal
 import socket
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -19,6 +17,7 @@ from pinarray.journal.paths import RunPaths
 from pinarray.journal.rows import read_trials
 from pinarray.journal.writer import RunWriter
 from pinarray.paradigms.localisation.rows import LocalisationRecord
+from tests.commands import pinarray_here
 from tests.runs import (
     REPO,
     VIRTUAL,
@@ -40,10 +39,9 @@ def ok_row(trial):
 
 
 def batch(root, *more, protocol=MOTION):
-    return subprocess.run(
-        [sys.executable, "-m", "pinarray", "batch", str(protocol), "--subject", "01",
-         "--observer", "default", "--seed", "7", "--results", str(root), *more],
-        capture_output=True, text=True, timeout=120, cwd=REPO)
+    """`pinarray batch` in this process: the other process, where there is one, holds the run."""
+    return pinarray_here("batch", protocol, "--subject", "01", "--observer", "default",
+                         "--seed", "7", "--results", root, *more)
 
 
 def test_a_second_process_resuming_a_run_in_use_is_refused_in_one_line_naming_the_first(tmp_path):

@@ -1,9 +1,9 @@
 """`pinarray plan`: the trial plan on paper is the order the run will present."""
 
 import subprocess
-import sys
 
 from pinarray.journal.rows import read_trials
+from tests.commands import pinarray_here
 from tests.runs import REPO, write_short_localisation
 
 LOCALISATION = REPO / "protocols" / "localisation.yaml"
@@ -11,8 +11,7 @@ MOTION = REPO / "protocols" / "apparent_motion.yaml"
 
 
 def pinarray(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pinarray", *args], capture_output=True,
-                          text=True, timeout=120, cwd=REPO)
+    return pinarray_here(*args, cwd=REPO)
 
 
 def test_the_printed_plan_is_the_order_a_run_with_the_same_seed_presents(tmp_path):

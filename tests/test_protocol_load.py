@@ -11,6 +11,7 @@ import pytest
 from pinarray.errors import ProtocolErrors
 from pinarray.protocol import WaveKind
 from pinarray.protocol.load import load_protocol, parse_protocol
+from tests.commands import pinarray_here
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 
@@ -273,25 +274,12 @@ def test_validate_prints_ok_or_located_lines_and_exits_2(tmp_path):
     assert result.stderr == f"{bad}:9:13: expected a pin from 1 to 16 on the 4x4 grid, found 17\n"
 
 
-def test_validate_loads_neither_the_ui_nor_plotting():
-    code = (
-        "import sys; from pinarray.cli import main; "
-        f"main(['validate', r'{PROTOCOLS / 'localisation.yaml'}']); "
-        "print(sorted(m for m in ('textual', 'matplotlib') if m in sys.modules))"
-    )
-    result = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60
-    )
-    assert result.stdout.strip().endswith("[]")
+# That validate loads neither the UI nor plotting (nor any heavy library it does not need) is
+# checked in fresh processes by tests/test_startup.py and tests/test_compile_outputs.py.
 
 
 def test_a_missing_file_is_one_line():
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "validate", "nowhere.yaml"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    result = pinarray_here("validate", "nowhere.yaml")
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "nowhere.yaml: no such protocol file" in result.stderr
 

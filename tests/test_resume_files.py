@@ -6,14 +6,13 @@ in one line naming it, and every file of the run is left byte for byte as it was
 import hashlib
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 import pinarray
 from pinarray.errors import ResultsError
+from tests.commands import pinarray_forked
 from tests.lab_protocols import short_copy
 from tests.test_paradigm_holes import RESUME_TIMEOUT_S, edited, run_cut_short
 
@@ -100,10 +99,9 @@ def test_a_resume_refused_for_a_damaged_file_leaves_every_file_as_it_was(tmp_pat
 def test_a_fifo_in_a_results_files_place_is_refused_not_waited_on(tmp_path, where):
     protocol_path, results = damaged_run(tmp_path, where, lambda p: replaced(p, os.mkfifo))
     before = snapshot(results)
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "batch", str(protocol_path), "--subject", "01",
-         "--observer", "default", "--results", str(results), "--resume"],
-        capture_output=True, text=True, timeout=RESUME_TIMEOUT_S)
+    result = pinarray_forked(tmp_path / "resume", "batch", protocol_path, "--subject", "01",
+                             "--observer", "default", "--results", results, "--resume",
+                             timeout=RESUME_TIMEOUT_S)
     assert result.returncode == 2, result.stderr
     (line,) = result.stderr.strip().splitlines()
     assert line.endswith("file, found a FIFO (named pipe)") and str(results) in line

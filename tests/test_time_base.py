@@ -3,8 +3,6 @@
 import csv
 import itertools
 import json
-import subprocess
-import sys
 from dataclasses import replace
 from datetime import datetime, timedelta, timezone
 
@@ -27,6 +25,7 @@ from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import Phase, Session, task_label
+from tests.commands import pinarray_here
 from tests.runs import (
     PROVENANCE,
     REPO,
@@ -148,10 +147,8 @@ def test_a_run_on_real_servos_in_real_time_is_not_marked_simulated(tmp_path):
 
 
 def test_a_sped_up_rehearsal_is_marked_as_such_in_the_manifest_and_the_sidecar(tmp_path):
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "batch", str(MOTION), "--subject", "01", "--observer",
-         "default", "--time-scale", "50", "--results", str(tmp_path)],
-        capture_output=True, text=True, timeout=120, cwd=REPO)
+    result = pinarray_here("batch", MOTION, "--subject", "01", "--observer", "default",
+                           "--time-scale", "50", "--results", tmp_path)
     assert result.returncode == 0, result.stderr
     (manifest_path,) = tmp_path.rglob("*_manifest.json")
     (only,) = read_manifest(manifest_path).sittings

@@ -3,8 +3,6 @@ direction they go; and a localisation train that leaves its frequency to the des
 
 import csv
 import json
-import subprocess
-import sys
 import textwrap
 
 import pytest
@@ -14,6 +12,7 @@ from pinarray.journal.manifest import PlanEntry, entry_from_json, entry_to_json
 from pinarray.paradigms.apparent_motion.rows import entry_direction
 from pinarray.protocol import Direction, WaveKind
 from pinarray.protocol.load import load_protocol, parse_protocol
+from tests.commands import pinarray_here
 from tests.many_ways import MANY_WAYS, write_many_ways
 from tests.test_protocol_load import PROTOCOLS
 
@@ -89,10 +88,8 @@ def test_a_sequence_of_pins_must_be_distinct_on_the_grid_and_name_its_direction(
 
 def test_a_column_and_a_diagonal_wave_run_in_batch_with_a_simulated_subject(tmp_path):
     path = write_many_ways(tmp_path)
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "batch", str(path), "--subject", "w1", "--observer",
-         "default", "--seed", "4", "--results", str(tmp_path / "out")],
-        capture_output=True, text=True, timeout=120)
+    result = pinarray_here("batch", path, "--subject", "w1", "--observer", "default", "--seed",
+                           "4", "--results", tmp_path / "out")
     assert result.returncode == 0, result.stderr
     (beh,) = (tmp_path / "out").rglob("*_beh.tsv")
     rows = list(csv.DictReader(beh.open(), delimiter="\t"))

@@ -1,7 +1,5 @@
 """Checking a protocol's procedures on simulated subjects before running people."""
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +8,7 @@ from pinarray.adaptive.psychometric import Psychometric
 from pinarray.analysis.procedure_check import check_procedures, target_probability
 from pinarray.cli import main
 from pinarray.protocol.load import load_protocol
+from tests.commands import pinarray_here
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 
@@ -40,10 +39,8 @@ def test_doubling_the_simulated_threshold_doubles_the_mean_estimate(name):
 
 
 def test_power_on_an_adaptive_protocol_prints_each_procedures_bias_and_writes_a_table(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "pinarray", "power",
-                           str(PROTOCOLS / "quest_stroke.yaml"), "--studies", "20",
-                           "--observer", "threshold=40", "--out", str(tmp_path)],
-                          capture_output=True, text=True, timeout=300)
+    done = pinarray_here("power", PROTOCOLS / "quest_stroke.yaml", "--studies", "20",
+                         "--observer", "threshold=40", "--out", tmp_path)
     assert done.returncode == 0, done.stderr
     assert "each run by 20 simulated subjects" in done.stdout
     assert any(line.startswith("quest ") for line in done.stdout.splitlines())
@@ -52,9 +49,8 @@ def test_power_on_an_adaptive_protocol_prints_each_procedures_bias_and_writes_a_
 
 
 def test_power_refuses_an_observer_key_an_adaptive_design_does_not_have(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "pinarray", "power",
-                           str(PROTOCOLS / "quest_stroke.yaml"), "--observer", "correct_5hz=0.5",
-                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=300)
+    done = pinarray_here("power", PROTOCOLS / "quest_stroke.yaml", "--observer",
+                         "correct_5hz=0.5", "--out", tmp_path)
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "unknown parameter 'correct_5hz'" in done.stderr
 

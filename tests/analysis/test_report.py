@@ -41,18 +41,20 @@ def read_csv(path):
 class Analysis:
     out: Path
     printed: str
+    drawn: dict  # each figure drawn, by name, as saved
 
 
 @pytest.fixture(scope="module")
 def analysed(tmp_path_factory):
     """The two subjects' results analysed once with the default options (a few seconds of
-    figures and fits), for the tests that only read what it wrote and printed."""
+    figures and fits), for the tests that only read what it wrote, drew and printed."""
     folder = tmp_path_factory.mktemp("report")
     out = folder / "analysis"
     printed = io.StringIO()
-    with contextlib.redirect_stdout(printed):
+    with pytest.MonkeyPatch.context() as monkeypatch, contextlib.redirect_stdout(printed):
+        drawn = keep_figures(monkeypatch, draw=True)
         assert analyse(str(write_results(folder / "results")), "--out", str(out)) == 0
-    return Analysis(out, printed.getvalue())
+    return Analysis(out, printed.getvalue(), drawn)
 
 
 def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them(analysed):
@@ -67,6 +69,23 @@ def test_analyse_writes_tables_figures_as_png_and_pdf_and_a_page_that_links_them
                  "pin_accuracy.csv", "confusion_matrix.csv", "frequency_effect.csv",
                  "motion_subject_level.csv", "motion_per_subject.csv", "runs.csv"):
         assert f"({name})" in page and (out / name).exists()
+
+
+def test_a_fixed_design_writes_no_thresholds_and_no_threshold_figures(analysed):
+    out = analysed.out
+    assert not (out / "thresholds.csv").exists()
+    assert not list(out.glob("track_*")) and not list(out.glob("fit_*"))
+    assert "Thresholds" not in (out / "summary.md").read_text()
+    assert "thresholds" not in analysed.printed
+
+
+def test_results_without_measured_strokes_are_analysed_and_say_there_is_no_stroke_table(
+        analysed):
+    out = analysed.out
+    assert not (out / "stroke_by_frequency.csv").exists()
+    assert not (out / "stroke_by_frequency.png").exists()
+    page = (out / "summary.md").read_text()
+    assert "No stroke table: nothing was measured" in page
 
 
 def test_no_figures_writes_the_same_tables_and_printout_and_the_page_says_none_were_drawn(
@@ -189,10 +208,8 @@ def test_pin_accuracy_numbers_pins_rows_and_columns_from_1(analysed):
     assert pins["10"]["trial_pooled_pct"] == "20.0" and pins["2"]["subject_mean_pct"] == "n/a"
 
 
-def test_the_error_figure_draws_nothing_felt_and_the_chance_levels(results_root, tmp_path,
-                                                                   monkeypatch):
-    drawn = keep_figures(monkeypatch)
-    analyse(str(results_root), "--out", str(tmp_path / "analysis"))
+def test_the_error_figure_draws_nothing_felt_and_the_chance_levels(analysed):
+    drawn = analysed.drawn
     errors = drawn["error_types"].axes[0]
     _, labels = errors.get_legend_handles_labels()
     assert sorted(labels) == ["chance", "error A", "error B", "error C", "error D",

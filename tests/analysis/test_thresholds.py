@@ -22,7 +22,6 @@ from pinarray.analysis.thresholds import parameter_and_unit
 from pinarray.cli.analysis import register
 from pinarray.journal.records import AdaptiveCells
 from tests.analysis.adaptive_runs import Written, detection_run, motion_row, motion_run
-from tests.analysis.conftest import write_results
 
 # One worker builds the module's fixture once (about 20 s: two subjects' runs, fits, figures).
 pytestmark = [pytest.mark.xdist_group("thresholds"), pytest.mark.long]
@@ -201,14 +200,8 @@ def test_the_tracks_and_fitted_functions_are_drawn_and_the_summary_shows_and_lin
     assert "63.2 %" in page and "(thresholds.json)" in page
 
 
-def test_a_fixed_design_writes_no_thresholds_and_no_threshold_figures(tmp_path):
-    out = tmp_path / "analysis"
-    with contextlib.redirect_stdout(io.StringIO()) as printed:
-        assert analyse(str(write_results(tmp_path / "results")), "--out", str(out)) == 0
-    assert not (out / "thresholds.csv").exists()
-    assert not list(out.glob("track_*")) and not list(out.glob("fit_*"))
-    assert "Thresholds" not in (out / "summary.md").read_text()
-    assert "thresholds" not in printed.getvalue()
+# A fixed design's analysis writes no thresholds: tests/analysis/test_report.py, on the analysis
+# of its fixed-design results that it makes once for all its tests.
 
 
 def staircase_row(trial, intensity, correct, estimate=None, guess=0.5, **fields):

@@ -10,6 +10,7 @@ import pytest
 
 from pinarray.cli import build_parser, main
 from pinarray.softness.hertz import SMALL_CONTACT_FRACTION
+from tests.commands import pinarray_here
 
 SUBCOMMANDS = ["hertz", "telescopic", "display", "fit", "track", "forceps"]
 
@@ -62,12 +63,7 @@ def test_forceps_reads_samples_from_a_csv(tmp_path, capsys):
 def test_bad_input_is_one_line_with_status_2(tmp_path):
     data = tmp_path / "bad.csv"
     data.write_text("area_cm2,force_n\n1,2\n2,oops\n")
-    result = subprocess.run(
-        [sys.executable, "-m", "pinarray", "softness", "fit", "--csv", str(data)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    result = pinarray_here("softness", "fit", "--csv", data)
     assert result.returncode == 2
     assert result.stderr.strip() == f"pinarray: {data}:3: expected two numbers, found 2,oops"
 
