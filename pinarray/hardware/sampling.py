@@ -100,7 +100,7 @@ class PinGoals:
         while left_ns < end_ns:
             stop_ns = starts[index] if index < len(starts) else end_ns
             if index:
-                allowed = (stop_ns - starts[index - 1]) * _GAP_NUM  # x _GAP_DEN
+                allowed = (stop_ns - starts[index - 1]) * _GAP_NUM  # the gap allowed, x _GAP_DEN
                 if allowed < (stop_ns - left_ns) * _GAP_DEN:
                     return left_ns + allowed // _GAP_DEN  # the floor of the exact reach
             left_ns, index = stop_ns, index + 1
