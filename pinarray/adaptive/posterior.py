@@ -57,7 +57,6 @@ from enum import StrEnum
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import xlog1py, xlogy
 
 from pinarray.adaptive.psychometric import KINDS, Psychometric, PsychometricKind, rise
 from pinarray.errors import PinArrayError
@@ -240,6 +239,8 @@ def log_likelihood_grid(kind: PsychometricKind, x: NDArray[np.float64], k: NDArr
                         lapses: NDArray[np.float64]) -> NDArray[np.float64]:
     """The binomial log-likelihood (without the binomial coefficients) at every grid cell,
     shape (thresholds, slopes, lapses); -inf where the model calls an answer impossible."""
+    from scipy.special import xlog1py, xlogy  # scipy loads only when a posterior is asked for
+
     risen = rise(kind, x[None, None, :], thresholds[:, None, None], slopes[None, :, None])
     span = (1.0 - guess - lapses)[None, None, :, None]
     p = guess + span * risen[:, :, None, :]

@@ -33,12 +33,20 @@ from __future__ import annotations
 from bisect import bisect_right
 from collections.abc import Sequence
 from dataclasses import dataclass
-from math import floor
 
 from pinarray.hardware.delivery import Change
 from pinarray.hardware.motion import ARRIVAL_STEPS, MAX_GAP_FRACTION
 
 NEVER_NS = 2**62  # later than any trial ends
+# `MAX_GAP_FRACTION` as integers: a gap of ``g`` ns fits a cycle of ``c`` ns when
+# ``g * _GAP_DEN <= c * _GAP_NUM`` (exact, and without a Fraction on the verifier's every sample).
+_GAP_NUM, _GAP_DEN = MAX_GAP_FRACTION.numerator, MAX_GAP_FRACTION.denominator
+
+
+def _allowed_ns(cycle_ns: int) -> int:
+    """The longest gap a cycle of ``cycle_ns`` allows, in whole ns (toward zero)."""
+    allowed = abs(cycle_ns) * _GAP_NUM // _GAP_DEN
+    return allowed if cycle_ns >= 0 else -allowed
 
 
 @dataclass(frozen=True)
@@ -78,7 +86,7 @@ class PinGoals:
         while left_ns < min(to_ns, end_ns):
             stop_ns = starts[index] if index < len(starts) else end_ns
             right_ns = min(to_ns, stop_ns)
-            if index and right_ns - left_ns > (stop_ns - starts[index - 1]) * MAX_GAP_FRACTION:
+            if index and (right_ns - left_ns) * _GAP_DEN > (stop_ns - starts[index - 1]) * _GAP_NUM:
                 return False
             left_ns, index = right_ns, index + 1
         return True
@@ -92,9 +100,9 @@ class PinGoals:
         while left_ns < end_ns:
             stop_ns = starts[index] if index < len(starts) else end_ns
             if index:
-                reach = left_ns + (stop_ns - starts[index - 1]) * MAX_GAP_FRACTION
-                if reach < stop_ns:
-                    return floor(reach)
+                allowed = (stop_ns - starts[index - 1]) * _GAP_NUM  # the gap allowed, x _GAP_DEN
+                if allowed < (stop_ns - left_ns) * _GAP_DEN:
+                    return left_ns + allowed // _GAP_DEN  # the floor of the exact reach
             left_ns, index = stop_ns, index + 1
         return NEVER_NS
 
@@ -102,7 +110,7 @@ class PinGoals:
         """The shortest gap between samples any of this servo's cycles allows, in ns (None:
         no cycle starts)."""
         stops = (*self.cycle_start_ns[1:], end_ns)
-        return min((int((stop_ns - start_ns) * MAX_GAP_FRACTION)
+        return min((_allowed_ns(stop_ns - start_ns)
                     for start_ns, stop_ns in zip(self.cycle_start_ns, stops, strict=True)),
                    default=None)
 
@@ -114,7 +122,7 @@ class PinGoals:
             return None
         start_ns = self.cycle_start_ns[index - 1]
         stop_ns = self.cycle_start_ns[index] if index < len(self.cycle_start_ns) else end_ns
-        return int((stop_ns - start_ns) * MAX_GAP_FRACTION)
+        return _allowed_ns(stop_ns - start_ns)
 
 
 class Holds:

@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinarray.hardware.delivery import Change
-from pinarray.hardware.motion import PinTrace, measure_pin
-from pinarray.hardware.sampling import Holds, PinGoals
+from pinarray.hardware.motion import MAX_GAP_FRACTION, PinTrace, measure_pin
+from pinarray.hardware.sampling import NEVER_NS, Holds, PinGoals
 
 MS = 1_000_000
 PERIOD_NS = 4 * MS
@@ -119,3 +119,29 @@ def test_the_latest_next_sample_is_where_the_gap_rule_stops_holding(from_ms, len
     goals = PinGoals.of(changes)
     from_ns, to_ns, end_ns = from_ms * MS, (from_ms + length_ms) * MS, 1300 * MS
     assert goals.gap_fits(from_ns, to_ns, end_ns) == (to_ns <= goals.reach_ns(from_ns, end_ns))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.integers(1, 10**9), min_size=2, max_size=8), st.integers(0, 5 * 10**9),
+       st.integers(1, 10**9))
+def test_the_gap_rule_holds_to_the_nanosecond_for_cycles_of_any_length(halves_ns, from_ns,
+                                                                        tail_ns):
+    """Cycles whose length is no multiple of the rule's eighth: the latest next sample is the
+    last nanosecond a gap keeps the rule, and the gap a cycle allows is its eighth rounded
+    down (exact integers, as `pinarray.hardware.motion` judges with its Fraction)."""
+    times = np.cumsum([0, *halves_ns[:-1]]).tolist()
+    changes = [Change(4, 4, UP if k % 2 == 0 else REST, t) for k, t in enumerate(times)]
+    end_ns = times[-1] + tail_ns
+    goals = PinGoals.of(changes)
+    reach = goals.reach_ns(from_ns, end_ns)
+    if reach < NEVER_NS:
+        assert goals.gap_fits(from_ns, reach, end_ns)
+        assert not goals.gap_fits(from_ns, reach + 1, end_ns)
+    else:
+        assert goals.gap_fits(from_ns, end_ns, end_ns)
+    stops = [*goals.cycle_start_ns[1:], end_ns]
+    allowed = [int((stop - start) * MAX_GAP_FRACTION)
+               for start, stop in zip(goals.cycle_start_ns, stops, strict=True)]
+    assert goals.tightest_gap_ns(end_ns) == min(allowed)
+    for start, gap in zip(goals.cycle_start_ns, allowed, strict=True):
+        assert goals.gap_allowed_ns(start, end_ns) == gap

@@ -62,6 +62,8 @@ GOAL_TO_POSITION_BYTES = (Register.PRESENT_POSITION.address + Register.PRESENT_P
 POSITION_OFFSET = Register.PRESENT_POSITION.address - Register.GOAL_POSITION.address
 # Sync reads that get no answer at all, in a row, before read-backs use READs instead.
 SYNC_READ_TRIES = 3
+# Present Position and its size: a sampled bus reads it every few milliseconds.
+_POSITION, _POSITION_BYTES = Register.PRESENT_POSITION, Register.PRESENT_POSITION.size
 # Read requests kept made (a trial asks the same few again and again; a bring-up, many once).
 READ_REQUESTS_KEPT = 64
 # A retry after a silence waits this many times longer than the attempt before it.
@@ -399,14 +401,14 @@ class FeetechBus:
         Each servo samples its encoder when the request reaches it; a servo missing: no reply
         by ``deadline_ns``. The replies' error bits are left to the read-backs and telemetry.
         """
-        replies = self._read_words(Register.PRESENT_POSITION, Register.PRESENT_POSITION.size,
-                                   servo_ids, deadline_ns, "sampling")
-        return {i: decode_position(from_bytes(r.params)) for i, r in replies.items()}
+        replies = self._read_words(_POSITION, _POSITION_BYTES, servo_ids, deadline_ns,
+                                   "sampling")
+        return {i: decode_position(int.from_bytes(r.params, "little"))
+                for i, r in replies.items()}
 
     def read_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
         """What `read_positions` of these servos should take on this bus."""
-        return self._read_words_time_ns(Register.PRESENT_POSITION,
-                                        Register.PRESENT_POSITION.size, servo_ids)
+        return self._read_words_time_ns(_POSITION, _POSITION_BYTES, servo_ids)
 
     def read_goals_and_positions(self, servo_ids: tuple[int, ...],
                                  deadline_ns: int) -> dict[int, tuple[GoalReading, int]]:

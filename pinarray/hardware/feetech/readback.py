@@ -156,7 +156,11 @@ class Verifier:
             if now_ns < start_ns:  # at most one sample a SAMPLE_PERIOD_NS
                 self._next_sample_ns = start_ns
                 clock.doze_until_ns(start_ns)
-                continue
+                now_ns = clock.now_ns()
+                if now_ns != start_ns:
+                    continue  # woken late: planned again from now
+                # Woken on time, nothing else changed: planning again from now would give
+                # now (the sample planned fits, as it did), so it is taken at once.
             positions = bus.read_positions(ids, limit_ns)
             self._record_sample(ids, positions, now_ns, cost_ns, request_ns, after_change_ns,
                                 thinning)

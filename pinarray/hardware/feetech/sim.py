@@ -362,11 +362,11 @@ class SimBus:
     ) -> list[Answer]:
         broadcast = servo_id == BROADCAST_ID
         if instruction == _READ and not broadcast:  # the usual request: one servo's bytes
-            if len(params) != 2 or not _fits(params[1]):
+            if len(params) != 2 or params[1] > _LONGEST_READ:  # (`_fits`)
                 return []
             if not self._shadowed:  # one servo at most answers at an id
                 servo = self.servos.get(servo_id)
-                if servo is None or not servo.hears(baud):
+                if servo is None or not (baud is None or baud == servo.baud_rate):  # `hears`
                     return []
                 data = servo.read(params[0], params[1], end_ns)  # `_answer`, inline
                 return [Answer(servo_id, servo.status_error_byte, data, servo.return_delay_ns)]

@@ -133,6 +133,17 @@ class Move(NamedTuple):
         horn = horn_for(drive, piece.horn_steps, piece.direction, self.drive)
         return MotionState(drive, speed, horn)
 
+    def horn_at(self, time_ns: int) -> float:
+        """`state_at`'s horn alone (what the encoder reads: every motion sample asks)."""
+        final = self.pieces[-1]
+        if final.start_ns <= time_ns:
+            return final.horn_steps
+        piece = self._piece_at(time_ns)
+        if piece is final:
+            return final.horn_steps
+        drive, _ = piece.drive_at(time_ns)
+        return horn_for(drive, piece.horn_steps, piece.direction, self.drive)
+
     def horn_speed_at(self, time_ns: int) -> float:
         """The horn's speed (steps/s): the drive's while it pushes the horn, else 0."""
         piece = self._piece_at(time_ns)

@@ -19,7 +19,7 @@ from pinarray.hardware.feetech.link import Latency, Link, PolledWire
 from pinarray.hardware.feetech.packets import MAX_ERROR_BYTE, StatusPacket
 from pinarray.hardware.feetech.registers import BROADCAST_ID, checksum
 from pinarray.hardware.feetech.sim_serial import SimSerial
-from pinarray.hardware.feetech.sim_wire import Answer
+from pinarray.hardware.feetech.sim_wire import STATUS_OVERHEAD_BYTES, Answer
 
 # Requests kept parsed (a sampled bus sends the same few every few milliseconds).
 REQUESTS_KEPT = 256
@@ -83,6 +83,8 @@ class PacketLink(Link):
         counters.bytes_written += len(packet)
         counters.exchanges += 1
         end_ns, answers = port.write_whole(packet, *request)
+        if len(answers) == 1 and len(wanted) == 1:
+            return self._one_answer(answers[0], end_ns, wanted, limit_ns)
         if len(answers) > 1 and not all(answer.chained for answer in answers):
             port.schedule_answers(answers, end_ns)  # answers at once may collide: bytes
             return self.collect(wanted, limit_ns, {})
@@ -112,3 +114,31 @@ class PacketLink(Link):
         if len(replies) < len(wanted):
             return self.collect(wanted, limit_ns, replies)
         return replies
+
+    def _one_answer(self, answer: Answer, end_ns: int, wanted: dict[int, int],
+                    limit_ns: int) -> dict[int, StatusPacket]:
+        """`_send_and_collect` where one answer comes and one is wanted (a READ, a sample):
+        the same steps, the loop unrolled (this runs for every sample of a batch)."""
+        port, counters = self.port, self.counters
+        params = answer.params
+        size = STATUS_OVERHEAD_BYTES + len(params)
+        start_ns = end_ns + answer.delay_ns
+        whole_ns = start_ns + round(size * port.byte_ns)
+        port.answered(whole_ns)
+        if (whole_ns > limit_ns or answer.reply_id >= BROADCAST_ID
+                or len(params) > self.reader.longest_params or answer.error > MAX_ERROR_BYTE):
+            port.put_on_wire([(start_ns, answer)])  # the reader's own way from here on
+            return self.collect(wanted, limit_ns, {})
+        self.clock.sleep_until_ns(whole_ns)
+        port.took(size)
+        counters.bytes_read += size
+        if wanted.get(answer.reply_id) != len(params):
+            counters.mismatched_replies += 1
+            return self.collect(wanted, limit_ns, {})
+        return {answer.reply_id: StatusPacket(answer.reply_id, answer.error, params)}
+
+    def drain(self) -> None:
+        """As `Link.drain`; nothing to do while the port is computable and nothing half read
+        (no bytes on their way, none kept)."""
+        if not self.port.computable() or self.reader.pending_bytes:
+            super().drain()

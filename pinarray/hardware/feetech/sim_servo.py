@@ -263,6 +263,12 @@ class SimServo:
         """Answer a READ: ``length`` bytes of the table from ``address``."""
         if now_ns > self._last_ns:
             self._last_ns = now_ns
+        if address == _PRESENT_POSITION and length == 2:  # a motion sample: the usual read
+            word = self.present_position_word(now_ns)
+            table = self.table
+            table[_PRESENT_POSITION] = word & 0xFF
+            table[_PRESENT_POSITION + 1] = word >> 8
+            return word.to_bytes(2, "little")
         end = address + length
         if address < FEEDBACK_END and end > FEEDBACK_START:
             self._refresh_feedback(now_ns, address, end)  # only then does the motion matter
@@ -451,7 +457,7 @@ class SimServo:
         raw = table[_OFFSET] | table[_OFFSET + 1] << 8
         magnitude = raw & _OFFSET_MAGNITUDE
         offset = -magnitude if raw & _OFFSET_SIGN else magnitude
-        present = round(self._move.state_at(now_ns).horn_steps) - offset
+        present = round(self._move.horn_at(now_ns)) - offset
         if not table[_PHASE] & PHASE_FULL_ANGLE_FEEDBACK:
             present %= 4096
         if present < 0:
