@@ -44,44 +44,45 @@ async def begin(pilot):
     return pilot.app.screen.session
 
 
-async def test_pause_holds_the_run_until_p_again(results):
+async def test_pause_holds_the_run_until_p_again_and_redo_asks_first_then_presents_the_trial_again(
+        results):
+    """One run: practice 1 paused and resumed (no answer taken while paused), then practice 2
+    redone (asked first; the first presentation logged, the trial presented again)."""
     app = make_app(results)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
+        paused = session.current.trial
         await pilot.press("p")
         assert session.phase is Phase.PAUSED and "PAUSED" in text(app, "#phase")
         await pilot.press("6", "enter")  # answers are not taken while paused
         await settle(pilot)
-        assert session.phase is Phase.PAUSED and session.records == []
+        assert session.phase is Phase.PAUSED and session.records == [], "an answer taken paused"
         await pilot.press("p")
         assert session.phase is Phase.RESPONSE
         await pilot.press("6", "enter")
         await settle(pilot)
         await pilot.press("p")
         await present(pilot)  # Space does nothing while paused
-        assert session.phase is Phase.PAUSED
+        assert session.phase is Phase.PAUSED, "Space presented a trial while paused"
         await pilot.press("p")
         assert session.phase is Phase.READY
-    assert [r.status for r in rows(results)] == ["ok"]
+        assert [(r.trial, r.status) for r in rows(results)] == [(paused, "ok")]
 
-
-async def test_redo_asks_first_logs_the_first_presentation_and_presents_the_trial_again(results):
-    app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
-        session = await begin(pilot)
-        first = session.current.trial
+        await present(pilot)
+        redone = session.current.trial
         await pilot.press("d")
         assert isinstance(app.screen, Confirm)
-        assert "Present practice 1 of 2 again?" in text(app, "#question")
+        assert "Present practice 2 of 2 again?" in text(app, "#question")
         await pilot.press("n")  # a slip of the finger: nothing happens
         assert isinstance(app.screen, RunScreen) and session.phase is Phase.RESPONSE
-        assert session.records == []
+        assert len(session.records) == 1, "No to the redo question still logged something"
         await pilot.press("d", "y")
-        assert session.phase is Phase.READY and session.current.trial == first
+        assert session.phase is Phase.READY and session.current.trial == redone
         await present(pilot)
         await pilot.press("1", "enter")
         await settle(pilot)
-    assert [(r.trial, r.status) for r in rows(results)] == [(first, "redone"), (first, "ok")]
+    assert [(r.trial, r.status) for r in rows(results)] == [
+        (paused, "ok"), (redone, "redone"), (redone, "ok")]
 
 
 async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped(results):
@@ -135,20 +136,22 @@ async def test_quitting_mid_run_leaves_a_resumable_run_and_keeps_every_row(resul
     assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
 
 
-class RigFailingOnce(Rig):
-    """The real simulated rig, except that its first stimulus fails as a lost servo would."""
+class RigFailingTwice(Rig):
+    """The real simulated rig, except that its first and third stimuli fail as a lost servo
+    would."""
 
-    failures = 1
+    presentations = 0
 
     def present(self, schedule):
-        if self.failures:
-            self.failures -= 1
+        self.presentations += 1
+        if self.presentations in (1, 3):
             raise BusError("servo 6 (pin 6): no status packet after 3 retries")
         return super().present(schedule)
 
 
-async def test_a_bus_fault_is_shown_in_words_and_retry_presents_the_trial_again(results):
-    app = make_app(results, rig_factory=RigFailingOnce)
+async def test_a_bus_fault_is_shown_in_words_retry_presents_the_trial_again_and_abort_keeps_the_invalid_row(
+        results):
+    app = make_app(results, rig_factory=RigFailingTwice)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         assert session.phase is Phase.FAULT
@@ -160,18 +163,17 @@ async def test_a_bus_fault_is_shown_in_words_and_retry_presents_the_trial_again(
         assert session.phase is Phase.RESPONSE
         await pilot.press("2", "enter")
         await settle(pilot)
-    first, second = rows(results)
-    assert (first.status, second.status, first.trial) == ("invalid", "ok", second.trial)
-
-
-async def test_a_bus_fault_then_abort_keeps_the_invalid_row(results):
-    app = make_app(results, rig_factory=RigFailingOnce)
-    async with app.run_test(size=SIZE) as pilot:
-        await begin(pilot)
+        first, second = rows(results)
+        assert (first.status, second.status, first.trial) == ("invalid", "ok", second.trial)
+        # The next trial fails too; this time the experimenter aborts the run at the fault.
+        await present(pilot)
+        assert session.phase is Phase.FAULT
+        aborted = session.current.trial
         await pilot.press("a", "y")
         await settle(pilot)
         assert isinstance(app.screen, EndScreen)
-    assert [r.status for r in rows(results)] == ["invalid"]
+    assert [(r.trial, r.status) for r in rows(results)][2:] == [(aborted, "invalid")], \
+        "the row of the stimulus that failed before the abort"
     assert manifest(results).status == "aborted"
 
 
@@ -248,16 +250,17 @@ async def test_quitting_during_a_real_time_stimulus_cuts_it_short_and_rests_the_
     assert manifest(results).abort_reason == "quit from the UI"
 
 
-class RigLateOnce(Rig):
-    """The real simulated rig, except that its first stimulus must arrive within 1 ns: the
-    wire time alone makes every goal change late, so it is not delivered as scheduled."""
+class RigLate(Rig):
+    """The real simulated rig, except that its first stimulus and those from the third on must
+    arrive within 1 ns: the wire time alone makes every goal change late, so none of them is
+    delivered as scheduled."""
 
-    strict = 1
+    presentations = 0
 
     def present(self, schedule):
-        if not self.strict:
+        self.presentations += 1
+        if self.presentations == 2:
             return super().present(schedule)
-        self.strict -= 1
         tolerance_ns, self.tolerance_ns = self.tolerance_ns, 1
         try:
             return super().present(schedule)
@@ -265,40 +268,31 @@ class RigLateOnce(Rig):
             self.tolerance_ns = tolerance_ns
 
 
-async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_presented_again(results):
-    app = make_app(results, rig_factory=RigLateOnce)
+async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_tried_three_times_then_the_run_stops_with_it_named(
+        results):
+    """As in batch: a trial not delivered is presented again (t), up to three times in all;
+    the third failure stops the run."""
+    app = make_app(results, rig_factory=RigLate)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         assert session.phase is Phase.FAULT
         shown = text(app, "#phase")
         assert "STIMULUS FAILED (logged invalid): the stimulus was not delivered as scheduled" in shown
         assert "reached their servo later than the tolerance of 1e-06 ms" in shown
+        assert "t: present the trial again (attempt 2 of 3)" in shown
         await pilot.press("t")  # one key: the trial is presented again
         await settle(pilot)
         assert session.phase is Phase.RESPONSE
         await pilot.press("2", "enter")
         await settle(pilot)
-    failed, again = rows(results)
-    assert (failed.status, again.status, failed.trial) == ("invalid", "ok", again.trial)
-    assert failed.delivery.missing == 0 and failed.delivery.confirmed == failed.delivery.scheduled > 0
-    assert failed.delivery.lateness_ns > 1 and "not delivered as scheduled" in failed.status_reason
-    assert again.delivery.missing == 0 and again.delivery.confirmed == again.delivery.scheduled
+        failed, again = rows(results)
+        assert (failed.status, again.status, failed.trial) == ("invalid", "ok", again.trial)
+        assert failed.delivery.missing == 0 and failed.delivery.confirmed == failed.delivery.scheduled > 0
+        assert failed.delivery.lateness_ns > 1 and "not delivered as scheduled" in failed.status_reason
+        assert again.delivery.missing == 0 and again.delivery.confirmed == again.delivery.scheduled
 
-
-class RigNeverOnTime(Rig):
-    """The real simulated rig, every stimulus due at its servos within 1 ns: none is
-    delivered as scheduled."""
-
-    def __init__(self, *args, **kwargs):
-        super().__init__(*args, **kwargs)
-        self.tolerance_ns = 1
-
-
-async def test_an_undelivered_trial_is_tried_three_times_in_the_ui_as_in_batch_then_the_run_stops_with_it_named(
-        results):
-    app = make_app(results, rig_factory=RigNeverOnTime)
-    async with app.run_test(size=SIZE) as pilot:
-        session = await begin(pilot)
+        # The next trial is never on time: tried three times, then the run stops.
+        await present(pilot)
         trial = session.current.trial
         assert session.phase is Phase.FAULT
         assert "t: present the trial again (attempt 2 of 3)" in text(app, "#phase")
@@ -311,7 +305,7 @@ async def test_an_undelivered_trial_is_tried_three_times_in_the_ui_as_in_batch_t
         assert isinstance(app.screen, EndScreen)
         assert (f"aborted (trial {trial} failed 3 times: the stimulus was not delivered as "
                 "scheduled") in text(app, "#headline")
-    assert [(r.trial, r.status) for r in rows(results)] == [(trial, "invalid")] * 3
+    assert [(r.trial, r.status) for r in rows(results)][2:] == [(trial, "invalid")] * 3
     run = manifest(results)
     assert run.status == "aborted" and run.abort_reason.startswith(f"trial {trial} failed 3 times")
     assert app.sitting.rig is None  # pins at rest, torque off, port closed
@@ -335,38 +329,29 @@ async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(r
         await settle(pilot)
 
 
-async def test_q_mid_run_asks_first_and_no_goes_on_with_the_run(results):
-    app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
-        session = await begin(pilot)
-        await pilot.press("q")
-        await settle(pilot)
-        assert isinstance(app.screen, Confirm) and "Quit now?" in text(app, "#question")
-        assert session.phase is Phase.RESPONSE and session.records == []
-        await pilot.press("n")
-        await settle(pilot)
-        assert isinstance(app.screen, RunScreen) and app.sitting.rig is not None
-        await pilot.press("4", "enter")
-        await settle(pilot)
-        assert [(r.status, r.response) for r in rows(results)] == [("ok", "4")]
-        await pilot.press("q", "y")
-        await settle(pilot)
-    assert app.sitting.rig is None
-    assert manifest(results).abort_reason == "quit from the UI"
-
-
-async def test_the_start_screen_offers_to_resume_with_the_exit_lines_counts_and_the_runs_seed(
+async def test_q_mid_run_asks_first_and_the_quit_run_is_offered_with_the_exit_lines_counts_and_its_seed(
         results):
     first = make_app(results, seed=3)
     async with first.run_test(size=SIZE) as pilot:
-        await begin(pilot)  # practice trial 1 presented
+        session = await begin(pilot)  # practice trial 1 presented
+        await pilot.press("q")
+        await settle(pilot)
+        assert isinstance(first.screen, Confirm) and "Quit now?" in text(first, "#question")
+        assert session.phase is Phase.RESPONSE and session.records == []
+        await pilot.press("n")
+        await settle(pilot)
+        assert isinstance(first.screen, RunScreen) and first.sitting.rig is not None
         for answer in ("7", "3", "5"):  # two practice trials, then one main trial
             await pilot.press(answer, "enter")
             await settle(pilot)
-            if first.screen.session.phase is Phase.READY:
+            if answer == "7":
+                assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
+            if session.phase is Phase.READY:
                 await present(pilot)
         await pilot.press("q", "y")
         await settle(pilot)
+    assert first.sitting.rig is None
+    assert manifest(results).abort_reason == "quit from the UI"
     _, line = first.outcome()
     progress = "1 of 24 trials (practice 2 of 2)"
     assert progress in line
