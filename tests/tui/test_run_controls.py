@@ -2,6 +2,7 @@
 
 
 import pytest
+from textual.widgets import DataTable
 
 from pinarray.errors import BusError
 from pinarray.journal.manifest import read_manifest
@@ -14,7 +15,16 @@ from pinarray.tui.notice import Notice
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
 from pinarray.tui.start_screen import StartScreen
-from tests.tui.conftest import SIZE, fill_start, make_app, settle, to_run_screen
+from tests.tui.conftest import (
+    SIZE,
+    SMALL,
+    both_sizes,
+    fill_start,
+    make_app,
+    settle,
+    to_run_screen,
+)
+from tests.tui.test_small_terminal import says, unseen
 
 
 def rows(results):
@@ -85,9 +95,12 @@ async def test_pause_holds_the_run_until_p_again_and_redo_asks_first_then_presen
         (paused, "ok"), (redone, "redone"), (redone, "ok")]
 
 
-async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped(results):
+async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped_every_screen_whole(
+        results):
+    """The run aborted, its end screen, the start form offering to resume it and the resumed
+    run's instructions: each whole at 80x24 as at 120x40 (issue 24)."""
     app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         session = await begin(pilot)
         await pilot.press("4", "enter")
         await present(pilot)
@@ -98,21 +111,28 @@ async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped(res
         assert isinstance(app.screen, RunScreen) and session.phase is Phase.RESPONSE
         await pilot.press("a", "y")
         await settle(pilot)
-        assert isinstance(app.screen, EndScreen)
-        assert "aborted (aborted by the experimenter) after 0 of 24 trials (practice 1 of 2)" in text(app, "#headline")
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, EndScreen)
+            assert "aborted (aborted by the experimenter) after 0 of 24 trials (practice 1 of 2)" in text(app, "#headline")
+            assert unseen(app.screen) == [], size  # the aborted run's end screen
         assert manifest(results).status == "aborted"
         assert [r.status for r in rows(results)] == ["ok", "aborted"]
 
         await pilot.press("n")  # new session: back to the start screen, subject still filled in
         await settle(pilot)
-        assert isinstance(app.screen, StartScreen)
-        assert "Unfinished run 1: aborted" in text(app, "#resume-info")
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, StartScreen)
+            assert "Unfinished run 1: aborted" in text(app, "#resume-info")
+            assert unseen(app.screen) == [], size  # the form offering to resume it
         await pilot.click("#resume")
         await settle(pilot)
         await pilot.press("b")
         await settle(pilot)
         resumed = app.screen.session
         assert resumed.done_count == 1 and resumed.writer.resumed
+        async for size in both_sizes(pilot):
+            assert "Resumed:" in says(app.screen, "#phase")
+            assert unseen(app.screen) == [], size  # the resumed run's instructions
         await present(pilot)
         await present(pilot)
         assert resumed.current.trial == cut
@@ -177,19 +197,31 @@ async def test_a_bus_fault_is_shown_in_words_retry_presents_the_trial_again_and_
     assert manifest(results).status == "aborted"
 
 
-async def test_mistakes_are_explained_on_screen_and_nothing_is_written(results):
+async def test_mistakes_are_explained_on_screen_in_view_and_nothing_is_written(results):
+    """A subject label not allowed, a pin that does not exist, an answer out of range: each
+    said on screen; the start form and the pre-flight whole at 80x24 as at 120x40 (issue 24)."""
     app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot, subject="a-b")
         await pilot.click("#start")
         await settle(pilot)
-        assert isinstance(app.screen, StartScreen)
-        assert "subject label 'a-b' is not allowed" in text(app, "#start-error")
+        async for size in both_sizes(pilot):
+            assert isinstance(app.screen, StartScreen)
+            assert "subject label 'a-b' is not allowed" in says(app.screen, "#start-error")
+            assert unseen(app.screen) == [], size  # every field and button, and what is wrong
         await pilot.click("#subject")
         await pilot.press("end", "ctrl+u", "0", "1")
         await pilot.press("enter")
         await settle(pilot)
-        assert isinstance(app.screen, PreflightScreen)
+        screen = app.screen
+        assert isinstance(screen, PreflightScreen) and screen.connected
+        await pilot.press("x")  # not a key here: the notice says so
+        async for size in both_sizes(pilot):
+            assert screen.notice.text
+            assert unseen(screen) == [], size  # every button, the table and the pin test hint
+            table = screen.query_one(DataTable)
+            assert table.scrollable_content_region.height >= table.header_height + 5
+            assert table.scrollable_content_region.width >= table.virtual_size.width  # all columns
         await pilot.click("#test-pin")
         await pilot.press("9", "9", "enter")
         assert "expected a pin from 1 to 16, found '99'" in text(app, "#preflight-status")
@@ -207,14 +239,17 @@ async def test_mistakes_are_explained_on_screen_and_nothing_is_written(results):
         assert session.phase is Phase.RESPONSE and session.records == []
 
 
-async def test_a_failed_handshake_names_the_missing_servos_and_back_returns_to_start(results):
+async def test_a_failed_handshake_names_the_missing_servos_in_view_and_back_returns_to_start(
+        results):
     app = make_app(results, sim_url="sim://?missing=3,7")
-    async with app.run_test(size=SIZE) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot)
         await pilot.click("#start")
         await settle(pilot)
-        shown = text(app, "#preflight-status")
-        assert shown.startswith("Could not connect:") and "3" in shown and "7" in shown
+        async for size in both_sizes(pilot):
+            shown = text(app, "#preflight-status")
+            assert shown.startswith("Could not connect:") and "3" in shown and "7" in shown
+            assert unseen(app.screen) == [], size  # every button of a pre-flight not connected
         assert app.screen.query_one("#begin").disabled
         await pilot.press("escape")
         await settle(pilot)
