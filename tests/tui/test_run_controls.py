@@ -54,16 +54,18 @@ async def begin(pilot):
     return pilot.app.screen.session
 
 
-async def test_pause_holds_the_run_until_p_again_and_redo_asks_first_then_presents_the_trial_again(
+async def test_pause_holds_the_run_redo_and_q_ask_first_and_the_quit_run_is_offered_with_its_counts_and_seed(
         results):
-    """One run: practice 1 paused and resumed (no answer taken while paused), then practice 2
-    redone (asked first; the first presentation logged, the trial presented again)."""
-    app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
+    """One run: practice 1 paused and resumed (no answer taken while paused); practice 2
+    redone (asked first; the first presentation logged, the trial presented again); q asked
+    first and No goes on; then quit, and the next sitting offers the run with the exit line's
+    counts and the run's own seed."""
+    first = make_app(results, seed=3)
+    async with first.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         paused = session.current.trial
         await pilot.press("p")
-        assert session.phase is Phase.PAUSED and "PAUSED" in text(app, "#phase")
+        assert session.phase is Phase.PAUSED and "PAUSED" in text(first, "#phase")
         await pilot.press("6", "enter")  # answers are not taken while paused
         await settle(pilot)
         assert session.phase is Phase.PAUSED and session.records == [], "an answer taken paused"
@@ -78,21 +80,50 @@ async def test_pause_holds_the_run_until_p_again_and_redo_asks_first_then_presen
         assert session.phase is Phase.READY
         assert [(r.trial, r.status) for r in rows(results)] == [(paused, "ok")]
 
+        # Redo.
         await present(pilot)
         redone = session.current.trial
         await pilot.press("d")
-        assert isinstance(app.screen, Confirm)
-        assert "Present practice 2 of 2 again?" in text(app, "#question")
+        assert isinstance(first.screen, Confirm)
+        assert "Present practice 2 of 2 again?" in text(first, "#question")
         await pilot.press("n")  # a slip of the finger: nothing happens
-        assert isinstance(app.screen, RunScreen) and session.phase is Phase.RESPONSE
+        assert isinstance(first.screen, RunScreen) and session.phase is Phase.RESPONSE
         assert len(session.records) == 1, "No to the redo question still logged something"
         await pilot.press("d", "y")
         assert session.phase is Phase.READY and session.current.trial == redone
         await present(pilot)
         await pilot.press("1", "enter")
         await settle(pilot)
-    assert [(r.trial, r.status) for r in rows(results)] == [
-        (paused, "ok"), (redone, "redone"), (redone, "ok")]
+        assert [(r.trial, r.status) for r in rows(results)] == [
+            (paused, "ok"), (redone, "redone"), (redone, "ok")]
+
+        # q mid-run asks first; No goes on with the run.
+        await present(pilot)  # the first main trial
+        await pilot.press("q")
+        await settle(pilot)
+        assert isinstance(first.screen, Confirm) and "Quit now?" in text(first, "#question")
+        assert session.phase is Phase.RESPONSE and len(session.records) == 3
+        await pilot.press("n")
+        await settle(pilot)
+        assert isinstance(first.screen, RunScreen) and first.sitting.rig is not None
+        assert len(session.records) == 3, "No to the quit question logged something"
+        await pilot.press("5", "enter")
+        await settle(pilot)
+        assert [(r.status, r.response) for r in rows(results)][-1] == ("ok", "5")
+        await present(pilot)
+        await pilot.press("q", "y")
+        await settle(pilot)
+    assert first.sitting.rig is None
+    assert manifest(results).abort_reason == "quit from the UI"
+    _, line = first.outcome()
+    progress = "1 of 24 trials (practice 2 of 2)"
+    assert progress in line
+    again = make_app(results, seed=99)  # the next sitting would draw another order...
+    async with again.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        offer = text(again, "#resume-info")
+        assert f"{progress} done, seed 3" in offer
+        assert again.screen.query_one("#seed").value == "3"  # ...but the run keeps its own
 
 
 async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped_every_screen_whole(
@@ -142,20 +173,6 @@ async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped_eve
     assert (last.trial, last.status, last.resumed, last.response) == (cut, "ok", True, "none")
 
 
-async def test_quitting_mid_run_leaves_a_resumable_run_and_keeps_every_row(results):
-    app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
-        await begin(pilot)
-        await pilot.press("7", "enter")
-        await settle(pilot)
-        await pilot.press("ctrl+c")
-        await settle(pilot)
-    assert app.sitting.rig is None  # pins at rest, torque off, port closed
-    run = manifest(results)
-    assert (run.status, run.abort_reason) == ("aborted", "interrupted (Ctrl-C)")
-    assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
-
-
 class RigFailingTwice(Rig):
     """The real simulated rig, except that its first and third stimuli fail as a lost servo
     would."""
@@ -197,9 +214,11 @@ async def test_a_bus_fault_is_shown_in_words_retry_presents_the_trial_again_and_
     assert manifest(results).status == "aborted"
 
 
-async def test_mistakes_are_explained_on_screen_in_view_and_nothing_is_written(results):
+async def test_mistakes_are_explained_on_screen_in_view_and_nothing_is_written_then_ctrl_c_keeps_every_row(
+        results):
     """A subject label not allowed, a pin that does not exist, an answer out of range: each
-    said on screen; the start form and the pre-flight whole at 80x24 as at 120x40 (issue 24)."""
+    said on screen, nothing written; the start form and the pre-flight whole at 80x24 as at
+    120x40 (issue 24). Then an answer, and Ctrl-C leaves the run resumable with its row."""
     app = make_app(results)
     async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot, subject="a-b")
@@ -237,6 +256,16 @@ async def test_mistakes_are_explained_on_screen_in_view_and_nothing_is_written(r
         await settle(pilot)
         assert "expected a pin number from 1 to 16 or 'none', found 17" in str(app.screen.query_one(Notice).render())
         assert session.phase is Phase.RESPONSE and session.records == []
+        assert not list(results.rglob("*_beh.tsv")) or rows(results) == []
+        # Then answered, and Ctrl-C: the run is left resumable with every row kept.
+        await pilot.press("backspace", "backspace", "7", "enter")
+        await settle(pilot)
+        await pilot.press("ctrl+c")
+        await settle(pilot)
+    assert app.sitting.rig is None  # pins at rest, torque off, port closed
+    run = manifest(results)
+    assert (run.status, run.abort_reason) == ("aborted", "interrupted (Ctrl-C)")
+    assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
 
 
 async def test_a_failed_handshake_names_the_missing_servos_in_view_and_back_returns_to_start(
@@ -362,37 +391,3 @@ async def test_pre_flight_measures_this_machines_timing_and_says_what_it_means(r
         assert "OK: stimuli can be delivered as scheduled" not in shown
         await pilot.press("q")
         await settle(pilot)
-
-
-async def test_q_mid_run_asks_first_and_the_quit_run_is_offered_with_the_exit_lines_counts_and_its_seed(
-        results):
-    first = make_app(results, seed=3)
-    async with first.run_test(size=SIZE) as pilot:
-        session = await begin(pilot)  # practice trial 1 presented
-        await pilot.press("q")
-        await settle(pilot)
-        assert isinstance(first.screen, Confirm) and "Quit now?" in text(first, "#question")
-        assert session.phase is Phase.RESPONSE and session.records == []
-        await pilot.press("n")
-        await settle(pilot)
-        assert isinstance(first.screen, RunScreen) and first.sitting.rig is not None
-        for answer in ("7", "3", "5"):  # two practice trials, then one main trial
-            await pilot.press(answer, "enter")
-            await settle(pilot)
-            if answer == "7":
-                assert [(r.status, r.response) for r in rows(results)] == [("ok", "7")]
-            if session.phase is Phase.READY:
-                await present(pilot)
-        await pilot.press("q", "y")
-        await settle(pilot)
-    assert first.sitting.rig is None
-    assert manifest(results).abort_reason == "quit from the UI"
-    _, line = first.outcome()
-    progress = "1 of 24 trials (practice 2 of 2)"
-    assert progress in line
-    again = make_app(results, seed=99)  # the next sitting would draw another order...
-    async with again.run_test(size=SIZE) as pilot:
-        await fill_start(pilot)
-        offer = text(again, "#resume-info")
-        assert f"{progress} done, seed 3" in offer
-        assert again.screen.query_one("#seed").value == "3"  # ...but the run keeps its own
