@@ -1,4 +1,8 @@
-"""Pause, redo, abort (and resume), quit, bus faults and mistakes, driven through the UI."""
+"""Pause, redo, abort (and resume), quit, bus faults and mistakes, driven through the UI.
+
+On the seed's localisation protocol with 1 s stimuli (`short_localisation`) where the length
+of a stimulus plays no part: ten seconds of simulated servos per trial cost the processor time
+and change nothing these tests look at."""
 
 
 import pytest
@@ -55,12 +59,12 @@ async def begin(pilot):
 
 
 async def test_pause_holds_the_run_redo_and_q_ask_first_and_the_quit_run_is_offered_with_its_counts_and_seed(
-        results):
+        results, short_localisation):
     """One run: practice 1 paused and resumed (no answer taken while paused); practice 2
     redone (asked first; the first presentation logged, the trial presented again); q asked
     first and No goes on; then quit, and the next sitting offers the run with the exit line's
     counts and the run's own seed."""
-    first = make_app(results, seed=3)
+    first = make_app(results, protocol=short_localisation, seed=3)
     async with first.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         paused = session.current.trial
@@ -118,7 +122,8 @@ async def test_pause_holds_the_run_redo_and_q_ask_first_and_the_quit_run_is_offe
     _, line = first.outcome()
     progress = "1 of 24 trials (practice 2 of 2)"
     assert progress in line
-    again = make_app(results, seed=99)  # the next sitting would draw another order...
+    # The next sitting would draw another order...
+    again = make_app(results, protocol=short_localisation, seed=99)
     async with again.run_test(size=SIZE) as pilot:
         await fill_start(pilot)
         offer = text(again, "#resume-info")
@@ -127,10 +132,10 @@ async def test_pause_holds_the_run_redo_and_q_ask_first_and_the_quit_run_is_offe
 
 
 async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped_every_screen_whole(
-        results):
+        results, short_localisation):
     """The run aborted, its end screen, the start form offering to resume it and the resumed
     run's instructions: each whole at 80x24 as at 120x40 (issue 24)."""
-    app = make_app(results)
+    app = make_app(results, protocol=short_localisation)
     async with app.run_test(size=SMALL) as pilot:
         session = await begin(pilot)
         await pilot.press("4", "enter")
@@ -187,8 +192,8 @@ class RigFailingTwice(Rig):
 
 
 async def test_a_bus_fault_is_shown_in_words_retry_presents_the_trial_again_and_abort_keeps_the_invalid_row(
-        results):
-    app = make_app(results, rig_factory=RigFailingTwice)
+        results, short_localisation):
+    app = make_app(results, protocol=short_localisation, rig_factory=RigFailingTwice)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         assert session.phase is Phase.FAULT
@@ -215,11 +220,11 @@ async def test_a_bus_fault_is_shown_in_words_retry_presents_the_trial_again_and_
 
 
 async def test_mistakes_are_explained_on_screen_in_view_and_nothing_is_written_then_ctrl_c_keeps_every_row(
-        results):
+        results, short_localisation):
     """A subject label not allowed, a pin that does not exist, an answer out of range: each
     said on screen, nothing written; the start form and the pre-flight whole at 80x24 as at
     120x40 (issue 24). Then an answer, and Ctrl-C leaves the run resumable with its row."""
-    app = make_app(results)
+    app = make_app(results, protocol=short_localisation)
     async with app.run_test(size=SMALL) as pilot:
         await fill_start(pilot, subject="a-b")
         await pilot.click("#start")
@@ -333,10 +338,10 @@ class RigLate(Rig):
 
 
 async def test_a_stimulus_not_delivered_is_said_in_words_logged_invalid_and_tried_three_times_then_the_run_stops_with_it_named(
-        results):
+        results, short_localisation):
     """As in batch: a trial not delivered is presented again (t), up to three times in all;
     the third failure stops the run."""
-    app = make_app(results, rig_factory=RigLate)
+    app = make_app(results, protocol=short_localisation, rig_factory=RigLate)
     async with app.run_test(size=SIZE) as pilot:
         session = await begin(pilot)
         assert session.phase is Phase.FAULT

@@ -213,12 +213,15 @@ async def answer(pilot, protocol):
 
 
 @PARADIGMS
-async def test_every_phase_of_a_run_shows_every_key_answer_and_notice_whole(results, protocol):
+async def test_every_phase_of_a_run_shows_every_key_answer_and_notice_whole(
+        results, protocol, short_localisation):
     """One run walked through each phase the experimenter meets: the instructions, a trial
     played (and how far its pins moved), a trial ready, a stimulus playing, the answer awaited,
     each question, a pause and a failed stimulus; in each, at 80x24 and at 120x40, every key,
-    answer, notice and line is in view and whole."""
-    app = make_app(results, protocol=protocol, rig_factory=ArrayRig)
+    answer, notice and line is in view and whole. Localisation with 1 s stimuli: the screens
+    are the point, not ten seconds of simulated servos per trial."""
+    app = make_app(results, protocol=short_localisation if protocol == LOCALISATION else protocol,
+                   rig_factory=ArrayRig)
     async with app.run_test(size=SMALL) as pilot:
         await to_run_screen(pilot)
         screen = app.screen
