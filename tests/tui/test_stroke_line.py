@@ -30,8 +30,10 @@ async def _first_stimulus(pilot) -> RunScreen:
 
 
 async def test_a_pin_that_fell_short_is_marked_on_the_run_screen_with_its_row_s_numbers(
-        results):
-    app = make_app(results, sim_url=SLOW_SERVOS)
+        results, short_localisation):
+    # 1 s stimuli: ten cycles of 10 Hz fall short as a hundred do, for a tenth of the servos'
+    # simulation.
+    app = make_app(results, protocol=short_localisation, sim_url=SLOW_SERVOS)
     async with app.run_test(size=SMALL) as pilot:
         screen = await _first_stimulus(pilot)
         session = screen.session
