@@ -22,6 +22,7 @@ from pinarray.protocol.imaging import SyncOverrides, parse_trigger
 from pinarray.session.trials import Phase
 from pinarray.tui.app import PinArrayApp, TuiOptions
 from pinarray.tui.confirm import Confirm
+from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.error_screen import ErrorScreen
 from pinarray.tui.outcome import Crashed
 from pinarray.tui.preflight_screen import PreflightScreen
@@ -363,8 +364,25 @@ async def test_waves_going_every_way_offer_every_direction_as_an_answer_all_in_v
 # -- the end ---------------------------------------------------------------------------------
 
 
-# The end of a whole run (its summary, files and buttons) is checked in view at both sizes where
-# whole sessions reach it, by keys and clicks: test_whole_sessions.
+@PARADIGMS
+async def test_the_end_of_a_whole_run_shows_its_summary_files_and_buttons(results, protocol,
+                                                                         short_localisation):
+    if protocol == LOCALISATION:
+        protocol = short_localisation  # the same plan; the end screen is the point
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=SMALL) as pilot:
+        await to_run_screen(pilot)
+        session = app.screen.session
+        session.begin()
+        while session.phase is Phase.READY:  # the keys are tested elsewhere; here the result
+            session.present()
+            session.respond(str(session.current.condition.pin)
+                            if protocol == short_localisation else "left")
+        await settle(pilot)
+        await pilot.press("x")
+        assert isinstance(app.screen, EndScreen)
+        async for size in both_sizes(pilot):
+            assert unseen(app.screen) == [], size
 
 
 async def test_the_error_screen_shows_what_happened_and_how_to_leave(results):
