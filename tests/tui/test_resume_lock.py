@@ -21,7 +21,7 @@ def text(app, selector):
     return str(app.screen.query_one(selector).render())
 
 
-async def test_a_run_open_in_another_process_is_not_offered_until_that_process_ends(
+async def test_a_run_open_in_another_process_is_not_offered_until_it_ends_and_if_taken_after_the_offer_is_refused_in_words(
         results, monkeypatch):
     monkeypatch.setattr(start_screen, "HELD_RECHECK_S", 0.05)
     paths = unfinished_batch_run(results, LOCALISATION, seed=3)
@@ -34,27 +34,11 @@ async def test_a_run_open_in_another_process_is_not_offered_until_that_process_e
                 f"Run 1 is open in another process, pid {other.pid} on host {HOST} (this "
                 f"computer), since {read_lock_since(paths)}; it can be resumed once that one ends.")
         await pilot.pause(0.5)  # the screen looks again on its own
-        assert not app.screen.query_one("#resume").disabled
+        assert not app.screen.query_one("#resume").disabled, "not offered once the other ended"
         assert text(app, "#resume-info").startswith("Unfinished run 1: running, 0 of 24 trials (practice 0 of 2) done")
         await pilot.click("#resume")
         await settle(pilot)
-        await pilot.press("b")
-        await settle(pilot)
-        assert isinstance(app.screen, RunScreen) and app.screen.session.writer.resumed
-        await pilot.press("ctrl+c")
-        await settle(pilot)
-    assert len(read_manifest(paths.manifest).sittings) == 3  # started, the other process, the UI
-
-
-async def test_a_run_taken_by_another_process_after_it_was_offered_is_refused_in_words(results):
-    paths = unfinished_batch_run(results, LOCALISATION, seed=3)
-    app = make_app(results)
-    async with app.run_test(size=SIZE) as pilot:
-        await fill_start(pilot)
-        assert not app.screen.query_one("#resume").disabled  # free when the screen looked
-        await pilot.click("#resume")
-        await settle(pilot)
-        with open_elsewhere(paths) as other:  # ... and taken before the run begins
+        with open_elsewhere(paths) as other:  # ... taken again after the offer, before Begin
             await pilot.press("b")
             await settle(pilot)
             assert isinstance(app.screen, PreflightScreen)
@@ -67,6 +51,8 @@ async def test_a_run_taken_by_another_process_after_it_was_offered_is_refused_in
         await pilot.press("ctrl+c")
         await settle(pilot)
     manifest = read_manifest(paths.manifest)
+    # Started, the other process twice, the UI.
+    assert len(manifest.sittings) == 4
     assert manifest.status is RunStatus.ABORTED and manifest.abort_reason == "interrupted (Ctrl-C)"
 
 
