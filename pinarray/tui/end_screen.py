@@ -7,7 +7,7 @@ from pathlib import Path
 from textual import on
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Static
 
@@ -69,12 +69,15 @@ class EndScreen(KeyNotices, Screen):
                      id="title")
         with Vertical(id="end-body"):
             yield Static(headline, id="headline", classes=outcome)
-            yield Static("Summary (main trials with status ok, as `pinarray analyse` counts them)",
-                         classes="caption")
-            yield Static("\n".join(summary_lines(session.records)), id="summary")
-            yield Static("Files", classes="caption")
-            yield Static("\n".join(shown_path(p) for p in files), id="files")
-            yield Static(f"Pins: {pins}", id="pins-left")
+            # What may not fit a small terminal (a long summary, results paths that wrap)
+            # scrolls; the buttons and the notice below keep their rows.
+            with VerticalScroll(id="end-info", can_focus=False):
+                yield Static("Summary (main trials with status ok, as `pinarray analyse` "
+                             "counts them)", classes="caption")
+                yield Static("\n".join(summary_lines(session.records)), id="summary")
+                yield Static("Files", classes="caption")
+                yield Static("\n".join(shown_path(p) for p in files), id="files")
+                yield Static(f"Pins: {pins}", id="pins-left")
             with Horizontal(id="end-buttons"):
                 yield Button("New session (n)", id="new", variant="primary")
                 yield Button("Quit (q)", id="quit")

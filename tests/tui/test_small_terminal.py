@@ -9,6 +9,7 @@ motion answers.
 import html
 import re
 import threading
+from itertools import cycle
 
 import pytest
 from textual.content import Content
@@ -44,7 +45,7 @@ from tests.tui.conftest import (
 PARADIGMS = pytest.mark.parametrize("protocol", [LOCALISATION, MOTION],
                                     ids=["localisation", "motion"])
 # Read by scrolling on purpose: the pre-flight's news of the array above the table.
-SCROLLS = frozenset({"preflight-info"})
+SCROLLS = frozenset({"preflight-info", "end-info"})
 
 
 def shown_text(widget) -> str:
@@ -374,10 +375,14 @@ async def test_the_end_of_a_whole_run_shows_its_summary_files_and_buttons(result
         await to_run_screen(pilot)
         session = app.screen.session
         session.begin()
-        while session.phase is Phase.READY:  # the keys are tested elsewhere; here the result
+        # Every kind of answer, so that the summary has all its lines: correct, nothing felt,
+        # errors of each distance (the keys are tested elsewhere; here the result).
+        kinds = cycle(("pin", "none", "1", "16", "6")) if protocol == short_localisation \
+            else cycle(("left",))
+        while session.phase is Phase.READY:
             session.present()
-            session.respond(str(session.current.condition.pin)
-                            if protocol == short_localisation else "left")
+            kind = next(kinds)
+            session.respond(str(session.current.condition.pin) if kind == "pin" else kind)
         await settle(pilot)
         await pilot.press("x")
         assert isinstance(app.screen, EndScreen)

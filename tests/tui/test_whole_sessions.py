@@ -1,4 +1,5 @@
-"""Whole sessions driven through the UI by keys and clicks, checked in the results files."""
+"""Whole sessions driven through the UI by keys and clicks, checked in the results files; the
+end screen they reach shows its summary, files and buttons whole at 120x40 and at 80x24."""
 
 import pytest
 
@@ -9,7 +10,8 @@ from pinarray.session.trials import Phase
 from pinarray.tui.end_screen import EndScreen
 from pinarray.tui.run_screen import RunScreen
 from tests.lab_protocols import short_copy
-from tests.tui.conftest import MOTION, SIZE, make_app, settle, to_run_screen
+from tests.tui.conftest import MOTION, SIZE, both_sizes, make_app, settle, to_run_screen
+from tests.tui.test_small_terminal import unseen
 
 # The seed's localisation protocol (0.4 s stimuli) on four of its eight pins, at its three
 # frequencies: a plan of 14 trials in which each way of answering (a pin typed, "none", the pin
@@ -45,9 +47,12 @@ async def test_a_whole_localisation_session_by_typing_and_clicking(results, tmp_
                 await pilot.click(f"#pin-{pin % 16 + 1}")
                 await pilot.click(f"#pin-{pin % 16 + 1}")
             await settle(pilot)
-        assert isinstance(app.screen, EndScreen)
-        summary = str(app.screen.query_one("#summary").render())
-        assert "Hz:" in summary and "% correct" in summary
+        await pilot.press("x")  # not a key here: the notice says so, in view too
+        async for size in both_sizes(pilot):  # its summary, files and buttons all in view
+            assert isinstance(app.screen, EndScreen)
+            summary = str(app.screen.query_one("#summary").render())
+            assert "Hz:" in summary and "% correct" in summary
+            assert unseen(app.screen) == [], size
     (beh,) = results.rglob("*_beh.tsv")
     rows = read_trials(beh)
     assert [r.trial for r in rows] == list(range(1, 15))
@@ -82,8 +87,11 @@ async def test_a_whole_motion_session_by_keys_and_buttons(results):
             else:
                 await pilot.click(f"#answer-{answer}")
             await settle(pilot)
-        assert isinstance(app.screen, EndScreen)
-        assert "motion felt" in str(app.screen.query_one("#summary").render())
+        await pilot.press("x")  # not a key here: the notice says so, in view too
+        async for size in both_sizes(pilot):  # its summary, files and buttons all in view
+            assert isinstance(app.screen, EndScreen)
+            assert "motion felt" in str(app.screen.query_one("#summary").render())
+            assert unseen(app.screen) == [], size
     (beh,) = results.rglob("*_beh.tsv")
     rows = read_trials(beh)
     assert len(rows) == 13 and all(r.status == "ok" for r in rows)
