@@ -90,7 +90,7 @@ def median_rate_hz(samples: Sequence[MotionSample]) -> float:
 
 def motion_lines(samples: Sequence[MotionSample]) -> bytes:
     """The rows of ``samples``, tab-separated, as bytes."""
-    lines = []
+    lines: list[str] = []
     append = lines.append
     # A run records tens of thousands of samples: `seconds_text` inline for the times a run
     # has (none before time zero), unpacked rather than read field by field, half the cost.
