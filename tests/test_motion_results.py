@@ -10,13 +10,21 @@ import textwrap
 from fractions import Fraction
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from pinarray.errors import PinArrayError, ResultsError
 from pinarray.journal.columns import tsv_line
 from pinarray.journal.manifest import read_manifest
-from pinarray.journal.physio import MotionSample, motion_recording_path, read_motion
+from pinarray.journal.physio import (
+    MotionSample,
+    motion_lines,
+    motion_recording_path,
+    read_motion,
+)
 from pinarray.journal.records import LEGACY_LAYOUT, StrokeCounts
 from pinarray.journal.rows import read_trials, trial_row
+from pinarray.journal.timebase import seconds_text
 from pinarray.journal.writer import RunWriter
 from pinarray.paradigms.localisation.rows import LocalisationRecord
 from pinarray.protocol.load import parse_protocol
@@ -62,6 +70,16 @@ def test_a_trial_s_stroke_is_written_and_read_back_with_not_measured_as_n_a(tmp_
                                           "motion_samples")
     described = json.loads(writer.paths.beh_json.read_text())
     assert described["stroke_achieved"]["Units"] == "steps" and "Description" in described["motion_lag"]
+
+
+@given(st.lists(st.builds(MotionSample, st.integers(-10**13, 10**13), st.integers(1, 999),
+                          st.integers(1, 64), st.integers(-30719, 30719),
+                          st.none() | st.integers(-30719, 30719))))
+def test_a_recording_line_times_its_sample_as_every_results_file_writes_times(recorded):
+    lines = motion_lines(recorded).decode("ascii").splitlines()
+    assert lines == [
+        f"{seconds_text(s.time_ns)}\t{s.trial}\t{s.pin}\t{s.position_steps}\t"
+        f"{'n/a' if s.goal_steps is None else s.goal_steps}" for s in recorded]
 
 
 def test_results_written_before_the_stroke_columns_still_read(tmp_path):

@@ -90,9 +90,19 @@ def median_rate_hz(samples: Sequence[MotionSample]) -> float:
 
 def motion_lines(samples: Sequence[MotionSample]) -> bytes:
     """The rows of ``samples``, tab-separated, as bytes."""
-    return "".join(
-        f"{seconds_text(s.time_ns)}\t{s.trial}\t{s.pin}\t{s.position_steps}\t"
-        f"{NA if s.goal_steps is None else s.goal_steps}\n" for s in samples).encode("ascii")
+    lines: list[str] = []
+    append = lines.append
+    # A run records tens of thousands of samples: `seconds_text` inline for the times a run
+    # has (none before time zero), unpacked rather than read field by field, half the cost.
+    for time_ns, trial, pin, position_steps, goal_steps in samples:
+        if time_ns < 0:
+            timestamp = seconds_text(time_ns)
+        else:
+            whole, fraction = divmod(time_ns, NS_PER_S)
+            timestamp = f"{whole}.{fraction:09d}".rstrip("0") if fraction else str(whole)
+        append(f"{timestamp}\t{trial}\t{pin}\t{position_steps}\t"
+               f"{NA if goal_steps is None else goal_steps}\n")
+    return "".join(lines).encode("ascii")
 
 
 class MotionRecording:

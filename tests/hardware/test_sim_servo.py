@@ -50,6 +50,18 @@ def test_renumbering_with_unlock_write_lock_moves_the_servo_to_its_new_id():
     assert bus.sim.servos[7].eeprom_writes == [(Register.ID, bytes([7]))]
 
 
+def test_every_write_whose_bytes_reach_the_id_register_renumbers_and_others_do_not():
+    bus = RawBus("ids=1-3")
+    bus.write(1, 3, bytes([0, 0, 9]))  # from the (read-only) model number on, ID included
+    bus.send(BROADCAST_ID, Instruction.SYNC_WRITE, bytes([Register.ID.address, 1, 2, 12, 3, 13]))
+    assert sorted(bus.sim.servos) == [9, 12, 13]
+    bus.write(9, Register.BAUD_RATE.address, bytes([0, 0]))  # right after the ID: stays 9
+    bus.send(BROADCAST_ID, Instruction.SYNC_WRITE, bytes([Register.LOCK.address, 1, 12, 0, 13, 0]))
+    assert sorted(bus.sim.servos) == [9, 12, 13]
+    assert [s.servo_id for s in bus.ping(9) + bus.ping(12) + bus.ping(13)] == [9, 12, 13]
+    assert bus.ping(1) == bus.ping(2) == bus.ping(3) == []
+
+
 def test_an_id_written_while_locked_works_until_power_off_and_one_written_unlocked_stays():
     bus = RawBus("ids=1-2")
     bus.write(1, *reg(Register.LOCK, 1))

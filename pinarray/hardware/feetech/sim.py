@@ -35,6 +35,7 @@ from pinarray.hardware.feetech.registers import (
     BROADCAST_ID,
     WRITE_INSTRUCTIONS,
     Instruction,
+    Register,
     StatusError,
     checksum,
 )
@@ -47,6 +48,9 @@ ASKING = frozenset({Instruction.PING, Instruction.READ, Instruction.SYNC_READ})
 # Instruction codes as plain ints, for the comparisons every packet makes.
 _PING, _READ = int(Instruction.PING), int(Instruction.READ)
 _SYNC_READ, _SYNC_WRITE = int(Instruction.SYNC_READ), int(Instruction.SYNC_WRITE)
+_WRITE = int(Instruction.WRITE)
+# Where the ID register sits: a write elsewhere cannot renumber a servo (`_may_renumber`).
+_ID_ADDRESS = Register.ID.address
 # The longest READ answer one status packet can carry, in data bytes.
 _LONGEST_READ = MAX_PACKET_BYTES - status_size(0)
 
@@ -67,6 +71,18 @@ class InstructionPacket:
     instruction: int
     params: bytes
     delivered: bool
+
+
+def _may_renumber(instruction: int, params: bytes) -> bool:
+    """Whether carrying out this packet may have changed a servo's ID register: all but a WRITE
+    or SYNC WRITE whose bytes all land elsewhere (a goal, a speed), which most packets are."""
+    if instruction == _SYNC_WRITE and len(params) >= 2:
+        start, end = params[0], params[0] + params[1]
+    elif instruction == _WRITE and params:
+        start, end = params[0], params[0] + len(params) - 1
+    else:
+        return True
+    return start <= _ID_ADDRESS < end
 
 
 def _fits(length: int) -> bool:
@@ -212,7 +228,7 @@ class SimBus:
         if not delivered:
             return []
         answers = self._execute(servo_id, instruction, params, end_ns, baud_rate)
-        if instruction not in ASKING:
+        if instruction not in ASKING and _may_renumber(instruction, params):
             self._renumber()
         return answers
 
