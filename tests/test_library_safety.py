@@ -230,7 +230,9 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
     print("open", flush=True)
     delivery = array.present(pinarray.find_condition(protocol, pin=6))
     print(type(delivery.ending).__name__, getattr(delivery.ending, "by", ""), flush=True)
-    again = array.present(pinarray.find_condition(protocol, pin=6))
+    # The next stimulus plays whole: the same train on the same pin, 0.4 s of it, not 10.
+    again = array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
+        frequency_hz=5, duration_s=0.4, pulse_width_ms={"up": 2.0, "down": 1.5})))
     print(again.delivered, flush=True)
 """
 

@@ -67,9 +67,23 @@ def sim_serve(request):
             process.wait(timeout=10)
 
 
+# How long the vendor's client waits for a status packet here. The SDK waits for the bytes on
+# the wire, twice its adapter latency (LATENCY_TIMER, 16 ms) and 2 ms: 34 ms, which a simulated
+# servo starved of the processor on a busy machine may miss (a real servo answers within its
+# return delay). As if LATENCY_TIMER were set for a slow adapter: a bound against a hang, and
+# an absent servo (a PING that must fail) costs a quarter of a second.
+VENDOR_WAIT_MS = 250
+
+
 def vendor_port(path: str) -> tuple[PortHandler, PacketHandler]:
     port = PortHandler(path)
     assert port.openPort() and port.setBaudRate(1_000_000)
+
+    def packet_timeout(packet_length: int) -> None:
+        port.packet_start_time = port.getCurrentTime()
+        port.packet_timeout = port.tx_time_per_byte * packet_length + VENDOR_WAIT_MS
+
+    port.setPacketTimeout = packet_timeout
     return port, PacketHandler(0)
 
 

@@ -104,13 +104,13 @@ def no_run_was_created(root: Path) -> bool:
 
 
 def demo_in_short(tmp_path: Path) -> Path:
-    """demo.yaml (16 pins in order, 5 Hz) with 0.4 s stimuli 0.2 s apart: a 10 s run, not 48 s,
-    and a relaxed delivery tolerance."""
+    """demo.yaml (16 pins in order, 5 Hz) with 0.2 s stimuli (one cycle) 0.1 s apart: a 5 s
+    run, not 48 s, and a relaxed delivery tolerance."""
     text = DEMO.read_text()
     assert "duration_s: 2\n" in text and "inter_trial_interval_s: 1\n" in text
     path = tmp_path / "demo.yaml"
-    path.write_text(RELAXED + text.replace("duration_s: 2\n", "duration_s: 0.4\n")
-                    .replace("inter_trial_interval_s: 1\n", "inter_trial_interval_s: 0.2\n"))
+    path.write_text(RELAXED + text.replace("duration_s: 2\n", "duration_s: 0.2\n")
+                    .replace("inter_trial_interval_s: 1\n", "inter_trial_interval_s: 0.1\n"))
     return path
 
 
