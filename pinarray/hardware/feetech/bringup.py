@@ -22,7 +22,7 @@ from enum import StrEnum
 from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import PortLost, SafeStopReport, Telemetry
 from pinarray.hardware.feetech.base import BusSetup
-from pinarray.hardware.feetech.feetech import FeetechBus
+from pinarray.hardware.feetech.feetech import PATIENCE_GROWTH, FeetechBus
 from pinarray.hardware.feetech.registers import MAX_SERVO_ID, Register
 
 # The return delay register holds 2 us units, 0-254.
@@ -33,6 +33,9 @@ MAX_RETURN_DELAY_US = 254 * RETURN_DELAY_UNIT_US
 SWEEP_TIMEOUT_NS = 10_000_000
 # A sweep of at most this many given ids looks again at the silent ones (a whole 4x4 array).
 LOOK_AGAIN_IDS = 16
+# A full sweep looks a third time at this many silent ids beside those that answered, or
+# fewer: an array's two ends, and one or two a busy host lost.
+LOOK_TWICE_IDS = 4
 
 Progress = Callable[[int, int, tuple[int, ...]], object]
 
@@ -112,9 +115,12 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         Sweep exactly these ids; when they are an array's worth or fewer (`LOOK_AGAIN_IDS`),
         look again, four times longer, at those that did not answer (a busy host can hold an
         answer past a quiet host's wait); a sweep of more looks again only at silent ids in
-        the gaps of those that answered and just beside them. Default: a
-        broadcast ping, which finds a lone servo (a new one) at once; when nothing answers it
-        or several answers collide, every id 0-252, once.
+        the gaps of those that answered and just beside them, and when those are few
+        (`LOOK_TWICE_IDS`), once more, sixteen times longer. Progress is said once more when
+        looking again found someone. Default: a
+        broadcast ping, which finds a lone servo (a new one) at once, asked again listening
+        longer when nothing answers it; when nothing answers that either or several answers
+        collide, every id 0-252, once.
     timeout_ns : int
         How long to wait for each id's PING answer in a sweep, in nanoseconds.
     progress : callable, optional
@@ -125,6 +131,11 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
     if ids is None:
         answer = bus.broadcast_ping()
+        if not answer.servo_ids and not answer.garbled_bytes:
+            # Silence: asked once more, listening longer, as `FeetechBus.ping` retries one (a
+            # busy host can hold a lone servo's answer past a quiet host's wait). Far cheaper
+            # than the sweep of every id that silence would otherwise cost.
+            answer = bus.broadcast_ping(patience=PATIENCE_GROWTH)
         if answer.clean and answer.servo_ids:
             found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
             return ScanResult(ScanMethod.BROADCAST, found, unreadable)
@@ -143,8 +154,17 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         # so a gap in them, or the id just before or after, is where a busy host lost one.
         answered = [i for i, model in models.items() if model is not None]
         silent = [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
-    for servo_id in silent:
-        models[servo_id] = bus.ping_within(servo_id, 4 * timeout_ns)
+    patience = PATIENCE_GROWTH
+    while silent:
+        for servo_id in silent:
+            models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
+        heard = [i for i in silent if models[i] is not None]
+        silent = [i for i in silent if models[i] is None]
+        if heard and progress is not None:  # the sweep's last word: who answered in the end
+            progress(ids[-1], ids[-1], tuple(i for i in ids if models[i] is not None))
+        if look_again or len(silent) > LOOK_TWICE_IDS or patience > PATIENCE_GROWTH:
+            break
+        patience *= PATIENCE_GROWTH
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
 
