@@ -76,9 +76,10 @@ def array_on_a_port(protocol: pinarray.Protocol):
 
 
 def armed_and_moving(array: pinarray.PinArray, servos) -> pinarray.Armed:
-    """Pin 6's stimulus armed 100 ms ahead, once it moves."""
-    armed = array.arm(pinarray.find_condition(array.protocol, pin=6),
-                      at_ns=array.now_ns() + 10**8)
+    """Pin 6's stimulus armed and started on a cue, once it moves (an onset a little ahead
+    may pass on a busy machine before the player is ready, and nothing would move)."""
+    armed = array.arm(pinarray.find_condition(array.protocol, pin=6))
+    armed.start()
     wait_moving(servos)
     return armed
 
