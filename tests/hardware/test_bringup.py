@@ -77,8 +77,43 @@ def test_a_full_sweep_looks_twice_more_beside_what_answered_and_says_who_answere
     assert result.servo_ids == tuple(range(1, 17))
     assert seen[252] == (252, tuple(range(1, 16))) and seen[-1] == (252, tuple(range(1, 17)))
     assert len(seen) == 254  # its last word said once more, when 16 answered at last
-    assert waits_ns[0] == waits_ns[16] == [10**7, 4 * 10**7, 16 * 10**7]
+    assert waits_ns[16] == [10**7, 4 * 10**7, 16 * 10**7]
+    # Id 0 again, longer still, since the last look found someone (a busy host).
+    assert waits_ns[0] == [10**7, 4 * 10**7, 16 * 10**7, 64 * 10**7]
     assert waits_ns[17] == waits_ns[200] == [10**7]  # not beside those that answered
+
+
+def test_a_full_sweep_looks_longer_still_while_looking_again_finds_someone():
+    # Six of sixteen lost in the first pass, five of those again, four the time after: too many
+    # to be an array's ends, but each look finds someone, so the host is busy, not they absent.
+    bus = bare_bus("ids=1-16")
+    lost = {i: 1 for i in range(2, 8)} | {i: 2 for i in range(3, 8)} \
+        | {i: 3 for i in range(4, 8)}
+    ping_within = bus.ping_within
+
+    def losing(servo_id, timeout_ns):
+        if lost.get(servo_id):
+            lost[servo_id] -= 1
+            return None
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = losing
+    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
+
+
+def test_a_sparse_full_sweep_looks_once_at_the_gaps_where_nobody_answers():
+    bus = bare_bus("ids=3,9,40")
+    waits_ns = {}
+    ping_within = bus.ping_within
+
+    def counted(servo_id, timeout_ns):
+        waits_ns.setdefault(servo_id, []).append(timeout_ns)
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = counted
+    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == (3, 9, 40)
+    assert waits_ns[2] == waits_ns[20] == waits_ns[41] == [10**7, 4 * 10**7]
+    assert waits_ns[42] == [10**7]
 
 
 def test_servos_that_answer_no_ping_are_told_apart_from_those_connected():

@@ -36,6 +36,9 @@ LOOK_AGAIN_IDS = 16
 # A full sweep looks a third time at this many silent ids beside those that answered, or
 # fewer: an array's two ends, and one or two a busy host lost.
 LOOK_TWICE_IDS = 4
+# ... and again, each time four times longer, while looking again finds someone (a busy host),
+# up to 4**LONGEST_LOOK times a first PING's wait.
+LONGEST_LOOK = 3
 
 Progress = Callable[[int, int, tuple[int, ...]], object]
 
@@ -115,9 +118,10 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         Sweep exactly these ids; when they are an array's worth or fewer (`LOOK_AGAIN_IDS`),
         look again, four times longer, at those that did not answer (a busy host can hold an
         answer past a quiet host's wait); a sweep of more looks again only at silent ids in
-        the gaps of those that answered and just beside them, and when those are few
-        (`LOOK_TWICE_IDS`), once more, sixteen times longer. Progress is said once more when
-        looking again found someone. Default: a
+        the gaps of those that answered and just beside them, once more, four times longer
+        again, when those are few (`LOOK_TWICE_IDS`) or the last look found someone (up to
+        `LONGEST_LOOK`). Progress is said once more when looking again found someone.
+        Default: a
         broadcast ping, which finds a lone servo (a new one) at once, asked again listening
         longer when nothing answers it; when nothing answers that either or several answers
         collide, every id 0-252, once.
@@ -155,14 +159,16 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         answered = [i for i, model in models.items() if model is not None]
         silent = [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
     patience = PATIENCE_GROWTH
-    while silent:
+    while silent and patience <= PATIENCE_GROWTH ** LONGEST_LOOK:
         for servo_id in silent:
             models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
         heard = [i for i in silent if models[i] is not None]
         silent = [i for i in silent if models[i] is None]
         if heard and progress is not None:  # the sweep's last word: who answered in the end
             progress(ids[-1], ids[-1], tuple(i for i in ids if models[i] is not None))
-        if look_again or len(silent) > LOOK_TWICE_IDS or patience > PATIENCE_GROWTH:
+        # Looking again found someone: the host is busy, so the rest may be lost answers too.
+        few = len(silent) <= LOOK_TWICE_IDS and patience == PATIENCE_GROWTH
+        if look_again or not (heard or few):
             break
         patience *= PATIENCE_GROWTH
     found, unreadable = _details(bus, models)
