@@ -80,7 +80,8 @@ def test_a_full_sweep_looks_twice_more_beside_what_answered_and_says_who_answere
     assert waits_ns[16] == [10**7, 4 * 10**7, 16 * 10**7]
     # Id 0 again, longer still, since the last look found someone (a busy host).
     assert waits_ns[0] == [10**7, 4 * 10**7, 16 * 10**7, 64 * 10**7]
-    assert waits_ns[17] == waits_ns[200] == [10**7]  # not beside those that answered
+    # 17, beside 16 once it answered, looked at then; 200, never beside those that answered.
+    assert waits_ns[17] == [10**7, 64 * 10**7] and waits_ns[200] == [10**7]
 
 
 def test_a_full_sweep_looks_longer_still_while_looking_again_finds_someone():
@@ -89,6 +90,22 @@ def test_a_full_sweep_looks_longer_still_while_looking_again_finds_someone():
     bus = bare_bus("ids=1-16")
     lost = {i: 1 for i in range(2, 8)} | {i: 2 for i in range(3, 8)} \
         | {i: 3 for i in range(4, 8)}
+    ping_within = bus.ping_within
+
+    def losing(servo_id, timeout_ns):
+        if lost.get(servo_id):
+            lost[servo_id] -= 1
+            return None
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = losing
+    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
+
+
+def test_servos_lost_at_the_end_of_an_array_are_found_as_those_beside_them_answer():
+    # 15 and 16 lost in the first pass: 15 is beside 14, and once it answers, 16 beside it.
+    bus = bare_bus("ids=1-16")
+    lost = {15: 1, 16: 1}
     ping_within = bus.ping_within
 
     def losing(servo_id, timeout_ns):

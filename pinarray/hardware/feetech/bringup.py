@@ -152,20 +152,15 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    silent = [i for i, model in models.items() if model is None]
-    if not look_again:
-        # A full sweep looks again only beside what answered: an array's ids run together,
-        # so a gap in them, or the id just before or after, is where a busy host lost one.
-        answered = [i for i, model in models.items() if model is not None]
-        silent = [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
     patience = PATIENCE_GROWTH
+    silent = _to_look_at_again(models, look_again)
     while silent and patience <= PATIENCE_GROWTH ** LONGEST_LOOK:
         for servo_id in silent:
             models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
         heard = [i for i in silent if models[i] is not None]
-        silent = [i for i in silent if models[i] is None]
         if heard and progress is not None:  # the sweep's last word: who answered in the end
             progress(ids[-1], ids[-1], tuple(i for i in ids if models[i] is not None))
+        silent = _to_look_at_again(models, look_again)
         # Looking again found someone: the host is busy, so the rest may be lost answers too.
         few = len(silent) <= LOOK_TWICE_IDS and patience == PATIENCE_GROWTH
         if look_again or not (heard or few):
@@ -173,6 +168,17 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         patience *= PATIENCE_GROWTH
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
+
+
+def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool) -> list[int]:
+    """The ids swept that have not answered; in a full sweep only those in the gaps of the
+    ids that answered or just beside them (an array's ids run together, so that is where a
+    busy host lost one; as more answer, the ids beside them join)."""
+    silent = [i for i, model in models.items() if model is None]
+    if every_silent_id:
+        return silent
+    answered = [i for i, model in models.items() if model is not None]
+    return [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
 
 
 def _details(bus: FeetechBus, models: dict[int, int | None]
