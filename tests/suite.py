@@ -4,8 +4,8 @@ Most tests only compute (the UI through Textual's pilot, numerics, analysis): th
 every core, twice over, at a lower priority (nice 10). The tests marked ``realtime`` drive
 simulated servos behind pseudo-terminals, player processes or stimuli on the wall clock: a
 simulator starved of the processor answers late, which no real servo does, so they run
-beside the rest at normal priority, one at a time, and the scheduler serves them
-first. Their report follows the other's. Their lane collects only the files that mark
+beside the rest at normal priority, two at a time (they mostly wait: on the wall clock, for
+a pseudo-terminal, for a process to start), and the scheduler serves them first. Their report follows the other's. Their lane collects only the files that mark
 tests real-time (`realtime_files`; importing every test module cost it 4 s of processor
 before its first test); the other lane, which collects everything, fails on a real-time
 test anywhere else (tests/conftest.py).
@@ -24,7 +24,7 @@ from pathlib import Path
 
 # pytest's exit status when a selection holds no test (e.g. `-k` matching only one kind).
 NO_TESTS_COLLECTED = 5
-REALTIME_WORKERS = 1
+REALTIME_WORKERS = 2
 BULK_NICENESS = 10
 TESTS = Path(__file__).resolve().parent
 REALTIME_MARK = re.compile(r"\bmark\.realtime\b")

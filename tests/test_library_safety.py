@@ -76,9 +76,10 @@ def array_on_a_port(protocol: pinarray.Protocol):
 
 
 def armed_and_moving(array: pinarray.PinArray, servos) -> pinarray.Armed:
-    """Pin 6's stimulus armed 100 ms ahead, once it moves."""
-    armed = array.arm(pinarray.find_condition(array.protocol, pin=6),
-                      at_ns=array.now_ns() + 10**8)
+    """Pin 6's stimulus armed and started on a cue, once it moves (an onset a little ahead
+    may pass on a busy machine before the player is ready, and nothing would move)."""
+    armed = array.arm(pinarray.find_condition(array.protocol, pin=6))
+    armed.start()
     wait_moving(servos)
     return armed
 
@@ -230,7 +231,9 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
     print("open", flush=True)
     delivery = array.present(pinarray.find_condition(protocol, pin=6))
     print(type(delivery.ending).__name__, getattr(delivery.ending, "by", ""), flush=True)
-    again = array.present(pinarray.find_condition(protocol, pin=6))
+    # The next stimulus plays whole: the same train on the same pin, 0.4 s of it, not 10.
+    again = array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
+        frequency_hz=5, duration_s=0.4, pulse_width_ms={"up": 2.0, "down": 1.5})))
     print(again.delivered, flush=True)
 """
 

@@ -35,6 +35,16 @@ def test_a_lone_new_servo_is_found_by_one_broadcast_ping():
     assert servo.telemetry.position_steps == 2048 and result.swept_ids == ()
 
 
+def test_a_lone_servo_answering_past_the_first_wait_is_found_by_a_second_broadcast_ping():
+    # Its answer 60 ms late, past the 34 ms an adapter of unknown latency is first allowed (a
+    # busy host can hold it so long): heard when asked again, listening longer; no sweep.
+    bus = bare_bus("ids=1&late=1&late_ms=60")
+    bus.link.latency = Latency(timer_ms=None)
+    result = bringup.scan(bus)
+    assert result.method is bringup.ScanMethod.BROADCAST and result.servo_ids == (1,)
+    assert result.swept_ids == ()
+
+
 def test_several_servos_collide_on_a_broadcast_ping_so_every_id_is_swept_in_turn():
     bus = bare_bus("ids=3,9,40")
     seen = []
@@ -44,6 +54,83 @@ def test_several_servos_collide_on_a_broadcast_ping_so_every_id_is_swept_in_turn
     assert result.servo_ids == (3, 9, 40)
     assert [i for i, _, _ in seen] == list(range(253)) and seen[-1][1] == 252
     assert seen[8][2] == (3,) and seen[-1][2] == (3, 9, 40)
+
+
+def test_a_full_sweep_looks_twice_more_beside_what_answered_and_says_who_answered_at_last():
+    # Servo 16's first two answers lost (a host so busy it held them past each wait): the
+    # sweep looks again at the ids beside those that answered, longer, then longer still.
+    bus = bare_bus("ids=1-16")  # their answers to a broadcast ping collide: a sweep
+    lost, waits_ns = {16: 2}, {}
+    ping_within = bus.ping_within
+
+    def losing(servo_id, timeout_ns):
+        waits_ns.setdefault(servo_id, []).append(timeout_ns)
+        if lost.get(servo_id):
+            lost[servo_id] -= 1
+            return None
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = losing
+    seen = []
+    result = bringup.scan(bus, timeout_ns=10**7,
+                          progress=lambda i, last, found: seen.append((i, found)))
+    assert result.servo_ids == tuple(range(1, 17))
+    assert seen[252] == (252, tuple(range(1, 16))) and seen[-1] == (252, tuple(range(1, 17)))
+    assert len(seen) == 254  # its last word said once more, when 16 answered at last
+    assert waits_ns[16] == [10**7, 4 * 10**7, 16 * 10**7]
+    # Id 0 again, longer still, since the last look found someone (a busy host).
+    assert waits_ns[0] == [10**7, 4 * 10**7, 16 * 10**7, 64 * 10**7]
+    # 17, beside 16 once it answered, looked at then; 200, never beside those that answered.
+    assert waits_ns[17] == [10**7, 64 * 10**7] and waits_ns[200] == [10**7]
+
+
+def test_a_full_sweep_looks_longer_still_while_looking_again_finds_someone():
+    # Six of sixteen lost in the first pass, five of those again, four the time after: too many
+    # to be an array's ends, but each look finds someone, so the host is busy, not they absent.
+    bus = bare_bus("ids=1-16")
+    lost = {i: 1 for i in range(2, 8)} | {i: 2 for i in range(3, 8)} \
+        | {i: 3 for i in range(4, 8)}
+    ping_within = bus.ping_within
+
+    def losing(servo_id, timeout_ns):
+        if lost.get(servo_id):
+            lost[servo_id] -= 1
+            return None
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = losing
+    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
+
+
+def test_servos_lost_at_the_end_of_an_array_are_found_as_those_beside_them_answer():
+    # 15 and 16 lost in the first pass: 15 is beside 14, and once it answers, 16 beside it.
+    bus = bare_bus("ids=1-16")
+    lost = {15: 1, 16: 1}
+    ping_within = bus.ping_within
+
+    def losing(servo_id, timeout_ns):
+        if lost.get(servo_id):
+            lost[servo_id] -= 1
+            return None
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = losing
+    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
+
+
+def test_a_sparse_full_sweep_looks_once_at_the_gaps_where_nobody_answers():
+    bus = bare_bus("ids=3,9,40")
+    waits_ns = {}
+    ping_within = bus.ping_within
+
+    def counted(servo_id, timeout_ns):
+        waits_ns.setdefault(servo_id, []).append(timeout_ns)
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = counted
+    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == (3, 9, 40)
+    assert waits_ns[2] == waits_ns[20] == waits_ns[41] == [10**7, 4 * 10**7]
+    assert waits_ns[42] == [10**7]
 
 
 def test_servos_that_answer_no_ping_are_told_apart_from_those_connected():

@@ -103,7 +103,9 @@ def test_ctrl_c_during_a_sweep_ends_it_at_once(sim_serve):  # noqa: F811
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         first = process.stderr.readline()  # the sweep's first progress line
-        assert first.startswith("sweeping: id 31 of 252, found so far: 1-2"), first
+        # (Whom it found so far is the first pass's, 10 ms a PING: on a busy machine the
+        # simulated servos may answer later, and be found when the sweep looks again.)
+        assert first.startswith("sweeping: id 31 of 252, found so far: "), first
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=60)
     finally:

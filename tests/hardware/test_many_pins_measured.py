@@ -70,13 +70,18 @@ def test_play_of_the_square_on_slow_servos_exits_3_naming_the_pin_that_fell_shor
 
 
 @pytest.mark.realtime
-def test_the_player_process_on_a_serial_port_never_passes_a_slow_square():
+def test_the_player_process_on_a_serial_port_never_passes_a_slow_square(tmp_path):
+    # The shapes buzz 1 s (10 cycles), not 2: played twice on the wall clock.
+    shapes = tmp_path / "shapes.yaml"
+    text = SHAPES.read_text()
+    assert text.count("duration_s: 2\n") == 1
+    shapes.write_text(text.replace("duration_s: 2\n", "duration_s: 1\n"))
     server = PtyServer(parse_sim_url(SLOW)).start()
     try:
-        protocol = pinarray.load_protocol(SHAPES)
+        protocol = pinarray.load_protocol(shapes)
         with pinarray.open_array(protocol, port=server.path) as array:
             delivery = array.present(shape(protocol, "square"))
-        played = subprocess.run([sys.executable, "-m", "pinarray", "play", str(SHAPES), "--seed",
+        played = subprocess.run([sys.executable, "-m", "pinarray", "play", str(shapes), "--seed",
                                  "1", "--trial", "1", "--port", server.path],
                                 capture_output=True, text=True, timeout=300)
     finally:

@@ -24,8 +24,9 @@ from tests.imaging.lsl_inlet import MarkerInlet, unique_stream_name
 from tests.runs import REPO
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
-# (tests/suite.py), so that a busy machine does not starve the simulated servos.
-pytestmark = pytest.mark.realtime
+# (tests/suite.py), so that a busy machine does not starve the simulated servos. Not the
+# options refused before anything opens, nor the emulated scanner in virtual time.
+realtime = pytest.mark.realtime
 
 DEMO = REPO / "protocols" / "demo.yaml"
 VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
@@ -104,16 +105,17 @@ def no_run_was_created(root: Path) -> bool:
 
 
 def demo_in_short(tmp_path: Path) -> Path:
-    """demo.yaml (16 pins in order, 5 Hz) with 0.4 s stimuli 0.2 s apart: a 10 s run, not 48 s,
-    and a relaxed delivery tolerance."""
+    """demo.yaml (16 pins in order, 5 Hz) with 0.2 s stimuli (one cycle) 0.1 s apart: a 5 s
+    run, not 48 s, and a relaxed delivery tolerance."""
     text = DEMO.read_text()
     assert "duration_s: 2\n" in text and "inter_trial_interval_s: 1\n" in text
     path = tmp_path / "demo.yaml"
-    path.write_text(RELAXED + text.replace("duration_s: 2\n", "duration_s: 0.4\n")
-                    .replace("inter_trial_interval_s: 1\n", "inter_trial_interval_s: 0.2\n"))
+    path.write_text(RELAXED + text.replace("duration_s: 2\n", "duration_s: 0.2\n")
+                    .replace("inter_trial_interval_s: 1\n", "inter_trial_interval_s: 0.1\n"))
     return path
 
 
+@realtime
 @pytest.mark.long
 def test_the_done_when_waits_for_the_volumes_logs_them_and_every_onset_reaches_lsl(tmp_path):
     """The issue's done-when, as a lab runs it: demo.yaml in real time, two dummy volumes."""
@@ -181,6 +183,7 @@ def test_the_done_when_waits_for_the_volumes_logs_them_and_every_onset_reaches_l
     assert written_ns[2] / NS <= zero_s < written_ns[3] / NS
 
 
+@realtime
 @pytest.mark.skipif(not VALIDATOR.exists(), reason="bids-validator-deno comes with the dev extra")
 def test_a_scanner_run_with_missed_volumes_stays_valid_bids(tmp_path, short_protocol):
     """The trigger stops mid-run: the session goes on on its own clock, the gap is logged."""
@@ -215,6 +218,7 @@ def test_a_trigger_device_that_does_not_exist_ends_with_one_line_and_no_run(tmp_
     assert no_run_was_created(root)
 
 
+@realtime
 def test_a_scanner_that_sends_nothing_gives_up_after_the_timeout_with_no_run(tmp_path):
     root = tmp_path / "results"
     with fake_scanner(tr_s=1, volumes=0) as scanner:
@@ -227,6 +231,7 @@ def test_a_scanner_that_sends_nothing_gives_up_after_the_timeout_with_no_run(tmp
     assert no_run_was_created(root)
 
 
+@realtime
 def test_the_wrong_trigger_character_is_named_when_nothing_counts(tmp_path):
     root = tmp_path / "results"
     with fake_scanner(tr_s=0.2, delay_s=0.1, character=b"t", volumes=3) as scanner:
@@ -270,6 +275,7 @@ def test_scanner_options_without_a_trigger_or_with_a_key_are_refused_up_front(tm
     assert no_run_was_created(root)
 
 
+@realtime
 @pytest.mark.parametrize("sim_serve", ["1-16"], indirect=True)
 @pytest.mark.parametrize("signum", [signal.SIGHUP, signal.SIGINT])
 def test_a_signal_while_waiting_for_the_scanner_leaves_pins_at_rest_torque_off(
@@ -308,6 +314,7 @@ def test_the_ui_refuses_scanner_options_that_cannot_work_before_it_opens(options
     assert said in done.stderr.strip().splitlines()[-1], done.stderr
 
 
+@realtime
 def test_locked_trials_go_on_when_the_trigger_stream_stops(tmp_path, short_protocol):
     """Onsets locked to every 4th volume; the converter goes quiet after volume 3 of the run:
     the later trials start where the TR puts their volumes, on the session's own clock."""

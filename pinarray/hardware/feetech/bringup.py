@@ -22,7 +22,7 @@ from enum import StrEnum
 from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import PortLost, SafeStopReport, Telemetry
 from pinarray.hardware.feetech.base import BusSetup
-from pinarray.hardware.feetech.feetech import FeetechBus
+from pinarray.hardware.feetech.feetech import PATIENCE_GROWTH, FeetechBus
 from pinarray.hardware.feetech.registers import MAX_SERVO_ID, Register
 
 # The return delay register holds 2 us units, 0-254.
@@ -33,6 +33,12 @@ MAX_RETURN_DELAY_US = 254 * RETURN_DELAY_UNIT_US
 SWEEP_TIMEOUT_NS = 10_000_000
 # A sweep of at most this many given ids looks again at the silent ones (a whole 4x4 array).
 LOOK_AGAIN_IDS = 16
+# A full sweep looks a third time at this many silent ids beside those that answered, or
+# fewer: an array's two ends, and one or two a busy host lost.
+LOOK_TWICE_IDS = 4
+# ... and again, each time four times longer, while looking again finds someone (a busy host),
+# up to 4**LONGEST_LOOK times a first PING's wait.
+LONGEST_LOOK = 3
 
 Progress = Callable[[int, int, tuple[int, ...]], object]
 
@@ -112,9 +118,13 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         Sweep exactly these ids; when they are an array's worth or fewer (`LOOK_AGAIN_IDS`),
         look again, four times longer, at those that did not answer (a busy host can hold an
         answer past a quiet host's wait); a sweep of more looks again only at silent ids in
-        the gaps of those that answered and just beside them. Default: a
-        broadcast ping, which finds a lone servo (a new one) at once; when nothing answers it
-        or several answers collide, every id 0-252, once.
+        the gaps of those that answered and just beside them, once more, four times longer
+        again, when those are few (`LOOK_TWICE_IDS`) or the last look found someone (up to
+        `LONGEST_LOOK`). Progress is said once more when looking again found someone.
+        Default: a
+        broadcast ping, which finds a lone servo (a new one) at once, asked again listening
+        longer when nothing answers it; when nothing answers that either or several answers
+        collide, every id 0-252, once.
     timeout_ns : int
         How long to wait for each id's PING answer in a sweep, in nanoseconds.
     progress : callable, optional
@@ -125,6 +135,11 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
     if ids is None:
         answer = bus.broadcast_ping()
+        if not answer.servo_ids and not answer.garbled_bytes:
+            # Silence: asked once more, listening longer, as `FeetechBus.ping` retries one (a
+            # busy host can hold a lone servo's answer past a quiet host's wait). Far cheaper
+            # than the sweep of every id that silence would otherwise cost.
+            answer = bus.broadcast_ping(patience=PATIENCE_GROWTH)
         if answer.clean and answer.servo_ids:
             found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
             return ScanResult(ScanMethod.BROADCAST, found, unreadable)
@@ -137,16 +152,33 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    silent = [i for i, model in models.items() if model is None]
-    if not look_again:
-        # A full sweep looks again only beside what answered: an array's ids run together,
-        # so a gap in them, or the id just before or after, is where a busy host lost one.
-        answered = [i for i, model in models.items() if model is not None]
-        silent = [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
-    for servo_id in silent:
-        models[servo_id] = bus.ping_within(servo_id, 4 * timeout_ns)
+    patience = PATIENCE_GROWTH
+    silent = _to_look_at_again(models, look_again)
+    while silent and patience <= PATIENCE_GROWTH ** LONGEST_LOOK:
+        for servo_id in silent:
+            models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
+        heard = [i for i in silent if models[i] is not None]
+        if heard and progress is not None:  # the sweep's last word: who answered in the end
+            progress(ids[-1], ids[-1], tuple(i for i in ids if models[i] is not None))
+        silent = _to_look_at_again(models, look_again)
+        # Looking again found someone: the host is busy, so the rest may be lost answers too.
+        few = len(silent) <= LOOK_TWICE_IDS and patience == PATIENCE_GROWTH
+        if look_again or not (heard or few):
+            break
+        patience *= PATIENCE_GROWTH
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
+
+
+def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool) -> list[int]:
+    """The ids swept that have not answered; in a full sweep only those in the gaps of the
+    ids that answered or just beside them (an array's ids run together, so that is where a
+    busy host lost one; as more answer, the ids beside them join)."""
+    silent = [i for i, model in models.items() if model is None]
+    if every_silent_id:
+        return silent
+    answered = [i for i, model in models.items() if model is not None]
+    return [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
 
 
 def _details(bus: FeetechBus, models: dict[int, int | None]

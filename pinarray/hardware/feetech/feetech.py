@@ -235,13 +235,14 @@ class FeetechBus:
             return None
         return from_bytes(data)
 
-    def broadcast_ping(self) -> BroadcastPing:
+    def broadcast_ping(self, patience: int = 1) -> BroadcastPing:
         """PING every servo at once (the broadcast id) and listen for all the answers.
 
         Each servo answers with its own id after its own return delay; several with the same
         delay answer together and garble each other (Feetech: "multiple servos can not use
         broadcast PING instructions on the bus"), so only a `BroadcastPing.clean` answer says
-        who is there. Listens as long as the longest return delay and the adapter allow.
+        who is there. Listens as long as the longest return delay and ``patience`` times the
+        adapter's latency allowance allow.
         """
         packet = packets.ping(BROADCAST_ID)
         link = self.link
@@ -249,7 +250,8 @@ class FeetechBus:
         reader.longest_params = 0  # a PING's answer carries no data
         # The last answer may start after the longest return delay; allow the wire for several.
         expected = (Expected(BROADCAST_ID, 0), Expected(BROADCAST_ID, 0))
-        limit_ns = self.clock.now_ns() + link.reply_time_ns(len(packet), expected)
+        limit_ns = self.clock.now_ns() + link.reply_time_ns(len(packet), expected,
+                                                            patience=patience)
         ids: list[int] = []
         try:
             link.drain()
