@@ -45,6 +45,10 @@ DEVICE_KEYS = {"grid", "port", "servo", "calibration", "pins", "servo_ids", "fea
 # The STS ids a servo can take (the vendor SDK's MAX_ID; 254 is broadcast). The bus says the
 # same in `pinarray.hardware.feetech.registers.MAX_SERVO_ID`, which the protocol may not import.
 MAX_SERVO_ID = 252
+# The most servos one bus carries: its start-up sets every servo's acceleration (3 bytes each,
+# with its id 4) in one SYNC WRITE, and the servos take packets of at most 250 bytes (8 bytes
+# of header, address and length) (`pinarray.hardware.feetech.packets.MAX_PACKET_BYTES`).
+MAX_BUS_SERVOS = (250 - 8) // 4
 
 
 @dataclass(frozen=True)
@@ -106,10 +110,11 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
                                        f"one PCA9685 board, found {grid.pin_count}")
             else:
                 servo = reader.optional(keys, "servo", lambda n: _servo(reader, n), ServoSettings())
-                if grid.pin_count > MAX_SERVO_ID:
-                    raise reader.error(keys["grid"], f"expected a grid of at most {MAX_SERVO_ID} "
-                                       "pins (one bus servo id each), found "
-                                       f"{grid.pin_count}")
+                if grid.pin_count > MAX_BUS_SERVOS:
+                    raise reader.error(keys["grid"], f"expected a grid of at most "
+                                       f"{MAX_BUS_SERVOS} pins on one servo bus (one SYNC WRITE "
+                                       "sets them all, in a packet of at most 250 bytes), "
+                                       f"found {grid.pin_count}")
     except Invalid:
         return None
     port = reader.optional(keys, "port", lambda n: reader.string(n, "the port"),
