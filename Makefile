@@ -14,17 +14,24 @@ NOT_COMPILED := site-packages/.*/tests?/|site-packages/(mypy|mypyc|pip|setuptool
 
 $(STAMP): pyproject.toml Makefile
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "pinarray needs Python 3.11 or newer")'
-	$(PYTHON) -m venv $(VENV)
+	@# Without a pip of its own to set up first (6 s here): uv installs pip beside the rest.
+	$(PYTHON) -m venv --without-pip $(VENV)
 	@# uv (from the package index, into the venv) installs the packages: 14 s from a fresh
-	@# clone here, against 23 s for pip. Where uv cannot be had, pip.
+	@# clone here, against 23 s for pip. The system's pip puts uv there (pip 22.3 or newer
+	@# installs into another environment); an older one, or none, gives the venv a pip of
+	@# its own for it. Where uv cannot be had, pip.
 	@# The build backend's notes about editable installs are not ours to act on: keep them quiet.
 	@# Editable as a path on sys.path (editable_mode=compat), not through an import hook, which
 	@# type checkers cannot follow: `make examples` checks a lab's script against pinarray's
 	@# own types (tests/typing_canary.py).
-	$(BIN)/python -m pip install --quiet uv && PYTHONWARNINGS=ignore::UserWarning \
-		$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[dev]' \
+	($(PYTHON) -m pip --python $(BIN)/python install --quiet uv 2> /dev/null \
+		|| ($(BIN)/python -m ensurepip --default-pip > /dev/null \
+			&& $(BIN)/python -m pip install --quiet uv)) \
+	&& PYTHONWARNINGS=ignore::UserWarning \
+		$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[dev]' pip \
 		--config-settings editable_mode=compat \
-	|| (PYTHONWARNINGS=ignore::UserWarning $(BIN)/python -m pip install --quiet --no-compile \
+	|| (([ -x $(BIN)/pip ] || $(BIN)/python -m ensurepip --default-pip > /dev/null) \
+		&& PYTHONWARNINGS=ignore::UserWarning $(BIN)/python -m pip install --quiet --no-compile \
 		-e '.[dev]' --config-settings editable_mode=compat)
 	$(BIN)/python -m compileall -q -j 0 -x '$(NOT_COMPILED)' pinarray \
 		"$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
