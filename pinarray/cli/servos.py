@@ -267,7 +267,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
             timeout_ns = (args.timeout_ms * 1_000_000 if args.timeout_ms
                           else bringup.sweep_timeout_ns(bus))
             progress = _Progress(stop, timeout_ns)
-            result = bringup.scan(bus, ids, timeout_ns, progress)
+            result = bringup.scan(bus, ids, timeout_ns, progress,
+                                  still_wanted=stop.raise_if_requested)
             progress.done()
         finally:
             bus.close()

@@ -176,6 +176,35 @@ def test_a_stop_requested_during_a_sweep_ends_it():
         bringup.scan(bus, progress=progress)
 
 
+
+def test_a_stop_requested_while_looking_again_at_silent_ids_ends_the_scan_at_the_next_ping():
+    # Ids 0 and 252 collide on a broadcast, so every id is swept; then every id between them
+    # is looked at again, longer: nobody answers, so no progress is said (attack: Ctrl-C was
+    # ignored for a whole look, and when nobody answered, swallowed: the scan ended with 0).
+    bus = bare_bus("ids=0,252")
+    stop = StopRequest()
+    pinged_after_stop = []
+    ping_within = bus.ping_within
+
+    def counted(servo_id, timeout_ns):
+        if stop.requested:
+            pinged_after_stop.append(servo_id)
+        return ping_within(servo_id, timeout_ns)
+
+    looks = []
+
+    def still_wanted():
+        looks.append(1)
+        if len(looks) == 5:
+            stop.request("stopped by SIGINT", 2)
+        stop.raise_if_requested()
+
+    bus.ping_within = counted
+    with pytest.raises(Stopped):
+        bringup.scan(bus, progress=lambda *found: stop.raise_if_requested(),
+                     still_wanted=still_wanted)
+    assert len(looks) == 5 and pinged_after_stop == []
+
 # -- set-id ------------------------------------------------------------------------------------
 
 

@@ -107,7 +107,8 @@ def sweep_timeout_ns(bus: FeetechBus) -> int:
 
 
 def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
-         timeout_ns: int = SWEEP_TIMEOUT_NS, progress: Progress | None = None) -> ScanResult:
+         timeout_ns: int = SWEEP_TIMEOUT_NS, progress: Progress | None = None,
+         still_wanted: Callable[[], object] | None = None) -> ScanResult:
     """Find the servos on the bus: one broadcast ping, else a sweep of ids.
 
     Parameters
@@ -130,7 +131,15 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     progress : callable, optional
         ``progress(servo_id, last_id, found_ids)`` after each id of a sweep; it may raise to
         stop the sweep (e.g. `pinarray.stop.Stopped`).
+    still_wanted : callable, optional
+        Called before each ping that is not a sweep's first of its id (the broadcast asked
+        again, every look again); it may raise to stop the scan as ``progress`` may: a look
+        again in which nobody answers says no progress, and may last seconds.
     """
+    def check() -> None:
+        if still_wanted is not None:
+            still_wanted()
+
     reason = ""
     look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
     if ids is None:
@@ -139,6 +148,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
             # Silence: asked once more, listening longer, as `FeetechBus.ping` retries one (a
             # busy host can hold a lone servo's answer past a quiet host's wait). Far cheaper
             # than the sweep of every id that silence would otherwise cost.
+            check()
             answer = bus.broadcast_ping(patience=PATIENCE_GROWTH)
         if answer.clean and answer.servo_ids:
             found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
@@ -156,6 +166,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
     silent = _to_look_at_again(models, look_again)
     while silent and patience <= PATIENCE_GROWTH ** LONGEST_LOOK:
         for servo_id in silent:
+            check()
             models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
         heard = [i for i in silent if models[i] is not None]
         if heard and progress is not None:  # the sweep's last word: who answered in the end
