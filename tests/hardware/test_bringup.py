@@ -299,6 +299,39 @@ def test_a_silent_servo_does_not_keep_the_others_from_their_new_return_delay():
     assert failure.servo_id == 2 and "RETURN_DELAY_TIME (address 7)" in failure.problem
 
 
+def after_the_lock(bus, fault) -> None:
+    """``fault(sim)`` acts on the simulated bus right after the LOCK write, before the
+    RETURN_DELAY_TIME write that follows it."""
+    lock = bus.lock_eeprom
+
+    def lock_then_fault(servo_id: int) -> None:
+        lock(servo_id)
+        fault(bus.sim)
+
+    bus.lock_eeprom = lock_then_fault
+
+
+def hold_up_one_answer(sim) -> None:
+    sim.late_next, sim.late_ns = 1, 200_000_000
+
+
+def lose_one_instruction(sim) -> None:
+    sim.drop_next = 1
+
+
+@pytest.mark.parametrize("fault", [hold_up_one_answer, lose_one_instruction],
+                         ids=["taken, acknowledgement held up", "lost on the wire"])
+def test_a_return_delay_write_whose_acknowledgement_is_missed_is_read_back_and_written_again(
+        fault):
+    # A busy host can miss the acknowledgement of a write the servo took, or the write can be
+    # lost: the read-back tells which, and the servo ends with its new delay either way.
+    bus = bare_bus("ids=1")
+    after_the_lock(bus, fault)
+    changes, failures = bringup.set_return_delay(bus, (1,), 0, save=False)
+    assert (changes, failures) == ((bringup.ReturnDelayChange(1, 500, 0, False),), ())
+    assert bus.sim.servos[1].return_delay_ns == 0
+
+
 @pytest.mark.parametrize("delay_us", [-2, 3, 510])
 def test_a_return_delay_the_register_cannot_hold_is_refused(delay_us):
     with pytest.raises(PinArrayError, match="RETURN_DELAY_TIME, address 7"):

@@ -321,6 +321,33 @@ def set_id(bus: FeetechBus, old_id: int, new_id: int) -> Renumbered:
     return Renumbered(old_id, new_id, at_new, acknowledged)
 
 
+# Writes of RETURN_DELAY_TIME whose acknowledgement was lost, tried again after a read-back.
+RETURN_DELAY_WRITES = 3
+
+
+def _write_return_delay(bus: FeetechBus, servo_id: int, delay_us: int) -> bytes:
+    """Write RETURN_DELAY_TIME and read it back: the register's value after the write.
+
+    A write whose acknowledgement was lost (a busy host) may have been taken: the read-back
+    tells, and the same value is written again only if it was not (the write is idempotent).
+    """
+    register = Register.RETURN_DELAY_TIME
+    for attempt in range(1, RETURN_DELAY_WRITES + 1):
+        try:
+            bus.write_eeprom(servo_id, register, delay_us // RETURN_DELAY_UNIT_US)
+        except PortLost:
+            raise
+        except BusError:
+            if attempt == RETURN_DELAY_WRITES:
+                raise
+        # The servo answers the read-back after its new delay: plan for it.
+        bus.note_return_delay(servo_id, delay_us)
+        after, _ = bus.read(servo_id, register)
+        if after[0] * RETURN_DELAY_UNIT_US == delay_us:
+            break
+    return after
+
+
 def _relock(bus: FeetechBus, servo_id: int) -> None:
     try:
         bus.lock_eeprom(servo_id)
@@ -391,13 +418,10 @@ def _set_return_delay(bus: FeetechBus, servo_id: int, delay_us: int, save: bool
     else:
         bus.lock_eeprom(servo_id)  # a factory servo powers on unlocked: its writes would stay
     try:
-        bus.write_eeprom(servo_id, register, delay_us // RETURN_DELAY_UNIT_US)
+        after = _write_return_delay(bus, servo_id, delay_us)
     finally:
         if save:
             _relock(bus, servo_id)
-    # The servo answers the read-back after its new delay: plan for it.
-    bus.note_return_delay(servo_id, delay_us)
-    after, _ = bus.read(servo_id, register)
     if after[0] * RETURN_DELAY_UNIT_US != delay_us:
         raise BusError(f"servo {servo_id}: wrote {register.name} (address {register.address}) "
                        f"= {delay_us} us, read back {after[0] * RETURN_DELAY_UNIT_US} us")
