@@ -4,6 +4,7 @@ simulated subject that overflowed, plug-ins that broke or exited, an answer pad 
 were not its answers."""
 
 import re
+import signal
 from pathlib import Path
 
 import pytest
@@ -154,6 +155,16 @@ def test_a_plug_in_that_exits_as_it_is_imported_is_said_in_one_line_exit_2(
 
 def test_a_plug_ins_keyboard_interrupt_is_its_fault_where_ctrl_c_cannot_raise_one(
         broken_plug_ins):
+    # Ctrl-C at Python's own handler, as in a command that installs none (whatever a test
+    # before this one in the same process left: an event loop's handler lasts until it closes).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        a_plug_ins_keyboard_interrupt()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def a_plug_ins_keyboard_interrupt() -> None:
     # A run takes Ctrl-C through its stop request: the interrupt can only be the package's.
     with stop_on_signals(StopRequest()), pytest.raises(
             PinArrayError, match="paradigm 'interrupts': its package .* KeyboardInterrupt"):

@@ -340,7 +340,7 @@ def test_one_train_on_many_pins_interleaves_them_by_start_then_pin(train, pins):
     assert len(schedule.pulses) == len(pins) * len(train_pulses(train)[0])
 
 
-@settings(max_examples=15, deadline=None)  # each example computes a day of pulses (8.64 M at 10 Hz)
+@settings(max_examples=5, deadline=None)  # each example computes a day of pulses (8.64 M at 10 Hz)
 @given(
     frequency=st.sampled_from(FREQUENCIES_HZ),
     phase_deg=st.integers(0, 359),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import secrets
 from collections.abc import Callable
 from pathlib import Path
@@ -59,6 +60,8 @@ class StartScreen(KeyNotices, Screen):
         self._unfinished: Unfinished | None = None
         self._back = False  # shown again after a pre-flight or a run
         self._recheck: Timer | None = None
+        # The task label of each protocol file looked at, by (path, modification time, size).
+        self._tasks: dict[tuple[str, int, int], str] = {}
 
     def _new_seed(self) -> str:
         # Shown and recorded before the run starts, so a session can be replayed exactly.
@@ -122,14 +125,33 @@ class StartScreen(KeyNotices, Screen):
     def _value(self, field: str) -> str:
         return self.query_one(f"#{field}", Input).value.strip()
 
-    def _protocol(self) -> Protocol:
-        from pinarray.protocol.load import load_protocol
-
+    def _chosen(self) -> str:
         chosen = self.query_one("#protocol", Select).value
         if chosen is Select.BLANK:
             raise PinArrayError("choose a protocol (none found in protocols/; "
                                 "give one on the command line: pinarray tui FILE)")
-        return load_protocol(str(chosen))
+        return str(chosen)
+
+    def _protocol(self) -> Protocol:
+        from pinarray.protocol.load import load_protocol
+
+        return load_protocol(self._chosen())
+
+    def _chosen_task(self) -> str:
+        """The chosen protocol's task label: the form looks for an unfinished run at every
+        key typed in the subject and session fields, and loads the file again only when it
+        changed (Start always loads it afresh)."""
+        from pinarray.session.trials import task_label
+
+        chosen = self._chosen()
+        try:
+            status = os.stat(chosen)
+        except OSError:
+            return task_label(self._protocol())  # which says what is wrong with the file
+        key = (chosen, status.st_mtime_ns, status.st_size)
+        if key not in self._tasks:
+            self._tasks[key] = task_label(self._protocol())
+        return self._tasks[key]
 
     def _request(self, resume: bool) -> SessionRequest:
         protocol = self._protocol()
@@ -154,21 +176,19 @@ class StartScreen(KeyNotices, Screen):
     @on(Select.Changed, "#protocol")
     def _look_for_unfinished(self) -> None:
         from pinarray.journal.runs import unfinished_run
-        from pinarray.session.trials import task_label
 
         info = self.query_one("#resume-info", Static)
         self._unfinished = None
         found, problem = None, ""
         try:
-            protocol = self._protocol()
+            task = self._chosen_task()
             subject = check_label("subject", self._value("subject"))
             session = check_label("session", self._value("session"))
         except PinArrayError:
             pass  # the form is not complete yet; Start will say what is wrong
         else:
             try:
-                found = unfinished_run(self.options.results_root, subject, session,
-                                       task_label(protocol))
+                found = unfinished_run(self.options.results_root, subject, session, task)
             except PinArrayError as error:  # e.g. a run's lock file that cannot be used
                 problem = f"Cannot look for an unfinished run: {error}"
         # A run open in another process (its lock is held) cannot be resumed from here; look

@@ -1,6 +1,8 @@
 """The pre-flight's timing verdict as the experimenter acts on it: asked before beginning
 after a NOT OK, measured again when the read-backs got faster."""
 
+import time
+
 import pytest
 from textual.widgets import DataTable
 
@@ -27,12 +29,12 @@ class CountingRig(ArrayRig):
 
 
 async def in_view(pilot, text: str) -> None:
-    """Until ``text`` is on the terminal, for at most about two seconds: at 80x24 the verdict
-    is scrolled into view after the refresh that lays it out (`PreflightScreen._timing_line`),
-    which on a busy machine may come a frame after the worker that measured has ended."""
-    for _ in range(100):
-        if text in on_screen(pilot.app):
-            return
+    """Until ``text`` is on the terminal: at 80x24 the verdict is scrolled into view after the
+    refresh that lays it out (`PreflightScreen._timing_line`), which on a busy machine may come
+    frames after the worker that measured has ended. At most 15 s: a hang guard, not a timing
+    check (two seconds once ran out with six test processes on two cores)."""
+    give_up = time.monotonic() + 15
+    while text not in on_screen(pilot.app) and time.monotonic() < give_up:
         await pilot.pause(0.02)
 
 

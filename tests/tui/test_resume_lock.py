@@ -67,3 +67,28 @@ async def test_a_run_whose_lock_file_cannot_be_used_is_not_offered_and_the_scree
         assert text(app, "#resume-info") == (
             f"Cannot look for an unfinished run: {paths.lock}: cannot use the run's lock file: "
             "Is a directory")
+
+
+async def test_a_protocol_file_edited_while_the_start_screen_is_open_is_read_again(
+        results, tmp_path):
+    # The form looks for an unfinished run at every key typed; it reads the protocol file
+    # again only when the file changed, and then sees the task it names now.
+    protocol = tmp_path / "localisation.yaml"
+    protocol.write_text(LOCALISATION.read_text(encoding="utf-8"), encoding="utf-8")
+    unfinished_batch_run(results, protocol, seed=3)
+    app = make_app(results, protocol=protocol)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        assert not app.screen.query_one("#resume").disabled
+        text_now = protocol.read_text(encoding="utf-8")
+        protocol.write_text(text_now.replace("protocol: localisation\n",
+                                             "protocol: localisation two\n"), encoding="utf-8")
+        await fill_start(pilot, subject="1")  # subject 011: no run of either task
+        await fill_start(pilot, subject=["backspace"])  # 01 again, of task localisationtwo
+        await settle(pilot)
+        assert app.screen.query_one("#resume").disabled
+        assert text(app, "#resume-info") == ""
+        protocol.write_text(text_now, encoding="utf-8")  # back as it was: offered again
+        await fill_start(pilot, subject="1")
+        await fill_start(pilot, subject=["backspace"])
+        assert not app.screen.query_one("#resume").disabled
