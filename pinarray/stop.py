@@ -117,14 +117,8 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
             signal.signal(number, old)
 
 
-def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]
-                    ) -> Callable[[], None]:
+def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]) -> None:
     """For an asyncio program (the TUI): every stop signal sets ``stop``, then calls ``then``.
-
-    Returns what undoes it: each signal's handler back to the one before. Call it when the
-    program is done with the loop: a loop that is never closed (Textual's `App.run` on Python
-    3.11 runs the thread's global loop and leaves it open) keeps its handlers, and Ctrl-C
-    would do nothing in whatever the process does next.
 
     Raises whatever ``loop.add_signal_handler`` raises where signals cannot be handled (not
     the main thread, Windows).
@@ -134,17 +128,8 @@ def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]
         stop.request(f"stopped by {signal_name(signal_number)}", signal_number)
         then(signal_number)
 
-    before = {number: signal.getsignal(number) for number in STOP_SIGNALS}
     for number in STOP_SIGNALS:
         loop.add_signal_handler(number, handle, number)
-
-    def undo() -> None:
-        for number, handler in before.items():
-            loop.remove_signal_handler(number)
-            if handler is not None:  # None: a handler not set from Python, left as asyncio puts it
-                signal.signal(number, handler)
-
-    return undo
 
 
 @contextmanager

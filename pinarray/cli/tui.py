@@ -65,7 +65,6 @@ def _cmd_tui(args: argparse.Namespace) -> int:
 
     from pinarray.errors import PinArrayError
     from pinarray.player.rig import choose_clock
-    from pinarray.stop import StopRequest, stop_on_signals
     from pinarray.tui.app import PinArrayApp, TuiOptions
 
     if args.file and not Path(args.file).is_file():
@@ -97,9 +96,8 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     with on_the_terminal():
         app.run()
     # However the app stopped (even an error Textual reported itself), the run is closed
-    # and the pins rest before the line is said; a stop signal now cannot cut that short.
-    with stop_on_signals(StopRequest()):
-        status, line = app.outcome()
+    # and the pins rest before the line is said.
+    status, line = app.outcome()
     print(line, file=sys.stdout if status in (0, 4) else sys.stderr)
     return status
 

@@ -119,7 +119,6 @@ class PinArrayApp(App[None]):
         self.ending: Ending = Quit()
         self._leaving_app = False
         self._crash_closed = False  # after an error: the run is marked and the pins rest
-        self._signals_off: Callable[[], None] = lambda: None  # the loop's handlers undone
 
     def on_mount(self) -> None:
         from pinarray.tui.start_screen import StartScreen
@@ -127,8 +126,7 @@ class PinArrayApp(App[None]):
         self.push_screen(StartScreen(self.options, self.list_ports))
         try:
             # Any stop signal: same as q. Closing the terminal: see `_hang_up`.
-            self._signals_off = on_loop_signals(asyncio.get_running_loop(), self.sitting.stop,
-                                                self._signalled)
+            on_loop_signals(asyncio.get_running_loop(), self.sitting.stop, self._signalled)
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             pass  # not the main thread (tests) or no such signals (Windows)
         if os.isatty(TERMINAL_FD):
@@ -149,11 +147,6 @@ class PinArrayApp(App[None]):
         return True
 
     # -- leaving ------------------------------------------------------------------------------
-
-    def on_unmount(self) -> None:
-        # The stop signals are the caller's again (`pinarray tui` closes what is still open
-        # under its own; a script goes on with its own).
-        self._signals_off()
 
     def _signalled(self, signal_number: int) -> None:
         if signal_number == signal.SIGHUP:

@@ -1,8 +1,6 @@
 """Whole sessions driven through the UI by keys and clicks, checked in the results files; the
 end screen they reach shows its summary, files and buttons whole at 120x40 and at 80x24."""
 
-import signal
-
 import pytest
 
 from pinarray.grid import classify
@@ -25,9 +23,7 @@ FOUR_PINS = ("pins: [1, 4, 6, 7, 10, 11, 13, 16]", "pins: [1, 6, 11, 16]")
 async def test_a_whole_localisation_session_by_typing_and_clicking(results, tmp_path):
     app = make_app(results, protocol=short_copy("localisation", tmp_path, FOUR_PINS))
     answers = {}
-    before = signal.getsignal(signal.SIGINT)
     async with app.run_test(size=SIZE) as pilot:
-        assert signal.getsignal(signal.SIGINT) is not before  # the UI's: a stop, as q is
         await to_run_screen(pilot)
         screen = app.screen
         assert isinstance(screen, RunScreen)
@@ -57,9 +53,6 @@ async def test_a_whole_localisation_session_by_typing_and_clicking(results, tmp_
             summary = str(app.screen.query_one("#summary").render())
             assert "Hz:" in summary and "% correct" in summary
             assert unseen(app.screen) == [], size
-    # The UI gone, Ctrl-C is the program's again, though its event loop lives on (a test's,
-    # a lab script's; Textual leaves the global one open on Python 3.11).
-    assert signal.getsignal(signal.SIGINT) is before
     (beh,) = results.rglob("*_beh.tsv")
     rows = read_trials(beh)
     assert [r.trial for r in rows] == list(range(1, 15))
