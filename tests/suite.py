@@ -30,6 +30,12 @@ NO_TESTS_COLLECTED = 5
 REALTIME_WORKERS = 2
 BULK_NICENESS = 10
 TESTS = Path(__file__).resolve().parent
+# The test processes' folders (results written, figures drawn, runs killed mid-write) on a RAM
+# file system where there is one with room: the tests make thousands of fsyncs (every results
+# row is on disk at once), which there cost nothing (make test 165-171 s against 175-177 s on
+# disk here, two pairs). Nowhere else the system's temporary folder, as before.
+RAM_FOLDER = Path("/dev/shm")
+RAM_ROOM_BYTES = 2 * 1024**3
 PACKAGE = TESTS.parent / "pinarray"
 REALTIME_MARK = re.compile(r"\bmark\.realtime\b")
 
@@ -97,6 +103,17 @@ def _rewrite(source: Path) -> None:
                            _cached_rewrite(source))
 
 
+def temporary_root() -> str | None:
+    """Where this run's temporary folder goes: `RAM_FOLDER` if it is writable and has room,
+    else None (the system's temporary folder)."""
+    try:
+        status = os.statvfs(RAM_FOLDER)
+    except OSError:
+        return None
+    room = status.f_bavail * status.f_frsize
+    return str(RAM_FOLDER) if room >= RAM_ROOM_BYTES and os.access(RAM_FOLDER, os.W_OK) else None
+
+
 def pytest_command(marker: str, workers: int, args: list[str], basetemp: str) -> list[str]:
     # A temporary folder of this run's own: pytest's default one is cleaned of older runs' folders
     # by every worker as it starts, a walk over thousands of results files on a busy machine.
@@ -114,7 +131,7 @@ def main(argv: list[str]) -> int:
     if not sys.dont_write_bytecode:
         rewrite_ahead()
     with tempfile.TemporaryFile("w+") as realtime_log, \
-            tempfile.TemporaryDirectory(prefix="pinarray-tests-") as temporary:
+            tempfile.TemporaryDirectory(prefix="pinarray-tests-", dir=temporary_root()) as temporary:
         realtime = subprocess.Popen(
             pytest_command("realtime", min(REALTIME_WORKERS, workers), realtime_argv,
                            os.path.join(temporary, "realtime")),

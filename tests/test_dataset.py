@@ -11,15 +11,12 @@ official BIDS validator runs once on it.
 
 import csv
 import itertools
-import json
 import signal
 import socket
-import subprocess
 import sys
 import time
 import warnings
 from collections import Counter
-from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -31,6 +28,7 @@ from pinarray.journal.records import TrialStatus
 from pinarray.journal.rows import read_trials
 from pinarray.journal.timebase import ClockKind, seconds_text
 from pinarray.paradigms.localisation.rows import LocalisationRecord
+from tests.bids_validator import VALIDATOR, validate
 from tests.commands import Forked, pinarray_here
 from tests.runs import REPO, write_short_localisation
 
@@ -39,7 +37,6 @@ pytestmark = pytest.mark.xdist_group("study")
 
 MOTION = REPO / "protocols" / "apparent_motion.yaml"
 SUBJECTS = ("01", "02", "03", "04")
-VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
 
 
 def batch_command(root, subject, *files, more=()):
@@ -123,12 +120,8 @@ def validation(study):
     if not VALIDATOR.exists():
         pytest.skip(f"the official BIDS validator is not installed ({VALIDATOR} missing): it "
                     "comes with the dev extra, pip install -e '.[dev]'")
-    result = subprocess.run([str(VALIDATOR), "--format", "json", "--max-rows", "-1",
-                             str(study.root)], capture_output=True, text=True, timeout=300,
-                            cwd=study.root.parent)
-    try:
-        report = json.loads(result.stdout)
-    except json.JSONDecodeError:
+    report, result = validate(study.root, "--max-rows", "-1")
+    if report is None:
         pytest.fail(f"bids-validator-deno gave no JSON report (exit {result.returncode}): "
                     f"{result.stderr.strip() or result.stdout.strip()}")
     return report

@@ -18,6 +18,7 @@ import pytest
 
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.volumes import volume_log_path
+from tests.bids_validator import VALIDATOR, validate
 from tests.hardware.test_compat import sim_serve  # noqa: F401  (a fixture)
 from tests.imaging.fake_scanner import fake_scanner
 from tests.imaging.lsl_inlet import MarkerInlet, unique_stream_name
@@ -29,7 +30,6 @@ from tests.runs import REPO
 realtime = pytest.mark.realtime
 
 DEMO = REPO / "protocols" / "demo.yaml"
-VALIDATOR = Path(sys.executable).parent / "bids-validator-deno"
 NS = 1_000_000_000
 
 # These runs are about triggers, volumes and markers, not timing (`make bench` measures that):
@@ -200,9 +200,9 @@ def test_a_scanner_run_with_missed_volumes_stays_valid_bids(tmp_path, short_prot
     assert [int(v["volume"]) for v in volumes] == list(range(1, len(volumes) + 1))
     assert len(tsv(paths.events_tsv)) == 3
     assert f"{len(statuses) - 5} missed" in out
-    report = subprocess.run([str(VALIDATOR), "--format", "json", str(root)], capture_output=True,
-                            text=True, timeout=300, cwd=root.parent)
-    issues = json.loads(report.stdout)["issues"]["issues"]
+    report, done = validate(root)
+    assert report is not None, done.stderr
+    issues = report["issues"]["issues"]
     assert [i for i in issues if i["severity"] == "error"] == []
     sidecar = json.loads(volume_log_path(paths).with_suffix(".json").read_text())
     assert {"onset", "volume", "dummy", "status"} <= set(sidecar)

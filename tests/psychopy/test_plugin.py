@@ -278,12 +278,13 @@ def test_the_example_writes_psychopy_data_with_the_tactile_columns(tmp_path, cap
     assert "8 trials" in capsys.readouterr().out
 
 
-def example(tmp_path, port):
+def example(tmp_path, port, repetitions=2):
     """The example as a lab runs it, on servos behind ``port``: its process."""
     return subprocess.Popen(
         [sys.executable, str(REPO / "examples" / "psychopy_congruency.py"), "--subject", "ci",
-         "--observer", "--repetitions", "2", "--seed", "3", "--results", str(tmp_path),
-         "--port", port], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+         "--observer", "--repetitions", str(repetitions), "--seed", "3", "--results",
+         str(tmp_path), "--port", port], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True)
 
 
 def test_the_example_delivers_through_a_serial_port_with_psychopy_imported_first(tmp_path, way):
@@ -321,13 +322,17 @@ def test_the_example_losing_its_port_mid_run_ends_in_one_line_the_row_marked_not
 
 
 def example_mid_run(tmp_path, port):
-    """The example on servos behind ``port``, its array open and trials running: its process."""
-    process = example(tmp_path, port)
+    """The example on servos behind ``port``, its array open and trials running: its process.
+
+    Ten repetitions (40 trials): the run is still going whenever a busy machine lets the test
+    act on it (of 8 trials, a run once ended before the test's Ctrl-C reached it)."""
+    process = example(tmp_path, port, repetitions=10)
     deadline = time.monotonic() + 120  # a bound against a hang, not a timing target
     while not player_of(process.pid):  # the array open: its player process started
         assert process.poll() is None and time.monotonic() < deadline
         time.sleep(0.05)
     time.sleep(1.5)  # trials running
+    assert process.poll() is None, "the example ended before the test could act mid-run"
     return process
 
 
