@@ -279,12 +279,31 @@ def test_the_example_writes_psychopy_data_with_the_tactile_columns(tmp_path, cap
 
 
 def example(tmp_path, port, repetitions=2):
-    """The example as a lab runs it, on servos behind ``port``: its process."""
+    """The example as a lab runs it from a shell, on servos behind ``port``: its process.
+
+    With the signals as a shell hands them to a program (none blocked, Ctrl-C at its default),
+    whatever this test process holds: a child inherits its parent's blocked and ignored
+    signals, and here the example once ignored a Ctrl-C the suite's earlier tests had no
+    business passing on."""
     return subprocess.Popen(
         [sys.executable, str(REPO / "examples" / "psychopy_congruency.py"), "--subject", "ci",
          "--observer", "--repetitions", str(repetitions), "--seed", "3", "--results",
          str(tmp_path), "--port", port], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True)
+        text=True, preexec_fn=as_from_a_shell)
+
+
+def as_from_a_shell() -> None:
+    signal.pthread_sigmask(signal.SIG_SETMASK, [])
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def signals_of(pid: int) -> list[str]:
+    """The signals process ``pid`` blocks and ignores (/proc), for a failure's message."""
+    try:
+        with open(f"/proc/{pid}/status") as status:
+            return [line.strip() for line in status if line.startswith(("SigBlk", "SigIgn"))]
+    except OSError:
+        return []
 
 
 def test_the_example_delivers_through_a_serial_port_with_psychopy_imported_first(tmp_path, way):
@@ -356,9 +375,10 @@ def test_ctrl_c_in_the_example_mid_run_takes_every_servos_torque_off(tmp_path, w
     if served is None:
         pytest.skip("a serial port's servos tell what reached them")
     process = example_mid_run(tmp_path, served.path)
+    signals = signals_of(process.pid)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=60)
-    assert "KeyboardInterrupt" in err
+    assert "KeyboardInterrupt" in err, (process.returncode, signals)
     released = served.torque_off_at_ns()
     assert sorted(released) == list(range(1, 17)) and all(released.values()), released
 
