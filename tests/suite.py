@@ -30,14 +30,14 @@ NO_TESTS_COLLECTED = 5
 REALTIME_WORKERS = 2
 BULK_NICENESS = 10
 TESTS = Path(__file__).resolve().parent
+PACKAGE = TESTS.parent / "pinarray"
+REALTIME_MARK = re.compile(r"\bmark\.realtime\b")
 # The test processes' folders (results written, figures drawn, runs killed mid-write) on a RAM
 # file system where there is one with room: the tests make thousands of fsyncs (every results
 # row is on disk at once), which there cost nothing (make test 165-171 s against 175-177 s on
-# disk here, two pairs). Nowhere else the system's temporary folder, as before.
+# disk here, two pairs). Elsewhere the system's temporary folder, as before.
 RAM_FOLDER = Path("/dev/shm")
 RAM_ROOM_BYTES = 2 * 1024**3
-PACKAGE = TESTS.parent / "pinarray"
-REALTIME_MARK = re.compile(r"\bmark\.realtime\b")
 
 
 def realtime_files() -> list[Path]:
