@@ -7,6 +7,7 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import pytest
 import serial
@@ -59,16 +60,40 @@ STOP_BOUND_S = 60
 @contextmanager
 def sim_serve(*args: str) -> Iterator[tuple[subprocess.Popen, str]]:
     """``pinarray sim-serve ARGS`` in its own process: (process, pseudo-terminal path)."""
+    blocked_here = signal.pthread_sigmask(signal.SIG_BLOCK, [])  # what the child inherits
     process = subprocess.Popen(
         [sys.executable, "-m", "pinarray", "sim-serve", *args],
         stdout=subprocess.PIPE, text=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
+    process.blocked_by_parent = sorted(signal.Signals(number).name for number in blocked_here)
     try:
         yield process, process.stdout.readline().split(" on ")[1].split()[0]
     finally:
         if process.poll() is None:
             process.kill()
             process.wait(timeout=STOP_BOUND_S)
+
+
+def ended(process: subprocess.Popen) -> int:
+    """``process``'s exit status once it has ended after a stop signal; a failure naming the
+    signals it blocks, ignores and catches (and where it waits) if it has not within the bound.
+
+    (In about 1 of 10 full runs a sim-serve did not end within 60 s of SIGTERM or SIGINT, never
+    alone: the message says whether the signal was held back by the process or never sent.)"""
+    try:
+        return process.wait(timeout=STOP_BOUND_S)
+    except subprocess.TimeoutExpired:
+        seen = [f"test process blocked {process.blocked_by_parent} at the start"]
+        for name in ("status", "wchan"):
+            try:
+                text = Path(f"/proc/{process.pid}/{name}").read_text()
+            except OSError as error:
+                text = str(error)
+            seen += [line for line in text.splitlines()
+                     if name == "wchan" or line.startswith(("SigPnd", "ShdPnd", "SigBlk",
+                                                           "SigIgn", "SigCgt", "State"))]
+        pytest.fail(f"sim-serve still running {STOP_BOUND_S} s after its stop signal: "
+                    + "; ".join(seen))
 
 
 def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
@@ -79,7 +104,7 @@ def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
         )
         assert "3 servo(s) answered" in scan.stdout, scan.stdout + scan.stderr
         process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=STOP_BOUND_S) == 0
+        assert ended(process) == 0
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGHUP])
@@ -89,7 +114,7 @@ def test_sim_serve_stops_cleanly_on_sigterm_sigint_and_sighup(signum):
             port.write(packet(1, Instruction.PING))
             assert port.read(6) == bytes.fromhex("ffff010200fc")
         process.send_signal(signum)
-        assert process.wait(timeout=STOP_BOUND_S) == 0
+        assert ended(process) == 0
         assert "sim-serve stopped" in process.stdout.read()
 
 
@@ -106,7 +131,7 @@ def test_sim_serve_ignores_a_read_longer_than_a_packet_and_keeps_serving():
             assert port.read(8) == bytes.fromhex("ffff0204000903ed")
         assert process.poll() is None  # still serving
         process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=STOP_BOUND_S) == 0
+        assert ended(process) == 0
 
 
 def test_sim_serve_logs_the_arrival_of_every_instruction_packet(tmp_path):
@@ -122,7 +147,7 @@ def test_sim_serve_logs_the_arrival_of_every_instruction_packet(tmp_path):
             port.read(8)
             after_ns = time.monotonic_ns()
         process.send_signal(signal.SIGTERM)
-        assert process.wait(timeout=STOP_BOUND_S) == 0
+        assert ended(process) == 0
     header, *rows = [line.split("\t") for line in log.read_text().splitlines()]
     assert header == ["arrival_ns", "servo_id", "instruction", "address", "data_hex", "delivered"]
     assert [row[1:] for row in rows] == [
