@@ -15,6 +15,7 @@ import socket
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import psychopy.hardware
 import pytest
@@ -285,11 +286,26 @@ def example(tmp_path, port, repetitions=2):
     whatever this test process holds: a child inherits its parent's blocked and ignored
     signals. (The Ctrl-C test below failed in full runs, never alone, the example ending with
     no KeyboardInterrupt; its failure now names what the example blocked and ignored.)"""
+    path = os.pathsep.join([str(EXIT_TRACE), *filter(None, [os.environ.get("PYTHONPATH")])])
     return subprocess.Popen(
         [sys.executable, str(REPO / "examples" / "psychopy_congruency.py"), "--subject", "ci",
          "--observer", "--repetitions", str(repetitions), "--seed", "3", "--results",
          str(tmp_path), "--port", port], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, preexec_fn=as_from_a_shell)
+        text=True, preexec_fn=as_from_a_shell,
+        env={**os.environ, "PYTHONPATH": path,
+             "PINARRAY_EXIT_TRACE": str(tmp_path / "exit_trace.txt")})
+
+
+# Where the example exits from, written to its folder's exit_trace.txt (exits_of).
+EXIT_TRACE = Path(__file__).parent / "exit_trace"
+
+
+def exits_of(tmp_path) -> str:
+    """What the example's exit trace says (exit_trace/sitecustomize.py), for a failure."""
+    try:
+        return (tmp_path / "exit_trace.txt").read_text(encoding="utf-8")
+    except OSError as error:
+        return f"no exit trace: {error}"
 
 
 def as_from_a_shell() -> None:
@@ -313,7 +329,7 @@ def test_the_example_delivers_through_a_serial_port_with_psychopy_imported_first
     process = example(tmp_path, served.path)
     out, err = process.communicate(timeout=300)
     assert process.returncode == 0, err
-    assert "8 trials" in out
+    assert "8 trials" in out, (out, err, exits_of(tmp_path))
     with (tmp_path / "sub-ci_congruency.csv").open(newline="", encoding="utf-8-sig") as rows:
         trials = [row for row in csv.DictReader(rows) if row["flash"]]
     assert [row["touch.ending"] for row in trials] == ["played"] * 8
@@ -378,7 +394,7 @@ def test_ctrl_c_in_the_example_mid_run_takes_every_servos_torque_off(tmp_path, w
     signals = signals_of(process.pid)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=60)
-    assert "KeyboardInterrupt" in err, (process.returncode, signals)
+    assert "KeyboardInterrupt" in err, (process.returncode, signals, exits_of(tmp_path))
     released = served.torque_off_at_ns()
     assert sorted(released) == list(range(1, 17)) and all(released.values()), released
 
