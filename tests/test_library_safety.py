@@ -426,3 +426,71 @@ def test_a_port_in_use_names_the_holder_and_its_player_not_a_program_that_has_it
             process.kill()
             process.wait()
         server.stop()
+
+
+def descriptors() -> dict[int, tuple[int, int]]:
+    """Every open descriptor of this process: what it points at (device, inode)."""
+    found = {}
+    for name in os.listdir("/proc/self/fd"):
+        try:
+            status = os.fstat(int(name))
+        except OSError:
+            continue  # listdir's own, closed already
+        found[int(name)] = (status.st_dev, status.st_ino)
+    return found
+
+
+# A program started with the descriptors given (argv[1]: {fd: (device, inode)}): which of them
+# point elsewhere (or nowhere) in it.
+CHANGED_SINCE = """\
+import os, sys
+
+def now(fd):
+    try:
+        status = os.fstat(fd)
+    except OSError:
+        return None
+    return (status.st_dev, status.st_ino)
+
+print([fd for fd, what in eval(sys.argv[1]).items() if now(fd) != what])
+"""
+
+
+@realtime
+@pytest.mark.parametrize("forked_by", ["os.fork", "a subprocess with preexec_fn"])
+def test_a_forked_copy_keeps_every_descriptor_an_array_closed_before_the_fork_let_go_of(
+        tmp_path, forked_by):
+    # The numbers a closed array's port and player channel had are free for the script's own
+    # files, pipes and sockets: a copy forked later (a lab's workers, or a program started
+    # with preexec_fn, whose fork runs the same hooks) must find them as the script left them.
+    # (Seen: the PsychoPy example's standard output sent to /dev/null, its run silent.)
+    with array_on_a_port(buzz(tmp_path, 1)) as (array, server):
+        pass
+    assert not array.is_open  # closed, and still referenced by the script
+    pipes = [os.pipe() for _ in range(12)]  # the lowest free numbers: the array's among them
+    try:
+        before = descriptors()
+        if forked_by == "os.fork":
+            read_end, write_end = os.pipe()
+            pid = os.fork()
+            if pid == 0:  # the copy: which descriptors point elsewhere than before the fork
+                changed = [fd for fd, what in before.items() if descriptors().get(fd) != what]
+                os.write(write_end, repr(changed).encode())
+                os._exit(0)
+            os.close(write_end)
+            os.waitpid(pid, 0)
+            with os.fdopen(read_end) as told:
+                changed_in_copy = told.read()
+        else:
+            kept = sorted(fd for ends in pipes for fd in ends)  # the program inherits them
+            process = subprocess.run(
+                [sys.executable, "-c", CHANGED_SINCE, repr({fd: before[fd] for fd in kept})],
+                capture_output=True, text=True, timeout=60, pass_fds=kept,
+                preexec_fn=lambda: None)
+            assert process.returncode == 0, process.stderr
+            changed_in_copy = process.stdout.strip()
+        assert changed_in_copy == "[]", f"descriptors blanked in the copy: {changed_in_copy}"
+    finally:
+        for ends in pipes:
+            for fd in ends:
+                os.close(fd)

@@ -479,6 +479,9 @@ class Rig:
         finally:
             try:
                 self.bus.close()
+                # Its number is free now, for the script's own files: a copy forked later
+                # must not blank whatever holds it then (`_forked`).
+                self._fd = None
                 announcer, self._announcer = self._announcer, None
                 if announcer is not None:
                     announcer.close()
