@@ -61,11 +61,16 @@ FLOOR_TESTS := tests/softness tests/analysis tests/adaptive tests/hardware tests
 	tests/test_compile_outputs.py tests/test_cues.py tests/test_calibration_file.py \
 	tests/test_packaging.py
 
-$(FLOOR_VENV)/.installed: pyproject.toml .ci/floors.txt
-	$(PYTHON) -m venv $(FLOOR_VENV)
-	PYTHONWARNINGS=ignore::UserWarning $(FLOOR_VENV)/bin/python -m pip install --quiet \
-		--constraint .ci/floors.txt -e . pytest hypothesis pytest-asyncio pytest-xdist \
-		feetech-servo-sdk
+# Installed by the main environment's uv (9 s here, against 73 s for pip); pip where uv fails.
+FLOOR_PACKAGES := --constraint .ci/floors.txt -e . pytest hypothesis pytest-asyncio pytest-xdist \
+	feetech-servo-sdk
+$(FLOOR_VENV)/.installed: $(STAMP) pyproject.toml .ci/floors.txt
+	$(PYTHON) -m venv --without-pip $(FLOOR_VENV)
+	PYTHONWARNINGS=ignore::UserWarning $(BIN)/uv pip install --quiet \
+		--python $(FLOOR_VENV)/bin/python $(FLOOR_PACKAGES) \
+	|| ($(FLOOR_VENV)/bin/python -m ensurepip --default-pip > /dev/null \
+		&& PYTHONWARNINGS=ignore::UserWarning $(FLOOR_VENV)/bin/python -m pip install --quiet \
+		$(FLOOR_PACKAGES))
 	touch $@
 
 # In the two lanes of `make test` (tests/suite.py): the bus tests behind pseudo-terminals are
@@ -128,10 +133,14 @@ example-paradigm: $(PARADIGM_VENV)/.installed
 # experiment, the Builder component (the example .psyexp compiled as Builder compiles it, and
 # its script run). `make test` never imports PsychoPy. Nothing compiled ahead: only what runs is.
 PSYCHOPY_VENV := .venv-psychopy
-$(PSYCHOPY_VENV)/.installed: pyproject.toml
-	$(PYTHON) -m venv $(PSYCHOPY_VENV)
-	PYTHONWARNINGS=ignore::UserWarning $(PSYCHOPY_VENV)/bin/python -m pip install --quiet \
-		--no-compile -e '.[psychopy]' pytest
+# Installed by the main environment's uv (21 s here, against 97 s for pip); pip where uv fails.
+$(PSYCHOPY_VENV)/.installed: $(STAMP) pyproject.toml
+	$(PYTHON) -m venv --without-pip $(PSYCHOPY_VENV)
+	PYTHONWARNINGS=ignore::UserWarning $(BIN)/uv pip install --quiet \
+		--python $(PSYCHOPY_VENV)/bin/python -e '.[psychopy]' pytest \
+	|| ($(PSYCHOPY_VENV)/bin/python -m ensurepip --default-pip > /dev/null \
+		&& PYTHONWARNINGS=ignore::UserWarning $(PSYCHOPY_VENV)/bin/python -m pip install \
+		--quiet --no-compile -e '.[psychopy]' pytest)
 	touch $@
 
 psychopy: $(PSYCHOPY_VENV)/.installed
