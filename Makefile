@@ -137,24 +137,27 @@ PSYCHOPY_VENV := .venv-psychopy
 $(PSYCHOPY_VENV)/.installed: $(STAMP) pyproject.toml
 	$(PYTHON) -m venv --without-pip $(PSYCHOPY_VENV)
 	PYTHONWARNINGS=ignore::UserWarning $(BIN)/uv pip install --quiet \
-		--python $(PSYCHOPY_VENV)/bin/python -e '.[psychopy]' pytest \
+		--python $(PSYCHOPY_VENV)/bin/python -e '.[psychopy]' pytest pytest-xdist \
 	|| ($(PSYCHOPY_VENV)/bin/python -m ensurepip --default-pip > /dev/null \
 		&& PYTHONWARNINGS=ignore::UserWarning $(PSYCHOPY_VENV)/bin/python -m pip install \
-		--quiet --no-compile -e '.[psychopy]' pytest)
+		--quiet --no-compile -e '.[psychopy]' pytest pytest-xdist)
 	touch $@
 
 psychopy: $(PSYCHOPY_VENV)/.installed
 	@command -v Xvfb > /dev/null || { apt-get update -qq && apt-get install -y -qq xvfb > /dev/null; }
+	@# Two test processes: much of it waits on frames and real-time trials (176 -> 120-137 s).
 	$(PYTHON) tests/psychopy/xvfb.py $(PSYCHOPY_VENV)/bin/python -m pytest \
-		-c tests/psychopy/pytest.ini tests/psychopy
+		-c tests/psychopy/pytest.ini -n 2 tests/psychopy
 
 # The documentation site (docs/, mkdocs.yml) built strictly: a broken link, a reference that
 # does not resolve or a public name without a docstring fails it. Its tools are an extra of
 # their own, so `make test` does not install them.
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): $(STAMP)
-	PYTHONWARNINGS=ignore::UserWarning $(BIN)/python -m pip install --quiet --no-compile -e '.[docs]' \
-		--config-settings editable_mode=compat
+	PYTHONWARNINGS=ignore::UserWarning $(BIN)/uv pip install --quiet --python $(BIN)/python \
+		-e '.[docs]' --config-settings editable_mode=compat \
+	|| PYTHONWARNINGS=ignore::UserWarning $(BIN)/python -m pip install --quiet --no-compile \
+		-e '.[docs]' --config-settings editable_mode=compat
 	touch $@
 
 docs: $(DOCS_STAMP)
