@@ -4,8 +4,11 @@ A run is one ``beh.tsv`` with its manifest (in ``sourcedata/``, or beside it for
 before the manifests moved there). Which runs count is decided here, once:
 a run whose manifest does not say ``completed``, or that holds no counted trial (a main
 trial with status ok), is *incomplete*; incomplete runs are listed and left out unless the
-caller asks for them. A run with no manifest at all (a file handed over on its own) cannot
-be judged and is counted, with a note. Within a run a trial finished twice (two ``ok`` rows
+caller asks for them. A run with no manifest (a dataset shared without ``sourcedata/``)
+cannot be judged complete and is counted, with a note, its rows checked against the levels
+its ``_beh.json`` sidecar gives (the task, the answers offered, each pattern's pins:
+`pinarray.journal.sidecar_levels`); one with neither (a ``beh.tsv`` handed over on its own)
+cannot be checked at all and is not counted, even on request. Within a run a trial finished twice (two ``ok`` rows
 for one trial number, as two processes writing one run leave) counts once: the first row.
 
 Files are not trusted to be what their names say. A ``beh.tsv`` that is not a results table
@@ -35,6 +38,7 @@ from pinarray.journal.rows import (
     results_bytes,
     split_torn_tail,
 )
+from pinarray.journal.sidecar_levels import check_against_sidecar, sidecar_levels
 from pinarray.text_files import kind_of
 
 BEH_PATTERN = "*_beh.tsv"
@@ -62,7 +66,8 @@ class ManifestState(StrEnum):
 
     COMPLETED = "completed"
     UNFINISHED = "unfinished"  # running (killed), crashed or aborted
-    MISSING = "no manifest"
+    MISSING = "no manifest"  # the rows checked against the sidecar's levels
+    UNCHECKED = "no manifest or sidecar"  # neither there, or the sidecar unreadable
     UNREADABLE = "unreadable manifest"
 
 
@@ -121,6 +126,10 @@ class LoadedRun:
             return (f"manifest unreadable ({self.status}): its rows cannot be checked against "
                     "the run's plan and the answers it offered, so it is not counted, even "
                     "with --include-incomplete")
+        if self.state is ManifestState.UNCHECKED:
+            return (f"{self.status}: its rows cannot be checked against the task, answers and "
+                    "patterns the run offered, so it is not counted, even with "
+                    "--include-incomplete (keep its _beh.json beside it)")
         if self.state is ManifestState.COMPLETED and self.unfinished:
             shown = ", ".join(map(str, self.unfinished[:10]))
             more = " ..." if len(self.unfinished) > 10 else ""
@@ -218,8 +227,17 @@ def load_run(beh: Path) -> LoadedRun:
     except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
     manifest_path = paths.manifest_on_disk()
+    sidecar = beh.with_name(beh.name.removesuffix(".tsv") + ".json")  # beside it, as found
+    levels: dict[str, dict[str, str]] | None = None
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
+        try:
+            levels = sidecar_levels(sidecar)
+            if levels is None:
+                state, status = ManifestState.UNCHECKED, f"no manifest and no sidecar {sidecar}"
+        except (ResultsError, UnicodeDecodeError) as problem:
+            state, status = ManifestState.UNCHECKED, (
+                f"no manifest, and its sidecar unreadable ({' '.join(str(problem).split())})")
     else:
         try:
             manifest = read_manifest(manifest_path)
@@ -235,6 +253,8 @@ def load_run(beh: Path) -> LoadedRun:
                                   else manifest.task_info.paradigm)
         if manifest is not None:
             check_run(beh, all_records, manifest)
+        elif levels is not None:
+            check_against_sidecar(beh, all_records, levels, sidecar)
     except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
     records, duplicates = first_ok_rows(all_records)
@@ -281,8 +301,9 @@ def countable_on_request(run: LoadedRun) -> bool:
     """Whether ``--include-incomplete`` counts ``run``: one with counted trials, but not one
     whose manifest cannot be read (rows edited by hand, an answer never offered or a pattern
     that is not the plan's, pass every check a row makes on its own: only the manifest says
-    what they must be)."""
-    return bool(run.counted) and run.state is not ManifestState.UNREADABLE
+    what they must be), nor one with neither manifest nor sidecar (nothing says it)."""
+    return bool(run.counted) and run.state not in (ManifestState.UNREADABLE,
+                                                   ManifestState.UNCHECKED)
 
 
 def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> RunSelection:
