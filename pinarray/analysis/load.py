@@ -21,11 +21,13 @@ is left out like any unfinished run, with the trials that are missing.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
+from pinarray.analysis.run_files import at_its_place, found_files
 from pinarray.errors import ResultsError
 from pinarray.journal.files import results_file
 from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
@@ -38,11 +40,7 @@ from pinarray.journal.rows import (
     results_bytes,
     split_torn_tail,
 )
-from pinarray.journal.sidecar_levels import check_against_sidecar, sidecar_levels
-from pinarray.text_files import kind_of
-
-BEH_PATTERN = "*_beh.tsv"
-# 20 000 trials (a plan's most) of a few hundred bytes each, many times over.
+from pinarray.journal.sidecar_levels import Sidecar, check_against_sidecar, read_sidecar
 
 
 class DamagedResults(ResultsError):
@@ -167,26 +165,8 @@ class RunSelection:
 
 
 def find_beh_files(paths: Iterable[Path | str]) -> list[Path]:
-    """``beh.tsv`` files named directly or found below the named folders, each once, sorted."""
-    paths = list(paths)
-    found: set[Path] = set()
-    for given in paths:
-        path = Path(given)
-        if path.is_dir():
-            # Every name a run's rows go by, whatever it is: a folder or a FIFO under that
-            # name is a run whose rows cannot be read (`load_run` says so), not nothing.
-            found.update(path.rglob(BEH_PATTERN))
-        elif path.is_file():
-            found.add(path)
-        elif path.exists():
-            raise ResultsError(f"{path}: expected a results file or folder, found "
-                               f"{kind_of(path.stat().st_mode)}")
-        else:
-            raise ResultsError(f"{path}: no such results file or folder")
-    if not found:
-        names = ", ".join(str(p) for p in paths)
-        raise ResultsError(f"no {BEH_PATTERN} files found in {names}")
-    return sorted(found, key=lambda p: str(p.resolve()))
+    """The ``beh.tsv`` files to read below ``paths`` (`pinarray.analysis.run_files`)."""
+    return list(found_files(paths).files)
 
 
 def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], list[int]]:
@@ -216,6 +196,13 @@ def load_run(beh: Path) -> LoadedRun:
     Raises `DamagedResults` for a file that is not a results table, or whose rows are not the
     run's.
     """
+    return _identified_run(beh)[0]
+
+
+def _identified_run(beh: Path) -> tuple[LoadedRun, str]:
+    """`load_run`'s run, and what two copies of it share and no two runs do: its time zero on
+    the wall clock, to the microsecond, and its rows' SHA-256 (empty when neither manifest
+    nor sidecar gives the time zero)."""
     manifest: RunManifest | None = None
     unfinished: tuple[int, ...] = ()
     mm_per_step: tuple[float, ...] = ()
@@ -226,14 +213,16 @@ def load_run(beh: Path) -> LoadedRun:
             raise ResultsError(f"{beh}: no such results file")
     except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    manifest_path = paths.manifest_on_disk()
+    # A copy of the run's file in another folder is not the run its manifest describes.
+    manifest_path = paths.manifest_on_disk() if at_its_place(paths, beh) else None
     sidecar = beh.with_name(beh.name.removesuffix(".tsv") + ".json")  # beside it, as found
-    levels: dict[str, dict[str, str]] | None = None
+    said: Sidecar | None = None
+    zero_at = ""
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
         try:
-            levels = sidecar_levels(sidecar)
-            if levels is None:
+            said = read_sidecar(sidecar)
+            if said is None:
                 state, status = ManifestState.UNCHECKED, f"no manifest and no sidecar {sidecar}"
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNCHECKED, (
@@ -247,21 +236,42 @@ def load_run(beh: Path) -> LoadedRun:
             mm_per_step = manifest.task_info.mm_per_step
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
+    if manifest is not None:
+        _check_names_the_run(beh, paths, manifest_path, manifest)
+        zero_at = "" if manifest.time_zero is None else manifest.time_zero.at
+    elif said is not None:
+        zero_at = said.zero_at
     try:
-        torn = _check_table(beh)
+        torn, digest = _check_table(beh)
         all_records = read_trials(beh, None if manifest is None
                                   else manifest.task_info.paradigm)
         if manifest is not None:
             check_run(beh, all_records, manifest)
-        elif levels is not None:
-            check_against_sidecar(beh, all_records, levels, sidecar)
+        elif said is not None:
+            check_against_sidecar(beh, all_records, said.levels, sidecar)
     except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
     records, duplicates = first_ok_rows(all_records)
     if manifest is not None:
         unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
-    return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
-                     unfinished, mm_per_step)
+    return (LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
+                      unfinished, mm_per_step), f"{zero_at} {digest}" if zero_at else "")
+
+
+def _check_names_the_run(beh: Path, paths: RunPaths, manifest_path: Path | None,
+                         manifest: RunManifest) -> None:
+    """`DamagedResults` unless the manifest is the run's that the file's name says (a copy
+    renamed to another subject, session or run keeps the manifest of the run it copies)."""
+    try:
+        itself = RunPaths(paths.root, manifest.subject, manifest.session, manifest.task,
+                          manifest.run)
+    except ResultsError as problem:
+        raise DamagedResults([DamagedRun(beh, f"{manifest_path}: {problem}")]) from None
+    if itself != paths:
+        raise DamagedResults([DamagedRun(beh, (
+            f"{beh}: its manifest {manifest_path} says it is {itself.label}, the file's name "
+            f"says {paths.label} (a copy of another run, renamed?); keep each run under its "
+            "own name, or remove the copy"))])
 
 
 def _reason(beh: Path, problem: Exception) -> str:
@@ -269,24 +279,55 @@ def _reason(beh: Path, problem: Exception) -> str:
     return reason if reason.startswith(str(beh)) else f"{beh}: {reason}"
 
 
-def _check_table(beh: Path) -> str:
+def _check_table(beh: Path) -> tuple[str, str]:
     """A `ResultsError` unless ``beh`` is UTF-8 text of a readable size; the torn last row's
-    text."""
+    text, and the SHA-256 of the whole rows (which two copies of one run share)."""
     data = results_bytes(beh)
-    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
-    return torn.decode("utf-8", errors="replace")
+    end, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
+    return torn.decode("utf-8", errors="replace"), hashlib.sha256(data[:end]).hexdigest()
+
+
+@dataclass(frozen=True)
+class Scan:
+    """What a search for results found: the runs read, the files that cannot be, and one
+    line for each file or run passed over (a copy, a link to a file already read)."""
+
+    runs: tuple[LoadedRun, ...]
+    damaged: tuple[DamagedRun, ...]
+    passed_over: tuple[str, ...]
+
+
+def scan(paths: Iterable[Path | str]) -> Scan:
+    """Every run under ``paths`` that can be read (each once), and every results file that
+    cannot. Two files at their own places with one identity (`_identified_run`) are one
+    run copied (under another run's number, or with its manifest renamed too): the first, by
+    path, is read, and the other passed over."""
+    found = found_files(paths)
+    runs: list[LoadedRun] = []
+    damaged: list[DamagedRun] = []
+    passed_over = list(found.passed_over)
+    first: dict[str, LoadedRun] = {}
+    for beh in found.files:
+        try:
+            run, identity = _identified_run(beh)
+        except DamagedResults as problem:
+            damaged.extend(problem.damaged)
+            continue
+        same = first.setdefault(identity, run) if identity else run
+        if same is not run:
+            passed_over.append(f"{run.source}: passed over: the same run as {same.source} "
+                               f"(the same rows, the same time zero "
+                               f"{identity.split()[0]}); rename or remove the copy")
+            continue
+        runs.append(run)
+    return Scan(tuple(runs), tuple(damaged), tuple(passed_over))
 
 
 def scan_runs(paths: Iterable[Path | str]) -> tuple[list[LoadedRun], list[DamagedRun]]:
-    """Every run under ``paths`` that can be read, and every results file that cannot."""
-    runs: list[LoadedRun] = []
-    damaged: list[DamagedRun] = []
-    for beh in find_beh_files(paths):
-        try:
-            runs.append(load_run(beh))
-        except DamagedResults as problem:
-            damaged.extend(problem.damaged)
-    return runs, damaged
+    """Every run under ``paths`` that can be read (each once), and every results file that
+    cannot (`scan`)."""
+    found = scan(paths)
+    return list(found.runs), list(found.damaged)
 
 
 def load_runs(paths: Iterable[Path | str]) -> list[LoadedRun]:

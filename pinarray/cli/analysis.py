@@ -95,7 +95,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from pinarray.analysis.load import scan_runs, select_runs
+    from pinarray.analysis.load import scan, select_runs
     from pinarray.analysis.report import run_lines, write_report
     from pinarray.analysis.study import study
     from pinarray.analysis.subjects import (
@@ -114,7 +114,10 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         bootstrap_resamples=DEFAULT_BOOTSTRAP_RESAMPLES if args.bootstrap_resamples is None
         else args.bootstrap_resamples,
     )
-    loaded, damaged = scan_runs(args.results)
+    scanned = scan(args.results)
+    loaded, damaged = list(scanned.runs), scanned.damaged
+    for line in scanned.passed_over:  # copies of a run: each said before anything else
+        print(f"pinarray: {line}", file=sys.stderr)
     reasons = [d.reason for d in damaged]
     if damaged and not args.skip_damaged:
         raise ResultsError("\n".join([*reasons, f"{len(damaged)} damaged results file(s); "
@@ -122,7 +125,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     for reason in reasons:
         print(f"pinarray: {reason} (skipped)", file=sys.stderr)
     if not loaded:
-        raise ResultsError("no results left to analyse: every results file found is damaged")
+        raise ResultsError("no results left to analyse: every results file found is damaged "
+                           "or passed over")
     runs = select_runs(loaded, args.include_incomplete)
     result = study(runs, settings, args.answer_pins)
     try:

@@ -13,6 +13,7 @@ analysis does not count it (`pinarray.analysis.load`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from pinarray.errors import ResultsError
@@ -26,15 +27,27 @@ Levels = Mapping[str, Mapping[str, str]]
 SHOWN_LEVELS = 12  # a message lists at most this many levels
 
 
-def sidecar_levels(path: Path) -> dict[str, dict[str, str]] | None:
-    """Every column's ``Levels`` in the sidecar at ``path``, by column (None: no sidecar);
-    a `ResultsError` saying where when it is there but is no sidecar."""
+@dataclass(frozen=True)
+class Sidecar:
+    """What a run's ``_beh.json`` says that its rows are checked against: every column's
+    ``Levels`` (by column) and when the run's time zero was on the wall clock (its
+    ``TimeBase.ZeroAt``; empty when it does not say)."""
+
+    levels: dict[str, dict[str, str]]
+    zero_at: str = ""
+
+
+def read_sidecar(path: Path) -> Sidecar | None:
+    """The sidecar at ``path`` (None: no sidecar there); a `ResultsError` saying where when it
+    is there but is no sidecar."""
     if not results_file(path, "sidecar"):
         return None
     data = read_results_json(path, "sidecar")
     if not isinstance(data, dict):
         raise ResultsError(f"{path}: expected a JSON object (a BIDS sidecar), found "
                            f"{type(data).__name__}")
+    time_base = data.get("TimeBase")
+    zero_at = time_base.get("ZeroAt") if isinstance(time_base, dict) else None
     levels: dict[str, dict[str, str]] = {}
     for name, described in data.items():
         if not isinstance(described, dict) or "Levels" not in described:
@@ -47,7 +60,7 @@ def sidecar_levels(path: Path) -> dict[str, dict[str, str]] | None:
     if "task" not in levels or "response" not in levels:
         raise ResultsError(f"{path}: expected the Levels of 'task' and 'response' (a run's "
                            "sidecar names its task and the answers it offered), found none")
-    return levels
+    return Sidecar(levels, zero_at if isinstance(zero_at, str) else "")
 
 
 def check_against_sidecar(path: Path | str, records: Sequence[TrialRecord], levels: Levels,

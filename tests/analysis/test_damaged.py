@@ -3,6 +3,7 @@ without a word, and left out only when the analyst asks to go on without them.""
 
 import contextlib
 import io
+import shutil
 
 import pytest
 from hypothesis import HealthCheck, example, given, settings
@@ -55,6 +56,19 @@ def test_skip_damaged_analyses_the_rest_and_says_what_it_left_out(tmp_path):
     assert err == (f"pinarray: {broken.beh_tsv}:1:1: expected a tab-separated results table, "
                    "found a NUL byte (a binary file?) (skipped)\n")
     assert out.startswith("counted 1 run(s): 1 subject(s), 5 localisation")
+
+
+def test_analyse_counts_a_copied_run_folder_once_and_says_what_it_passed_over(tmp_path):
+    good, _ = two_runs(tmp_path / "results")
+    copy = tmp_path / "results" / "sub-A copy"
+    shutil.copytree(tmp_path / "results" / "sub-A", copy)
+    status, out, err = analyse(str(tmp_path / "results"), "--out", str(tmp_path / "report"),
+                               "--no-figures")
+    assert status == 0
+    assert err == (f"pinarray: {copy / good.relative_dir.relative_to('sub-A') / good.beh_tsv.name}"
+                   f": passed over: a file of {good.label} belongs in sub-A/ses-1/beh/, not in "
+                   "sub-A copy/ses-1/beh/ (a copy?); rename or remove the copy\n")
+    assert out.startswith("counted 2 run(s): 2 subject(s), 10 localisation")
 
 
 def test_a_completed_run_cut_short_is_left_out_with_the_trials_it_lacks(tmp_path):
