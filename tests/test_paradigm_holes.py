@@ -6,6 +6,7 @@ ended in a traceback, protocols that ended in an AssertionError, repeated observ
 import math
 import os
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ from pinarray.analysis.load import (
 )
 from pinarray.analysis.seam import Context, EstimateStatus
 from pinarray.analysis.subjects import IntervalSettings
-from pinarray.analysis.tables import number
+from pinarray.analysis.tables import number, significant
 from pinarray.errors import PinArrayError, ProtocolErrors, ResultsError
 from pinarray.grid import Grid
 from pinarray.paradigms.temporal_order.analysis import PSS_UNRESOLVED, temporal_orders
@@ -286,3 +287,18 @@ def test_a_plan_seed_that_is_no_whole_number_is_refused(seed):
 def test_a_table_never_prints_minus_zero():
     assert [number(v, 3) for v in (-0.0001, -0.0, 0.0004)] == ["0.000"] * 3
     assert number(-0.0006, 3) == "-0.001" and number(-0.4, 0) == "0"
+    assert [significant(v, 2) for v in (-0.0, 0.0)] == ["0", "0"]
+    assert significant(-0.00001, 2) == "-1e-05" and significant(-0.0123) == "-0.0123"
+
+
+def test_a_caption_never_prints_minus_zero():
+    # Three subjects whose mean PSS is -0.012 ms: the caption said "Mean PSS -0.0 ms".
+    rows = [LoadedTrial("1", "1", 1, None, TemporalOrderRecord(
+        trial=n, block=1, task="toj", onset_ns=0, duration_ns=1, pins=(6, 7),
+        soa_ns=soa * 1_000_000, response="6" if soa > 0 else "7"))
+        for n, soa in enumerate([s for s in (-60, -30, 30, 60) for _ in range(6)], start=1)]
+    found = temporal_orders(rows, CONTEXT)
+    near_zero = replace(found, across=tuple(replace(m, mean=-0.012) for m in found.across))
+    caption = near_zero.caption("toj")
+    assert "Mean PSS 0.0 ms over 1 subject(s), mean JND 0.0 ms" in caption
+    assert "-0.0" not in caption

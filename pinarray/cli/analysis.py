@@ -104,6 +104,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         IntervalMethod,
         IntervalSettings,
     )
+    from pinarray.analysis.tables import significant
     from pinarray.analysis.thresholds import interval_name
     from pinarray.errors import ResultsError
 
@@ -155,8 +156,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         for t in result.thresholds.across:
             low, high = t.interval(method)
             interval = ("n/a, fewer than two subjects" if math.isnan(low)
-                        else f"{low:.4g}-{high:.4g}")
-            print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
+                        else f"{significant(low)}-{significant(high)}")
+            print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {significant(t.mean)} "
                   f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
     print(f"summary: {report.summary}")
     return 0
