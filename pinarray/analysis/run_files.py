@@ -96,3 +96,19 @@ def _misplaced(beh: Path, searched: Path) -> str | None:
         return None
     return (f"{beh}: passed over: a file of {paths.label} belongs in {paths.relative_dir}/, "
             f"not in {Path(*between[-3:])}/ (a copy?); rename or remove the copy")
+
+
+def raw_data_holding(folder: Path, roots: Iterable[Path]) -> str | None:
+    """Why ``folder`` (a report's) is inside the raw data of one of the datasets ``roots``:
+    the dataset's own folder, a subject's folder or ``sourcedata/`` below it (where a report
+    would lie beside the runs' files, and later analyses would pass it over); None when it
+    is not. A BIDS dataset keeps what is made from it in ``derivatives/``."""
+    where = Path(os.path.realpath(folder))
+    for root in {Path(os.path.realpath(r)) for r in roots}:
+        if where == root:
+            return f"the dataset {root} itself"
+        if where.is_relative_to(root):
+            top = where.relative_to(root).parts[0]
+            if top.startswith("sub-") or top == "sourcedata":
+                return f"{top}/ of the dataset {root}"
+    return None

@@ -97,6 +97,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
 
     from pinarray.analysis.load import scan, select_runs
     from pinarray.analysis.report import run_lines, write_report
+    from pinarray.analysis.run_files import at_its_place, raw_data_holding
     from pinarray.analysis.study import study
     from pinarray.analysis.subjects import (
         DEFAULT_BOOTSTRAP_RESAMPLES,
@@ -128,6 +129,12 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     if not loaded:
         raise ResultsError("no results left to analyse: every results file found is damaged "
                            "or passed over")
+    inside = raw_data_holding(Path(args.out), {run.paths.root for run in loaded
+                                               if at_its_place(run.paths, run.source)})
+    if inside:
+        raise ResultsError(f"{args.out}: expected a report folder outside the raw data, found "
+                           f"one in {inside}; write it elsewhere (a BIDS dataset keeps it in "
+                           "derivatives/)")
     runs = select_runs(loaded, args.include_incomplete)
     result = study(runs, settings, args.answer_pins)
     try:
