@@ -16,7 +16,8 @@ Files are not trusted to be what their names say. A ``beh.tsv`` that is not a re
 named with the line and the reason, and the analysis stops unless asked to go on without
 it. One that was cut short is not damaged but incomplete: a torn last row is left out and
 said, and a run whose manifest says ``completed`` while planned trials have no finished row
-is left out like any unfinished run, with the trials that are missing.
+is left out like any unfinished run, with the trials that are missing (those with no row,
+and apart from them those whose rows are there but none ``ok``: an edit, not a cut).
 """
 
 from __future__ import annotations
@@ -129,18 +130,39 @@ class LoadedRun:
                     "patterns the run offered, so it is not counted, even with "
                     "--include-incomplete (keep its _beh.json beside it)")
         if self.state is ManifestState.COMPLETED and self.unfinished:
-            shown = ", ".join(map(str, self.unfinished[:10]))
-            more = " ..." if len(self.unfinished) > 10 else ""
-            return (f"manifest says completed, but trial(s) {shown}{more} have no finished row "
-                    "(the file was cut short?)")
+            return f"manifest says completed, but {self._unfinished_words()}"
         if not self.counted:
             return "no counted trials"
         return None
+
+    def _unfinished_words(self) -> str:
+        """The planned trials without an ``ok`` row, as found: those with no row at all (a
+        file cut short), and those whose rows are all something else (a row set to
+        ``invalid`` by hand is there, not cut)."""
+        statuses: dict[int, set[str]] = {}
+        for record in self.records:
+            if record.trial in self.unfinished:
+                statuses.setdefault(record.trial, set()).add(record.status.value)
+        missing = [t for t in self.unfinished if t not in statuses]
+        parts = []
+        if missing:
+            parts.append(f"trial(s) {_shown(missing)} have no finished row (the file was cut "
+                         "short?)")
+        if statuses:
+            found = ", ".join(sorted(set().union(*statuses.values())))
+            parts.append(f"trial(s) {_shown(sorted(statuses))} have rows but none with status "
+                         f"ok (found {found}; edited by hand?)")
+        return "; ".join(parts)
 
     def trials(self) -> list[LoadedTrial]:
         """Each row with the run it came from (subject, session, run, file)."""
         return [LoadedTrial(self.paths.subject, self.paths.session, self.paths.run, self.source,
                             record) for record in self.records]
+
+
+def _shown(trials: Sequence[int]) -> str:
+    """Trial numbers in a line: the first ten, then " ..."."""
+    return ", ".join(map(str, trials[:10])) + (" ..." if len(trials) > 10 else "")
 
 
 @dataclass(frozen=True)

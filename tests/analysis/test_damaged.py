@@ -82,6 +82,21 @@ def test_a_completed_run_cut_short_is_left_out_with_the_trials_it_lacks(tmp_path
                                           "finished row (the file was cut short?)")
 
 
+def test_a_completed_run_with_a_row_set_to_invalid_by_hand_is_left_out_saying_what_was_found(
+        tmp_path):
+    _, edited = two_runs(tmp_path / "results")
+    header, *rows = edited.beh_tsv.read_text().splitlines()
+    status = header.split("\t").index("status")
+    cells = rows[1].split("\t")  # trial 2
+    cells[status] = "invalid"
+    rows[1] = "\t".join(cells)
+    edited.beh_tsv.write_text("\n".join([header, *rows[:-1]]) + "\n")  # and trial 5 cut
+    (left_out,) = select_runs(load_runs([tmp_path / "results"])).excluded
+    assert left_out.incomplete_reason == (
+        "manifest says completed, but trial(s) 5 have no finished row (the file was cut "
+        "short?); trial(s) 2 have rows but none with status ok (found invalid; edited by hand?)")
+
+
 def test_a_torn_last_row_is_left_out_and_said(tmp_path):
     _, torn = two_runs(tmp_path / "results")
     data = torn.beh_tsv.read_bytes()
