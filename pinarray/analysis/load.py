@@ -8,8 +8,10 @@ caller asks for them. A run with no manifest (a dataset shared without ``sourced
 cannot be judged complete and is counted, with a note, its rows checked against the levels
 its ``_beh.json`` sidecar gives (the task, the answers offered, each pattern's pins:
 `pinarray.journal.sidecar_levels`); one with neither (a ``beh.tsv`` handed over on its own)
-cannot be checked at all and is not counted, even on request. Within a run a trial finished twice (two ``ok`` rows
-for one trial number, as two processes writing one run leave) counts once: the first row.
+cannot be checked at all and is not counted, even on request. A run whose rows finish a
+trial twice (two ``ok`` rows for one trial number: a second writer before runs were locked,
+or a hand edit) is damaged: which answer counts is for a person to say, as a resume refuses
+it too.
 
 Files are not trusted to be what their names say. A ``beh.tsv`` that is not a results table
 (binary, another encoding, a wrong header, a row that does not parse) is *damaged*: it is
@@ -33,9 +35,10 @@ from pinarray.errors import ResultsError
 from pinarray.journal.files import results_file
 from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
+from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord
 from pinarray.journal.rows import (
     beh_header,
+    check_finished_once,
     check_run,
     read_trials,
     results_bytes,
@@ -88,8 +91,9 @@ class LoadedRun:
     ``paths`` are the run's files (`RunPaths`: ``beh_tsv``, ``events_tsv``, ``manifest``),
     ``source`` the rows' file as found; ``state`` is the manifest's verdict for the analysis
     (`ManifestState`). ``status`` is the manifest's own word (``completed``, ``aborted``...) or the
-    `ManifestState` text when there is none to read; ``duplicates`` are the trial numbers
-    that had more than one ``ok`` row (only the first is kept in ``records``); ``torn`` is
+    `ManifestState` text when there is none to read; ``duplicates`` is empty (a run whose
+    rows finish a trial twice is refused as damaged since 0.5.2; scripts that build a
+    `LoadedRun` may still name such trials); ``torn`` is
     the text of a last row cut short by an interrupted write (left out); ``unfinished`` the
     planned trials with no finished row; ``mm_per_step`` each pin's travel per step as the
     manifest records it (empty where it does not).
@@ -191,25 +195,6 @@ def find_beh_files(paths: Iterable[Path | str]) -> list[Path]:
     return list(found_files(paths).files)
 
 
-def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], list[int]]:
-    """The rows with every trial finished at most once, and the trial numbers finished twice.
-
-    The first ``ok`` row of a (trial, practice) pair is the one the subject answered in the
-    run's own order; a later one can only come from a second writer or a hand edit.
-    """
-    seen: set[tuple[int, bool]] = set()
-    kept, twice = [], []
-    for record in records:
-        key = (record.trial, record.practice)
-        if record.status is TrialStatus.OK:
-            if key in seen:
-                twice.append(record.trial)
-                continue
-            seen.add(key)
-        kept.append(record)
-    return kept, sorted(set(twice))
-
-
 def load_run(beh: Path) -> LoadedRun:
     """One run: its whole rows (torn last row left out) and its manifest's verdict.
 
@@ -271,12 +256,12 @@ def _identified_run(beh: Path) -> tuple[LoadedRun, str]:
             check_run(beh, all_records, manifest)
         elif said is not None:
             check_against_sidecar(beh, all_records, said.levels, sidecar)
+        check_finished_once(beh, all_records)
     except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    records, duplicates = first_ok_rows(all_records)
     if manifest is not None:
-        unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
-    return (LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
+        unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, all_records))
+    return (LoadedRun(paths, beh, state, status, tuple(all_records), (), torn,
                       unfinished, mm_per_step), f"{zero_at} {digest}" if zero_at else "")
 
 

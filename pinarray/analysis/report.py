@@ -52,10 +52,6 @@ def run_lines(runs: RunSelection) -> list[str]:
         lines.append(f"counted on request: {run.label}: {run.incomplete_reason}")
     for run in runs.without_manifest:
         lines.append(f"counted without a manifest (completeness unknown): {run.label}")
-    for run in runs.included:
-        if run.duplicates:
-            lines.append(f"{run.label}: trial(s) {', '.join(map(str, run.duplicates))} finished "
-                         f"twice; the first ok row counts")
     return lines
 
 

@@ -1,5 +1,5 @@
-"""Which runs count: incomplete runs are listed and left out, a trial finished twice counts once,
-a run copied or linked inside the results counts once."""
+"""Which runs count: incomplete runs are listed and left out, a trial finished twice is
+refused, a run copied or linked inside the results counts once."""
 
 import shutil
 from dataclasses import replace
@@ -63,15 +63,17 @@ def test_a_run_killed_outright_still_says_running_and_is_left_out(tmp_path, writ
     assert run.state is ManifestState.UNFINISHED and run.status == "running"
 
 
-def test_a_trial_finished_twice_in_one_run_counts_once_the_first_row(tmp_path, write_run):
+def test_a_trial_finished_twice_in_one_run_is_refused_naming_both_rows(tmp_path, write_run):
+    # Which of two answers counts is for a person to say (as resume refuses it too).
     root = tmp_path / "results"
     paths = write_run(root, "F", "localisation", [localisation_row(1, 4, "4"),
                                                   localisation_row(2, 10, "10")])
     with open(paths.beh_tsv, "a", encoding="utf-8") as handle:  # a second writer's copy
         handle.write("\t".join(trial_row(localisation_row(1, 4, "3"))) + "\n")
-    (run,) = load_runs([root])
-    assert run.duplicates == (1,)
-    assert [(r.trial, r.response) for r in run.records] == [(1, "4"), (2, "10")]
+    with pytest.raises(DamagedResults) as raised:
+        load_runs([root])
+    assert str(raised.value) == (f"{paths.beh_tsv}:4: trial 1 is logged ok twice (lines 2, 4); "
+                                 "a trial counts once: delete the row that should not count")
 
 
 def test_a_results_file_without_its_manifest_counts_with_a_note(tmp_path, write_run):
