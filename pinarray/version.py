@@ -6,4 +6,4 @@ change that breaks a script raises the major number (the minor one before 1.0), 
 the minor one (the patch one before 1.0). tests/test_public_api.py holds the rule.
 """
 
-__version__ = "0.5.1"
+__version__ = "0.5.2"

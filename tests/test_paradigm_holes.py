@@ -5,16 +5,25 @@ ended in a traceback, protocols that ended in an AssertionError, repeated observ
 
 import math
 import os
+import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import pinarray
-from pinarray.analysis.load import DamagedResults, LoadedTrial, RunSelection, load_runs
+from pinarray.analysis.load import (
+    DamagedResults,
+    LoadedTrial,
+    ManifestState,
+    RunSelection,
+    load_runs,
+    select_runs,
+)
 from pinarray.analysis.seam import Context, EstimateStatus
 from pinarray.analysis.subjects import IntervalSettings
-from pinarray.analysis.tables import number
+from pinarray.analysis.tables import number, significant
 from pinarray.errors import PinArrayError, ProtocolErrors, ResultsError
 from pinarray.grid import Grid
 from pinarray.paradigms.temporal_order.analysis import PSS_UNRESOLVED, temporal_orders
@@ -58,6 +67,19 @@ def edited(beh: Path, column: str, value: str, every_row: bool = False) -> None:
     beh.write_text("\n".join([header, *rows]) + "\n")
 
 
+def correct_as_answered(beh: Path) -> None:
+    """``beh``'s identification rows with ``correct`` set again from the answer and the
+    pattern, as an editor who knows the columns would leave them."""
+    header, *rows = beh.read_text().splitlines()
+    names = header.split("\t")
+    for n, row in enumerate(rows):
+        cells = dict(zip(names, row.split("\t"), strict=True))
+        if cells["response"] != "n/a":
+            cells["correct"] = str(cells["response"] == cells["pattern"]).lower()
+        rows[n] = "\t".join(cells.values())
+    beh.write_text("\n".join([header, *rows]) + "\n")
+
+
 # -- 3. analyse and resume trust no hand-edited row, and miss no run ----------------------
 
 # What is said first: the row's own check (its correct cell no longer follows from the
@@ -81,6 +103,61 @@ def test_an_identification_row_edited_by_hand_is_refused_by_analyse_and_resume(
     with pytest.raises(ResultsError, match=said):
         pinarray.run_session(protocol, pinarray.simulated_observer(protocol, "default", seed=1),
                              subject="01", results=results, resume=True)
+
+
+# A dataset shared as BIDS leaves sourcedata/ (the manifests) out; the run's sidecar still
+# says its task, the answers it offered and each pattern's pins.
+@pytest.mark.parametrize(("column", "value", "every_row", "said"), [
+    ("response", "zzz", False, "expected a response the run's sidecar .* lists"),
+    ("response", "99", False, "expected a response the run's sidecar .* lists"),
+    ("pattern", "zzz", False, "expected a pattern the run's sidecar .* lists"),
+    ("pattern", "L", True, "pattern 'L' raises pins .*, the row says"),
+    ("task", "other", False, "expected a task the run's sidecar .* lists"),
+])
+def test_an_identification_row_edited_by_hand_is_refused_without_the_manifest(
+        tmp_path, column, value, every_row, said):
+    results = tmp_path / "results"
+    beh = run_cut_short(short_copy("shapes", tmp_path), results)
+    shutil.rmtree(results / "sourcedata")
+    edited(beh, column, value, every_row)
+    correct_as_answered(beh)  # edited with care: no cell contradicts another
+    with pytest.raises(DamagedResults, match=said) as raised:
+        load_runs([results])
+    assert str(raised.value.damaged[0].reason).startswith(f"{beh}:{2 if every_row else 3}: ")
+    alone = tmp_path / "alone"  # the file and its sidecar handed over together
+    alone.mkdir()
+    for path in (beh, beh.with_name(beh.name.replace(".tsv", ".json"))):
+        shutil.copy(path, alone)
+    with pytest.raises(DamagedResults, match=said):
+        load_runs([alone])
+
+
+@pytest.mark.parametrize("name", ["shapes", "toj", "flutter_2ifc", "localisation",
+                                  "apparent_motion", "two_point"])
+def test_a_run_shared_without_its_manifest_counts_its_rows_checked_against_its_sidecar(
+        tmp_path, name):
+    results = tmp_path / "results"
+    run_cut_short(short_copy(name, tmp_path), results)
+    shutil.rmtree(results / "sourcedata")
+    (run,) = select_runs(load_runs([results]), include_incomplete=True).included
+    assert run.state is ManifestState.MISSING and run.counted
+
+
+def test_a_results_file_handed_over_without_manifest_or_sidecar_is_not_counted(tmp_path):
+    beh = run_cut_short(short_copy("shapes", tmp_path), tmp_path / "results")
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    shutil.copy(beh, alone)
+    runs = select_runs(load_runs([alone]), include_incomplete=True)
+    assert runs.included == ()
+    (run,) = runs.excluded
+    assert run.state is ManifestState.UNCHECKED and run.counted
+    assert run.incomplete_reason.startswith(
+        f"no manifest and no sidecar {alone / beh.name.replace('.tsv', '.json')}: its rows "
+        "cannot be checked")
+    (alone / beh.name.replace(".tsv", ".json")).write_text("{not json")
+    (run,) = select_runs(load_runs([alone]), include_incomplete=True).excluded
+    assert run.incomplete_reason.startswith("no manifest, and its sidecar unreadable (")
 
 
 @pytest.mark.parametrize("kind", ["folder", "fifo"])
@@ -210,3 +287,18 @@ def test_a_plan_seed_that_is_no_whole_number_is_refused(seed):
 def test_a_table_never_prints_minus_zero():
     assert [number(v, 3) for v in (-0.0001, -0.0, 0.0004)] == ["0.000"] * 3
     assert number(-0.0006, 3) == "-0.001" and number(-0.4, 0) == "0"
+    assert [significant(v, 2) for v in (-0.0, 0.0)] == ["0", "0"]
+    assert significant(-0.00001, 2) == "-1e-05" and significant(-0.0123) == "-0.0123"
+
+
+def test_a_caption_never_prints_minus_zero():
+    # Three subjects whose mean PSS is -0.012 ms: the caption said "Mean PSS -0.0 ms".
+    rows = [LoadedTrial("1", "1", 1, None, TemporalOrderRecord(
+        trial=n, block=1, task="toj", onset_ns=0, duration_ns=1, pins=(6, 7),
+        soa_ns=soa * 1_000_000, response="6" if soa > 0 else "7"))
+        for n, soa in enumerate([s for s in (-60, -30, 30, 60) for _ in range(6)], start=1)]
+    found = temporal_orders(rows, CONTEXT)
+    near_zero = replace(found, across=tuple(replace(m, mean=-0.012) for m in found.across))
+    caption = near_zero.caption("toj")
+    assert "Mean PSS 0.0 ms over 1 subject(s), mean JND 0.0 ms" in caption
+    assert "-0.0" not in caption

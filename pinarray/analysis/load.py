@@ -4,41 +4,47 @@ A run is one ``beh.tsv`` with its manifest (in ``sourcedata/``, or beside it for
 before the manifests moved there). Which runs count is decided here, once:
 a run whose manifest does not say ``completed``, or that holds no counted trial (a main
 trial with status ok), is *incomplete*; incomplete runs are listed and left out unless the
-caller asks for them. A run with no manifest at all (a file handed over on its own) cannot
-be judged and is counted, with a note. Within a run a trial finished twice (two ``ok`` rows
-for one trial number, as two processes writing one run leave) counts once: the first row.
+caller asks for them. A run with no manifest (a dataset shared without ``sourcedata/``)
+cannot be judged complete and is counted, with a note, its rows checked against the levels
+its ``_beh.json`` sidecar gives (the task, the answers offered, each pattern's pins:
+`pinarray.journal.sidecar_levels`); one with neither (a ``beh.tsv`` handed over on its own)
+cannot be checked at all and is not counted, even on request. A run whose rows finish a
+trial twice (two ``ok`` rows for one trial number: a second writer before runs were locked,
+or a hand edit) is damaged: which answer counts is for a person to say, as a resume refuses
+it too.
 
 Files are not trusted to be what their names say. A ``beh.tsv`` that is not a results table
 (binary, another encoding, a wrong header, a row that does not parse) is *damaged*: it is
 named with the line and the reason, and the analysis stops unless asked to go on without
 it. One that was cut short is not damaged but incomplete: a torn last row is left out and
 said, and a run whose manifest says ``completed`` while planned trials have no finished row
-is left out like any unfinished run, with the trials that are missing.
+is left out like any unfinished run, with the trials that are missing (those with no row,
+and apart from them those whose rows are there but none ``ok``: an edit, not a cut).
 """
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
+from pinarray.analysis.run_files import at_its_place, found_files
 from pinarray.errors import ResultsError
 from pinarray.journal.files import results_file
 from pinarray.journal.manifest import RunManifest, read_manifest, remaining_plan
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
+from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord
 from pinarray.journal.rows import (
     beh_header,
+    check_finished_once,
     check_run,
     read_trials,
     results_bytes,
     split_torn_tail,
 )
-from pinarray.text_files import kind_of
-
-BEH_PATTERN = "*_beh.tsv"
-# 20 000 trials (a plan's most) of a few hundred bytes each, many times over.
+from pinarray.journal.sidecar_levels import Sidecar, check_against_sidecar, read_sidecar
 
 
 class DamagedResults(ResultsError):
@@ -62,7 +68,8 @@ class ManifestState(StrEnum):
 
     COMPLETED = "completed"
     UNFINISHED = "unfinished"  # running (killed), crashed or aborted
-    MISSING = "no manifest"
+    MISSING = "no manifest"  # the rows checked against the sidecar's levels
+    UNCHECKED = "no manifest or sidecar"  # neither there, or the sidecar unreadable
     UNREADABLE = "unreadable manifest"
 
 
@@ -84,8 +91,9 @@ class LoadedRun:
     ``paths`` are the run's files (`RunPaths`: ``beh_tsv``, ``events_tsv``, ``manifest``),
     ``source`` the rows' file as found; ``state`` is the manifest's verdict for the analysis
     (`ManifestState`). ``status`` is the manifest's own word (``completed``, ``aborted``...) or the
-    `ManifestState` text when there is none to read; ``duplicates`` are the trial numbers
-    that had more than one ``ok`` row (only the first is kept in ``records``); ``torn`` is
+    `ManifestState` text when there is none to read; ``duplicates`` is empty (a run whose
+    rows finish a trial twice is refused as damaged since 0.5.2; scripts that build a
+    `LoadedRun` may still name such trials); ``torn`` is
     the text of a last row cut short by an interrupted write (left out); ``unfinished`` the
     planned trials with no finished row; ``mm_per_step`` each pin's travel per step as the
     manifest records it (empty where it does not).
@@ -121,19 +129,44 @@ class LoadedRun:
             return (f"manifest unreadable ({self.status}): its rows cannot be checked against "
                     "the run's plan and the answers it offered, so it is not counted, even "
                     "with --include-incomplete")
+        if self.state is ManifestState.UNCHECKED:
+            return (f"{self.status}: its rows cannot be checked against the task, answers and "
+                    "patterns the run offered, so it is not counted, even with "
+                    "--include-incomplete (keep its _beh.json beside it)")
         if self.state is ManifestState.COMPLETED and self.unfinished:
-            shown = ", ".join(map(str, self.unfinished[:10]))
-            more = " ..." if len(self.unfinished) > 10 else ""
-            return (f"manifest says completed, but trial(s) {shown}{more} have no finished row "
-                    "(the file was cut short?)")
+            return f"manifest says completed, but {self._unfinished_words()}"
         if not self.counted:
             return "no counted trials"
         return None
+
+    def _unfinished_words(self) -> str:
+        """The planned trials without an ``ok`` row, as found: those with no row at all (a
+        file cut short), and those whose rows are all something else (a row set to
+        ``invalid`` by hand is there, not cut)."""
+        statuses: dict[int, set[str]] = {}
+        for record in self.records:
+            if record.trial in self.unfinished:
+                statuses.setdefault(record.trial, set()).add(record.status.value)
+        missing = [t for t in self.unfinished if t not in statuses]
+        parts = []
+        if missing:
+            parts.append(f"trial(s) {_shown(missing)} have no finished row (the file was cut "
+                         "short?)")
+        if statuses:
+            found = ", ".join(sorted(set().union(*statuses.values())))
+            parts.append(f"trial(s) {_shown(sorted(statuses))} have rows but none with status "
+                         f"ok (found {found}; edited by hand?)")
+        return "; ".join(parts)
 
     def trials(self) -> list[LoadedTrial]:
         """Each row with the run it came from (subject, session, run, file)."""
         return [LoadedTrial(self.paths.subject, self.paths.session, self.paths.run, self.source,
                             record) for record in self.records]
+
+
+def _shown(trials: Sequence[int]) -> str:
+    """Trial numbers in a line: the first ten, then " ..."."""
+    return ", ".join(map(str, trials[:10])) + (" ..." if len(trials) > 10 else "")
 
 
 @dataclass(frozen=True)
@@ -158,45 +191,8 @@ class RunSelection:
 
 
 def find_beh_files(paths: Iterable[Path | str]) -> list[Path]:
-    """``beh.tsv`` files named directly or found below the named folders, each once, sorted."""
-    paths = list(paths)
-    found: set[Path] = set()
-    for given in paths:
-        path = Path(given)
-        if path.is_dir():
-            # Every name a run's rows go by, whatever it is: a folder or a FIFO under that
-            # name is a run whose rows cannot be read (`load_run` says so), not nothing.
-            found.update(path.rglob(BEH_PATTERN))
-        elif path.is_file():
-            found.add(path)
-        elif path.exists():
-            raise ResultsError(f"{path}: expected a results file or folder, found "
-                               f"{kind_of(path.stat().st_mode)}")
-        else:
-            raise ResultsError(f"{path}: no such results file or folder")
-    if not found:
-        names = ", ".join(str(p) for p in paths)
-        raise ResultsError(f"no {BEH_PATTERN} files found in {names}")
-    return sorted(found, key=lambda p: str(p.resolve()))
-
-
-def first_ok_rows(records: Sequence[TrialRecord]) -> tuple[list[TrialRecord], list[int]]:
-    """The rows with every trial finished at most once, and the trial numbers finished twice.
-
-    The first ``ok`` row of a (trial, practice) pair is the one the subject answered in the
-    run's own order; a later one can only come from a second writer or a hand edit.
-    """
-    seen: set[tuple[int, bool]] = set()
-    kept, twice = [], []
-    for record in records:
-        key = (record.trial, record.practice)
-        if record.status is TrialStatus.OK:
-            if key in seen:
-                twice.append(record.trial)
-                continue
-            seen.add(key)
-        kept.append(record)
-    return kept, sorted(set(twice))
+    """The ``beh.tsv`` files to read below ``paths`` (`pinarray.analysis.run_files`)."""
+    return list(found_files(paths).files)
 
 
 def load_run(beh: Path) -> LoadedRun:
@@ -207,6 +203,13 @@ def load_run(beh: Path) -> LoadedRun:
     Raises `DamagedResults` for a file that is not a results table, or whose rows are not the
     run's.
     """
+    return _identified_run(beh)[0]
+
+
+def _identified_run(beh: Path) -> tuple[LoadedRun, str]:
+    """`load_run`'s run, and what two copies of it share and no two runs do: its time zero on
+    the wall clock, to the microsecond, and its rows' SHA-256 (empty when neither manifest
+    nor sidecar gives the time zero)."""
     manifest: RunManifest | None = None
     unfinished: tuple[int, ...] = ()
     mm_per_step: tuple[float, ...] = ()
@@ -217,9 +220,20 @@ def load_run(beh: Path) -> LoadedRun:
             raise ResultsError(f"{beh}: no such results file")
     except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    manifest_path = paths.manifest_on_disk()
+    # A copy of the run's file in another folder is not the run its manifest describes.
+    manifest_path = paths.manifest_on_disk() if at_its_place(paths, beh) else None
+    sidecar = beh.with_name(beh.name.removesuffix(".tsv") + ".json")  # beside it, as found
+    said: Sidecar | None = None
+    zero_at = ""
     if manifest_path is None:
         state, status = ManifestState.MISSING, ManifestState.MISSING.value
+        try:
+            said = read_sidecar(sidecar)
+            if said is None:
+                state, status = ManifestState.UNCHECKED, f"no manifest and no sidecar {sidecar}"
+        except (ResultsError, UnicodeDecodeError) as problem:
+            state, status = ManifestState.UNCHECKED, (
+                f"no manifest, and its sidecar unreadable ({' '.join(str(problem).split())})")
     else:
         try:
             manifest = read_manifest(manifest_path)
@@ -229,19 +243,42 @@ def load_run(beh: Path) -> LoadedRun:
             mm_per_step = manifest.task_info.mm_per_step
         except (ResultsError, UnicodeDecodeError) as problem:
             state, status = ManifestState.UNREADABLE, " ".join(str(problem).split())
+    if manifest is not None:
+        _check_names_the_run(beh, paths, manifest_path, manifest)
+        zero_at = "" if manifest.time_zero is None else manifest.time_zero.at
+    elif said is not None:
+        zero_at = said.zero_at
     try:
-        torn = _check_table(beh)
+        torn, digest = _check_table(beh)
         all_records = read_trials(beh, None if manifest is None
                                   else manifest.task_info.paradigm)
         if manifest is not None:
             check_run(beh, all_records, manifest)
+        elif said is not None:
+            check_against_sidecar(beh, all_records, said.levels, sidecar)
+        check_finished_once(beh, all_records)
     except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    records, duplicates = first_ok_rows(all_records)
     if manifest is not None:
-        unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, records))
-    return LoadedRun(paths, beh, state, status, tuple(records), tuple(duplicates), torn,
-                     unfinished, mm_per_step)
+        unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, all_records))
+    return (LoadedRun(paths, beh, state, status, tuple(all_records), (), torn,
+                      unfinished, mm_per_step), f"{zero_at} {digest}" if zero_at else "")
+
+
+def _check_names_the_run(beh: Path, paths: RunPaths, manifest_path: Path | None,
+                         manifest: RunManifest) -> None:
+    """`DamagedResults` unless the manifest is the run's that the file's name says (a copy
+    renamed to another subject, session or run keeps the manifest of the run it copies)."""
+    try:
+        itself = RunPaths(paths.root, manifest.subject, manifest.session, manifest.task,
+                          manifest.run)
+    except ResultsError as problem:
+        raise DamagedResults([DamagedRun(beh, f"{manifest_path}: {problem}")]) from None
+    if itself != paths:
+        raise DamagedResults([DamagedRun(beh, (
+            f"{beh}: its manifest {manifest_path} says it is {itself.label}, the file's name "
+            f"says {paths.label} (a copy of another run, renamed?); keep each run under its "
+            "own name, or remove the copy"))])
 
 
 def _reason(beh: Path, problem: Exception) -> str:
@@ -249,24 +286,55 @@ def _reason(beh: Path, problem: Exception) -> str:
     return reason if reason.startswith(str(beh)) else f"{beh}: {reason}"
 
 
-def _check_table(beh: Path) -> str:
+def _check_table(beh: Path) -> tuple[str, str]:
     """A `ResultsError` unless ``beh`` is UTF-8 text of a readable size; the torn last row's
-    text."""
+    text, and the SHA-256 of the whole rows (which two copies of one run share)."""
     data = results_bytes(beh)
-    _, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
-    return torn.decode("utf-8", errors="replace")
+    end, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
+    return torn.decode("utf-8", errors="replace"), hashlib.sha256(data[:end]).hexdigest()
+
+
+@dataclass(frozen=True)
+class Scan:
+    """What a search for results found: the runs read, the files that cannot be, and one
+    line for each file or run passed over (a copy, a link to a file already read)."""
+
+    runs: tuple[LoadedRun, ...]
+    damaged: tuple[DamagedRun, ...]
+    passed_over: tuple[str, ...]
+
+
+def scan(paths: Iterable[Path | str]) -> Scan:
+    """Every run under ``paths`` that can be read (each once), and every results file that
+    cannot. Two files at their own places with one identity (`_identified_run`) are one
+    run copied (under another run's number, or with its manifest renamed too): the first, by
+    path, is read, and the other passed over."""
+    found = found_files(paths)
+    runs: list[LoadedRun] = []
+    damaged: list[DamagedRun] = []
+    passed_over = list(found.passed_over)
+    first: dict[str, LoadedRun] = {}
+    for beh in found.files:
+        try:
+            run, identity = _identified_run(beh)
+        except DamagedResults as problem:
+            damaged.extend(problem.damaged)
+            continue
+        same = first.setdefault(identity, run) if identity else run
+        if same is not run:
+            passed_over.append(f"{run.source}: passed over: the same run as {same.source} "
+                               f"(the same rows, the same time zero "
+                               f"{identity.split()[0]}); rename or remove the copy")
+            continue
+        runs.append(run)
+    return Scan(tuple(runs), tuple(damaged), tuple(passed_over))
 
 
 def scan_runs(paths: Iterable[Path | str]) -> tuple[list[LoadedRun], list[DamagedRun]]:
-    """Every run under ``paths`` that can be read, and every results file that cannot."""
-    runs: list[LoadedRun] = []
-    damaged: list[DamagedRun] = []
-    for beh in find_beh_files(paths):
-        try:
-            runs.append(load_run(beh))
-        except DamagedResults as problem:
-            damaged.extend(problem.damaged)
-    return runs, damaged
+    """Every run under ``paths`` that can be read (each once), and every results file that
+    cannot (`scan`)."""
+    found = scan(paths)
+    return list(found.runs), list(found.damaged)
 
 
 def load_runs(paths: Iterable[Path | str]) -> list[LoadedRun]:
@@ -281,8 +349,9 @@ def countable_on_request(run: LoadedRun) -> bool:
     """Whether ``--include-incomplete`` counts ``run``: one with counted trials, but not one
     whose manifest cannot be read (rows edited by hand, an answer never offered or a pattern
     that is not the plan's, pass every check a row makes on its own: only the manifest says
-    what they must be)."""
-    return bool(run.counted) and run.state is not ManifestState.UNREADABLE
+    what they must be), nor one with neither manifest nor sidecar (nothing says it)."""
+    return bool(run.counted) and run.state not in (ManifestState.UNREADABLE,
+                                                   ManifestState.UNCHECKED)
 
 
 def select_runs(runs: Iterable[LoadedRun], include_incomplete: bool = False) -> RunSelection:

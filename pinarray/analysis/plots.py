@@ -12,6 +12,7 @@ import numpy as np
 from pinarray.adaptive.posterior import ThresholdStatus
 from pinarray.analysis import captions
 from pinarray.analysis.figures import CHANCE_COLOUR, OKABE_ITO, plt, save
+from pinarray.analysis.tables import significant
 from pinarray.analysis.thresholds import NotFitted, SubjectThresholds, ThresholdMethod
 from pinarray.protocol.response import MeasuredResponse
 
@@ -66,7 +67,7 @@ def plot_track(found: SubjectThresholds, stem: Path) -> list[Path]:
                          edgecolors="black", linewidths=0.8, label="reversal", zorder=4)
         if not math.isnan(estimate.threshold):
             axes.axhline(estimate.threshold, color=OKABE_ITO["green"], linestyle="--",
-                         linewidth=1.2, label=f"estimate {estimate.threshold:.4g}", zorder=2)
+                         linewidth=1.2, label=f"estimate {significant(estimate.threshold)}", zorder=2)
         if estimate.method is ThresholdMethod.QUESTPLUS_POSTERIOR \
                 and not math.isnan(estimate.ci_low):
             axes.axhspan(estimate.ci_low, estimate.ci_high, color=OKABE_ITO["green"],
@@ -106,14 +107,14 @@ def plot_fit(found: SubjectThresholds, stem: Path) -> list[Path]:
             level = fit.probability_at_threshold
             if estimated:
                 axes.axvline(fit.threshold, color=OKABE_ITO["green"], linewidth=1.0,
-                             label=f"threshold {fit.threshold:.4g} ({100 * level:.1f} % correct)")
+                             label=f"threshold {significant(fit.threshold)} ({100 * level:.1f} % correct)")
                 axes.errorbar([fit.threshold], [level],
                               xerr=[[fit.threshold - fit.ci_low], [fit.ci_high - fit.threshold]],
                               color=OKABE_ITO["green"], capsize=3, linewidth=1.0, fmt="none",
                               label="95 % credible interval")
             else:
-                bound = {ThresholdStatus.BELOW: f"\n(below {fit.ci_high:.4g}: 95 % upper bound)",
-                         ThresholdStatus.ABOVE: f"\n(above {fit.ci_low:.4g}: 95 % lower bound)"}
+                bound = {ThresholdStatus.BELOW: f"\n(below {significant(fit.ci_high)}: 95 % upper bound)",
+                         ThresholdStatus.ABOVE: f"\n(above {significant(fit.ci_low)}: 95 % lower bound)"}
                 axes.text(0.02, 0.02, f"threshold {fit.status.value}{bound.get(fit.status, '')}",
                           transform=axes.transAxes, fontsize=7, color=OKABE_ITO["vermillion"])
             share = "63.2 %" if fit.kind == "weibull" else "50 %"

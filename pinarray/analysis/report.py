@@ -17,7 +17,7 @@ from pinarray.analysis import captions
 from pinarray.analysis.load import RunSelection, countable_on_request
 from pinarray.analysis.study import Study
 from pinarray.analysis.subjects import IntervalMethod
-from pinarray.analysis.tables import markdown_row, number, write_csv, write_tables
+from pinarray.analysis.tables import markdown_row, number, significant, write_csv, write_tables
 from pinarray.analysis.thresholds import (
     ALL_SUBJECTS,
     NotFitted,
@@ -52,10 +52,6 @@ def run_lines(runs: RunSelection) -> list[str]:
         lines.append(f"counted on request: {run.label}: {run.incomplete_reason}")
     for run in runs.without_manifest:
         lines.append(f"counted without a manifest (completeness unknown): {run.label}")
-    for run in runs.included:
-        if run.duplicates:
-            lines.append(f"{run.label}: trial(s) {', '.join(map(str, run.duplicates))} finished "
-                         f"twice; the first ok row counts")
     return lines
 
 
@@ -120,7 +116,7 @@ def _thresholds(found: Thresholds) -> list[str]:
                          ThresholdStatus.ABOVE: f" (above {number(fit.ci_low, 3)})"}
                 notes.append(f"- subject {s.subject}, task {s.task}: threshold "
                              f"**{fit.status.value}**{bound.get(fit.status, '')}, tested "
-                             f"{fit.lowest_tested:g}-{fit.highest_tested:g} {s.unit}; left out "
+                             f"{significant(fit.lowest_tested, 6)}-{significant(fit.highest_tested, 6)} {s.unit}; left out "
                              "of the across-subject mean")
     lines += ([""] + notes) if notes else []
     lines += ["", "Each subject's numbers: [thresholds.csv](thresholds.csv); its columns and "

@@ -36,9 +36,19 @@ from pinarray.analysis.thresholds import (
 def number(value: float, digits: int = 1) -> str:
     """A table cell: fixed decimals, or "n/a" for NaN (BIDS spelling); never "-0.000" (a
     value that rounds to zero is zero, whichever side it came from)."""
-    if math.isnan(value):
-        return "n/a"
-    text = f"{value:.{digits}f}"
+    return "n/a" if math.isnan(value) else _unsigned_zero(f"{value:.{digits}f}")
+
+
+def significant(value: float, digits: int = 4) -> str:
+    """A number in words or on a figure: ``digits`` significant digits (``g``), or "n/a"
+    for NaN; never "-0" (as `number`). Every number `pinarray analyse` writes goes through
+    this or `number`."""
+    return "n/a" if math.isnan(value) else _unsigned_zero(f"{value:.{digits}g}")
+
+
+def _unsigned_zero(text: str) -> str:
+    """``text`` without the minus of a number shown as zero (``-0.0``: a small negative
+    value rounded, or IEEE's negative zero)."""
     return text[1:] if text.startswith("-") and not text.strip("-0.") else text
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 from os import PathLike
 from pathlib import Path
 
-from pinarray.analysis.load import LoadedRun, ManifestState, find_beh_files, load_run
+from pinarray.analysis.load import LoadedRun, ManifestState, load_runs
 from pinarray.api import arguments
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import TrialRecord, TrialStatus
@@ -27,7 +27,8 @@ def read_results(*paths: str | PathLike[str]) -> tuple[LoadedRun, ...]:
     Returns
     -------
     tuple of LoadedRun
-        One per run, sorted by path: its rows (a torn last row left out, a trial finished
+        One per run, sorted by path, each once (copies and links of its files passed over,
+        as ``pinarray analyse`` passes them over): its rows (a torn last row left out, a trial finished
         twice kept once), its manifest's status and the planned trials with no row.
 
     Raises
@@ -37,4 +38,4 @@ def read_results(*paths: str | PathLike[str]) -> tuple[LoadedRun, ...]:
         (`DamagedResults`, naming the file, line and reason).
     """
     checked = arguments.paths("read_results", paths)
-    return tuple(load_run(beh) for beh in find_beh_files(Path(path) for path in checked))
+    return tuple(load_runs(Path(path) for path in checked))

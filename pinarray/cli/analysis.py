@@ -95,8 +95,9 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from pinarray.analysis.load import scan_runs, select_runs
+    from pinarray.analysis.load import scan, select_runs
     from pinarray.analysis.report import run_lines, write_report
+    from pinarray.analysis.run_files import at_its_place, raw_data_holding
     from pinarray.analysis.study import study
     from pinarray.analysis.subjects import (
         DEFAULT_BOOTSTRAP_RESAMPLES,
@@ -104,6 +105,7 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         IntervalMethod,
         IntervalSettings,
     )
+    from pinarray.analysis.tables import significant
     from pinarray.analysis.thresholds import interval_name
     from pinarray.errors import ResultsError
 
@@ -114,7 +116,10 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         bootstrap_resamples=DEFAULT_BOOTSTRAP_RESAMPLES if args.bootstrap_resamples is None
         else args.bootstrap_resamples,
     )
-    loaded, damaged = scan_runs(args.results)
+    scanned = scan(args.results)
+    loaded, damaged = list(scanned.runs), scanned.damaged
+    for line in scanned.passed_over:  # copies of a run: each said before anything else
+        print(f"pinarray: {line}", file=sys.stderr)
     reasons = [d.reason for d in damaged]
     if damaged and not args.skip_damaged:
         raise ResultsError("\n".join([*reasons, f"{len(damaged)} damaged results file(s); "
@@ -122,7 +127,14 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
     for reason in reasons:
         print(f"pinarray: {reason} (skipped)", file=sys.stderr)
     if not loaded:
-        raise ResultsError("no results left to analyse: every results file found is damaged")
+        raise ResultsError("no results left to analyse: every results file found is damaged "
+                           "or passed over")
+    inside = raw_data_holding(Path(args.out), {run.paths.root for run in loaded
+                                               if at_its_place(run.paths, run.source)})
+    if inside:
+        raise ResultsError(f"{args.out}: expected a report folder outside the raw data, found "
+                           f"one in {inside}; write it elsewhere (a BIDS dataset keeps it in "
+                           "derivatives/)")
     runs = select_runs(loaded, args.include_incomplete)
     result = study(runs, settings, args.answer_pins)
     try:
@@ -151,8 +163,8 @@ def _cmd_analyse(args: argparse.Namespace) -> int:
         for t in result.thresholds.across:
             low, high = t.interval(method)
             interval = ("n/a, fewer than two subjects" if math.isnan(low)
-                        else f"{low:.4g}-{high:.4g}")
-            print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {t.mean:.4g} "
+                        else f"{significant(low)}-{significant(high)}")
+            print(f"  {t.task} {t.adapted_parameter} {t.method} ({t.procedure}): {significant(t.mean)} "
                   f"[{interval}] ({t.subjects} subj., {t.n_trials} trials)")
     print(f"summary: {report.summary}")
     return 0

@@ -329,6 +329,18 @@ def finished_trials(records: Iterable[TrialRecord]) -> frozenset[tuple[int, bool
     return frozenset(r.key for r in records if r.status is TrialStatus.OK)
 
 
+def check_finished_once(path: Path | str, records: Sequence[TrialRecord], then: str = "") -> None:
+    """A `ResultsError` at the second ``ok`` row of the first trial logged ok twice (only a
+    second writer or a hand edit leaves one: which answer counts is for a person to say, by
+    deleting the other row; ``then`` says what comes after that)."""
+    for (trial, practice), lines in finished_twice(records).items():
+        kind = "practice trial" if practice else "trial"
+        raise ResultsError(
+            f"{path}:{lines[1]}: {kind} {trial} is logged ok twice (lines "
+            f"{', '.join(map(str, lines))}); a trial counts once: delete the row that should "
+            f"not count{then}")
+
+
 def finished_twice(records: Sequence[TrialRecord]) -> dict[tuple[int, bool], list[int]]:
     """Trials with more than one ``ok`` row, and the file lines of those rows (header = line 1)."""
     lines: dict[tuple[int, bool], list[int]] = {}

@@ -205,6 +205,14 @@ class RowsDefaults:
         asks where a room has it): the index of the first row that does not, and why."""
         return None
 
+    def check_levels(self, record: TrialRecord,
+                     levels: Mapping[str, Mapping[str, str]]) -> str | None:
+        """What else the run's levels (its sidecar's, by column: read when the manifest is not
+        there) fix of a row whose every cell is one of its column's levels (optional:
+        `pinarray.journal.sidecar_levels` asks where a room has it): why the row breaks it,
+        or None."""
+        return None
+
     def live_lines(self, counted: Sequence[TrialRecord]) -> list[str]:
         """Right answers of the rows that have one (``correct``)."""
         judged = [c for c in (getattr(r, "correct", None) for r in counted) if c is not None]

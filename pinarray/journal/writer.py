@@ -66,10 +66,10 @@ from pinarray.journal.physio import (
 from pinarray.journal.records import LEGACY_LAYOUT, TrialRecord, TrialStatus
 from pinarray.journal.rows import (
     beh_header,
+    check_finished_once,
     check_run,
     event_row,
     finished_trials,
-    finished_twice,
     is_legacy_prefix,
     read_trials,
     split_torn_tail,
@@ -367,13 +367,7 @@ class RunWriter:
         records = (read_trials(paths.beh_tsv, manifest.task_info.paradigm)
                    if paths.beh_tsv.exists() else [])
         check_run(paths.beh_tsv, records, manifest)
-        for (trial, practice), lines in finished_twice(records).items():
-            kind = "practice trial" if practice else "trial"
-            raise ResultsError(
-                f"{paths.beh_tsv}:{lines[1]}: {kind} {trial} is logged ok twice (lines "
-                f"{', '.join(map(str, lines))}); a trial counts once: delete the row that should "
-                "not count, then resume"
-            )
+        check_finished_once(paths.beh_tsv, records, ", then resume")
         # Every sample the rows claim must be in the recording, before anything is changed.
         claimed = claimed_samples(motion_recording_path(paths), records)
         # The dataset's own files are read (and refused) before the run's are changed; it

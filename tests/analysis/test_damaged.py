@@ -3,6 +3,7 @@ without a word, and left out only when the analyst asks to go on without them.""
 
 import contextlib
 import io
+import shutil
 
 import pytest
 from hypothesis import HealthCheck, example, given, settings
@@ -57,6 +58,19 @@ def test_skip_damaged_analyses_the_rest_and_says_what_it_left_out(tmp_path):
     assert out.startswith("counted 1 run(s): 1 subject(s), 5 localisation")
 
 
+def test_analyse_counts_a_copied_run_folder_once_and_says_what_it_passed_over(tmp_path):
+    good, _ = two_runs(tmp_path / "results")
+    copy = tmp_path / "results" / "sub-A copy"
+    shutil.copytree(tmp_path / "results" / "sub-A", copy)
+    status, out, err = analyse(str(tmp_path / "results"), "--out", str(tmp_path / "report"),
+                               "--no-figures")
+    assert status == 0
+    assert err == (f"pinarray: {copy / good.relative_dir.relative_to('sub-A') / good.beh_tsv.name}"
+                   f": passed over: a file of {good.label} belongs in sub-A/ses-1/beh/, not in "
+                   "sub-A copy/ses-1/beh/ (a copy?); rename or remove the copy\n")
+    assert out.startswith("counted 2 run(s): 2 subject(s), 10 localisation")
+
+
 def test_a_completed_run_cut_short_is_left_out_with_the_trials_it_lacks(tmp_path):
     _, short = two_runs(tmp_path / "results")
     lines = short.beh_tsv.read_bytes().splitlines(keepends=True)
@@ -66,6 +80,21 @@ def test_a_completed_run_cut_short_is_left_out_with_the_trials_it_lacks(tmp_path
     assert left_out.paths.subject == "B"
     assert left_out.incomplete_reason == ("manifest says completed, but trial(s) 3, 4, 5 have no "
                                           "finished row (the file was cut short?)")
+
+
+def test_a_completed_run_with_a_row_set_to_invalid_by_hand_is_left_out_saying_what_was_found(
+        tmp_path):
+    _, edited = two_runs(tmp_path / "results")
+    header, *rows = edited.beh_tsv.read_text().splitlines()
+    status = header.split("\t").index("status")
+    cells = rows[1].split("\t")  # trial 2
+    cells[status] = "invalid"
+    rows[1] = "\t".join(cells)
+    edited.beh_tsv.write_text("\n".join([header, *rows[:-1]]) + "\n")  # and trial 5 cut
+    (left_out,) = select_runs(load_runs([tmp_path / "results"])).excluded
+    assert left_out.incomplete_reason == (
+        "manifest says completed, but trial(s) 5 have no finished row (the file was cut "
+        "short?); trial(s) 2 have rows but none with status ok (found invalid; edited by hand?)")
 
 
 def test_a_torn_last_row_is_left_out_and_said(tmp_path):

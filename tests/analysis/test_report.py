@@ -270,6 +270,20 @@ def test_bad_options_are_one_line_errors_with_status_2(results_root, tmp_path, c
     assert exit_.value.code == 2 and "expected a whole number from 100 to" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("inside", ["sub-A/ses-1/beh", "sub-A", "sourcedata/report", "."])
+def test_a_report_is_refused_inside_the_datasets_raw_data(results_root, inside, capsys):
+    before = sorted((p, p.read_bytes()) for p in results_root.rglob("*") if p.is_file())
+    out = results_root / inside
+    assert cli.main(["analyse", str(results_root), "--out", str(out), "--no-figures"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(
+        f"pinarray: {out}: expected a report folder outside the raw data, found one in ")
+    assert sorted((p, p.read_bytes()) for p in results_root.rglob("*") if p.is_file()) == before
+    # Beside the subjects, in a folder of its own (derivatives/, as BIDS has it), it is written.
+    assert cli.main(["analyse", str(results_root), "--out",
+                     str(results_root / "derivatives" / "report"), "--no-figures"]) == 0
+
+
 def test_registering_the_command_loads_neither_numpy_nor_matplotlib():
     probe = ("import sys, argparse, pinarray.cli.analysis as c;"
              "c.register(argparse.ArgumentParser().add_subparsers());"

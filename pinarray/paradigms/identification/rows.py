@@ -8,7 +8,7 @@ read back, as the pattern and its pins are against the run's plan.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -98,8 +98,17 @@ class IdentificationRows(RowsDefaults):
         return dict(sorted(levels.items()))
 
     def levels(self, manifest: RunManifest) -> dict[str, dict[str, str]]:
-        patterns = {e.stimulus: f"pins {' '.join(map(str, e['pins']))}" for e in manifest.plan}
+        patterns = {e.stimulus: _pins_words(int(p) for p in e["pins"]) for e in manifest.plan}
         return {"response": dict(manifest.task_info.answers), "pattern": patterns}
+
+    def check_levels(self, record: TrialRecord,
+                     levels: Mapping[str, Mapping[str, str]]) -> str | None:
+        assert isinstance(record, IdentificationRecord)
+        said = levels.get("pattern", {}).get(record.pattern)
+        if said is not None and said != _pins_words(record.pins):
+            return (f"pattern {record.pattern!r} raises {said}, the row says "
+                    f"{_pins_words(record.pins)}")
+        return None
 
     def check_entry(self, entry: PlanEntry) -> None:
         if entry["pattern"] is None:
@@ -116,6 +125,11 @@ class IdentificationRows(RowsDefaults):
             return (f"the plan's pattern raises pins {pins_text(planned)}, the row says "
                     f"{pins_text(record.pins)}")
         return None
+
+
+def _pins_words(pins: Iterable[int]) -> str:
+    """A pattern's pins as its ``pattern`` level says them (``pins 1 6 11 16``)."""
+    return f"pins {' '.join(map(str, pins))}"
 
 
 ROWS = IdentificationRows()

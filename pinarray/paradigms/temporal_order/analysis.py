@@ -196,9 +196,9 @@ class TemporalOrders(FittedFindings):
         return (f"Temporal-order judgement, task {task}: per subject, the proportion of trials "
                 f"naming pin A ({fits[0].pins[0]}) first at each SOA (dot area: trials) and its "
                 f"Bayesian logistic fit (guess and lapse rates 0) at the posterior medians, drawn "
-                f"where the answers place the PSS. Mean PSS {measures['pss_ms'].mean:.1f} ms over "
+                f"where the answers place the PSS. Mean PSS {number(measures['pss_ms'].mean, 1)} ms over "
                 f"{len(measures['pss_ms'].per_subject)} subject(s), mean JND "
-                f"{measures['jnd_ms'].mean:.1f} ms over {len(measures['jnd_ms'].per_subject)} "
+                f"{number(measures['jnd_ms'].mean, 1)} ms over {len(measures['jnd_ms'].per_subject)} "
                 f"subject(s) ({interval_name(self.settings)} in summary.md); "
                 f"{self.task_trials(task)} trials. Counted: main trials with status ok.")
 

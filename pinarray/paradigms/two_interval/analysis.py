@@ -189,7 +189,7 @@ class TwoIntervals(FittedFindings):
                 f"trials naming the interval with the higher value at each difference from the "
                 f"standard (dot area: trials) and its Bayesian Weibull fit at the posterior "
                 f"medians, drawn where the answers place the threshold (guess rate 1/2, "
-                f"dashed). Mean Weber fraction {weber.mean:.3f} over {len(weber.per_subject)} "
+                f"dashed). Mean Weber fraction {number(weber.mean, 3)} over {len(weber.per_subject)} "
                 f"subject(s) ({interval_name(self.settings)} in summary.md); "
                 f"{self.task_trials(task)} trials. Counted: main trials with status ok.")
 

@@ -166,7 +166,7 @@ class TwoPoints(FittedFindings):
         return (f"Two-point discrimination, task {task}: per subject, the proportion of two-pin "
                 f"trials answered two at each distance (dot area: trials; at 0 mm, one-pin "
                 f"trials) and its Bayesian Weibull fit at the posterior medians, drawn where the "
-                f"answers place the threshold. Mean threshold {threshold.mean:.2f} mm over "
+                f"answers place the threshold. Mean threshold {number(threshold.mean, 2)} mm over "
                 f"{len(threshold.per_subject)} subject(s) ({interval_name(self.settings)} in "
                 f"summary.md); {self.task_trials(task)} trials. Counted: main trials with "
                 f"status ok.")
