@@ -23,6 +23,7 @@ from pinarray.protocol.model import (
     PinCalibration,
     Servos,
     ServoSettings,
+    exact_words,
     is_simulated,
 )
 from pinarray.protocol.response import read_response
@@ -367,15 +368,26 @@ def _positions(reader: Reader, node: Node,
         raise reader.error(
             node, f"expected at most {MAX_POSITIONS} calibrated positions, found {len(pairs)}"
         )
-    positions = []
+    positions: list[tuple[int, int, Node | None]] = []
     for width_node, position_node in pairs:
         width_ns = reader.attempt(partial(read_width_ns, reader, width_node), None)
         position = reader.attempt(
             partial(reader.integer, position_node, f"a position ({unit.what})", unit.low,
                     unit.high), None
         )
-        if width_ns is not None and position is not None:
-            positions.append((width_ns, position, position_node))
+        if width_ns is None or position is None:
+            continue
+        # Two widths at one position: a stimulus between them would move no pin, and every
+        # trial of it would be recorded as delivered.
+        same = next((w for w, p, _ in positions if p == position), None)
+        if same is not None:
+            reader.error(position_node, f"expected each pulse width at a position of its own "
+                                        f"(the pin must go up and come down), found "
+                                        f"{exact_words(Fraction(same, 1_000_000))} ms and "
+                                        f"{exact_words(Fraction(width_ns, 1_000_000))} ms both "
+                                        f"at {position} {unit.what}")
+            continue
+        positions.append((width_ns, position, position_node))
     return tuple(positions)
 
 
