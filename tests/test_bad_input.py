@@ -416,3 +416,55 @@ def test_analyse_names_what_it_was_given_when_that_is_no_results_file(tmp_path):
     assert result.stderr == (f"pinarray: {fifo}: expected a results file or folder, found a FIFO "
                              "(named pipe)\n")
     assert not (tmp_path / "out").exists()
+
+
+# -- times finer than a nanosecond ----------------------------------------------------------------
+
+# Times inside the core are whole nanoseconds. A time written finer was rounded without a word:
+# SOAs of ±0.0000001 ms both became 0, one stimulus, every row `soa 0` (issue 46's re-run).
+FINER_THAN_A_NANOSECOND = {
+    "an SOA of the temporal order": (
+        "toj.yaml", "soas_ms: [-120, -60, -30, -15, 15, 30, 60, 120]", "soas_ms: [30, 30.0000001]",
+        "30.0000001]", "expected an SOA in whole nanoseconds, found 30.0000001 ms"),
+    "a wave's SOA": (
+        "apparent_motion.yaml", "soa_ms: 200\n", "soa_ms: 200.0000001\n", "200.0000001",
+        "expected the SOA in whole nanoseconds, found 200.0000001 ms"),
+    "an adapted SOA": (
+        "staircase_motion.yaml", "values: {from: 20, to: 300, step: 20}",
+        "values: [20, 20.0000001, 40]", "20.0000001",
+        "expected each SOA in whole nanoseconds, found 20.0000001 ms"),
+    "the frames' SOA": (
+        "shapes.yaml", "  across:", "  wipe: {frames: [rising, falling], soa_ms: 0.0000001}\n"
+        "  across:", "0.0000001", "expected the frames' SOA in whole nanoseconds, found 1e-07 ms"),
+    "the gap between two intervals": (
+        "flutter_2ifc.yaml", "interval_gap_ms: 500", "interval_gap_ms: 500.0000001",
+        "500.0000001", "expected the gap between the intervals in whole nanoseconds, found "
+        "500.0000001 ms"),
+    "the inter-trial interval": (
+        "toj.yaml", "inter_trial_interval_s: 1.5", "inter_trial_interval_s: 1.5000000001",
+        "1.5000000001", "expected the inter-trial interval in whole nanoseconds, found "
+        "1.5000000001 s"),
+    "the delivery tolerance": (
+        "toj.yaml", "  calibration:", "  delivery_tolerance_ms: 0.0000001\n  calibration:",
+        "0.0000001", "expected the delivery tolerance in whole nanoseconds, found 1e-07 ms"),
+}
+
+
+@pytest.mark.parametrize("case", FINER_THAN_A_NANOSECOND)
+def test_a_time_finer_than_a_nanosecond_is_refused_where_it_is_written(case):
+    name, old, new, at, said = FINER_THAN_A_NANOSECOND[case]
+    text = (REPO / "protocols" / name).read_text()
+    assert text.count(old) >= 1
+    text = text.replace(old, new, 1)
+    (line,) = problems(text)
+    row = next(n for n, written in enumerate(text.splitlines(), start=1) if at in written)
+    column = text.splitlines()[row - 1].index(at) + 1
+    assert line == f"p.yaml:{row}:{column}: {said}"
+
+
+def test_two_soas_a_nanosecond_would_make_one_are_refused_by_validate(tmp_path):
+    path = tmp_path / "toj.yaml"
+    path.write_text((REPO / "protocols" / "toj.yaml").read_text().replace(
+        "soas_ms: [-120, -60, -30, -15, 15, 30, 60, 120]", "soas_ms: [-0.0000001, 0.0000001]"))
+    (line,) = validate_lines(path)
+    assert line == f"{path}:26:13: expected an SOA in whole nanoseconds, found -1e-07 ms"

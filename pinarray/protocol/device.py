@@ -126,7 +126,9 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     ) == "scale"
     tolerance_ns = reader.optional(
         keys, "delivery_tolerance_ms",
-        lambda n: round(reader.number(n, "the delivery tolerance", "ms", maximum=10_000) * MS),
+        lambda n: whole_ns(reader, n, reader.number(n, "the delivery tolerance", "ms",
+                                                    maximum=10_000), MS, "the delivery tolerance",
+                           "ms"),
         Device.delivery_tolerance_ns,
     )
     stroke = reader.optional(
@@ -213,12 +215,19 @@ def read_pin(reader: Reader, node: Node, grid: Grid) -> int:
 def read_width_ns(reader: Reader, node: Node) -> int:
     """A servo pulse width written in ms, as whole nanoseconds."""
     width = reader.number(node, "a pulse width", "ms", maximum=100)
-    width_ns = width * MS
-    if width_ns.denominator != 1:
-        raise reader.error(
-            node, f"expected a pulse width in whole nanoseconds, found {float(width)} ms"
-        )
-    return int(width_ns)
+    return whole_ns(reader, node, width, MS, "a pulse width", "ms")
+
+
+def whole_ns(reader: Reader, node: Node, value: Fraction, ns_per_unit: Fraction | int,
+             what: str, unit: str) -> int:
+    """``value``, a time written in ``unit`` (``ns_per_unit`` ns each), as the whole
+    nanoseconds every time inside the core is; a finer one is refused at ``node``: rounded, it
+    would be played other than written, and two values could become one."""
+    ns = value * ns_per_unit
+    if ns.denominator != 1:
+        raise reader.error(node, f"expected {what} in whole nanoseconds, found "
+                                 f"{exact_words(value)} {unit}")
+    return int(ns)
 
 
 def _grid(reader: Reader, node: Node) -> Grid:

@@ -16,7 +16,7 @@ from typing import TypeVar
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
 from pinarray.protocol.bus import bus_problem
-from pinarray.protocol.device import MS, read_pin, read_width_ns
+from pinarray.protocol.device import MS, read_pin, read_width_ns, whole_ns
 from pinarray.protocol.drives import check_no_overlap
 from pinarray.protocol.feasibility import check_train, shortest_lift_ns
 from pinarray.protocol.model import (
@@ -373,16 +373,16 @@ def read_wave(
             "without one (only a localisation design's frequencies_hz complete such a train)",
         )
     with reader.section():
-        soa = reader.optional(
+        soa_ns = reader.optional(
             keys, "soa_ms",
-            lambda n: MS * reader.number(
+            lambda n: whole_ns(reader, n, reader.number(
                 n, "the SOA", "ms", maximum=60_000, minimum=0, allow_zero=True
-            ),
+            ), MS, "the SOA", "ms"),
             # Tactile Brush (Israr & Poupyrev): SOA = 0.32 x duration + 47.3 ms.
-            Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS,
+            round(Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS),
         )
-    wave: AnyWave = (Wave(kind, row, pins, train, round(soa)) if kind in ROW_WAVES
-                     else PathWave(kind, direction, pins, train, round(soa)))
+    wave: AnyWave = (Wave(kind, row, pins, train, soa_ns) if kind in ROW_WAVES
+                     else PathWave(kind, direction, pins, train, soa_ns))
     if device is not None:
         # What a localisation train gets checked for, each pin of the wave gets too.
         check_train_on_pins(reader, keys["train"], train, pins, device)
