@@ -120,6 +120,8 @@ def make_unusable(lock: Path, kind: str) -> None:
             other = lock.with_name("other.lock")
             os.symlink(other, lock)
             os.symlink(lock, other)
+        case "dangling link":  # followed, the lock would be created where it points
+            os.symlink(lock.with_name("nowhere.lock"), lock)
         case "FIFO":
             os.mkfifo(lock)
 
@@ -129,7 +131,9 @@ def results_files(root: Path) -> dict[str, bytes]:
     return {str(f): f.read_bytes() for f in root.rglob("*") if f.is_file() and not f.is_symlink()}
 
 
-UNUSABLE = {"folder": "Is a directory", "symlink loop": "Too many levels of symbolic links",
+UNUSABLE = {"folder": "Is a directory",
+            "symlink loop": "expected a regular file, found a symbolic link to {folder}/other.lock",
+            "dangling link": "expected a regular file, found a symbolic link to {folder}/nowhere.lock",
             "FIFO": "expected a regular file, found a FIFO (named pipe)"}
 
 
@@ -141,19 +145,34 @@ def test_resuming_a_run_whose_lock_file_cannot_be_used_is_refused_in_one_line(tm
     refused = batch(tmp_path, "--resume")
     assert refused.returncode == 2
     assert refused.stderr == (f"pinarray: {paths.lock}: cannot use the run's lock file: "
-                              f"{UNUSABLE[kind]}\n")
+                              f"{UNUSABLE[kind].format(folder=paths.lock.parent)}\n")
     assert results_files(tmp_path) == before  # nothing written, nothing touched
 
 
-@pytest.mark.parametrize("kind", ["folder", "FIFO"])
+@pytest.mark.parametrize("kind", ["folder", "dangling link", "FIFO"])
 def test_a_new_run_whose_lock_file_cannot_be_used_is_refused_in_one_line(tmp_path, kind):
     paths = RunPaths(tmp_path, "01", "1", "apparentmotion", 1)
     make_unusable(paths.lock, kind)
     refused = batch(tmp_path)
     assert refused.returncode == 2
     assert refused.stderr == (f"pinarray: {paths.lock}: cannot use the run's lock file: "
-                              f"{UNUSABLE[kind]}\n")
+                              f"{UNUSABLE[kind].format(folder=paths.lock.parent)}\n")
     assert not paths.manifest.exists() and not paths.beh_tsv.exists()
+    assert not paths.lock.with_name("nowhere.lock").exists()  # no link was followed
+
+
+@pytest.mark.parametrize("kind", ["folder", "dangling link", "FIFO"])
+def test_a_dataset_lock_file_that_is_no_regular_file_is_refused_in_one_line(tmp_path, kind):
+    # Issue 46's re-run: a dangling link there had batch create a file at its target, outside
+    # the results folder; a FIFO there was taken as the lock.
+    lock = tmp_path / "sourcedata" / "dataset.lock"
+    make_unusable(lock, kind)
+    refused = batch(tmp_path)
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == (f"pinarray: {lock}: cannot use the dataset's lock file: "
+                              f"{UNUSABLE[kind].format(folder=lock.parent)}\n")
+    assert not lock.with_name("nowhere.lock").exists()  # no link was followed
+    assert results_files(tmp_path) == {}  # nor any of the dataset's files written
 
 
 @pytest.mark.parametrize("error", [errno.EROFS, errno.EACCES])
