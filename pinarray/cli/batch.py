@@ -95,8 +95,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for index, protocol in enumerate(protocols):
             request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
                                      args.sim, args.seed, resume=index in resumable)
-            resume_hint = (f"resume with: pinarray batch {' '.join(args.files[index:])} "
-                           f"--subject {subject} --session {session} --resume")
+            resume_hint = f"resume with: {_resume_command(args, args.files[index:])}"
             try:
                 run_batch(sitting, request, args, responses, sync=syncs[index],
                           resume_hint=resume_hint)
@@ -105,6 +104,22 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                       file=sys.stderr)
                 return EXIT_NOT_DELIVERED
     return 0
+
+
+def _resume_command(args: argparse.Namespace, files: list[str]) -> str:
+    """The command that resumes the runs of ``files`` as this one ran them, to be typed as it
+    is printed: the same results folder, servos, answers and pace, quoted for the shell."""
+    import shlex
+
+    words = ["pinarray", "batch", *files, "--subject", args.subject, "--session", args.session]
+    given = {"--experimenter": args.experimenter, "--port": args.port, "--sim": args.sim,
+             "--responses": args.responses, "--observer": args.observer,
+             "--speed": None if args.time_scale is None else f"{args.time_scale:g}",
+             "--results": args.results, "--lsl": args.lsl}
+    for option, value in given.items():
+        if value:
+            words += [option, value]
+    return shlex.join([*words, "--resume"])
 
 
 def _scanner_settings(args: argparse.Namespace, protocol: Protocol) -> ScannerSync | None:
