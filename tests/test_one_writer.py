@@ -263,3 +263,19 @@ def test_batch_resume_with_nothing_to_resume_is_exit_2_in_one_line_and_starts_no
     assert again.returncode == 2 and len(again.stderr.splitlines()) == 1
     assert [p.name for p in tmp_path.rglob("*_beh.tsv")] == [
         "sub-01_ses-1_task-apparentmotion_run-1_beh.tsv"]
+
+
+def test_a_seed_other_than_the_runs_own_is_refused_on_resume_and_its_own_is_taken(tmp_path):
+    # Issue 46's re-run: --seed 99 --resume resumed the run at its own seed without a word.
+    paths = unfinished_batch_run(tmp_path, MOTION, seed=5)
+    before = results_files(tmp_path)
+    refused = batch(tmp_path, "--resume")  # `batch` asks for --seed 7
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == (f"pinarray: --seed 7 --resume: {paths.label} was planned with seed "
+                              "5, which it keeps when resumed; leave --seed out (or start a new "
+                              "run without --resume)\n")
+    assert results_files(tmp_path) == before
+    resumed = pinarray_here("batch", MOTION, "--subject", "01", "--observer", "default",
+                            "--seed", "5", "--results", tmp_path, "--resume")
+    assert resumed.returncode == 0 and "(seed 5, run 1;" in resumed.stdout
+    assert read_manifest(paths.manifest).status == RunStatus.COMPLETED
