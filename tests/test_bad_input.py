@@ -26,11 +26,17 @@ from pinarray.cli import main
 from pinarray.errors import PinArrayError
 from pinarray.plan import make_plan
 from pinarray.protocol.design import MAX_PULSES, MAX_PULSES_PER_TRIAL, MAX_TRIALS
-from pinarray.protocol.load import MAX_PROTOCOL_BYTES, parse_protocol, validate_file
+from pinarray.protocol.load import (
+    MAX_PROTOCOL_BYTES,
+    MAX_TASK_LABEL_CHARS,
+    parse_protocol,
+    validate_file,
+)
 from pinarray.protocol.yaml_nodes import MAX_PROBLEMS
 from pinarray.protocol.yaml_tree import MAX_ALIASES, MAX_DEPTH
 from pinarray.schedule import compile_trial
 from tests.commands import pinarray_forked
+from tests.lab_protocols import short_copy
 from tests.strategies import alias_bomb, protocol_files
 from tests.test_protocol_load import MINIMAL, problems
 
@@ -416,3 +422,108 @@ def test_analyse_names_what_it_was_given_when_that_is_no_results_file(tmp_path):
     assert result.stderr == (f"pinarray: {fifo}: expected a results file or folder, found a FIFO "
                              "(named pipe)\n")
     assert not (tmp_path / "out").exists()
+
+
+# -- times finer than a nanosecond ----------------------------------------------------------------
+
+# Times inside the core are whole nanoseconds. A time written finer was rounded without a word:
+# SOAs of ±0.0000001 ms both became 0, one stimulus, every row `soa 0` (issue 46's re-run).
+FINER_THAN_A_NANOSECOND = {
+    "an SOA of the temporal order": (
+        "toj.yaml", "soas_ms: [-120, -60, -30, -15, 15, 30, 60, 120]", "soas_ms: [30, 30.0000001]",
+        "30.0000001]", "expected an SOA in whole nanoseconds, found 30.0000001 ms"),
+    "a wave's SOA": (
+        "apparent_motion.yaml", "soa_ms: 200\n", "soa_ms: 200.0000001\n", "200.0000001",
+        "expected the SOA in whole nanoseconds, found 200.0000001 ms"),
+    "an adapted SOA": (
+        "staircase_motion.yaml", "values: {from: 20, to: 300, step: 20}",
+        "values: [20, 20.0000001, 40]", "20.0000001",
+        "expected each SOA in whole nanoseconds, found 20.0000001 ms"),
+    "the frames' SOA": (
+        "shapes.yaml", "  across:", "  wipe: {frames: [rising, falling], soa_ms: 0.0000001}\n"
+        "  across:", "0.0000001", "expected the frames' SOA in whole nanoseconds, found 1e-07 ms"),
+    "the gap between two intervals": (
+        "flutter_2ifc.yaml", "interval_gap_ms: 500", "interval_gap_ms: 500.0000001",
+        "500.0000001", "expected the gap between the intervals in whole nanoseconds, found "
+        "500.0000001 ms"),
+    "the inter-trial interval": (
+        "toj.yaml", "inter_trial_interval_s: 1.5", "inter_trial_interval_s: 1.5000000001",
+        "1.5000000001", "expected the inter-trial interval in whole nanoseconds, found "
+        "1.5000000001 s"),
+    "the delivery tolerance": (
+        "toj.yaml", "  calibration:", "  delivery_tolerance_ms: 0.0000001\n  calibration:",
+        "0.0000001", "expected the delivery tolerance in whole nanoseconds, found 1e-07 ms"),
+}
+
+
+@pytest.mark.parametrize("case", FINER_THAN_A_NANOSECOND)
+def test_a_time_finer_than_a_nanosecond_is_refused_where_it_is_written(case):
+    name, old, new, at, said = FINER_THAN_A_NANOSECOND[case]
+    text = (REPO / "protocols" / name).read_text()
+    assert text.count(old) >= 1
+    text = text.replace(old, new, 1)
+    (line,) = problems(text)
+    row = next(n for n, written in enumerate(text.splitlines(), start=1) if at in written)
+    column = text.splitlines()[row - 1].index(at) + 1
+    assert line == f"p.yaml:{row}:{column}: {said}"
+
+
+def test_two_soas_a_nanosecond_would_make_one_are_refused_by_validate(tmp_path):
+    path = tmp_path / "toj.yaml"
+    path.write_text((REPO / "protocols" / "toj.yaml").read_text().replace(
+        "soas_ms: [-120, -60, -30, -15, 15, 30, 60, 120]", "soas_ms: [-0.0000001, 0.0000001]"))
+    (line,) = validate_lines(path)
+    assert line == f"{path}:26:13: expected an SOA in whole nanoseconds, found -1e-07 ms"
+
+
+# -- names a run's files cannot carry -------------------------------------------------------------
+
+# The protocol's name is its runs' task label, in every file name: validate refuses what no run
+# could write (a 300-character name passed, and batch then failed with "File name too long",
+# leaving a dataset's first files behind: issue 46's re-run).
+@pytest.mark.parametrize(("name", "said"), [
+    ("t" * (MAX_TASK_LABEL_CHARS + 1),
+     f"expected a protocol name of at most {MAX_TASK_LABEL_CHARS} letters and digits (its runs' "
+     f"task label, in file names of at most 255 bytes), found {MAX_TASK_LABEL_CHARS + 1}"),
+    ("café", "expected a protocol name with letters or digits, all ASCII (they make the BIDS task "
+             "label in its runs' file names; spaces and punctuation are dropped), found 'café'"),
+    ("'!!!'", "expected a protocol name with letters or digits, all ASCII (they make the BIDS "
+              "task label in its runs' file names; spaces and punctuation are dropped), found "
+              "'!!!'"),
+], ids=["one letter too long", "not ASCII", "no letter nor digit"])
+def test_a_protocol_name_no_run_could_carry_in_its_file_names_is_refused_by_validate(
+        tmp_path, name, said):
+    path = short_copy("toj", tmp_path, ("protocol: toj", f"protocol: {name}"))
+    (line,) = validate_lines(path)
+    assert line == f"{path}:5:11: {said}"
+
+
+def test_the_longest_task_label_validate_accepts_is_one_a_run_writes(tmp_path):
+    path = short_copy("toj", tmp_path, ("protocol: toj", "protocol: " + "t" * MAX_TASK_LABEL_CHARS))
+    status, _, err = run("batch", str(path), "--subject", "1", "--observer", "default",
+                         "--seed", "1", "--results", str(tmp_path / "results"))
+    assert status == 0, err
+    (sidecar,) = (tmp_path / "results").rglob("*_recording-motion_physio.json")
+    # written under a temporary name 14 bytes longer: the longest a run's file has
+    assert len(sidecar.name) + 14 == 255
+
+
+def test_batch_refuses_labels_too_long_for_a_file_name_before_writing_anything(tmp_path):
+    path = short_copy("toj", tmp_path, ("protocol: toj", "protocol: " + "t" * MAX_TASK_LABEL_CHARS))
+    results = tmp_path / "results"
+    status, out, err = run("batch", str(path), "--subject", "12", "--observer", "default",
+                           "--results", str(results))
+    assert (status, out) == (2, "")
+    assert err == (f"pinarray: expected labels that fit a file name of at most 255 bytes, found "
+                   f"the subject label of 2 characters, the session's of 1 and the task's of "
+                   f"{MAX_TASK_LABEL_CHARS}: the run's longest file name would be 256 bytes; "
+                   f"shorten the subject label or the protocol's name\n")
+    assert not results.exists()  # not even the dataset's first files
+    # A subject label too long for any protocol: the same, in a dataset that has runs already.
+    run("batch", str(short_copy("toj", tmp_path)), "--subject", "1", "--observer", "default",
+        "--results", str(results))
+    before = {p: p.read_bytes() for p in results.rglob("*") if p.is_file()}
+    status, _, err = run("batch", str(short_copy("toj", tmp_path)), "--subject", "a" * 300,
+                         "--observer", "default", "--results", str(results))
+    assert status == 2 and "the subject label of 300 characters" in err
+    assert {p: p.read_bytes() for p in results.rglob("*") if p.is_file()} == before

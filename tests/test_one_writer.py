@@ -120,6 +120,8 @@ def make_unusable(lock: Path, kind: str) -> None:
             other = lock.with_name("other.lock")
             os.symlink(other, lock)
             os.symlink(lock, other)
+        case "dangling link":  # followed, the lock would be created where it points
+            os.symlink(lock.with_name("nowhere.lock"), lock)
         case "FIFO":
             os.mkfifo(lock)
 
@@ -129,7 +131,9 @@ def results_files(root: Path) -> dict[str, bytes]:
     return {str(f): f.read_bytes() for f in root.rglob("*") if f.is_file() and not f.is_symlink()}
 
 
-UNUSABLE = {"folder": "Is a directory", "symlink loop": "Too many levels of symbolic links",
+UNUSABLE = {"folder": "Is a directory",
+            "symlink loop": "expected a regular file, found a symbolic link to {folder}/other.lock",
+            "dangling link": "expected a regular file, found a symbolic link to {folder}/nowhere.lock",
             "FIFO": "expected a regular file, found a FIFO (named pipe)"}
 
 
@@ -141,19 +145,34 @@ def test_resuming_a_run_whose_lock_file_cannot_be_used_is_refused_in_one_line(tm
     refused = batch(tmp_path, "--resume")
     assert refused.returncode == 2
     assert refused.stderr == (f"pinarray: {paths.lock}: cannot use the run's lock file: "
-                              f"{UNUSABLE[kind]}\n")
+                              f"{UNUSABLE[kind].format(folder=paths.lock.parent)}\n")
     assert results_files(tmp_path) == before  # nothing written, nothing touched
 
 
-@pytest.mark.parametrize("kind", ["folder", "FIFO"])
+@pytest.mark.parametrize("kind", ["folder", "dangling link", "FIFO"])
 def test_a_new_run_whose_lock_file_cannot_be_used_is_refused_in_one_line(tmp_path, kind):
     paths = RunPaths(tmp_path, "01", "1", "apparentmotion", 1)
     make_unusable(paths.lock, kind)
     refused = batch(tmp_path)
     assert refused.returncode == 2
     assert refused.stderr == (f"pinarray: {paths.lock}: cannot use the run's lock file: "
-                              f"{UNUSABLE[kind]}\n")
+                              f"{UNUSABLE[kind].format(folder=paths.lock.parent)}\n")
     assert not paths.manifest.exists() and not paths.beh_tsv.exists()
+    assert not paths.lock.with_name("nowhere.lock").exists()  # no link was followed
+
+
+@pytest.mark.parametrize("kind", ["folder", "dangling link", "FIFO"])
+def test_a_dataset_lock_file_that_is_no_regular_file_is_refused_in_one_line(tmp_path, kind):
+    # Issue 46's re-run: a dangling link there had batch create a file at its target, outside
+    # the results folder; a FIFO there was taken as the lock.
+    lock = tmp_path / "sourcedata" / "dataset.lock"
+    make_unusable(lock, kind)
+    refused = batch(tmp_path)
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == (f"pinarray: {lock}: cannot use the dataset's lock file: "
+                              f"{UNUSABLE[kind].format(folder=lock.parent)}\n")
+    assert not lock.with_name("nowhere.lock").exists()  # no link was followed
+    assert results_files(tmp_path) == {}  # nor any of the dataset's files written
 
 
 @pytest.mark.parametrize("error", [errno.EROFS, errno.EACCES])
@@ -244,3 +263,19 @@ def test_batch_resume_with_nothing_to_resume_is_exit_2_in_one_line_and_starts_no
     assert again.returncode == 2 and len(again.stderr.splitlines()) == 1
     assert [p.name for p in tmp_path.rglob("*_beh.tsv")] == [
         "sub-01_ses-1_task-apparentmotion_run-1_beh.tsv"]
+
+
+def test_a_seed_other_than_the_runs_own_is_refused_on_resume_and_its_own_is_taken(tmp_path):
+    # Issue 46's re-run: --seed 99 --resume resumed the run at its own seed without a word.
+    paths = unfinished_batch_run(tmp_path, MOTION, seed=5)
+    before = results_files(tmp_path)
+    refused = batch(tmp_path, "--resume")  # `batch` asks for --seed 7
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == (f"pinarray: --seed 7 --resume: {paths.label} was planned with seed "
+                              "5, which it keeps when resumed; leave --seed out (or start a new "
+                              "run without --resume)\n")
+    assert results_files(tmp_path) == before
+    resumed = pinarray_here("batch", MOTION, "--subject", "01", "--observer", "default",
+                            "--seed", "5", "--results", tmp_path, "--resume")
+    assert resumed.returncode == 0 and "(seed 5, run 1;" in resumed.stdout
+    assert read_manifest(paths.manifest).status == RunStatus.COMPLETED

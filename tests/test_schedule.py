@@ -92,7 +92,7 @@ def test_exotic_decimals_fall_back_to_exact_big_integers():
     ]
 
 
-def test_phase_delays_the_pattern_and_wraps_at_a_full_cycle():
+def test_a_quarter_phase_starts_inside_the_previous_cycle_s_down_part():
     quarter = seed_train(10, 1, Fraction(1, 4))
     starts, _, is_up = train_pulses(quarter)
     # a quarter cycle = 2.5 slots: the first pulse is k=-2 at 5 ms, still in the previous cycle's

@@ -4,6 +4,7 @@ import csv
 import itertools
 import os
 import random
+import shlex
 import signal
 import subprocess
 import sys
@@ -476,3 +477,24 @@ def test_results_that_cannot_be_written_are_one_line(tmp_path):
     result = batch(str(MOTION), "--subject", "p3", "--observer", "default", "--results", str(blocker))
     assert result.returncode == 2 and "cannot write results there: Not a directory" in result.stderr
     assert "Traceback" not in result.stderr and blocker.read_text() == "not a folder"
+
+
+def test_the_resume_command_a_failed_trial_suggests_resumes_the_run_as_typed(tmp_path):
+    # Issue 46's re-run: the suggestion left out --results and --sim (and the answers), so
+    # typed as given it found no run. Here every one of them differs from the default.
+    from tests.lab_protocols import short_copy
+
+    results = tmp_path / "my results"
+    protocol = short_copy("toj", tmp_path)
+    slow_bus = "sim://?baud=38400"  # the two pins' strokes are not measured: a trial fails
+    failed = pinarray_here("batch", protocol, "--subject", "k1", "--observer", "default",
+                           "--results", results, "--sim", slow_bus, "--speed", "0", cwd=tmp_path)
+    assert failed.returncode == 3, failed.stderr
+    said = failed.stderr.strip().splitlines()[-1]
+    command = shlex.split(said[said.index("resume with: ") + 13:-1])
+    assert command[:2] == ["pinarray", "batch"] and command[-1] == "--resume"
+    again = pinarray_here(*command[1:], cwd=tmp_path)
+    assert "starting a new run" not in again.stderr  # it found the run ...
+    (manifest,) = results.rglob("*_manifest.json")
+    assert len(read_manifest(manifest).sittings) == 2  # ... and resumed it, on the same bus
+    assert again.returncode == 3 and again.stderr.strip().splitlines()[-1] == said

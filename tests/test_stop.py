@@ -66,3 +66,47 @@ def test_a_deferred_signal_waits_even_when_another_thread_could_take_it():
     done = subprocess.run([sys.executable, "-c", DEFERRED_WITH_A_SECOND_THREAD],
                           capture_output=True, text=True, timeout=60)
     assert done.stdout.strip() == "rest / torque off / test stopped by SIGUSR1", done.stderr
+
+
+# -- Ctrl-C as a command starts ------------------------------------------------------------------
+
+def files_under(folder):
+    return {path: path.read_bytes() for path in folder.rglob("*") if path.is_file()}
+
+
+def interrupting(original):
+    """``original``, called after Ctrl-C reaches the process (Python's own handler, as in a
+    command that has installed none yet): the interrupt lands inside it, at a known point."""
+    def interrupted(*args, **kwargs):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        os.kill(os.getpid(), signal.SIGINT)
+        return original(*args, **kwargs)
+    return interrupted
+
+
+@pytest.mark.parametrize("moment", ["as the parser is built", "as the arguments are read"])
+def test_ctrl_c_as_a_command_starts_ends_in_one_line_with_the_results_untouched(
+        moment, tmp_path, monkeypatch):
+    # The issue 46 re-run: Ctrl-C in the first 0.1-0.2 s of `batch --resume` was a traceback.
+    import argparse
+
+    from pinarray.cli import batch
+    from tests.commands import pinarray_forked
+    from tests.lab_protocols import short_copy
+    from tests.test_paradigm_holes import run_cut_short
+
+    results = tmp_path / "results"
+    protocol = short_copy("toj", tmp_path)
+    run_cut_short(protocol, results)  # an aborted run, to resume
+    before = files_under(results)
+    # Changed here, before the fork: only the forked command calls them.
+    if moment == "as the parser is built":
+        monkeypatch.setattr(batch, "register", interrupting(batch.register))
+    else:
+        monkeypatch.setattr(argparse.ArgumentParser, "parse_args",
+                            interrupting(argparse.ArgumentParser.parse_args))
+    done = pinarray_forked(tmp_path / "out", "batch", protocol, "--subject", "01", "--observer",
+                           "default", "--speed", "0", "--results", results, "--resume",
+                           timeout=60)
+    assert (done.returncode, done.stderr, done.stdout) == (130, "pinarray: interrupted\n", "")
+    assert files_under(results) == before

@@ -145,3 +145,42 @@ def test_validate_accepts_exactly_what_batch_delivers(case, tmp_path, capsys):
                          "--seed", "7", "--results", tmp_path / "results")
     delivered = status == 0 and "not delivered" not in err
     assert accepted is delivered, err
+
+
+# --- a stimulus that moves no pin is no stimulus ----------------------------------------------
+
+STILL = {
+    # issue 46's re-run: every trial `ok`, stroke n/a, a subject naming shapes no pin played
+    "an up pulse as wide as the down one": (
+        small("shapes.yaml", ("pulse_width_ms: {up: 2.0, down: 1.5}",
+                              "pulse_width_ms: {up: 1.5, down: 1.5}")),
+        "    pulse_width_ms: {up: 1.5, down: 1.5}", "{",
+        "expected an up pulse width other than the down one (the pin must go up and come "
+        "down), found both 1.5 ms"),
+    "two widths calibrated at one position": (
+        small("toj.yaml", ("positions: {1.5: 2048, 2.0: 2113}",
+                           "positions: {1.5: 2048, 2.0: 2048}")),
+        "    positions: {1.5: 2048, 2.0: 2048}   # 1 mm on a 10 mm horn", "2048}",
+        "expected each pulse width at a position of its own (the pin must go up and come "
+        "down), found 1.5 ms and 2 ms both at 2048 steps"),
+    "a phase that ends the signal before its first lift": (
+        small("toj.yaml", ("duration_s: 0.1           # one up-and-down",
+                           "duration_s: 0.04\n    phase_deg: 180")),
+        "    duration_s: 0.04", "0.04",
+        "expected a signal that lifts the pin at least once, found none: its 40 ms end before "
+        "its first up pulse (at 10 Hz, phase 180 deg)"),
+}
+
+
+@pytest.mark.parametrize("case", STILL)
+def test_a_stimulus_that_moves_no_pin_is_refused_and_never_recorded_as_delivered(
+        case, tmp_path, capsys):
+    text, line_text, at, said = STILL[case]
+    line, col, message = refusal(tmp_path, capsys, text)
+    assert (line, col) == (text.splitlines().index(line_text) + 1, line_text.index(at) + 1)
+    assert message == said
+    results = tmp_path / "results"
+    status, _, err = run(capsys, "batch", tmp_path / "p.yaml", "--subject", "s1", "--observer",
+                         "default", "--seed", "7", "--results", results)
+    assert status == 2 and said in err and "Traceback" not in err
+    assert not results.exists()  # no row says a trial of it was delivered

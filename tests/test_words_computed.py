@@ -1,6 +1,7 @@
 """The words say what is computed (issue 46, item 7): each test holds a sentence of the docs
 to the computation it describes."""
 
+import inspect
 import math
 import re
 from fractions import Fraction
@@ -9,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import pinarray
 from pinarray.analysis.fits import AcrossMeasure, across_text
 from pinarray.analysis.load import LoadedTrial, RunSelection
 from pinarray.analysis.seam import Context
@@ -56,6 +58,12 @@ def test_a_phase_off_the_slot_grid_moves_every_pulse_by_its_remainder():
 def test_the_phase_words_say_circular_shift_not_delay():
     doc = Train.__doc__ or ""
     assert "shifts the cycle circularly" in doc and "delays" not in doc
+    # ... and so does the public face's: its docstring and those of its attributes, which
+    # the site's reference is built from (read in its source, as the docs build reads them).
+    public = " ".join(inspect.getsource(pinarray.Train).split())
+    assert "shifts the cycle circularly within the signal" in public
+    assert "the cycle shifted circularly within the signal" in public
+    assert "delay" not in public.lower()
     readme = (REPO / "protocols" / "README.md").read_text()
     assert "delays the pattern" not in readme and "shifts the cycle circularly" in readme
 

@@ -50,8 +50,10 @@ class Train:
 
     Each cycle of ``1 / frequency_hz`` holds ``pulses_per_cycle`` servo pulses; the first
     ``duty_cycle`` of them are ``pulse_width_ms["up"]`` wide (the pin lifted), the rest
-    ``pulse_width_ms["down"]`` (at rest); ``phase_deg`` delays the whole train by that part of
-    a cycle. The defaults are the seed's: 10 pulses a cycle, half of them up, 2 ms up and
+    ``pulse_width_ms["down"]`` (at rest); ``phase_deg`` shifts the cycle circularly within the
+    signal by that part of a cycle: the signal starts and lasts as written, its first up pulse
+    comes that part of a period late, and the slots before it play the end of a cycle (at 180
+    the seed's train begins with its five down pulses). The defaults are the seed's: 10 pulses a cycle, half of them up, 2 ms up and
     1.5 ms down. Each value is kept exact (a `fractions.Fraction`: 0.1 is 1/10) in the
     attribute of its name, the two widths as ``up_width_ms`` and ``down_width_ms``.
 
@@ -70,7 +72,8 @@ class Train:
         ``{"up": 2.0, "down": 1.5}``: the two pulse widths, in ms (whole nanoseconds, each
         within the pulse period); None: the seed's.
     phase_deg : float or Fraction
-        Delay of the whole train, in degrees of a cycle, 0 to 36000 (read modulo 360).
+        Where in its cycle the train starts, in degrees, 0 to 36000 (read modulo 360): the
+        cycle shifted circularly within the signal, whose start and length do not move.
 
     Raises
     ------
@@ -92,7 +95,8 @@ class Train:
     down_width_ms: Fraction
     """The width of a pulse at rest, in ms."""
     phase_deg: Fraction
-    """Delay of the whole train, in degrees of a cycle, 0 up to 360."""
+    """Where in its cycle the train starts, in degrees, 0 up to 360 (the cycle shifted
+    circularly within the signal)."""
 
     def __init__(self, *, frequency_hz: Real, duration_s: Real, pulses_per_cycle: int = 10,
                  duty_cycle: Real = Fraction(1, 2),

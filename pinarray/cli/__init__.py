@@ -1,7 +1,7 @@
 """The `pinarray` command: a composition root that turns user mistakes into one-line errors.
 
-Each subcommand group is a module of this package with ``register(subparsers)``; only argparse
-is imported at module level and each handler imports what it needs when it runs, so
+Each subcommand group is a module of this package with ``register(subparsers)``; argparse is
+imported as the parser is built and each handler imports what it needs when it runs, so
 ``pinarray validate`` never pays for numpy, Textual or matplotlib. A command line that starts
 with a command's name registers only the module of that command: ``pinarray validate`` does not
 import the bus, the journal or the other commands' modules to build their options.
@@ -9,17 +9,17 @@ import the bus, the journal or the other commands' modules to build their option
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
-from collections.abc import Sequence
-from importlib import import_module
-from typing import TYPE_CHECKING
 
-from pinarray.errors import PinArrayError
-from pinarray.version import __version__
-
+# Nothing else at module level (os and sys are loaded with the interpreter): the console script imports this module before `main` runs, and
+# Ctrl-C during an import is a traceback; inside `main` it is one line (argparse alone takes
+# some 17 ms to import, typing 6 ms). mypy reads any TYPE_CHECKING as true.
+TYPE_CHECKING = False
 if TYPE_CHECKING:
+    import argparse
+    from collections.abc import Sequence
+
     from pinarray.stop import Stopped
 
 # The module of this package that registers each command, in the order `pinarray --help` lists
@@ -39,6 +39,11 @@ COMMANDS = {
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The `pinarray` parser: every command, or only those of the module that registers ``command``."""
+    import argparse
+    from importlib import import_module
+
+    from pinarray.version import __version__
+
     parser = argparse.ArgumentParser(
         prog="pinarray",
         description="Drive a servo pin-array tactile stimulator and run experiments on it.",
@@ -53,7 +58,20 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
+    """Run the command ``argv`` names (the process's arguments by default): its exit status.
+
+    Ctrl-C at any moment of it ends in one line and status 130, the parser's building and the
+    reading of the arguments included (they import each command's options).
+    """
+    try:
+        return _main(sys.argv[1:] if argv is None else list(argv))
+    except KeyboardInterrupt:
+        return _interrupted()
+
+
+def _main(argv: list[str]) -> int:
+    from pinarray.errors import PinArrayError
+
     # Only the first word can name the command: the parser's own options (-h, --version) come
     # before it and end the run, so they get every command.
     parser = build_parser(argv[0] if argv else None)
@@ -71,8 +89,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         _warn_of_ignored_plug_ins()
 
 
+def _interrupted() -> int:
+    print("pinarray: interrupted", file=sys.stderr)
+    return 130
+
+
 def _run(args: argparse.Namespace) -> int:
     """The command ``args`` name, its errors said in one line each; its exit status."""
+    from pinarray.errors import PinArrayError
+
     try:
         return int(args.func(args) or 0)
     except _stopped() as stopped:
@@ -83,8 +108,7 @@ def _run(args: argparse.Namespace) -> int:
             print(f"pinarray: {line}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("pinarray: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
     except BrokenPipeError:
         # The reader went away (``pinarray play ... | head``): end as if by SIGPIPE, quietly.
         try:

@@ -28,9 +28,9 @@ or 'motion_felt=0.9' (apparent motion); for an adaptive design its psychometric 
 
 Results go to DIR/sub-ID/ses-N/beh/ (a BIDS dataset); every trial is on disk the moment it
 ends. A run that was killed or aborted resumes with --resume: exactly the remaining trials, in
-plan order, on the run's own time base. --resume with no unfinished run for any FILE is an
-error (exit 2); a file without one starts a new run. A run open in another process is refused
-(exit 2): a run has one writer at a time.
+plan order, on the run's own time base and seed (a --seed other than its own is refused).
+--resume with no unfinished run for any FILE is an error (exit 2); a file without one starts a
+new run. A run open in another process is refused (exit 2): a run has one writer at a time.
 
 In the scanner (--trigger serial:PATH or emulate:TR, or the protocol's sync: section) each run
 waits for the first counted volume, times every onset from it, and logs every volume in
@@ -80,7 +80,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for warning in protocol_warnings(protocol):
             print(f"pinarray: warning: {protocol.source}: {warning}", file=sys.stderr)
     syncs = [_scanner_settings(args, protocol) for protocol in protocols]  # all checked first
-    resumable = _resumable(protocols, args.results, subject, session) if args.resume else set()
+    resumable = (_resumable(protocols, args.results, subject, session, args.seed)
+                 if args.resume else set())
     _refuse_resumed_scans(protocols, syncs, resumable)
     _check_markers(args)
     # Each run connects on a clock of its own (`_run_clock`); this one is never asked for.
@@ -95,8 +96,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for index, protocol in enumerate(protocols):
             request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
                                      args.sim, args.seed, resume=index in resumable)
-            resume_hint = (f"resume with: pinarray batch {' '.join(args.files[index:])} "
-                           f"--subject {subject} --session {session} --resume")
+            resume_hint = f"resume with: {_resume_command(args, args.files[index:])}"
             try:
                 run_batch(sitting, request, args, responses, sync=syncs[index],
                           resume_hint=resume_hint)
@@ -105,6 +105,22 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                       file=sys.stderr)
                 return EXIT_NOT_DELIVERED
     return 0
+
+
+def _resume_command(args: argparse.Namespace, files: list[str]) -> str:
+    """The command that resumes the runs of ``files`` as this one ran them, to be typed as it
+    is printed: the same results folder, servos, answers and pace, quoted for the shell."""
+    import shlex
+
+    words = ["pinarray", "batch", *files, "--subject", args.subject, "--session", args.session]
+    given = {"--experimenter": args.experimenter, "--port": args.port, "--sim": args.sim,
+             "--responses": args.responses, "--observer": args.observer,
+             "--speed": None if args.time_scale is None else f"{args.time_scale:g}",
+             "--results": args.results, "--lsl": args.lsl}
+    for option, value in given.items():
+        if value:
+            words += [option, value]
+    return shlex.join([*words, "--resume"])
 
 
 def _scanner_settings(args: argparse.Namespace, protocol: Protocol) -> ScannerSync | None:
@@ -149,11 +165,14 @@ def _check_markers(args: argparse.Namespace) -> None:
                             "simulated one is not it: run the simulator with --speed 1")
 
 
-def _resumable(protocols: list[Protocol], root: str, subject: str, session: str) -> set[int]:
+def _resumable(protocols: list[Protocol], root: str, subject: str, session: str,
+               seed: int | None) -> set[int]:
     """Which protocols have an unfinished run to resume; every one checked before any runs.
 
-    Refused (exit 2) when none has one, or when one is open in another process.
+    Refused (exit 2) when none has one, when one is open in another process, or when
+    ``seed`` (--seed) is not the seed one was planned with: a resumed run keeps its own.
     """
+    from pinarray.errors import PinArrayError
     from pinarray.journal.lock import RunLocked, locked_message
     from pinarray.journal.runs import NothingToResume, unfinished_run
     from pinarray.session.trials import task_label
@@ -163,6 +182,11 @@ def _resumable(protocols: list[Protocol], root: str, subject: str, session: str)
         unfinished = unfinished_run(root, subject, session, task_label(protocol))
         if unfinished is not None and unfinished.holder is not None:
             raise RunLocked(locked_message(unfinished.paths.label, unfinished.holder))
+        if unfinished is not None and seed is not None and seed != unfinished.manifest.seed:
+            raise PinArrayError(
+                f"--seed {seed} --resume: {unfinished.paths.label} was planned with seed "
+                f"{unfinished.manifest.seed}, which it keeps when resumed; leave --seed out "
+                "(or start a new run without --resume)")
         if unfinished is not None:
             found.add(index)
     if not found:

@@ -14,6 +14,7 @@ POSIX only (``fcntl``); elsewhere the file names its holder but nothing enforces
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import stat
@@ -84,27 +85,35 @@ def _try_flock(fd: int) -> bool:
     return True
 
 
-def _unusable(path: Path, problem: OSError | str) -> ResultsError:
-    """A lock file that cannot be used (a folder, a symlink loop, read-only), in one line."""
+RUN_LOCK = "the run's lock file"
+
+
+def _unusable(path: Path, problem: OSError | str, what: str = RUN_LOCK) -> ResultsError:
+    """A lock file that cannot be used (a folder, a link, read-only), in one line."""
     why = problem if isinstance(problem, str) else problem.strerror or str(problem)
-    return ResultsError(f"{path}: cannot use the run's lock file: {why}")
+    return ResultsError(f"{path}: cannot use {what}: {why}")
 
 
-def _open(path: Path, flags: int) -> int:
+def _open(path: Path, flags: int, what: str = RUN_LOCK) -> int:
     """The lock file, opened; `ResultsError` for anything but a regular file that opens.
 
-    O_NONBLOCK: a FIFO or a device in its place must not make the open wait.
+    O_NONBLOCK: a FIFO or a device in its place must not make the open wait. O_NOFOLLOW: a
+    link in its place is not followed (a dangling one would have the lock created where it
+    points, outside the results folder).
     """
     try:
-        fd = os.open(path, flags | os.O_NONBLOCK | os.O_NOCTTY, 0o644)
+        fd = os.open(path, flags | os.O_NONBLOCK | os.O_NOCTTY | os.O_NOFOLLOW, 0o644)
     except FileNotFoundError:
         raise  # no lock (its folder gone): the caller's to say what that means
     except OSError as problem:
-        raise _unusable(path, problem) from None
+        if problem.errno == errno.ELOOP and path.is_symlink():
+            raise _unusable(path, "expected a regular file, found a symbolic link to "
+                                  f"{os.readlink(path)}", what) from None
+        raise _unusable(path, problem, what) from None
     mode = os.fstat(fd).st_mode
     if not stat.S_ISREG(mode):
         os.close(fd)
-        raise _unusable(path, f"expected a regular file, found {kind_of(mode)}")
+        raise _unusable(path, f"expected a regular file, found {kind_of(mode)}", what)
     return fd
 
 
@@ -238,9 +247,13 @@ def stale_message(stale: LockHolder, what: str) -> str:
 
 @contextmanager
 def held(path: Path) -> Iterator[None]:
-    """Hold an exclusive lock on ``path`` for a short read-modify-write (waits for it)."""
+    """Hold an exclusive lock on ``path`` for a short read-modify-write (waits for it); a
+    lock file that is no regular file (a link, a FIFO, a folder) is refused, naming it."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fd = _open(path, os.O_RDWR | os.O_CREAT, "the dataset's lock file")
+    except FileNotFoundError as problem:  # its folder removed since: as any other problem
+        raise _unusable(path, problem, "the dataset's lock file") from None
     try:
         if fcntl is not None:
             fcntl.flock(fd, fcntl.LOCK_EX)

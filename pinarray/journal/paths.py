@@ -19,6 +19,7 @@ still read (and moved on resume).
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -32,6 +33,15 @@ _RUN_FILE = re.compile(
     r"sub-(?P<sub>[A-Za-z0-9]+)_ses-(?P<ses>[A-Za-z0-9]+)_task-(?P<task>[A-Za-z0-9]+)"
     r"_run-(?P<run>[0-9]+)(?:_(?P<suffix>[a-z]+)\.(?P<ext>tsv|json)|\.lock)$"
 )
+
+
+# What the system takes: a file name of at most 255 bytes, a path of at most 4095 (Linux's
+# NAME_MAX and PATH_MAX). The longest name a run writes is its motion recording's sidecar while
+# it is written (`journal.files.write_atomically`: ".<name>.<8 characters>.tmp"): this many
+# bytes beyond the run's stem.
+NAME_MAX_BYTES = 255
+PATH_MAX_BYTES = 4095
+BEYOND_STEM_BYTES = len("._recording-motion_physio.json.12345678.tmp")
 
 
 class LabelError(ResultsError):
@@ -75,6 +85,26 @@ class RunPaths:
         object.__setattr__(self, "task", check_label("task", self.task))
         if isinstance(self.run, bool) or not isinstance(self.run, int) or self.run < 1:
             raise ResultsError(f"run number must be a whole number >= 1, found {self.run!r}")
+        self._check_fits()
+
+    def _check_fits(self) -> None:
+        """Every file of the run can be written by the name it would have: refused here, before
+        anything is, rather than by the system once the dataset's first files are."""
+        name = len(self.stem.encode()) + BEYOND_STEM_BYTES
+        path = len(os.fsencode(self.source_dir)) + 1 + name
+        if name <= NAME_MAX_BYTES and path <= PATH_MAX_BYTES:
+            return
+        labels = (f"the subject label of {len(self.subject)} characters, the session's of "
+                  f"{len(self.session)} and the task's of {len(self.task)}")
+        if name > NAME_MAX_BYTES:
+            raise LabelError(
+                f"expected labels that fit a file name of at most {NAME_MAX_BYTES} bytes, found "
+                f"{labels}: the run's longest file name would be {name} bytes; shorten the "
+                "subject label or the protocol's name")
+        raise LabelError(
+            f"expected a results folder whose run files fit a path of at most {PATH_MAX_BYTES} "
+            f"bytes, found one of {len(os.fsencode(self.root))} bytes with {labels}: the run's "
+            f"longest path would be {path} bytes")
 
     @property
     def label(self) -> str:

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, cast
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.adapted import adapted_drives
+from pinarray.protocol.device import MS, whole_ns
 from pinarray.protocol.drives import check_no_overlap, pulse_slots
 from pinarray.protocol.model import Condition, Device, Stimulus, Train
 from pinarray.protocol.procedures import (
@@ -94,8 +95,17 @@ def adaptive_keys(reader: Reader, node: Node) -> dict[str, Node]:
 
 
 def read_values(reader: Reader, keys: Mapping[str, Node], parameter: Parameter) -> tuple[Fraction, ...]:
-    """The values the parameter takes."""
-    return _values(reader, keys["values"], parameter.unit, parameter.is_stroke)
+    """The values the parameter takes; an SOA or a signal length in whole nanoseconds, as
+    every time inside the core is (rounded, two values could become one)."""
+    values = _values(reader, keys["values"], parameter.unit, parameter.is_stroke)
+    if parameter.unit == "ms":
+        node = keys["values"]
+        items = ([node] * len(values) if isinstance(node, MappingNode)
+                 else reader.sequence(node, "the values"))
+        what = "each SOA" if parameter is Parameter.SOA_MS else "each signal length"
+        for item, value in zip(items, values, strict=True):
+            whole_ns(reader, item, value, MS, what, "ms")
+    return values
 
 
 def read_adaptive(reader: Reader, keys: Mapping[str, Node], paradigm: ParadigmDesign, device: Device,

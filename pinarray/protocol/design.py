@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from fractions import Fraction
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -31,6 +30,7 @@ from pinarray.protocol.adaptive_design import (
     read_parameter,
     read_values,
 )
+from pinarray.protocol.device import whole_ns
 from pinarray.protocol.model import (
     NS_PER_S,
     Constraints,
@@ -115,10 +115,12 @@ def read_design(
         lambda n: None if n.tag.endswith(":null") else reader.integer(n, "the seed", 0, 2**63 - 1),
         None,
     )
-    iti = reader.optional(
+    iti_ns = reader.optional(
         keys, "inter_trial_interval_s",
-        lambda n: reader.number(n, "the inter-trial interval", "s", allow_zero=True, maximum=3600),
-        Fraction(2),
+        lambda n: whole_ns(reader, n, reader.number(n, "the inter-trial interval", "s",
+                                                    allow_zero=True, maximum=3600),
+                           NS_PER_S, "the inter-trial interval", "s"),
+        2 * NS_PER_S,
     )
     practice = reader.optional(
         keys, "practice_trials", lambda n: reader.integer(n, "practice trials", 0, 100), 0
@@ -143,7 +145,7 @@ def read_design(
         ordering,
         constraints,
         seed,
-        round(iti * NS_PER_S),
+        iti_ns,
         practice,
         adaptive,
         found.judgement,

@@ -23,6 +23,7 @@ from pinarray.protocol.model import (
     PinCalibration,
     Servos,
     ServoSettings,
+    exact_words,
     is_simulated,
 )
 from pinarray.protocol.response import read_response
@@ -125,7 +126,9 @@ def read_device(reader: Reader, node: Node | None) -> Device | None:
     ) == "scale"
     tolerance_ns = reader.optional(
         keys, "delivery_tolerance_ms",
-        lambda n: round(reader.number(n, "the delivery tolerance", "ms", maximum=10_000) * MS),
+        lambda n: whole_ns(reader, n, reader.number(n, "the delivery tolerance", "ms",
+                                                    maximum=10_000), MS, "the delivery tolerance",
+                           "ms"),
         Device.delivery_tolerance_ns,
     )
     stroke = reader.optional(
@@ -212,12 +215,19 @@ def read_pin(reader: Reader, node: Node, grid: Grid) -> int:
 def read_width_ns(reader: Reader, node: Node) -> int:
     """A servo pulse width written in ms, as whole nanoseconds."""
     width = reader.number(node, "a pulse width", "ms", maximum=100)
-    width_ns = width * MS
-    if width_ns.denominator != 1:
-        raise reader.error(
-            node, f"expected a pulse width in whole nanoseconds, found {float(width)} ms"
-        )
-    return int(width_ns)
+    return whole_ns(reader, node, width, MS, "a pulse width", "ms")
+
+
+def whole_ns(reader: Reader, node: Node, value: Fraction, ns_per_unit: Fraction | int,
+             what: str, unit: str) -> int:
+    """``value``, a time written in ``unit`` (``ns_per_unit`` ns each), as the whole
+    nanoseconds every time inside the core is; a finer one is refused at ``node``: rounded, it
+    would be played other than written, and two values could become one."""
+    ns = value * ns_per_unit
+    if ns.denominator != 1:
+        raise reader.error(node, f"expected {what} in whole nanoseconds, found "
+                                 f"{exact_words(value)} {unit}")
+    return int(ns)
 
 
 def _grid(reader: Reader, node: Node) -> Grid:
@@ -367,15 +377,26 @@ def _positions(reader: Reader, node: Node,
         raise reader.error(
             node, f"expected at most {MAX_POSITIONS} calibrated positions, found {len(pairs)}"
         )
-    positions = []
+    positions: list[tuple[int, int, Node | None]] = []
     for width_node, position_node in pairs:
         width_ns = reader.attempt(partial(read_width_ns, reader, width_node), None)
         position = reader.attempt(
             partial(reader.integer, position_node, f"a position ({unit.what})", unit.low,
                     unit.high), None
         )
-        if width_ns is not None and position is not None:
-            positions.append((width_ns, position, position_node))
+        if width_ns is None or position is None:
+            continue
+        # Two widths at one position: a stimulus between them would move no pin, and every
+        # trial of it would be recorded as delivered.
+        same = next((w for w, p, _ in positions if p == position), None)
+        if same is not None:
+            reader.error(position_node, f"expected each pulse width at a position of its own "
+                                        f"(the pin must go up and come down), found "
+                                        f"{exact_words(Fraction(same, 1_000_000))} ms and "
+                                        f"{exact_words(Fraction(width_ns, 1_000_000))} ms both "
+                                        f"at {position} {unit.what}")
+            continue
+        positions.append((width_ns, position, position_node))
     return tuple(positions)
 
 

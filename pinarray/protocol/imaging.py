@@ -19,6 +19,7 @@ from fractions import Fraction
 from typing import TypeAlias, TypeVar
 
 from pinarray.errors import PinArrayError
+from pinarray.protocol.device import whole_ns
 from pinarray.protocol.model import NS_PER_S
 from pinarray.protocol.yaml_nodes import Node, Reader
 
@@ -206,7 +207,7 @@ def read_sync(reader: Reader, node: Node) -> ScannerSync:
 def _between(reader: Reader, node: Node, what: str, low_ns: int, high_ns: int) -> int:
     value = reader.number(node, what, "s", minimum=Fraction(low_ns, NS_PER_S), allow_zero=True,
                           maximum=Fraction(high_ns, NS_PER_S))
-    return round(value * NS_PER_S)
+    return whole_ns(reader, node, value, NS_PER_S, what, "s")
 
 
 def _located(reader: Reader, node: Node, read):

@@ -17,7 +17,7 @@ from pinarray.protocol.device import read_device
 from pinarray.protocol.imaging import read_sync
 from pinarray.protocol.model import Protocol, Stimulus
 from pinarray.protocol.stimuli import read_stimuli
-from pinarray.protocol.yaml_nodes import Node, Reader
+from pinarray.protocol.yaml_nodes import Node, Reader, shown
 from pinarray.text_files import NotText, decode_text, read_bounded
 
 if TYPE_CHECKING:
@@ -25,6 +25,11 @@ if TYPE_CHECKING:
 
 # The seed's protocols are about 1 KiB; a 64x64 grid calibrated pin by pin stays well below.
 MAX_PROTOCOL_BYTES = 1 << 20
+# The protocol's name is its runs' task label: sub-<subject>_ses-<session>_task-<label>_run-<k>
+# begins every file name of a run, and a file name holds at most 255 bytes. The longest (the
+# motion recording's sidecar as it is written, `pinarray.journal.paths.RunPaths`) holds 66
+# beside the label with one-character subject and session labels: a longer label no run writes.
+MAX_TASK_LABEL_CHARS = 255 - 66
 
 
 def load_protocol(path: str | Path, *, long_trials: bool = False,
@@ -61,7 +66,7 @@ def parse_protocol(
         ),
         none,
     )
-    name = reader.optional(top, "protocol", lambda n: reader.string(n, "the protocol name"), "")
+    name = reader.optional(top, "protocol", lambda n: _name(reader, n), "")
     description = reader.optional(
         top, "description", lambda n: reader.string(n, "the description"), ""
     )
@@ -92,6 +97,27 @@ def parse_protocol(
         hashlib.sha256(text.encode("utf-8")).hexdigest(),
         sync,
     )
+
+
+def task_label(name: str) -> str:
+    """The BIDS task label a protocol's name gives its runs' files: its letters and digits,
+    spaces and punctuation dropped."""
+    return "".join(ch for ch in name if ch.isalnum())
+
+
+def _name(reader: Reader, node: Node) -> str:
+    """The protocol's name, refused where its runs' files could not carry it as their label."""
+    name = reader.string(node, "the protocol name")
+    label = task_label(name)
+    if not label or not label.isascii():
+        raise reader.error(node, "expected a protocol name with letters or digits, all ASCII "
+                                 "(they make the BIDS task label in its runs' file names; spaces "
+                                 f"and punctuation are dropped), found {shown(name)}")
+    if len(label) > MAX_TASK_LABEL_CHARS:
+        raise reader.error(node, f"expected a protocol name of at most {MAX_TASK_LABEL_CHARS} "
+                                 "letters and digits (its runs' task label, in file names of at "
+                                 f"most 255 bytes), found {len(label)}")
+    return name
 
 
 def protocol_warnings(protocol: Protocol) -> list[str]:

@@ -26,13 +26,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import replace
-from fractions import Fraction
 from functools import partial
 
 from yaml import Mark, ScalarNode
 
 from pinarray.grid import Grid
-from pinarray.protocol.device import MS, read_pin
+from pinarray.protocol.device import MS, read_pin, whole_ns
 from pinarray.protocol.model import (
     Device,
     Frames,
@@ -176,15 +175,17 @@ def read_frames(reader: Reader, node: Node, device: Device | None,
     with reader.section():
         named = [reader.attempt(partial(stimulus_named, reader, item, patterns, declared,
                                         PatternStimulus), None) for item in items]
-        soa = reader.attempt(lambda: MS * reader.number(keys["soa_ms"], "the frames' SOA", "ms",
-                                                        maximum=60_000), Fraction(0))
+        soa = reader.attempt(lambda: whole_ns(
+            reader, keys["soa_ms"], reader.number(keys["soa_ms"], "the frames' SOA", "ms",
+                                                  maximum=60_000), MS, "the frames' SOA", "ms"),
+            0)
     frames: list[tuple[str, Pattern]] = []
     for stimulus in named:
         if stimulus is None:  # a pattern whose own problem is already reported
             raise Invalid("frames of a broken pattern")
         assert isinstance(stimulus.shape, Pattern)  # a pattern's name: stimulus_named saw it
         frames.append((stimulus.name, stimulus.shape))
-    shape = Frames(tuple(frames), round(soa))
+    shape = Frames(tuple(frames), soa)
     if device is not None:
         check_drives(reader, keys["soa_ms"], shape.drives(), device)
     return shape

@@ -16,9 +16,9 @@ from typing import TypeVar
 from pinarray.errors import PinArrayError
 from pinarray.grid import Grid
 from pinarray.protocol.bus import bus_problem
-from pinarray.protocol.device import MS, read_pin, read_width_ns
+from pinarray.protocol.device import MS, read_pin, read_width_ns, whole_ns
 from pinarray.protocol.drives import check_no_overlap
-from pinarray.protocol.feasibility import check_train
+from pinarray.protocol.feasibility import check_train, shortest_lift_ns
 from pinarray.protocol.model import (
     DIRECTION_NAME,
     DIRECTION_OF_WAVE,
@@ -227,6 +227,13 @@ def check_period(reader: Reader, widths_node: Node, duration_node: Node, train: 
             f"({float(train.slot_ns) / 1e6:g} ms at {float(train.frequency_hz):g} Hz), "
             f"found {train.duration_ns / 1e6:g} ms",
         )
+    if shortest_lift_ns(train) is None:  # the phase starts it down and it ends before a lift
+        raise reader.error(
+            duration_node,
+            f"expected a signal that lifts the pin at least once, found none: its "
+            f"{train.duration_ns / 1e6:g} ms end before its first up pulse (at "
+            f"{float(train.frequency_hz):g} Hz, phase {float(train.phase * 360):g} deg)",
+        )
 
 
 def _widths(reader: Reader, node: Node) -> tuple[int, int]:
@@ -234,6 +241,10 @@ def _widths(reader: Reader, node: Node) -> tuple[int, int]:
     with reader.section():
         up_ns, down_ns = (reader.attempt(partial(read_width_ns, reader, widths[k]), 0)
                           for k in ("up", "down"))
+    if up_ns == down_ns:  # one position: the pin would hold still, every trial "delivered"
+        raise reader.error(node, "expected an up pulse width other than the down one (the pin "
+                                 "must go up and come down), found both "
+                                 f"{exact_words(Fraction(up_ns, 1_000_000))} ms")
     return up_ns, down_ns
 
 
@@ -362,16 +373,16 @@ def read_wave(
             "without one (only a localisation design's frequencies_hz complete such a train)",
         )
     with reader.section():
-        soa = reader.optional(
+        soa_ns = reader.optional(
             keys, "soa_ms",
-            lambda n: MS * reader.number(
+            lambda n: whole_ns(reader, n, reader.number(
                 n, "the SOA", "ms", maximum=60_000, minimum=0, allow_zero=True
-            ),
+            ), MS, "the SOA", "ms"),
             # Tactile Brush (Israr & Poupyrev): SOA = 0.32 x duration + 47.3 ms.
-            Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS,
+            round(Fraction(32, 100) * train.duration_ns + Fraction(473, 10) * MS),
         )
-    wave: AnyWave = (Wave(kind, row, pins, train, round(soa)) if kind in ROW_WAVES
-                     else PathWave(kind, direction, pins, train, round(soa)))
+    wave: AnyWave = (Wave(kind, row, pins, train, soa_ns) if kind in ROW_WAVES
+                     else PathWave(kind, direction, pins, train, soa_ns))
     if device is not None:
         # What a localisation train gets checked for, each pin of the wave gets too.
         check_train_on_pins(reader, keys["train"], train, pins, device)

@@ -50,6 +50,7 @@ from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol.adapted import adapted
+from pinarray.protocol.load import task_label as protocol_task_label
 from pinarray.protocol.model import Condition, Protocol
 from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
 from pinarray.session.procedures import Presented, Procedures
@@ -146,8 +147,9 @@ class TrialOutcome:
 
 
 def task_label(protocol: Protocol) -> str:
-    """The BIDS task label: the protocol's name with anything but letters and digits dropped."""
-    label = "".join(ch for ch in protocol.name if ch.isalnum())
+    """The BIDS task label: the protocol's name with anything but letters and digits dropped
+    (what a protocol file names, `pinarray.protocol.load` has checked)."""
+    label = protocol_task_label(protocol.name)
     if not label:
         raise PinArrayError(f"{protocol.source}: the protocol name {protocol.name!r} has no letters or digits for a task label")
     return label

@@ -18,7 +18,7 @@ from fractions import Fraction
 from typing import TYPE_CHECKING, ClassVar
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol.device import MS, read_pin
+from pinarray.protocol.device import MS, read_pin, whole_ns
 from pinarray.protocol.model import (
     Condition,
     Design,
@@ -149,8 +149,9 @@ class TemporalOrderDesign(DesignDefaults):
         else:
             section.needs("soas_ms", paradigm=self.name)
             soas = read_levels(reader, keys["soas_ms"], "the SOAs", "ms", signed=True)
-        written = tuple(Written(TemporalOrderCondition(stimulus.name, (a, b), round(soa * MS)),
-                                item, f"at an SOA of {float(soa):g} ms: ") for item, soa in soas)
+        written = tuple(Written(TemporalOrderCondition(
+            stimulus.name, (a, b), whole_ns(reader, item, soa, MS, "an SOA", "ms")),
+            item, f"at an SOA of {float(soa):g} ms: ") for item, soa in soas)
         return ReadDesign(written, TemporalOrder(stimulus.name, (a, b),
                                                  places(section.device.grid, a, b)))
 

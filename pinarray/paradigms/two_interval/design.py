@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, ClassVar
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.adapted import adapted_stimulus, drives_of
-from pinarray.protocol.device import MS
+from pinarray.protocol.device import MS, whole_ns
 from pinarray.protocol.model import (
     Condition,
     Design,
@@ -156,13 +156,14 @@ class TwoIntervalDesign(DesignDefaults):
         parameter = Parameter(reader.string(keys["compare"], "the compared parameter",
                                             tuple(p.value for p in COMPARED)))
         standard = reader.number(keys["standard"], "the standard", parameter.unit)
-        gap = reader.optional(keys, "interval_gap_ms",
-                              lambda n: reader.number(n, "the gap between the intervals", "ms",
-                                                      allow_zero=True, maximum=60_000),
-                              Fraction(DEFAULT_GAP_MS))
+        gap_ns = reader.optional(
+            keys, "interval_gap_ms",
+            lambda n: whole_ns(reader, n, reader.number(n, "the gap between the intervals", "ms",
+                                                        allow_zero=True, maximum=60_000),
+                               MS, "the gap between the intervals", "ms"),
+            round(DEFAULT_GAP_MS * MS))
         question = reader.optional(keys, "question", lambda n: _question(reader, n),
                                    QUESTIONS[parameter])
-        gap_ns = round(gap * MS)
         if adapting is not None:
             if "comparisons" in keys:
                 raise reader.error(keys["comparisons"], "expected no 'comparisons' in an "
