@@ -132,6 +132,27 @@ def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]) -> Non
         loop.add_signal_handler(number, handle, number)
 
 
+
+@contextmanager
+def signals_wake(fd: int) -> Iterator[None]:
+    """Inside the block, every signal Python handles also writes a byte to ``fd`` the moment
+    it arrives, whichever thread the kernel gives it to: for a main thread that blocks in
+    ``select`` with no timeout, watching the read end of ``fd``'s pipe (``fd`` must not block).
+
+    Python runs a handler only when the main thread next runs Python code: a signal taken by
+    another thread, or landing just before the ``select`` begins, would leave the main thread
+    blocked with the handler not yet run (a ``sim-serve`` once stayed up 60 s after SIGTERM).
+    The byte wakes it, and the handler runs. Outside the main thread this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.set_wakeup_fd(fd, warn_on_full_buffer=False)
+    try:
+        yield
+    finally:
+        signal.set_wakeup_fd(previous)
+
 @contextmanager
 def raise_on_signals(what: str) -> Iterator[None]:
     """Inside the block, every stop signal raises `Stopped` where the main thread is.

@@ -30,6 +30,7 @@ from pinarray.hardware.feetech.registers import Instruction
 from pinarray.hardware.feetech.sim import InstructionPacket, SimBus
 from pinarray.hardware.feetech.sim_levels import Fidelity
 from pinarray.hardware.feetech.sim_wire import byte_time_ns, schedule
+from pinarray.stop import signals_wake
 
 DEFAULT_BAUD = 1_000_000
 # Linux: read a non-standard speed (pyserial sets 128000 or 250000 with BOTHER + TCSETS2).
@@ -139,6 +140,7 @@ class PtyServer:
         os.set_blocking(self._controller, False)
         self.path = os.ttyname(self._device)
         self._wake_read, self._wake_write = os.pipe()
+        os.set_blocking(self._wake_write, False)  # a signal's byte must never block (signals_wake)
         self._stopping = threading.Event()
         # Re-entrant: a signal handler calling request_stop may interrupt _close in this thread.
         self._fd_lock = threading.RLock()
@@ -154,31 +156,38 @@ class PtyServer:
             self.sim.packet_listener = self._log
 
     def serve_forever(self) -> None:
-        """Answer instruction packets until `stop` (or until a ``vanish_after`` fault fires)."""
+        """Answer instruction packets until `stop` (or until a ``vanish_after`` fault fires).
+
+        In the main thread, a stop signal wakes the wait at once (`signals_wake`): its handler
+        may request the stop only after the wait has begun."""
         try:
-            while not self._stopping.is_set():
-                timeout_s = None
-                if self._due:
-                    timeout_s = max(0.0, (self._due[0][0] - time.monotonic_ns()) / 1e9)
-                ready, _, _ = select.select([self._controller, self._wake_read], [], [], timeout_s)
-                if self._wake_read in ready:
-                    os.read(self._wake_read, 64)
-                if self._controller in ready:
-                    try:
-                        data = os.read(self._controller, 4096)
-                    except BlockingIOError:
-                        data = b""
-                    except OSError:
-                        # No client attached right now: look again in a millisecond.
-                        self._wall.doze_until_ns(self._wall.now_ns() + 1_000_000)
-                        continue
-                    if data:
-                        self._take(data, time.monotonic_ns())
-                    if self.sim.vanished:
-                        break  # the "USB adapter" is pulled: clients see I/O errors
-                self._send_due()
+            with signals_wake(self._wake_write):
+                self._serve()
         finally:
             self._close()
+
+    def _serve(self) -> None:
+        while not self._stopping.is_set():
+            timeout_s = None
+            if self._due:
+                timeout_s = max(0.0, (self._due[0][0] - time.monotonic_ns()) / 1e9)
+            ready, _, _ = select.select([self._controller, self._wake_read], [], [], timeout_s)
+            if self._wake_read in ready:
+                os.read(self._wake_read, 64)
+            if self._controller in ready:
+                try:
+                    data = os.read(self._controller, 4096)
+                except BlockingIOError:
+                    data = b""
+                except OSError:
+                    # No client attached right now: look again in a millisecond.
+                    self._wall.doze_until_ns(self._wall.now_ns() + 1_000_000)
+                    continue
+                if data:
+                    self._take(data, time.monotonic_ns())
+                if self.sim.vanished:
+                    break  # the "USB adapter" is pulled: clients see I/O errors
+            self._send_due()
 
     def start(self) -> PtyServer:
         """Serve from a background thread (for tests and benchmarks)."""
