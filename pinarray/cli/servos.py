@@ -1,4 +1,5 @@
-"""`pinarray servos ...`: bring-up of new servos from the shell (the work is in `pinarray.hardware.feetech.bringup`).
+"""`pinarray servos ...`: bring-up of new servos from the shell (the work is in
+`pinarray.hardware.feetech.bringup` and `pinarray.hardware.feetech.scan`).
 
 Every command opens the bus without the playback handshake (which would switch torque on
 everywhere), names servo ids and registers in its errors (exit status 2, one line), and leaves
@@ -255,7 +256,7 @@ def _failures(failures, what: str, target: Target, absent: tuple[int, ...]) -> N
 def cmd_scan(args: argparse.Namespace) -> int:
     from pinarray.cli import common
     from pinarray.cli.bus import chosen_bus
-    from pinarray.hardware.feetech import bringup
+    from pinarray.hardware.feetech import bringup, scan
     from pinarray.hardware.feetech.registers import STS3215_MODEL_NUMBER
     from pinarray.stop import StopRequest, stop_on_signals
 
@@ -267,8 +268,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
             timeout_ns = (args.timeout_ms * 1_000_000 if args.timeout_ms
                           else bringup.sweep_timeout_ns(bus))
             progress = _Progress(stop, timeout_ns)
-            result = bringup.scan(bus, ids, timeout_ns, progress,
-                                  still_wanted=stop.raise_if_requested)
+            result = scan.scan(bus, ids, timeout_ns, progress,
+                               still_wanted=stop.raise_if_requested)
             progress.done()
         finally:
             bus.close()
@@ -286,7 +287,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
         say(f"{unreadable.servo_id:>3}  answers a PING, but reading it failed: "
             f"{unreadable.problem}")
     count = len(result.servo_ids)
-    if result.method is bringup.ScanMethod.BROADCAST:
+    if result.method is scan.ScanMethod.BROADCAST:
         say(f"{count} servo(s) answered a broadcast ping on {url}")
     else:
         why = f"; {result.sweep_reason}" if result.sweep_reason else ""

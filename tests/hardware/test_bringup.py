@@ -5,7 +5,7 @@ import pytest
 from pinarray.clock import VirtualClock
 from pinarray.errors import BusError, PinArrayError
 from pinarray.hardware.driver import ServoSetup
-from pinarray.hardware.feetech import bringup
+from pinarray.hardware.feetech import bringup, scan
 from pinarray.hardware.feetech import jog as jog_module
 from pinarray.hardware.feetech.base import BusSetup
 from pinarray.hardware.feetech.link import Latency
@@ -28,8 +28,8 @@ def answering(bus) -> list[int]:
 
 def test_a_lone_new_servo_is_found_by_one_broadcast_ping():
     bus = bare_bus("ids=1")
-    result = bringup.scan(bus)
-    assert result.method is bringup.ScanMethod.BROADCAST
+    result = scan.scan(bus)
+    assert result.method is scan.ScanMethod.BROADCAST
     (servo,) = result.found
     assert (servo.servo_id, servo.model_number, servo.return_delay_us) == (1, 777, 500)
     assert servo.telemetry.position_steps == 2048 and result.swept_ids == ()
@@ -40,16 +40,16 @@ def test_a_lone_servo_answering_past_the_first_wait_is_found_by_a_second_broadca
     # busy host can hold it so long): heard when asked again, listening longer; no sweep.
     bus = bare_bus("ids=1&late=1&late_ms=60")
     bus.link.latency = Latency(timer_ms=None)
-    result = bringup.scan(bus)
-    assert result.method is bringup.ScanMethod.BROADCAST and result.servo_ids == (1,)
+    result = scan.scan(bus)
+    assert result.method is scan.ScanMethod.BROADCAST and result.servo_ids == (1,)
     assert result.swept_ids == ()
 
 
 def test_several_servos_collide_on_a_broadcast_ping_so_every_id_is_swept_in_turn():
     bus = bare_bus("ids=3,9,40")
     seen = []
-    result = bringup.scan(bus, progress=lambda i, last, found: seen.append((i, last, found)))
-    assert result.method is bringup.ScanMethod.SWEEP
+    result = scan.scan(bus, progress=lambda i, last, found: seen.append((i, last, found)))
+    assert result.method is scan.ScanMethod.SWEEP
     assert "collided" in result.sweep_reason
     assert result.servo_ids == (3, 9, 40)
     assert [i for i, _, _ in seen] == list(range(253)) and seen[-1][1] == 252
@@ -72,7 +72,7 @@ def test_a_full_sweep_looks_twice_more_beside_what_answered_and_says_who_answere
 
     bus.ping_within = losing
     seen = []
-    result = bringup.scan(bus, timeout_ns=10**7,
+    result = scan.scan(bus, timeout_ns=10**7,
                           progress=lambda i, last, found: seen.append((i, found)))
     assert result.servo_ids == tuple(range(1, 17))
     assert seen[252] == (252, tuple(range(1, 16))) and seen[-1] == (252, tuple(range(1, 17)))
@@ -99,7 +99,7 @@ def test_a_full_sweep_looks_longer_still_while_looking_again_finds_someone():
         return ping_within(servo_id, timeout_ns)
 
     bus.ping_within = losing
-    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
+    assert scan.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
 
 
 def test_servos_lost_at_the_end_of_an_array_are_found_as_those_beside_them_answer():
@@ -115,7 +115,7 @@ def test_servos_lost_at_the_end_of_an_array_are_found_as_those_beside_them_answe
         return ping_within(servo_id, timeout_ns)
 
     bus.ping_within = losing
-    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
+    assert scan.scan(bus, timeout_ns=10**7).servo_ids == tuple(range(1, 17))
 
 
 def test_a_sparse_full_sweep_looks_once_at_the_gaps_where_nobody_answers():
@@ -128,7 +128,7 @@ def test_a_sparse_full_sweep_looks_once_at_the_gaps_where_nobody_answers():
         return ping_within(servo_id, timeout_ns)
 
     bus.ping_within = counted
-    assert bringup.scan(bus, timeout_ns=10**7).servo_ids == (3, 9, 40)
+    assert scan.scan(bus, timeout_ns=10**7).servo_ids == (3, 9, 40)
     assert waits_ns[2] == waits_ns[20] == waits_ns[41] == [10**7, 4 * 10**7]
     assert waits_ns[42] == [10**7]
 
@@ -144,22 +144,22 @@ def test_a_sweep_waits_a_bounded_time_per_silent_id():
     bus.link.latency = Latency(timer_ms=None)
     bus.broadcast_ping()
     start_ns = bus.clock.now_ns()
-    result = bringup.scan(bus, ids=range(253), timeout_ns=3_000_000)
+    result = scan.scan(bus, ids=range(253), timeout_ns=3_000_000)
     spent_ns = bus.clock.now_ns() - start_ns
     assert result.found == ()
     assert 253 * 3_000_000 <= spent_ns <= 253 * 3_100_000
 
 
 def test_a_silent_bus_is_swept_after_a_broadcast_ping_nobody_answers():
-    result = bringup.scan(bare_bus("ids=1&missing=1"))
+    result = scan.scan(bare_bus("ids=1&missing=1"))
     assert result.found == () and result.sweep_reason == "nothing answered a broadcast ping"
     assert result.swept_ids == tuple(range(253))
 
 
 def test_given_ids_are_swept_without_a_broadcast():
     bus = bare_bus("ids=1-3")
-    result = bringup.scan(bus, ids=(2, 3, 4))
-    assert result.method is bringup.ScanMethod.SWEEP and result.sweep_reason == ""
+    result = scan.scan(bus, ids=(2, 3, 4))
+    assert result.method is scan.ScanMethod.SWEEP and result.sweep_reason == ""
     assert result.servo_ids == (2, 3) and result.swept_ids == (2, 3, 4)
 
 
@@ -173,7 +173,7 @@ def test_a_stop_requested_during_a_sweep_ends_it():
         stop.raise_if_requested()
 
     with pytest.raises(Stopped):
-        bringup.scan(bus, progress=progress)
+        scan.scan(bus, progress=progress)
 
 
 
@@ -201,7 +201,7 @@ def test_a_stop_requested_while_looking_again_at_silent_ids_ends_the_scan_at_the
 
     bus.ping_within = counted
     with pytest.raises(Stopped):
-        bringup.scan(bus, progress=lambda *found: stop.raise_if_requested(),
+        scan.scan(bus, progress=lambda *found: stop.raise_if_requested(),
                      still_wanted=still_wanted)
     assert len(looks) == 5 and pinged_after_stop == []
 
@@ -429,5 +429,5 @@ def test_a_servo_whose_answer_a_busy_host_held_up_is_still_found_among_an_arrays
     # Every answer comes 20 ms late (past the sweep's 10 ms wait): a look again, four times
     # longer, at the ids that were silent finds them.
     bus = bare_bus("ids=1-3&late=1&late_ms=20")
-    result = bringup.scan(bus, ids=(1, 2, 3, 4), timeout_ns=10_000_000)
+    result = scan.scan(bus, ids=(1, 2, 3, 4), timeout_ns=10_000_000)
     assert result.servo_ids == (1, 2, 3)
