@@ -1,6 +1,7 @@
 """`pinarray servos ...` as a lab types it, on simulated servos (in-process, virtual time)."""
 
 import io
+import re
 import sys
 from pathlib import Path
 
@@ -94,6 +95,25 @@ def test_scan_of_several_servos_sweeps_every_id_with_progress_on_stderr(capsys):
     progress = err.splitlines()
     assert progress[0] == "sweeping: id 31 of 252, found so far: 2, 5"
     assert progress[-1] == "sweeping: id 252 of 252, found so far: 2, 5, 200"
+
+
+def test_a_scan_under_heavy_loss_says_how_far_looking_again_has_got(capsys):
+    # Fourteen servos spread over the ids, 60 % of the instructions lost: the sweep misses
+    # most, and looking again lasts longer than the sweep (on main: not a word meanwhile, up
+    # to 45 s on a pty).
+    url = "sim://?ids=3,9,20,40,55,70,90,110,130,150,170,190,210,240&drop=0.6&seed=1"
+    status, out, err = run(capsys, "servos", "scan", "--sim", url, "--timeout-ms", "10")
+    assert status == 0
+    lines = err.splitlines()
+    said = [tuple(map(int, m.groups())) for m in (
+        re.fullmatch(r"looking again, up to (\d+) ms each: id \d+ \((\d+) of \d+\), found so "
+                     r"far: .*", line) for line in lines) if m]
+    assert said and said[0][1] == 1  # a round says where it starts
+    for (wait_ms, done), (next_wait_ms, next_done) in zip(said, said[1:], strict=False):
+        if next_wait_ms == wait_ms and next_done > done:  # the same round: at most 32 sweep
+            assert (next_done - done) * wait_ms <= 32 * 10  # waits without a word
+    assert lines[-1].startswith("sweeping: id 252 of 252, found so far: ")  # who, at last
+    assert out.splitlines()[-1].startswith(f"{len(lines[-1].split(': ')[-1].split(', '))} ")
 
 
 def test_pinarray_scan_is_the_same_command(capsys):

@@ -12,6 +12,7 @@ servos that do not answer are named and how every way out leaves them safe.
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from dataclasses import dataclass
 
@@ -37,8 +38,11 @@ answers it and is found at once; several answering together collide on the wire,
 every id 0-252 is pinged in turn, with progress on stderr. Each id waits at most --timeout-ms
 for its answer (default: the USB adapter's latency timer + 2 ms, or 10 ms when it has none
 that can be read, e.g. a CH340 or a pseudo-terminal); an FTDI adapter left at its 16 ms
-latency timer needs more (see `pinarray timing --help` to lower it). Servos listen at one
-speed only: try --baud when nothing answers.
+latency timer needs more (see `pinarray timing --help` to lower it). The silent ids among and
+beside those found are then looked at again, in rounds, each four times longer, while a round
+finds someone, saying how far it has got; in all at most twice as long as the sweep (a full
+scan: at most three sweeps' time). Servos listen at one speed only: try --baud when nothing
+answers.
 """
 
 SET_ID_EPILOG = """\
@@ -269,7 +273,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
                           else bringup.sweep_timeout_ns(bus))
             progress = _Progress(stop, timeout_ns)
             result = scan.scan(bus, ids, timeout_ns, progress,
-                               still_wanted=stop.raise_if_requested)
+                               still_wanted=stop.raise_if_requested, looking_again=progress.again)
             progress.done()
         finally:
             bus.close()
@@ -300,28 +304,49 @@ def cmd_scan(args: argparse.Namespace) -> int:
 
 
 class _Progress:
-    """A sweep's progress on stderr: one line rewritten on a terminal, a line per 32 ids else."""
+    """A scan's progress on stderr: one line rewritten on a terminal; else a line per 32 ids of
+    the sweep, and while looking again at silent ids, a line at least every 32 first waits
+    (a round of looking again may last seconds). The sweep's last line is said last."""
 
     def __init__(self, stop, timeout_ns: int):
         self.stop = stop
         self.timeout_ns = timeout_ns
         self.tty = sys.stderr.isatty()
         self.shown = False
+        self.last_word = ""  # the sweep's last line, said again after looking again
+        self.again_said = False
 
     def __call__(self, servo_id: int, last_id: int, found: tuple[int, ...]) -> None:
         self.stop.raise_if_requested()
         text = f"sweeping: id {servo_id} of {last_id}, found so far: {_ranges(found)}"
+        if servo_id == last_id:
+            self.last_word, self.again_said = text, False
+        self._say(text, servo_id % 32 == 31 or servo_id == last_id)
+
+    def again(self, step) -> None:
+        """Before each PING of a look again (a `scan.LookingAgain`)."""
+        self.stop.raise_if_requested()
+        every = max(1, 32 * self.timeout_ns // step.wait_ns)
+        self._say(f"looking again, up to {step.wait_ns / 1e6:g} ms each: id {step.servo_id} "
+                  f"({step.done + 1} of {step.count}), found so far: "
+                  f"{_ranges(step.found_ids)}", step.done % every == 0)
+        self.again_said = True
+
+    def _say(self, text: str, on_a_line_of_its_own: bool) -> None:
         if self.tty:
+            width = shutil.get_terminal_size().columns
             try:
-                sys.stderr.write("\r" + text + "\x1b[K")
+                sys.stderr.write("\r" + text[:max(1, width - 1)] + "\x1b[K")
                 sys.stderr.flush()
             except OSError:
                 pass
             self.shown = True
-        elif servo_id % 32 == 31 or servo_id == last_id:
+        elif on_a_line_of_its_own:
             say(text, error=True)
 
     def done(self) -> None:
+        if self.again_said and self.last_word:
+            self._say(self.last_word, True)
         if self.shown:
             say("", error=True)
 

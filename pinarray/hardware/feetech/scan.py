@@ -9,6 +9,7 @@ them.
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -31,8 +32,27 @@ LOOK_TWICE_IDS = 4
 # ... and again, each time four times longer, while looking again finds someone (a busy host),
 # up to 4**LONGEST_LOOK times a first PING's wait.
 LONGEST_LOOK = 3
+# Looking again waits in all at most this many times as long as the sweep did (or, for a
+# sweep of an array's ids or fewer, as long as `LOOK_AGAIN_IDS` ids each looked at four times
+# longer): a full scan then waits at most three sweeps' time, however many answers the bus
+# loses. A round that would overrun what is left waits less per id, down to the sweep's own
+# wait, and then looks at as many ids as fit, those nearest the servos found first.
+LOOK_AGAIN_SWEEPS = 2
 
 Progress = Callable[[int, int, tuple[int, ...]], object]
+
+
+@dataclass(frozen=True)
+class LookingAgain:
+    """How far looking again has got: ``servo_id`` is about to be pinged, the ``done + 1``-th
+    of the ``count`` ids of this round, each waited for at most ``wait_ns``; ``found_ids``
+    answered so far."""
+
+    servo_id: int
+    done: int
+    count: int
+    wait_ns: int
+    found_ids: tuple[int, ...]
 
 
 class ScanMethod(StrEnum):
@@ -85,7 +105,8 @@ class ScanResult:
 
 def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
          timeout_ns: int = SWEEP_TIMEOUT_NS, progress: Progress | None = None,
-         still_wanted: Callable[[], object] | None = None) -> ScanResult:
+         still_wanted: Callable[[], object] | None = None,
+         looking_again: Callable[[LookingAgain], object] | None = None) -> ScanResult:
     """Find the servos on the bus: one broadcast ping, else a sweep of ids.
 
     Parameters
@@ -98,8 +119,8 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         answer past a quiet host's wait); a sweep of more looks again only at silent ids in
         the gaps of those that answered and just beside them, once more, four times longer
         again, when those are few (`LOOK_TWICE_IDS`) or the last look found someone (up to
-        `LONGEST_LOOK`). Progress is said once more when looking again found someone.
-        Default: a
+        `LONGEST_LOOK`), in all waiting at most `LOOK_AGAIN_SWEEPS` times as long as the
+        sweep. Progress is said once more when looking again found someone. Default: a
         broadcast ping, which finds a lone servo (a new one) at once, asked again listening
         longer when nothing answers it; when nothing answers that either or several answers
         collide, every id 0-252, once.
@@ -110,8 +131,10 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         stop the sweep (e.g. `pinarray.stop.Stopped`).
     still_wanted : callable, optional
         Called before each ping that is not a sweep's first of its id (the broadcast asked
-        again, every look again); it may raise to stop the scan as ``progress`` may: a look
-        again in which nobody answers says no progress, and may last seconds.
+        again, every look again); it may raise to stop the scan as ``progress`` may.
+    looking_again : callable, optional
+        ``looking_again(LookingAgain(...))`` before each ping of a look again (after
+        ``still_wanted``): a round may last seconds, and says no ``progress`` until it ends.
     """
     def check() -> None:
         if still_wanted is not None:
@@ -139,34 +162,67 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    patience = PATIENCE_GROWTH
-    silent = _to_look_at_again(models, look_again)
-    while silent and patience <= PATIENCE_GROWTH ** LONGEST_LOOK:
-        for servo_id in silent:
-            check()
-            models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
-        heard = [i for i in silent if models[i] is not None]
-        if heard and progress is not None:  # the sweep's last word: who answered in the end
-            progress(ids[-1], ids[-1], tuple(i for i in ids if models[i] is not None))
-        silent = _to_look_at_again(models, look_again)
-        # Looking again found someone: the host is busy, so the rest may be lost answers too.
-        few = len(silent) <= LOOK_TWICE_IDS and patience == PATIENCE_GROWTH
-        if look_again or not (heard or few):
-            break
-        patience *= PATIENCE_GROWTH
+    if _look_again(bus, ids, models, timeout_ns, look_again, check, looking_again) \
+            and progress is not None:  # the sweep's last word: who answered in the end
+        progress(ids[-1], ids[-1], _answered(models))
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
+
+
+def _look_again(bus: FeetechBus, ids: tuple[int, ...], models: dict[int, int | None],
+                timeout_ns: int, every_silent_id: bool, check: Callable[[], None],
+                looking_again: Callable[[LookingAgain], object] | None) -> bool:
+    """Ping silent ids again, longer, in rounds (see `scan`), filling ``models`` in; whether
+    looking again found anyone."""
+    # In first-PING waits: what all the rounds together may wait.
+    budget = max(LOOK_AGAIN_SWEEPS * len(ids), LOOK_AGAIN_IDS * PATIENCE_GROWTH)
+    patience = PATIENCE_GROWTH
+    found_anyone = False
+    for look in range(1, LONGEST_LOOK + 1):
+        silent = _to_look_at_again(models, every_silent_id)
+        wait = max(1, min(patience, budget // max(1, len(silent))))
+        silent = silent[:budget // wait]
+        if not silent:
+            break
+        budget -= wait * len(silent)
+        for done, servo_id in enumerate(silent):
+            check()
+            if looking_again is not None:
+                looking_again(LookingAgain(servo_id, done, len(silent), wait * timeout_ns,
+                                           _answered(models)))
+            models[servo_id] = bus.ping_within(servo_id, wait * timeout_ns)
+        heard = any(models[i] is not None for i in silent)
+        found_anyone = found_anyone or heard
+        # Looking again found someone: the host is busy, so the rest may be lost answers too.
+        few = len(_to_look_at_again(models, every_silent_id)) <= LOOK_TWICE_IDS and look == 1
+        if every_silent_id or not (heard or few):
+            break
+        patience *= PATIENCE_GROWTH
+    return found_anyone
+
+
+def _answered(models: dict[int, int | None]) -> tuple[int, ...]:
+    return tuple(i for i, model in models.items() if model is not None)
 
 
 def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool) -> list[int]:
     """The ids swept that have not answered; in a full sweep only those in the gaps of the
     ids that answered or just beside them (an array's ids run together, so that is where a
-    busy host lost one; as more answer, the ids beside them join)."""
+    busy host lost one; as more answer, the ids beside them join), nearest those first."""
     silent = [i for i, model in models.items() if model is None]
     if every_silent_id:
         return silent
-    answered = [i for i, model in models.items() if model is not None]
-    return [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
+    answered = sorted(_answered(models))
+    if not answered:
+        return []
+    near = [i for i in silent if answered[0] - 1 <= i <= answered[-1] + 1]
+    return sorted(near, key=lambda i: (_distance(i, answered), i))
+
+
+def _distance(servo_id: int, answered: list[int]) -> int:
+    """How far ``servo_id`` is from the nearest of ``answered`` (sorted, not empty)."""
+    at = bisect_left(answered, servo_id)
+    return min(abs(answered[k] - servo_id) for k in (at - 1, at) if 0 <= k < len(answered))
 
 
 def _details(bus: FeetechBus, models: dict[int, int | None]
