@@ -164,6 +164,33 @@ def test_looking_again_under_heavy_loss_waits_at_most_twice_as_long_as_the_sweep
     assert 0 < len(result.servo_ids) <= 14
 
 
+def test_a_lone_servo_the_sweep_missed_is_looked_for_again_when_the_broadcast_heard_someone():
+    # Its answer to the broadcast ping garbled (a loose contact), its PING in the sweep lost:
+    # nobody answered the sweep, yet someone answered the broadcast, so every id is looked at
+    # again (on main none was: nobody had answered beside it).
+    bus = bare_bus("ids=200")
+    bus.sim.corrupt_next = 1
+    pings = counting_waits(bus)
+    ping_within = bus.ping_within
+    lost = {200: 1}
+
+    def losing(servo_id, timeout_ns):
+        if lost.get(servo_id):
+            lost[servo_id] -= 1
+            ping_within(servo_id, timeout_ns)  # asked, the answer lost
+            return None
+        return ping_within(servo_id, timeout_ns)
+
+    bus.ping_within = losing
+    result = scan.scan(bus, timeout_ns=10**7)
+    assert result.method is scan.ScanMethod.SWEEP and result.servo_ids == (200,)
+    assert [i for i, _ in pings[253:]] == list(range(253))  # every id, in turn
+    # A bus where the broadcast ping heard nothing either is swept once: nobody is there.
+    bus = bare_bus("ids=200&missing=200")
+    pings = counting_waits(bus)
+    assert scan.scan(bus, timeout_ns=10**7).servo_ids == () and len(pings) == 253
+
+
 def test_servos_that_answer_no_ping_are_told_apart_from_those_connected():
     bus = bare_bus("ids=1-3,6&missing=2")
     assert bringup.silent_ids(bus, range(1, 8)) == (2, 4, 5, 7)

@@ -123,7 +123,8 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         sweep. Progress is said once more when looking again found someone. Default: a
         broadcast ping, which finds a lone servo (a new one) at once, asked again listening
         longer when nothing answers it; when nothing answers that either or several answers
-        collide, every id 0-252, once.
+        collide, every id 0-252, once, and when nobody answers that sweep though the
+        broadcast ping heard someone (garbled bytes will do), every id is looked at again.
     timeout_ns : int
         How long to wait for each id's PING answer in a sweep, in nanoseconds.
     progress : callable, optional
@@ -142,6 +143,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
 
     reason = ""
     look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
+    someone_there = False  # the broadcast ping heard an answer, if only garbled bytes
     if ids is None:
         answer = bus.broadcast_ping()
         if not answer.servo_ids and not answer.garbled_bytes:
@@ -155,6 +157,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
             return ScanResult(ScanMethod.BROADCAST, found, unreadable)
         reason = ("answers to a broadcast ping collided: several servos answer"
                   if answer.garbled_bytes else "nothing answered a broadcast ping")
+        someone_there = bool(answer.servo_ids or answer.garbled_bytes)
         ids = range(MAX_SERVO_ID + 1)
     ids = tuple(ids)
     models: dict[int, int | None] = {}
@@ -162,24 +165,25 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    if _look_again(bus, ids, models, timeout_ns, look_again, check, looking_again) \
-            and progress is not None:  # the sweep's last word: who answered in the end
+    if _look_again(bus, ids, models, timeout_ns, look_again, someone_there, check,
+                   looking_again) and progress is not None:  # the sweep's last word: who answered in the end
         progress(ids[-1], ids[-1], _answered(models))
     found, unreadable = _details(bus, models)
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
 
 
 def _look_again(bus: FeetechBus, ids: tuple[int, ...], models: dict[int, int | None],
-                timeout_ns: int, every_silent_id: bool, check: Callable[[], None],
+                timeout_ns: int, every_silent_id: bool, someone_there: bool,
+                check: Callable[[], None],
                 looking_again: Callable[[LookingAgain], object] | None) -> bool:
     """Ping silent ids again, longer, in rounds (see `scan`), filling ``models`` in; whether
-    looking again found anyone."""
+    looking again found anyone. Which ids: `_to_look_at_again`."""
     # In first-PING waits: what all the rounds together may wait.
     budget = max(LOOK_AGAIN_SWEEPS * len(ids), LOOK_AGAIN_IDS * PATIENCE_GROWTH)
     patience = PATIENCE_GROWTH
     found_anyone = False
     for look in range(1, LONGEST_LOOK + 1):
-        silent = _to_look_at_again(models, every_silent_id)
+        silent = _to_look_at_again(models, every_silent_id, someone_there)
         wait = max(1, min(patience, budget // max(1, len(silent))))
         silent = silent[:budget // wait]
         if not silent:
@@ -194,7 +198,8 @@ def _look_again(bus: FeetechBus, ids: tuple[int, ...], models: dict[int, int | N
         heard = any(models[i] is not None for i in silent)
         found_anyone = found_anyone or heard
         # Looking again found someone: the host is busy, so the rest may be lost answers too.
-        few = len(_to_look_at_again(models, every_silent_id)) <= LOOK_TWICE_IDS and look == 1
+        rest = _to_look_at_again(models, every_silent_id, someone_there)
+        few = len(rest) <= LOOK_TWICE_IDS and look == 1
         if every_silent_id or not (heard or few):
             break
         patience *= PATIENCE_GROWTH
@@ -205,16 +210,19 @@ def _answered(models: dict[int, int | None]) -> tuple[int, ...]:
     return tuple(i for i, model in models.items() if model is not None)
 
 
-def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool) -> list[int]:
+def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool,
+                      someone_there: bool) -> list[int]:
     """The ids swept that have not answered; in a full sweep only those in the gaps of the
     ids that answered or just beside them (an array's ids run together, so that is where a
-    busy host lost one; as more answer, the ids beside them join), nearest those first."""
+    busy host lost one; as more answer, the ids beside them join), nearest those first. When
+    nobody answered the sweep but someone answered the broadcast ping (``someone_there``,
+    were it only garbled bytes), every id: a servo is there, its answer to the sweep lost."""
     silent = [i for i, model in models.items() if model is None]
     if every_silent_id:
         return silent
     answered = sorted(_answered(models))
     if not answered:
-        return []
+        return silent if someone_there else []
     near = [i for i in silent if answered[0] - 1 <= i <= answered[-1] + 1]
     return sorted(near, key=lambda i: (_distance(i, answered), i))
 
