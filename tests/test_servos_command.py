@@ -121,11 +121,32 @@ def test_pinarray_scan_is_the_same_command(capsys):
         capsys, "servos", "scan", "--sim", "sim://?ids=1-3", "--ids", "1-4")[1]
 
 
-def test_scan_says_what_to_check_when_nothing_answers(capsys):
+def test_scan_says_what_to_check_when_nothing_answers_and_fails(capsys):
+    # Exit status 2, as the other servos commands when no servo answers (it was 0 on main, as
+    # if all was well).
     status, out, err = run(capsys, "servos", "scan", "--sim", "sim://?ids=1&missing=1",
                            "--ids", "1-3")
-    assert status == 0 and "0 servo(s) answered" in out
-    assert "check power and cables, and --baud" in err
+    assert status == 2 and "0 servo(s) answered" in out
+    assert err.splitlines()[-1].startswith(
+        "pinarray: nothing answered: check power and cables, and --baud")
+
+
+def test_one_servo_whose_answers_all_come_garbled_is_said_to_be_there_and_the_scan_fails(capsys):
+    # Every status packet damaged (a bad cable): its broadcast answer is garbled bytes, its
+    # PINGs fail. On main: "collided: several servos answer", then "nothing answered: check
+    # power", exit 0.
+    url = "sim://?ids=1&corrupt=1"
+    status, out, err = run(capsys, "servos", "scan", "--sim", url)
+    assert status == 2
+    assert out.splitlines()[-1] == (
+        f"0 servo(s) answered on {url} (ids 0-252 pinged, up to 2 ms each; answers to a "
+        "broadcast ping came garbled: one servo's answers damaged, or several servos' "
+        "colliding)")
+    assert err.splitlines()[-1] == (
+        "pinarray: no servo answered a PING of its id, though garbled answers came back to the "
+        "broadcast ping: a servo is there whose answers arrive damaged; check cables and "
+        "connectors, and --baud")
+    assert "several servos answer" not in out + err and "nothing answered" not in err
 
 
 # -- set-id ------------------------------------------------------------------------------------

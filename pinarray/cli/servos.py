@@ -41,8 +41,9 @@ that can be read, e.g. a CH340 or a pseudo-terminal); an FTDI adapter left at it
 latency timer needs more (see `pinarray timing --help` to lower it). The silent ids among and
 beside those found are then looked at again, in rounds, each four times longer, while a round
 finds someone, saying how far it has got; in all at most twice as long as the sweep (a full
-scan: at most three sweeps' time). Servos listen at one speed only: try --baud when nothing
-answers.
+scan: at most three sweeps' time). Exit status 2 when no servo could be read, saying what was
+heard (nothing, garbled answers, or servos that answer a PING but cannot be read). Servos
+listen at one speed only: try --baud when nothing answers.
 """
 
 SET_ID_EPILOG = """\
@@ -297,10 +298,22 @@ def cmd_scan(args: argparse.Namespace) -> int:
         why = f"; {result.sweep_reason}" if result.sweep_reason else ""
         say(f"{count} servo(s) answered on {url} (ids {_ranges(result.swept_ids)} pinged, "
             f"up to {timeout_ns / 1e6:g} ms each{why})")
-    if count == 0:
+    if result.found:
+        return 0
+    # Nothing usable answered: not a scan that went well (exit status 2, as the other servos
+    # commands when no servo answers), saying what was heard.
+    if result.unreadable:
+        say(f"pinarray: no servo could be read: servo(s) {_ranges(result.servo_ids)} answer a "
+            "PING, but reading their registers failed (above): check cables and connectors",
+            error=True)
+    elif result.sweep_reason is scan.SweepReason.GARBLED:
+        say("pinarray: no servo answered a PING of its id, though garbled answers came back to "
+            "the broadcast ping: a servo is there whose answers arrive damaged; check cables "
+            "and connectors, and --baud", error=True)
+    else:
         say("pinarray: nothing answered: check power and cables, and --baud (servos answer "
             "only at their own speed; new ones at 1000000)", error=True)
-    return 0
+    return 2
 
 
 class _Progress:

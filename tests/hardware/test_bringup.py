@@ -56,6 +56,14 @@ def test_several_servos_collide_on_a_broadcast_ping_so_every_id_is_swept_in_turn
     assert seen[8][2] == (3,) and seen[-1][2] == (3, 9, 40)
 
 
+def test_one_servo_whose_broadcast_answer_came_garbled_is_not_said_to_collide_with_others():
+    bus = bare_bus("ids=4")
+    bus.sim.corrupt_next = 1  # its answer to the broadcast ping damaged on the wire
+    result = scan.scan(bus)
+    assert result.servo_ids == (4,) and result.sweep_reason is scan.SweepReason.GARBLED
+    assert "one servo's answers damaged, or several servos' colliding" in result.sweep_reason
+
+
 def test_a_full_sweep_looks_twice_more_beside_what_answered_and_says_who_answered_at_last():
     # Servo 16's first two answers lost (a host so busy it held them past each wait): the
     # sweep looks again at the ids beside those that answered, longer, then longer still.

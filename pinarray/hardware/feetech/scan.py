@@ -62,6 +62,18 @@ class ScanMethod(StrEnum):
     SWEEP = "sweep"
 
 
+class SweepReason(StrEnum):
+    """Why a scan pinged every id: what its broadcast ping heard (and the sweep then found)."""
+
+    NONE = ""  # the broadcast ping sufficed, or the ids were given
+    SILENCE = "nothing answered a broadcast ping"
+    # Garbled bytes, and the sweep found several servos: their answers overlapped.
+    COLLIDED = "answers to a broadcast ping collided: several servos answer"
+    # Garbled bytes, and the sweep found one servo or none: they cannot say which.
+    GARBLED = ("answers to a broadcast ping came garbled: one servo's answers damaged, or "
+               "several servos' colliding")
+
+
 @dataclass(frozen=True)
 class ServoFound:
     """A servo that answered a scan, with what bring-up wants to know about it."""
@@ -87,15 +99,15 @@ class ScanResult:
         Servos that answered a PING but whose registers could not be read.
     swept_ids : tuple of int
         The ids a sweep pinged (empty for a broadcast ping).
-    sweep_reason : str
-        Why a sweep was needed ("" when the broadcast ping sufficed or ids were given).
+    sweep_reason : SweepReason
+        Why a sweep of every id was needed.
     """
 
     method: ScanMethod
     found: tuple[ServoFound, ...]
     unreadable: tuple[ServoFailure, ...]
     swept_ids: tuple[int, ...] = ()
-    sweep_reason: str = ""
+    sweep_reason: SweepReason = SweepReason.NONE
 
     @property
     def servo_ids(self) -> tuple[int, ...]:
@@ -141,7 +153,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         if still_wanted is not None:
             still_wanted()
 
-    reason = ""
+    reason = SweepReason.NONE
     look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
     someone_there = False  # the broadcast ping heard an answer, if only garbled bytes
     if ids is None:
@@ -155,8 +167,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         if answer.clean and answer.servo_ids:
             found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
             return ScanResult(ScanMethod.BROADCAST, found, unreadable)
-        reason = ("answers to a broadcast ping collided: several servos answer"
-                  if answer.garbled_bytes else "nothing answered a broadcast ping")
+        reason = SweepReason.GARBLED if answer.garbled_bytes else SweepReason.SILENCE
         someone_there = bool(answer.servo_ids or answer.garbled_bytes)
         ids = range(MAX_SERVO_ID + 1)
     ids = tuple(ids)
@@ -169,6 +180,8 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
                    looking_again) and progress is not None:  # the sweep's last word: who answered in the end
         progress(ids[-1], ids[-1], _answered(models))
     found, unreadable = _details(bus, models)
+    if reason is SweepReason.GARBLED and len(found) + len(unreadable) > 1:
+        reason = SweepReason.COLLIDED
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
 
 
