@@ -79,7 +79,7 @@ def test_play_still_rehearses_on_simulated_servos_by_default_and_says_so_first(c
 # -- scan --------------------------------------------------------------------------------------
 
 
-def test_scan_finds_a_lone_new_servo_with_one_broadcast_ping(capsys):
+def test_scan_finds_a_lone_new_servo_by_broadcast_ping(capsys):
     status, out, err = run(capsys, "servos", "scan", "--sim", "sim://?ids=1")
     assert status == 0 and err == ""
     assert "  1  777 (STS3215)" in out and "500 us" in out

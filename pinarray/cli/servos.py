@@ -34,8 +34,9 @@ line of its output; e.g. 'sim://?ids=1' for one factory-fresh servo): never simu
 
 SCAN_EPILOG = """\
 Without --ids: one PING to every servo at once (the broadcast id). A lone servo (a new one)
-answers it and is found at once; several answering together collide on the wire, and then
-every id 0-252 is pinged in turn, with progress on stderr. Each id waits at most --timeout-ms
+answers it and is found at once (asked twice: a late answer must not hide another servo);
+several answering together collide on the wire, and then every id 0-252 is pinged in turn,
+with progress on stderr. Each id waits at most --timeout-ms
 for its answer (default: the USB adapter's latency timer + 2 ms, or 10 ms when it has none
 that can be read, e.g. a CH340 or a pseudo-terminal); an FTDI adapter left at its 16 ms
 latency timer needs more (see `pinarray timing --help` to lower it). The silent ids among and
@@ -289,8 +290,7 @@ def cmd_scan(args: argparse.Namespace) -> int:
             f"{servo.return_delay_us:>9} us {t.position_steps:>8} {t.voltage_v:>7.1f}V "
             f"{t.temperature_c:>4}°C  {t.errors.describe()}")
     for unreadable in result.unreadable:
-        say(f"{unreadable.servo_id:>3}  answers a PING, but reading it failed: "
-            f"{unreadable.problem}")
+        say(f"{unreadable.servo_id:>3}  {unreadable.problem}")
     count = len(result.servo_ids)
     if result.method is scan.ScanMethod.BROADCAST:
         say(f"{count} servo(s) answered a broadcast ping on {url}")
@@ -303,9 +303,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
     # Nothing usable answered: not a scan that went well (exit status 2, as the other servos
     # commands when no servo answers), saying what was heard.
     if result.unreadable:
-        say(f"pinarray: no servo could be read: servo(s) {_ranges(result.servo_ids)} answer a "
-            "PING, but reading their registers failed (above): check cables and connectors",
-            error=True)
+        say(f"pinarray: no servo could be read: servo(s) {_ranges(result.servo_ids)} answered, "
+            "but not as asked (above): check cables and connectors", error=True)
     elif result.sweep_reason is scan.SweepReason.GARBLED:
         say("pinarray: no servo answered a PING of its id, though garbled answers came back to "
             "the broadcast ping: a servo is there whose answers arrive damaged; check cables "

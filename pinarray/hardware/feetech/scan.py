@@ -72,6 +72,8 @@ class SweepReason(StrEnum):
     # Garbled bytes, and the sweep found one servo or none: they cannot say which.
     GARBLED = ("answers to a broadcast ping came garbled: one servo's answers damaged, or "
                "several servos' colliding")
+    # Clean answers, but asked again it heard others (or late bytes between): some are lost.
+    CHANGED = "a broadcast ping asked again heard other answers: some come late or are lost"
 
 
 @dataclass(frozen=True)
@@ -96,7 +98,8 @@ class ScanResult:
     found : tuple of ServoFound
         The servos that answered, in id order.
     unreadable : tuple of ServoFailure
-        Servos that answered a PING but whose registers could not be read.
+        Servos that answered (a PING, or the broadcast ping) but could not be read, each
+        with what went wrong.
     swept_ids : tuple of int
         The ids a sweep pinged (empty for a broadcast ping).
     sweep_reason : SweepReason
@@ -155,50 +158,91 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
 
     reason = SweepReason.NONE
     look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
-    someone_there = False  # the broadcast ping heard an answer, if only garbled bytes
+    heard = _Heard(frozenset(), 0, 0, settled=False)
     if ids is None:
-        answer = bus.broadcast_ping()
-        if not answer.servo_ids and not answer.garbled_bytes:
-            # Silence: asked once more, listening longer, as `FeetechBus.ping` retries one (a
-            # busy host can hold a lone servo's answer past a quiet host's wait). Far cheaper
-            # than the sweep of every id that silence would otherwise cost.
-            check()
-            answer = bus.broadcast_ping(patience=PATIENCE_GROWTH)
-        if answer.clean and answer.servo_ids:
-            found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
+        heard = _broadcast(bus, check)
+        if heard.settled:
+            models = {i: bus.ping(i) for i in sorted(heard.servo_ids)}
+            found, unreadable = _details(bus, models, heard.servo_ids)
             return ScanResult(ScanMethod.BROADCAST, found, unreadable)
-        reason = SweepReason.GARBLED if answer.garbled_bytes else SweepReason.SILENCE
-        someone_there = bool(answer.servo_ids or answer.garbled_bytes)
+        reason = (SweepReason.GARBLED if heard.garbled_bytes else
+                  SweepReason.CHANGED if heard.servo_ids or heard.late_bytes else
+                  SweepReason.SILENCE)
         ids = range(MAX_SERVO_ID + 1)
     ids = tuple(ids)
-    models: dict[int, int | None] = {}
+    models = {}
     for servo_id in ids:
         models[servo_id] = bus.ping_within(servo_id, timeout_ns)
         if progress is not None:
             progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    if _look_again(bus, ids, models, timeout_ns, look_again, someone_there, check,
-                   looking_again) and progress is not None:  # the sweep's last word: who answered in the end
+    if _look_again(bus, ids, models, timeout_ns, look_again, heard, check, looking_again) \
+            and progress is not None:  # the sweep's last word: who answered in the end
         progress(ids[-1], ids[-1], _answered(models))
-    found, unreadable = _details(bus, models)
+    found, unreadable = _details(bus, models, heard.servo_ids)
     if reason is SweepReason.GARBLED and len(found) + len(unreadable) > 1:
         reason = SweepReason.COLLIDED
     return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
 
 
+@dataclass(frozen=True)
+class _Heard:
+    """What a scan's broadcast pings heard, all together."""
+
+    servo_ids: frozenset[int]  # in well-formed status packets
+    garbled_bytes: int  # that were no status packet
+    late_bytes: int  # that came after a ping had stopped listening, before the next
+    settled: bool  # the last two heard the same ids, cleanly: who answers
+
+    @property
+    def someone(self) -> bool:
+        """Something answered, were it only garbled bytes: a servo is there."""
+        return bool(self.servo_ids or self.garbled_bytes or self.late_bytes)
+
+
+def _broadcast(bus: FeetechBus, check: Callable[[], None]) -> _Heard:
+    """Broadcast PINGs: asked again, listening longer, when nothing answers, and asked again
+    to be believed when answers come back clean."""
+    answers = [bus.broadcast_ping()]
+    if not answers[-1].servo_ids and not answers[-1].garbled_bytes:
+        # Silence: asked once more, listening longer, as `FeetechBus.ping` retries one (a
+        # busy host can hold a lone servo's answer past a quiet host's wait). Far cheaper
+        # than the sweep of every id that silence would otherwise cost.
+        check()
+        answers.append(bus.broadcast_ping(patience=PATIENCE_GROWTH))
+    first = answers[-1]
+    settled, late_bytes = False, 0
+    if first.clean and first.servo_ids:
+        # Believed only when asked again, listening longer, it comes back the same: the
+        # answer of a servo that came late (held past the wait, or lost) would else leave the
+        # others' answers clean, and that servo unfound. Its late bytes, drained before the
+        # next ping, tell as much as its answer would.
+        check()
+        stale_bytes = bus.link.counters.stale_bytes
+        again = bus.broadcast_ping(patience=PATIENCE_GROWTH)
+        answers.append(again)
+        late_bytes = bus.link.counters.stale_bytes - stale_bytes
+        settled = (again.clean and not late_bytes
+                   and set(again.servo_ids) == set(first.servo_ids))
+    return _Heard(frozenset(i for a in answers for i in a.servo_ids if i <= MAX_SERVO_ID),
+                  sum(a.garbled_bytes for a in answers), late_bytes, settled)
+
+
 def _look_again(bus: FeetechBus, ids: tuple[int, ...], models: dict[int, int | None],
-                timeout_ns: int, every_silent_id: bool, someone_there: bool,
+                timeout_ns: int, every_silent_id: bool, heard: _Heard,
                 check: Callable[[], None],
                 looking_again: Callable[[LookingAgain], object] | None) -> bool:
     """Ping silent ids again, longer, in rounds (see `scan`), filling ``models`` in; whether
     looking again found anyone. Which ids: `_to_look_at_again`."""
-    # In first-PING waits: what all the rounds together may wait.
+    # In first-PING waits: what all the rounds together may wait, and what one round may.
     budget = max(LOOK_AGAIN_SWEEPS * len(ids), LOOK_AGAIN_IDS * PATIENCE_GROWTH)
+    round_budget = max(len(ids), LOOK_AGAIN_IDS * PATIENCE_GROWTH)
     patience = PATIENCE_GROWTH
     found_anyone = False
     for look in range(1, LONGEST_LOOK + 1):
-        silent = _to_look_at_again(models, every_silent_id, someone_there)
-        wait = max(1, min(patience, budget // max(1, len(silent))))
-        silent = silent[:budget // wait]
+        silent = _to_look_at_again(models, every_silent_id, heard)
+        most = min(budget, round_budget)
+        wait = max(1, min(patience, most // max(1, len(silent))))
+        silent = silent[:most // wait]
         if not silent:
             break
         budget -= wait * len(silent)
@@ -208,12 +252,12 @@ def _look_again(bus: FeetechBus, ids: tuple[int, ...], models: dict[int, int | N
                 looking_again(LookingAgain(servo_id, done, len(silent), wait * timeout_ns,
                                            _answered(models)))
             models[servo_id] = bus.ping_within(servo_id, wait * timeout_ns)
-        heard = any(models[i] is not None for i in silent)
-        found_anyone = found_anyone or heard
+        answered = any(models[i] is not None for i in silent)
+        found_anyone = found_anyone or answered
         # Looking again found someone: the host is busy, so the rest may be lost answers too.
-        rest = _to_look_at_again(models, every_silent_id, someone_there)
+        rest = _to_look_at_again(models, every_silent_id, heard)
         few = len(rest) <= LOOK_TWICE_IDS and look == 1
-        if every_silent_id or not (heard or few):
+        if every_silent_id or not (answered or few):
             break
         patience *= PATIENCE_GROWTH
     return found_anyone
@@ -224,20 +268,23 @@ def _answered(models: dict[int, int | None]) -> tuple[int, ...]:
 
 
 def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool,
-                      someone_there: bool) -> list[int]:
+                      heard: _Heard) -> list[int]:
     """The ids swept that have not answered; in a full sweep only those in the gaps of the
     ids that answered or just beside them (an array's ids run together, so that is where a
-    busy host lost one; as more answer, the ids beside them join), nearest those first. When
-    nobody answered the sweep but someone answered the broadcast ping (``someone_there``,
-    were it only garbled bytes), every id: a servo is there, its answer to the sweep lost."""
+    busy host lost one; as more answer, the ids beside them join), nearest those first, and
+    before them any whose answer the broadcast ping heard. When nobody answered the sweep
+    but someone answered the broadcast ping (were it only garbled bytes), every id: a servo
+    is there, its answer to the sweep lost."""
     silent = [i for i, model in models.items() if model is None]
     if every_silent_id:
         return silent
     answered = sorted(_answered(models))
     if not answered:
-        return silent if someone_there else []
-    near = [i for i in silent if answered[0] - 1 <= i <= answered[-1] + 1]
-    return sorted(near, key=lambda i: (_distance(i, answered), i))
+        return sorted(silent, key=lambda i: (i not in heard.servo_ids, i)) \
+            if heard.someone else []
+    near = [i for i in silent
+            if i in heard.servo_ids or answered[0] - 1 <= i <= answered[-1] + 1]
+    return sorted(near, key=lambda i: (i not in heard.servo_ids, _distance(i, answered), i))
 
 
 def _distance(servo_id: int, answered: list[int]) -> int:
@@ -246,11 +293,16 @@ def _distance(servo_id: int, answered: list[int]) -> int:
     return min(abs(answered[k] - servo_id) for k in (at - 1, at) if 0 <= k < len(answered))
 
 
-def _details(bus: FeetechBus, models: dict[int, int | None]
+def _details(bus: FeetechBus, models: dict[int, int | None], heard_ids: frozenset[int]
              ) -> tuple[tuple[ServoFound, ...], tuple[ServoFailure, ...]]:
+    """What bring-up wants to know of each servo that answered; a servo the broadcast ping
+    heard that answered no PING of its id is unreadable, not left out."""
     found, unreadable = [], []
     for servo_id, model in sorted(models.items()):
         if model is None:
+            if servo_id in heard_ids:
+                unreadable.append(ServoFailure(
+                    servo_id, "answered a broadcast ping, but no PING of its id"))
             continue
         try:
             firmware, _ = bus.read(servo_id, Register.FIRMWARE_MAJOR, 2)
@@ -261,7 +313,8 @@ def _details(bus: FeetechBus, models: dict[int, int | None]
         except PortLost:
             raise
         except BusError as problem:
-            unreadable.append(ServoFailure(servo_id, str(problem)))
+            unreadable.append(ServoFailure(
+                servo_id, f"answers a PING, but reading it failed: {problem}"))
             continue
         found.append(ServoFound(servo_id, model, (firmware[0], firmware[1]), delay_us, telemetry))
     return tuple(found), tuple(unreadable)
