@@ -32,11 +32,12 @@ LOOK_TWICE_IDS = 4
 # ... and again, each time four times longer, while looking again finds someone (a busy host),
 # up to 4**LONGEST_LOOK times a first PING's wait.
 LONGEST_LOOK = 3
-# Looking again waits in all at most this many times as long as the sweep did (or, for a
-# sweep of an array's ids or fewer, as long as `LOOK_AGAIN_IDS` ids each looked at four times
-# longer): a full scan then waits at most three sweeps' time, however many answers the bus
-# loses. A round that would overrun what is left waits less per id, down to the sweep's own
-# wait, and then looks at as many ids as fit, those nearest the servos found first.
+# Looking again waits in all at most this many times as long as the sweep did, a round at
+# most once as long (or, where that is more, as long as `LOOK_AGAIN_IDS` ids each looked at
+# four times longer): a full scan then waits at most three sweeps' time, however many answers
+# the bus loses. A round that would overrun its share waits less per id, down to the sweep's
+# own wait, and then looks at as many ids as fit, those the broadcast ping heard and those
+# nearest the servos found first (docs/rig/bring-up.md says why).
 LOOK_AGAIN_SWEEPS = 2
 
 Progress = Callable[[int, int, tuple[int, ...]], object]
@@ -122,7 +123,7 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
          timeout_ns: int = SWEEP_TIMEOUT_NS, progress: Progress | None = None,
          still_wanted: Callable[[], object] | None = None,
          looking_again: Callable[[LookingAgain], object] | None = None) -> ScanResult:
-    """Find the servos on the bus: one broadcast ping, else a sweep of ids.
+    """Find the servos on the bus: a broadcast ping, else a sweep of ids.
 
     Parameters
     ----------
@@ -134,12 +135,17 @@ def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
         answer past a quiet host's wait); a sweep of more looks again only at silent ids in
         the gaps of those that answered and just beside them, once more, four times longer
         again, when those are few (`LOOK_TWICE_IDS`) or the last look found someone (up to
-        `LONGEST_LOOK`), in all waiting at most `LOOK_AGAIN_SWEEPS` times as long as the
-        sweep. Progress is said once more when looking again found someone. Default: a
-        broadcast ping, which finds a lone servo (a new one) at once, asked again listening
-        longer when nothing answers it; when nothing answers that either or several answers
-        collide, every id 0-252, once, and when nobody answers that sweep though the
-        broadcast ping heard someone (garbled bytes will do), every id is looked at again.
+        `LONGEST_LOOK`), each round waiting at most as long as the sweep, in all at most
+        `LOOK_AGAIN_SWEEPS` times as long. Progress is said once more when looking again
+        found someone.
+
+        Default: a broadcast ping, which finds a lone servo (a new one) at once, asked again
+        listening longer when nothing answers it, and asked again listening longer to be
+        believed when it answers cleanly (a late answer would hide a servo behind the others'
+        clean ones). When nothing answers, several answers collide or asked again they
+        differ, every id 0-252 is swept; the ids the broadcast ping heard are looked at
+        again first, and when nobody answers the sweep though the broadcast ping heard
+        someone (garbled bytes will do), every id is looked at again.
     timeout_ns : int
         How long to wait for each id's PING answer in a sweep, in nanoseconds.
     progress : callable, optional
