@@ -229,8 +229,10 @@ def _broadcast(bus: FeetechBus, check: Callable[[], None]) -> _Heard:
         late_bytes = bus.link.counters.stale_bytes - stale_bytes
         settled = (again.clean and not late_bytes
                    and set(again.servo_ids) == set(first.servo_ids))
-    return _Heard(frozenset(i for a in answers for i in a.servo_ids if i <= MAX_SERVO_ID),
-                  sum(a.garbled_bytes for a in answers), late_bytes, settled)
+    # (A status packet from an id no servo can have, 253 up, is no servo's.)
+    servo_ids = frozenset(i for a in answers for i in a.servo_ids if i <= MAX_SERVO_ID)
+    return _Heard(servo_ids, sum(a.garbled_bytes for a in answers), late_bytes,
+                  settled and bool(servo_ids))
 
 
 def _look_again(bus: FeetechBus, ids: tuple[int, ...], models: dict[int, int | None],
