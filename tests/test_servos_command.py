@@ -1,6 +1,7 @@
 """`pinarray servos ...` as a lab types it, on simulated servos (in-process, virtual time)."""
 
 import io
+import re
 import sys
 from pathlib import Path
 
@@ -78,7 +79,7 @@ def test_play_still_rehearses_on_simulated_servos_by_default_and_says_so_first(c
 # -- scan --------------------------------------------------------------------------------------
 
 
-def test_scan_finds_a_lone_new_servo_with_one_broadcast_ping(capsys):
+def test_scan_finds_a_lone_new_servo_by_broadcast_ping(capsys):
     status, out, err = run(capsys, "servos", "scan", "--sim", "sim://?ids=1")
     assert status == 0 and err == ""
     assert "  1  777 (STS3215)" in out and "500 us" in out
@@ -96,16 +97,56 @@ def test_scan_of_several_servos_sweeps_every_id_with_progress_on_stderr(capsys):
     assert progress[-1] == "sweeping: id 252 of 252, found so far: 2, 5, 200"
 
 
+def test_a_scan_under_heavy_loss_says_how_far_looking_again_has_got(capsys):
+    # Fourteen servos spread over the ids, 60 % of the instructions lost: the sweep misses
+    # most, and looking again lasts longer than the sweep (on main: not a word meanwhile, up
+    # to 45 s on a pty).
+    url = "sim://?ids=3,9,20,40,55,70,90,110,130,150,170,190,210,240&drop=0.6&seed=1"
+    status, out, err = run(capsys, "servos", "scan", "--sim", url, "--timeout-ms", "10")
+    assert status == 0
+    lines = err.splitlines()
+    said = [tuple(map(int, m.groups())) for m in (
+        re.fullmatch(r"looking again, up to (\d+) ms each: id \d+ \((\d+) of \d+\), found so "
+                     r"far: .*", line) for line in lines) if m]
+    assert said and said[0][1] == 1  # a round says where it starts
+    for (wait_ms, done), (next_wait_ms, next_done) in zip(said, said[1:], strict=False):
+        if next_wait_ms == wait_ms and next_done > done:  # the same round: at most 32 sweep
+            assert (next_done - done) * wait_ms <= 32 * 10  # waits without a word
+    assert lines[-1].startswith("sweeping: id 252 of 252, found so far: ")  # who, at last
+    assert out.splitlines()[-1].startswith(f"{len(lines[-1].split(': ')[-1].split(', '))} ")
+
+
 def test_pinarray_scan_is_the_same_command(capsys):
     assert run(capsys, "scan", "--sim", "sim://?ids=1-3", "--ids", "1-4")[1] == run(
         capsys, "servos", "scan", "--sim", "sim://?ids=1-3", "--ids", "1-4")[1]
 
 
-def test_scan_says_what_to_check_when_nothing_answers(capsys):
+def test_scan_says_what_to_check_when_nothing_answers_and_fails(capsys):
+    # Exit status 2, as the other servos commands when no servo answers (it was 0 on main, as
+    # if all was well).
     status, out, err = run(capsys, "servos", "scan", "--sim", "sim://?ids=1&missing=1",
                            "--ids", "1-3")
-    assert status == 0 and "0 servo(s) answered" in out
-    assert "check power and cables, and --baud" in err
+    assert status == 2 and "0 servo(s) answered" in out
+    assert err.splitlines()[-1].startswith(
+        "pinarray: nothing answered: check power and cables, and --baud")
+
+
+def test_one_servo_whose_answers_all_come_garbled_is_said_to_be_there_and_the_scan_fails(capsys):
+    # Every status packet damaged (a bad cable): its broadcast answer is garbled bytes, its
+    # PINGs fail. On main: "collided: several servos answer", then "nothing answered: check
+    # power", exit 0.
+    url = "sim://?ids=1&corrupt=1"
+    status, out, err = run(capsys, "servos", "scan", "--sim", url)
+    assert status == 2
+    assert out.splitlines()[-1] == (
+        f"0 servo(s) answered on {url} (ids 0-252 pinged, up to 2 ms each; answers to a "
+        "broadcast ping came garbled: one servo's answers damaged, or several servos' "
+        "colliding)")
+    assert err.splitlines()[-1] == (
+        "pinarray: no servo answered a PING of its id, though garbled answers came back to the "
+        "broadcast ping: a servo is there whose answers arrive damaged; check cables and "
+        "connectors, and --baud")
+    assert "several servos answer" not in out + err and "nothing answered" not in err
 
 
 # -- set-id ------------------------------------------------------------------------------------

@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 from pinarray.api import arguments
 from pinarray.errors import BusError
-from pinarray.hardware.feetech.bringup import scan, sweep_timeout_ns
+from pinarray.hardware.feetech.bringup import sweep_timeout_ns
+from pinarray.hardware.feetech.scan import scan
 from pinarray.hardware.feetech.transport import is_sim_url, open_bus
 from pinarray.hardware.port_lock import hold_port
 

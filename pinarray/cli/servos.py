@@ -1,4 +1,5 @@
-"""`pinarray servos ...`: bring-up of new servos from the shell (the work is in `pinarray.hardware.feetech.bringup`).
+"""`pinarray servos ...`: bring-up of new servos from the shell (the work is in
+`pinarray.hardware.feetech.bringup` and `pinarray.hardware.feetech.scan`).
 
 Every command opens the bus without the playback handshake (which would switch torque on
 everywhere), names servo ids and registers in its errors (exit status 2, one line), and leaves
@@ -11,6 +12,7 @@ servos that do not answer are named and how every way out leaves them safe.
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
 from dataclasses import dataclass
 
@@ -32,12 +34,17 @@ line of its output; e.g. 'sim://?ids=1' for one factory-fresh servo): never simu
 
 SCAN_EPILOG = """\
 Without --ids: one PING to every servo at once (the broadcast id). A lone servo (a new one)
-answers it and is found at once; several answering together collide on the wire, and then
-every id 0-252 is pinged in turn, with progress on stderr. Each id waits at most --timeout-ms
+answers it and is found at once (asked twice: a late answer must not hide another servo);
+several answering together collide on the wire, and then every id 0-252 is pinged in turn,
+with progress on stderr. Each id waits at most --timeout-ms
 for its answer (default: the USB adapter's latency timer + 2 ms, or 10 ms when it has none
 that can be read, e.g. a CH340 or a pseudo-terminal); an FTDI adapter left at its 16 ms
-latency timer needs more (see `pinarray timing --help` to lower it). Servos listen at one
-speed only: try --baud when nothing answers.
+latency timer needs more (see `pinarray timing --help` to lower it). The silent ids among and
+beside those found are then looked at again, in rounds, each four times longer, while a round
+finds someone, saying how far it has got; in all at most twice as long as the sweep (a full
+scan: at most three sweeps' time). Exit status 2 when no servo could be read, saying what was
+heard (nothing, garbled answers, or servos that answer a PING but cannot be read). Servos
+listen at one speed only: try --baud when nothing answers.
 """
 
 SET_ID_EPILOG = """\
@@ -255,7 +262,7 @@ def _failures(failures, what: str, target: Target, absent: tuple[int, ...]) -> N
 def cmd_scan(args: argparse.Namespace) -> int:
     from pinarray.cli import common
     from pinarray.cli.bus import chosen_bus
-    from pinarray.hardware.feetech import bringup
+    from pinarray.hardware.feetech import bringup, scan
     from pinarray.hardware.feetech.registers import STS3215_MODEL_NUMBER
     from pinarray.stop import StopRequest, stop_on_signals
 
@@ -267,8 +274,8 @@ def cmd_scan(args: argparse.Namespace) -> int:
             timeout_ns = (args.timeout_ms * 1_000_000 if args.timeout_ms
                           else bringup.sweep_timeout_ns(bus))
             progress = _Progress(stop, timeout_ns)
-            result = bringup.scan(bus, ids, timeout_ns, progress,
-                                  still_wanted=stop.raise_if_requested)
+            result = scan.scan(bus, ids, timeout_ns, progress,
+                               still_wanted=stop.raise_if_requested, looking_again=progress.again)
             progress.done()
         finally:
             bus.close()
@@ -283,44 +290,75 @@ def cmd_scan(args: argparse.Namespace) -> int:
             f"{servo.return_delay_us:>9} us {t.position_steps:>8} {t.voltage_v:>7.1f}V "
             f"{t.temperature_c:>4}°C  {t.errors.describe()}")
     for unreadable in result.unreadable:
-        say(f"{unreadable.servo_id:>3}  answers a PING, but reading it failed: "
-            f"{unreadable.problem}")
+        say(f"{unreadable.servo_id:>3}  {unreadable.problem}")
     count = len(result.servo_ids)
-    if result.method is bringup.ScanMethod.BROADCAST:
+    if result.method is scan.ScanMethod.BROADCAST:
         say(f"{count} servo(s) answered a broadcast ping on {url}")
     else:
         why = f"; {result.sweep_reason}" if result.sweep_reason else ""
         say(f"{count} servo(s) answered on {url} (ids {_ranges(result.swept_ids)} pinged, "
             f"up to {timeout_ns / 1e6:g} ms each{why})")
-    if count == 0:
+    if result.found:
+        return 0
+    # Nothing usable answered: not a scan that went well (exit status 2, as the other servos
+    # commands when no servo answers), saying what was heard.
+    if result.unreadable:
+        say(f"pinarray: no servo could be read: servo(s) {_ranges(result.servo_ids)} answered, "
+            "but not as asked (above): check cables and connectors", error=True)
+    elif result.sweep_reason is scan.SweepReason.GARBLED:
+        say("pinarray: no servo answered a PING of its id, though garbled answers came back to "
+            "the broadcast ping: a servo is there whose answers arrive damaged; check cables "
+            "and connectors, and --baud", error=True)
+    else:
         say("pinarray: nothing answered: check power and cables, and --baud (servos answer "
             "only at their own speed; new ones at 1000000)", error=True)
-    return 0
+    return 2
 
 
 class _Progress:
-    """A sweep's progress on stderr: one line rewritten on a terminal, a line per 32 ids else."""
+    """A scan's progress on stderr: one line rewritten on a terminal; else a line per 32 ids of
+    the sweep, and while looking again at silent ids, a line at least every 32 first waits
+    (a round of looking again may last seconds). The sweep's last line is said last."""
 
     def __init__(self, stop, timeout_ns: int):
         self.stop = stop
         self.timeout_ns = timeout_ns
         self.tty = sys.stderr.isatty()
         self.shown = False
+        self.last_word = ""  # the sweep's last line, said again after looking again
+        self.again_said = False
 
     def __call__(self, servo_id: int, last_id: int, found: tuple[int, ...]) -> None:
         self.stop.raise_if_requested()
         text = f"sweeping: id {servo_id} of {last_id}, found so far: {_ranges(found)}"
+        if servo_id == last_id:
+            self.last_word, self.again_said = text, False
+        self._say(text, servo_id % 32 == 31 or servo_id == last_id)
+
+    def again(self, step) -> None:
+        """Before each PING of a look again (a `scan.LookingAgain`)."""
+        self.stop.raise_if_requested()
+        every = max(1, 32 * self.timeout_ns // step.wait_ns)
+        self._say(f"looking again, up to {step.wait_ns / 1e6:g} ms each: id {step.servo_id} "
+                  f"({step.done + 1} of {step.count}), found so far: "
+                  f"{_ranges(step.found_ids)}", step.done % every == 0)
+        self.again_said = True
+
+    def _say(self, text: str, on_a_line_of_its_own: bool) -> None:
         if self.tty:
+            width = shutil.get_terminal_size().columns
             try:
-                sys.stderr.write("\r" + text + "\x1b[K")
+                sys.stderr.write("\r" + text[:max(1, width - 1)] + "\x1b[K")
                 sys.stderr.flush()
             except OSError:
                 pass
             self.shown = True
-        elif servo_id % 32 == 31 or servo_id == last_id:
+        elif on_a_line_of_its_own:
             say(text, error=True)
 
     def done(self) -> None:
+        if self.again_said and self.last_word:
+            self._say(self.last_word, True)
         if self.shown:
             say("", error=True)
 

@@ -16,7 +16,7 @@ import subprocess
 import sys
 from contextlib import contextmanager
 
-from pinarray.hardware.feetech import bringup
+from pinarray.hardware.feetech import bringup, scan
 from pinarray.hardware.feetech.transport import open_bus
 from tests.benchmarks._timing import SPREAD_HEADER, interleaved_seconds, ratio, spread
 
@@ -48,7 +48,7 @@ def old_scan(path: str) -> int:
 def new_scan(path: str, ids) -> int:
     bus = open_bus(path, retries=1)
     try:
-        return len(bringup.scan(bus, ids, bringup.sweep_timeout_ns(bus)).servo_ids)
+        return len(scan.scan(bus, ids, bringup.sweep_timeout_ns(bus)).servo_ids)
     finally:
         bus.close()
 

@@ -1,4 +1,5 @@
-"""Bring-up of new servos: find them, renumber them, lower their return delay, let go.
+"""Bring-up of new servos: renumber them, lower their return delay, let go (finding them is
+`pinarray.hardware.feetech.scan`).
 
 A lab's first hour with new STS servos: each ships answering at id 1, so they are connected
 and renumbered one at a time; their return delay (factory 500 us) is lowered so that every
@@ -15,14 +16,13 @@ power-off), so a return delay lowered "until power-off" is written with LOCK at 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from enum import StrEnum
 
 from pinarray.errors import BusError, PinArrayError
-from pinarray.hardware.driver import PortLost, SafeStopReport, Telemetry
+from pinarray.hardware.driver import PortLost, SafeStopReport
 from pinarray.hardware.feetech.base import BusSetup
-from pinarray.hardware.feetech.feetech import PATIENCE_GROWTH, FeetechBus
+from pinarray.hardware.feetech.feetech import FeetechBus
 from pinarray.hardware.feetech.registers import MAX_SERVO_ID, Register
 
 # The return delay register holds 2 us units, 0-254.
@@ -31,34 +31,6 @@ MAX_RETURN_DELAY_US = 254 * RETURN_DELAY_UNIT_US
 # A sweep waits this long for each id's PING answer unless told otherwise: a pseudo-terminal
 # or a USB adapter at a 1 ms latency timer answers well within it.
 SWEEP_TIMEOUT_NS = 10_000_000
-# A sweep of at most this many given ids looks again at the silent ones (a whole 4x4 array).
-LOOK_AGAIN_IDS = 16
-# A full sweep looks a third time at this many silent ids beside those that answered, or
-# fewer: an array's two ends, and one or two a busy host lost.
-LOOK_TWICE_IDS = 4
-# ... and again, each time four times longer, while looking again finds someone (a busy host),
-# up to 4**LONGEST_LOOK times a first PING's wait.
-LONGEST_LOOK = 3
-
-Progress = Callable[[int, int, tuple[int, ...]], object]
-
-
-class ScanMethod(StrEnum):
-    """How a scan found its servos."""
-
-    BROADCAST = "broadcast ping"
-    SWEEP = "sweep"
-
-
-@dataclass(frozen=True)
-class ServoFound:
-    """A servo that answered a scan, with what bring-up wants to know about it."""
-
-    servo_id: int
-    model_number: int
-    firmware: tuple[int, int]  # major, minor
-    return_delay_us: int
-    telemetry: Telemetry
 
 
 @dataclass(frozen=True)
@@ -69,148 +41,11 @@ class ServoFailure:
     problem: str
 
 
-@dataclass(frozen=True)
-class ScanResult:
-    """Who answered, and how they were found.
-
-    Attributes
-    ----------
-    method : ScanMethod
-        A clean broadcast ping, or a sweep of ids.
-    found : tuple of ServoFound
-        The servos that answered, in id order.
-    unreadable : tuple of ServoFailure
-        Servos that answered a PING but whose registers could not be read.
-    swept_ids : tuple of int
-        The ids a sweep pinged (empty for a broadcast ping).
-    sweep_reason : str
-        Why a sweep was needed ("" when the broadcast ping sufficed or ids were given).
-    """
-
-    method: ScanMethod
-    found: tuple[ServoFound, ...]
-    unreadable: tuple[ServoFailure, ...]
-    swept_ids: tuple[int, ...] = ()
-    sweep_reason: str = ""
-
-    @property
-    def servo_ids(self) -> tuple[int, ...]:
-        return tuple(sorted([s.servo_id for s in self.found]
-                            + [u.servo_id for u in self.unreadable]))
-
-
 def sweep_timeout_ns(bus: FeetechBus) -> int:
     """How long a sweep waits for each id by default: the adapter's latency timer + 2 ms when it
     can be read (1 ms timer: 3 ms), else `SWEEP_TIMEOUT_NS`."""
     timer_ms = bus.link.latency.timer_ms
     return SWEEP_TIMEOUT_NS if timer_ms is None else (timer_ms + 2) * 1_000_000
-
-
-def scan(bus: FeetechBus, ids: Sequence[int] | None = None,
-         timeout_ns: int = SWEEP_TIMEOUT_NS, progress: Progress | None = None,
-         still_wanted: Callable[[], object] | None = None) -> ScanResult:
-    """Find the servos on the bus: one broadcast ping, else a sweep of ids.
-
-    Parameters
-    ----------
-    bus : FeetechBus
-        Opened without the handshake.
-    ids : sequence of int, optional
-        Sweep exactly these ids; when they are an array's worth or fewer (`LOOK_AGAIN_IDS`),
-        look again, four times longer, at those that did not answer (a busy host can hold an
-        answer past a quiet host's wait); a sweep of more looks again only at silent ids in
-        the gaps of those that answered and just beside them, once more, four times longer
-        again, when those are few (`LOOK_TWICE_IDS`) or the last look found someone (up to
-        `LONGEST_LOOK`). Progress is said once more when looking again found someone.
-        Default: a
-        broadcast ping, which finds a lone servo (a new one) at once, asked again listening
-        longer when nothing answers it; when nothing answers that either or several answers
-        collide, every id 0-252, once.
-    timeout_ns : int
-        How long to wait for each id's PING answer in a sweep, in nanoseconds.
-    progress : callable, optional
-        ``progress(servo_id, last_id, found_ids)`` after each id of a sweep; it may raise to
-        stop the sweep (e.g. `pinarray.stop.Stopped`).
-    still_wanted : callable, optional
-        Called before each ping that is not a sweep's first of its id (the broadcast asked
-        again, every look again); it may raise to stop the scan as ``progress`` may: a look
-        again in which nobody answers says no progress, and may last seconds.
-    """
-    def check() -> None:
-        if still_wanted is not None:
-            still_wanted()
-
-    reason = ""
-    look_again = ids is not None and len(ids) <= LOOK_AGAIN_IDS
-    if ids is None:
-        answer = bus.broadcast_ping()
-        if not answer.servo_ids and not answer.garbled_bytes:
-            # Silence: asked once more, listening longer, as `FeetechBus.ping` retries one (a
-            # busy host can hold a lone servo's answer past a quiet host's wait). Far cheaper
-            # than the sweep of every id that silence would otherwise cost.
-            check()
-            answer = bus.broadcast_ping(patience=PATIENCE_GROWTH)
-        if answer.clean and answer.servo_ids:
-            found, unreadable = _details(bus, {i: bus.ping(i) for i in set(answer.servo_ids)})
-            return ScanResult(ScanMethod.BROADCAST, found, unreadable)
-        reason = ("answers to a broadcast ping collided: several servos answer"
-                  if answer.garbled_bytes else "nothing answered a broadcast ping")
-        ids = range(MAX_SERVO_ID + 1)
-    ids = tuple(ids)
-    models: dict[int, int | None] = {}
-    for servo_id in ids:
-        models[servo_id] = bus.ping_within(servo_id, timeout_ns)
-        if progress is not None:
-            progress(servo_id, ids[-1], tuple(i for i, m in models.items() if m is not None))
-    patience = PATIENCE_GROWTH
-    silent = _to_look_at_again(models, look_again)
-    while silent and patience <= PATIENCE_GROWTH ** LONGEST_LOOK:
-        for servo_id in silent:
-            check()
-            models[servo_id] = bus.ping_within(servo_id, patience * timeout_ns)
-        heard = [i for i in silent if models[i] is not None]
-        if heard and progress is not None:  # the sweep's last word: who answered in the end
-            progress(ids[-1], ids[-1], tuple(i for i in ids if models[i] is not None))
-        silent = _to_look_at_again(models, look_again)
-        # Looking again found someone: the host is busy, so the rest may be lost answers too.
-        few = len(silent) <= LOOK_TWICE_IDS and patience == PATIENCE_GROWTH
-        if look_again or not (heard or few):
-            break
-        patience *= PATIENCE_GROWTH
-    found, unreadable = _details(bus, models)
-    return ScanResult(ScanMethod.SWEEP, found, unreadable, ids, reason)
-
-
-def _to_look_at_again(models: dict[int, int | None], every_silent_id: bool) -> list[int]:
-    """The ids swept that have not answered; in a full sweep only those in the gaps of the
-    ids that answered or just beside them (an array's ids run together, so that is where a
-    busy host lost one; as more answer, the ids beside them join)."""
-    silent = [i for i, model in models.items() if model is None]
-    if every_silent_id:
-        return silent
-    answered = [i for i, model in models.items() if model is not None]
-    return [i for i in silent if answered and min(answered) - 1 <= i <= max(answered) + 1]
-
-
-def _details(bus: FeetechBus, models: dict[int, int | None]
-             ) -> tuple[tuple[ServoFound, ...], tuple[ServoFailure, ...]]:
-    found, unreadable = [], []
-    for servo_id, model in sorted(models.items()):
-        if model is None:
-            continue
-        try:
-            firmware, _ = bus.read(servo_id, Register.FIRMWARE_MAJOR, 2)
-            delay, _ = bus.read(servo_id, Register.RETURN_DELAY_TIME)
-            delay_us = delay[0] * RETURN_DELAY_UNIT_US
-            bus.note_return_delay(servo_id, delay_us)
-            (telemetry,) = bus.read_telemetry((servo_id,))
-        except PortLost:
-            raise
-        except BusError as problem:
-            unreadable.append(ServoFailure(servo_id, str(problem)))
-            continue
-        found.append(ServoFound(servo_id, model, (firmware[0], firmware[1]), delay_us, telemetry))
-    return tuple(found), tuple(unreadable)
 
 
 # -- renumbering ------------------------------------------------------------------------------
