@@ -8,7 +8,7 @@ never searched; a run whose manifest is in ``sourcedata/`` while its rows are go
 Folders linked in (a subject's data on another disk) are followed, once. A lab copies
 folders (a file manager's ``sub-01 copy``, a ``beh.bak``, a ``ses-1_old``) and links them;
 none of those is another run. A ``beh.tsv`` found in a folder search is passed over, and said,
-when it lies in a BIDS
+when it is hidden (a name on its way starts with ``.``: macOS's ``._`` files) or lies in a BIDS
 folder tree but not at its own place (one of the folders on its way is named ``sub-``,
 ``ses-`` or ``beh...``, and they are not its run's). One file reached twice (a link to it, a
 folder linked into the dataset, the dataset named twice through a link) is read once, by
@@ -84,7 +84,12 @@ def found_files(paths: Iterable[Path | str]) -> FoundFiles:
 
 
 def _not_a_run(beh: Path, searched: Path) -> str | None:
-    """Why ``beh``, found below ``searched``, is no run's file (a copy's), or None."""
+    """Why ``beh``, found below ``searched``, is no run's file (hidden, or a copy's), or None."""
+    hidden = next((part for part in beh.relative_to(searched).parts if part.startswith(".")),
+                  None)
+    if hidden is not None:
+        return (f"{beh}: passed over: a hidden file ({hidden!r} starts with '.', as the "
+                "leftovers of a copy do, such as macOS's ._ files), not a run")
     return _misplaced(beh, searched)
 
 

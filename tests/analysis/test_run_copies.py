@@ -154,3 +154,14 @@ def test_a_subject_folder_linked_in_is_followed_and_one_gone_is_said(tmp_path):
         f"{second.manifest}: the manifest of {second.label}, but no {second.beh_tsv} (moved "
         "or deleted?): the run is not counted",)
 
+
+def test_hidden_files_are_passed_over_and_said(tmp_path):
+    root = tmp_path / "results"
+    paths = timed_run(root, "A", 2)
+    apple = paths.beh_dir / f"._{paths.beh_tsv.name}"
+    apple.write_bytes(b"\x00\x05\x16\x07 Mac OS X")
+    found = scan([root])
+    assert sources(found) == [paths.beh_tsv] and found.damaged == ()
+    assert found.passed_over == (
+        f"{apple}: passed over: a hidden file ('{apple.name}' starts with '.', as the "
+        "leftovers of a copy do, such as macOS's ._ files), not a run",)
