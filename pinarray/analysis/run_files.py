@@ -166,16 +166,18 @@ def _misplaced(beh: Path, searched: Path) -> str | None:
 
 
 def raw_data_holding(folder: Path, roots: Iterable[Path]) -> str | None:
-    """Why ``folder`` (a report's) is inside the raw data of one of the datasets ``roots``:
-    the dataset's own folder, a subject's folder or ``sourcedata/`` below it (where a report
-    would lie beside the runs' files, and later analyses would pass it over); None when it
-    is not. A BIDS dataset keeps what is made from it in ``derivatives/``."""
+    """Why ``folder`` (a report's) is inside raw data: the dataset's own folder for one of the
+    datasets ``roots`` analysed, or a subject's folder or ``sourcedata/`` of any dataset (those
+    analysed, or another found by looking up for ``dataset_description.json``), where a report
+    would lie beside runs' files and later analyses would pass it over; None when it is not. A
+    BIDS dataset keeps what is made from it in ``derivatives/``."""
     where = Path(os.path.realpath(folder))
-    for root in {Path(os.path.realpath(r)) for r in roots}:
-        if where == root:
-            return f"the dataset {root} itself"
-        if where.is_relative_to(root):
+    analysed = {Path(os.path.realpath(r)) for r in roots}
+    if where in analysed:
+        return f"the dataset {where} itself"
+    for root in [*analysed, *(up for up in where.parents if is_dataset(up))]:
+        if where.is_relative_to(root) and where != root:
             top = where.relative_to(root).parts[0]
-            if top.startswith("sub-") or top == "sourcedata":
+            if top.startswith("sub-") or top == SOURCEDATA:
                 return f"{top}/ of the dataset {root}"
     return None
