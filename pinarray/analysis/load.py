@@ -44,7 +44,12 @@ from pinarray.journal.rows import (
     results_bytes,
     split_torn_tail,
 )
-from pinarray.journal.sidecar_levels import Sidecar, check_against_sidecar, read_sidecar
+from pinarray.journal.sidecar_levels import (
+    Sidecar,
+    check_against_sidecar,
+    missing_levels,
+    read_sidecar,
+)
 
 
 class DamagedResults(ResultsError):
@@ -130,9 +135,9 @@ class LoadedRun:
                     "the run's plan and the answers it offered, so it is not counted, even "
                     "with --include-incomplete")
         if self.state is ManifestState.UNCHECKED:
-            return (f"{self.status}: its rows cannot be checked against the task, answers and "
-                    "patterns the run offered, so it is not counted, even with "
-                    "--include-incomplete (keep its _beh.json beside it)")
+            return (f"{self.status}: its rows cannot be checked against the design the run "
+                    "offered, so it is not counted, even with --include-incomplete (keep its "
+                    "manifest in sourcedata/, or its _beh.json beside it)")
         if self.state is ManifestState.COMPLETED and self.unfinished:
             return f"manifest says completed, but {self._unfinished_words()}"
         if not self.counted:
@@ -254,6 +259,11 @@ def _identified_run(beh: Path) -> tuple[LoadedRun, Claim]:
             check_run(beh, all_records, manifest)
         elif said is not None:
             check_against_sidecar(beh, all_records, said.levels, sidecar)
+            lacking = missing_levels(all_records, said.levels)
+            if lacking:
+                state, status = ManifestState.UNCHECKED, (
+                    f"no manifest, and its sidecar {sidecar.name} gives no Levels of "
+                    f"{', '.join(lacking)} (the design's values its rows must hold)")
         check_finished_once(beh, all_records)
     except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None

@@ -113,7 +113,8 @@ def _searched(folder: Path, said: list[str]) -> list[Path]:
         if is_dataset(here):
             folders[:] = [f for f in folders if f.startswith("sub-")]
             said.extend(_rows_missing(here))
-        found.extend(here / name for name in files if fnmatchcase(name, BEH_PATTERN))
+        found.extend(here / name for name in (*files, *folders)
+                     if fnmatchcase(name, BEH_PATTERN))
     return sorted(found)
 
 
