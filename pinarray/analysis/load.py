@@ -223,8 +223,10 @@ def _identified_run(beh: Path) -> tuple[LoadedRun, Claim]:
             raise ResultsError(f"{beh}: no such results file")
     except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    # A copy of the run's file in another folder is not the run its manifest describes.
-    manifest_path = paths.manifest_on_disk() if at_its_place(paths, beh) else None
+    # A copy of the run's file in another folder, or under another spelling of its name
+    # (``run-01``), is not the run its manifest describes.
+    manifest_path = (paths.manifest_on_disk()
+                     if at_its_place(paths, beh) and beh.name == paths.beh_tsv.name else None)
     sidecar = beh.with_name(beh.name.removesuffix(".tsv") + ".json")  # beside it, as found
     said: Sidecar | None = None
     zero_at = ""

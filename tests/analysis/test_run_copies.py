@@ -72,6 +72,9 @@ def test_a_backup_of_an_aborted_run_is_never_counted_in_its_place(tmp_path):
         shutil.copytree(root / "sub-A", root / folder / "sub-A")
     copy_files(paths, paths.source_dir)  # beside its manifest
     renamed = [copy_files(paths, paths.beh_dir, run=2)]
+    for source in (paths.beh_tsv, paths.beh_json):  # run-01: its number spelt otherwise
+        shutil.copy(source, source.with_name(source.name.replace("run-1_", "run-01_")))
+    renamed.append(paths.beh_tsv.with_name(paths.beh_tsv.name.replace("run-1_", "run-01_")))
     for subject, session in (("a", "1"), ("A", "01")):  # a copy under another label
         other = RunPaths(root, subject, session, paths.task, 1)
         target = copy_files(paths, other.beh_dir.parent / "tmp")
