@@ -3,6 +3,7 @@ side), each closed through the paradigm seam and each tested here as the pass fo
 edited by hand, results files that are no files, a PSS from coin flips, resumes that hung or
 ended in a traceback, protocols that ended in an AssertionError, repeated observer keys."""
 
+import json
 import math
 import os
 import shutil
@@ -113,6 +114,7 @@ def test_an_identification_row_edited_by_hand_is_refused_by_analyse_and_resume(
     ("pattern", "zzz", False, "expected a pattern the run's sidecar .* lists"),
     ("pattern", "L", True, "pattern 'L' raises pins .*, the row says"),
     ("task", "other", False, "expected a task the run's sidecar .* lists"),
+    ("practice", "true", False, "practice is true in block 1 \\(block 0 is the practice"),
 ])
 def test_an_identification_row_edited_by_hand_is_refused_without_the_manifest(
         tmp_path, column, value, every_row, said):
@@ -132,8 +134,7 @@ def test_an_identification_row_edited_by_hand_is_refused_without_the_manifest(
         load_runs([alone])
 
 
-@pytest.mark.parametrize("name", ["shapes", "toj", "flutter_2ifc", "localisation",
-                                  "apparent_motion", "two_point"])
+@pytest.mark.parametrize("name", ["shapes", "localisation", "apparent_motion", "two_point"])
 def test_a_run_shared_without_its_manifest_counts_its_rows_checked_against_its_sidecar(
         tmp_path, name):
     results = tmp_path / "results"
@@ -141,6 +142,45 @@ def test_a_run_shared_without_its_manifest_counts_its_rows_checked_against_its_s
     shutil.rmtree(results / "sourcedata")
     (run,) = select_runs(load_runs([results]), include_incomplete=True).included
     assert run.state is ManifestState.MISSING and run.counted
+
+
+def test_a_sidecar_without_the_patterns_leaves_the_run_unchecked_not_counted(tmp_path):
+    # The issue's repro with the sidecar's pattern entry deleted too: every pattern set to L
+    # would be counted with nothing to check it against.
+    results = tmp_path / "results"
+    beh = run_cut_short(short_copy("shapes", tmp_path), results)
+    shutil.rmtree(results / "sourcedata")
+    edited(beh, "pattern", "L", True)
+    correct_as_answered(beh)
+    sidecar = beh.with_name(beh.name.replace(".tsv", ".json"))
+    described = json.loads(sidecar.read_text())
+    del described["pattern"]["Levels"]
+    sidecar.write_text(json.dumps(described))
+    runs = select_runs(load_runs([results]), include_incomplete=True)
+    assert runs.included == ()
+    (run,) = runs.excluded
+    assert run.state is ManifestState.UNCHECKED and run.incomplete_reason.startswith(
+        f"no manifest, and its sidecar {sidecar.name} gives no Levels of pattern (")
+
+
+@pytest.mark.parametrize(("name", "design"), [
+    ("toj", "soa"), ("flutter_2ifc", "compared_parameter, standard, comparison")])
+def test_a_run_whose_sidecar_does_not_record_its_design_is_not_counted_without_its_manifest(
+        tmp_path, name, design):
+    # Its SOAs, standards and comparisons are the plan's, which only the manifest holds: an
+    # SOA or a standard edited to one the design never had could not be caught.
+    results = tmp_path / "results"
+    beh = run_cut_short(short_copy(name, tmp_path), results)
+    shutil.rmtree(results / "sourcedata")
+    runs = select_runs(load_runs([results]), include_incomplete=True)
+    assert runs.included == ()
+    (run,) = runs.excluded
+    assert run.state is ManifestState.UNCHECKED and run.counted
+    assert run.incomplete_reason == (
+        f"no manifest, and its sidecar {beh.name.replace('.tsv', '.json')} gives no Levels of "
+        f"{design} (the design's values its rows must hold): its rows cannot be checked "
+        "against the design the run offered, so it is not counted, even with "
+        "--include-incomplete (keep its manifest in sourcedata/, or its _beh.json beside it)")
 
 
 def test_a_results_file_handed_over_without_manifest_or_sidecar_is_not_counted(tmp_path):

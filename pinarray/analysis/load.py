@@ -24,12 +24,12 @@ and apart from them those whose rows are there but none ``ok``: an edit, not a c
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from pathlib import Path
 
+from pinarray.analysis.copies import Claim, judged
 from pinarray.analysis.run_files import at_its_place, found_files
 from pinarray.errors import ResultsError
 from pinarray.journal.files import results_file
@@ -44,7 +44,12 @@ from pinarray.journal.rows import (
     results_bytes,
     split_torn_tail,
 )
-from pinarray.journal.sidecar_levels import Sidecar, check_against_sidecar, read_sidecar
+from pinarray.journal.sidecar_levels import (
+    Sidecar,
+    check_against_sidecar,
+    missing_levels,
+    read_sidecar,
+)
 
 
 class DamagedResults(ResultsError):
@@ -130,9 +135,9 @@ class LoadedRun:
                     "the run's plan and the answers it offered, so it is not counted, even "
                     "with --include-incomplete")
         if self.state is ManifestState.UNCHECKED:
-            return (f"{self.status}: its rows cannot be checked against the task, answers and "
-                    "patterns the run offered, so it is not counted, even with "
-                    "--include-incomplete (keep its _beh.json beside it)")
+            return (f"{self.status}: its rows cannot be checked against the design the run "
+                    "offered, so it is not counted, even with --include-incomplete (keep its "
+                    "manifest in sourcedata/, or its _beh.json beside it)")
         if self.state is ManifestState.COMPLETED and self.unfinished:
             return f"manifest says completed, but {self._unfinished_words()}"
         if not self.counted:
@@ -206,10 +211,8 @@ def load_run(beh: Path) -> LoadedRun:
     return _identified_run(beh)[0]
 
 
-def _identified_run(beh: Path) -> tuple[LoadedRun, str]:
-    """`load_run`'s run, and what two copies of it share and no two runs do: its time zero on
-    the wall clock, to the microsecond, and its rows' SHA-256 (empty when neither manifest
-    nor sidecar gives the time zero)."""
+def _identified_run(beh: Path) -> tuple[LoadedRun, Claim]:
+    """`load_run`'s run, and what tells it from its copies (`pinarray.analysis.copies`)."""
     manifest: RunManifest | None = None
     unfinished: tuple[int, ...] = ()
     mm_per_step: tuple[float, ...] = ()
@@ -220,8 +223,10 @@ def _identified_run(beh: Path) -> tuple[LoadedRun, str]:
             raise ResultsError(f"{beh}: no such results file")
     except (ResultsError, ValueError) as problem:
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
-    # A copy of the run's file in another folder is not the run its manifest describes.
-    manifest_path = paths.manifest_on_disk() if at_its_place(paths, beh) else None
+    # A copy of the run's file in another folder, or under another spelling of its name
+    # (``run-01``), is not the run its manifest describes.
+    manifest_path = (paths.manifest_on_disk()
+                     if at_its_place(paths, beh) and beh.name == paths.beh_tsv.name else None)
     sidecar = beh.with_name(beh.name.removesuffix(".tsv") + ".json")  # beside it, as found
     said: Sidecar | None = None
     zero_at = ""
@@ -249,20 +254,26 @@ def _identified_run(beh: Path) -> tuple[LoadedRun, str]:
     elif said is not None:
         zero_at = said.zero_at
     try:
-        torn, digest = _check_table(beh)
+        torn, rows = _check_table(beh)
         all_records = read_trials(beh, None if manifest is None
                                   else manifest.task_info.paradigm)
         if manifest is not None:
             check_run(beh, all_records, manifest)
         elif said is not None:
             check_against_sidecar(beh, all_records, said.levels, sidecar)
+            lacking = missing_levels(all_records, said.levels)
+            if lacking:
+                state, status = ManifestState.UNCHECKED, (
+                    f"no manifest, and its sidecar {sidecar.name} gives no Levels of "
+                    f"{', '.join(lacking)} (the design's values its rows must hold)")
         check_finished_once(beh, all_records)
     except (ResultsError, ValueError) as problem:  # ValueError: a decode error
         raise DamagedResults([DamagedRun(beh, _reason(beh, problem))]) from None
     if manifest is not None:
         unfinished = tuple(e.trial for e in remaining_plan(manifest.needed, all_records))
-    return (LoadedRun(paths, beh, state, status, tuple(all_records), (), torn,
-                      unfinished, mm_per_step), f"{zero_at} {digest}" if zero_at else "")
+    run = LoadedRun(paths, beh, state, status, tuple(all_records), (), torn, unfinished,
+                    mm_per_step)
+    return run, Claim(beh, run.label, manifest_path is not None, zero_at, rows)
 
 
 def _check_names_the_run(beh: Path, paths: RunPaths, manifest_path: Path | None,
@@ -286,12 +297,13 @@ def _reason(beh: Path, problem: Exception) -> str:
     return reason if reason.startswith(str(beh)) else f"{beh}: {reason}"
 
 
-def _check_table(beh: Path) -> tuple[str, str]:
+def _check_table(beh: Path) -> tuple[str, tuple[str, ...]]:
     """A `ResultsError` unless ``beh`` is UTF-8 text of a readable size; the torn last row's
-    text, and the SHA-256 of the whole rows (which two copies of one run share)."""
+    text, and the whole rows' lines, line ends aside (what a copy of the run holds)."""
     data = results_bytes(beh)
     end, torn = split_torn_tail(data, len(beh_header(beh)) or len(LEGACY_LAYOUT))
-    return torn.decode("utf-8", errors="replace"), hashlib.sha256(data[:end]).hexdigest()
+    rows = data[:end].decode("utf-8", errors="replace").splitlines()
+    return torn.decode("utf-8", errors="replace"), tuple(rows)
 
 
 @dataclass(frozen=True)
@@ -306,28 +318,27 @@ class Scan:
 
 def scan(paths: Iterable[Path | str]) -> Scan:
     """Every run under ``paths`` that can be read (each once), and every results file that
-    cannot. Two files at their own places with one identity (`_identified_run`) are one
-    run copied (under another run's number, or with its manifest renamed too): the first, by
-    path, is read, and the other passed over."""
+    cannot. Files that claim one run (its time zero, or its subject, session, task and run
+    where nothing gives the time zero) are that run and its copies: the run is read, and
+    each copy passed over and named (`pinarray.analysis.copies`); where nothing tells which
+    is the run, both are refused as damaged, in one line."""
     found = found_files(paths)
-    runs: list[LoadedRun] = []
+    read: list[LoadedRun] = []
+    claims: list[Claim] = []
     damaged: list[DamagedRun] = []
-    passed_over = list(found.passed_over)
-    first: dict[str, LoadedRun] = {}
     for beh in found.files:
         try:
-            run, identity = _identified_run(beh)
+            run, claim = _identified_run(beh)
         except DamagedResults as problem:
             damaged.extend(problem.damaged)
             continue
-        same = first.setdefault(identity, run) if identity else run
-        if same is not run:
-            passed_over.append(f"{run.source}: passed over: the same run as {same.source} "
-                               f"(the same rows, the same time zero "
-                               f"{identity.split()[0]}); rename or remove the copy")
-            continue
-        runs.append(run)
-    return Scan(tuple(runs), tuple(damaged), tuple(passed_over))
+        read.append(run)
+        claims.append(claim)
+    verdict = judged(claims)
+    for line, left_out in verdict.refused:
+        damaged.append(DamagedRun(read[left_out[0]].source, line))
+    return Scan(tuple(read[i] for i in verdict.runs), tuple(damaged),
+                (*found.passed_over, *verdict.passed_over))
 
 
 def scan_runs(paths: Iterable[Path | str]) -> tuple[list[LoadedRun], list[DamagedRun]]:

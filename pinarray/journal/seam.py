@@ -170,6 +170,10 @@ class RowsDefaults:
     name: str
     columns: tuple[Column, ...] = ()
     instructions = ""
+    # The columns whose Levels (the design's values) a run's sidecar must give for its rows to
+    # be checked without the manifest (`pinarray.journal.sidecar_levels`); a sidecar without
+    # them leaves the run unchecked, as no sidecar does.
+    sidecar_needs: tuple[str, ...] = ()
 
     @property
     def layout(self) -> tuple[str, ...]:

@@ -4,10 +4,13 @@ A BIDS dataset is often shared without ``sourcedata/``, where the manifests live
 ``_beh.json`` sidecar still says every level a column of that run may hold (`Levels`: the
 task, the answers the design offered, each pattern with its pins, the pins of the grid...).
 Read back without the manifest, every row is checked against them as `check_run` checks it
-against the manifest: a cell the sidecar gives levels for holds one of them, and the
-paradigm's own rows say what else its levels fix (identification: a pattern's pins). A run
-with neither its manifest nor a sidecar that can be read cannot be checked at all: the
-analysis does not count it (`pinarray.analysis.load`).
+against the manifest: a cell the sidecar gives levels for holds one of them, the paradigm's
+own rows say what else its levels fix (identification: a pattern's pins), and a row marked
+practice is in block 0 (the practice block), a main trial in a later one. A run with neither
+its manifest nor a sidecar that can be read cannot be checked at all, nor can one whose
+sidecar lacks the Levels its paradigm's design needs (`missing_levels`: identification's
+patterns, temporal order's SOAs, two intervals' compared parameter, standards and
+comparisons): the analysis does not count it (`pinarray.analysis.load`).
 """
 
 from __future__ import annotations
@@ -63,6 +66,15 @@ def read_sidecar(path: Path) -> Sidecar | None:
     return Sidecar(levels, zero_at if isinstance(zero_at, str) else "")
 
 
+def missing_levels(records: Sequence[TrialRecord], levels: Levels) -> tuple[str, ...]:
+    """The columns whose Levels the rows' paradigms need to be checked (their design's
+    values: identification's patterns, temporal order's SOAs, two intervals' standards...)
+    and ``levels`` does not give: a run whose sidecar lacks them cannot be checked."""
+    needed = {name: None for record in records
+              for name in getattr(rows_of(record.paradigm), "sidecar_needs", ())}
+    return tuple(name for name in needed if name not in levels)
+
+
 def check_against_sidecar(path: Path | str, records: Sequence[TrialRecord], levels: Levels,
                           sidecar: Path) -> None:
     """Every row holds, in each column ``levels`` names, one of its levels, and what its
@@ -70,6 +82,10 @@ def check_against_sidecar(path: Path | str, records: Sequence[TrialRecord], leve
     row that does not (row ``i`` is line ``i + 2``)."""
     for number, record in enumerate(records, start=2):
         where = f"{path}:{number}: trial {record.trial}"
+        if record.practice != (record.block == 0):
+            raise ResultsError(f"{where}: practice is {str(record.practice).lower()} in block "
+                               f"{record.block} (block 0 is the practice, blocks from 1 the "
+                               "main trials)")
         rows = rows_of(record.paradigm)
         for name, cell in zip(rows.layout, trial_row(record, rows), strict=True):
             allowed = levels.get(name)

@@ -177,5 +177,5 @@ def test_a_run_copied_to_the_next_run_number_is_counted_once(tmp_path, manifest)
     found = scan([root])
     assert [run.source for run in found.runs] == [paths.beh_tsv]
     (said,) = found.passed_over
-    assert said.startswith(f"{copy.beh_tsv}: passed over: the same run as {paths.beh_tsv} "
-                           "(the same rows, the same time zero ")
+    assert said.startswith(f"{copy.beh_tsv}: passed over: a copy of the run {paths.beh_tsv} "
+                           "(the same time zero ")

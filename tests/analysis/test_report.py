@@ -284,6 +284,21 @@ def test_a_report_is_refused_inside_the_datasets_raw_data(results_root, inside, 
                      str(results_root / "derivatives" / "report"), "--no-figures"]) == 0
 
 
+
+@pytest.mark.parametrize("inside", ["sub-A/ses-1/beh/report", "sourcedata/report"])
+def test_a_report_is_refused_inside_another_datasets_raw_data(results_root, tmp_path, inside,
+                                                              capsys):
+    other = write_results(tmp_path / "other")
+    before = sorted((p, p.read_bytes()) for p in other.rglob("*") if p.is_file())
+    out = other / inside
+    assert cli.main(["analyse", str(results_root), "--out", str(out), "--no-figures"]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"pinarray: {out}: expected a report folder outside the raw data, found "
+                   f"one in {inside.split('/')[0]}/ of the dataset {other}; write it elsewhere "
+                   "(a BIDS dataset keeps it in derivatives/)\n")
+    assert sorted((p, p.read_bytes()) for p in other.rglob("*") if p.is_file()) == before
+    assert not out.exists()
+
 def test_registering_the_command_loads_neither_numpy_nor_matplotlib():
     probe = ("import sys, argparse, pinarray.cli.analysis as c;"
              "c.register(argparse.ArgumentParser().add_subparsers());"

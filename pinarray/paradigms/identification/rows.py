@@ -61,6 +61,7 @@ class IdentificationRows(RowsDefaults):
     """Identification's rows (`pinarray.journal.seam.ParadigmRows`)."""
 
     name = "identification"
+    sidecar_needs = ("pattern",)  # each pattern's pins
     record_type = IdentificationRecord
     columns = COLUMNS
     layout = LEGACY_LAYOUT

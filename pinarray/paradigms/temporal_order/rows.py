@@ -73,6 +73,7 @@ class TemporalOrderRows(RowsDefaults):
     """Temporal order's rows (`pinarray.journal.seam.ParadigmRows`)."""
 
     name = "temporal_order"
+    sidecar_needs = ("soa",)  # the design's SOAs
     record_type = TemporalOrderRecord
     columns = COLUMNS
     layout = LEGACY_LAYOUT

@@ -104,6 +104,7 @@ class TwoIntervalRows(RowsDefaults):
     """Two intervals' rows (`pinarray.journal.seam.ParadigmRows`)."""
 
     name = "two_interval"
+    sidecar_needs = ("compared_parameter", "standard", "comparison")
     record_type = TwoIntervalRecord
     columns = COLUMNS
     layout = LEGACY_LAYOUT
