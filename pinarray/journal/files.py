@@ -19,6 +19,7 @@ import json
 import os
 import platform
 import re
+import shutil
 import socket
 import stat
 import tempfile
@@ -89,6 +90,32 @@ def write_atomically(path: Path, text: str) -> None:
             os.fchmod(handle, 0o666 & ~_UMASK)
         with os.fdopen(handle, "w", encoding="utf-8") as out:
             out.write(text)
+            out.flush()
+            os.fsync(out.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    fsync_folder(path.parent)
+
+
+def own_copy(path: Path) -> None:
+    """Give the regular file at ``path`` a copy of its own if it has other names (hard links):
+    a backup made with ``cp -al``, or a link put there by hand. The bytes go to a new file that
+    takes the name with ``os.replace``, so a later write in place (an appended row, a torn row
+    cut off) changes this file only, never the others; nothing there, or one name: nothing done."""
+    try:
+        status = os.stat(path, follow_symlinks=False)
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(status.st_mode) or status.st_nlink < 2:
+        return
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        if hasattr(os, "fchmod"):  # POSIX
+            os.fchmod(handle, stat.S_IMODE(status.st_mode))
+        with os.fdopen(handle, "wb") as out, open(path, "rb") as source:
+            shutil.copyfileobj(source, out)
             out.flush()
             os.fsync(out.fileno())
         os.replace(temporary, path)
