@@ -23,9 +23,10 @@ import shutil
 import socket
 import stat
 import tempfile
+from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from pinarray.errors import ResultsError
 from pinarray.text_files import NotText, kind_of, position_of, read_bounded
@@ -82,21 +83,7 @@ def write_atomically(path: Path, text: str) -> None:
     temporary file's owner-only ones, so the lab's other accounts can read the dataset.
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    # The temporary file must be in the same folder: os.replace is atomic only within one
-    # file system.
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        if hasattr(os, "fchmod"):  # POSIX
-            os.fchmod(handle, 0o666 & ~_UMASK)
-        with os.fdopen(handle, "w", encoding="utf-8") as out:
-            out.write(text)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
-    fsync_folder(path.parent)
+    _replace(path, 0o666 & ~_UMASK, lambda out: out.write(text.encode("utf-8")))
 
 
 def own_copy(path: Path) -> None:
@@ -110,12 +97,25 @@ def own_copy(path: Path) -> None:
         return
     if not stat.S_ISREG(status.st_mode) or status.st_nlink < 2:
         return
+
+    def copy(out: BinaryIO) -> None:
+        with open(path, "rb") as source:
+            shutil.copyfileobj(source, out)
+
+    _replace(path, stat.S_IMODE(status.st_mode), copy)
+
+
+def _replace(path: Path, mode: int, write: Callable[[BinaryIO], object]) -> None:
+    """``path`` replaced by a new file of permissions ``mode`` that ``write`` fills, fsync'd,
+    renamed over it, its folder fsync'd; the new file removed if anything fails."""
+    # The temporary file must be in the same folder: os.replace is atomic only within one
+    # file system.
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         if hasattr(os, "fchmod"):  # POSIX
-            os.fchmod(handle, stat.S_IMODE(status.st_mode))
-        with os.fdopen(handle, "wb") as out, open(path, "rb") as source:
-            shutil.copyfileobj(source, out)
+            os.fchmod(handle, mode)
+        with os.fdopen(handle, "wb") as out:
+            write(out)
             out.flush()
             os.fsync(out.fileno())
         os.replace(temporary, path)
