@@ -336,3 +336,21 @@ def test_a_results_file_hard_linked_to_a_backup_is_written_without_changing_the_
     for name, data in saved.items():
         assert (backup / name).read_bytes() == data  # the backup as it was
     assert os.stat(paths.beh_tsv).st_nlink == 1
+
+
+@pytest.mark.parametrize("link", ["symbolic", "hard"])
+def test_the_motion_recordings_temporary_name_is_never_written_through(tmp_path, link):
+    # The recording is rewritten under a fixed temporary name, then renamed: a link put at that
+    # name had the rewrite go into the file it leads to.
+    from pinarray.journal.physio import motion_recording_path
+
+    paths = unfinished_batch_run(tmp_path / "results", MOTION)
+    outside = tmp_path / "outside.txt"
+    outside.write_text("precious\n")
+    temporary = motion_recording_path(paths)
+    temporary = temporary.with_name(temporary.name + ".tmp")
+    temporary.parent.mkdir(parents=True, exist_ok=True)
+    (os.symlink if link == "symbolic" else os.link)(outside, temporary)
+    resumed = batch(tmp_path / "results", "--resume", "--speed", "0")
+    assert resumed.returncode == 0, resumed.stderr
+    assert outside.read_text() == "precious\n"
