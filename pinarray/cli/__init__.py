@@ -64,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     reading of the arguments included (they import each command's options). As the process's
     command (no ``argv``), from the start of its imports (`pinarray._interrupted_at_start`) to
     its exit: once the command's work is done its status stands, and a Ctrl-C then (the
-    interpreter ending) is said in one line (`_cover_the_end`).
+    interpreter ending) is said in one line (`pinarray.stop.say_late_interrupts`).
     """
     import _signal
 
@@ -77,32 +77,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return _interrupted()
     if argv is None:
-        _cover_the_end()
+        from pinarray.stop import say_late_interrupts
+
+        say_late_interrupts("pinarray: interrupted as the command ended; its result stands")
     return status
-
-
-LATE_INTERRUPT = "pinarray: interrupted as the command ended; its result stands\n"
-
-
-def _cover_the_end() -> None:
-    """The command's work is done: a Ctrl-C from now on (its last output flushed, threads
-    joined, the interpreter ending) must neither turn its status into 130 nor kill it by the
-    signal with nothing said (Python puts the default action back as it ends). Until the exit
-    handlers run it is said in one line; from then on it is ignored. The status stands."""
-    import atexit
-    import signal
-
-    said: list[int] = []
-
-    def late(signum: int, frame: object) -> None:
-        if not said:
-            said.append(signum)
-            os.write(2, LATE_INTERRUPT.encode())
-
-    signal.signal(signal.SIGINT, late)
-    # Registered last, so run first of the exit handlers: Python would reset `late` to the
-    # default action (death by the signal) as it ends; an ignored signal it leaves ignored.
-    atexit.register(signal.signal, signal.SIGINT, signal.SIG_IGN)
 
 
 def _main(argv: list[str]) -> int:
