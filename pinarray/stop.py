@@ -249,24 +249,3 @@ class StoppableClock:
             else:
                 self.clock.sleep_until_ns(deadline_ns)
 
-
-def say_late_interrupts(message: str) -> None:
-    """A process's work is done: a Ctrl-C from now on (its last output flushed, threads
-    joined, the interpreter ending) must neither turn its exit status into 130 nor kill it by
-    the signal with nothing said (Python puts the default action back as it ends). Until the
-    exit handlers run, the first one writes ``message`` (a line, to stderr); from then on it is
-    ignored. Either way the process ends with the status it was ending with."""
-    import atexit
-    import os
-
-    said: list[int] = []
-
-    def late(signum: int, frame: object) -> None:
-        if not said:
-            said.append(signum)
-            os.write(2, f"{message}\n".encode())
-
-    signal.signal(signal.SIGINT, late)
-    # Registered last, so run first of the exit handlers: Python would reset `late` to the
-    # default action (death by the signal) as it ends; an ignored signal it leaves ignored.
-    atexit.register(signal.signal, signal.SIGINT, signal.SIG_IGN)

@@ -87,8 +87,9 @@ def dynamic_imports_of_the_roots(package: Path) -> list[str]:
     return found
 
 
-# The command's start-up, before any part of the package may load (stop.py included): the
-# package's first lines put Ctrl-C's one-line handler in place, and `main` puts Python's back.
+# The command's start and end, where stop.py is more than may load: the package's first lines
+# put Ctrl-C's one-line handler in place, `main` puts Python's back, and says a Ctrl-C that
+# comes once the command's work is done.
 START_UP = ("__init__.py", "cli/__init__.py")
 
 
@@ -96,7 +97,7 @@ def waits_and_signal_handlers_out_of_place(package: Path) -> list[str]:
     """A signal handler installed through an event loop outside stop.py; in the files ruff lets
     use the standard streams (the roots) or its banned calls (clock.py, stop.py), `time.sleep`
     outside clock.py and `signal.signal` outside stop.py; `_signal.signal` outside the
-    command's start-up; below the roots, `input`."""
+    command's start and end; below the roots, `input`."""
     found = []
     for path in sorted(package.rglob("*.py")):
         relative = str(path.relative_to(package))

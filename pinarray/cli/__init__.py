@@ -64,7 +64,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     reading of the arguments included (they import each command's options). As the process's
     command (no ``argv``), from the start of its imports (`pinarray._interrupted_at_start`) to
     its exit: once the command's work is done its status stands, and a Ctrl-C then (the
-    interpreter ending) is said in one line (`pinarray.stop.say_late_interrupts`).
+    interpreter ending) is said in one line (`_say_late_interrupts`).
     """
     import _signal
 
@@ -77,10 +77,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         return _interrupted()
     if argv is None:
-        from pinarray.stop import say_late_interrupts
-
-        say_late_interrupts("pinarray: interrupted as the command ended; its result stands")
+        _say_late_interrupts()
     return status
+
+
+LATE_INTERRUPT = b"pinarray: interrupted as the command ended; its result stands\n"
+
+
+def _say_late_interrupts() -> None:
+    """The command's work is done: a Ctrl-C from now on (its last output flushed, threads
+    joined, the interpreter ending) must neither turn its status into 130 nor kill it by the
+    signal with nothing said (Python puts the default action back as it ends). Until the exit
+    handlers run the first one is said in one line; from then on it is ignored. The status
+    stands. Through `_signal`, as at the start: `pinarray.stop` (threads, the clock) is more
+    than ``validate`` loads."""
+    import _signal
+    import atexit
+
+    said: list[int] = []
+
+    def late(signum: int, frame: object) -> None:
+        if not said:
+            said.append(signum)
+            os.write(2, LATE_INTERRUPT)
+
+    _signal.signal(_signal.SIGINT, late)
+    # Registered last, so run first of the exit handlers: Python would reset `late` to the
+    # default action (death by the signal) as it ends; an ignored signal it leaves ignored.
+    atexit.register(_signal.signal, _signal.SIGINT, _signal.SIG_IGN)
 
 
 def _main(argv: list[str]) -> int:
