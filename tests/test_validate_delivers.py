@@ -224,3 +224,18 @@ def test_a_pin_no_stimulus_plays_may_be_calibrated_flat_and_the_smallest_stroke_
     status, _, err = run(capsys, "batch", path, "--subject", "s1", "--observer", "default",
                          "--seed", "7", "--results", tmp_path / "results")
     assert status == 0 and "not delivered" not in err, err
+
+
+def test_a_width_the_calibration_lacks_is_one_located_line_before_the_stroke_is_judged(
+        tmp_path, capsys):
+    # Found by the fuzzer as the stroke check moved to where a pin is played: the check asked
+    # for the position of a width not calibrated, outside the reader's error handling.
+    text = ("protocol: fuzz\ndevice:\n  grid: {rows: 1, columns: 3}\n  calibration:\n"
+            "    rest_steps: 2048\n    positions:\n      2.0: 2162\n"
+            "    limits_steps: [2000, 2200]\nstimuli:\n  tap: {frequency_hz: 1, duration_s: 0.1}\n"
+            "  wave_rightwards:\n    wave: rightwards\n    row: 1\n    pins: [1, 2, 3]\n"
+            "    train: tap\n    soa_ms: 175.3\ndesign:\n  paradigm: apparent_motion\n"
+            "  configurations: [wave_rightwards]\n")
+    line, col, message = refusal(tmp_path, capsys, text)
+    assert (line, col) == (15, 12)
+    assert message == "pin 1: expected a pulse width it is calibrated for (2 ms), found 1.5 ms"

@@ -276,10 +276,10 @@ def check_train_on_pins(
         return
     for pin in pins:
         calibration = device.calibration(pin)
-        check_stroke(reader, node, train, calibration, device)
         try:
+            check_stroke(reader, node, train, calibration, device)  # before its feasibility
             result = check_train(train, calibration, device)
-        except PinArrayError as problem:
+        except PinArrayError as problem:  # a width the pin is not calibrated for, say
             raise reader.error(node, str(problem)) from None
         if not result.feasible and not device.scale_infeasible:
             raise reader.error(
