@@ -14,9 +14,41 @@ versioning (CHANGELOG.md); everything else in the package may move. ``pinarray.t
 the simulated array and assertions for a lab's own tests (a pytest plugin).
 """
 
-import importlib
+import os as _os
+import sys as _sys
 
-from pinarray.version import __version__ as __version__
+
+def _interrupted_at_start(signum: int, frame: object) -> None:
+    """Ctrl-C while the `pinarray` command is still loading: one line, status 130 (nothing
+    has been done yet); `pinarray.cli.main` puts Python's own handler back as it starts."""
+    _os.write(2, b"pinarray: interrupted\n")
+    _os._exit(130)
+
+
+def _command_starting() -> bool:
+    """Whether this import is the `pinarray` command starting: its console script (the main
+    script is a file named pinarray, and is argv[0]) or ``python -m pinarray`` (not another
+    module of the package run with -m, such as the player's child process)."""
+    main_file = getattr(_sys.modules.get("__main__"), "__file__", None) or ""
+    if _os.path.basename(main_file) == "pinarray" and _sys.argv[:1] == [main_file]:
+        return True
+    words = getattr(_sys, "orig_argv", [])
+    return _sys.argv[:1] == ["-m"] and any(
+        word == "-mpinarray" or (word == "-m" and words[k + 1:k + 2] == ["pinarray"])
+        for k, word in enumerate(words))
+
+
+# First, before anything else loads: Ctrl-C during the rest of the command's imports is then one
+# line, not a traceback. `_signal` (built in, loaded with the interpreter) rather than `signal`,
+# which imports enum. A library's `import pinarray` changes no handler.
+if _command_starting():
+    import _signal
+
+    _signal.signal(_signal.SIGINT, _interrupted_at_start)
+
+import importlib  # noqa: E402
+
+from pinarray.version import __version__ as __version__  # noqa: E402
 
 # typing.TYPE_CHECKING without importing typing: type checkers take this name as true.
 TYPE_CHECKING = False

@@ -248,3 +248,4 @@ class StoppableClock:
                 self.clock.doze_until_ns(now_ns + SLICE_NS)  # not the deadline yet: no spinning
             else:
                 self.clock.sleep_until_ns(deadline_ns)
+

@@ -87,18 +87,27 @@ def dynamic_imports_of_the_roots(package: Path) -> list[str]:
     return found
 
 
+# The command's start and end, where stop.py is more than may load: the package's first lines
+# put Ctrl-C's one-line handler in place, `main` puts Python's back, and says a Ctrl-C that
+# comes once the command's work is done.
+START_UP = ("__init__.py", "cli/__init__.py")
+
+
 def waits_and_signal_handlers_out_of_place(package: Path) -> list[str]:
     """A signal handler installed through an event loop outside stop.py; in the files ruff lets
     use the standard streams (the roots) or its banned calls (clock.py, stop.py), `time.sleep`
-    outside clock.py and `signal.signal` outside stop.py; below the roots, `input`."""
+    outside clock.py and `signal.signal` outside stop.py; `_signal.signal` outside the
+    command's start and end; below the roots, `input`."""
     found = []
     for path in sorted(package.rglob("*.py")):
         relative = str(path.relative_to(package))
         exempt_from_ruff = _is_root(package, path) or relative in ("clock.py", "stop.py")
         for name, call in _calls(path, "signal", "sleep", "input"):
             where = _where(package, path, call)
-            if relative != "stop.py" and (name.endswith(".add_signal_handler")
-                                          or exempt_from_ruff and name == "signal.signal"):
+            if relative not in START_UP and name == "_signal.signal":
+                found.append(f"{where} installs a signal handler (stop.py installs them)")
+            elif relative != "stop.py" and (name.endswith(".add_signal_handler")
+                                            or exempt_from_ruff and name == "signal.signal"):
                 found.append(f"{where} installs a signal handler (stop.py installs them)")
             elif exempt_from_ruff and relative != "clock.py" and name == "time.sleep":
                 found.append(f"{where} sleeps (wait through a Clock from clock.py)")

@@ -478,6 +478,9 @@ def test_two_soas_a_nanosecond_would_make_one_are_refused_by_validate(tmp_path):
 
 # -- names a run's files cannot carry -------------------------------------------------------------
 
+NAME_RULE = ("expected a protocol name of ASCII letters and digits (they make the BIDS task label "
+             "in its runs' file names) and ASCII spaces and punctuation (dropped from it)")
+
 # The protocol's name is its runs' task label, in every file name: validate refuses what no run
 # could write (a 300-character name passed, and batch then failed with "File name too long",
 # leaving a dataset's first files behind: issue 46's re-run).
@@ -485,12 +488,24 @@ def test_two_soas_a_nanosecond_would_make_one_are_refused_by_validate(tmp_path):
     ("t" * (MAX_TASK_LABEL_CHARS + 1),
      f"expected a protocol name of at most {MAX_TASK_LABEL_CHARS} letters and digits (its runs' "
      f"task label, in file names of at most 255 bytes), found {MAX_TASK_LABEL_CHARS + 1}"),
-    ("café", "expected a protocol name with letters or digits, all ASCII (they make the BIDS task "
-             "label in its runs' file names; spaces and punctuation are dropped), found 'café'"),
-    ("'!!!'", "expected a protocol name with letters or digits, all ASCII (they make the BIDS "
-              "task label in its runs' file names; spaces and punctuation are dropped), found "
-              "'!!!'"),
-], ids=["one letter too long", "not ASCII", "no letter nor digit"])
+    ("café", f"{NAME_RULE}, found 'café': U+00E9 (LATIN SMALL LETTER E WITH ACUTE) is none "
+             "of them"),
+    ("'!!!'", f"{NAME_RULE}, found '!!!': no letter nor digit"),
+    # Issue 46's fourth pass: these were dropped from the task label without a word.
+    ("toj\u0301", f"{NAME_RULE}, found 'toj\u0301': U+0301 (COMBINING ACUTE ACCENT) "
+                   "is none of them"),
+    ("toj \U0001F642", f"{NAME_RULE}, found 'toj \U0001F642': U+1F642 (SLIGHTLY "
+                        "SMILING FACE) is none of them"),
+    ("'to\u200bj'", f"{NAME_RULE}, found 'to\\u200bj': U+200B (ZERO WIDTH SPACE) is "
+                     "none of them"),
+    ('"to\\0j"', f"{NAME_RULE}, found 'to\\x00j': U+0000 (a control character) is none "
+                   "of them"),
+    ('"to\\tj"', f"{NAME_RULE}, found 'to\\tj': U+0009 (a control character) is none of "
+                   "them"),
+    ('"to\\nj"', f"{NAME_RULE}, found 'to\\nj': U+000A (a control character) is none of "
+                   "them"),
+], ids=["one letter too long", "not ASCII", "no letter nor digit", "combining accent",
+       "emoji", "zero-width space", "NUL", "tab", "newline"])
 def test_a_protocol_name_no_run_could_carry_in_its_file_names_is_refused_by_validate(
         tmp_path, name, said):
     path = short_copy("toj", tmp_path, ("protocol: toj", f"protocol: {name}"))

@@ -137,6 +137,9 @@ PLANTED = {
     "a signal handler installed by the commands": (
         "cli/planted.py", "import signal as s\n\ns.signal(s.SIGINT, print)\n",
         ["installs a signal handler (stop.py installs them)"]),
+    "a signal handler through the built-in _signal": (  # past ruff's ban of signal.signal
+        "hardware/planted.py", "import _signal\n\n_signal.signal(_signal.SIGINT, print)\n",
+        ["installs a signal handler (stop.py installs them)"]),
     "importlib.import_module of the UI": (
         "journal/planted.py",
         "import importlib\n\nimportlib.import_module('pinarray.tui.app')\n",

@@ -279,3 +279,78 @@ def test_a_seed_other_than_the_runs_own_is_refused_on_resume_and_its_own_is_take
                             "--seed", "5", "--results", tmp_path, "--resume")
     assert resumed.returncode == 0 and "(seed 5, run 1;" in resumed.stdout
     assert read_manifest(paths.manifest).status == RunStatus.COMPLETED
+
+
+def hard_link_targets(root: Path, paths: RunPaths) -> dict[str, Path]:
+    """Files a lock file could be a second name of: the run's rows, the dataset's participants,
+    a file outside the results folder."""
+    outside = root.parent / f"{root.name}-outside.txt"
+    outside.write_text("precious\n")
+    return {"beh.tsv": paths.beh_tsv, "participants.tsv": root / "participants.tsv",
+            "outside": outside}
+
+
+@pytest.mark.parametrize("lock_of", ["run", "dataset"])
+@pytest.mark.parametrize("target", ["beh.tsv", "participants.tsv", "outside"])
+def test_a_lock_file_that_is_a_hard_link_is_refused_and_nothing_is_written_through_it(
+        tmp_path, lock_of, target):
+    # Issue 46's fourth pass: a run's lock hard-linked to its beh.tsv, to participants.tsv or
+    # to a file outside the results had batch write its lock record into that file.
+    root = tmp_path / "results"
+    paths = unfinished_batch_run(root, MOTION)
+    linked = hard_link_targets(root, paths)[target]
+    if not linked.exists():
+        linked.write_text("onset\tduration\n")  # a run aborted before trial 1 may have none yet
+    lock = paths.lock if lock_of == "run" else root / "sourcedata" / "dataset.lock"
+    lock.unlink(missing_ok=True)
+    os.link(linked, lock)
+    before, linked_before = results_files(root), linked.read_bytes()
+    refused = batch(root, "--resume")
+    what = "the run's" if lock_of == "run" else "the dataset's"
+    assert (refused.returncode, refused.stdout) == (2, "")
+    assert refused.stderr == (f"pinarray: {lock}: cannot use {what} lock file: expected a file "
+                              "of its own, found a hard link (one file with 2 names: writing "
+                              "it would change the others)\n")
+    assert linked.read_bytes() == linked_before
+    assert results_files(root) == before  # nothing written, nothing touched
+
+
+def test_a_results_file_hard_linked_to_a_backup_is_written_without_changing_the_backup(
+        tmp_path):
+    # A backup made with `cp -al` shares its files with the run: rows appended in place (and a
+    # torn row cut off in place) would change the backup too. The run's file gets a copy of
+    # its own first.
+    paths = unfinished_batch_run(tmp_path, MOTION)
+    backup = tmp_path / "backup"
+    backup.mkdir()
+    saved = {}
+    for name, path in {"beh": paths.beh_tsv, "events": paths.events_tsv}.items():
+        if not path.exists():
+            path.write_text("")
+        path.write_bytes(path.read_bytes() + b"torn")  # a torn last row, cut on resume
+        os.link(path, backup / name)
+        saved[name] = path.read_bytes()
+    resumed = batch(tmp_path, "--resume", "--speed", "0")
+    assert resumed.returncode == 0, resumed.stderr
+    assert len(read_trials(paths.beh_tsv)) > 0
+    for name, data in saved.items():
+        assert (backup / name).read_bytes() == data  # the backup as it was
+    assert os.stat(paths.beh_tsv).st_nlink == 1
+
+
+@pytest.mark.parametrize("link", ["symbolic", "hard"])
+def test_the_motion_recordings_temporary_name_is_never_written_through(tmp_path, link):
+    # The recording is rewritten under a fixed temporary name, then renamed: a link put at that
+    # name had the rewrite go into the file it leads to.
+    from pinarray.journal.physio import motion_recording_path
+
+    paths = unfinished_batch_run(tmp_path / "results", MOTION)
+    outside = tmp_path / "outside.txt"
+    outside.write_text("precious\n")
+    temporary = motion_recording_path(paths)
+    temporary = temporary.with_name(temporary.name + ".tmp")
+    temporary.parent.mkdir(parents=True, exist_ok=True)
+    (os.symlink if link == "symbolic" else os.link)(outside, temporary)
+    resumed = batch(tmp_path / "results", "--resume", "--speed", "0")
+    assert resumed.returncode == 0, resumed.stderr
+    assert outside.read_text() == "precious\n"

@@ -498,3 +498,37 @@ def test_the_resume_command_a_failed_trial_suggests_resumes_the_run_as_typed(tmp
     (manifest,) = results.rglob("*_manifest.json")
     assert len(read_manifest(manifest).sittings) == 2  # ... and resumed it, on the same bus
     assert again.returncode == 3 and again.stderr.strip().splitlines()[-1] == said
+
+
+def test_a_scanner_timed_run_is_offered_a_new_run_as_typed_and_refused_a_resume(tmp_path):
+    # Issue 46's fourth pass: the printed resume of a run timed from scanner volumes left out
+    # --trigger, and typed as given finished the run with no scanner (exit 0), though its time
+    # zero was the old scan's first volume; with --trigger the same resume was refused.
+    from tests.lab_protocols import short_copy
+
+    results = tmp_path / "my results"
+    protocol = short_copy("toj", tmp_path)
+    slow_bus = "sim://?baud=38400"  # the two pins' strokes are not measured: a trial fails
+    failed = pinarray_here("batch", protocol, "--subject", "k1", "--observer", "default",
+                           "--results", results, "--sim", slow_bus, "--speed", "0",
+                           "--trigger", "emulate:2", cwd=tmp_path)
+    assert failed.returncode == 3, failed.stderr
+    said = failed.stderr.strip().splitlines()[-1]
+    assert "a run timed from scanner volumes cannot be resumed" in said
+    command = shlex.split(said.split("start a new run in a new scan with: ")[1])
+    assert "--resume" not in command and command[-2:] == ["--trigger", "emulate:2"]
+    (manifest,) = results.rglob("*_manifest.json")
+    before = {f: f.read_bytes() for f in results.rglob("*") if f.is_file()}
+    # The resume, with no scanner as with one, is refused in one line, nothing written.
+    for scanner in ([], ["--trigger", "emulate:2"]):
+        words = [w for w in command[1:] if w not in ("--trigger", "emulate:2")]
+        resumed = pinarray_here(*words, *scanner, "--resume", cwd=tmp_path)
+        assert resumed.returncode == 2, resumed.stderr
+        (line,) = resumed.stderr.splitlines()
+        assert "cannot be resumed" in line or "cannot go on in a new scan" in line
+        assert {f: f.read_bytes() for f in results.rglob("*") if f.is_file()} == before
+    # The command printed works as typed: a new run, in a new scan.
+    again = pinarray_here(*command[1:], cwd=tmp_path)
+    assert again.returncode == 3 and "waiting for the scanner" in again.stderr
+    assert len(list(results.rglob("*_manifest.json"))) == 2
+    assert len(read_manifest(manifest).sittings) == 1  # the first run not gone on

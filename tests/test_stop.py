@@ -2,6 +2,7 @@
 
 import os
 import signal
+from pathlib import Path
 
 import pytest
 
@@ -110,3 +111,47 @@ def test_ctrl_c_as_a_command_starts_ends_in_one_line_with_the_results_untouched(
                            timeout=60)
     assert (done.returncode, done.stderr, done.stdout) == (130, "pinarray: interrupted\n", "")
     assert files_under(results) == before
+
+
+# -- Ctrl-C as the command loads, and as it ends -------------------------------------------------
+
+# The console script's shape (a file named pinarray that imports `pinarray.cli.main` and exits
+# with its status), held at one moment where a Ctrl-C lands: deterministic, not raced.
+CONSOLE_SCRIPT = """\
+import atexit, os, signal, sys
+{before}
+from pinarray.cli import main
+status = main()
+{after}
+sys.exit(status)
+"""
+CTRL_C = "os.kill(os.getpid(), signal.SIGINT)"
+MOMENTS = {
+    # Issue 46's fourth pass: a traceback inside the package's imports (rc 1 or -2).
+    "as the package loads": ("import pinarray\n" + CTRL_C, ""),
+    # ... and, after the command's work, death by the signal with nothing said (rc -2).
+    "as the command ends": ("", CTRL_C),
+    "as the interpreter ends": (f"atexit.register(lambda: {CTRL_C})", ""),
+}
+
+
+@pytest.mark.parametrize("moment", MOMENTS)
+def test_ctrl_c_as_the_command_loads_or_ends_is_one_line_with_a_defined_status(moment, tmp_path):
+    import subprocess
+    import sys
+
+    before, after = MOMENTS[moment]
+    script = tmp_path / "pinarray"
+    script.write_text(CONSOLE_SCRIPT.format(before=before, after=after))
+    protocol = str(Path(__file__).resolve().parent.parent / "protocols" / "toj.yaml")
+    done = subprocess.run([sys.executable, str(script), "validate", protocol],
+                          capture_output=True, text=True, timeout=60)
+    if moment == "as the package loads":  # nothing done yet: interrupted
+        assert (done.returncode, done.stderr, done.stdout) == (130, "pinarray: interrupted\n", "")
+        return
+    # The work was done: its status and output stand, and the Ctrl-C is said, or (once the
+    # interpreter is ending, past the last word) waits blocked and dies with the process.
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(f"{protocol}: ok")
+    late = "pinarray: interrupted as the command ended; its result stands\n"
+    assert done.stderr == (late if moment == "as the command ends" else "")

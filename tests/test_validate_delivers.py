@@ -12,6 +12,8 @@ from pathlib import Path
 import pytest
 
 from pinarray.cli import main
+from pinarray.hardware.motion import ARRIVAL_STEPS
+from pinarray.protocol.model import MIN_STROKE_STEPS
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 FLUTTER = (PROTOCOLS / "flutter_2ifc.yaml").read_text()
@@ -149,6 +151,9 @@ def test_validate_accepts_exactly_what_batch_delivers(case, tmp_path, capsys):
 
 # --- a stimulus that moves no pin is no stimulus ----------------------------------------------
 
+STROKE_RULE = (f"expected a stroke of at least {MIN_STROKE_STEPS} steps (a pin counts as at its "
+               f"goal within {ARRIVAL_STEPS} steps: a smaller stroke cannot be told from none)")
+
 STILL = {
     # issue 46's re-run: every trial `ok`, stroke n/a, a subject naming shapes no pin played
     "an up pulse as wide as the down one": (
@@ -160,9 +165,23 @@ STILL = {
     "two widths calibrated at one position": (
         small("toj.yaml", ("positions: {1.5: 2048, 2.0: 2113}",
                            "positions: {1.5: 2048, 2.0: 2048}")),
-        "    positions: {1.5: 2048, 2.0: 2048}   # 1 mm on a 10 mm horn", "2048}",
-        "expected each pulse width at a position of its own (the pin must go up and come "
-        "down), found 1.5 ms and 2 ms both at 2048 steps"),
+        "  soas_ms: [-120, -60, -30, -15, 15, 30, 60, 120]", "-120",
+        f"{STROKE_RULE}, found 0: the calibration puts 2 ms at 2048 steps and 1.5 ms "
+        "at 2048; widen the pulse widths or the calibrated positions"),
+    # Issue 46's fourth pass: a 1-step stroke (0.015 mm) was "a pin that moves", every trial
+    # ok, though a pin that never moved reads within 3 steps of both its goals.
+    "a stroke of one step": (
+        small("shapes.yaml", ("positions: {1.5: 2048, 2.0: 2113}",
+                              "positions: {1.5: 2048, 2.0: 2049}")),
+        "    pattern: |", "|",
+        f"{STROKE_RULE}, found 1: the calibration puts 2 ms at 2049 steps and 1.5 ms "
+        "at 2048; widen the pulse widths or the calibrated positions"),
+    "a stroke of three steps": (
+        small("toj.yaml", ("positions: {1.5: 2048, 2.0: 2113}",
+                           "positions: {1.5: 2048, 2.0: 2045}")),
+        "  soas_ms: [-120, -60, -30, -15, 15, 30, 60, 120]", "-120",
+        f"{STROKE_RULE}, found 3: the calibration puts 2 ms at 2045 steps and 1.5 ms "
+        "at 2048; widen the pulse widths or the calibrated positions"),
     "a phase that ends the signal before its first lift": (
         small("toj.yaml", ("duration_s: 0.1           # one up-and-down",
                            "duration_s: 0.04\n    phase_deg: 180")),
@@ -184,3 +203,39 @@ def test_a_stimulus_that_moves_no_pin_is_refused_and_never_recorded_as_delivered
                          "default", "--seed", "7", "--results", results)
     assert status == 2 and said in err and "Traceback" not in err
     assert not results.exists()  # no row says a trial of it was delivered
+
+
+def test_the_smallest_stroke_validate_accepts_is_more_than_a_pin_at_its_goal_reads():
+    # A pin that never moved reads within ARRIVAL_STEPS of both goals of a smaller stroke.
+    assert MIN_STROKE_STEPS == ARRIVAL_STEPS + 1
+
+
+def test_a_pin_no_stimulus_plays_may_be_calibrated_flat_and_the_smallest_stroke_is_delivered(
+        tmp_path, capsys):
+    # Issue 46's fourth pass: a broken servo parked, calibrated flat, was refused though no
+    # stimulus plays it; and the smallest stroke accepted is one batch delivers.
+    text = small("toj.yaml", ("positions: {1.5: 2048, 2.0: 2113}",
+                              "positions: {1.5: 2048, 2.0: 2052}"),
+                 ("    lever_mm: 10\n", "    lever_mm: 10\n  pins:\n    8: {positions: {1.5: "
+                                         "2048, 2.0: 2048}}\n"))
+    path = written(tmp_path, text)
+    status, _, err = run(capsys, "validate", path)
+    assert status == 0, err
+    status, _, err = run(capsys, "batch", path, "--subject", "s1", "--observer", "default",
+                         "--seed", "7", "--results", tmp_path / "results")
+    assert status == 0 and "not delivered" not in err, err
+
+
+def test_a_width_the_calibration_lacks_is_one_located_line_before_the_stroke_is_judged(
+        tmp_path, capsys):
+    # Found by the fuzzer as the stroke check moved to where a pin is played: the check asked
+    # for the position of a width not calibrated, outside the reader's error handling.
+    text = ("protocol: fuzz\ndevice:\n  grid: {rows: 1, columns: 3}\n  calibration:\n"
+            "    rest_steps: 2048\n    positions:\n      2.0: 2162\n"
+            "    limits_steps: [2000, 2200]\nstimuli:\n  tap: {frequency_hz: 1, duration_s: 0.1}\n"
+            "  wave_rightwards:\n    wave: rightwards\n    row: 1\n    pins: [1, 2, 3]\n"
+            "    train: tap\n    soa_ms: 175.3\ndesign:\n  paradigm: apparent_motion\n"
+            "  configurations: [wave_rightwards]\n")
+    line, col, message = refusal(tmp_path, capsys, text)
+    assert (line, col) == (15, 12)
+    assert message == "pin 1: expected a pulse width it is calibrated for (2 ms), found 1.5 ms"

@@ -61,12 +61,50 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command ``argv`` names (the process's arguments by default): its exit status.
 
     Ctrl-C at any moment of it ends in one line and status 130, the parser's building and the
-    reading of the arguments included (they import each command's options).
+    reading of the arguments included (they import each command's options). As the process's
+    command (no ``argv``), from the start of its imports (`pinarray._interrupted_at_start`) to
+    its exit: once the command's work is done its status stands, and a Ctrl-C then (the
+    interpreter ending) is said in one line (`_say_late_interrupts`).
     """
+    import _signal
+
+    import pinarray
+
+    if _signal.getsignal(_signal.SIGINT) is pinarray._interrupted_at_start:
+        _signal.signal(_signal.SIGINT, _signal.default_int_handler)  # KeyboardInterrupt again
     try:
-        return _main(sys.argv[1:] if argv is None else list(argv))
+        status = _main(sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
         return _interrupted()
+    if argv is None:
+        _say_late_interrupts()
+    return status
+
+
+LATE_INTERRUPT = b"pinarray: interrupted as the command ended; its result stands\n"
+
+
+def _say_late_interrupts() -> None:
+    """The command's work is done: a Ctrl-C from now on (its last output flushed, threads
+    joined, the interpreter ending) must neither turn its status into 130 nor kill it by the
+    signal with nothing said (Python puts the default action back as it ends). Until the exit
+    handlers run the first one is said in one line; from then on it is ignored. The status
+    stands. Through `_signal`, as at the start: `pinarray.stop` (threads, the clock) is more
+    than ``validate`` loads."""
+    import _signal
+    import atexit
+
+    said: list[int] = []
+
+    def late(signum: int, frame: object) -> None:
+        if not said:
+            said.append(signum)
+            os.write(2, LATE_INTERRUPT)
+
+    _signal.signal(_signal.SIGINT, late)
+    # Registered last, so run first of the exit handlers: Python would reset `late` to the
+    # default action (death by the signal) as it ends; an ignored signal it leaves ignored.
+    atexit.register(_signal.signal, _signal.SIGINT, _signal.SIG_IGN)
 
 
 def _main(argv: list[str]) -> int:

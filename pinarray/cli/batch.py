@@ -96,31 +96,56 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for index, protocol in enumerate(protocols):
             request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
                                      args.sim, args.seed, resume=index in resumable)
-            resume_hint = f"resume with: {_resume_command(args, args.files[index:])}"
+            resume_hint = _resume_hint(args, args.files[index:], scanned=syncs[index] is not None)
             try:
                 run_batch(sitting, request, args, responses, sync=syncs[index],
                           resume_hint=resume_hint)
             except NotDelivered as failed:
-                print(f"pinarray: {failed}; the run is left resumable ({resume_hint})",
-                      file=sys.stderr)
+                then = (resume_hint if syncs[index] is not None
+                        else f"the run is left resumable ({resume_hint})")
+                print(f"pinarray: {failed}; {then}", file=sys.stderr)
                 return EXIT_NOT_DELIVERED
     return 0
 
 
-def _resume_command(args: argparse.Namespace, files: list[str]) -> str:
-    """The command that resumes the runs of ``files`` as this one ran them, to be typed as it
-    is printed: the same results folder, servos, answers and pace, quoted for the shell."""
+def _resume_hint(args: argparse.Namespace, files: list[str], *, scanned: bool) -> str:
+    """What to type once this run stops: the command that resumes it; for a run timed from
+    scanner volumes, which cannot be resumed (its time zero was this scan's first volume), the
+    command that starts a new run in a new scan."""
+    if not scanned:
+        return f"resume with: {_batch_command(args, files, resume=True)}"
+    return ("a run timed from scanner volumes cannot be resumed (its time zero was this scan's "
+            f"first volume); start a new run in a new scan with: "
+            f"{_batch_command(args, files, resume=False)}")
+
+
+def _batch_command(args: argparse.Namespace, files: list[str], *, resume: bool) -> str:
+    """The command that runs ``files`` again as this one ran them, to be typed as it is
+    printed: the same results folder, servos, answers, pace and scanner options, quoted for the
+    shell; with --resume, the runs' remaining trials (a resumed run keeps its seed), else new
+    runs (with this command's --seed, if given)."""
     import shlex
+
+    def _seconds(ns: int) -> str:
+        return f"{ns / 1e9:g}"
 
     words = ["pinarray", "batch", *files, "--subject", args.subject, "--session", args.session]
     given = {"--experimenter": args.experimenter, "--port": args.port, "--sim": args.sim,
              "--responses": args.responses, "--observer": args.observer,
              "--speed": None if args.time_scale is None else f"{args.time_scale:g}",
-             "--results": args.results, "--lsl": args.lsl}
+             "--results": args.results, "--lsl": args.lsl,
+             "--seed": None if resume or args.seed is None else str(args.seed),
+             "--trigger": args.trigger.describe() if args.trigger else None,
+             "--dummy-volumes": None if args.dummy_volumes is None else str(args.dummy_volumes),
+             "--tr": None if args.tr is None else _seconds(args.tr),
+             "--lock-to-volumes": (None if args.lock_to_volumes is None
+                                   else str(args.lock_to_volumes)),
+             "--trigger-timeout": (None if args.trigger_timeout is None
+                                   else _seconds(args.trigger_timeout))}
     for option, value in given.items():
         if value:
             words += [option, value]
-    return shlex.join([*words, "--resume"])
+    return shlex.join([*words, "--resume"] if resume else words)
 
 
 def _scanner_settings(args: argparse.Namespace, protocol: Protocol) -> ScannerSync | None:
@@ -174,7 +199,7 @@ def _resumable(protocols: list[Protocol], root: str, subject: str, session: str,
     """
     from pinarray.errors import PinArrayError
     from pinarray.journal.lock import RunLocked, locked_message
-    from pinarray.journal.runs import NothingToResume, unfinished_run
+    from pinarray.journal.runs import SCANNED, NothingToResume, unfinished_run
     from pinarray.session.trials import task_label
 
     found = set()
@@ -187,6 +212,8 @@ def _resumable(protocols: list[Protocol], root: str, subject: str, session: str,
                 f"--seed {seed} --resume: {unfinished.paths.label} was planned with seed "
                 f"{unfinished.manifest.seed}, which it keeps when resumed; leave --seed out "
                 "(or start a new run without --resume)")
+        if unfinished is not None and unfinished.manifest.scanner is not None:
+            raise PinArrayError(f"{protocol.source}: --resume: {unfinished.paths.label} {SCANNED}")
         if unfinished is not None:
             found.add(index)
     if not found:

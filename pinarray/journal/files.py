@@ -19,12 +19,14 @@ import json
 import os
 import platform
 import re
+import shutil
 import socket
 import stat
 import tempfile
+from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from pinarray.errors import ResultsError
 from pinarray.text_files import NotText, kind_of, position_of, read_bounded
@@ -81,14 +83,39 @@ def write_atomically(path: Path, text: str) -> None:
     temporary file's owner-only ones, so the lab's other accounts can read the dataset.
     """
     path.parent.mkdir(parents=True, exist_ok=True)
+    _replace(path, 0o666 & ~_UMASK, lambda out: out.write(text.encode("utf-8")))
+
+
+def own_copy(path: Path) -> None:
+    """Give the regular file at ``path`` a copy of its own if it has other names (hard links):
+    a backup made with ``cp -al``, or a link put there by hand. The bytes go to a new file that
+    takes the name with ``os.replace``, so a later write in place (an appended row, a torn row
+    cut off) changes this file only, never the others; nothing there, or one name: nothing done."""
+    try:
+        status = os.stat(path, follow_symlinks=False)
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(status.st_mode) or status.st_nlink < 2:
+        return
+
+    def copy(out: BinaryIO) -> None:
+        with open(path, "rb") as source:
+            shutil.copyfileobj(source, out)
+
+    _replace(path, stat.S_IMODE(status.st_mode), copy)
+
+
+def _replace(path: Path, mode: int, write: Callable[[BinaryIO], object]) -> None:
+    """``path`` replaced by a new file of permissions ``mode`` that ``write`` fills, fsync'd,
+    renamed over it, its folder fsync'd; the new file removed if anything fails."""
     # The temporary file must be in the same folder: os.replace is atomic only within one
     # file system.
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         if hasattr(os, "fchmod"):  # POSIX
-            os.fchmod(handle, 0o666 & ~_UMASK)
-        with os.fdopen(handle, "w", encoding="utf-8") as out:
-            out.write(text)
+            os.fchmod(handle, mode)
+        with os.fdopen(handle, "wb") as out:
+            write(out)
             out.flush()
             os.fsync(out.fileno())
         os.replace(temporary, path)

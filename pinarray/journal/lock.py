@@ -99,7 +99,11 @@ def _open(path: Path, flags: int, what: str = RUN_LOCK) -> int:
 
     O_NONBLOCK: a FIFO or a device in its place must not make the open wait. O_NOFOLLOW: a
     link in its place is not followed (a dangling one would have the lock created where it
-    points, outside the results folder).
+    points, outside the results folder). A hard link is refused too: the file has another name,
+    whose contents the lock's record would replace. What is left, a regular file with no
+    other name, is the lock file whatever it holds: its text is not required to be a record
+    of ours, since a power cut between emptying it and writing the record leaves it empty or
+    torn, and that must not stop the run's resume; rewriting it changes no other file.
     """
     try:
         fd = os.open(path, flags | os.O_NONBLOCK | os.O_NOCTTY | os.O_NOFOLLOW, 0o644)
@@ -110,10 +114,17 @@ def _open(path: Path, flags: int, what: str = RUN_LOCK) -> int:
             raise _unusable(path, "expected a regular file, found a symbolic link to "
                                   f"{os.readlink(path)}", what) from None
         raise _unusable(path, problem, what) from None
-    mode = os.fstat(fd).st_mode
-    if not stat.S_ISREG(mode):
+    status = os.fstat(fd)
+    if not stat.S_ISREG(status.st_mode):
         os.close(fd)
-        raise _unusable(path, f"expected a regular file, found {kind_of(mode)}", what)
+        raise _unusable(path, f"expected a regular file, found {kind_of(status.st_mode)}", what)
+    if status.st_nlink > 1:
+        # A hard link: the same file under another name too (a run's beh.tsv, participants.tsv,
+        # a file outside the results). The lock's record written into it would replace that.
+        os.close(fd)
+        raise _unusable(path, f"expected a file of its own, found a hard link (one file with "
+                              f"{status.st_nlink} names: writing it would change the others)",
+                        what)
     return fd
 
 

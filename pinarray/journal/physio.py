@@ -121,7 +121,11 @@ class MotionRecording:
         self._stream = zlib.compressobj(wbits=31)  # 31: a gzip header and trailer
         start = self._stream.compress(kept) + self._stream.flush(zlib.Z_FULL_FLUSH)
         temporary = path.with_name(path.name + ".tmp")
-        with open(temporary, "wb") as handle:
+        # A new file: whatever is at that name (one left by a crash, a link to another file)
+        # is removed, not written through.
+        temporary.unlink(missing_ok=True)
+        fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o666)
+        with os.fdopen(fd, "wb") as handle:
             handle.write(start)
             handle.flush()
             os.fsync(handle.fileno())

@@ -123,6 +123,11 @@ class NothingToResume(PinArrayError):
     """``resume`` was asked for and the subject has no unfinished run of the task."""
 
 
+# Why a run timed from scanner volumes is never resumed, after its label.
+SCANNED = ("was timed from scanner volumes and cannot be resumed, with no scanner nor in a new "
+           "scan (its time zero was its scan's first volume); start a new run without --resume")
+
+
 def open_run(
     protocol: Protocol, root: Path | str, subject: str, session: str, task: str, *,
     resume: bool, seed: int | None, port_url: str, clock: Clock, experimenter: str = "",
@@ -158,6 +163,8 @@ def open_run(
             raise NothingToResume(f"no unfinished {task} run for subject {subject}, session "
                                   f"{session} in {root}; start a new run instead (without resume)")
         paths, manifest = found[-1]
+        if manifest.scanner is not None:
+            raise PinArrayError(f"{paths.label} {SCANNED}")
         if manifest.protocol_sha256 != protocol.sha256:
             raise PinArrayError(
                 f"{protocol.source} changed since run {paths.run} started (SHA-256 differs); "

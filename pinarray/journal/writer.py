@@ -35,6 +35,7 @@ from pinarray.journal.dataset import DATASET_FILES, ensure_dataset, write_sideca
 from pinarray.journal.files import (
     fsync_folder,
     iso,
+    own_copy,
     read_results_file,
     read_results_text,
     results_file,
@@ -116,6 +117,7 @@ def repair_tail(path: Path, columns: int) -> str:
     data = read_results_file(path)
     end, torn = split_torn_tail(data, columns)
     if torn:
+        own_copy(path)  # cut here only, not in a backup linked to it
         with open(path, "r+b") as handle:
             handle.truncate(end)
             handle.flush()
@@ -175,7 +177,9 @@ class _AppendOnlyTsv:
 
 def _open_to_append(path: Path) -> TextIO:
     """``path`` opened for appending text, never waiting: a FIFO put in a results file's
-    place would block a plain open until something reads it."""
+    place would block a plain open until something reads it. A file with other names (hard
+    links: a ``cp -al`` backup) gets a copy of its own first, so rows go to this one only."""
+    own_copy(path)
     fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK | os.O_NOCTTY,
                  0o666)
     mode = os.fstat(fd).st_mode

@@ -386,16 +386,8 @@ def _positions(reader: Reader, node: Node,
         )
         if width_ns is None or position is None:
             continue
-        # Two widths at one position: a stimulus between them would move no pin, and every
-        # trial of it would be recorded as delivered.
-        same = next((w for w, p, _ in positions if p == position), None)
-        if same is not None:
-            reader.error(position_node, f"expected each pulse width at a position of its own "
-                                        f"(the pin must go up and come down), found "
-                                        f"{exact_words(Fraction(same, 1_000_000))} ms and "
-                                        f"{exact_words(Fraction(width_ns, 1_000_000))} ms both "
-                                        f"at {position} {unit.what}")
-            continue
+        # Two widths at one position are checked where a stimulus plays them on the pin
+        # (`pinarray.protocol.stimuli.check_stroke`): a pin nothing plays may be calibrated flat.
         positions.append((width_ns, position, position_node))
     return tuple(positions)
 

@@ -8,6 +8,7 @@ in ``protocols/README.md``.
 from __future__ import annotations
 
 import hashlib
+import unicodedata
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -109,10 +110,17 @@ def _name(reader: Reader, node: Node) -> str:
     """The protocol's name, refused where its runs' files could not carry it as their label."""
     name = reader.string(node, "the protocol name")
     label = task_label(name)
-    if not label or not label.isascii():
-        raise reader.error(node, "expected a protocol name with letters or digits, all ASCII "
-                                 "(they make the BIDS task label in its runs' file names; spaces "
-                                 f"and punctuation are dropped), found {shown(name)}")
+    # One rule for every character: what the task label keeps (ASCII letters and digits) or
+    # drops (ASCII spaces and punctuation); anything else (a letter of another script, an
+    # accent, an emoji, a zero-width or control character) is refused, not silently dropped.
+    odd = next((ch for ch in name if not " " <= ch <= "~"), None)
+    if odd is not None or not label:
+        why = ("no letter nor digit" if odd is None else
+               f"U+{ord(odd):04X} ({unicodedata.name(odd, 'a control character')}) is none "
+               "of them")
+        raise reader.error(node, "expected a protocol name of ASCII letters and digits (they make "
+                                 "the BIDS task label in its runs' file names) and ASCII spaces "
+                                 f"and punctuation (dropped from it), found {shown(name)}: {why}")
     if len(label) > MAX_TASK_LABEL_CHARS:
         raise reader.error(node, f"expected a protocol name of at most {MAX_TASK_LABEL_CHARS} "
                                  "letters and digits (its runs' task label, in file names of at "

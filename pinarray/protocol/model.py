@@ -31,6 +31,12 @@ if TYPE_CHECKING:
 # Baud rates the STS servos (and the SDK's port handler) support, in bit/s.
 BAUD_RATES = (38_400, 57_600, 115_200, 128_000, 250_000, 500_000, 1_000_000)
 
+# The smallest stroke a bus servo's pin may be asked for, in steps: one more than the steps
+# within which a sampled pin counts as at its goal (`pinarray.hardware.motion.ARRIVAL_STEPS`,
+# 3), so that a pin that never moved can neither seem to arrive at its up goal nor, with a
+# step of read-out jitter, measure the share of the stroke a delivered trial needs.
+MIN_STROKE_STEPS = 4
+
 
 @dataclass(frozen=True)
 class ServoSettings:

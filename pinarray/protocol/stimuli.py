@@ -23,6 +23,7 @@ from pinarray.protocol.model import (
     DIRECTION_NAME,
     DIRECTION_OF_WAVE,
     MAX_DIRECTION_CHARS,
+    MIN_STROKE_STEPS,
     NS_PER_S,
     RESERVED_DIRECTION_NAMES,
     AnyWave,
@@ -30,6 +31,7 @@ from pinarray.protocol.model import (
     Direction,
     PathWave,
     PatternStimulus,
+    PinCalibration,
     PinDrive,
     ServoSettings,
     Stimulus,
@@ -275,8 +277,9 @@ def check_train_on_pins(
     for pin in pins:
         calibration = device.calibration(pin)
         try:
+            check_stroke(reader, node, train, calibration, device)  # before its feasibility
             result = check_train(train, calibration, device)
-        except PinArrayError as problem:
+        except PinArrayError as problem:  # a width the pin is not calibrated for, say
             raise reader.error(node, str(problem)) from None
         if not result.feasible and not device.scale_infeasible:
             raise reader.error(
@@ -284,6 +287,35 @@ def check_train_on_pins(
                 result.describe(device.servo, device.mm_per_step(pin))
                 + "; lower the frequency or the stroke, or set device: feasibility: scale",
             )
+
+
+def check_stroke(reader: Reader, node: Node, train: Train, calibration: PinCalibration,
+                 device: Device) -> None:
+    """The pin ``calibration`` describes moves under ``train``: its up and down widths at
+    calibrated positions apart, on bus servos by at least `MIN_STROKE_STEPS` (a smaller stroke
+    cannot be told from none in its read-back). Checked where a pin is used, not where it is
+    calibrated: a pin no stimulus plays (a broken servo parked) may be calibrated flat."""
+    up = calibration.position_for_width(train.up_width_ns)
+    down = calibration.position_for_width(train.down_width_ns)
+    bus = isinstance(device.servo, ServoSettings)
+    least = MIN_STROKE_STEPS if bus else 1
+    if abs(up - down) >= least:
+        return
+    unit = "steps" if bus else "us"
+    why = (f"a pin counts as at its goal within {MIN_STROKE_STEPS - 1} steps: a smaller stroke "
+           "cannot be told from none" if bus else "the pin must go up and come down")
+    # Every pin calibrated alike: the device's calibration, said once for all of them.
+    shared = all(p.positions_by_width_ns == calibration.positions_by_width_ns
+                 for p in device.pins)
+    whose = "the calibration" if shared else f"pin {calibration.pin}'s calibration"
+    message = (f"expected a stroke of at least {least} {unit} ({why}), found "
+               f"{abs(up - down)}: {whose} puts "
+               f"{exact_words(Fraction(train.up_width_ns, 1_000_000))} ms at {up} {unit} and "
+               f"{exact_words(Fraction(train.down_width_ns, 1_000_000))} ms at {down}; widen "
+               "the pulse widths or the calibrated positions")
+    if any(error.message == message for error in reader.errors):
+        raise Invalid(message)  # one calibration's problem, said where it is first played
+    raise reader.error(node, message)
 
 
 def check_drives(reader: Reader, node: Node, drives: Sequence[PinDrive], device: Device,
