@@ -34,6 +34,19 @@ def test_a_late_waking_machine_is_told_to_grant_real_time_priority():
     assert "NOT OK" in verdict.lines[2] and f"to fix: {problem}" in verdict.lines
 
 
+
+def test_on_a_short_screen_the_answer_and_what_to_fix_come_before_what_was_measured():
+    # At 80x24 the pre-flight shows the verdict's first lines; the measurements' lines wrap
+    # longer as the machine is busier and would push the answer out of the box.
+    problem = "real-time priority not granted (Operation not permitted): ..."
+    verdict = judge(WakeUps.of([1 * MS, 12 * MS]), problem, PortFigures("/dev/ttyUSB0", 16, 34 * MS, 16), 10 * MS)
+    first = verdict.judgement_first
+    assert first[0].startswith("NOT OK: stimuli may be reported not delivered")
+    assert all(line.startswith("to fix:") for line in first[1:3]) and len(first) == len(verdict.lines)
+    assert first[3:] == verdict.lines[:2] and sorted(first) == sorted(verdict.lines)
+    quiet = judge(WakeUps.of([10_000] * 3000), "", PortFigures("/dev/ttyUSB0", 1, 2 * MS, 1), 10 * MS)
+    assert quiet.judgement_first == (quiet.lines[-1], *quiet.lines[:-1])
+
 def test_an_adapter_left_at_16_ms_is_told_to_lower_its_latency_timer():
     verdict = judge(WakeUps.of([50_000]), "", PortFigures("/dev/ttyUSB0", 16, 34 * MS, 16), 10 * MS)
     assert not verdict.deliverable

@@ -94,6 +94,14 @@ class Verdict:
     def deliverable(self) -> bool:
         return self.judgement is Judgement.OK
 
+    @property
+    def judgement_first(self) -> tuple[str, ...]:
+        """The lines with the judgement and what to fix first, then what was measured: for a
+        short screen (80x24), where what is seen without scrolling must be the answer."""
+        said = tuple(line for line in self.lines
+                     if line.startswith((f"{self.judgement.value}:", "to fix:")))
+        return said + tuple(line for line in self.lines if line not in said)
+
 
 @dataclass(frozen=True)
 class CheckSkipped:

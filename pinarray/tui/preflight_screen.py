@@ -177,7 +177,10 @@ class PreflightScreen(KeyNotices, Screen):
         match outcome:
             case Verdict():
                 self._timing_doubt = "" if outcome.deliverable else outcome.judgement.value
-                self._timing_line("Timing: " + "\n".join(outcome.lines), not outcome.deliverable)
+                # The answer first: at 80x24 the measurements' lines wrap longer as the machine
+                # is busier, and would push it below what the box shows.
+                self._timing_line("Timing: " + "\n".join(outcome.judgement_first),
+                                  not outcome.deliverable)
             case CheckSkipped():
                 # A verdict measured before (a re-check after Lower return delay) still
                 # stands: what it doubted, Begin still asks about.
