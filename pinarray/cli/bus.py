@@ -215,12 +215,14 @@ def _cmd_play(args: argparse.Namespace) -> int:
 def _simulated_horns(rig, schedule, onset_ns: int) -> str:
     """On a simulated PWM board: how far each driven pin's simulated hobby servo swung (its
     speed and dead band the protocol's), beside the stroke commanded; empty otherwise."""
+    import sys
     from fractions import Fraction
 
-    from pinarray.hardware.pca9685.sim import SimI2cLink
-
+    # A simulated board's link is of the simulator's module, loaded by now if it is one:
+    # real servos' runs do not import the simulator to find out they are not simulated.
+    simulator = sys.modules.get("pinarray.hardware.pca9685.sim")
     link = getattr(rig.bus, "link", None)
-    if not isinstance(link, SimI2cLink):
+    if simulator is None or not isinstance(link, simulator.SimI2cLink):
         return ""
     from pinarray.hardware.pca9685.servo_sim import HobbyServo, swing_us
 
