@@ -114,11 +114,18 @@ def temporary_root() -> str | None:
     return str(RAM_FOLDER) if room >= RAM_ROOM_BYTES and os.access(RAM_FOLDER, os.W_OK) else None
 
 
+# Plug-ins the real-time lane's tests do not use, left out of its processes: the UI's snapshot
+# plug-in imports Textual, Jinja and syrupy as pytest starts (0.35 s of processor in each of the
+# lane's three processes), and no real-time test draws a snapshot.
+REALTIME_UNUSED_PLUGINS = ("textual-snapshot", "syrupy")
+
+
 def pytest_command(marker: str, workers: int, args: list[str], basetemp: str) -> list[str]:
     # A temporary folder of this run's own: pytest's default one is cleaned of older runs' folders
     # by every worker as it starts, a walk over thousands of results files on a busy machine.
+    unused = REALTIME_UNUSED_PLUGINS if marker == "realtime" else ()
     return [sys.executable, "-m", "pytest", "-m", marker, "-n", str(workers), "--dist", "loadgroup",
-            f"--basetemp={basetemp}", *args]
+            *(f"-pno:{plugin}" for plugin in unused), f"--basetemp={basetemp}", *args]
 
 
 def main(argv: list[str]) -> int:

@@ -146,11 +146,12 @@ def chosen_bus(args: argparse.Namespace, command: str,
     ``servo_ids``: the ids a ``--sim`` URL that names none simulates (default: its own).
     """
     from pinarray.errors import PinArrayError
+
+    if args.port:
+        return args.port  # real servos: nothing of the simulator's (nor the protocol) loaded
     from pinarray.hardware.feetech.faults import parse_sim_url
     from pinarray.player.families import sim_url_for
 
-    if args.port:
-        return args.port
     if args.sim is None:
         raise PinArrayError(
             f"{command}: which servos? add --port PATH for real ones (e.g. --port /dev/ttyUSB0), "
