@@ -29,7 +29,8 @@ def distinct_pins(pins: np.ndarray) -> list[int]:
     ordered = np.sort(pins)
     first = np.ones(len(ordered), dtype=bool)
     first[1:] = ordered[1:] != ordered[:-1]
-    return ordered[first].tolist()
+    pins_once: list[int] = ordered[first].tolist()
+    return pins_once
 
 
 def check_limits(targets: Targets, setup: ArraySetup) -> None:
