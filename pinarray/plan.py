@@ -10,6 +10,7 @@ import json
 import secrets
 from collections import Counter
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 from pinarray.errors import PinArrayError
@@ -237,6 +238,20 @@ def williams_row(n: int, r: int) -> list[int]:
     return [(x + r) % n for x in first]
 
 
+class _Draws:
+    """The plan's seeded generator, made when the plan first draws from it: a sequential plan
+    draws nothing, and `numpy.random` is some 20 ms of a command's start-up."""
+
+    def __init__(self, seed: int):
+        self.seed = seed
+
+    @cached_property
+    def rng(self) -> np.random.Generator:
+        import numpy as np
+
+        return np.random.default_rng(self.seed)
+
+
 def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
     """The seeded trial plan; the seed is the argument, else the protocol's, else a fresh one."""
     design = protocol.design
@@ -246,11 +261,9 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
                             f"{seed!r}")
     if seed is None:
         seed = design.seed if design.seed is not None else secrets.randbits(32)
-    import numpy as np
-
-    rng = np.random.default_rng(seed)
+    draws = _Draws(seed)
     if design.adaptive is not None:
-        return TrialPlan(seed, _adaptive_trials(protocol, rng))
+        return TrialPlan(seed, _adaptive_trials(protocol, draws.rng))
     limits = design.constraints.limits()
     conditions = list(design.conditions)
     blocks: list[list[Condition]] = []
@@ -258,24 +271,26 @@ def make_plan(protocol: Protocol, seed: int | None = None) -> TrialPlan:
         blocks = [conditions * design.repetitions for _ in range(design.blocks)]
     elif design.ordering is Ordering.LATIN_SQUARE:
         rows = williams_rows(len(conditions))
-        offset = int(rng.integers(rows))
+        offset = int(draws.rng.integers(rows))
         for b in range(design.blocks):
             row = williams_row(len(conditions), (offset + b) % rows)
             blocks.append([conditions[i] for i in row] * design.repetitions)
     elif design.ordering is Ordering.FULL_RANDOM:
-        pooled = constrained_shuffle(conditions * design.repetitions * design.blocks, limits, rng)
+        pooled = constrained_shuffle(conditions * design.repetitions * design.blocks, limits,
+                                     draws.rng)
         size = len(conditions) * design.repetitions
         blocks = [pooled[i * size : (i + 1) * size] for i in range(design.blocks)]
     else:
         runs: dict[str, tuple[object, int]] = {}
         for _ in range(design.blocks):
-            block = constrained_shuffle(conditions * design.repetitions, limits, rng, runs)
+            block = constrained_shuffle(conditions * design.repetitions, limits, draws.rng, runs)
             runs = _runs_after(block, limits)
             blocks.append(block)
 
     trials: list[PlannedTrial] = []
     if design.practice_trials:
-        picks = rng.permutation(len(conditions) * -(-design.practice_trials // len(conditions)))
+        picks = draws.rng.permutation(
+            len(conditions) * -(-design.practice_trials // len(conditions)))
         for i in picks[: design.practice_trials]:
             trials.append(
                 PlannedTrial(len(trials) + 1, 0, True, conditions[int(i) % len(conditions)])

@@ -30,22 +30,24 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from math import lcm
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from pinarray.errors import PinArrayError
-from pinarray.protocol import Device, PinDrive, Protocol, Train
-from pinarray.protocol.drives import check_no_overlap, trial_drives
-from pinarray.protocol.feasibility import check_train
 from pinarray.units import NS_PER_S
+
+# The protocol's types are read only by the compiler's functions, which import them as they
+# run: the player process unpickles `TargetList`s and `PulseList`s from here and needs none
+# of the protocol's dozens of value types (some 35 ms of its start-up).
+if TYPE_CHECKING:
+    from pinarray.protocol import Device, PinDrive, Protocol, Train
 
 __all__ = [
     "Frame",
     "PulseList",
     "TargetList",
     "TrialSchedule",
-    "check_no_overlap",
     "compile_drives",
     "compile_trial",
     "DAQ_LINES",
@@ -54,7 +56,6 @@ __all__ = [
     "pulse_indices",
     "render_dense",
     "train_pulses",
-    "trial_drives",
 ]
 
 # Largest intermediate the int64 path may meet; beyond it we fall back to exact Python ints.
@@ -347,6 +348,9 @@ def compile_drives(drives: Sequence[PinDrive], device: Device) -> TrialSchedule:
     Where one drive ends at the instant the next on its pin begins, the servo target of the
     one that begins wins.
     """
+    from pinarray.protocol.drives import check_no_overlap
+    from pinarray.protocol.feasibility import check_train
+
     check_no_overlap(drives)
     # Pin, then time order: the order the pulses of equal starts take.
     ordered = sorted(drives, key=lambda d: (d.pin, d.delay_ns))
@@ -442,6 +446,8 @@ def _merge_targets(
 
 def compile_trial(protocol: Protocol, planned_trial) -> TrialSchedule:
     """Compile one trial of a plan (see `pinarray.plan`)."""
+    from pinarray.protocol.drives import trial_drives
+
     return compile_drives(trial_drives(protocol, planned_trial.condition), protocol.device)
 
 

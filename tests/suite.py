@@ -114,11 +114,23 @@ def temporary_root() -> str | None:
     return str(RAM_FOLDER) if room >= RAM_ROOM_BYTES and os.access(RAM_FOLDER, os.W_OK) else None
 
 
+# Plug-ins the real-time lane's tests do not use, left out of its processes: the UI's snapshot
+# plug-in imports Textual, Jinja and syrupy as pytest starts (0.35 s of processor in each of the
+# lane's three processes), and no real-time test draws a snapshot.
+REALTIME_UNUSED_PLUGINS = ("textual-snapshot", "syrupy")
+# One BLAS thread in each of the real-time lane's processes (the player process has one so in
+# any case: pinarray.player.process.PLAYER_ENV): its tests multiply no matrices, and OpenBLAS
+# starts a thread per core as numpy loads, a quarter of numpy's start-up (some 30 ms of
+# processor) in each of the lane's hundreds of `pinarray` commands and scripts.
+REALTIME_ENV = {"OPENBLAS_NUM_THREADS": "1"}
+
+
 def pytest_command(marker: str, workers: int, args: list[str], basetemp: str) -> list[str]:
     # A temporary folder of this run's own: pytest's default one is cleaned of older runs' folders
     # by every worker as it starts, a walk over thousands of results files on a busy machine.
+    unused = REALTIME_UNUSED_PLUGINS if marker == "realtime" else ()
     return [sys.executable, "-m", "pytest", "-m", marker, "-n", str(workers), "--dist", "loadgroup",
-            f"--basetemp={basetemp}", *args]
+            *(f"-pno:{plugin}" for plugin in unused), f"--basetemp={basetemp}", *args]
 
 
 def main(argv: list[str]) -> int:
@@ -135,7 +147,7 @@ def main(argv: list[str]) -> int:
         realtime = subprocess.Popen(
             pytest_command("realtime", min(REALTIME_WORKERS, workers), realtime_argv,
                            os.path.join(temporary, "realtime")),
-            stdout=realtime_log, stderr=subprocess.STDOUT)
+            stdout=realtime_log, stderr=subprocess.STDOUT, env={**os.environ, **REALTIME_ENV})
         bulk = subprocess.Popen(pytest_command("not realtime", workers, argv,
                                                os.path.join(temporary, "bulk")),
                                 preexec_fn=lambda: os.nice(BULK_NICENESS))

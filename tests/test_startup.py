@@ -85,6 +85,25 @@ def test_validate_loads_the_protocol_reader_and_nothing_else_of_pinarray_nor_hea
     assert "importlib.metadata" not in modules  # a shipped paradigm: no entry points read
 
 
+# What the player process (`python -m pinarray.player.child`, one per array a lab opens) must not
+# load as it starts: it plays prepared trials on the descriptor it inherits, and reads no
+# protocol, plans nothing, writes no results and simulates nothing itself; nor the parts of
+# numpy no trial needs (`numpy.unique` loads numpy.ma: `pinarray.hardware.frames.distinct_pins`).
+PLAYER_NEVER = ("pinarray.protocol", "pinarray.plan", "pinarray.session", "pinarray.journal",
+                "pinarray.analysis", "pinarray.api", "pinarray.paradigms", "pinarray.imaging",
+                "pinarray.tui", "pinarray.cli", "pinarray.hardware.feetech.sim",
+                "pinarray.hardware.pca9685.sim", "yaml", "numpy.ma", "numpy.random", "scipy",
+                "matplotlib", "textual")
+
+
+def test_the_player_process_loads_playback_and_nothing_of_protocols_sessions_or_simulators():
+    modules = imported_by([sys.executable, "-c", "import pinarray.player.child"])
+
+    assert "pinarray.player.playback" in modules  # the listing is read right: it did load
+    assert sorted(m for m in modules
+                  if any(m == part or m.startswith(part + ".") for part in PLAYER_NEVER)) == []
+
+
 def parts_loaded_by(code: str) -> list[str]:
     """pinarray's modules loaded once ``code`` has run (a public name's home is imported by
     `importlib.import_module`, which ``-X importtime`` does not list)."""

@@ -146,11 +146,12 @@ def chosen_bus(args: argparse.Namespace, command: str,
     ``servo_ids``: the ids a ``--sim`` URL that names none simulates (default: its own).
     """
     from pinarray.errors import PinArrayError
+
+    if args.port:
+        return args.port  # real servos: nothing of the simulator's (nor the protocol) loaded
     from pinarray.hardware.feetech.faults import parse_sim_url
     from pinarray.player.families import sim_url_for
 
-    if args.port:
-        return args.port
     if args.sim is None:
         raise PinArrayError(
             f"{command}: which servos? add --port PATH for real ones (e.g. --port /dev/ttyUSB0), "
@@ -215,12 +216,14 @@ def _cmd_play(args: argparse.Namespace) -> int:
 def _simulated_horns(rig, schedule, onset_ns: int) -> str:
     """On a simulated PWM board: how far each driven pin's simulated hobby servo swung (its
     speed and dead band the protocol's), beside the stroke commanded; empty otherwise."""
+    import sys
     from fractions import Fraction
 
-    from pinarray.hardware.pca9685.sim import SimI2cLink
-
+    # A simulated board's link is of the simulator's module, loaded by now if it is one:
+    # real servos' runs do not import the simulator to find out they are not simulated.
+    simulator = sys.modules.get("pinarray.hardware.pca9685.sim")
     link = getattr(rig.bus, "link", None)
-    if not isinstance(link, SimI2cLink):
+    if simulator is None or not isinstance(link, simulator.SimI2cLink):
         return ""
     from pinarray.hardware.pca9685.servo_sim import HobbyServo, swing_us
 

@@ -82,6 +82,19 @@ def add_speed(parser: argparse.ArgumentParser, default: float | None, help: str)
                         default=default, metavar="X", help=help)
 
 
+def baud_rate(text: str) -> int:
+    """A rate the servos listen at (`pinarray.protocol.BAUD_RATES`), checked as it is read: the
+    protocol's model is not loaded to build the options of the commands that take one (it is
+    most of `sim-serve`'s and `servos scan`'s start-up)."""
+    from pinarray.protocol import BAUD_RATES
+
+    value = _whole(text)
+    if value not in BAUD_RATES:
+        raise argparse.ArgumentTypeError(
+            f"expected one of {', '.join(map(str, BAUD_RATES))}, found {_short(text)}")
+    return value
+
+
 def count(minimum: int, maximum: int) -> Callable[[str], int]:
     """A whole number from ``minimum`` to ``maximum``."""
 

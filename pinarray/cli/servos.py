@@ -140,11 +140,11 @@ def add_scan_options(parser: argparse.ArgumentParser) -> None:
 
 
 def bus_options(parser: argparse.ArgumentParser, baud_default: str = "1000000") -> None:
+    from pinarray.cli import common
     from pinarray.cli.bus import add_bus_choice
-    from pinarray.protocol import BAUD_RATES
 
     add_bus_choice(parser, simulated_by_default=False)
-    parser.add_argument("--baud", type=int, choices=BAUD_RATES, metavar="BAUD",
+    parser.add_argument("--baud", type=common.baud_rate, metavar="BAUD",
                         help=f"bit/s the servos listen at (default {baud_default})")
 
 

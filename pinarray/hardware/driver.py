@@ -36,11 +36,11 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
-import numpy as np
-
 from pinarray.errors import BusError
 
 if TYPE_CHECKING:
+    import numpy as np  # in the seam's annotations only: the bring-up commands need no numpy
+
     from pinarray.clock import Clock
     from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
     from pinarray.hardware.motion import PinTrace

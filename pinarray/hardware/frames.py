@@ -20,6 +20,19 @@ if TYPE_CHECKING:
     from pinarray.hardware.driver import ArrayDriver, ArraySetup, Targets
 
 
+def distinct_pins(pins: np.ndarray) -> list[int]:
+    """The pins a target or pulse list names, each once, ascending.
+
+    `numpy.unique` would do, but it imports `numpy.ma` to ask whether the array is masked:
+    some 15 ms of every command's and player process's start-up, for arrays never masked.
+    """
+    ordered = np.sort(pins)
+    first = np.ones(len(ordered), dtype=bool)
+    first[1:] = ordered[1:] != ordered[:-1]
+    pins_once: list[int] = ordered[first].tolist()
+    return pins_once
+
+
 def check_limits(targets: Targets, setup: ArraySetup) -> None:
     """Refuse a target list that would take any pin outside its calibrated limits.
 
@@ -29,8 +42,8 @@ def check_limits(targets: Targets, setup: ArraySetup) -> None:
         Naming the pin, its servo id, the offending position and time, and the limits.
     """
     by_pin = {s.pin: s for s in setup.servos}
-    for pin in np.unique(targets.pin):
-        servo = by_pin.get(int(pin))
+    for pin in distinct_pins(targets.pin):
+        servo = by_pin.get(pin)
         if servo is None:
             known = ", ".join(map(str, sorted(by_pin)))
             raise PinArrayError(f"the schedule moves pin {pin}, which has no servo (pins: {known})")

@@ -81,9 +81,7 @@ def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = Fa
     while something waits (`PacedClock`), so the host's own delays cannot make a stimulus
     late; without it (the UI, where a person answers), scaled wall-clock time.
     """
-    from pinarray.hardware.pca9685.sim import is_shared_board_url
-
-    if port or is_shared_board_url(sim_url):
+    if port or (sim_url is not None and _is_shared_board_url(sim_url)):
         if time_scale not in (None, 1.0):
             what = "real servos play" if port else "a board kept in a state file plays"
             raise PinArrayError(f"{what} in real time: --speed must be 1")
@@ -91,6 +89,13 @@ def choose_clock(port: str | None, time_scale: float | None, *, paced: bool = Fa
     if not time_scale:
         return VirtualClock()
     return PacedClock(time_scale) if paced else ScaledClock(time_scale)
+
+
+def _is_shared_board_url(url: str) -> bool:
+    # Imported only for a simulated array: real servos' start-up does not load the simulator.
+    from pinarray.hardware.pca9685.sim import is_shared_board_url
+
+    return is_shared_board_url(url)
 
 
 class Rig:

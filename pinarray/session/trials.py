@@ -50,9 +50,10 @@ from pinarray.journal.timebase import FIRST_TRIAL_ONSET
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.protocol.adapted import adapted
+from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.load import task_label as protocol_task_label
 from pinarray.protocol.model import Condition, Protocol
-from pinarray.schedule import TrialSchedule, compile_drives, trial_drives
+from pinarray.schedule import TrialSchedule, compile_drives
 from pinarray.session.procedures import Presented, Procedures
 
 if TYPE_CHECKING:

@@ -35,7 +35,7 @@ import numpy as np
 from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import Change, PreparedFrame, PreparedTrial
 from pinarray.hardware.driver import Pulses, ServoSetup, Targets
-from pinarray.hardware.frames import check_limits
+from pinarray.hardware.frames import check_limits, distinct_pins
 from pinarray.hardware.pca9685.registers import (
     CHANNELS,
     COUNTS,
@@ -156,7 +156,7 @@ def _regular_slot(pulses: Pulses) -> Fraction | None:
     if len(pulses.pin) == 0:
         return None
     slot: Fraction | None = None
-    for pin in np.unique(pulses.pin):
+    for pin in distinct_pins(pulses.pin):
         starts = pulses.start_ns[pulses.pin == pin]
         if len(starts) < 2:
             continue
@@ -166,7 +166,7 @@ def _regular_slot(pulses: Pulses) -> Fraction | None:
             return None
     if slot is None or slot <= 0:
         return None
-    for pin in np.unique(pulses.pin):
+    for pin in distinct_pins(pulses.pin):
         starts = pulses.start_ns[pulses.pin == pin].astype(np.float64)
         index = np.round((starts - starts[0]) / float(slot))
         if np.any(np.diff(index) != 1) or np.any(np.abs(starts - starts[0] - index * float(slot)) > 1.5):
@@ -198,7 +198,7 @@ def plan_trial(setup: PwmSetup, targets: Targets, pulses: Pulses) -> PwmTrial:
     phase_of_pin: dict[int, Fraction] = {}
     if rate.slot_ns is not None:
         slot = rate.slot_ns
-        for pin in np.unique(pulses.pin).tolist():
+        for pin in distinct_pins(pulses.pin):
             starts = pulses.start_ns[pulses.pin == pin]
             first, last = int(starts[0]), int(starts[-1])
             first_slot = max(0, floor(Fraction(first) / slot + Fraction(1, 10 ** 6)))
