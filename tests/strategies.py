@@ -102,53 +102,68 @@ def _decimal(low: int, high: int, places: int) -> st.SearchStrategy[Raw]:
     )
 
 
+# The strategies that depend on nothing drawn are built once, here: Hypothesis validates a
+# strategy and works out its properties at its first draw, so one built inside a composite for
+# every example costs that every time; those that depend on a drawn size are given hashable
+# arguments, so that Hypothesis keeps them too. The documents drawn are the same.
+_names = st.sampled_from(["fuzz", "lab test", "p1"])
+_feasibilities = st.sampled_from(["reject", "scale"])
+_frequencies = st.one_of(st.integers(1, 12), _decimal(1, 12, 1))
+_durations = _decimal(0, 2, 1).filter(lambda r: float(r) > 0)
+_TAP_OPTIONS = (("pulses_per_cycle", st.sampled_from([2, 4, 10])),
+                ("duty_cycle", st.sampled_from([Raw("0.5"), Raw("0.25")])),
+                ("pulse_width_ms", st.just({"up": Raw("2.0"), "down": Raw("1.5")})),
+                ("phase_deg", st.integers(0, 720)))
+_localisation_frequencies = st.lists(st.integers(1, 10), min_size=1, max_size=3)
+_wave_kinds = st.lists(st.sampled_from(["rightwards", "leftwards", "none"]),
+                       min_size=1, max_size=3, unique=True)
+_soas = st.sampled_from([Raw("175.3"), 500, 2500])
+_DESIGN_OPTIONS = (("repetitions", st.integers(1, 3)), ("blocks", st.integers(1, 3)),
+                   ("order", st.sampled_from(["sequential", "random", "full_random",
+                                              "latin_square"])),
+                   ("constraints", st.just({"no_repeat": ["pin"]})),
+                   ("seed", st.integers(0, 2**32)),
+                   ("inter_trial_interval_s", _decimal(0, 3, 1)),
+                   ("practice_trials", st.integers(0, 3)))
+
+
 @st.composite
 def protocol_documents(draw) -> dict:
     """A protocol as a lab might write it: mostly valid, small, either paradigm."""
     rows, columns = draw(st.integers(1, 6)), draw(st.integers(1, 6))
     pins = list(range(1, rows * columns + 1))
-    document: dict = {"protocol": draw(st.sampled_from(["fuzz", "lab test", "p1"]))}
+    document: dict = {"protocol": draw(_names)}
     device: dict = {"grid": {"rows": rows, "columns": columns}}
     if draw(st.booleans()):
         device["calibration"] = {"rest_steps": 2048, "positions": {Raw("1.5"): 2048,
                                                                    Raw("2.0"): 2162},
                                  "limits_steps": [2000, 2200]}
     if draw(st.booleans()):
-        device["feasibility"] = draw(st.sampled_from(["reject", "scale"]))
+        device["feasibility"] = draw(_feasibilities)
     if draw(st.booleans()):
-        device["servo_ids"] = {draw(st.sampled_from(pins)): draw(st.integers(0, 252))}
+        device["servo_ids"] = {draw(st.sampled_from(tuple(pins))): draw(st.integers(0, 252))}
     document["device"] = device
-    tap = {"frequency_hz": draw(st.one_of(st.integers(1, 12), _decimal(1, 12, 1))),
-           "duration_s": draw(_decimal(0, 2, 1).filter(lambda r: float(r) > 0))}
-    for key, strategy in (("pulses_per_cycle", st.sampled_from([2, 4, 10])),
-                          ("duty_cycle", st.sampled_from([Raw("0.5"), Raw("0.25")])),
-                          ("pulse_width_ms", st.just({"up": Raw("2.0"), "down": Raw("1.5")})),
-                          ("phase_deg", st.integers(0, 720))):
+    tap = {"frequency_hz": draw(_frequencies), "duration_s": draw(_durations)}
+    for key, strategy in _TAP_OPTIONS:
         if draw(st.booleans()):
             tap[key] = draw(strategy)
     stimuli: dict = {"tap": tap}
     design: dict
     if draw(st.booleans()):
-        chosen = draw(st.lists(st.sampled_from(pins), min_size=1, max_size=4, unique=True))
+        chosen = draw(st.lists(st.sampled_from(tuple(pins)), min_size=1, max_size=4,
+                               unique=True))
         design = {"paradigm": "localisation", "stimulus": "tap", "pins": chosen,
-                  "frequencies_hz": draw(st.lists(st.integers(1, 10), min_size=1, max_size=3))}
+                  "frequencies_hz": draw(_localisation_frequencies)}
     else:
         row = draw(st.integers(1, rows))
         row_pins = pins[(row - 1) * columns: row * columns]
         odd = row_pins[: len(row_pins) - (1 - len(row_pins) % 2)] or row_pins
-        kinds = draw(st.lists(st.sampled_from(["rightwards", "leftwards", "none"]),
-                              min_size=1, max_size=3, unique=True))
+        kinds = draw(_wave_kinds)
         for kind in kinds:
             stimuli[f"wave_{kind}"] = {"wave": kind, "row": row, "pins": odd, "train": "tap",
-                                       "soa_ms": draw(st.sampled_from([Raw("175.3"), 500, 2500]))}
+                                       "soa_ms": draw(_soas)}
         design = {"paradigm": "apparent_motion", "configurations": [f"wave_{k}" for k in kinds]}
-    for key, strategy in (("repetitions", st.integers(1, 3)), ("blocks", st.integers(1, 3)),
-                          ("order", st.sampled_from(["sequential", "random", "full_random",
-                                                     "latin_square"])),
-                          ("constraints", st.just({"no_repeat": ["pin"]})),
-                          ("seed", st.integers(0, 2**32)),
-                          ("inter_trial_interval_s", _decimal(0, 3, 1)),
-                          ("practice_trials", st.integers(0, 3))):
+    for key, strategy in _DESIGN_OPTIONS:
         if draw(st.booleans()):
             design[key] = draw(strategy)
     document["stimuli"] = stimuli
@@ -195,6 +210,10 @@ def _at(document, path):
     return document
 
 
+_mutations = st.sampled_from(["replace", "replace", "replace", "delete", "add", "graft", "alias"])
+_added_keys = st.sampled_from(["frequncy_hz", "extra", "design", "pins", 7, "wave"])
+
+
 @st.composite
 def mutated_documents(draw) -> dict:
     """A protocol document with one to four structural mutations."""
@@ -207,15 +226,13 @@ def mutated_documents(draw) -> dict:
             break
         path, key = draw(st.sampled_from(places))
         parent = _at(document, path)
-        action = draw(st.sampled_from(["replace", "replace", "replace", "delete", "add",
-                                       "graft", "alias"]))
+        action = draw(_mutations)
         if action == "replace":
             parent[key] = copy.deepcopy(draw(nasty_values))
         elif action == "delete":
             del parent[key]
         elif action == "add" and isinstance(parent, dict):
-            parent[draw(st.sampled_from(["frequncy_hz", "extra", "design", "pins", 7, "wave"]))] = (
-                copy.deepcopy(draw(nasty_values)))
+            parent[draw(_added_keys)] = copy.deepcopy(draw(nasty_values))
         elif action == "add":
             parent.append(copy.deepcopy(draw(nasty_values)))
         elif action == "graft":  # a whole subtree where something else belongs
@@ -231,15 +248,21 @@ def mutated_documents(draw) -> dict:
     return document
 
 
+_text_actions = st.sampled_from(["none", "none", "insert", "cut", "repeat", "tab"])
+_stray_characters = st.sampled_from(
+    ["\0", "\x07", "\ufeff", "\u2028", "\x85", ":", "-", "[", "{", "'", '"', "&a ", "*a",
+     "!", "%", "@", "`", "\t", "\r", "#", ">", "|", "é", "😀"])
+_encodings = st.sampled_from(
+    ["utf-8", "utf-8", "utf-8", "utf-8-sig", "utf-16", "utf-16-le", "utf-32", "latin-1", "crlf"])
+
+
 def _text_mutation(draw, text: str) -> str:
-    action = draw(st.sampled_from(["none", "none", "insert", "cut", "repeat", "tab"]))
+    action = draw(_text_actions)
     if action == "none" or not text:
         return text
     at = draw(st.integers(0, len(text)))
     if action == "insert":
-        return text[:at] + draw(st.sampled_from(
-            ["\0", "\x07", "\ufeff", "\u2028", "\x85", ":", "-", "[", "{", "'", '"', "&a ", "*a",
-             "!", "%", "@", "`", "\t", "\r", "#", ">", "|", "é", "😀"])) + text[at:]
+        return text[:at] + draw(_stray_characters) + text[at:]
     if action == "cut":
         return text[:at]
     if action == "tab":
@@ -249,14 +272,15 @@ def _text_mutation(draw, text: str) -> str:
     return "\n".join(lines[: line + 1] + lines[line:])
 
 
+_documents = st.one_of(protocol_documents(), mutated_documents(), mutated_documents())
+
+
 @st.composite
 def protocol_files(draw) -> bytes:
     """The bytes of a protocol file: a mutated document, damaged as text, in some encoding."""
-    document = draw(st.one_of(protocol_documents(), mutated_documents(), mutated_documents()))
+    document = draw(_documents)
     text = _text_mutation(draw, to_yaml(document) + "\n")
-    encoding = draw(st.sampled_from(
-        ["utf-8", "utf-8", "utf-8", "utf-8-sig", "utf-16", "utf-16-le", "utf-32", "latin-1",
-         "crlf"]))
+    encoding = draw(_encodings)
     if encoding == "crlf":
         return text.replace("\n", "\r\n").encode("utf-8", errors="surrogatepass")
     return text.encode(encoding, errors="replace")

@@ -131,15 +131,23 @@ sheet_texts = st.one_of(
 )
 
 
+@pytest.fixture(scope="module")
+def motion():
+    """The motion protocol and its trial numbers, read once: every sheet is checked against
+    them, and checking changes neither (a frozen protocol)."""
+    protocol = load_protocol(MOTION)
+    return protocol, list(range(1, len(make_plan(protocol, 0)) + 1))
+
+
 @settings(max_examples=200, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(text=sheet_texts)
-def test_any_sheet_is_read_or_refused_one_line_per_problem(text):
-    protocol = load_protocol(MOTION)
+def test_any_sheet_is_read_or_refused_one_line_per_problem(text, motion):
+    protocol, trials = motion
     try:
         answers = check_answers(parse_answers(text, "a.csv"), "a.csv", protocol)
     except AnswersError as problem:
         for line in str(problem).splitlines():
             assert line.startswith("a.csv:") and "Traceback" not in line
     else:
-        assert sorted(answers) == list(range(1, len(make_plan(protocol, 0)) + 1))
+        assert sorted(answers) == trials

@@ -5,6 +5,7 @@ import json
 import multiprocessing
 import os
 import signal
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -230,6 +231,17 @@ def test_a_hand_edited_manifest_with_a_repeated_trial_is_refused(tmp_path):
     assert read_manifest(writer.paths.manifest) == manifest
 
 
+@pytest.fixture(scope="module")
+def runs_root(tmp_path_factory) -> Path:
+    return tmp_path_factory.mktemp("runs")
+
+
+def fresh_folder(root: Path) -> Path:
+    """A new empty folder in ``root`` for one example's run (pytest's numbered folders list
+    the whole temporary folder at each one made)."""
+    return Path(tempfile.mkdtemp(dir=root))
+
+
 responses = st.one_of(st.none(), st.sampled_from(["none", "left", "right", "unsure"]))
 nanoseconds = st.integers(0, 10**14)
 
@@ -238,12 +250,12 @@ nanoseconds = st.integers(0, 10**14)
        response=responses, direction=st.sampled_from(["left", "right", "none"]),
        row=st.integers(1, 4), reason=st.one_of(st.none(), st.text("ab \t,\"'", min_size=1)))
 def test_any_motion_row_reads_back_exactly_as_written(
-    tmp_path_factory, onset, duration, response_time, response, direction, row, reason
+    runs_root, onset, duration, response_time, response, direction, row, reason
 ):
     record = MotionRecord(trial=3, block=2, task="motion", onset_ns=onset, duration_ns=duration,
                           response=response, response_time_ns=response_time, row=row,
                           direction=direction, status_reason=reason)
-    writer = start(tmp_path_factory.mktemp("r"), task="motion", plan=MOTION_PLAN)
+    writer = start(fresh_folder(runs_root), task="motion", plan=MOTION_PLAN)
     written = writer.write_trial(record)
     writer.close()
     assert written == replace(record, motion_samples=0)  # no samples: none claimed
@@ -258,13 +270,13 @@ maybe = st.one_of(st.none(), st.booleans())
        guess=st.floats(0, 1), correct=maybe, reversal=maybe, estimate=numbers, low=numbers,
        high=numbers)
 def test_any_adaptive_trial_reads_back_exactly_as_written(
-    tmp_path_factory, procedure, intensity, guess, correct, reversal, estimate, low, high
+    runs_root, procedure, intensity, guess, correct, reversal, estimate, low, high
 ):
     cells = AdaptiveCells(procedure, "soa_ms", intensity, guess, correct, reversal, estimate,
                           low, high)
     record = MotionRecord(trial=3, block=1, task="motion", onset_ns=0, duration_ns=S,
                           response="left", row=2, direction="left", adaptive=cells)
-    writer = start(tmp_path_factory.mktemp("r"), task="motion", plan=MOTION_PLAN)
+    writer = start(fresh_folder(runs_root), task="motion", plan=MOTION_PLAN)
     written = writer.write_trial(record)
     writer.close()
     assert written == replace(record, motion_samples=0)  # no samples: none claimed

@@ -213,10 +213,19 @@ class _CsvTable:
         self._writing(self.writer.writerow, columns)
 
     def add(self, trial: int, *columns) -> None:
+        import numpy as np
+
+        # Whole numbers (every table compile writes) as the csv writer writes them, formatted
+        # here in half its time (a 10-hour train is a million rows).
+        whole = all(np.issubdtype(c.dtype, np.integer) for c in columns)
+        line = "%d," * len(columns) + "%d\n"
         for a in range(0, len(columns[0]), _CSV_ROWS):
             block = [c[a : a + _CSV_ROWS].tolist() for c in columns]
             rows = zip([trial] * len(block[0]), *block, strict=True)
-            self._writing(self.writer.writerows, rows)
+            if whole:
+                self._writing(self.output.stream.write, "".join([line % row for row in rows]))
+            else:
+                self._writing(self.writer.writerows, rows)
 
     def finish(self) -> None:
         self.output.flush()

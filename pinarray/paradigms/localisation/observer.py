@@ -214,13 +214,19 @@ class ObserverModel:
         weights = np.exp(-_distances(self.grid) / (sigma * self._acuity()[:, None]))
         return weights / weights.sum(axis=1, keepdims=True)
 
-    def _mean_correct(self, sigmas: np.ndarray) -> np.ndarray:
-        """Correct fraction over the calibration pins for each spread in ``sigmas``."""
-        rows = np.array(self.pins) - 1
-        scaled = _distances(self.grid)[rows] / self._acuity()[rows][:, None]
+    def _mean_correct(self, sigmas: np.ndarray, scaled: np.ndarray | None = None) -> np.ndarray:
+        """Correct fraction over the calibration pins for each spread in ``sigmas``
+        (``scaled``: `_scaled_distances`, when the caller holds it already)."""
+        if scaled is None:
+            scaled = self._scaled_distances()
         # The stimulated pin is at distance 0, so its weight is 1 and its share 1 / row sum.
         sums = np.exp(-scaled[None] / sigmas[:, None, None]).sum(axis=2)
         return self.ceiling * (1 / sums).mean(axis=1)
+
+    def _scaled_distances(self) -> np.ndarray:
+        """Distances from each calibration pin to every pin, over the stimulated pin's acuity."""
+        rows = np.array(self.pins) - 1
+        return _distances(self.grid)[rows] / self._acuity()[rows][:, None]
 
     def _solve_sigmas(self, fractions: Sequence[float]) -> np.ndarray:
         # The correct rate falls strictly as sigma grows: a table over log(sigma) brackets
@@ -230,9 +236,10 @@ class ObserverModel:
         # `correct` falls along the table, so count the entries still above each target.
         above = np.searchsorted(-correct, -targets, side="right").clip(1, len(correct) - 1)
         low, high = log_sigmas[above - 1], log_sigmas[above]
+        scaled = self._scaled_distances()  # the same at each step: computed once
         for _ in range(24):
             middle = (low + high) / 2
-            up = self._mean_correct(np.exp(middle)) / self.ceiling > targets
+            up = self._mean_correct(np.exp(middle), scaled) / self.ceiling > targets
             low = np.where(up, middle, low)
             high = np.where(up, high, middle)
         return np.exp((low + high) / 2)
