@@ -4,8 +4,6 @@ belongs in `make bench`); the longest tests start first, so that on several work
 them is left running alone at the end; the garbage collector runs less often, and never again over what collection imported."""
 
 import gc
-import marshal
-from types import SimpleNamespace
 
 import pytest
 from hypothesis import settings
@@ -33,23 +31,6 @@ settings.load_profile("pinarray")
 # numpy's generator is managed again and only the time is lost.
 if getattr(entropy, "NP_RANDOM", None) is None:
     entropy.NP_RANDOM = object()
-
-
-def _read_whole_rewrites() -> None:
-    """pytest reads each cached rewrite of a module (every test module and, pinarray being a
-    pytest plugin too, every module of pinarray) with ``marshal.load`` on the open file, which
-    reads object by object through the file's methods: 0.155 s for pinarray's 241 here, 0.025 s
-    read whole and unmarshalled from bytes, in every test process. Its module's own name for
-    marshal is given the whole-file reading; where pytest has moved it, nothing changes."""
-    from _pytest.assertion import rewrite
-
-    if getattr(rewrite, "marshal", None) is marshal:
-        rewrite.marshal = SimpleNamespace(load=lambda file: marshal.loads(file.read()),
-                                          loads=marshal.loads, dumps=marshal.dumps,
-                                          dump=marshal.dump)
-
-
-_read_whole_rewrites()
 
 
 def pytest_configure(config):
