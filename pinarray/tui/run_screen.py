@@ -18,7 +18,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import Footer, ProgressBar, Static
+from textual.widgets import ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import StrokeCounts
@@ -27,6 +27,7 @@ from pinarray.protocol.drives import trial_drives
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.live import LiftTimeline, live_lines, track_lines
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
@@ -111,7 +112,7 @@ class RunScreen(KeyNotices, Screen):
                 yield ResponsePad(self.answers, self.session.grid.pin_count, id="pad")
                 yield Notice()
                 yield Static(id="counts")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         clock = self.sitting.clock

@@ -15,12 +15,13 @@ from textual.binding import Binding
 from textual.containers import Vertical
 from textual.events import Key
 from textual.screen import Screen
-from textual.widgets import Footer, Static
+from textual.widgets import Static
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.imaging import KeyTrigger, ScannerSync, SyncError, SyncOverrides
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
+from pinarray.tui.footer import KeyFooter
 
 # Redraws of the volume count per second while waiting.
 COUNT_FPS = 10
@@ -70,7 +71,7 @@ class ScannerScreen(Screen[Session | None]):
             yield Static(f"{press}The run starts at the first counted volume and every onset "
                          "is timed from it. Esc: stop waiting (no run is started).",
                          classes="hint")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.set_interval(1 / COUNT_FPS, self._count)

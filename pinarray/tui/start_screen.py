@@ -12,13 +12,14 @@ from textual import on
 from textual.app import ComposeResult
 from textual.containers import Grid, Horizontal, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Button, Footer, Input, Label, Select, Static
+from textual.widgets import Button, Input, Label, Select, Static
 
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.faults import SIM_DEFAULT
 from pinarray.journal.paths import check_label
 from pinarray.protocol import Protocol
 from pinarray.session.sitting import SessionRequest
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.notice import KeyNotices, Notice
 
 if TYPE_CHECKING:
@@ -102,7 +103,7 @@ class StartScreen(KeyNotices, Screen):
                 yield Button("Resume", id="resume", disabled=True)
                 yield Button("Quit", id="quit")
             yield Notice()
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self._look_for_unfinished()
