@@ -55,6 +55,7 @@ class ScannerScreen(Screen[Session | None]):
         self.sync = sync
         self._leaving = False
         self._failed = False
+        self._shown = ""  # the volume count as last shown
 
     def compose(self) -> ComposeResult:
         request = self.sitting.request
@@ -82,8 +83,10 @@ class ScannerScreen(Screen[Session | None]):
         scanner = self.sitting.scanner
         seen = scanner.seen if scanner is not None else 0
         needed = self.sync.dummy_volumes + 1
-        self.query_one("#scanner-volumes", Static).update(
-            f"volumes seen: {seen} of {needed} to time zero ({self.sync.dummy_volumes} dummy)")
+        shown = f"volumes seen: {seen} of {needed} to time zero ({self.sync.dummy_volumes} dummy)"
+        if shown != self._shown:  # an update lays the screen out again: only when it changed
+            self._shown = shown
+            self.query_one("#scanner-volumes", Static).update(shown)
 
     @work(thread=True, exclusive=True, group="scanner")
     def _wait(self) -> None:

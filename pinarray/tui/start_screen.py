@@ -53,6 +53,10 @@ class StartScreen(KeyNotices, Screen):
         (device, description) of each serial port found.
     """
 
+    # No first focus of Textual's (the form's scroll, all of its fields styled again as it
+    # takes focus and again as it gives it up): on_mount gives it.
+    AUTO_FOCUS = ""
+
     def __init__(self, options, list_ports: Callable[[], list[tuple[str, str]]]):
         super().__init__()
         self.options = options
