@@ -36,7 +36,8 @@ class KeyFooter(Footer):
             return
         async with self.batch():
             for new, old in zip(fresh, shown, strict=False):
-                wider = (new.key_display, new.description) != (old.key_display, old.description)
+                wider = any(getattr(new, name) != getattr(old, name)
+                            for name in ("key_display", "description"))
                 for name in _STATE:
                     setattr(old, name, getattr(new, name))
                 if old.tooltip != new.tooltip:
@@ -55,5 +56,5 @@ def _same_kind(new: object, old: object) -> bool:
     if type(new) is not type(old) or not all(hasattr(new, name) and hasattr(old, name)
                                              for name in _STATE):
         return False
-    classes = getattr(new, "classes", frozenset()) - {DISABLED}
+    classes: frozenset[str] = getattr(new, "classes", frozenset()) - {DISABLED}
     return classes <= getattr(old, "classes", frozenset())
