@@ -4,10 +4,11 @@ Textual's `Footer` recomposes on every change of the bindings (an action becomin
 not, a focus moving): it removes every key, builds them again, mounts and styles each (twice
 more, for its compact state) and lays the screen out again. The run screen changes which keys
 act at nearly every phase, so that was the costliest thing it did (a seventh of the UI tests'
-processor time, measured). When the keys a recompose would build are the ones shown, in the
-same order, this footer gives the shown ones the new keys' state instead (what they say, the
-action, the tooltip, and whether they are dimmed), then removes those left over or mounts the
-new ones beyond them. Any other footer (a group of keys) is recomposed as before.
+processor time, measured). This footer builds the keys as a recompose would, unmounted, and
+gives each key shown the state of the new one in its place (what it says, its action, its
+tooltip, whether it is dimmed), then removes the keys left over or mounts the new ones beyond
+them: the keys a recompose would have shown. A footer of any other kind (a group of keys) is
+recomposed as before.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ class KeyFooter(Footer):
         except Exception:  # noqa: BLE001 - whatever stops it, the recompose does it properly
             fresh = None
         shown = list(self.children)
-        if fresh is None or not all(_same_kind(new, old) for new, old in zip(fresh, shown, strict=False)):
+        if fresh is None or not all(_same_kind(new, old)
+                                    for new, old in zip(fresh, shown, strict=False)):
             await super().recompose()
             return
         async with self.batch():
