@@ -20,6 +20,7 @@ from pathlib import Path
 from textual.app import App
 from textual.binding import Binding
 from textual.message_pump import active_message_pump
+from textual.screen import Screen
 from textual.worker import WorkerFailed
 
 from pinarray.clock import Clock
@@ -119,6 +120,16 @@ class PinArrayApp(App[None]):
         self.ending: Ending = Quit()
         self._leaving_app = False
         self._crash_closed = False  # after an error: the run is marked and the pins rest
+
+    # -- screens ------------------------------------------------------------------------------
+
+    def push_screen(self, screen, *args, **kwargs):  # type: ignore[no-untyped-def, override]
+        _sized(self, screen)
+        return super().push_screen(screen, *args, **kwargs)
+
+    def switch_screen(self, screen, *args, **kwargs):  # type: ignore[no-untyped-def, override]
+        _sized(self, screen)
+        return super().switch_screen(screen, *args, **kwargs)
 
     def on_mount(self) -> None:
         from pinarray.tui.start_screen import StartScreen
@@ -258,6 +269,22 @@ class PinArrayApp(App[None]):
             note = f" (the run could not be marked crashed: {problem})"
         safe = self.sitting.last_safe
         return (safe.describe() if safe is not None else "not connected") + note
+
+
+def _sized(app: App[None], screen: object) -> None:
+    """Give a screen about to be shown the size classes of the terminal's present size.
+
+    Textual gives them as the screen first lays out, after its widgets were styled without
+    them: every widget of the screen was styled again. Given now, they are already right then.
+    """
+    if not isinstance(screen, Screen):
+        return
+    width, height = app.size
+    for dimension, breakpoints in ((width, app.HORIZONTAL_BREAKPOINTS),
+                                   (height, app.VERTICAL_BREAKPOINTS)):
+        reached = [(at, name) for at, name in breakpoints or () if dimension >= at]
+        for _, name in breakpoints or ():
+            screen.set_class(bool(reached) and name == max(reached)[1], name)
 
 
 def _write_crash_log(results_root: Path, error: BaseException) -> Path | None:

@@ -9,11 +9,12 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Button, Footer, Static
+from textual.widgets import Button, Static
 
 from pinarray.analysis import summary_lines
 from pinarray.session.sitting import Sitting
 from pinarray.session.trials import Phase, Session
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.notice import KeyNotices, Notice
 
 
@@ -82,7 +83,7 @@ class EndScreen(KeyNotices, Screen):
                 yield Button("New session (n)", id="new", variant="primary")
                 yield Button("Quit (q)", id="quit")
             yield Notice()
-        yield Footer()
+        yield KeyFooter()
 
     @on(Button.Pressed, "#new")
     def action_new(self) -> None:

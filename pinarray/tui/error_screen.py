@@ -6,8 +6,9 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical
 from textual.screen import Screen
-from textual.widgets import Footer, Static
+from textual.widgets import Static
 
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.outcome import Crashed
 
@@ -54,7 +55,7 @@ class ErrorScreen(KeyNotices, Screen):
                          "is printed when you leave).", id="error-next")
             yield Static(where, id="error-log")
             yield Notice()
-        yield Footer()
+        yield KeyFooter()
 
     def closed(self, pins: str) -> None:
         """The run is marked and the pins are safe: say so, and let the app be left."""

@@ -36,7 +36,12 @@ class Notice(Static):
     }
     """
 
+    _said: tuple[str, bool] = ("", False)  # what it says now: a notice said again is not redrawn
+
     def say(self, text: str, error: bool = False) -> None:
+        if (text, error) == self._said:
+            return
+        self._said = (text, error)
         self.update(text)
         self.set_class(error, "-error")
 

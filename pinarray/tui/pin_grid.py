@@ -11,6 +11,8 @@ from textual.widgets import Static
 
 from pinarray.grid import Grid
 
+MARKS = frozenset({"-lifted", "-active", "-chosen"})  # what `PinGrid.show` marks a pin with
+
 
 class PinCell(Static):
     """One pin; its classes say whether it is used, moving, or the chosen answer."""
@@ -91,6 +93,9 @@ class PinGrid(GridLayout):
              chosen: int | None = None) -> None:
         """Mark pins that are up now, pins the trial drives, and the answer being entered."""
         for cell in self.query(PinCell):
-            cell.set_class(cell.pin in lifted, "-lifted")
-            cell.set_class(cell.pin in active, "-active")
-            cell.set_class(cell.pin == chosen, "-chosen")
+            marks = {name for name, marked in (("-lifted", cell.pin in lifted),
+                                               ("-active", cell.pin in active),
+                                               ("-chosen", cell.pin == chosen)) if marked}
+            classes = (cell.classes - MARKS) | marks
+            if classes != cell.classes:  # styled again once, however many marks changed
+                cell.set_classes(classes)

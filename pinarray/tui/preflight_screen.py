@@ -11,7 +11,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Button, DataTable, Footer, Input, Static
+from textual.widgets import Button, DataTable, Input, Static
 
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech import packets
@@ -22,6 +22,7 @@ from pinarray.player.timing import CheckSkipped, Verdict
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
 from pinarray.tui.confirm import Confirm
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.notice import KeyNotices, Notice
 
 # Two-line headings: the whole table fits an 80-column terminal, units still in the names.
@@ -86,7 +87,7 @@ class PreflightScreen(KeyNotices, Screen):
             yield Button("Lower return delay", id="lower-delay", disabled=True)
             yield Button("Back (Esc)", id="back")
         yield Notice()
-        yield Footer()
+        yield KeyFooter()
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action == "begin":

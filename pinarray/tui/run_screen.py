@@ -18,7 +18,7 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical
 from textual.message import Message
 from textual.screen import Screen
-from textual.widgets import Footer, ProgressBar, Static
+from textual.widgets import ProgressBar, Static
 from textual.worker import Worker, WorkerState
 
 from pinarray.journal.records import StrokeCounts
@@ -27,6 +27,7 @@ from pinarray.protocol.drives import trial_drives
 from pinarray.session.sitting import MAX_ATTEMPTS, Sitting
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError
 from pinarray.tui.confirm import Confirm
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.live import LiftTimeline, live_lines, track_lines
 from pinarray.tui.notice import KeyNotices, Notice
 from pinarray.tui.pin_grid import PinGrid
@@ -90,6 +91,7 @@ class RunScreen(KeyNotices, Screen):
         self._presenting = False  # a present worker runs (the interval, then the stimulus)
         self._cutting = False  # a pause is cutting the stimulus short
         self._ending = False
+        self._lines: dict[str, str] = {}  # what each line of text shows (`_show`)
 
     def compose(self) -> ComposeResult:
         protocol, request = self.session.protocol, self.sitting.request
@@ -111,7 +113,7 @@ class RunScreen(KeyNotices, Screen):
                 yield ResponsePad(self.answers, self.session.grid.pin_count, id="pad")
                 yield Notice()
                 yield Static(id="counts")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         clock = self.sitting.clock
@@ -193,24 +195,23 @@ class RunScreen(KeyNotices, Screen):
     def _draw(self) -> None:
         session = self.session
         phase, current = session.phase, session.current
-        trial = self.query_one("#trial", Static)
         counted = f"{session.done_of(practice=False)} of {len(self._kind(False))} done"
         if current is None:
-            trial.update(f"{counted}")
+            self._show("#trial", counted)
         else:
             number = session.number_of(current)
             where = " · not counted" if current.practice else self._block(current.block)
-            trial.update(f"{str(number).capitalize()}{where} · #{current.trial} in the plan"
-                         f"\n{counted}")
-        trial.set_class(current is not None and current.practice, "-practice")
+            self._show("#trial", f"{str(number).capitalize()}{where} · #{current.trial} in the "
+                                 f"plan\n{counted}")
+        self.query_one("#trial").set_class(current is not None and current.practice, "-practice")
         self.query_one(ProgressBar).update(total=session.total, progress=session.done_count)
-        self.query_one("#stimulus", Static).update(self._describe_stimulus())
+        self._show("#stimulus", self._describe_stimulus())
         stroke = session.played_stroke
-        stroke_line = self.query_one("#stroke", Static)
-        stroke_line.update(self._describe_stroke(stroke))
-        stroke_line.set_class(stroke is not None and bool(stroke.short_cycles), "-short")
-        phase_line = self.query_one("#phase", Static)
-        phase_line.update(self._hint())
+        self._show("#stroke", self._describe_stroke(stroke))
+        self.query_one("#stroke").set_class(stroke is not None and bool(stroke.short_cycles),
+                                            "-short")
+        self._show("#phase", self._hint())
+        phase_line = self.query_one("#phase")
         phase_line.set_class(phase is Phase.FAULT, "-fault")
         phase_line.set_class(phase is Phase.PAUSED or session.pausing, "-paused")
         pad = self.query_one(ResponsePad)
@@ -218,10 +219,17 @@ class RunScreen(KeyNotices, Screen):
         counts = live_lines(session.writer.rows, session.records)
         if session.procedures is not None:
             counts = [*counts, *track_lines(session.records)]
-        self.query_one("#counts", Static).update("\n".join(counts))
-        self.query_one("#last", Static).update(self._describe_last())
+        self._show("#counts", "\n".join(counts))
+        self._show("#last", self._describe_last())
         self._draw_grid(frozenset())
         self.refresh_keys()
+
+    def _show(self, line: str, text: str, layout: bool = True) -> None:
+        """Put ``text`` on the Static ``line`` (a selector) unless it says that already: an
+        update lays the screen out again, and a phase's change redraws every line."""
+        if self._lines.get(line) != text:
+            self._lines[line] = text
+            self.query_one(line, Static).update(text, layout=layout)
 
     def _hint(self) -> str:
         session, phase = self.session, self.session.phase
@@ -336,7 +344,7 @@ class RunScreen(KeyNotices, Screen):
             if playing != self._shown_playing:  # a tenth of a second on
                 self._shown_playing = playing
                 # One line whose length hardly changes: no layout of the screen for it.
-                self.query_one("#phase", Static).update(playing, layout=False)
+                self._show("#phase", playing, layout=False)
 
     def _playing_from(self) -> int | None:
         """The time zero of the stimulus the array is playing now (None: it has not begun)."""
@@ -533,7 +541,7 @@ class RunScreen(KeyNotices, Screen):
             return
         self._ending = True
         self._ticker.pause()
-        self.query_one("#phase", Static).update("Closing the run; pins to rest…")
+        self._show("#phase", "Closing the run; pins to rest…")
         self.refresh_keys()
         cast("PinArrayApp", self.app).finish_run(self.session, reason)
 

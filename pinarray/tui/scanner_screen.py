@@ -15,12 +15,13 @@ from textual.binding import Binding
 from textual.containers import Vertical
 from textual.events import Key
 from textual.screen import Screen
-from textual.widgets import Footer, Static
+from textual.widgets import Static
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.imaging import KeyTrigger, ScannerSync, SyncError, SyncOverrides
 from pinarray.session.sitting import SessionRequest, Sitting
 from pinarray.session.trials import Session
+from pinarray.tui.footer import KeyFooter
 
 # Redraws of the volume count per second while waiting.
 COUNT_FPS = 10
@@ -54,6 +55,7 @@ class ScannerScreen(Screen[Session | None]):
         self.sync = sync
         self._leaving = False
         self._failed = False
+        self._shown = ""  # the volume count as last shown
 
     def compose(self) -> ComposeResult:
         request = self.sitting.request
@@ -70,7 +72,7 @@ class ScannerScreen(Screen[Session | None]):
             yield Static(f"{press}The run starts at the first counted volume and every onset "
                          "is timed from it. Esc: stop waiting (no run is started).",
                          classes="hint")
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self.set_interval(1 / COUNT_FPS, self._count)
@@ -81,8 +83,10 @@ class ScannerScreen(Screen[Session | None]):
         scanner = self.sitting.scanner
         seen = scanner.seen if scanner is not None else 0
         needed = self.sync.dummy_volumes + 1
-        self.query_one("#scanner-volumes", Static).update(
-            f"volumes seen: {seen} of {needed} to time zero ({self.sync.dummy_volumes} dummy)")
+        shown = f"volumes seen: {seen} of {needed} to time zero ({self.sync.dummy_volumes} dummy)"
+        if shown != self._shown:  # an update lays the screen out again: only when it changed
+            self._shown = shown
+            self.query_one("#scanner-volumes", Static).update(shown)
 
     @work(thread=True, exclusive=True, group="scanner")
     def _wait(self) -> None:

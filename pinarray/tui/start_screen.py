@@ -12,13 +12,14 @@ from textual import on
 from textual.app import ComposeResult
 from textual.containers import Grid, Horizontal, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Button, Footer, Input, Label, Select, Static
+from textual.widgets import Button, Input, Label, Select, Static
 
 from pinarray.errors import PinArrayError
 from pinarray.hardware.feetech.faults import SIM_DEFAULT
 from pinarray.journal.paths import check_label
 from pinarray.protocol import Protocol
 from pinarray.session.sitting import SessionRequest
+from pinarray.tui.footer import KeyFooter
 from pinarray.tui.notice import KeyNotices, Notice
 
 if TYPE_CHECKING:
@@ -51,6 +52,10 @@ class StartScreen(KeyNotices, Screen):
     list_ports : callable
         (device, description) of each serial port found.
     """
+
+    # No first focus of Textual's (the form's scroll, all of its fields styled again as it
+    # takes focus and again as it gives it up): on_mount gives it.
+    AUTO_FOCUS = ""
 
     def __init__(self, options, list_ports: Callable[[], list[tuple[str, str]]]):
         super().__init__()
@@ -102,7 +107,7 @@ class StartScreen(KeyNotices, Screen):
                 yield Button("Resume", id="resume", disabled=True)
                 yield Button("Quit", id="quit")
             yield Notice()
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
         self._look_for_unfinished()
