@@ -38,6 +38,10 @@ class Register(Enum):
     Feetech gave matthieuvigne/STS_servos, ``extras/STS3215 Memory Table.xlsx``).
     """
 
+    # Members are singletons: hashed by identity, a dict keyed by a register (a request
+    # kept for the next sample) costs no Python call (Enum's own hash is its name's).
+    __hash__ = object.__hash__
+
     FIRMWARE_MAJOR = (0, 1)
     FIRMWARE_MINOR = (1, 1)
     MODEL_NUMBER = (3, 2)
