@@ -190,7 +190,13 @@ def encode_position(position_steps: int) -> int:
 
 def decode_position(raw: int) -> int:
     """16-bit register value -> position in steps."""
-    return decode_sign_magnitude(raw, POSITION_SIGN_BIT)
+    # `decode_sign_magnitude` at bit 15, written out: every motion sample decodes one.
+    magnitude = raw & _POSITION_MAGNITUDE
+    return -magnitude if raw & _POSITION_SIGN else magnitude
+
+
+_POSITION_SIGN = 1 << POSITION_SIGN_BIT
+_POSITION_MAGNITUDE = _POSITION_SIGN - 1
 
 
 def decode_load(raw: int) -> int:
