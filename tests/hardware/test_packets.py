@@ -108,6 +108,25 @@ def test_every_status_packet_is_found_however_the_bytes_are_chopped(items, chops
     assert found == [s for s, _ in items]
 
 
+@given(st.one_of(status_packets.map(wire_bytes), st.binary(min_size=6, max_size=20).map(
+    lambda noise: b"\xff\xff" + noise)), st.integers(0, 20), st.integers(0, 255))
+def test_bytes_read_at_once_are_taken_as_when_they_come_byte_by_byte(data, longest, flip):
+    # A reader with nothing half read takes one whole answer in one step: the same packets,
+    # skipped bytes and bad checksums as its byte-by-byte hunt, for answers, damaged answers
+    # and noise alike.
+    if flip:
+        damaged = bytearray(data)
+        damaged[flip % len(data)] ^= 1 << (flip % 8)
+        data = bytes(damaged)
+    at_once, byte_by_byte = StatusReader(), StatusReader()
+    at_once.longest_params = byte_by_byte.longest_params = longest
+    found = [*at_once.feed(data)]
+    found_slowly = [packet for k in range(len(data)) for packet in byte_by_byte.feed(data[k:k + 1])]
+    assert found == found_slowly
+    assert (at_once.skipped_bytes, at_once.bad_checksums, at_once.pending_bytes) == (
+        byte_by_byte.skipped_bytes, byte_by_byte.bad_checksums, byte_by_byte.pending_bytes)
+
+
 @given(status_packets, st.integers(0, 50))
 def test_a_corrupt_packet_is_dropped_and_does_not_hide_the_next(status, flipped_bit):
     good = wire_bytes(status)

@@ -35,6 +35,18 @@ def test_the_horn_ends_on_its_goal_and_never_outruns_the_servo(drive, start, goa
         assert abs(piece.speed_steps_per_s) <= drive.up_speed_steps_per_s * (1 + 1e-9)
 
 
+@given(servo_drives(), st.sampled_from((-1, 0, 1)), positions_steps, positions_steps,
+       positions_steps, st.integers(0, 10**9), st.integers(-10**6, 2 * 10**9))
+def test_the_encoder_reads_the_horn_of_the_motion_state(drive, load, start, first, goal,
+                                                        switch_ns, time_ns):
+    # `horn_at` (every sample asks it) is `state_at`'s horn to the last bit, also on a move
+    # started mid-way through another (lash taken up or not, a load pressing one side).
+    drive = drive._replace(load_direction=load)
+    move = plan_move(0, at_rest(start), first, drive)
+    move = plan_move(switch_ns, move.state_at(switch_ns), goal, drive)
+    assert move.horn_at(time_ns) == move.state_at(time_ns).horn_steps
+
+
 @given(servo_drives(lash=False), positions_steps, positions_steps)
 def test_without_lash_a_move_takes_the_trapezoid_time(drive, start, goal):
     v, a, d = drive.up_speed_steps_per_s, drive.accel_steps_per_s2, abs(goal - start)

@@ -122,8 +122,22 @@ class StatusReader:
     def pending_bytes(self) -> int:
         return len(self._buffer)
 
+    def _whole(self, data: bytes) -> StatusPacket | None:
+        """``data`` as one status packet and nothing else, when `feed`'s loop, its buffer
+        empty, would find just that (the usual read: one answer, whole); else None."""
+        size = len(data)
+        if size < 6 or data[0] != 0xFF or data[1] != 0xFF:
+            return None
+        servo_id, length, error = data[2], data[3], data[4]
+        if (size != length + 4 or servo_id >= BROADCAST_ID or length - 2 > self.longest_params
+                or error > MAX_ERROR_BYTE or checksum(data[2:-1]) != data[-1]):
+            return None
+        return StatusPacket(servo_id, error, bytes(data[5:-1]))
+
     def feed(self, data: bytes) -> list[StatusPacket]:
         """Add received bytes; return the status packets they complete, in order."""
+        if not self._buffer and (packet := self._whole(data)) is not None:
+            return [packet]
         self._buffer += data
         found: list[StatusPacket] = []
         buffer = self._buffer

@@ -38,6 +38,10 @@ class Register(Enum):
     Feetech gave matthieuvigne/STS_servos, ``extras/STS3215 Memory Table.xlsx``).
     """
 
+    # Members are singletons: hashed by identity, a dict keyed by a register (a request
+    # kept for the next sample) costs no Python call (Enum's own hash is its name's).
+    __hash__ = object.__hash__
+
     FIRMWARE_MAJOR = (0, 1)
     FIRMWARE_MINOR = (1, 1)
     MODEL_NUMBER = (3, 2)
@@ -186,7 +190,13 @@ def encode_position(position_steps: int) -> int:
 
 def decode_position(raw: int) -> int:
     """16-bit register value -> position in steps."""
-    return decode_sign_magnitude(raw, POSITION_SIGN_BIT)
+    # `decode_sign_magnitude` at bit 15, written out: every motion sample decodes one.
+    magnitude = raw & _POSITION_MAGNITUDE
+    return -magnitude if raw & _POSITION_SIGN else magnitude
+
+
+_POSITION_SIGN = 1 << POSITION_SIGN_BIT
+_POSITION_MAGNITUDE = _POSITION_SIGN - 1
 
 
 def decode_load(raw: int) -> int:

@@ -134,15 +134,30 @@ class Move(NamedTuple):
         return MotionState(drive, speed, horn)
 
     def horn_at(self, time_ns: int) -> float:
-        """`state_at`'s horn alone (what the encoder reads: every motion sample asks)."""
+        """`state_at`'s horn alone (what the encoder reads: every motion sample asks).
+
+        `Piece.drive_at`'s drive, `Piece.direction` and `horn_for` written out here, the same
+        operations in the same order (so the same floats): a sample of a moving pin is the
+        simulator's most frequent question.
+        """
         final = self.pieces[-1]
         if final.start_ns <= time_ns:
             return final.horn_steps
         piece = self._piece_at(time_ns)
         if piece is final:
             return final.horn_steps
-        drive, _ = piece.drive_at(time_ns)
-        return horn_for(drive, piece.horn_steps, piece.direction, self.drive)
+        start_ns, drive_steps, speed, accel, horn_before = piece
+        dt_s = (time_ns - start_ns) / NS_PER_S
+        drive = drive_steps + speed * dt_s + 0.5 * accel * dt_s * dt_s
+        lash = self.drive
+        half = lash.lash_steps / 2.0
+        if lash.load_direction:
+            return drive + lash.load_direction * half
+        if speed > 0 or (not speed and accel > 0):  # `Piece.direction` > 0
+            return max(horn_before, drive - half)
+        if speed < 0 or (not speed and accel < 0):
+            return min(horn_before, drive + half)
+        return horn_before
 
     def horn_speed_at(self, time_ns: int) -> float:
         """The horn's speed (steps/s): the drive's while it pushes the horn, else 0."""

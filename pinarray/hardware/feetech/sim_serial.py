@@ -28,6 +28,7 @@ import serial
 from pinarray.clock import Clock
 from pinarray.hardware.feetech.sim_wire import (
     Answer,
+    StatusReply,
     Transmission,
     byte_time_ns,
     schedule,
@@ -120,10 +121,31 @@ class SimSerial:
             data = bytes(data)
         end_ns = self._transmit(data)
         replies = self.bus.receive(data, end_ns)
-        if replies:
+        if len(replies) == 1 and not replies[0].late_ns and not self._queued:
+            self._queue_alone(replies[0], end_ns)
+        elif replies:
             arriving, self._wire_free_ns = schedule(replies, end_ns, self._byte_ns)
             self._queue(arriving, any(reply.late_ns for reply in replies))
         return len(data)
+
+    def _queue_alone(self, reply: StatusReply, line_free_ns: int) -> None:
+        """`schedule` and `_queue` of one answer on time while nothing else is on its way (the
+        usual exchange: a request, its answer), fused: the same start (`schedule`'s one-reply
+        case), the same arrival times (`arrivals`), the same line free time and ends, with
+        nothing to merge (an empty queue is in order). This runs for every exchange."""
+        after_ns = reply.instruction_end_ns
+        if reply.chained and after_ns < line_free_ns:
+            after_ns = line_free_ns
+        times, data = arrivals(Transmission(after_ns + reply.delay_ns, reply.packet,
+                                            self._byte_ns))
+        whole_ns = times[-1]
+        self._wire_free_ns = whole_ns if whole_ns > line_free_ns else line_free_ns
+        self._queued.append((times, data))
+        ends = self._ends_ns
+        insort(ends, whole_ns)
+        now_ns = self.clock.now_ns()
+        if ends[0] <= now_ns:
+            del ends[: bisect_right(ends, now_ns)]
 
     def _transmit(self, data: bytes) -> int:
         """``data`` onto the wire after whatever is on it; when its last byte has arrived."""
@@ -239,6 +261,9 @@ class SimSerial:
         if offset + count < len(data):
             self._offset = offset + count
             return data[offset : offset + count]
+        if not offset and count == len(data):  # one transmission whole (the usual read)
+            queued.popleft()
+            return data
         pieces = []
         while count:
             times, data = queued[0]
@@ -281,8 +306,15 @@ class SimSerial:
             now_ns = clock.now_ns()
             if queued:
                 times = queued[0][0]
-                if len(queued) == 1 and times[-1] <= now_ns:  # one transmission, all here
-                    return self._take(len(times) - self._offset)
+                if len(queued) == 1:
+                    if times[-1] <= now_ns:  # one transmission, all here
+                        return self._take(len(times) - self._offset)
+                    if (len(ends) == 1 and now_ns < times[self._offset]
+                            and times[-1] <= deadline_ns):
+                        # None of it here yet, and its end the one to come (the usual
+                        # wait): what the rest of this round does, without counting.
+                        clock.sleep_until_ns(times[-1])
+                        continue
                 count = self._arrived(now_ns)
                 if count:
                     return self._take(count)
