@@ -216,10 +216,17 @@ class ObserverModel:
 
     def _mean_correct(self, sigmas: np.ndarray) -> np.ndarray:
         """Correct fraction over the calibration pins for each spread in ``sigmas``."""
+        return self._correct_over(self._near_calibration_pins(), sigmas)
+
+    def _near_calibration_pins(self) -> np.ndarray:
+        """Minus each calibration pin's distance to every pin in its own acuity's pitches,
+        shaped (1, pins, all pins) for `_correct_over`."""
         rows = np.array(self.pins) - 1
-        scaled = _distances(self.grid)[rows] / self._acuity()[rows][:, None]
+        return -(_distances(self.grid)[rows] / self._acuity()[rows][:, None])[None]
+
+    def _correct_over(self, near: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
         # The stimulated pin is at distance 0, so its weight is 1 and its share 1 / row sum.
-        sums = np.exp(-scaled[None] / sigmas[:, None, None]).sum(axis=2)
+        sums = np.exp(near / sigmas[:, None, None]).sum(axis=2)
         return self.ceiling * (1 / sums).mean(axis=1)
 
     def _solve_sigmas(self, fractions: Sequence[float]) -> np.ndarray:
@@ -230,9 +237,10 @@ class ObserverModel:
         # `correct` falls along the table, so count the entries still above each target.
         above = np.searchsorted(-correct, -targets, side="right").clip(1, len(correct) - 1)
         low, high = log_sigmas[above - 1], log_sigmas[above]
+        near = self._near_calibration_pins()  # the same at every step
         for _ in range(24):
             middle = (low + high) / 2
-            up = self._mean_correct(np.exp(middle)) / self.ceiling > targets
+            up = self._correct_over(near, np.exp(middle)) / self.ceiling > targets
             low = np.where(up, middle, low)
             high = np.where(up, high, middle)
         return np.exp((low + high) / 2)
