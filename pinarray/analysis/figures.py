@@ -39,13 +39,7 @@ _CAPTION_FONT = 7
 
 def save(figure, stem: Path, caption: str) -> list[Path]:
     """Write ``stem``.png and .pdf with ``caption`` wrapped under the axes."""
-    width_in = figure.get_size_inches()[0]
-    lines = textwrap.wrap(caption, width=int(width_in * 17))
-    height_in = figure.get_size_inches()[1]
-    figure.set_size_inches(width_in, height_in + 0.13 * len(lines))
-    bottom = (0.13 * len(lines) + 0.1) / figure.get_size_inches()[1]
-    lay_out(figure, rect=(0, bottom, 1, 1))
-    figure.text(0.01, 0.01, "\n".join(lines), fontsize=_CAPTION_FONT, ha="left", va="bottom")
+    compose(figure, caption)
     paths = []
     for ext in FORMATS:
         path = stem.with_suffix(f".{ext}")
@@ -57,6 +51,18 @@ def save(figure, stem: Path, caption: str) -> list[Path]:
         paths.append(path)
     plt.close(figure)
     return paths
+
+
+def compose(figure, caption: str) -> None:
+    """Make room for ``caption`` under the axes, lay the figure out and write the caption
+    there: the figure as `save` writes it."""
+    width_in = figure.get_size_inches()[0]
+    lines = textwrap.wrap(caption, width=int(width_in * 17))
+    height_in = figure.get_size_inches()[1]
+    figure.set_size_inches(width_in, height_in + 0.13 * len(lines))
+    bottom = (0.13 * len(lines) + 0.1) / figure.get_size_inches()[1]
+    lay_out(figure, rect=(0, bottom, 1, 1))
+    figure.text(0.01, 0.01, "\n".join(lines), fontsize=_CAPTION_FONT, ha="left", va="bottom")
 
 
 def lay_out(figure, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> None:

@@ -81,12 +81,14 @@ def write_results(root):
     return root
 
 
-def keep_figures(monkeypatch, draw: bool | Callable[[str], bool] = False) -> dict:
+def keep_figures(monkeypatch, draw: bool | Callable[[str], bool] = False,
+                 composed: bool = False) -> dict:
     """Keep each figure analyse draws, by name, to inspect: every module that saves one saves
     it through `pinarray.analysis.figures.save`, which this replaces wherever it was imported
-    and calls as well, when ``draw`` (or ``draw(name)``). A figure not drawn is neither laid
-    out nor written (most of analyse's time), and the files it would have been written to are
-    handed back as written, so that the page names and captions it as analyse's does."""
+    and calls as well, when ``draw`` (or ``draw(name)``). A figure not drawn is not written
+    (most of analyse's time) but, when ``composed``, laid out with its caption as `save` lays
+    it out; the files it would have been written to are handed back as written, so that the
+    page names and captions it as analyse's does."""
     from pinarray.analysis import figures as drawing
     from pinarray.analysis import plots
     from pinarray.paradigms.identification import figures as identification
@@ -99,6 +101,8 @@ def keep_figures(monkeypatch, draw: bool | Callable[[str], bool] = False) -> dic
         figures[stem.name] = figure
         if draw is True or (callable(draw) and draw(stem.name)):
             return save(figure, stem, caption)
+        if composed:
+            drawing.compose(figure, caption)
         drawing.plt.close(figure)
         return [stem.with_suffix(f".{ext}") for ext in drawing.FORMATS]
 
