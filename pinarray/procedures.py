@@ -121,10 +121,15 @@ class _QuestPlus:
         self.machine = machine
         self.state: QuestPlusState = self.machine.start()
         self._next: tuple[int, int] | None = None  # (trials, index): chosen once per state
+        self._finished: tuple[QuestPlusState, bool] | None = None  # asked once per state too
 
     @property
     def finished(self) -> bool:
-        return self.machine.finished(self.state)
+        # Asked several times a trial (which procedures are left to run), and it can read the
+        # posterior's interval: answered once for each state.
+        if self._finished is None or self._finished[0] is not self.state:
+            self._finished = (self.state, self.machine.finished(self.state))
+        return self._finished[1]
 
     def next_index(self) -> int:
         if self._next is None or self._next[0] != self.state.trials:

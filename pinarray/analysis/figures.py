@@ -39,21 +39,45 @@ _CAPTION_FONT = 7
 
 def save(figure, stem: Path, caption: str) -> list[Path]:
     """Write ``stem``.png and .pdf with ``caption`` wrapped under the axes."""
+    compose(figure, caption)
+    paths = []
+    for ext in FORMATS:
+        path = stem.with_suffix(f".{ext}")
+        # No creation date in the PDF: the same results give the same bytes. The PNG's zlib
+        # at level 1 rather than Pillow's 6: the same pixels, in a third less time and a
+        # slightly smaller file (these figures' flat colours compress no better at 6).
+        figure.savefig(path, dpi=DPI, **({"metadata": {"CreationDate": None}} if ext == "pdf"
+                                         else {"pil_kwargs": {"compress_level": 1}}))
+        paths.append(path)
+    plt.close(figure)
+    return paths
+
+
+def compose(figure, caption: str) -> None:
+    """Make room for ``caption`` under the axes, lay the figure out and write the caption
+    there: the figure as `save` writes it."""
     width_in = figure.get_size_inches()[0]
     lines = textwrap.wrap(caption, width=int(width_in * 17))
     height_in = figure.get_size_inches()[1]
     figure.set_size_inches(width_in, height_in + 0.13 * len(lines))
     bottom = (0.13 * len(lines) + 0.1) / figure.get_size_inches()[1]
-    figure.tight_layout(rect=(0, bottom, 1, 1))
+    lay_out(figure, rect=(0, bottom, 1, 1))
     figure.text(0.01, 0.01, "\n".join(lines), fontsize=_CAPTION_FONT, ha="left", va="bottom")
-    paths = []
-    for ext in FORMATS:
-        path = stem.with_suffix(f".{ext}")
-        # No creation date in the PDF: the same results give the same bytes.
-        figure.savefig(path, dpi=DPI, metadata={"CreationDate": None} if ext == "pdf" else None)
-        paths.append(path)
-    plt.close(figure)
-    return paths
+
+
+def lay_out(figure, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> None:
+    """Lay the figure out once (`tight_layout` inside ``rect``) and leave it so.
+
+    `tight_layout` leaves a placeholder layout engine on the figure, and `savefig` draws a
+    figure that has one twice for each format, once without output "to make sure the layout
+    works" (matplotlib's ``print_figure``): with the engine removed the files are byte for
+    byte the same and a figure's two formats take about a fifth less time.
+    """
+    figure.tight_layout(rect=rect)
+    # Removed, not replaced: with these unset, None means no engine whatever a matplotlibrc says.
+    with matplotlib.rc_context({"figure.autolayout": False,
+                                "figure.constrained_layout.use": False}):
+        figure.set_layout_engine(None)
 
 
 def bar_errors(measures: Sequence[AcrossSubjects], method: IntervalMethod) -> np.ndarray:

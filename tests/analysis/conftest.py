@@ -1,5 +1,7 @@
 """A hand-built results set whose every number is worked out by hand in the tests."""
 
+from collections.abc import Callable
+
 import pytest
 
 from pinarray.paradigms.apparent_motion.rows import MotionRecord
@@ -79,10 +81,14 @@ def write_results(root):
     return root
 
 
-def keep_figures(monkeypatch, draw: bool = False) -> dict:
+def keep_figures(monkeypatch, draw: bool | Callable[[str], bool] = False,
+                 composed: bool = False) -> dict:
     """Keep each figure analyse draws, by name, to inspect: every module that saves one saves
     it through `pinarray.analysis.figures.save`, which this replaces wherever it was imported
-    (and calls as well, when ``draw``)."""
+    and calls as well, when ``draw`` (or ``draw(name)``). A figure not drawn is not written
+    (most of analyse's time) but, when ``composed``, laid out with its caption as `save` lays
+    it out; the files it would have been written to are handed back as written, so that the
+    page names and captions it as analyse's does."""
     from pinarray.analysis import figures as drawing
     from pinarray.analysis import plots
     from pinarray.paradigms.identification import figures as identification
@@ -93,7 +99,12 @@ def keep_figures(monkeypatch, draw: bool = False) -> dict:
 
     def keep(figure, stem, caption):
         figures[stem.name] = figure
-        return save(figure, stem, caption) if draw else []
+        if draw is True or (callable(draw) and draw(stem.name)):
+            return save(figure, stem, caption)
+        if composed:
+            drawing.compose(figure, caption)
+        drawing.plt.close(figure)
+        return [stem.with_suffix(f".{ext}") for ext in drawing.FORMATS]
 
     for module in (drawing, plots, identification, localisation):
         monkeypatch.setattr(module, "save", keep)

@@ -15,8 +15,9 @@ from tests.analysis.conftest import keep_figures, localisation_row, write_result
 
 @pytest.fixture
 def drawn(monkeypatch):
-    """Draw figures through the real `save` and keep each figure, by name, to inspect."""
-    return keep_figures(monkeypatch, draw=True)
+    """Keep each figure, by name, laid out with its caption as the real `save` lays it out
+    (writing its files adds nothing to where its labels fall), to inspect."""
+    return keep_figures(monkeypatch, composed=True)
 
 
 def bar_labels_and_the_data_they_must_not_cover(figure):

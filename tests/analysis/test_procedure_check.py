@@ -19,19 +19,25 @@ def test_a_one_up_two_down_staircase_aims_at_seventy_point_seven_percent_correct
         [pytest.approx(0.5 ** 0.5)] * 2
 
 
-@pytest.mark.parametrize("name", ["quest_stroke.yaml", "staircase_motion.yaml"])
-def test_doubling_the_simulated_threshold_doubles_the_mean_estimate(name):
+# Subjects per check: over seeds 0-19, QUEST+'s ratio of the two means fell within 1.919-2.018
+# with 30 subjects (1.932-2.006 with 60) and its largest bias took 0.24 of the bound below
+# (0.20 with 60); the staircases' ratio fell within 1.727-2.148 with 30 subjects, too near
+# the tolerance's 1.7, so they keep 60.
+@pytest.mark.parametrize(("name", "subjects"), [("quest_stroke.yaml", 30),
+                                                ("staircase_motion.yaml", 60)])
+def test_doubling_the_simulated_threshold_doubles_the_mean_estimate(name, subjects):
     adaptive = load_protocol(PROTOCOLS / name).design.adaptive
     low = float(adaptive.values[len(adaptive.values) // 4])
     means = []
     for threshold in (low, 2 * low):
         function = Psychometric("weibull", threshold, 3.0, float(adaptive.guess_rate), 0.02)
-        checks = check_procedures(adaptive, function, 60, seed=3)
+        checks = check_procedures(adaptive, function, subjects, seed=3)
         means.append([c.bias + c.truth for c in checks])
         for check in checks:
-            # Unbiased within what 60 subjects can tell: 4 standard errors, plus one value's step.
+            # Unbiased within what the subjects can tell: 4 standard errors, plus one value's
+            # step.
             step = float(adaptive.values[1] - adaptive.values[0])
-            assert abs(check.bias) < 4 * check.sd / 60 ** 0.5 + step, check.name
+            assert abs(check.bias) < 4 * check.sd / subjects ** 0.5 + step, check.name
             assert max(check.trials) <= next(p.stop_after_trials for p in adaptive.procedures
                                               if p.name == check.name)
     for before, after in zip(*means, strict=True):

@@ -22,6 +22,7 @@ from pinarray.analysis.thresholds import parameter_and_unit
 from pinarray.cli.analysis import register
 from pinarray.journal.records import AdaptiveCells
 from tests.analysis.adaptive_runs import Written, detection_run, motion_row, motion_run
+from tests.analysis.conftest import keep_figures
 
 # One worker builds the module's fixture once (about 20 s: two subjects' runs, fits, figures).
 pytestmark = [pytest.mark.xdist_group("thresholds"), pytest.mark.long]
@@ -78,7 +79,10 @@ def analysed(tmp_path_factory):
         written[subject, "motion"] = motion_run(root, subject, 60.0 * times, seed)
         written[subject, "detection"] = detection_run(root, subject, 6.0 * times, seed)
     printed = io.StringIO()
-    with contextlib.redirect_stdout(printed):
+    # The thresholds' figures drawn and written; the detection and motion tasks' own (their
+    # rooms', drawn in tests/analysis/test_report.py) only kept, for the page to link.
+    with pytest.MonkeyPatch.context() as monkeypatch, contextlib.redirect_stdout(printed):
+        keep_figures(monkeypatch, draw=lambda name: name.startswith(("track_", "fit_")))
         assert analyse(str(root), "--out", str(folder / "analysis")) == 0
     return Analysed(folder / "analysis", printed.getvalue(), written)
 
