@@ -65,6 +65,19 @@ def compose(figure, caption: str) -> None:
     figure.text(0.01, 0.01, "\n".join(lines), fontsize=_CAPTION_FONT, ha="left", va="bottom")
 
 
+# What a lab's matplotlibrc may set that would lay the house figures out a second way: they are
+# laid out by `lay_out` alone, with room for their captions.
+_NO_LAYOUT_ENGINE = {"figure.autolayout": False, "figure.constrained_layout.use": False}
+
+
+def house_layout():
+    """Draw the figures inside this: each is laid out by `lay_out` alone, whatever layout engine
+    a lab's matplotlibrc asks for (under ``figure.constrained_layout.use`` a figure with a colour
+    bar refused `tight_layout` with a traceback; under ``figure.autolayout`` the engine laid the
+    axes over the caption)."""
+    return matplotlib.rc_context(_NO_LAYOUT_ENGINE)
+
+
 def lay_out(figure, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> None:
     """Lay the figure out once (`tight_layout` inside ``rect``) and leave it so.
 
@@ -75,8 +88,7 @@ def lay_out(figure, rect: tuple[float, float, float, float] = (0, 0, 1, 1)) -> N
     """
     figure.tight_layout(rect=rect)
     # Removed, not replaced: with these unset, None means no engine whatever a matplotlibrc says.
-    with matplotlib.rc_context({"figure.autolayout": False,
-                                "figure.constrained_layout.use": False}):
+    with house_layout():
         figure.set_layout_engine(None)
 
 

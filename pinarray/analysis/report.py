@@ -166,13 +166,15 @@ def summary_markdown(study: Study, tables: Sequence[Path], figures: Sequence[Pat
 def write_figures(study: Study, out: Path) -> list[Path]:
     """Each figure for which there are trials, as PNG and PDF."""
     from pinarray.analysis import plots
+    from pinarray.analysis.figures import house_layout
 
     drawn: list[Path] = []
-    for found in study.findings:
-        drawn += found.figures(out)
-    for subject in study.thresholds.per_subject:
-        drawn += plots.plot_track(subject, out / f"track_{subject.stem}")
-        drawn += plots.plot_fit(subject, out / f"fit_{subject.stem}")
+    with house_layout():
+        for found in study.findings:
+            drawn += found.figures(out)
+        for subject in study.thresholds.per_subject:
+            drawn += plots.plot_track(subject, out / f"track_{subject.stem}")
+            drawn += plots.plot_fit(subject, out / f"fit_{subject.stem}")
     return drawn
 
 

@@ -108,6 +108,21 @@ def test_no_figures_writes_the_same_tables_and_printout_and_the_page_says_none_w
     assert page.split("## Figures")[0] == drawn.split("## Figures")[0]
 
 
+@pytest.mark.parametrize("lab_setting", ["figure.constrained_layout.use", "figure.autolayout"])
+def test_a_labs_matplotlibrc_asking_for_a_layout_engine_changes_no_figure(analysed, lab_setting,
+                                                                        monkeypatch):
+    # Under constrained layout a figure with a colour bar refused to be laid out (a traceback);
+    # under autolayout the axes were laid over the caption in the PDFs.
+    import matplotlib
+
+    out = analysed.out.parent / f"under-{lab_setting}"
+    keep_figures(monkeypatch, draw=lambda name: name in ("confusion_matrix", "error_types"))
+    with matplotlib.rc_context({lab_setting: True}), contextlib.redirect_stdout(io.StringIO()):
+        assert analyse(str(analysed.out.parent / "results"), "--out", str(out)) == 0
+    for name in ("confusion_matrix.png", "confusion_matrix.pdf", "error_types.pdf"):
+        assert (out / name).read_bytes() == (analysed.out / name).read_bytes(), name
+
+
 def test_the_page_and_the_printout_give_subject_means_and_label_the_pooled_numbers(analysed):
     out, printed = analysed.out, analysed.printed
     # 3 Hz: subject A 25 %, subject B 50 %: mean 37.5 %; the 6 trials pooled: 2/6.
