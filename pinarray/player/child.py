@@ -19,7 +19,8 @@ import ctypes
 import os
 import select
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import partial
 from multiprocessing.connection import Connection
 
@@ -45,7 +46,7 @@ from pinarray.player.messages import (
     WakeUpsMeasured,
 )
 from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
-from pinarray.stop import Stopped, raise_on_signals
+from pinarray.stop import Stopped, raise_on_signals, signals_wake
 from pinarray.units import NS_PER_S
 
 # SCHED_FIFO priority of the player: above every normal process, below the kernel's own
@@ -141,12 +142,13 @@ class ControlledClock(MonotonicClock):
     `_ParentGone` (the child rests the pins and leaves).
     """
 
-    def __init__(self, conn: Connection, spin_ns: int, parent: Parent):
+    def __init__(self, conn: Connection, spin_ns: int, parent: Parent, woken_fd: int):
         super().__init__(spin_ns, sleep=self._wait_for_message)
         self.conn = conn
         self.parent = parent
         self._fd = conn.fileno()
-        self._watched = [self._fd] + ([parent.fd] if parent.fd is not None else [])
+        self._woken_fd = woken_fd  # readable when a signal came (`woken_by_signals`)
+        self._watched = [self._fd, woken_fd] + ([parent.fd] if parent.fd is not None else [])
         self.working = 0  # number of the request being worked on, 0 between requests
         self._cued = 0  # number of the last request a cue came for
         self.playing = False  # a trial is being played (or waits for its onset)
@@ -163,18 +165,24 @@ class ControlledClock(MonotonicClock):
             slice_s = PARENT_WATCH_NS / NS_PER_S
             seconds = slice_s if seconds is None else min(seconds, slice_s)
         # select, not Connection.poll: the latter rounds its timeout up to whole ms.
-        ready = select.select(self._watched, [], [], seconds)[0]
+        ready = self._select(seconds)
         if self.parent.fd in ready or (self.parent.fd is None and self.parent.gone):
             raise _ParentGone("the process controlling the player ended")
         if self._fd in ready:
             self._message()
+
+    def _select(self, seconds: float | None) -> list[int]:
+        ready = select.select(self._watched, [], [], seconds)[0]
+        if self._woken_fd in ready:  # a signal's byte: its handler runs as this returns
+            os.read(self._woken_fd, 64)
+        return ready
 
     def wait_for_request(self) -> None:
         """Until the parent sends something; `_ParentGone` if it ends first (a request it
         sent before it ended is not served)."""
         timeout_s = None if self.parent.fd is not None else PARENT_WATCH_NS / NS_PER_S
         while True:
-            ready = select.select(self._watched, [], [], timeout_s)[0]
+            ready = self._select(timeout_s)
             if self.parent.fd in ready or (self.parent.fd is None and self.parent.gone):
                 raise _ParentGone("the process controlling the player ended")
             if self._fd in ready:
@@ -212,7 +220,7 @@ class ProtocolMismatch(Exception):
     """The parent sent something this child does not understand (a different pinarray?)."""
 
 
-def _serve(conn: Connection, port_fd: int, parent: Parent) -> int:
+def _serve(conn: Connection, port_fd: int, parent: Parent, woken_fd: int) -> int:
     try:
         if parent.gone:
             return 0  # the parent ended before this could watch it: it never turned torque on
@@ -222,7 +230,7 @@ def _serve(conn: Connection, port_fd: int, parent: Parent) -> int:
     if not isinstance(hello, Hello):
         raise ProtocolMismatch(f"expected a Hello, found {hello!r}")
     problem = make_realtime(hello.realtime_priority) if hello.realtime_priority else ""
-    clock = ControlledClock(conn, hello.spin_ns, parent)
+    clock = ControlledClock(conn, hello.spin_ns, parent, woken_fd)
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
     bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
@@ -317,6 +325,23 @@ def _wake_ups(clock: ControlledClock, duration_ns: int, period_ns: int) -> WakeU
     return WakeUpsMeasured(tuple(lateness))
 
 
+@contextmanager
+def woken_by_signals() -> Iterator[int]:
+    """A descriptor the clock's waits watch, readable the moment a signal arrives
+    (`pinarray.stop.signals_wake`): a stop signal landing just before a wait with no timeout
+    began (between requests), or taken by another thread (a marker stream's), would otherwise
+    leave its handler unrun until the parent's next message."""
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(read_fd, False)
+    os.set_blocking(write_fd, False)  # a signal's byte must never block
+    try:
+        with signals_wake(write_fd):
+            yield read_fd
+    finally:
+        os.close(read_fd)
+        os.close(write_fd)
+
+
 def main(argv: list[str]) -> int:
     control_fd, port_fd, parent_pid = int(argv[0]), int(argv[1]), int(argv[2])
     parent = Parent(parent_pid)
@@ -326,8 +351,8 @@ def main(argv: list[str]) -> int:
     os.set_blocking(control_fd, True)
     conn = Connection(control_fd)
     try:
-        with raise_on_signals("the player process"):
-            return _serve(conn, port_fd, parent)
+        with raise_on_signals("the player process"), woken_by_signals() as woken_fd:
+            return _serve(conn, port_fd, parent, woken_fd)
     except Stopped as stopped:
         return stopped.exit_status
 

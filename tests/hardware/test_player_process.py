@@ -268,3 +268,37 @@ def test_killing_play_at_any_moment_of_its_start_up_leaves_every_pin_at_rest_and
             process.kill()
         process.communicate(timeout=30)
     wait_until_safe(server, range(1, 17))
+
+
+def test_a_stop_signal_taken_by_another_thread_wakes_the_player_waiting_between_requests():
+    # The player process waits for its parent's next request with no timeout. Python runs a
+    # signal's handler only when the main thread next runs: a stop signal given to another
+    # thread (a marker stream's), or landing just before the wait began, must still wake it
+    # and end it (as `sim-serve`'s wait, tests/hardware/test_pty.py), not wait for a message.
+    from multiprocessing import Pipe
+
+    from pinarray.player.child import ControlledClock, Parent, woken_by_signals
+    from pinarray.stop import raise_on_signals
+
+    parent_end, child_end = Pipe()
+    ended = threading.Event()
+    had_to_send: list[bool] = []
+
+    def signal_from_another_thread() -> None:
+        time.sleep(0.3)  # the player waiting by then (were it not, the handler runs at once)
+        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+        if not ended.wait(30):  # a bound against a hang, not a timing claim
+            had_to_send.append(True)
+            parent_end.send("a request")
+
+    other = threading.Thread(target=signal_from_another_thread)
+    with pytest.raises(Stopped, match="SIGTERM"), raise_on_signals("the player process"), \
+            woken_by_signals() as woken_fd:
+        clock = ControlledClock(child_end, 1_000_000, Parent(os.getppid()), woken_fd)
+        other.start()
+        try:
+            clock.wait_for_request()
+        finally:
+            ended.set()
+            other.join()
+    assert not had_to_send, "the player slept through the signal until its parent wrote"
