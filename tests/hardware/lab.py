@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import signal
+import threading
+import time
+from collections.abc import Callable
 from math import ceil
 
 import numpy as np
@@ -84,3 +88,33 @@ def assert_rest_held_for_the_travel_time(board, protocol, now_ns):
         assert held_until - held_from >= travel_ns, (
             f"channel {channel}: rest width for {(held_until - held_from) / 1e6:.1f} ms before "
             f"the pulses stopped, the servos need {travel_ns / 1e6:.1f} ms")
+
+
+class SignalFromAnotherThread:
+    """Inside the block, SIGTERM is given to a thread of this process that is not the main one,
+    0.3 s in (the main thread waiting by then; were it not, the handler runs at once): the
+    kernel may give a process's signal to any of its threads, and Python runs the handler only
+    when the main thread next runs. If the main thread's wait has not ended 30 s later (a bound
+    against a hang, not a timing claim), ``unstick`` ends it otherwise and `slept_through`
+    says so."""
+
+    def __init__(self, unstick: Callable[[], object]):
+        self.slept_through = False
+        self._unstick = unstick
+        self._ended = threading.Event()
+        self._thread = threading.Thread(target=self._signal)
+
+    def _signal(self) -> None:
+        time.sleep(0.3)
+        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+        if not self._ended.wait(30):
+            self.slept_through = True
+            self._unstick()
+
+    def __enter__(self) -> SignalFromAnotherThread:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self._ended.set()
+        self._thread.join()

@@ -19,7 +19,7 @@ from pinarray.player.playback import OnsetAt, OnsetPassed, prepare_trial
 from pinarray.player.process import PlayerDied, PlayerProcess, StartCue
 from pinarray.stop import Stopped, StopRequest
 
-from .lab import REST_STEPS, device_setup, pulse_train
+from .lab import REST_STEPS, SignalFromAnotherThread, device_setup, pulse_train
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
 # (tests/suite.py), so that a busy machine does not starve the simulated servos.
@@ -281,24 +281,9 @@ def test_a_stop_signal_taken_by_another_thread_wakes_the_player_waiting_between_
     from pinarray.stop import raise_on_signals
 
     parent_end, child_end = Pipe()
-    ended = threading.Event()
-    had_to_send: list[bool] = []
-
-    def signal_from_another_thread() -> None:
-        time.sleep(0.3)  # the player waiting by then (were it not, the handler runs at once)
-        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
-        if not ended.wait(30):  # a bound against a hang, not a timing claim
-            had_to_send.append(True)
-            parent_end.send("a request")
-
-    other = threading.Thread(target=signal_from_another_thread)
     with pytest.raises(Stopped, match="SIGTERM"), raise_on_signals("the player process"), \
             woken_by_signals() as woken_fd:
         clock = ControlledClock(child_end, 1_000_000, Parent(os.getppid()), woken_fd)
-        other.start()
-        try:
+        with SignalFromAnotherThread(lambda: parent_end.send("a request")) as signalled:
             clock.wait_for_request()
-        finally:
-            ended.set()
-            other.join()
-    assert not had_to_send, "the player slept through the signal until its parent wrote"
+    assert not signalled.slept_through, "the player slept through the signal until its parent wrote"

@@ -4,7 +4,6 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -21,7 +20,7 @@ from pinarray.hardware.feetech.transport import open_bus
 from pinarray.player.playback import play_trial
 from pinarray.stop import StopRequest, stop_on_signals
 
-from .lab import assert_safe, device_setup, pulse_train
+from .lab import SignalFromAnotherThread, assert_safe, device_setup, pulse_train
 from .raw import packet
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
@@ -222,24 +221,9 @@ def test_a_stop_signal_taken_by_another_thread_stops_a_server_waiting_for_bytes(
     # SIGTERM, its handler installed, nothing blocked, nothing pending.) Here the signal goes
     # to a thread of this process that is not the main one, while the server waits.
     server = PtyServer(SimConfig(ids=(1,)))
-    served = threading.Event()
-    had_to_stop_it: list[bool] = []
-
-    def signal_from_another_thread() -> None:
-        time.sleep(0.3)  # the server waiting by then (were it not, the handler runs at once)
-        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
-        if not served.wait(30):  # a bound against a hang, not a timing claim
-            had_to_stop_it.append(True)
-            server.request_stop()
-
     with stop_on_signals(StopRequest()) as stop:
         stop.when_requested(server.request_stop)
-        other = threading.Thread(target=signal_from_another_thread)
-        other.start()
-        try:
+        with SignalFromAnotherThread(server.request_stop) as signalled:
             server.serve_forever()
-        finally:
-            served.set()
-            other.join()
     assert stop.requested and "SIGTERM" in stop.reason
-    assert not had_to_stop_it, "the server slept through the signal until stopped otherwise"
+    assert not signalled.slept_through, "the server slept through the signal until stopped otherwise"
