@@ -42,8 +42,19 @@ RAM_ROOM_BYTES = 2 * 1024**3
 
 def realtime_files() -> list[Path]:
     """The test files that mark tests real-time (``pytest.mark.realtime``), by their text."""
-    return sorted(path for path in TESTS.rglob("test_*.py")
-                  if REALTIME_MARK.search(path.read_text(encoding="utf-8")))
+    return sorted(path for path in TESTS.rglob("test_*.py") if marks_realtime(path))
+
+
+def in_realtime_lane(path: Path) -> bool:
+    """Whether the real-time lane collects the test file at ``path`` (one of `realtime_files`),
+    read alone: each of the other lane's processes asks of the few files that hold real-time
+    tests, rather than reading all of them (tests/conftest.py)."""
+    return (path.is_relative_to(TESTS) and path.name.startswith("test_")
+            and path.suffix == ".py" and marks_realtime(path))
+
+
+def marks_realtime(path: Path) -> bool:
+    return REALTIME_MARK.search(path.read_text(encoding="utf-8")) is not None
 
 
 def rewritten_by_pytest() -> list[Path]:
