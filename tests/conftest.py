@@ -54,11 +54,12 @@ def pytest_sessionfinish(session):
 def pytest_collection_modifyitems(config, items):
     items.sort(key=lambda item: item.get_closest_marker("long") is None)  # stable: keeps order
     if config.getoption("markexpr") == "not realtime":  # the bulk lane of tests/suite.py
-        from tests.suite import realtime_files
+        from tests.suite import in_realtime_lane
 
-        lane = {str(path) for path in realtime_files()}
+        marked = {item.path for item in items if item.get_closest_marker("realtime")}
+        outside = {path for path in marked if not in_realtime_lane(path)}
         strays = [item.nodeid for item in items if item.get_closest_marker("realtime")
-                  and str(item.path) not in lane]
+                  and item.path in outside]
         if strays:
             raise pytest.UsageError(
                 f"real-time test(s) the real-time lane of tests/suite.py would not collect "

@@ -1,6 +1,7 @@
 """The lab's own designs as a lab writes them: which pattern, which interval, which pin first;
 their conditions, answers, plans, and every mistake located."""
 
+import functools
 from collections import Counter
 from fractions import Fraction
 from itertools import groupby
@@ -106,13 +107,17 @@ def test_a_comparison_equal_to_the_standard_has_no_right_answer_and_is_refused()
                               "Hz (no interval would have more), found it"]
 
 
-FLUTTER_PROTOCOL = load_protocol(FLUTTER)
+@functools.cache
+def flutter_protocol():
+    """protocols/flutter_2ifc.yaml, read once by the first test that asks (not as every test
+    process collects this file)."""
+    return load_protocol(FLUTTER)
 
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_every_block_of_a_two_interval_plan_holds_each_comparison_in_both_orders_alike(seed):
-    protocol = FLUTTER_PROTOCOL
+    protocol = flutter_protocol()
     plan = make_plan(protocol, seed)
     for block in (1, 2):
         counted = Counter((t.condition.comparison, t.condition.order) for t in plan.trials
@@ -145,13 +150,15 @@ design:
 """
 
 
-ADAPTIVE_PROTOCOL = parse_protocol(ADAPTIVE_2IFC)
+@functools.cache
+def adaptive_protocol():
+    return parse_protocol(ADAPTIVE_2IFC)
 
 
 @settings(max_examples=10, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_an_adaptive_two_interval_plan_puts_the_comparison_first_half_the_time(seed):
-    protocol = ADAPTIVE_PROTOCOL
+    protocol = adaptive_protocol()
     adaptive = protocol.design.adaptive
     assert (adaptive.task, adaptive.guess_rate) == ("discrimination", Fraction(1, 2))
     first = [t.condition.order is IntervalOrder.COMPARISON_FIRST
@@ -191,7 +198,7 @@ def test_patterns_that_last_different_times_are_warned_of_as_a_cue():
     assert warning.startswith("the stimuli a subject must tell apart last different times "
                               "(sweep 0.500 s; row 0.200 s)")
     # Two intervals play both values in every trial: their lengths tell nothing.
-    assert protocol_warnings(FLUTTER_PROTOCOL) == []
+    assert protocol_warnings(flutter_protocol()) == []
 
 
 def lab_text(template: str, design: str) -> str:
@@ -199,7 +206,7 @@ def lab_text(template: str, design: str) -> str:
 
 
 def test_a_train_cut_inside_a_lift_is_warned_of():
-    assert protocol_warnings(FLUTTER_PROTOCOL) == []  # 1 s: a whole number of half cycles
+    assert protocol_warnings(flutter_protocol()) == []  # 1 s: a whole number of half cycles
     cut = parse_protocol(FLUTTER.read_text().replace("duration_s: 1\n", "duration_s: 0.3\n"))
     assert protocol_warnings(cut)[0] == (
         "flutter at 7 Hz ends 14.3 ms into a lift of 71.4 ms: the pin is lowered before it may "

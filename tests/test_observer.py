@@ -1,6 +1,7 @@
 """The simulated subjects of the seed's two experiments (localisation's and apparent motion's):
 a population that matches the seed on average, and subjects who differ."""
 
+import functools
 import math
 import re
 from pathlib import Path
@@ -25,11 +26,22 @@ from pinarray.paradigms.localisation.observer import (
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
-LOCALISATION = load_protocol(PROTOCOLS / "localisation.yaml")
 PROTOCOL_PINS = (1, 4, 6, 7, 10, 11, 13, 16)
 DEFAULT = ObserverModel()
-ON_PROTOCOL = DEFAULT.for_protocol(LOCALISATION)
 SEED_CORRECT = {3.0: 0.40, 5.0: 0.50, 10.0: 0.625}
+
+
+@functools.cache
+def localisation():
+    """protocols/localisation.yaml, read once by the first test that asks (not as every test
+    process collects this file)."""
+    return load_protocol(PROTOCOLS / "localisation.yaml")
+
+
+@functools.cache
+def on_protocol():
+    """The default observer on protocols/localisation.yaml."""
+    return DEFAULT.for_protocol(localisation())
 
 
 def within(observed_count, n, p, sigmas=4.5):
@@ -38,9 +50,9 @@ def within(observed_count, n, p, sigmas=4.5):
 
 
 def test_the_observer_is_calibrated_on_the_8_pins_the_localisation_protocol_uses():
-    assert ON_PROTOCOL.calibration_pins == PROTOCOL_PINS
+    assert on_protocol().calibration_pins == PROTOCOL_PINS
     for frequency_hz, target in SEED_CORRECT.items():
-        assert_allclose(ON_PROTOCOL.expected_localisation(frequency_hz)["correct"], target,
+        assert_allclose(on_protocol().expected_localisation(frequency_hz)["correct"], target,
                         atol=1e-6)
 
 
@@ -52,20 +64,20 @@ def test_calibrated_on_all_16_pins_the_protocols_8_pins_would_come_out_too_high(
 
 
 def test_the_population_localises_better_as_frequency_rises():
-    correct = [ON_PROTOCOL.expected_localisation(f)["correct"] for f in (3, 4, 5, 7, 10)]
+    correct = [on_protocol().expected_localisation(f)["correct"] for f in (3, 4, 5, 7, 10)]
     assert correct == sorted(correct) and len(set(correct)) == 5
 
 
 @pytest.mark.parametrize("frequency_hz", [3, 5, 10, 4, 7])
 def test_error_a_is_the_most_frequent_error_at_every_frequency(frequency_hz):
-    for model in (ON_PROTOCOL, ON_PROTOCOL.individual(SubjectOffsets(-1.0))):
+    for model in (on_protocol(), on_protocol().individual(SubjectOffsets(-1.0))):
         rates = model.expected_localisation(frequency_hz)
         assert rates["A"] > max(rates["B"], rates["C"], rates["D"])
 
 
 def test_pin_4_is_best_localised_and_edges_beat_the_centre():
     for frequency_hz in (3, 5, 10):
-        accuracy = ON_PROTOCOL.expected_pin_accuracy(frequency_hz)  # row 0 = bottom row
+        accuracy = on_protocol().expected_pin_accuracy(frequency_hz)  # row 0 = bottom row
         assert np.argmax(accuracy) == 3  # pin 4: bottom row, right column
         corners = [accuracy[0, 0], accuracy[3, 0], accuracy[3, 3]]
         edges = [accuracy[0, 1], accuracy[1, 0], accuracy[2, 3], accuracy[3, 2]]
@@ -84,24 +96,24 @@ def test_the_population_gives_77_percent_motion_felt_and_65_percent_of_those_rig
 
 
 def test_subjects_differ_and_a_spread_of_0_makes_them_identical():
-    subjects = [SimulatedObserver(ON_PROTOCOL, seed=s).subject for s in range(5)]
+    subjects = [SimulatedObserver(on_protocol(), seed=s).subject for s in range(5)]
     at_ten = {round(s.expected_localisation(10)["correct"], 6) for s in subjects}
     assert len(at_ten) == 5
     assert len({MotionObserver(seed=s).subject.motion_felt for s in range(5)}) == 5
-    same = ObserverModel(subject_sd_logit=0).for_protocol(LOCALISATION)
+    same = ObserverModel(subject_sd_logit=0).for_protocol(localisation())
     assert {SimulatedObserver(same, seed=s).subject for s in range(5)} == {same}
 
 
 def test_the_documented_spread_puts_the_middle_95_percent_between_41_and_82_percent_at_10_hz():
-    low, high = ON_PROTOCOL.subject_range(10.0)
+    low, high = on_protocol().subject_range(10.0)
     # 40.53 % and 81.59 %: no rounding of exp or the quantile comes near a half
     assert (round(100 * low), round(100 * high)) == (41, 82)
     assert "between about 41 % and 82 % correct" in " ".join(observer_module.__doc__.split())
 
 
 def test_a_subject_is_good_at_every_frequency_when_good_at_one():
-    good = ON_PROTOCOL.individual(SubjectOffsets(1.0))
-    poor = ON_PROTOCOL.individual(SubjectOffsets(-1.0))
+    good = on_protocol().individual(SubjectOffsets(1.0))
+    poor = on_protocol().individual(SubjectOffsets(-1.0))
     for frequency_hz in (3, 5, 10):
         assert (good.expected_localisation(frequency_hz)["correct"]
                 > SEED_CORRECT[frequency_hz]
@@ -117,7 +129,7 @@ def test_many_simulated_subjects_average_the_seeds_numbers_within_monte_carlo_er
     errors = {c: 0 for c in "ABCD"}
     felt = right = 0
     for _ in range(subjects):
-        observer = SimulatedObserver(ON_PROTOCOL, seed=rng)
+        observer = SimulatedObserver(on_protocol(), seed=rng)
         for frequency_hz in SEED_CORRECT:
             answers = [observer.respond_localisation(p, frequency_hz) for p in PROTOCOL_PINS]
             verdicts = [classify(p, a) for p, a in zip(PROTOCOL_PINS, answers, strict=True)]

@@ -4,6 +4,7 @@ the intensity cue warned of, a batch run with its simulated subject, every row r
 checked, and the threshold distance fitted (or said in words where the answers cannot place
 it)."""
 
+import functools
 import math
 from pathlib import Path
 
@@ -160,10 +161,14 @@ def shipped_rows(model: TwoPointObserverModel, seed: int):
         trial=t.trial, block=1, task="tp", onset_ns=0, duration_ns=1,
         stimulus=t.condition.stimulus, pins=t.condition.pins,
         distance_mm=t.condition.distance_mm, response=subject(t.condition)))
-        for t in make_plan(SHIPPED, seed).trials if not t.practice]
+        for t in make_plan(shipped(), seed).trials if not t.practice]
 
 
-SHIPPED = load_protocol(TWO_POINT)
+@functools.cache
+def shipped():
+    """protocols/two_point.yaml, read once by the first test that asks (not as every test
+    process collects this file)."""
+    return load_protocol(TWO_POINT)
 
 
 def test_the_fit_finds_the_threshold_distance_subjects_were_given():

@@ -1,15 +1,14 @@
-"""The figures as a reader sees them: every label readable, none drawn over the data."""
+"""The figures as a reader sees them: every label readable, none drawn over the data.
+
+matplotlib (and the figures' modules, which import it) are imported by the tests that draw,
+not as this file is collected: every test process of `make test` collects every file, and
+matplotlib cost each of them 0.6 s of processor before its first test (tests/suite.py)."""
 
 import numpy as np
 import pytest
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.collections import Collection, PathCollection
-from matplotlib.lines import Line2D
-from matplotlib.text import Text
 
 from pinarray.analysis.load import load_runs, select_runs
 from pinarray.analysis.study import study
-from pinarray.paradigms.localisation.figures import plot_correct_by_frequency
 from tests.analysis.conftest import keep_figures, localisation_row, write_results
 
 
@@ -23,6 +22,9 @@ def drawn(monkeypatch):
 def bar_labels_and_the_data_they_must_not_cover(figure):
     """Each bar's label (the text naming its subjects) and every data artist of the axes,
     each as its rendered extent in display pixels."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.text import Text
+
     canvas = FigureCanvasAgg(figure)  # `save` closed the figure: draw it on a canvas again
     canvas.draw()
     renderer = canvas.get_renderer()
@@ -37,6 +39,9 @@ def bar_labels_and_the_data_they_must_not_cover(figure):
 
 def extent(artist, axes, renderer):
     """Where ``artist`` draws, in display pixels, its line width and marker size included."""
+    from matplotlib.collections import Collection, PathCollection
+    from matplotlib.lines import Line2D
+
     points = axes.figure.dpi / 72  # pixels per point
     if isinstance(artist, Collection):
         # A collection's window extent is empty when its offsets are in data coordinates:
@@ -60,6 +65,8 @@ def assert_labels_clear(figure, bars):
 
 
 def test_bar_labels_cover_no_subject_line_dot_error_bar_or_bar(tmp_path, drawn):
+    from pinarray.paradigms.localisation.figures import plot_correct_by_frequency
+
     # Subject B's line falls from 50 % at 3 Hz to 0 % at 10 Hz, across where a label on
     # the bar stood.
     result = study(select_runs(load_runs([write_results(tmp_path / "results")])))
@@ -71,6 +78,8 @@ def test_bar_labels_cover_no_subject_line_dot_error_bar_or_bar(tmp_path, drawn):
 
 def test_six_frequencies_keep_their_labels_apart_and_off_the_data(tmp_path, write_run,
                                                                    drawn):
+    from pinarray.paradigms.localisation.figures import plot_correct_by_frequency
+
     root = tmp_path / "results"
     frequencies = (2.0, 3.0, 5.0, 10.0, 20.0, 40.0)
     for n, subject in enumerate(("A", "B", "C")):

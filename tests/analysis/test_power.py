@@ -1,6 +1,7 @@
 """`pinarray power`: how many subjects, from whole simulated studies analysed per subject."""
 
 import csv
+import functools
 import re
 from pathlib import Path
 
@@ -8,7 +9,6 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
-from scipy import stats as scipy_stats
 
 from pinarray import cli
 from pinarray.analysis.power import caption, power_markdown, power_study, t_test_p
@@ -27,8 +27,20 @@ from pinarray.paradigms.localisation.power import (
 from pinarray.protocol.load import load_protocol
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
-LOCALISATION = load_protocol(PROTOCOLS / "localisation.yaml")
-MOTION = load_protocol(PROTOCOLS / "apparent_motion.yaml")
+
+
+# The shipped protocols, each read once by the first test that asks (not as every test process
+# collects this file).
+@functools.cache
+def localisation():
+    return load_protocol(PROTOCOLS / "localisation.yaml")
+
+
+@functools.cache
+def apparent_motion():
+    return load_protocol(PROTOCOLS / "apparent_motion.yaml")
+
+
 PINS = (1, 4)
 
 
@@ -46,10 +58,10 @@ DESIGN = Design(tuple((p, f) for p in PINS for f in (3.0, 10.0)) * 4, DEFAULT_GR
 
 
 def test_the_protocols_main_trials_are_what_the_simulated_subjects_answer():
-    design = protocol_design(LOCALISATION)
+    design = protocol_design(localisation())
     assert len(design.trials) == 24 and design.pins == (1, 4, 6, 7, 10, 11, 13, 16)
     assert design.frequencies_hz == (3.0, 5.0, 10.0)
-    motion = motion_power(MOTION, MotionObserverModel())
+    motion = motion_power(apparent_motion(), MotionObserverModel())
     assert sorted(set(motion.trials)) == ["left", "none", "right"] and len(motion.trials) == 12
 
 
@@ -78,6 +90,8 @@ def test_a_tie_for_the_best_pin_does_not_count_as_that_pin_best():
 @settings(deadline=None)
 @given(st.lists(st.floats(-100, 100, allow_nan=False), min_size=2, max_size=25))
 def test_the_t_test_gives_scipys_p_value(values):
+    from scipy import stats as scipy_stats  # the reference: imported by the process that runs it
+
     if np.std(values) > 1e-9:
         # Where |mean| >> sd the two sds differ by about u |mean| / sd relative, which moves
         # p by about u * df * t^(1 - df) <= u absolute: atol 1e-12 covers it.
@@ -86,7 +100,7 @@ def test_the_t_test_gives_scipys_p_value(values):
 
 
 def test_power_grows_with_subjects_and_the_simulation_repeats_with_its_seed():
-    model = power(LOCALISATION, ObserverModel().for_protocol(LOCALISATION))
+    model = power(localisation(), ObserverModel().for_protocol(localisation()))
     curves = power_study("localisation", model, [4, 16], studies=40, seed=3)
     effect = {p.subjects: p.met.pct for p in curves.points if p.criterion == PAIRED_FREQUENCY}
     assert effect[16] > effect[4]
@@ -98,10 +112,10 @@ def test_power_grows_with_subjects_and_the_simulation_repeats_with_its_seed():
 
 
 def test_more_spread_between_subjects_makes_a_studys_estimate_vary_more():
-    narrow = power_study("localisation", power(LOCALISATION, ObserverModel(
-        subject_sd_logit=0).for_protocol(LOCALISATION)), [8], studies=60, seed=4)
-    wide = power_study("localisation", power(LOCALISATION, ObserverModel(
-        subject_sd_logit=2).for_protocol(LOCALISATION)), [8], studies=60, seed=4)
+    narrow = power_study("localisation", power(localisation(), ObserverModel(
+        subject_sd_logit=0).for_protocol(localisation())), [8], studies=60, seed=4)
+    wide = power_study("localisation", power(localisation(), ObserverModel(
+        subject_sd_logit=2).for_protocol(localisation())), [8], studies=60, seed=4)
     width = {c.model.subject_sd: next(p.sd_pct for p in c.precision
                                       if p.measure == "correct at 10 Hz")
              for c in (narrow, wide)}
@@ -126,8 +140,8 @@ def test_the_power_command_prints_the_table_and_writes_csv_and_figures(tmp_path,
 
 
 def small_localisation_study():
-    return power_study("localisation", power(LOCALISATION,
-                                             ObserverModel().for_protocol(LOCALISATION)),
+    return power_study("localisation", power(localisation(),
+                                             ObserverModel().for_protocol(localisation())),
                        [4], studies=10, seed=2)
 
 
@@ -186,7 +200,7 @@ def test_power_refuses_an_out_it_could_not_write_before_simulating_anything(tmp_
 
 def test_power_hears_of_each_study_by_the_simulated_subjects_done():
     heard = []
-    model = motion_power(MOTION, MotionObserverModel())
+    model = motion_power(apparent_motion(), MotionObserverModel())
     power_study("apparent_motion", model, [2, 3], 10, seed=1, progress=heard.append)
     assert heard == [2 * k for k in range(1, 11)] + [20 + 3 * k for k in range(1, 11)]
 
