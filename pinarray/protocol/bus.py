@@ -37,6 +37,7 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import lru_cache
 
 from pinarray.protocol.model import NS_PER_S, PinDrive, ServoSettings, Train
 
@@ -85,6 +86,10 @@ class FrameCost:
         return NS_PER_S / float(self.total_ns)
 
 
+# Asked once or more per frame of a trial (3 600 frames for half an hour at 1 Hz), always of
+# the same few sizes: each Fraction made once (a third of the check's time, more when tracing
+# allocations).
+@lru_cache(maxsize=1024)
 def frame_cost(servos: int, servo: ServoSettings) -> FrameCost:
     """The cost of one frame of ``servos`` goal changes on ``servo``'s bus."""
     baud = servo.baud_rate
