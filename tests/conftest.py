@@ -7,9 +7,8 @@ import contextlib
 import gc
 
 import pytest
-from hypothesis import control, settings
+from hypothesis import settings
 from hypothesis.internal import entropy
-from hypothesis.strategies._internal import core as strategies_core
 
 from tests.lsl_local import keep_lsl_on_this_machine
 
@@ -46,9 +45,19 @@ def _random_left_unwatched(fmt, *args):
     yield
 
 
-for _module in (control, strategies_core):
-    if hasattr(_module, "deprecate_random_in_strategy"):
-        _module.deprecate_random_in_strategy = _random_left_unwatched
+def _leave_random_unwatched():
+    from importlib import import_module
+
+    for name in ("hypothesis.control", "hypothesis.strategies._internal.core"):
+        try:
+            module = import_module(name)
+        except ImportError:
+            continue
+        if hasattr(module, "deprecate_random_in_strategy"):
+            module.deprecate_random_in_strategy = _random_left_unwatched
+
+
+_leave_random_unwatched()
 
 
 def pytest_configure(config):
