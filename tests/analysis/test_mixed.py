@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from scipy import integrate
 
 from pinarray.paradigms.localisation.frequency_effect import (
     QUADRATURE_NODES,
@@ -61,9 +62,6 @@ def test_identical_subjects_give_the_ordinary_logistic_slope_and_no_spread():
 @pytest.mark.parametrize("subject_sd", [0.2, 1.0, 2.5])
 @pytest.mark.parametrize("trials", [8, 40, 100])
 def test_the_quadrature_likelihood_equals_direct_numerical_integration(subject_sd, trials):
-    # Loaded here, not at collection (why: tests/analysis/test_power.py's t-test).
-    from scipy import integrate
-
     cells = simulated_cells(5, trials, slope=0.7, subject_sd=subject_sd, seed=trials)
     data = _Data(cells, QUADRATURE_NODES)
     b0, b1 = 0.1, 0.7

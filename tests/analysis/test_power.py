@@ -8,6 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
+from scipy import stats as scipy_stats
 
 from pinarray import cli
 from pinarray.analysis.power import caption, power_markdown, power_study, t_test_p
@@ -78,10 +79,6 @@ def test_a_tie_for_the_best_pin_does_not_count_as_that_pin_best():
 @given(st.lists(st.floats(-100, 100, allow_nan=False), min_size=2, max_size=25))
 def test_the_t_test_gives_scipys_p_value(values):
     if np.std(values) > 1e-9:
-        # scipy.stats loads here, not as the module is collected: half a second of processor
-        # in each test process, which pinarray itself never needs (it uses scipy.special).
-        from scipy import stats as scipy_stats
-
         # Where |mean| >> sd the two sds differ by about u |mean| / sd relative, which moves
         # p by about u * df * t^(1 - df) <= u absolute: atol 1e-12 covers it.
         assert_allclose(t_test_p(values), scipy_stats.ttest_1samp(values, 0.0).pvalue,

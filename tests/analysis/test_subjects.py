@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
+from scipy import stats as scipy_stats
 
 from pinarray.analysis.load import RunSelection, load_results, load_runs, select_runs
 from pinarray.analysis.seam import Context
@@ -116,9 +117,6 @@ def test_a_t_interval_holds_the_mean_and_matches_scipy(values):
     mean = float(np.mean(values))
     assert low <= mean + 1e-9 and mean - 1e-9 <= high
     if np.std(values) > 0:
-        # Loaded here, not at collection (why: tests/analysis/test_power.py's t-test).
-        from scipy import stats as scipy_stats
-
         reference = scipy_stats.t.interval(0.95, len(values) - 1, loc=mean,
                                            scale=scipy_stats.sem(values))
         assert_allclose((low, high), reference, rtol=1e-9, atol=1e-9)
