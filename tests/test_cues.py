@@ -3,6 +3,7 @@
 from pinarray.protocol.cues import duration_cues, stimulus_duration_ns
 from pinarray.protocol.load import load_protocol
 from tests.commands import pinarray_here
+from tests.lab_protocols import short_copy
 from tests.runs import REPO
 
 PROTOCOLS = REPO / "protocols"
@@ -21,13 +22,16 @@ def test_no_shipped_protocol_gives_a_duration_cue():
         assert duration_cues(load_protocol(path)) == [], path.name
 
 
+# The shipped motion protocol as it was: the no-wave at a 250 ms SOA lasts 0.9 s.
+LONGER_NO_WAVE = ("    soa_ms: 200              # centre 0-400 ms",
+                  "    soa_ms: 250              # centre 0-400 ms")
+
+
 def _longer_no_wave(tmp_path):
-    """The shipped motion protocol as it was: the no-wave at a 250 ms SOA lasts 0.9 s."""
     text = (PROTOCOLS / "apparent_motion.yaml").read_text()
-    centre = "    soa_ms: 200              # centre 0-400 ms"
-    assert centre in text
+    assert LONGER_NO_WAVE[0] in text
     path = tmp_path / "motion.yaml"
-    path.write_text(text.replace(centre, "    soa_ms: 250              # centre 0-400 ms"))
+    path.write_text(text.replace(*LONGER_NO_WAVE))
     return path
 
 
@@ -43,7 +47,8 @@ def test_validate_warns_when_the_no_wave_lasts_longer_than_the_waves(tmp_path):
 
 
 def test_batch_shows_the_duration_cue_warning_before_it_runs(tmp_path):
-    path = _longer_no_wave(tmp_path)
+    # Its short copy (one block, one repetition): the warning is the point, not the trials.
+    path = short_copy("apparent_motion", tmp_path, LONGER_NO_WAVE)
     result = pinarray_here("batch", path, "--subject", "01", "--observer", "default",
                            "--results", tmp_path / "out")
     assert result.returncode == 0, result.stderr

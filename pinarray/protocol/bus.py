@@ -23,7 +23,8 @@ does the host's; `pinarray timing` measures those on the machine that plays.
 Which instants are frames follows the compiler (`pinarray.schedule`): each drive's first
 pulse, every pulse whose position differs from the one before, and its end (back to rest).
 Times here are exact fractions of a nanosecond (the compiler rounds each to a whole one: a
-nanosecond either way changes no verdict). A change that leaves a pin where it was is counted
+nanosecond either way changes no verdict), played as whole numbers of a unit that divides
+them all. A change that leaves a pin where it was is counted
 too, so the check never passes what the player would refuse for these reasons.
 
 Long trials cost little: drives of more than `_ENUMERATE_ALL` changes that repeat with a
@@ -37,6 +38,7 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from functools import lru_cache
 
 from pinarray.protocol.model import NS_PER_S, PinDrive, ServoSettings, Train
 
@@ -85,6 +87,8 @@ class FrameCost:
         return NS_PER_S / float(self.total_ns)
 
 
+# Asked for the same few frame sizes by every check of a protocol's conditions: made once.
+@lru_cache(maxsize=1024)
 def frame_cost(servos: int, servo: ServoSettings) -> FrameCost:
     """The cost of one frame of ``servos`` goal changes on ``servo``'s bus."""
     baud = servo.baud_rate
@@ -117,56 +121,86 @@ def frames(drives: Sequence[PinDrive]) -> list[tuple[Fraction, frozenset[int]]]:
 def bus_problem(drives: Sequence[PinDrive], servo: ServoSettings,
                 tolerance_ns: int) -> str | None:
     """Why the bus cannot deliver ``drives`` (the numbers in words), or None if it can."""
-    baud = f"{servo.baud_rate} baud"
-    pending: dict[int, tuple[Fraction, int]] = {}  # pin -> (its frame's time, that frame's size)
-    wire_free = Fraction(-(10**18))  # when the wire is next free, ns from onset
-    for time, pins in frames(drives):
-        wire_free = _read_back(pending, wire_free, time, servo)
+    timed = frames(drives)
+    # Played in whole units of 1/scale ns, in which every frame's time and every frame's cost
+    # on the wire is a whole number (the baud rate divides it): the same comparisons as in
+    # Fractions, exactly, without making thousands of them.
+    scale = math.lcm(servo.baud_rate, *(time.denominator for time, _ in timed))
+    bus = _ScaledBus(servo, scale)
+    pending: dict[int, tuple[int, int]] = {}  # pin -> (its frame's time, that frame's size)
+    wire_free = -(10**18) * scale  # when the wire is next free, from onset
+    for time, pins in timed:
+        at = time.numerator * (scale // time.denominator)
+        wire_free = _read_back(pending, wire_free, at, bus)
         lost = sorted(pins & pending.keys())
         if lost:
             sent, servos = pending[lost[0]]
             cost = frame_cost(servos, servo)
+            apart = Fraction(at - sent, scale)
             return (f"pin {lost[0]} changes again at {_ms(time)}, before its goal of "
-                    f"{_ms(sent)} is read back: a frame of {servos} goal(s) is "
-                    f"{cost.write_bytes} bytes, {_ms(cost.write_ns)} at {baud}, its read-back "
-                    f"{cost.readback_bytes} bytes + {servos} x {servo.return_delay_us} us return "
-                    f"delay, {_ms(cost.readback_ns)}: {_ms(cost.total_ns)} a frame, at most "
-                    f"{math.floor(cost.frames_per_s)} frames/s, but they come {_ms(time - sent)} "
-                    f"apart ({NS_PER_S / float(time - sent):.0f}/s); lower the frequency or the "
-                    "pins moved at once, raise the baud rate, or lower the return delay "
-                    "(pinarray servos return-delay; device: servo: return_delay_us)")
-        cost = frame_cost(len(pins), servo)
-        wire_free = max(wire_free, time) + cost.write_ns
-        if wire_free - time > tolerance_ns:
-            queued = "" if wire_free - time == cost.write_ns else (
-                f", queued behind the frames before it ({_ms(wire_free - time)} in all)")
+                    f"{_ms(Fraction(sent, scale))} is read back: a frame of {servos} goal(s) is "
+                    f"{cost.write_bytes} bytes, {_ms(cost.write_ns)} at {servo.baud_rate} baud, "
+                    f"its read-back {cost.readback_bytes} bytes + {servos} x "
+                    f"{servo.return_delay_us} us return delay, {_ms(cost.readback_ns)}: "
+                    f"{_ms(cost.total_ns)} a frame, at most {math.floor(cost.frames_per_s)} "
+                    f"frames/s, but they come {_ms(apart)} apart ({NS_PER_S / float(apart):.0f}/s); "
+                    "lower the frequency or the pins moved at once, raise the baud rate, or "
+                    "lower the return delay (pinarray servos return-delay; device: servo: "
+                    "return_delay_us)")
+        write = bus.write(len(pins))
+        wire_free = max(wire_free, at) + write
+        if wire_free - at > tolerance_ns * scale:
+            cost = frame_cost(len(pins), servo)
+            queued = "" if wire_free - at == write else (
+                f", queued behind the frames before it ({_ms(Fraction(wire_free - at, scale))} "
+                "in all)")
             return (f"a frame of {len(pins)} goal(s) at {_ms(time)} is {cost.write_bytes} bytes, "
-                    f"{_ms(cost.write_ns)} at {baud}{queued}: its last goal would reach its "
-                    f"servo later than the delivery tolerance of {_ms(tolerance_ns)}; raise the "
-                    "baud rate or move fewer pins at once")
+                    f"{_ms(cost.write_ns)} at {servo.baud_rate} baud{queued}: its last goal would "
+                    f"reach its servo later than the delivery tolerance of {_ms(tolerance_ns)}; "
+                    "raise the baud rate or move fewer pins at once")
         for pin in sorted(pins):
-            pending[pin] = (time, len(pins))
+            pending[pin] = (at, len(pins))
     return None
 
 
-def _read_back(pending: dict[int, tuple[Fraction, int]], wire_free: Fraction, before: Fraction,
-               servo: ServoSettings) -> Fraction:
+class _ScaledBus:
+    """Frame costs on ``servo``'s bus in units of 1/``scale`` ns, each worked out once."""
+
+    def __init__(self, servo: ServoSettings, scale: int) -> None:
+        self._servo, self._scale = servo, scale
+        self._write: dict[int, int] = {}
+        self._readback: dict[int, int] = {}
+
+    def write(self, servos: int) -> int:
+        if servos not in self._write:
+            self._write[servos] = self._scaled(frame_cost(servos, self._servo).write_ns)
+        return self._write[servos]
+
+    def readback(self, servos: int) -> int:
+        if servos not in self._readback:
+            self._readback[servos] = self._scaled(frame_cost(servos, self._servo).readback_ns)
+        return self._readback[servos]
+
+    def _scaled(self, ns: Fraction) -> int:
+        whole = ns * self._scale
+        assert whole.denominator == 1  # the baud rate divides the scale
+        return whole.numerator
+
+
+def _read_back(pending: dict[int, tuple[int, int]], wire_free: int, before: int,
+               bus: _ScaledBus) -> int:
     """Read pending goals back, oldest first, as many at a time as fit before ``before``
     (the next frame's deadline); when the wire is free then."""
     while pending:
         count = len(pending)
-        while count and wire_free + _readback_ns(count, servo) > before:
+        while count and wire_free + bus.readback(count) > before:
             count -= 1
         if not count:
             break
         for pin in list(pending)[:count]:
             del pending[pin]
-        wire_free += _readback_ns(count, servo)
+        wire_free += bus.readback(count)
     return wire_free
-
-
-def _readback_ns(servos: int, servo: ServoSettings) -> Fraction:
-    return frame_cost(servos, servo).readback_ns
 
 
 def _ms(ns: Fraction | int) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 from fractions import Fraction
+from functools import lru_cache
 
 from pinarray.errors import PinArrayError
 from pinarray.protocol.model import NS_PER_S, Datasheet, Device, PinCalibration, Servos, Train
@@ -44,6 +45,9 @@ def travel_time_s(
     return steps / v + v / a
 
 
+# Asked for each pin and condition a train plays (681 times for the 18 trains of the shipped
+# protocols): worked out once per train.
+@lru_cache(maxsize=4096)
 def shortest_lift_ns(train: Train) -> int | None:
     """The shortest time ``train`` holds a pin up, as it plays: an up half-cycle
     (``duty / frequency``), or less where its phase starts the first cycle inside one or the
