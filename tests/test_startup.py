@@ -88,12 +88,13 @@ def test_validate_loads_the_protocol_reader_and_nothing_else_of_pinarray_nor_hea
 # What the player process (`python -m pinarray.player.child`, one per array a lab opens) must not
 # load as it starts: it plays prepared trials on the descriptor it inherits, and reads no
 # protocol, plans nothing, writes no results and simulates nothing itself; nor the parts of
-# numpy no trial needs (`numpy.unique` loads numpy.ma: `pinarray.hardware.frames.distinct_pins`).
+# numpy no trial needs (`numpy.unique` loads numpy.ma: `pinarray.hardware.frames.distinct_pins`),
+# nor the multiprocessing package its channel does without (`pinarray.player.channel`).
 PLAYER_NEVER = ("pinarray.protocol", "pinarray.plan", "pinarray.session", "pinarray.journal",
                 "pinarray.analysis", "pinarray.api", "pinarray.paradigms", "pinarray.imaging",
                 "pinarray.tui", "pinarray.cli", "pinarray.hardware.feetech.sim",
                 "pinarray.hardware.pca9685.sim", "yaml", "numpy.ma", "numpy.random", "scipy",
-                "matplotlib", "textual")
+                "matplotlib", "textual", "multiprocessing")
 
 
 def test_the_player_process_loads_playback_and_nothing_of_protocols_sessions_or_simulators():

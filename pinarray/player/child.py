@@ -15,18 +15,17 @@ stimuli the pins hold at rest, as they do while a script waits for anything else
 
 from __future__ import annotations
 
-import ctypes
 import os
 import select
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import partial
-from multiprocessing.connection import Connection
 
 from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
+from pinarray.player.channel import Channel
 from pinarray.player.markers import Announcer
 from pinarray.player.messages import (
     Answer,
@@ -126,7 +125,10 @@ def make_realtime(priority: int) -> str:
         return (f"real-time priority not granted ({why}): on a busy machine stimuli may be "
                 f"late by several ms; {REALTIME_HOWTO}")
     try:
-        # Sleeps may otherwise end up to 50 us late, the kernel's default timer slack.
+        # Sleeps may otherwise end up to 50 us late, the kernel's default timer slack. ctypes
+        # imported here: only a process granted the priority needs it (4-7 ms of processor).
+        import ctypes
+
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_TIMERSLACK, 1, 0, 0, 0)
     except (OSError, AttributeError):
         pass
@@ -142,7 +144,7 @@ class ControlledClock(MonotonicClock):
     `_ParentGone` (the child rests the pins and leaves).
     """
 
-    def __init__(self, conn: Connection, spin_ns: int, parent: Parent, woken_fd: int):
+    def __init__(self, conn: Channel, spin_ns: int, parent: Parent, woken_fd: int):
         super().__init__(spin_ns, sleep=self._wait_for_message)
         self.conn = conn
         self.parent = parent
@@ -164,7 +166,7 @@ class ControlledClock(MonotonicClock):
                     raise _Suspended(self._looked_ns)
             slice_s = PARENT_WATCH_NS / NS_PER_S
             seconds = slice_s if seconds is None else min(seconds, slice_s)
-        # select, not Connection.poll: the latter rounds its timeout up to whole ms.
+        # select, not poll: the latter takes its timeout in whole ms.
         ready = self._select(seconds)
         if self.parent.fd in ready or (self.parent.fd is None and self.parent.gone):
             raise _ParentGone("the process controlling the player ended")
@@ -220,7 +222,7 @@ class ProtocolMismatch(Exception):
     """The parent sent something this child does not understand (a different pinarray?)."""
 
 
-def _serve(conn: Connection, port_fd: int, parent: Parent, woken_fd: int) -> int:
+def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int) -> int:
     try:
         if parent.gone:
             return 0  # the parent ended before this could watch it: it never turned torque on
@@ -349,7 +351,7 @@ def main(argv: list[str]) -> int:
     # read would be taken for the parent gone (a host program's socket timeout made it
     # non-blocking: PsychoPy sets one on import).
     os.set_blocking(control_fd, True)
-    conn = Connection(control_fd)
+    conn = Channel(control_fd)
     try:
         with raise_on_signals("the player process"), woken_by_signals() as woken_fd:
             return _serve(conn, port_fd, parent, woken_fd)
