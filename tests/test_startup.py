@@ -97,11 +97,17 @@ PLAYER_NEVER = ("pinarray.protocol", "pinarray.plan", "pinarray.session", "pinar
                 "matplotlib", "textual", "multiprocessing")
 
 
-def test_the_player_process_loads_playback_and_nothing_of_protocols_sessions_or_simulators():
-    modules = imported_by([sys.executable, "-c", "import pinarray.player.child"])
+def test_the_player_process_loads_playback_once_given_servos_and_nothing_of_protocols_sessions_or_simulators():
+    # As it starts (a timing check's player goes no further: it only measures wake-ups), and
+    # once a Hello hands it servos (what it loads then, before it answers Ready).
+    starting = imported_by([sys.executable, "-c", "import pinarray.player.child"])
+    playing = imported_by([sys.executable, "-c",
+                           "from pinarray.player.child import load_playback; load_playback()"])
 
-    assert "pinarray.player.playback" in modules  # the listing is read right: it did load
-    assert sorted(m for m in modules
+    assert "pinarray.player.child" in starting  # the listing is read right: it did load
+    assert "numpy" not in starting and "pinarray.player.playback" not in starting
+    assert "pinarray.player.playback" in playing and "numpy" in playing
+    assert sorted(m for m in starting | playing
                   if any(m == part or m.startswith(part + ".") for part in PLAYER_NEVER)) == []
 
 

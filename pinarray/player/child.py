@@ -44,7 +44,6 @@ from pinarray.player.messages import (
     StopPlaying,
     WakeUpsMeasured,
 )
-from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
 from pinarray.stop import Stopped, raise_on_signals, signals_wake
 from pinarray.units import NS_PER_S
 
@@ -235,7 +234,10 @@ def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int) -> int:
     clock = ControlledClock(conn, hello.spin_ns, parent, woken_fd)
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
-    bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
+    bus = None
+    if hello.handover is not None:
+        bus = hello.handover.attach(port_fd, bus_clock)
+        load_playback()  # before Ready: the first trial must not wait for it
     announcer: Announcer | None = None
     markers_problem = ""
     if hello.markers is not None:
@@ -295,8 +297,17 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
         clock.working = 0
 
 
+def load_playback() -> None:
+    """Load playback (and numpy with it) in a player given servos, before it answers
+    `Ready`; a player that only measures wake-ups (a timing check's) never needs them, some
+    90 ms of processor as it starts."""
+    import pinarray.player.playback  # noqa: F401
+
+
 def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
           announcer: Announcer | None) -> Played | PlayFailed | OnsetMissed:
+    from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
+
     onset = play.onset
     if isinstance(onset, OnCue):
         clock.wait_for_cue()

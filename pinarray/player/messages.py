@@ -6,13 +6,16 @@ Requests are numbered, so a stop meant for one cannot stop the next, nor a cue s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
+from typing import TYPE_CHECKING
 
 from pinarray.hardware.delivery import PreparedTrial
 from pinarray.hardware.driver import Handover, SafeStopReport
-from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.markers import Announcers, TrialMarkers
-from pinarray.player.playback import Onset, PlaybackReport
+
+if TYPE_CHECKING:  # names in annotations only: a player that only measures wake-ups loads no numpy
+    from fractions import Fraction
+
+    from pinarray.player.playback import Onset, PlaybackReport
 
 
 @dataclass(frozen=True)
@@ -50,8 +53,8 @@ class Play:
     trial: PreparedTrial
     onset: Onset | OnCue
     tolerance_ns: int
-    markers: TrialMarkers | None = None  # announced at the onset and the end, if any
-    stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE
+    markers: TrialMarkers | None  # announced at the onset and the end, if any
+    stroke_tolerance: Fraction
 
 
 @dataclass(frozen=True)
