@@ -111,6 +111,17 @@ def test_the_player_process_loads_playback_once_given_servos_and_nothing_of_prot
                   if any(m == part or m.startswith(part + ".") for part in PLAYER_NEVER)) == []
 
 
+def test_a_servo_bring_up_command_loads_no_numpy():
+    # `pinarray servos` talks to servos one packet at a time: it opens the Feetech bus the
+    # player plays on (which names the samples a trial's motion is measured from) but measures
+    # nothing, and should start as fast as a lab renumbering servos expects.
+    modules = imported_by([sys.executable, "-m", "pinarray", "servos", "scan", "--sim",
+                           "sim://?ids=1"])
+
+    assert "pinarray.hardware.feetech.feetech" in modules  # it did open the bus
+    assert sorted(m for m in modules if m.split(".")[0] == "numpy") == []
+
+
 def parts_loaded_by(code: str) -> list[str]:
     """pinarray's modules loaded once ``code`` has run (a public name's home is imported by
     `importlib.import_module`, which ``-X importtime`` does not list)."""
