@@ -11,12 +11,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import Change, PreparedFrame, PreparedTrial
 
+# numpy is imported where targets are looked at (their arrays are numpy's: it is loaded by
+# then), not here: the bring-up commands import the Feetech bus, which encodes frames here,
+# and need no numpy.
 if TYPE_CHECKING:
+    import numpy as np
+
     from pinarray.hardware.driver import ArrayDriver, ArraySetup, Targets
 
 
@@ -26,6 +29,8 @@ def distinct_pins(pins: np.ndarray) -> list[int]:
     `numpy.unique` would do, but it imports `numpy.ma` to ask whether the array is masked:
     some 15 ms of every command's and player process's start-up, for arrays never masked.
     """
+    import numpy as np
+
     ordered = np.sort(pins)
     first = np.ones(len(ordered), dtype=bool)
     first[1:] = ordered[1:] != ordered[:-1]
@@ -51,7 +56,7 @@ def check_limits(targets: Targets, setup: ArraySetup) -> None:
         positions = targets.position_steps[mask]
         outside = (positions < servo.min_steps) | (positions > servo.max_steps)
         if outside.any():
-            first = int(np.argmax(outside))
+            first = int(outside.argmax())
             time_s = targets.time_ns[mask][first] / 1e9
             raise PinArrayError(
                 f"refusing to play: pin {pin} (servo {servo.servo_id}) would go to "

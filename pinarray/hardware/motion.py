@@ -31,10 +31,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from pinarray.hardware.delivery import Change
+
+# numpy is imported where samples are measured (the arrays measured are numpy's: it is loaded
+# by then), not here: the bring-up commands import the Feetech bus, which names `PinTrace`,
+# and need no numpy (some 90 ms of processor at each start).
+if TYPE_CHECKING:
+    import numpy as np
 
 # A trial delivers its stimulus as specified when every pin's achieved stroke is at least
 # this fraction of its commanded stroke, unless the protocol says otherwise
@@ -176,6 +181,8 @@ def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
     if not peaks:
         return PinStroke(trace.pin, commanded, None, None, lag_ns, 0, 0, unmeasured)
     short = sum(1 for peak in peaks if commanded and Fraction(peak, commanded) < tolerance)
+    import numpy as np
+
     return PinStroke(trace.pin, commanded, min(peaks), float(np.median(peaks)), lag_ns,
                      len(peaks), short, unmeasured)
 
@@ -192,6 +199,8 @@ def measure_trial(traces: Sequence[PinTrace], changes: Sequence[Change], end_ns:
 
 def goal_at(goals: Sequence[tuple[int, int]], time_ns: np.ndarray) -> np.ndarray:
     """The goal in force at each of ``time_ns`` (-1 before the first change), in steps."""
+    import numpy as np
+
     change_ns = np.array([t for t, _ in goals], dtype=np.int64)
     value = np.array([-1, *(g for _, g in goals)], dtype=np.int64)
     return value[np.searchsorted(change_ns, time_ns, side="right")]
@@ -200,6 +209,8 @@ def goal_at(goals: Sequence[tuple[int, int]], time_ns: np.ndarray) -> np.ndarray
 def _peak_to_peak(times: np.ndarray, positions: np.ndarray, start_ns: int,
                   stop_ns: int) -> int | None:
     """The cycle's peak-to-peak in steps; None when its samples are too few or too sparse."""
+    import numpy as np
+
     first, last = np.searchsorted(times, [start_ns, stop_ns])
     if last - first < MIN_SAMPLES_PER_CYCLE:
         return None
@@ -216,6 +227,8 @@ def _median_lag(times: np.ndarray, positions: np.ndarray, goals: Sequence[tuple[
     before the pin's next change, a change the pin never reached counting as longer than any;
     None when it reached half of them or fewer (a median of those it reached would flatter a
     servo that mostly turns back early)."""
+    import numpy as np
+
     lags = []
     for k, (time_ns, goal) in enumerate(goals):
         until_ns = goals[k + 1][0] if k + 1 < len(goals) else end_ns

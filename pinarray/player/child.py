@@ -15,18 +15,17 @@ stimuli the pins hold at rest, as they do while a script waits for anything else
 
 from __future__ import annotations
 
-import ctypes
 import os
 import select
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from functools import partial
-from multiprocessing.connection import Connection
 
 from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
+from pinarray.player.channel import Channel
 from pinarray.player.markers import Announcer
 from pinarray.player.messages import (
     Answer,
@@ -45,7 +44,6 @@ from pinarray.player.messages import (
     StopPlaying,
     WakeUpsMeasured,
 )
-from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
 from pinarray.stop import Stopped, raise_on_signals, signals_wake
 from pinarray.units import NS_PER_S
 
@@ -126,7 +124,10 @@ def make_realtime(priority: int) -> str:
         return (f"real-time priority not granted ({why}): on a busy machine stimuli may be "
                 f"late by several ms; {REALTIME_HOWTO}")
     try:
-        # Sleeps may otherwise end up to 50 us late, the kernel's default timer slack.
+        # Sleeps may otherwise end up to 50 us late, the kernel's default timer slack. ctypes
+        # imported here: only a process granted the priority needs it (4-7 ms of processor).
+        import ctypes
+
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_TIMERSLACK, 1, 0, 0, 0)
     except (OSError, AttributeError):
         pass
@@ -142,7 +143,7 @@ class ControlledClock(MonotonicClock):
     `_ParentGone` (the child rests the pins and leaves).
     """
 
-    def __init__(self, conn: Connection, spin_ns: int, parent: Parent, woken_fd: int):
+    def __init__(self, conn: Channel, spin_ns: int, parent: Parent, woken_fd: int):
         super().__init__(spin_ns, sleep=self._wait_for_message)
         self.conn = conn
         self.parent = parent
@@ -164,7 +165,7 @@ class ControlledClock(MonotonicClock):
                     raise _Suspended(self._looked_ns)
             slice_s = PARENT_WATCH_NS / NS_PER_S
             seconds = slice_s if seconds is None else min(seconds, slice_s)
-        # select, not Connection.poll: the latter rounds its timeout up to whole ms.
+        # select, not poll: the latter takes its timeout in whole ms.
         ready = self._select(seconds)
         if self.parent.fd in ready or (self.parent.fd is None and self.parent.gone):
             raise _ParentGone("the process controlling the player ended")
@@ -220,7 +221,7 @@ class ProtocolMismatch(Exception):
     """The parent sent something this child does not understand (a different pinarray?)."""
 
 
-def _serve(conn: Connection, port_fd: int, parent: Parent, woken_fd: int) -> int:
+def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int) -> int:
     try:
         if parent.gone:
             return 0  # the parent ended before this could watch it: it never turned torque on
@@ -233,7 +234,10 @@ def _serve(conn: Connection, port_fd: int, parent: Parent, woken_fd: int) -> int
     clock = ControlledClock(conn, hello.spin_ns, parent, woken_fd)
     # The bus waits on a plain clock: a stop must not cut its own exchanges (the safe stop's).
     bus_clock = MonotonicClock(hello.spin_ns)
-    bus = hello.handover.attach(port_fd, bus_clock) if hello.handover is not None else None
+    bus = None
+    if hello.handover is not None:
+        bus = hello.handover.attach(port_fd, bus_clock)
+        load_playback()  # before Ready: the first trial must not wait for it
     announcer: Announcer | None = None
     markers_problem = ""
     if hello.markers is not None:
@@ -293,8 +297,17 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
         clock.working = 0
 
 
+def load_playback() -> None:
+    """Load playback (and numpy with it) in a player given servos, before it answers
+    `Ready`; a player that only measures wake-ups (a timing check's) never needs them, some
+    90 ms of processor as it starts."""
+    import pinarray.player.playback  # noqa: F401
+
+
 def _play(bus: ArrayDriver, play: Play, clock: ControlledClock,
           announcer: Announcer | None) -> Played | PlayFailed | OnsetMissed:
+    from pinarray.player.playback import OnsetAfter, OnsetPassed, PlaybackAborted, play_prepared
+
     onset = play.onset
     if isinstance(onset, OnCue):
         clock.wait_for_cue()
@@ -349,7 +362,7 @@ def main(argv: list[str]) -> int:
     # read would be taken for the parent gone (a host program's socket timeout made it
     # non-blocking: PsychoPy sets one on import).
     os.set_blocking(control_fd, True)
-    conn = Connection(control_fd)
+    conn = Channel(control_fd)
     try:
         with raise_on_signals("the player process"), woken_by_signals() as woken_fd:
             return _serve(conn, port_fd, parent, woken_fd)

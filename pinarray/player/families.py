@@ -164,12 +164,16 @@ def open_array(device: Device, port: str | None, sim_url: str | None,
     if wire_log is not None:
         raise PinArrayError("--i2c-log: this protocol's servos are STS bus servos (serial, no "
                             "I2C); the log is for a PCA9685 board's protocol")
-    from pinarray.hardware.feetech.sim import SimBus
     from pinarray.hardware.feetech.transport import open_bus
 
     setup = bus_setup(device)
     url = port or sim_url_for(sim_url, setup.servo_ids)
-    kept = None if simulators is None else simulators.find(url, SimBus)
+    kept = None
+    if simulators is not None and is_sim_url(url):  # only a sim:// URL's simulator is kept
+        # Imported for it alone: a real port (or one sim-serve serves) needs no simulator.
+        from pinarray.hardware.feetech.sim import SimBus
+
+        kept = simulators.find(url, SimBus)
     bus = open_bus(url, None, clock, baud_rate=sts_servos(device).baud_rate, sim=kept)
     if simulators is not None and bus.sim is not None:
         simulators.keep(url, bus.sim)

@@ -6,13 +6,16 @@ Requests are numbered, so a stop meant for one cannot stop the next, nor a cue s
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
+from typing import TYPE_CHECKING
 
 from pinarray.hardware.delivery import PreparedTrial
 from pinarray.hardware.driver import Handover, SafeStopReport
-from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.markers import Announcers, TrialMarkers
-from pinarray.player.playback import Onset, PlaybackReport
+
+if TYPE_CHECKING:  # names in annotations only: a player that only measures wake-ups loads no numpy
+    from fractions import Fraction
+
+    from pinarray.player.playback import Onset, PlaybackReport
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,8 @@ class Hello:
 
 @dataclass(frozen=True)
 class Ready:
+    """The answer to `Hello`: the player process guards the servos from now on."""
+
     realtime_problem: str  # empty when real-time priority was granted (or not asked for)
     markers_problem: str = ""  # empty unless the marker stream asked for could not be opened
 
@@ -40,16 +45,22 @@ class OnCue:
 
 @dataclass(frozen=True)
 class Play:
+    """Play ``trial`` at ``onset`` (or on its `Cue`), verifying its goal changes within
+    ``tolerance_ns``; answered by `Played`, `PlayStopped`, `PlaySuspended`, `PlayFailed` or
+    `OnsetMissed`."""
+
     number: int  # a stop request names the trial it is for: a late one must not stop the next
     trial: PreparedTrial
     onset: Onset | OnCue
     tolerance_ns: int
-    markers: TrialMarkers | None = None  # announced at the onset and the end, if any
-    stroke_tolerance: Fraction = DEFAULT_STROKE_TOLERANCE
+    markers: TrialMarkers | None  # announced at the onset and the end, if any
+    stroke_tolerance: Fraction
 
 
 @dataclass(frozen=True)
 class StopPlaying:
+    """Stop request ``number`` (a stop signal or the parent's stop, named in ``reason``)."""
+
     number: int
     reason: str
     signal_number: int | None
@@ -64,6 +75,9 @@ class Cue:
 
 @dataclass(frozen=True)
 class MeasureWakeUps:
+    """How late the player wakes for deadlines every ``period_ns`` for ``duration_ns``:
+    answered by `WakeUpsMeasured`."""
+
     number: int
     duration_ns: int
     period_ns: int
@@ -71,16 +85,20 @@ class MeasureWakeUps:
 
 @dataclass(frozen=True)
 class Quit:
-    pass
+    """Rest the pins, release torque and leave."""
 
 
 @dataclass(frozen=True)
 class Played:
+    """The trial ended as scheduled or not: its ``report`` says which."""
+
     report: PlaybackReport
 
 
 @dataclass(frozen=True)
 class PlayStopped:
+    """The trial was stopped (`StopPlaying`, or a signal to the player process)."""
+
     reason: str
     signal_number: int | None
     safe_stop: SafeStopReport | None = None  # None: stopped before anything moved
@@ -107,12 +125,16 @@ class OnsetMissed:
 
 @dataclass(frozen=True)
 class PlayFailed:
+    """Playback stopped early by a fault; ``safe_stop`` says how the pins were left."""
+
     message: str
     safe_stop: SafeStopReport
 
 
 @dataclass(frozen=True)
 class WakeUpsMeasured:
+    """How late each wake-up of a `MeasureWakeUps` was, in ns."""
+
     lateness_ns: tuple[int, ...]
 
 

@@ -46,13 +46,13 @@ import time
 import weakref
 from collections.abc import Callable
 from fractions import Fraction
-from multiprocessing.connection import Connection, wait
 from typing import NoReturn
 
 from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
+from pinarray.player.channel import Channel, readable
 from pinarray.player.child import REALTIME_PRIORITY, process_state
 from pinarray.player.forks import blank_descriptors, let_go_in_forks
 from pinarray.player.markers import Announcers, TrialMarkers
@@ -232,7 +232,7 @@ class PlayerProcess:
             stdout=subprocess.DEVNULL, stderr=self._errors, env={**os.environ, **PLAYER_ENV},
         )
         child_end.close()
-        self.conn = Connection(parent_end.detach())
+        self.conn = Channel(parent_end.detach())
         let_go_in_forks(self)
         handover = bus.handover() if bus is not None else None
         self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
@@ -362,10 +362,10 @@ class PlayerProcess:
         stop_due_ns: int | None = None
         while True:
             try:
-                ready = wait([self.conn, self._wake_read], WATCH_S)
+                ready = readable([self.conn.fileno(), self._wake_read], WATCH_S)
                 if self._wake_read in ready:
                     os.read(self._wake_read, 64)
-                if self.conn in ready:
+                if self.conn.fileno() in ready:
                     answer = self.conn.recv()
                     if isinstance(answer, ANSWERS):
                         return answer

@@ -21,6 +21,7 @@ are about what goes over the wire, not how soon (`make bench`).
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -77,6 +78,8 @@ def sim_serve(request):
 # return delay). As if LATENCY_TIMER were set for a slow adapter: a bound against a hang, and
 # an absent servo (a PING that must fail) costs a quarter of a second.
 VENDOR_WAIT_MS = 250
+# A broadcast ping waits for its answers at most this long between two looks at the clock, s.
+BYTES_WAIT_S = 0.005
 
 
 def vendor_port(path: str) -> tuple[PortHandler, PacketHandler]:
@@ -123,6 +126,9 @@ class LeRobotStyleBus:
         port.setPacketTimeoutMillis(wait_length * byte_ms + 3.0 * MAX_ID + 16.0)
         received = b""
         while not port.isPacketTimeout() and len(received) < wait_length:
+            # Waiting for bytes, not spinning: the port reads without blocking, and a loop of
+            # such reads burned a processor for the whole wait (0.8 s a ping here).
+            select.select([port.ser], [], [], BYTES_WAIT_S)
             received += bytes(port.readPort(wait_length - len(received)))
         found, _ = parse_status(received)
         models = {}

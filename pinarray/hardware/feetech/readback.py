@@ -36,8 +36,6 @@ from __future__ import annotations
 from array import array
 from collections.abc import Mapping
 
-import numpy as np
-
 from pinarray.clock import Clock
 from pinarray.errors import BusError
 from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
@@ -312,6 +310,8 @@ class Verifier:
 
     def trace(self) -> tuple[PinTrace, ...]:
         """The moving pins' samples so far."""
+        import numpy as np  # here: the bring-up commands open this bus and need no numpy
+
         pins = self.trial.pin_of_servo
         return tuple(
             PinTrace(pins.get(servo_id, servo_id), servo_id,

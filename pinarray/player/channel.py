@@ -1,0 +1,80 @@
+"""The socket between a parent and its player process: pickled messages, each after its length.
+
+``multiprocessing.connection.Connection`` carried them before; importing it loads the whole
+``multiprocessing`` package (and ``tempfile``, ``random``, ``subprocess`` with it): some 40 ms
+of processor at every start of a player process, one per array opened, for a few lines of
+framing. Both ends are this module, so the framing is ours: an 8-byte big-endian length, then
+the message's pickle.
+
+Errors are a closed connection's: `EOFError` when the other end has closed (at a message's
+start or within it), `OSError` when this end is closed or the socket fails.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import select
+import struct
+
+_LENGTH = struct.Struct("!Q")
+
+
+class Channel:
+    """Pickled messages over the stream socket (or pipe) descriptor ``fd``, owned from here:
+    `close` (or the channel being collected) closes it."""
+
+    def __init__(self, fd: int):
+        self._fd = fd
+
+    @property
+    def closed(self) -> bool:
+        return self._fd < 0
+
+    def fileno(self) -> int:
+        if self._fd < 0:
+            raise OSError("the channel is closed")
+        return self._fd
+
+    def send(self, message: object) -> None:
+        """``message`` whole: its length and its pickle, written until every byte is."""
+        body = pickle.dumps(message, pickle.HIGHEST_PROTOCOL)
+        data = memoryview(_LENGTH.pack(len(body)) + body)
+        fd = self.fileno()
+        while data:
+            data = data[os.write(fd, data):]
+
+    def recv(self) -> object:
+        """The next message (blocks until it has come whole)."""
+        (length,) = _LENGTH.unpack(self._read(_LENGTH.size))
+        return pickle.loads(self._read(length))
+
+    def _read(self, count: int) -> bytes:
+        fd = self.fileno()
+        chunks = []
+        while count:
+            chunk = os.read(fd, count)
+            if not chunk:
+                raise EOFError("the other end of the channel closed")
+            chunks.append(chunk)
+            count -= len(chunk)
+        return b"".join(chunks)
+
+    def close(self) -> None:
+        if self._fd >= 0:
+            fd, self._fd = self._fd, -1
+            os.close(fd)
+
+    def __del__(self) -> None:
+        self.close()
+
+
+def readable(fds: list[int], timeout_s: float | None) -> list[int]:
+    """Those of ``fds`` that can be read without blocking (or have hung up or failed), waiting
+    up to ``timeout_s`` for one (None: no limit). Through poll, not select: a host program's
+    descriptors may number past select's 1024."""
+    poller = select.poll()
+    for fd in fds:
+        poller.register(fd, select.POLLIN)
+    timeout_ms = None if timeout_s is None else max(0, int(timeout_s * 1000 + 0.999))
+    return [fd for fd, _ in poller.poll(timeout_ms)]
