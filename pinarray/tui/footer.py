@@ -38,6 +38,9 @@ class KeyFooter(Footer):
             return
         async with self.batch():
             for new, old in zip(fresh, shown, strict=False):
+                # What a key draws is its key_display and description (its dimming is a class,
+                # which restyles and redraws it when it changes): a key that says the same is
+                # not drawn again.
                 wider = any(getattr(new, name) != getattr(old, name)
                             for name in ("key_display", "description"))
                 for name in _STATE:
@@ -45,7 +48,8 @@ class KeyFooter(Footer):
                 if old.tooltip != new.tooltip:
                     old.tooltip = new.tooltip
                 old.set_class(new.has_class(DISABLED), DISABLED)
-                old.refresh(layout=wider)
+                if wider:
+                    old.refresh(layout=True)
             for old in shown[len(fresh):]:  # keys no longer shown
                 await old.remove()
             if len(fresh) > len(shown):  # keys shown now, after the others as compose has them
