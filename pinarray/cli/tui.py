@@ -65,7 +65,6 @@ def _cmd_tui(args: argparse.Namespace) -> int:
 
     from pinarray.errors import PinArrayError
     from pinarray.player.rig import choose_clock
-    from pinarray.tui.app import PinArrayApp, TuiOptions
 
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
@@ -85,6 +84,9 @@ def _cmd_tui(args: argparse.Namespace) -> int:
     if wall and not args.port and args.time_scale != 1:
         raise PinArrayError(f"{' and '.join(wall)}: stamped on this machine's clock, which a "
                             "sped-up simulation is not: use --speed 1")
+    # The UI loaded once the options are known to work: a refusal costs no Textual (0.2 s).
+    from pinarray.tui.app import PinArrayApp, TuiOptions
+
     options = TuiOptions(
         protocol_path=Path(args.file) if args.file else None,
         protocols_dir=Path(args.protocols), results_root=Path(args.results),
