@@ -4,6 +4,7 @@ plays the same way; a stop stops (every servo at rest and released, as the servo
 show it, not as pinarray reports it); a port has one owner; a host program's socket defaults
 do not reach the player. How fast a stop takes torque off is `make bench`'s (bench_stop)."""
 
+import resource
 import signal
 import socket
 import subprocess
@@ -289,6 +290,50 @@ def test_a_script_that_ends_or_is_interrupted_mid_stimulus_leaves_every_servo_re
         if process.poll() is None:
             process.kill()
         server.stop()
+
+
+MANY_FILES_SCRIPT = """
+import os, resource, sys
+import pinarray
+from pinarray.testing import assert_delivered, assert_every_goal_confirmed
+
+soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+if soft < 2048:
+    resource.setrlimit(resource.RLIMIT_NOFILE, (min(2048, hard), hard))
+held = [os.open(os.devnull, os.O_RDONLY) for _ in range(1100)]
+assert held[-1] >= 1024, held[-1]  # what opens next (the port, the player's channel) is higher
+protocol = pinarray.load_protocol(sys.argv[1])
+where = ({{"sim": "sim://", "clock": pinarray.MonotonicClock()}} if sys.argv[2] == "sim"
+         else {{"port": sys.argv[2]}})
+with pinarray.open_array(protocol, **where) as array:
+    delivery = array.present(pinarray.find_condition(protocol, pin=6))
+    assert_delivered(delivery)
+    assert_every_goal_confirmed(delivery)
+print("delivered")
+"""
+
+
+@realtime
+@pytest.mark.parametrize("kind", ["sim", "pty"])
+def test_a_script_holding_more_than_1024_files_plays_through_either_path(tmp_path, kind):
+    # select watches descriptors below 1024 only: the port and the player's channel got
+    # higher numbers in such a script, and open_array ended in select's ValueError.
+    if resource.getrlimit(resource.RLIMIT_NOFILE)[1] < 2048:
+        pytest.skip("this machine lets a process hold fewer than 2048 files")
+    protocol = buzz(tmp_path, 0.4)
+    server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start() if kind == "pty" else None
+    try:
+        script = tmp_path / "script.py"
+        script.write_text(MANY_FILES_SCRIPT.format())
+        done = subprocess.run([sys.executable, str(script), str(protocol.source),
+                               server.path if server is not None else "sim"],
+                              capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0 and done.stdout.strip() == "delivered", done.stderr
+        if server is not None:
+            assert at_rest_and_released(server.sim.servos) == []
+    finally:
+        if server is not None:
+            server.stop()
 
 
 def test_an_armed_stimulus_whose_onset_passes_before_it_can_start_is_not_delivered(tmp_path):

@@ -24,6 +24,7 @@ from functools import partial
 
 from pinarray.clock import MonotonicClock
 from pinarray.errors import PinArrayError
+from pinarray.hardware.descriptors import below_select_limit
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.player.channel import Channel
 from pinarray.player.markers import Announcer
@@ -357,6 +358,9 @@ def woken_by_signals() -> Iterator[int]:
 
 def main(argv: list[str]) -> int:
     control_fd, port_fd, parent_pid = int(argv[0]), int(argv[1]), int(argv[2])
+    # Numbers select can watch, whatever the parent held (its waits are select's).
+    control_fd = below_select_limit(control_fd)
+    port_fd = below_select_limit(port_fd) if port_fd >= 0 else port_fd
     parent = Parent(parent_pid)
     # The channel blocks, whatever its creator's defaults were: a recv that found nothing to
     # read would be taken for the parent gone (a host program's socket timeout made it

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from pinarray.clock import Clock
+from pinarray.hardware.descriptors import readable, writable
 from pinarray.hardware.feetech.packets import StatusPacket, StatusReader
 from pinarray.units import NS_PER_MS
 
@@ -123,7 +124,7 @@ class FdWire:
             if remaining_ns <= 0:
                 raise WireLost(errno.ETIMEDOUT, f"write failed: the device took no data for "
                                                 f"{self.write_timeout_ns / 1e9:g} s")
-            select.select([], [self.fd], [], remaining_ns / 1e9)  # the output queue is full
+            writable(self.fd, remaining_ns)  # the output queue is full
             try:
                 written = os.write(self.fd, view)
             except BlockingIOError:
@@ -152,10 +153,7 @@ class FdWire:
     def read_some(self, deadline_ns: int) -> bytes:
         while True:
             remaining_ns = deadline_ns - self.clock.now_ns()
-            # select, not poll: its timeout has microseconds, and a player's read must not
-            # overrun the next frame's deadline by poll's rounding to milliseconds.
-            ready, _, _ = select.select([self.fd], [], [], max(0, remaining_ns) / 1e9)
-            if ready:
+            if readable(self.fd, remaining_ns):  # select's microseconds where it can
                 data = self._read()
                 if data:
                     return data
@@ -166,7 +164,7 @@ class FdWire:
 
     def discard_input(self) -> int:
         dropped = 0
-        while dropped < MAX_DRAIN_BYTES and select.select([self.fd], [], [], 0)[0]:
+        while dropped < MAX_DRAIN_BYTES and readable(self.fd, 0):
             data = self._read()
             if not data:
                 break
