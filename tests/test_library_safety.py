@@ -183,20 +183,28 @@ def test_a_forked_copy_that_ends_leaves_the_scripts_stimulus_and_array_alone(tmp
         assert at_rest_and_released(server.sim.servos) == []
 
 
+def presented_in_a_thread(array: pinarray.PinArray) -> tuple[threading.Thread, dict[str, object]]:
+    """Pin 6's stimulus presented from another thread: the thread, and what it gave once it
+    ends (``delivery``, or the ``error`` present raised)."""
+    outcome: dict[str, object] = {}
+
+    def present() -> None:
+        try:
+            outcome["delivery"] = array.present(pinarray.find_condition(array.protocol, pin=6))
+        except pinarray.PinArrayError as error:
+            outcome["error"] = error
+
+    presenting = threading.Thread(target=present, daemon=True)
+    presenting.start()
+    return presenting, outcome
+
+
 @realtime
 def test_a_player_process_that_stops_answering_mid_stimulus_is_killed_and_the_pins_rest(
         tmp_path):
     protocol = buzz(tmp_path, 1)
-    outcome: dict[str, object] = {}
     with array_on_a_port(protocol) as (array, server):
-        def present() -> None:
-            try:
-                outcome["delivery"] = array.present(pinarray.find_condition(protocol, pin=6))
-            except pinarray.PinArrayError as error:
-                outcome["error"] = error
-
-        presenting = threading.Thread(target=present, daemon=True)
-        presenting.start()
+        presenting, outcome = presented_in_a_thread(array)
         wait_moving(server.sim.servos)
         frozen = player_pid(array)
         os.kill(frozen, signal.SIGSTOP)  # frozen: alive, silent
@@ -209,6 +217,28 @@ def test_a_player_process_that_stops_answering_mid_stimulus_is_killed_and_the_pi
         assert not alive(frozen)
         # A new player process for the next stimulus, which plays.
         assert array.present(pinarray.find_condition(protocol, pin=6)).delivered
+
+
+@realtime
+def test_a_frozen_player_process_handed_a_stimulus_bigger_than_its_socket_is_killed_and_the_pins_rest(
+        tmp_path):
+    # 20 minutes of pulses: a request far bigger than the socket between the script and its
+    # player holds. Sent to a player frozen between stimuli, it waited on it for ever, and a
+    # stop from another thread waited with it.
+    with array_on_a_port(buzz(tmp_path, 1200)) as (array, server):
+        frozen = player_pid(array)
+        os.kill(frozen, signal.SIGSTOP)
+        presenting, outcome = presented_in_a_thread(array)
+        presenting.join(timeout=60)
+        hung = presenting.is_alive()
+        if hung:
+            os.kill(frozen, signal.SIGKILL)  # ends the send that waits on it, and so this test
+        assert not hung, "present() waited on a frozen player for ever"
+        error = outcome.get("error")
+        assert isinstance(error, pinarray.PlaybackAborted), outcome
+        assert "SIGSTOP" in str(error) and "killed" in str(error)
+        assert at_rest_and_released(server.sim.servos) == []
+        assert not alive(frozen)
 
 
 @realtime

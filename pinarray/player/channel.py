@@ -8,6 +8,11 @@ the message's pickle.
 
 Errors are a closed connection's: `EOFError` when the other end has closed (at a message's
 start or within it), `OSError` when this end is closed or the socket fails.
+
+Either end may set its descriptor not to block: a read then waits for the rest of its message,
+and a write that the other end takes nothing of calls its ``while_blocked`` every
+`BLOCKED_LOOK_S` (the parent looks there at a child that may be frozen: a message bigger than
+the socket's buffer would otherwise wait on it for ever).
 """
 
 from __future__ import annotations
@@ -16,8 +21,10 @@ import os
 import pickle
 import select
 import struct
+from collections.abc import Callable
 
 _LENGTH = struct.Struct("!Q")
+BLOCKED_LOOK_S = 0.05  # how often a blocked write looks at why (``while_blocked``)
 
 
 class Channel:
@@ -36,13 +43,21 @@ class Channel:
             raise OSError("the channel is closed")
         return self._fd
 
-    def send(self, message: object) -> None:
-        """``message`` whole: its length and its pickle, written until every byte is."""
+    def send(self, message: object, while_blocked: Callable[[], None] | None = None) -> None:
+        """``message`` whole: its length and its pickle, written until every byte is.
+
+        On a descriptor that does not block, ``while_blocked`` is called each `BLOCKED_LOOK_S`
+        the other end takes nothing; what it raises ends the send (the message cut short: the
+        channel is then of no more use)."""
         body = pickle.dumps(message, pickle.HIGHEST_PROTOCOL)
         data = memoryview(_LENGTH.pack(len(body)) + body)
         fd = self.fileno()
         while data:
-            data = data[os.write(fd, data):]
+            try:
+                data = data[os.write(fd, data):]
+            except BlockingIOError:
+                if not _polled([fd], select.POLLOUT, BLOCKED_LOOK_S) and while_blocked is not None:
+                    while_blocked()
 
     def recv(self) -> object:
         """The next message (blocks until it has come whole)."""
@@ -53,7 +68,11 @@ class Channel:
         fd = self.fileno()
         chunks = []
         while count:
-            chunk = os.read(fd, count)
+            try:
+                chunk = os.read(fd, count)
+            except BlockingIOError:  # the rest of the message is on its way
+                _polled([fd], select.POLLIN, None)
+                continue
             if not chunk:
                 raise EOFError("the other end of the channel closed")
             chunks.append(chunk)
@@ -73,8 +92,12 @@ def readable(fds: list[int], timeout_s: float | None) -> list[int]:
     """Those of ``fds`` that can be read without blocking (or have hung up or failed), waiting
     up to ``timeout_s`` for one (None: no limit). Through poll, not select: a host program's
     descriptors may number past select's 1024."""
+    return _polled(fds, select.POLLIN, timeout_s)
+
+
+def _polled(fds: list[int], event: int, timeout_s: float | None) -> list[int]:
     poller = select.poll()
     for fd in fds:
-        poller.register(fd, select.POLLIN)
+        poller.register(fd, event)
     timeout_ms = None if timeout_s is None else max(0, int(timeout_s * 1000 + 0.999))
     return [fd for fd, _ in poller.poll(timeout_ms)]

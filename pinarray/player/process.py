@@ -18,7 +18,8 @@ Every way out stays safe:
 - the child is sent a signal: it rests the pins, releases torque and exits;
 - the child stops answering (frozen, SIGSTOP): the parent gives it until the trial's scheduled
   end and a margin (`ANSWER_MARGIN_NS`), or `STOP_BUDGET_NS` once told to stop, then kills it
-  and rests the pins through its own descriptor;
+  and rests the pins through its own descriptor; a request it takes nothing of while stopped
+  (one bigger than the socket holds) ends so at once: this end's writes do not block;
 - the parent is suspended (Ctrl-Z) while a stimulus plays or waits for its onset: the child
   cuts it, rests the pins and releases torque (`Suspended`); between stimuli the pins hold at
   rest, as they do while a script waits for anything else;
@@ -177,6 +178,10 @@ class StartCue:
 PLAYER_ENV = {"OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
+class _ChildFrozen(OSError):
+    """The child took nothing of a message and is stopped (SIGSTOP): it never will."""
+
+
 class PlayerProcess:
     """A player process driving the servos of ``bus`` through the port descriptor ``fd``.
 
@@ -233,6 +238,9 @@ class PlayerProcess:
         )
         child_end.close()
         self.conn = Channel(parent_end.detach())
+        # This end's writes do not block: a request bigger than the socket's buffer, sent to a
+        # frozen child, would otherwise wait on it for ever (and a stop with it).
+        os.set_blocking(self.conn.fileno(), False)
         let_go_in_forks(self)
         handover = bus.handover() if bus is not None else None
         self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
@@ -325,6 +333,8 @@ class PlayerProcess:
             try:
                 self._send(request(self._requests))
                 answer = self._answer(doing, due_ns)
+            except _ChildFrozen as frozen:
+                self._died(doing, hung=str(frozen))
             except OSError:
                 self._died(doing)
             finally:
@@ -340,10 +350,15 @@ class PlayerProcess:
         ``quietly``: a child already gone is left to the watch loop to notice."""
         try:
             with self._sending:
-                self.conn.send(message)
+                self.conn.send(message, while_blocked=self._taking_nothing)
         except OSError:
             if not quietly:
                 raise
+
+    def _taking_nothing(self) -> None:
+        """The child has taken nothing of a message for a while: frozen, it never will."""
+        if self._frozen():
+            raise _ChildFrozen("it was stopped (SIGSTOP) and took no more of a request: killed")
 
     def _wake(self) -> None:
         try:
