@@ -9,10 +9,10 @@ the message's pickle.
 Errors are a closed connection's: `EOFError` when the other end has closed (at a message's
 start or within it), `OSError` when this end is closed or the socket fails.
 
-Either end may set its descriptor not to block: a read then waits for the rest of its message,
-and a write that the other end takes nothing of calls its ``while_blocked`` every
+Either end may set its descriptor not to block: a write that the other end takes nothing of,
+or a read whose message stops coming part way, then calls its ``while_blocked`` every
 `BLOCKED_LOOK_S` (the parent looks there at a child that may be frozen: a message bigger than
-the socket's buffer would otherwise wait on it for ever).
+the socket's buffer would otherwise wait on it for ever, either way).
 """
 
 from __future__ import annotations
@@ -59,19 +59,24 @@ class Channel:
                 if not _polled([fd], select.POLLOUT, BLOCKED_LOOK_S) and while_blocked is not None:
                     while_blocked()
 
-    def recv(self) -> object:
-        """The next message (blocks until it has come whole)."""
-        (length,) = _LENGTH.unpack(self._read(_LENGTH.size))
-        return pickle.loads(self._read(length))
+    def recv(self, while_blocked: Callable[[], None] | None = None) -> object:
+        """The next message, once it has come whole.
 
-    def _read(self, count: int) -> bytes:
+        On a descriptor that does not block, ``while_blocked`` is called each `BLOCKED_LOOK_S`
+        nothing more of it comes; what it raises ends the read (the channel is then of no more
+        use)."""
+        (length,) = _LENGTH.unpack(self._read(_LENGTH.size, while_blocked))
+        return pickle.loads(self._read(length, while_blocked))
+
+    def _read(self, count: int, while_blocked: Callable[[], None] | None) -> bytes:
         fd = self.fileno()
         chunks = []
         while count:
             try:
                 chunk = os.read(fd, count)
-            except BlockingIOError:  # the rest of the message is on its way
-                _polled([fd], select.POLLIN, None)
+            except BlockingIOError:  # the rest of the message is on its way, or stuck
+                if not _polled([fd], select.POLLIN, BLOCKED_LOOK_S) and while_blocked is not None:
+                    while_blocked()
                 continue
             if not chunk:
                 raise EOFError("the other end of the channel closed")

@@ -243,8 +243,13 @@ class PlayerProcess:
         os.set_blocking(self.conn.fileno(), False)
         let_go_in_forks(self)
         handover = bus.handover() if bus is not None else None
-        self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
+        try:
+            self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
                              markers))
+        except _ChildFrozen as frozen:
+            self._died("starting", hung=str(frozen))
+        except OSError:
+            self._died("starting")
         ready_due_ns = self._clock.now_ns() + START_TIMEOUT_NS
         ready = self._answer("starting", lambda: ready_due_ns)
         if not isinstance(ready, Ready):
@@ -360,6 +365,11 @@ class PlayerProcess:
         if self._frozen():
             raise _ChildFrozen("it was stopped (SIGSTOP) and took no more of a request: killed")
 
+    def _sending_nothing(self) -> None:
+        """The rest of the child's answer has not come for a while: frozen, it never will."""
+        if self._frozen():
+            raise _ChildFrozen("it was stopped (SIGSTOP) part way through its answer: killed")
+
     def _wake(self) -> None:
         try:
             os.write(self._wake_write, b"!")
@@ -381,11 +391,13 @@ class PlayerProcess:
                 if self._wake_read in ready:
                     os.read(self._wake_read, 64)
                 if self.conn.fileno() in ready:
-                    answer = self.conn.recv()
+                    answer = self.conn.recv(while_blocked=self._sending_nothing)
                     if isinstance(answer, ANSWERS):
                         return answer
                     self.process.kill()  # a child that says what no child says: not ours
                     self._died(f"{doing} (it answered {answer!r})")
+            except _ChildFrozen as frozen:
+                self._died(doing, hung=str(frozen))
             except (EOFError, OSError):
                 self._died(doing)
             if self.stop.requested and self._working and not self._stop_sent:

@@ -15,6 +15,7 @@ from pinarray.clock import MonotonicClock
 from pinarray.hardware.feetech.faults import SimConfig
 from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.hardware.feetech.transport import open_bus
+from pinarray.player.child import process_state
 from pinarray.player.playback import OnsetAt, OnsetPassed, prepare_trial
 from pinarray.player.process import PlayerDied, PlayerProcess, StartCue
 from pinarray.stop import Stopped, StopRequest
@@ -287,3 +288,41 @@ def test_a_stop_signal_taken_by_another_thread_wakes_the_player_waiting_between_
         with SignalFromAnotherThread(lambda: parent_end.send("a request")) as signalled:
             clock.wait_for_request()
     assert not signalled.slept_through, "the player slept through the signal until its parent wrote"
+
+
+def test_a_player_process_frozen_part_way_through_a_long_answer_is_killed_not_waited_on():
+    # An answer bigger than the socket between them (here 400 000 wake-ups measured, some
+    # 2 MB; a stimulus of minutes gives one) comes in pieces. A player stopped (SIGSTOP) once
+    # its first piece has come never sends the rest: the parent waited on it for ever.
+    player = PlayerProcess(None, None, StopRequest(), realtime=False)
+    child = player.process.pid
+    read = player.conn._read
+
+    def frozen_after_the_length(count, *how):
+        data = read(count, *how)
+        if count == 8:  # the answer's length: the child is writing the rest
+            os.kill(child, signal.SIGSTOP)
+            while process_state(child) not in ("T", "t"):
+                time.sleep(0.001)
+        return data
+
+    player.conn._read = frozen_after_the_length
+    outcome = {}
+
+    def measure():
+        try:
+            outcome["lateness"] = player.measure_wake_ups(100_000_000, 250)
+        except PlayerDied as died:
+            outcome["error"] = died
+
+    measuring = threading.Thread(target=measure, daemon=True)
+    measuring.start()
+    measuring.join(timeout=60)
+    hung = measuring.is_alive()
+    if hung:
+        os.kill(child, signal.SIGKILL)  # ends the read that waits on it, and so this test
+        measuring.join(timeout=30)
+    player.close()
+    assert not hung, "the parent waited for the rest of a frozen player's answer for ever"
+    assert "SIGSTOP" in str(outcome.get("error")) and "killed" in str(outcome["error"]), outcome
+    assert player.process.poll() is not None  # killed, not left stopped
