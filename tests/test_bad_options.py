@@ -251,3 +251,20 @@ def test_numbers_a_list_repeats_skips_or_writes_in_other_digits_are_refused(opti
                                                                               expected):
     status, err = run(["power", DEMO, option, value])
     assert status == 2 and err.splitlines()[-1].endswith(expected)
+
+
+@pytest.mark.parametrize(("options", "said"), [
+    (["--port", "/nowhere/ttyUSB9"], "--port /nowhere/ttyUSB9: no such device (is the adapter plugged in?)"),
+    (["--port", "/etc/passwd"], "--port /etc/passwd: not a serial device"),
+    (["--port", "."], "--port .: not a serial device"),
+    (["--sim", "bogus://"], "--sim expects a sim:// URL, found 'bogus://'"),
+    (["--results", DEMO], f"{DEMO}: cannot write there: it is a file, expected a folder"),
+    (["--results", f"{DEMO}/results"], f"cannot write there: {DEMO} is a file, not a folder"),
+])
+def test_the_ui_refuses_a_port_simulator_or_results_folder_that_cannot_work_before_it_opens(
+        tmp_path, options, said):
+    # As `play` does: one line and exit status 2, not a start screen whose Connect fails.
+    done = pinarray_forked(tmp_path / "out", "tui", DEMO, *options, timeout=60)
+    assert done.returncode == 2 and done.stdout == ""
+    (line,) = done.stderr.splitlines()
+    assert line.startswith("pinarray: ") and said in line, line

@@ -137,6 +137,31 @@ def add_bus_choice(parser: argparse.ArgumentParser, simulated_by_default: bool =
     )
 
 
+def check_bus_choice(args: argparse.Namespace) -> None:
+    """Refuse, before anything loads, a --port or --sim that names no bus: a path that does not
+    exist or is not a device (a pyserial URL such as ``socket://`` is left to opening, as is a
+    device that is not a serial port: /dev/null), or a --sim that is not a sim:// URL."""
+    import os
+    import stat
+
+    from pinarray.errors import PinArrayError
+
+    if args.sim is not None and not is_sim_url(args.sim):
+        raise PinArrayError(f"--sim expects a sim:// URL, found {args.sim!r}")
+    if not args.port or "://" in args.port:
+        return
+    try:
+        mode = os.stat(args.port).st_mode
+    except FileNotFoundError:
+        raise PinArrayError(f"--port {args.port}: no such device (is the adapter plugged in?)"
+                            ) from None
+    except OSError as error:
+        raise PinArrayError(f"--port {args.port}: {error.strerror}") from None
+    if not stat.S_ISCHR(mode):
+        raise PinArrayError(f"--port {args.port}: not a serial device, expected one such as "
+                            "/dev/ttyUSB0")
+
+
 def chosen_bus(args: argparse.Namespace, command: str,
                servo_ids: tuple[int, ...] | None = None) -> str:
     """The servos a command that changes or inspects them opens: ``--port``, or ``--sim``

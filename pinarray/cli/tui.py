@@ -68,6 +68,11 @@ def _cmd_tui(args: argparse.Namespace) -> int:
 
     if args.file and not Path(args.file).is_file():
         raise PinArrayError(f"{args.file}: no such protocol file")
+    # What can never work is refused here, not on a screen the experimenter has to leave.
+    from pinarray.cli.bus import check_bus_choice
+
+    check_bus_choice(args)
+    common.check_output_folder(args.results, ())
     choose_clock(args.port, args.time_scale, sim_url=args.sim)  # refuses --speed up front
     # with real servos, and with a simulated board kept in a state file
     from pinarray.protocol.imaging import EmulatedTrigger, SyncOverrides
