@@ -173,6 +173,40 @@ array.close()
 """
 
 
+FORKED_CALLS_SCRIPT = """\
+import os, sys
+import pinarray
+
+protocol = pinarray.load_protocol(sys.argv[1])
+condition = pinarray.find_condition(protocol, pin=6)
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    if os.fork() == 0:
+        for call in (array.present, array.arm):
+            try:
+                call(condition)
+                print("the copy played", flush=True)
+            except pinarray.PinArrayError as error:
+                print(type(error).__name__, error, flush=True)
+        os._exit(0)
+    os.wait()
+    print(array.present(condition).delivered, flush=True)
+"""
+
+
+@realtime
+def test_a_forked_copy_that_presents_or_arms_is_refused_in_words_and_the_script_plays_on(
+        tmp_path):
+    # The copy's player seemed dead to it (not its child): it started another on a port it
+    # had let go of, and said the port was lost.
+    with script_on_a_port(tmp_path, FORKED_CALLS_SCRIPT, buzz(tmp_path, 0.4)) as (process, server):
+        out, err = process.communicate(timeout=120)
+        assert process.returncode == 0, err
+        refused = ("PinArrayError this process is a forked copy of the one that opened the array: "
+                   "only that one plays on it")
+        assert out.splitlines() == [refused, refused, "True"], out
+        assert at_rest_and_released(server.sim.servos) == []
+
+
 @realtime
 def test_a_forked_copy_that_ends_leaves_the_scripts_stimulus_and_array_alone(tmp_path):
     protocol = buzz(tmp_path, 1)

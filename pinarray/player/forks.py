@@ -18,7 +18,11 @@ from typing import Protocol
 
 from pinarray.hardware.port_lock import blank_descriptors
 
-__all__ = ["blank_descriptors", "let_go_in_forks"]
+__all__ = ["FORKED_COPY", "blank_descriptors", "let_go_in_forks"]
+
+# Why a forked copy is refused what only the original may do.
+FORKED_COPY = ("this process is a forked copy of the one that opened the array: only that one "
+               "plays on it")
 
 
 class LetsGoInForks(Protocol):

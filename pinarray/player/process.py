@@ -55,7 +55,7 @@ from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.channel import Channel, readable
 from pinarray.player.child import REALTIME_PRIORITY, process_state
-from pinarray.player.forks import blank_descriptors, let_go_in_forks
+from pinarray.player.forks import FORKED_COPY, blank_descriptors, let_go_in_forks
 from pinarray.player.markers import Announcers, TrialMarkers
 from pinarray.player.messages import (
     ANSWERS,
@@ -329,8 +329,7 @@ class PlayerProcess:
         """Send a numbered request and wait for its answer, due by ``due_ns()`` at the latest
         (None: not yet known); a stop ends it with `Stopped`."""
         if self._forked_away:
-            raise PinArrayError("this process is a forked copy of the one that opened the "
-                                "array: only that one plays on it")
+            raise PinArrayError(FORKED_COPY)
         with self._one_at_a_time:
             self._requests += 1
             self._working = self._requests

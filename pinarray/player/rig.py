@@ -33,7 +33,7 @@ from pinarray.hardware.delivery import PreparedTrial, Presentation
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport, Telemetry
 from pinarray.hardware.port_lock import PortLock, hold_port
 from pinarray.player.families import board_refusals, open_array
-from pinarray.player.forks import blank_descriptors, let_go_in_forks
+from pinarray.player.forks import FORKED_COPY, blank_descriptors, let_go_in_forks
 from pinarray.player.markers import Announcer, Announcers, TrialMarkers
 from pinarray.player.playback import (
     SOON,
@@ -273,6 +273,8 @@ class Rig:
         released it, the driver turns it back on: `ArrayDriver.reconnect`, on bus servos a
         few exchanges of the whole bus, the handshake only where they fall short). `present`
         does this first; `PinArray.arm` before it returns, its onset checked."""
+        if self._forked_away:  # its player would seem dead, and a new one find no port
+            raise PinArrayError(FORKED_COPY)
         with self._port:
             if self.player is not None and not self.player.alive:
                 # Started again before torque can come back on, so that it guards it. (A
