@@ -98,7 +98,7 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     say(f"{len(found)} board(s) answer on {link.name}"
         + ("" if found else ": check power, SDA/SCL and pull-ups; `i2cdetect -y N` lists "
            "every device on bus N"))
-    return 0 if found else 3
+    return 0 if found else 2  # as `servos scan` finding no servo: 3 is a stimulus not delivered
 
 
 class _PwmJogger(JogDialogue):
