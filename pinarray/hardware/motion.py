@@ -33,6 +33,7 @@ from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from itertools import pairwise
 from typing import TYPE_CHECKING
 
 from pinarray.hardware.delivery import Change
@@ -253,7 +254,7 @@ def _peak_to_peak(times: list[int], positions: list[int], start_ns: int,
     if last - first < MIN_SAMPLES_PER_CYCLE:
         return None
     edges = [start_ns, *times[first:last], stop_ns]
-    if max(b - a for a, b in zip(edges, edges[1:])) > (stop_ns - start_ns) * MAX_GAP_FRACTION:
+    if max(b - a for a, b in pairwise(edges)) > (stop_ns - start_ns) * MAX_GAP_FRACTION:
         return None
     window = positions[first:last]
     return max(window) - min(window)

@@ -193,7 +193,8 @@ class PlaybackReport:
     @cached_property
     def errors_ns(self) -> np.ndarray:
         """How late each frame's write returned, in ns (int64)."""
-        return self.sent_ns - self.scheduled_ns
+        errors: np.ndarray = self.sent_ns - self.scheduled_ns
+        return errors
 
     @cached_property
     def trace(self) -> tuple[PinTrace, ...]:

@@ -42,7 +42,7 @@ from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTr
 from pinarray.hardware.feetech.base import GoalReading, ReadBackBus
 from pinarray.hardware.feetech.packets import READ_REQUEST_BYTES
 from pinarray.hardware.feetech.registers import StatusError
-from pinarray.hardware.motion import PinSamples
+from pinarray.hardware.motion import PinSamples, Samples
 from pinarray.hardware.sampling import Holds
 
 # The moving pins' positions are sampled at most this often (250 Hz per moving servo): a horn
@@ -308,7 +308,7 @@ class Verifier:
                 self.ledger.confirm(index, rewritten_ns - change.time_ns, healed=True)
         return all(self._write_again(servo_id, limit_ns) for servo_id in lost)
 
-    def trace(self) -> tuple[PinSamples, ...]:
+    def trace(self) -> tuple[Samples, ...]:
         """The moving pins' samples so far (copies; no numpy: the player process has none)."""
         pins = self.trial.pin_of_servo
         return tuple(
