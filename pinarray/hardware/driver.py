@@ -43,7 +43,7 @@ if TYPE_CHECKING:
 
     from pinarray.clock import Clock
     from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTrial
-    from pinarray.hardware.motion import PinTrace
+    from pinarray.hardware.motion import Samples
 
 
 class PortLost(BusError):
@@ -210,8 +210,9 @@ class FrameVerifier(Protocol):
         ``limit_ns`` (a family whose servos cannot say does nothing)."""
         ...
 
-    def trace(self) -> tuple[PinTrace, ...]:
-        """The moving pins' samples so far (empty where the servos cannot say)."""
+    def trace(self) -> tuple[Samples, ...]:
+        """The moving pins' samples so far (empty where the servos cannot say): a family used
+        by the player process keeps them without numpy (`PinSamples`)."""
         ...
 
 

@@ -28,16 +28,19 @@ specified (`TrialStrokes.problem`), as a pin that fell short does, unless the to
 
 from __future__ import annotations
 
+from array import array
+from bisect import bisect_left
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
+from itertools import pairwise
 from typing import TYPE_CHECKING
 
 from pinarray.hardware.delivery import Change
 
-# numpy is imported where samples are measured (the arrays measured are numpy's: it is loaded
-# by then), not here: the bring-up commands import the Feetech bus, which names `PinTrace`,
-# and need no numpy (some 90 ms of processor at each start).
+# No numpy here: strokes are measured in the player process, which never imports it (some
+# 100 ms of processor at each start), nor do the bring-up commands, which name `PinTrace`.
+# `PinTrace.of` and `goal_at`, for the numpy world, import it where they need it.
 if TYPE_CHECKING:
     import numpy as np
 
@@ -69,6 +72,35 @@ class PinTrace:
     servo_id: int
     time_ns: np.ndarray
     position_steps: np.ndarray
+
+    @classmethod
+    def of(cls, samples: PinSamples) -> PinTrace:
+        """The samples a player kept, as numpy arrays (int64 and int32, copies)."""
+        import numpy as np
+
+        return cls(samples.pin, samples.servo_id,
+                   np.frombuffer(samples.time_ns, dtype=np.int64).copy(),
+                   np.frombuffer(samples.position_steps, dtype=np.int32).copy())
+
+
+@dataclass(frozen=True, eq=False)
+class PinSamples:
+    """One servo's sampled positions as a verifier keeps them: `PinTrace`'s columns without
+    numpy (the player process imports none); `PinTrace.of` turns them into one.
+
+    ``time_ns`` is an ``array('q')`` of ns after onset (rising), ``position_steps`` an
+    ``array('i')`` of steps.
+    """
+
+    pin: int
+    servo_id: int
+    time_ns: array
+    position_steps: array
+
+
+# What a verifier hands over: numpy's arrays (the simulator computes its samples with it) or
+# the player's own.
+Samples = PinTrace | PinSamples
 
 
 @dataclass(frozen=True)
@@ -150,13 +182,13 @@ class TrialStrokes:
                 "(pinarray servos return-delay) or a faster baud rate leave room for them")
 
 
-def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
+def measure_pin(trace: Samples, goals: Sequence[tuple[int, int]], end_ns: int,
                 tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> PinStroke:
     """One pin's stroke, lag and short cycles from its samples and its goal changes.
 
     Parameters
     ----------
-    trace : PinTrace
+    trace : PinTrace or PinSamples
         The pin's samples.
     goals : sequence of (time_ns, goal_steps)
         The pin's goal changes in the trial, in time order (ns after onset).
@@ -167,7 +199,8 @@ def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
     """
     values = [goal for _, goal in goals]
     commanded = max(values) - min(values) if values else 0
-    times, positions = trace.time_ns, trace.position_steps
+    times: list[int] = trace.time_ns.tolist()
+    positions: list[int] = trace.position_steps.tolist()
     starts = [time_ns for k, (time_ns, goal) in enumerate(goals)
               if goal > (goals[k - 1][1] if k else min(values))]
     peaks: list[int] = []
@@ -181,13 +214,11 @@ def measure_pin(trace: PinTrace, goals: Sequence[tuple[int, int]], end_ns: int,
     if not peaks:
         return PinStroke(trace.pin, commanded, None, None, lag_ns, 0, 0, unmeasured)
     short = sum(1 for peak in peaks if commanded and Fraction(peak, commanded) < tolerance)
-    import numpy as np
-
-    return PinStroke(trace.pin, commanded, min(peaks), float(np.median(peaks)), lag_ns,
-                     len(peaks), short, unmeasured)
+    return PinStroke(trace.pin, commanded, min(peaks), median(peaks), lag_ns, len(peaks), short,
+                     unmeasured)
 
 
-def measure_trial(traces: Sequence[PinTrace], changes: Sequence[Change], end_ns: int,
+def measure_trial(traces: Sequence[Samples], changes: Sequence[Change], end_ns: int,
                   tolerance: Fraction = DEFAULT_STROKE_TOLERANCE) -> TrialStrokes:
     """Every sampled pin of a trial measured against its goal changes (`measure_pin`)."""
     pins = []
@@ -195,6 +226,16 @@ def measure_trial(traces: Sequence[PinTrace], changes: Sequence[Change], end_ns:
         goals = [(c.time_ns, c.goal_steps) for c in changes if c.servo_id == trace.servo_id]
         pins.append(measure_pin(trace, goals, end_ns, tolerance))
     return TrialStrokes(tuple(pins), tolerance)
+
+
+def median(values: Sequence[int]) -> float:
+    """``float(numpy.median(values))`` of integers (at least one), exactly: the middle one, or
+    the two middle ones each made a float, added and halved, as numpy's mean does."""
+    ordered = sorted(values)
+    middle = len(ordered) // 2
+    if len(ordered) % 2:
+        return float(ordered[middle])
+    return (float(ordered[middle - 1]) + float(ordered[middle])) / 2
 
 
 def goal_at(goals: Sequence[tuple[int, int]], time_ns: np.ndarray) -> np.ndarray:
@@ -206,37 +247,32 @@ def goal_at(goals: Sequence[tuple[int, int]], time_ns: np.ndarray) -> np.ndarray
     return value[np.searchsorted(change_ns, time_ns, side="right")]
 
 
-def _peak_to_peak(times: np.ndarray, positions: np.ndarray, start_ns: int,
+def _peak_to_peak(times: list[int], positions: list[int], start_ns: int,
                   stop_ns: int) -> int | None:
     """The cycle's peak-to-peak in steps; None when its samples are too few or too sparse."""
-    import numpy as np
-
-    first, last = np.searchsorted(times, [start_ns, stop_ns])
+    first, last = bisect_left(times, start_ns), bisect_left(times, stop_ns)
     if last - first < MIN_SAMPLES_PER_CYCLE:
         return None
-    edges = np.concatenate(([start_ns], times[first:last], [stop_ns]))
-    if int(np.diff(edges).max()) > (stop_ns - start_ns) * MAX_GAP_FRACTION:
+    edges = [start_ns, *times[first:last], stop_ns]
+    if max(b - a for a, b in pairwise(edges)) > (stop_ns - start_ns) * MAX_GAP_FRACTION:
         return None
     window = positions[first:last]
-    return int(window.max()) - int(window.min())
+    return max(window) - min(window)
 
 
-def _median_lag(times: np.ndarray, positions: np.ndarray, goals: Sequence[tuple[int, int]],
+def _median_lag(times: list[int], positions: list[int], goals: Sequence[tuple[int, int]],
                 end_ns: int) -> int | None:
     """Median time from a goal change to the first sample within `ARRIVAL_STEPS` of it,
     before the pin's next change, a change the pin never reached counting as longer than any;
     None when it reached half of them or fewer (a median of those it reached would flatter a
     servo that mostly turns back early)."""
-    import numpy as np
-
     lags = []
     for k, (time_ns, goal) in enumerate(goals):
         until_ns = goals[k + 1][0] if k + 1 < len(goals) else end_ns
-        first, last = np.searchsorted(times, [time_ns, until_ns])
-        near = np.flatnonzero(np.abs(positions[first:last].astype(np.int64) - goal)
-                              <= ARRIVAL_STEPS)
-        if len(near):
-            lags.append(int(times[first + near[0]]) - time_ns)
+        near = next((i for i in range(bisect_left(times, time_ns), bisect_left(times, until_ns))
+                     if abs(positions[i] - goal) <= ARRIVAL_STEPS), None)
+        if near is not None:
+            lags.append(times[near] - time_ns)
     lags.sort()
     # The unreached changes sort after every reached one: the median of all the changes is
     # known only while its middle falls among the reached ones.

@@ -299,9 +299,10 @@ def _working(clock: ControlledClock, number: int, work: Callable[[], Answer]) ->
 
 
 def load_playback() -> None:
-    """Load playback (and numpy with it) in a player given servos, before it answers
-    `Ready`; a player that only measures wake-ups (a timing check's) never needs them, some
-    90 ms of processor as it starts."""
+    """Load playback in a player given servos, before it answers `Ready`; a player that only
+    measures wake-ups (a timing check's) never needs it. No numpy comes with it, nor while a
+    trial plays (`pinarray.player.playback`): a tenth of a second of processor at every start
+    of a player process (bench_startup)."""
     import pinarray.player.playback  # noqa: F401
 
 

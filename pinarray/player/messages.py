@@ -12,7 +12,7 @@ from pinarray.hardware.delivery import PreparedTrial
 from pinarray.hardware.driver import Handover, SafeStopReport
 from pinarray.player.markers import Announcers, TrialMarkers
 
-if TYPE_CHECKING:  # names in annotations only: a player that only measures wake-ups loads no numpy
+if TYPE_CHECKING:  # names in annotations only: a player that only measures wake-ups loads no playback
     from fractions import Fraction
 
     from pinarray.player.playback import Onset, PlaybackReport

@@ -32,10 +32,10 @@ import gc
 from array import array
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from fractions import Fraction
-
-import numpy as np
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 from pinarray.clock import Clock
 from pinarray.errors import BusError, Interrupted, PinArrayError
@@ -53,15 +53,20 @@ from pinarray.hardware.driver import (
     Telemetry,
 )
 from pinarray.hardware.frames import check_limits
-from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE, PinTrace, measure_trial
+from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE, PinTrace, Samples, measure_trial
 from pinarray.player.markers import Announcer, MarkerPush, TrialMarkers
-from pinarray.schedule import PulseList, TargetList
+
+# No numpy at import, nor while a trial plays: the player process plays trials and never
+# imports it (some 100 ms of processor at each of its starts). A report's frame times and
+# samples are kept as the player keeps them and become numpy arrays where they are read
+# (`PlaybackReport.sent_ns`, ...): in the process that asked for the trial.
+if TYPE_CHECKING:
+    import numpy as np
+
+    from pinarray.schedule import PulseList, TargetList
 
 __all__ = ["SOON", "Onset", "OnsetAfter", "OnsetAt", "Suspended", "check_limits", "play_prepared",
            "play_trial", "prepare_trial"]
-
-NO_PULSES = PulseList(np.zeros(0, dtype=np.int16), np.zeros(0, dtype=np.int64),
-                      np.zeros(0, dtype=np.int64))
 
 # Time between "go" and the first frame, so frame 0 is not late by construction.
 DEFAULT_LEAD_NS = 20_000_000
@@ -134,9 +139,10 @@ class PlaybackReport:
     ----------
     onset_ns : int
         Clock time of the trial's time zero, in nanoseconds.
-    scheduled_ns, sent_ns : numpy.ndarray
+    due_ns, written_ns : array.array
         Per frame, when it was due and when its write returned, both relative to onset, in
-        nanoseconds (int64): the sender's view; the bench measures the servo's.
+        nanoseconds (``array('q')``, as the player keeps them): the sender's view; the bench
+        measures the servo's. `scheduled_ns` and `sent_ns` are the same as numpy arrays.
     goals_written : int
         Servo goals sent by the frames (a frame carries only the servos whose goal changed).
     bytes_written, bytes_read : int
@@ -154,13 +160,14 @@ class PlaybackReport:
     marker_problem : str
         Empty unless a marker asked for could not be sent: what went wrong (the trial is
         played all the same).
-    trace : tuple of PinTrace
-        The moving pins' sampled positions (empty: not sampled, or the servos cannot say).
+    samples : tuple of PinTrace or PinSamples
+        The moving pins' sampled positions as the verifier kept them (empty: not sampled, or
+        the servos cannot say); `trace` is the same as numpy arrays.
     """
 
     onset_ns: int
-    scheduled_ns: np.ndarray
-    sent_ns: np.ndarray
+    due_ns: array
+    written_ns: array
     goals_written: int
     bytes_written: int
     bytes_read: int
@@ -170,15 +177,33 @@ class PlaybackReport:
     safe_stop: SafeStopReport | None = None
     markers_sent: int = 0
     marker_problem: str = ""
-    trace: tuple[PinTrace, ...] = ()
-    errors_ns: np.ndarray = field(init=False)
+    samples: tuple[Samples, ...] = ()
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "errors_ns", self.sent_ns - self.scheduled_ns)
+    # The numpy views of the columns, made once where first read (never in the player process).
+    @cached_property
+    def scheduled_ns(self) -> np.ndarray:
+        """When each frame was due, ns after onset (int64)."""
+        return _int64s(self.due_ns)
+
+    @cached_property
+    def sent_ns(self) -> np.ndarray:
+        """When each frame's write returned, ns after onset (int64)."""
+        return _int64s(self.written_ns)
+
+    @cached_property
+    def errors_ns(self) -> np.ndarray:
+        """How late each frame's write returned, in ns (int64)."""
+        errors: np.ndarray = self.sent_ns - self.scheduled_ns
+        return errors
+
+    @cached_property
+    def trace(self) -> tuple[PinTrace, ...]:
+        """The moving pins' sampled positions as numpy arrays (see `samples`)."""
+        return tuple(t if isinstance(t, PinTrace) else PinTrace.of(t) for t in self.samples)
 
     @property
     def frames_sent(self) -> int:
-        return len(self.sent_ns)
+        return len(self.written_ns)
 
     @property
     def bytes_on_wire(self) -> int:
@@ -188,9 +213,11 @@ class PlaybackReport:
     def merged(cls, reports: list[PlaybackReport]) -> PlaybackReport:
         """Several trials as one report (frame times stay relative to each trial's onset)."""
 
-        def joined(name: str) -> np.ndarray:
-            arrays = [getattr(r, name) for r in reports]
-            return np.concatenate(arrays) if arrays else np.zeros(0, dtype=np.int64)
+        def joined(name: str) -> array:
+            column = array("q")
+            for report in reports:
+                column.extend(getattr(report, name))
+            return column
 
         records = [r.delivery for r in reports]
         delivery = DeliveryRecord(
@@ -204,8 +231,8 @@ class PlaybackReport:
         )
         return cls(
             onset_ns=reports[0].onset_ns if reports else 0,
-            scheduled_ns=joined("scheduled_ns"),
-            sent_ns=joined("sent_ns"),
+            due_ns=joined("due_ns"),
+            written_ns=joined("written_ns"),
             goals_written=sum(r.goals_written for r in reports),
             bytes_written=sum(r.bytes_written for r in reports),
             bytes_read=sum(r.bytes_read for r in reports),
@@ -220,6 +247,8 @@ class PlaybackReport:
         """Lateness of the frames' writes at ``percentile`` (0-100), in nanoseconds."""
         if not len(self.errors_ns):
             return 0
+        import numpy as np
+
         return int(np.percentile(self.errors_ns, percentile, method="higher"))
 
     def summary(self) -> str:
@@ -239,7 +268,23 @@ def prepare_trial(bus: ArrayDriver, targets: TargetList,
     Without ``pulses`` (a bare list of goal changes), a family that places pulses plays
     every change at its own pulse rate.
     """
-    return bus.prepare(targets, pulses if pulses is not None else NO_PULSES)
+    return bus.prepare(targets, pulses if pulses is not None else _no_pulses())
+
+
+def _no_pulses() -> PulseList:
+    import numpy as np
+
+    from pinarray.schedule import PulseList
+
+    return PulseList(np.zeros(0, dtype=np.int16), np.zeros(0, dtype=np.int64),
+                     np.zeros(0, dtype=np.int64))
+
+
+def _int64s(column: array) -> np.ndarray:
+    """An ``array('q')`` as a numpy array of its own."""
+    import numpy as np
+
+    return np.frombuffer(column, dtype=np.int64).copy()
 
 
 @contextmanager
@@ -317,7 +362,7 @@ def play_prepared(
     setup = bus.setup
     frames = trial.frames
     count = len(frames)
-    scheduled = np.fromiter((f.time_ns for f in frames), dtype=np.int64, count=count)
+    scheduled = array("q", [f.time_ns for f in frames])
     sent = array("q", bytes(8 * count))
     ledger = DeliveryLedger(trial.changes, tolerance_ns)
     push = MarkerPush(announcer, markers) if announcer is not None and markers is not None else None
@@ -377,8 +422,8 @@ def play_prepared(
     after = bus.stats()
     return PlaybackReport(
         onset_ns=onset_ns,
-        scheduled_ns=scheduled,
-        sent_ns=np.frombuffer(sent, dtype=np.int64).copy(),
+        due_ns=scheduled,
+        written_ns=sent,
         goals_written=after.goals_written - before.goals_written,
         bytes_written=after.bytes_written - before.bytes_written,
         bytes_read=after.bytes_read - before.bytes_read,
@@ -389,7 +434,7 @@ def play_prepared(
         safe_stop=safe_stop,
         markers_sent=push.sent if push is not None else 0,
         marker_problem=push.problem if push is not None else "",
-        trace=trace,
+        samples=trace,
     )
 
 

@@ -1,5 +1,6 @@
 """What the pins did, measured from their samples: stroke, lag and short cycles on known traces."""
 
+from array import array
 from fractions import Fraction
 
 import numpy as np
@@ -7,7 +8,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pinarray.hardware.delivery import Change, DeliveryLedger
-from pinarray.hardware.motion import PinTrace, TrialStrokes, measure_pin, measure_trial
+from pinarray.hardware.motion import (
+    ARRIVAL_STEPS,
+    MAX_GAP_FRACTION,
+    MIN_SAMPLES_PER_CYCLE,
+    PinSamples,
+    PinTrace,
+    TrialStrokes,
+    measure_pin,
+    measure_trial,
+    median,
+)
 
 MS = 1_000_000
 DOWN, UP = 2048, 2162
@@ -134,3 +145,78 @@ def test_a_stroke_tolerance_of_0_checks_no_stroke_so_no_cycle_unmeasured_matters
     assert unmeasured.unmeasured_cycles == 5
     assert TrialStrokes((unmeasured,), Fraction(0)).problem() == ""
     assert TrialStrokes((unmeasured,), Fraction(1, 100)).problem() != ""
+
+
+# numpy's measure, as the player measured strokes before it went without numpy: the reference
+# the pure-Python measure must equal exactly (median_steps a float, bit for bit).
+def numpy_peak_to_peak(times, positions, start_ns, stop_ns):
+    first, last = np.searchsorted(times, [start_ns, stop_ns])
+    if last - first < MIN_SAMPLES_PER_CYCLE:
+        return None
+    edges = np.concatenate(([start_ns], times[first:last], [stop_ns]))
+    if int(np.diff(edges).max()) > (stop_ns - start_ns) * MAX_GAP_FRACTION:
+        return None
+    window = positions[first:last]
+    return int(window.max()) - int(window.min())
+
+
+def numpy_lags(times, positions, goals, end_ns):
+    lags = []
+    for k, (time_ns, goal) in enumerate(goals):
+        until_ns = goals[k + 1][0] if k + 1 < len(goals) else end_ns
+        first, last = np.searchsorted(times, [time_ns, until_ns])
+        near = np.flatnonzero(np.abs(positions[first:last].astype(np.int64) - goal)
+                              <= ARRIVAL_STEPS)
+        if len(near):
+            lags.append(int(times[first + near[0]]) - time_ns)
+    return sorted(lags)
+
+
+@st.composite
+def sampled_pins(draw):
+    """A pin's goal changes and its samples: any times and positions a servo could report."""
+    end_ns = draw(st.integers(10 * MS, 2_000 * MS))
+    change_ns = sorted(draw(st.sets(st.integers(0, end_ns - 1), min_size=1, max_size=12)))
+    goals = [(t, draw(st.sampled_from([2048, 2162, draw(st.integers(0, 4095))])))
+             for t in change_ns]
+    if draw(st.booleans()):  # scattered
+        sample_ns = sorted(draw(st.sets(st.integers(0, end_ns - 1), max_size=200)))
+    else:  # every so often, some missed (as a busy bus does), so that cycles are measured
+        every_ns = end_ns // draw(st.integers(20, 400))
+        sample_ns = [t for t in range(draw(st.integers(0, every_ns)), end_ns, every_ns)
+                     if draw(st.integers(0, 20))]
+    near_goal = st.sampled_from([g for _, g in goals]).flatmap(
+        lambda g: st.integers(g - 2 * ARRIVAL_STEPS, g + 2 * ARRIVAL_STEPS))
+    positions = [draw(st.one_of(st.integers(-32767, 32767), near_goal)) for _ in sample_ns]
+    return goals, np.array(sample_ns, dtype=np.int64), np.array(positions, dtype=np.int32), end_ns
+
+
+@settings(max_examples=300)
+@given(sampled_pins())
+def test_the_stroke_measured_without_numpy_is_numpys_exactly(pin):
+    goals, times, positions, end_ns = pin
+    values = [g for _, g in goals]
+    starts = [t for k, (t, g) in enumerate(goals) if g > (goals[k - 1][1] if k else min(values))]
+    stops = [*starts[1:], end_ns] if starts else []
+    peaks = [p for p in (numpy_peak_to_peak(times, positions, a, b)
+                         for a, b in zip(starts, stops, strict=True)) if p is not None]
+    lags = numpy_lags(times, positions, goals, end_ns)
+    low, high = (len(goals) - 1) // 2, len(goals) // 2
+
+    for trace in (PinTrace(3, 3, times, positions),
+                  PinSamples(3, 3, array("q", times.tolist()), array("i", positions.tolist()))):
+        stroke = measure_pin(trace, goals, end_ns)
+        assert stroke.cycles == len(peaks) and stroke.unmeasured_cycles == len(starts) - len(peaks)
+        assert stroke.achieved_steps == (min(peaks) if peaks else None)
+        if peaks:
+            numpys = float(np.median(peaks))
+            assert stroke.median_steps == numpys and repr(stroke.median_steps) == repr(numpys)
+        else:
+            assert stroke.median_steps is None
+        assert stroke.lag_ns == ((lags[low] + lags[high]) // 2 if high < len(lags) else None)
+
+
+@given(st.lists(st.integers(-(2**53), 2**53), min_size=1, max_size=40))
+def test_the_median_of_integers_is_numpys_bit_for_bit(values):
+    numpys = float(np.median(np.array(values, dtype=np.int64)))
+    assert median(values).hex() == numpys.hex()

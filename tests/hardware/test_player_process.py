@@ -60,7 +60,12 @@ def connected(server, ids=IDS):
     return bus, PlayerProcess(bus, bus.link.wire.fd, StopRequest())
 
 
-def test_a_trial_played_in_the_player_process_is_verified_and_ends_at_rest(server):
+def maps_numpy(pid: int) -> bool:
+    """Whether process ``pid`` has numpy's compiled core mapped: it imported numpy."""
+    return "numpy" in Path(f"/proc/{pid}/maps").read_text()
+
+
+def test_a_trial_played_in_the_player_process_is_verified_ends_at_rest_and_loads_no_numpy(server):
     bus, player = connected(server)
     try:
         # A tolerance no scheduler hiccup reaches, and no stroke checked (a starved simulator
@@ -69,8 +74,16 @@ def test_a_trial_played_in_the_player_process_is_verified_and_ends_at_rest(serve
         # 250 ms to confirm each frame's goals before the next.
         report = player.play(prepare_trial(bus, pulse_train(IDS, 2, 3)), tolerance_ns=10**9,
                              stroke_tolerance=Fraction(0))
+        # The player process has played, sampled and measured a trial, and waits for the next:
+        # numpy (a tenth of a second of its start-up) never came in; the report's arrays are
+        # this process's.
+        in_player = maps_numpy(player.process.pid)
     finally:
         player.close()
+    assert maps_numpy(os.getpid())  # the maps are read right: this process did import numpy
+    assert not in_player
+    assert report.trace and all(len(t.time_ns) == len(t.position_steps) for t in report.trace)
+    assert report.sent_ns.dtype == report.scheduled_ns.dtype == "int64"
     assert report.frames_sent == 6
     assert report.delivery.scheduled == 24 and report.delivery.delivered
     assert report.delivery.confirmed + report.delivery.healed == 24

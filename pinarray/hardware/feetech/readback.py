@@ -42,7 +42,7 @@ from pinarray.hardware.delivery import DeliveryLedger, PreparedFrame, PreparedTr
 from pinarray.hardware.feetech.base import GoalReading, ReadBackBus
 from pinarray.hardware.feetech.packets import READ_REQUEST_BYTES
 from pinarray.hardware.feetech.registers import StatusError
-from pinarray.hardware.motion import PinTrace
+from pinarray.hardware.motion import PinSamples, Samples
 from pinarray.hardware.sampling import Holds
 
 # The moving pins' positions are sampled at most this often (250 Hz per moving servo): a horn
@@ -308,15 +308,12 @@ class Verifier:
                 self.ledger.confirm(index, rewritten_ns - change.time_ns, healed=True)
         return all(self._write_again(servo_id, limit_ns) for servo_id in lost)
 
-    def trace(self) -> tuple[PinTrace, ...]:
-        """The moving pins' samples so far."""
-        import numpy as np  # here: the bring-up commands open this bus and need no numpy
-
+    def trace(self) -> tuple[Samples, ...]:
+        """The moving pins' samples so far (copies; no numpy: the player process has none)."""
         pins = self.trial.pin_of_servo
         return tuple(
-            PinTrace(pins.get(servo_id, servo_id), servo_id,
-                     np.frombuffer(self._sampled_ns[servo_id], dtype=np.int64).copy(),
-                     np.frombuffer(self._sampled_steps[servo_id], dtype=np.int32).copy())
+            PinSamples(pins.get(servo_id, servo_id), servo_id, self._sampled_ns[servo_id][:],
+                       self._sampled_steps[servo_id][:])
             for servo_id in self.moving)
 
     def _write_again(self, servo_id: int, limit_ns: int) -> bool:

@@ -37,7 +37,7 @@ from pinarray.hardware.feetech.sim import SimBus
 from pinarray.hardware.feetech.sim_motion import Move
 from pinarray.hardware.feetech.sim_packet import PacketLink
 from pinarray.hardware.feetech.sim_serial import SimSerial
-from pinarray.hardware.motion import PinTrace
+from pinarray.hardware.motion import PinTrace, Samples
 from pinarray.units import NS_PER_S
 
 # Present Position's largest magnitude (sign-magnitude, 15 bits).
@@ -166,7 +166,7 @@ class ComputedVerifier(Verifier):
                 now_ns += took_ns
         return starts
 
-    def trace(self) -> tuple[PinTrace, ...]:
+    def trace(self) -> tuple[Samples, ...]:
         """The moving pins' samples: computed now, for the whole trial (or as read)."""
         if not self.computed:
             return super().trace()

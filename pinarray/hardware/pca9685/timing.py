@@ -30,8 +30,6 @@ from dataclasses import dataclass
 from fractions import Fraction
 from math import ceil, floor
 
-import numpy as np
-
 from pinarray.errors import PinArrayError
 from pinarray.hardware.delivery import Change, PreparedFrame, PreparedTrial
 from pinarray.hardware.driver import Pulses, ServoSetup, Targets
@@ -166,6 +164,10 @@ def _regular_slot(pulses: Pulses) -> Fraction | None:
             return None
     if slot is None or slot <= 0:
         return None
+    # Here, not at import: the player process, which plays a board's trials planned before
+    # they reach it, imports no numpy (some 100 ms of processor at each of its starts).
+    import numpy as np
+
     for pin in distinct_pins(pulses.pin):
         starts = pulses.start_ns[pulses.pin == pin].astype(np.float64)
         index = np.round((starts - starts[0]) / float(slot))
