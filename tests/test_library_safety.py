@@ -22,6 +22,7 @@ import pytest
 import pinarray
 from pinarray.hardware.feetech.faults import SimConfig
 from pinarray.hardware.feetech.serve import PtyServer
+from pinarray.player.child import process_state
 from tests.test_library_paths import (
     at_rest_and_released,
     buzz,
@@ -558,3 +559,48 @@ def test_a_forked_copy_keeps_every_descriptor_an_array_closed_before_the_fork_le
         for ends in pipes:
             for fd in ends:
                 os.close(fd)
+
+
+MEASURING_SCRIPT = """\
+import sys, time
+import pinarray
+from pinarray.player.messages import MeasureWakeUps
+
+protocol = pinarray.load_protocol(sys.argv[1])
+array = pinarray.open_array(protocol, port=sys.argv[2])
+assert array.present(pinarray.find_condition(protocol, pin=6)).delivered  # torque on
+player = array._rig.player
+print(player.process.pid, flush=True)
+# 400 000 wake-ups measured: an answer of some 2 MB, more than the socket holds, as the report
+# of a stimulus of minutes is; asked for and never read, as by a script busy elsewhere.
+player._send(MeasureWakeUps(1, 100_000_000, 250))
+time.sleep(600)
+"""
+
+
+def blocked_for(pid: int, seconds: float) -> bool:
+    """Whether process ``pid`` stays asleep (state S: blocked, here in a write no one reads)
+    through ``seconds`` of looks: a process measuring or pickling runs (R)."""
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if process_state(pid) != "S":
+            return False
+        time.sleep(0.01)
+    return True
+
+
+@realtime
+def test_a_script_killed_while_its_player_writes_a_long_answer_leaves_every_servo_released(
+        tmp_path):
+    # The write then fails (EPIPE) with SIGPIPE, a stop signal in the player: its handler's
+    # exception landed in the `finally` that makes the pins safe, before the safe stop began,
+    # and torque stayed on.
+    with script_on_a_port(tmp_path, MEASURING_SCRIPT, buzz(tmp_path, 0.4)) as (script, server):
+        player = int(script.stdout.readline())
+        until(lambda: blocked_for(player, 0.2), what="the player blocked writing its answer")
+        assert at_rest_and_released(server.sim.servos) != []  # torque held: the player guards
+        script.kill()
+        script.wait(timeout=30)
+        until(lambda: at_rest_and_released(server.sim.servos) == [],
+              what="every servo at rest and released")
+        until(lambda: not alive(player), what="the player process ended")

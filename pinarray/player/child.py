@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import select
+import signal
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -45,7 +46,7 @@ from pinarray.player.messages import (
     StopPlaying,
     WakeUpsMeasured,
 )
-from pinarray.stop import Stopped, raise_on_signals, signals_wake
+from pinarray.stop import Stopped, deferred_signals, raise_on_signals, signals_wake
 from pinarray.units import NS_PER_S
 
 # SCHED_FIFO priority of the player: above every normal process, below the kernel's own
@@ -222,7 +223,16 @@ class ProtocolMismatch(Exception):
     """The parent sent something this child does not understand (a different pinarray?)."""
 
 
-def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int) -> int:
+class Guarded:
+    """The servos this process guards, until their safe stop has been made: a stop signal
+    landing in `_serve`'s ``finally`` before it (a second signal, at that instant) leaves it
+    to `main`."""
+
+    bus: ArrayDriver | None = None
+
+
+def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int,
+           guarded: Guarded) -> int:
     try:
         if parent.gone:
             return 0  # the parent ended before this could watch it: it never turned torque on
@@ -237,7 +247,7 @@ def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int) -> int:
     bus_clock = MonotonicClock(hello.spin_ns)
     bus = None
     if hello.handover is not None:
-        bus = hello.handover.attach(port_fd, bus_clock)
+        bus = guarded.bus = hello.handover.attach(port_fd, bus_clock)
         load_playback()  # before Ready: the first trial must not wait for it
     announcer: Announcer | None = None
     markers_problem = ""
@@ -262,20 +272,25 @@ def _serve(conn: Channel, port_fd: int, parent: Parent, woken_fd: int) -> int:
                 return 0  # the parent is gone: `finally` makes the pins safe
             match message:
                 case Play(number=number) if bus is not None:
-                    conn.send(_working(clock, number,
-                                       partial(_play, bus, message, clock, announcer)))
+                    answer = _working(clock, number,
+                                      partial(_play, bus, message, clock, announcer))
                 case MeasureWakeUps(number=number, duration_ns=duration_ns, period_ns=period_ns):
-                    conn.send(_working(clock, number,
-                                       partial(_wake_ups, clock, duration_ns, period_ns)))
+                    answer = _working(clock, number,
+                                      partial(_wake_ups, clock, duration_ns, period_ns))
                 case Quit():
                     return 0  # `finally` rests the pins: the parent may not outlive this by much
                 case StopPlaying() | Cue():
-                    pass  # for a request already answered: nothing to stop or start
+                    continue  # for a request already answered: nothing to stop or start
                 case _:
                     raise ProtocolMismatch(f"unexpected message {message!r}")
+            try:
+                conn.send(answer)
+            except OSError:
+                return 0  # the parent is gone (EPIPE): `finally` makes the pins safe
     finally:
         if bus is not None:
             bus.rest_and_release()
+            guarded.bus = None
         if announcer is not None:
             announcer.close()
 
@@ -368,9 +383,19 @@ def main(argv: list[str]) -> int:
     # non-blocking: PsychoPy sets one on import).
     os.set_blocking(control_fd, True)
     conn = Channel(control_fd)
+    guarded = Guarded()
     try:
         with raise_on_signals("the player process"), woken_by_signals() as woken_fd:
-            return _serve(conn, port_fd, parent, woken_fd)
+            # A write to a parent that has gone fails with EPIPE where it is (the parent gone:
+            # `_serve`'s `finally` rests the pins). As SIGPIPE, a stop signal, it landed in
+            # that `finally` itself, before the safe stop began: torque stayed on.
+            signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+            try:
+                return _serve(conn, port_fd, parent, woken_fd, guarded)
+            finally:
+                if guarded.bus is not None:  # a signal cut `_serve`'s safe stop short
+                    with deferred_signals():
+                        guarded.bus.rest_and_release()
     except Stopped as stopped:
         return stopped.exit_status
 
