@@ -27,6 +27,7 @@ STOP_SIGNALS = tuple(
     for name in ("SIGHUP", "SIGINT", "SIGQUIT", "SIGTERM", "SIGUSR1", "SIGUSR2", "SIGPIPE")
     if hasattr(signal, name)
 )
+_SIGPIPE = getattr(signal, "SIGPIPE", None)
 # Longest single wait between looks at the stop request, in clock nanoseconds.
 SLICE_NS = 20_000_000
 
@@ -154,17 +155,24 @@ def signals_wake(fd: int) -> Iterator[None]:
         signal.set_wakeup_fd(previous)
 
 @contextmanager
-def raise_on_signals(what: str) -> Iterator[None]:
+def raise_on_signals(what: str, *, pipe_ignored: bool = False) -> Iterator[None]:
     """Inside the block, every stop signal raises `Stopped` where the main thread is.
 
     For a process whose only job is a loop that already unwinds safely on `Interrupted` (the
     player process): it has nothing else that could look at a flag in time.
+
+    ``pipe_ignored``: SIGPIPE is ignored instead, so that a write to a reader that has gone
+    fails where it is (EPIPE), for the writer to handle: as a signal, raised by that write, its
+    exception lands wherever the main thread is next, the ``finally`` that would handle it
+    included (the player process: before its safe stop began).
     """
 
     def handler(signum, frame):
         _raise_unless_deferred(Stopped(f"{what} stopped by {signal_name(signum)}", signum))
 
-    previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
+    previous = {number: signal.signal(
+        number, signal.SIG_IGN if pipe_ignored and number == _SIGPIPE else handler)
+        for number in STOP_SIGNALS}
     try:
         yield
     finally:

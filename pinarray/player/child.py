@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import os
 import select
-import signal
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -385,11 +384,11 @@ def main(argv: list[str]) -> int:
     conn = Channel(control_fd)
     guarded = Guarded()
     try:
-        with raise_on_signals("the player process"), woken_by_signals() as woken_fd:
-            # A write to a parent that has gone fails with EPIPE where it is (the parent gone:
-            # `_serve`'s `finally` rests the pins). As SIGPIPE, a stop signal, it landed in
-            # that `finally` itself, before the safe stop began: torque stayed on.
-            signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+        # A write to a parent that has gone fails with EPIPE where it is (the parent gone:
+        # `_serve`'s `finally` rests the pins). As SIGPIPE, a stop signal, it landed in that
+        # `finally` itself, before the safe stop began: torque stayed on.
+        with raise_on_signals("the player process", pipe_ignored=True), \
+                woken_by_signals() as woken_fd:
             try:
                 return _serve(conn, port_fd, parent, woken_fd, guarded)
             finally:
