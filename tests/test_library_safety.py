@@ -604,3 +604,33 @@ def test_a_script_killed_while_its_player_writes_a_long_answer_leaves_every_serv
         until(lambda: at_rest_and_released(server.sim.servos) == [],
               what="every servo at rest and released")
         until(lambda: not alive(player), what="the player process ended")
+
+
+DEFAULT_SIGPIPE_SCRIPT = """\
+import os, signal, sys
+import pinarray
+
+signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # as a script meant for shell pipes may set it
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    player = array._rig.player
+    os.kill(player.process.pid, signal.SIGKILL)
+    player.process.wait()
+    try:  # a request written to the player that has just died
+        player.measure_wake_ups(10**6, 10**3)
+    except pinarray.PinArrayError:
+        print("not measured", flush=True)
+    print(array.present(pinarray.find_condition(protocol, pin=6)).delivered, flush=True)
+"""
+
+
+@realtime
+def test_a_script_with_sigpipe_at_its_default_outlives_a_player_that_died_and_plays_on(tmp_path):
+    # A write to the dead player's socket raised SIGPIPE too: by default it ends the script at
+    # once, before anything could make the pins safe.
+    with script_on_a_port(tmp_path, DEFAULT_SIGPIPE_SCRIPT, buzz(tmp_path, 0.4)) as (
+            script, server):
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, (script.returncode, err)
+        assert out.splitlines() == ["not measured", "True"], out
+        assert at_rest_and_released(server.sim.servos) == []

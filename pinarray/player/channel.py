@@ -20,11 +20,13 @@ from __future__ import annotations
 import os
 import pickle
 import select
+import signal
 import struct
 from collections.abc import Callable
 
 _LENGTH = struct.Struct("!Q")
 BLOCKED_LOOK_S = 0.05  # how often a blocked write looks at why (``while_blocked``)
+_PIPE = {signal.SIGPIPE}
 
 
 class Channel:
@@ -54,7 +56,7 @@ class Channel:
         fd = self.fileno()
         while data:
             try:
-                data = data[os.write(fd, data):]
+                data = data[_write(fd, data):]
             except BlockingIOError:
                 if not _polled([fd], select.POLLOUT, BLOCKED_LOOK_S) and while_blocked is not None:
                     while_blocked()
@@ -91,6 +93,22 @@ class Channel:
 
     def __del__(self) -> None:
         self.close()
+
+
+def _write(fd: int, data: memoryview) -> int:
+    """`os.write`, but an end that has gone is `BrokenPipeError` only, never SIGPIPE as well:
+    a host program may have set SIGPIPE back to its default, which ends the process there,
+    before anything could make the pins safe (and the player process takes it for a stop)."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _PIPE)
+    try:
+        return os.write(fd, data)
+    except BrokenPipeError:
+        if signal.SIGPIPE not in blocked and signal.SIGPIPE in signal.sigpending():
+            signal.sigwait(_PIPE)  # this write's own: taken now, never delivered
+        raise
+    finally:
+        if signal.SIGPIPE not in blocked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
 def readable(fds: list[int], timeout_s: float | None) -> list[int]:
