@@ -23,6 +23,7 @@ import pinarray
 from pinarray.hardware.feetech.faults import SimConfig
 from pinarray.hardware.feetech.serve import PtyServer
 from pinarray.player.child import process_state
+from pinarray.player.process import PlayerProcess
 from tests.test_library_paths import (
     at_rest_and_released,
     buzz,
@@ -234,24 +235,48 @@ def presented_in_a_thread(array: pinarray.PinArray) -> tuple[threading.Thread, d
     return presenting, outcome
 
 
+def frozen_mid_stimulus(array, server) -> tuple[int, dict[str, object]]:
+    """The array's player process stopped (SIGSTOP) once pin 6 moves: its pid, and what
+    present() gave (see `presented_in_a_thread`), once it has returned."""
+    presenting, outcome = presented_in_a_thread(array)
+    wait_moving(server.sim.servos)
+    frozen = player_pid(array)
+    os.kill(frozen, signal.SIGSTOP)  # frozen: alive, silent
+    presenting.join(timeout=60)
+    assert not presenting.is_alive(), "present() waited on a frozen player for ever"
+    return frozen, outcome
+
+
 @realtime
-def test_a_player_process_that_stops_answering_mid_stimulus_is_killed_and_the_pins_rest(
-        tmp_path):
+def test_a_player_process_stopped_mid_stimulus_is_killed_at_once_and_the_pins_rest(tmp_path):
+    # A stimulus of 30 s: it waited to its scheduled end, torque held, before the player was
+    # taken for hung.
+    protocol = buzz(tmp_path, 30)
+    with array_on_a_port(protocol) as (array, server):
+        frozen, outcome = frozen_mid_stimulus(array, server)
+        error = outcome.get("error")
+        assert isinstance(error, pinarray.PlaybackAborted), outcome
+        assert "stopped (SIGSTOP) before it answered: killed" in str(error)
+        assert at_rest_and_released(server.sim.servos) == []
+        assert not alive(frozen)
+        # A new player process for the next stimulus, which plays (0.4 s of the same train).
+        assert array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
+            frequency_hz=5, duration_s=0.4, pulse_width_ms={"up": 2.0, "down": 1.5}))).delivered
+
+
+@realtime
+def test_a_player_process_that_stops_answering_unseen_is_killed_after_the_stimulus_and_the_pins_rest(
+        tmp_path, monkeypatch):
+    # Silent without being stopped (a deadlock, a loop): only the scheduled end tells.
+    monkeypatch.setattr(PlayerProcess, "_stopped_twice", lambda player: False)
     protocol = buzz(tmp_path, 1)
     with array_on_a_port(protocol) as (array, server):
-        presenting, outcome = presented_in_a_thread(array)
-        wait_moving(server.sim.servos)
-        frozen = player_pid(array)
-        os.kill(frozen, signal.SIGSTOP)  # frozen: alive, silent
-        presenting.join(timeout=60)
-        assert not presenting.is_alive(), "present() waited on a frozen player for ever"
+        frozen, outcome = frozen_mid_stimulus(array, server)
         error = outcome.get("error")
         assert isinstance(error, pinarray.PlaybackAborted), outcome
         assert "stopped answering" in str(error) and "killed" in str(error)
         assert at_rest_and_released(server.sim.servos) == []
         assert not alive(frozen)
-        # A new player process for the next stimulus, which plays.
-        assert array.present(pinarray.find_condition(protocol, pin=6)).delivered
 
 
 @realtime

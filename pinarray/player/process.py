@@ -221,6 +221,7 @@ class PlayerProcess:
         self._sending = threading.Lock()  # a cue is sent from another thread than the trial's
         self._errors = tempfile.TemporaryFile()
         self._forked_away = False  # True in a forked copy of the process that started it
+        self._stopped_before = False  # the child was stopped at the last look (`_stopped_twice`)
         parent_end, child_end = socket.socketpair()
         for end in (parent_end, child_end):
             end.setblocking(True)  # whatever the host's default timeout: see the docstring
@@ -384,6 +385,7 @@ class PlayerProcess:
         """
         clock = self._clock
         stop_due_ns: int | None = None
+        self._stopped_before = False
         while True:
             try:
                 ready = readable([self.conn.fileno(), self._wake_read], WATCH_S)
@@ -408,6 +410,8 @@ class PlayerProcess:
             if stop_due_ns is not None and self._frozen():
                 self._died(doing, hung="it was stopped (SIGSTOP) and could not stop the trial: "
                                        "killed")
+            if self._stopped_twice():
+                self._died(doing, hung="it was stopped (SIGSTOP) before it answered: killed")
             if stop_due_ns is not None and now_ns > stop_due_ns:
                 self._died(doing, hung=f"it did not answer within {STOP_BUDGET_NS // 10**6} ms "
                                        "of a stop: killed")
@@ -416,6 +420,16 @@ class PlayerProcess:
                 self._died(doing, hung=f"it stopped answering: no answer "
                                        f"{ANSWER_MARGIN_NS / 1e9:g} s after the trial's "
                                        "scheduled end: killed")
+
+    def _stopped_twice(self) -> bool:
+        """Whether the child, working on a request, was stopped (SIGSTOP: state T) at this look
+        and the one before it: it cannot answer before it is continued, and the stimulus would
+        not be delivered as scheduled then, while its pins held torque (a stimulus of minutes
+        would, until its end). Twice, so that a stop and continue between two looks is not
+        taken for it; not a traced stop (a debugger's, or strace's at every call)."""
+        stopped = process_state(self.process.pid) == "T"
+        twice, self._stopped_before = stopped and self._stopped_before, stopped
+        return twice
 
     def _frozen(self) -> bool:
         """Whether the child is stopped (SIGSTOP, a debugger): it cannot answer, however long
