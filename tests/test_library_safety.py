@@ -659,3 +659,33 @@ def test_a_script_with_sigpipe_at_its_default_outlives_a_player_that_died_and_pl
         assert script.returncode == 0, (script.returncode, err)
         assert out.splitlines() == ["not measured", "True"], out
         assert at_rest_and_released(server.sim.servos) == []
+
+
+INTERRUPTED_SCRIPT = """\
+import os, signal, sys, threading
+import pinarray
+
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT)).start()
+    try:  # Ctrl-C a second into 30 s, caught: a trial loop that lets the experimenter skip one
+        array.present(pinarray.find_condition(protocol, pin=6))
+        print("played whole", flush=True)
+    except KeyboardInterrupt:
+        print("interrupted", flush=True)
+    asked_ns = array.now_ns()
+    delivery = array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(
+        frequency_hz=5, duration_s=0.4, pulse_width_ms={"up": 2.0, "down": 1.5})))
+    print(delivery.delivered, delivery.onset_ns >= asked_ns, flush=True)
+"""
+
+
+@realtime
+def test_a_stimulus_cut_by_a_caught_ctrl_c_stops_and_the_next_present_reports_its_own(tmp_path):
+    # The player played the interrupted stimulus on to its end, dropped the next request, and
+    # its report came back as the next present()'s: delivered, with an onset before the call.
+    with script_on_a_port(tmp_path, INTERRUPTED_SCRIPT, buzz(tmp_path, 30)) as (script, server):
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert out.splitlines() == ["interrupted", "True True"], out
+        assert at_rest_and_released(server.sim.servos) == []

@@ -35,6 +35,14 @@ class Channel:
 
     def __init__(self, fd: int):
         self._fd = fd
+        # From the start of a message's send (receipt) to its end: one an exception cut short
+        # (KeyboardInterrupt) leaves that way of the stream mid-message, of no more use.
+        self._sending = self._receiving = False
+
+    @property
+    def midway(self) -> bool:
+        """Whether a message's send or receipt began and did not end (see ``__init__``)."""
+        return self._sending or self._receiving
 
     @property
     def closed(self) -> bool:
@@ -54,12 +62,14 @@ class Channel:
         body = pickle.dumps(message, pickle.HIGHEST_PROTOCOL)
         data = memoryview(_LENGTH.pack(len(body)) + body)
         fd = self.fileno()
+        self._sending = True
         while data:
             try:
                 data = data[_write(fd, data):]
             except BlockingIOError:
                 if not _polled([fd], select.POLLOUT, BLOCKED_LOOK_S) and while_blocked is not None:
                     while_blocked()
+        self._sending = False
 
     def recv(self, while_blocked: Callable[[], None] | None = None) -> object:
         """The next message, once it has come whole.
@@ -67,8 +77,11 @@ class Channel:
         On a descriptor that does not block, ``while_blocked`` is called each `BLOCKED_LOOK_S`
         nothing more of it comes; what it raises ends the read (the channel is then of no more
         use)."""
+        self._receiving = True
         (length,) = _LENGTH.unpack(self._read(_LENGTH.size, while_blocked))
-        return pickle.loads(self._read(length, while_blocked))
+        body = self._read(length, while_blocked)
+        self._receiving = False
+        return pickle.loads(body)
 
     def _read(self, count: int, while_blocked: Callable[[], None] | None) -> bytes:
         fd = self.fileno()

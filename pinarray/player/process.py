@@ -50,7 +50,7 @@ from fractions import Fraction
 from typing import NoReturn
 
 from pinarray.clock import MonotonicClock
-from pinarray.errors import PinArrayError
+from pinarray.errors import Interrupted, PinArrayError
 from pinarray.hardware.driver import ArrayDriver, SafeStopReport
 from pinarray.hardware.motion import DEFAULT_STROKE_TOLERANCE
 from pinarray.player.channel import Channel, readable
@@ -222,6 +222,7 @@ class PlayerProcess:
         self._errors = tempfile.TemporaryFile()
         self._forked_away = False  # True in a forked copy of the process that started it
         self._stopped_before = False  # the child was stopped at the last look (`_stopped_twice`)
+        self._owed = 0  # the request whose answer is still to be taken (0: none)
         parent_end, child_end = socket.socketpair()
         for end in (parent_end, child_end):
             end.setblocking(True)  # whatever the host's default timeout: see the docstring
@@ -332,16 +333,24 @@ class PlayerProcess:
         if self._forked_away:
             raise PinArrayError(FORKED_COPY)
         with self._one_at_a_time:
+            if self._owed:
+                self._settle_owed(doing)
             self._requests += 1
-            self._working = self._requests
+            self._working = self._owed = self._requests
             self._stop_sent = False
             try:
                 self._send(request(self._requests))
                 answer = self._answer(doing, due_ns)
+                self._owed = 0
             except _ChildFrozen as frozen:
                 self._died(doing, hung=str(frozen))
             except OSError:
                 self._died(doing)
+            except (PinArrayError, Interrupted):
+                raise  # the child's end, made safe (`_died`)
+            except BaseException as interruption:  # KeyboardInterrupt: the script's own Ctrl-C
+                self._interrupted(doing, interruption)
+                raise
             finally:
                 self._working = 0
         if isinstance(answer, PlayStopped):
@@ -349,6 +358,48 @@ class PlayerProcess:
             stopped.safe_stop = answer.safe_stop
             raise stopped
         return answer
+
+    def _interrupted(self, doing: str, interruption: BaseException) -> None:
+        """The caller left (``interruption``: KeyboardInterrupt, or what a handler of the
+        script's raised) while the child works on request `_owed`: the stimulus is cut now and
+        its answer taken here, so that the next request's answer is its own. Cut part way
+        through a message, the channel is of no more use: the child is killed and the pins
+        rested from here, and the next stimulus starts another."""
+        try:
+            if self.conn.midway:
+                self._died(doing, hung=f"a message to or from it cut short by "
+                                       f"{type(interruption).__name__}: killed")
+            self._send(StopPlaying(self._owed, f"cut short by {type(interruption).__name__}",
+                                   None), quietly=True)
+            self._stop_sent = True
+            self._settle_owed(doing)
+        except (PinArrayError, Interrupted):
+            pass  # the child's end, made safe (`_died`): the caller's interruption goes on
+        except BaseException:
+            pass  # another interruption: the answer is taken before the next request
+
+    def settle(self) -> None:
+        """Take the answer to a request an interruption left (see `_interrupted`), so that
+        the next request's is its own; a child killed meanwhile shows as not `alive`."""
+        if self._owed and not self._forked_away:
+            with self._one_at_a_time:
+                if self._owed:
+                    self._settle_owed("ending a stimulus cut short")
+
+    def _settle_owed(self, doing: str) -> None:
+        """Take (and drop) the answer to request `_owed`, asked to stop if not yet, within
+        `STOP_BUDGET_NS`: a child that gives none is killed and the pins rested from here."""
+        number, self._working = self._owed, self._owed
+        try:
+            if not self._stop_sent:
+                self._send(StopPlaying(number, "interrupted", None), quietly=True)
+                self._stop_sent = True
+            due_ns = self._clock.now_ns() + STOP_BUDGET_NS
+            self._answer(doing, lambda: due_ns)
+        except (PinArrayError, Interrupted):
+            pass  # killed and made safe (`_died`): the request after it finds it gone
+        finally:
+            self._owed = self._working = 0
 
     def _send(self, message: Request | Hello, quietly: bool = False) -> None:
         """One message to the child, whole (a cue may be sent from another thread);

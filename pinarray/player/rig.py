@@ -276,6 +276,8 @@ class Rig:
         if self._forked_away:  # its player would seem dead, and a new one find no port
             raise PinArrayError(FORKED_COPY)
         with self._port:
+            if self.player is not None:
+                self.player.settle()  # a stimulus an interruption cut: its answer taken
             if self.player is not None and not self.player.alive:
                 # Started again before torque can come back on, so that it guards it. (A
                 # Ctrl-C between the two leaves the dead one in place, isolated still: its
