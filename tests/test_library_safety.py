@@ -65,6 +65,17 @@ def script_on_a_port(tmp_path, text: str, protocol: pinarray.Protocol, *args: st
         server.stop()
 
 
+def run_on_a_port(tmp_path, text: str, seconds: float = 0.4) -> list[str]:
+    """``text`` run whole as a lab's script on a buzz of ``seconds`` behind a pseudo-terminal:
+    the lines it printed, once it has ended with exit status 0 and every servo at rest and
+    released."""
+    with script_on_a_port(tmp_path, text, buzz(tmp_path, seconds)) as (script, server):
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, (script.returncode, err)
+        assert at_rest_and_released(server.sim.servos) == []
+    return out.splitlines()
+
+
 @contextmanager
 def array_on_a_port(protocol: pinarray.Protocol):
     """The protocol's array opened on servos behind a pseudo-terminal: it and the served bus."""
@@ -200,13 +211,9 @@ def test_a_forked_copy_that_presents_or_arms_is_refused_in_words_and_the_script_
         tmp_path):
     # The copy's player seemed dead to it (not its child): it started another on a port it
     # had let go of, and said the port was lost.
-    with script_on_a_port(tmp_path, FORKED_CALLS_SCRIPT, buzz(tmp_path, 0.4)) as (process, server):
-        out, err = process.communicate(timeout=120)
-        assert process.returncode == 0, err
-        refused = ("PinArrayError this process is a forked copy of the one that opened the array: "
-                   "only that one plays on it")
-        assert out.splitlines() == [refused, refused, "True"], out
-        assert at_rest_and_released(server.sim.servos) == []
+    refused = ("PinArrayError this process is a forked copy of the one that opened the array: "
+               "only that one plays on it")
+    assert run_on_a_port(tmp_path, FORKED_CALLS_SCRIPT) == [refused, refused, "True"]
 
 
 @realtime
@@ -653,12 +660,7 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
 def test_a_script_with_sigpipe_at_its_default_outlives_a_player_that_died_and_plays_on(tmp_path):
     # A write to the dead player's socket raised SIGPIPE too: by default it ends the script at
     # once, before anything could make the pins safe.
-    with script_on_a_port(tmp_path, DEFAULT_SIGPIPE_SCRIPT, buzz(tmp_path, 0.4)) as (
-            script, server):
-        out, err = script.communicate(timeout=120)
-        assert script.returncode == 0, (script.returncode, err)
-        assert out.splitlines() == ["not measured", "True"], out
-        assert at_rest_and_released(server.sim.servos) == []
+    assert run_on_a_port(tmp_path, DEFAULT_SIGPIPE_SCRIPT) == ["not measured", "True"]
 
 
 INTERRUPTED_SCRIPT = """\
@@ -684,8 +686,42 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
 def test_a_stimulus_cut_by_a_caught_ctrl_c_stops_and_the_next_present_reports_its_own(tmp_path):
     # The player played the interrupted stimulus on to its end, dropped the next request, and
     # its report came back as the next present()'s: delivered, with an onset before the call.
-    with script_on_a_port(tmp_path, INTERRUPTED_SCRIPT, buzz(tmp_path, 30)) as (script, server):
-        out, err = script.communicate(timeout=120)
-        assert script.returncode == 0, err
-        assert out.splitlines() == ["interrupted", "True True"], out
-        assert at_rest_and_released(server.sim.servos) == []
+    assert run_on_a_port(tmp_path, INTERRUPTED_SCRIPT, 30) == ["interrupted", "True True"]
+
+
+AT_THE_LIMIT_SCRIPT = """\
+import os, resource, sys
+import pinarray
+
+protocol = pinarray.load_protocol(sys.argv[1])
+soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+before = len(os.listdir("/proc/self/fd"))
+for free in (1, 3, 7, 9, 12):  # the lock, the port, the player's channel, pipes, its start
+    next_fd = os.open(os.devnull, os.O_RDONLY)
+    os.close(next_fd)
+    resource.setrlimit(resource.RLIMIT_NOFILE, (next_fd + free, hard))
+    try:
+        pinarray.open_array(protocol, port=sys.argv[2]).close()
+        outcome = "opened"
+    except pinarray.PinArrayError as error:
+        outcome = "refused" if len(str(error).splitlines()) == 1 else f"said {error!r}"
+    finally:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+    print(free, outcome, len(os.listdir("/proc/self/fd")) - before, flush=True)
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    print(array.present(pinarray.find_condition(protocol, pin=6)).delivered, flush=True)
+"""
+
+
+@realtime
+def test_a_script_at_its_limit_of_open_files_is_refused_in_one_line_and_keeps_none_of_them(
+        tmp_path):
+    # Out of descriptors part way (EMFILE), open_array raised the OSError of whatever it was
+    # opening (a traceback), and left the ones it had made open.
+    *attempts, played = run_on_a_port(tmp_path, AT_THE_LIMIT_SCRIPT)
+    assert [line.split()[0] for line in attempts] == ["1", "3", "7", "9", "12"]
+    for line in attempts:
+        free, outcome, kept = line.split(" ", 2)
+        assert outcome in ("opened", "refused") and kept == "0", line
+    assert "refused" in " ".join(attempts)  # the limit was reached, at one free at least
+    assert played == "True"

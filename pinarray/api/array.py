@@ -547,8 +547,12 @@ def open_array(protocol: Protocol | None = None, *, port: str | None = None,
     elif (port is not None or is_shared_board_url(sim)) and not isinstance(clock, MonotonicClock):
         raise PinArrayError(f"{call}: {port or sim}: real servos play in real time: give no "
                             "clock, or a MonotonicClock")
-    rig = Rig(protocol, port, sim, clock,
-              holder=f"an array of protocol {protocol.name!r} (pinarray.open_array)")
+    try:
+        rig = Rig(protocol, port, sim, clock,
+                  holder=f"an array of protocol {protocol.name!r} (pinarray.open_array)")
+    except OSError as error:  # EMFILE (the script's files at their limit) and the like
+        raise PinArrayError(f"{call}: {port or sim or 'sim://'}: cannot be opened: "
+                            f"{error.strerror or error}") from None
     return PinArray(rig, port or sim or "sim://")
 
 

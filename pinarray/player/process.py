@@ -46,6 +46,7 @@ import threading
 import time
 import weakref
 from collections.abc import Callable
+from contextlib import ExitStack
 from fractions import Fraction
 from typing import NoReturn
 
@@ -219,31 +220,53 @@ class PlayerProcess:
         # One request at a time: the UI may ask for a test pin while a timing check runs.
         self._one_at_a_time = threading.Lock()
         self._sending = threading.Lock()  # a cue is sent from another thread than the trial's
-        self._errors = tempfile.TemporaryFile()
         self._forked_away = False  # True in a forked copy of the process that started it
         self._stopped_before = False  # the child was stopped at the last look (`_stopped_twice`)
         self._owed = 0  # the request whose answer is still to be taken (0: none)
-        parent_end, child_end = socket.socketpair()
-        for end in (parent_end, child_end):
-            end.setblocking(True)  # whatever the host's default timeout: see the docstring
-        # A stop request wakes the wait for the child's answer (a byte down this pipe).
-        self._wake_read, self._wake_write = os.pipe()
-        os.set_blocking(self._wake_write, False)
+        # Each descriptor made is closed again when a later one cannot be made (EMFILE: a
+        # script near its limit of open files) or the child cannot be started.
+        with ExitStack() as undo:
+            self._errors = tempfile.TemporaryFile()
+            undo.callback(self._errors.close)
+            parent_end, child_end = socket.socketpair()
+            undo.callback(parent_end.close)
+            undo.callback(child_end.close)  # the child's copy: ours closed however this ends
+            for end in (parent_end, child_end):
+                end.setblocking(True)  # whatever the host's default timeout: see the docstring
+            # A stop request wakes the wait for the child's answer (a byte down this pipe).
+            self._wake_read, self._wake_write = os.pipe()
+            undo.callback(os.close, self._wake_read)
+            undo.callback(os.close, self._wake_write)
+            os.set_blocking(self._wake_write, False)
+            passed = (child_end.fileno(),) + ((fd,) if fd is not None else ()) + keep_fds
+            command = [sys.executable, "-m", "pinarray.player.child", str(child_end.fileno()),
+                       str(fd if fd is not None else -1), str(os.getpid())]
+            self.process = subprocess.Popen(
+                command, pass_fds=passed, start_new_session=True, stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, stderr=self._errors,
+                env={**os.environ, **PLAYER_ENV},
+            )
+            self.conn = Channel(parent_end.detach())
+            undo.pop_all()
+        child_end.close()
         wake = weakref.WeakMethod(self._wake)  # the request outlives this player: keep it light
         stop.when_requested(lambda: (method := wake()) is not None and method())
-        passed = (child_end.fileno(),) + ((fd,) if fd is not None else ()) + keep_fds
-        command = [sys.executable, "-m", "pinarray.player.child", str(child_end.fileno()),
-                   str(fd if fd is not None else -1), str(os.getpid())]
-        self.process = subprocess.Popen(
-            command, pass_fds=passed, start_new_session=True, stdin=subprocess.DEVNULL,
-            stdout=subprocess.DEVNULL, stderr=self._errors, env={**os.environ, **PLAYER_ENV},
-        )
-        child_end.close()
-        self.conn = Channel(parent_end.detach())
         # This end's writes do not block: a request bigger than the socket's buffer, sent to a
         # frozen child, would otherwise wait on it for ever (and a stop with it).
         os.set_blocking(self.conn.fileno(), False)
         let_go_in_forks(self)
+        try:
+            ready = self._hello(bus, realtime, spin_ns, markers)
+        except BaseException:
+            self.close()  # the child ended, its descriptors closed: none left to the script
+            raise
+        self.realtime_problem = ready.realtime_problem
+        if ready.markers_problem:
+            self.close()  # torque is not on yet: nothing moves
+            raise PinArrayError(ready.markers_problem)
+
+    def _hello(self, bus: ArrayDriver | None, realtime: bool, spin_ns: int,
+               markers: Announcers | None) -> Ready:
         handover = bus.handover() if bus is not None else None
         try:
             self._send(Hello(handover, REALTIME_PRIORITY if realtime else None, spin_ns,
@@ -257,10 +280,7 @@ class PlayerProcess:
         if not isinstance(ready, Ready):
             raise PlayerDied(f"the player process answered {ready!r} when starting",
                              SafeStopReport((), (), ()), time.monotonic_ns())
-        self.realtime_problem = ready.realtime_problem
-        if ready.markers_problem:
-            self.close()  # torque is not on yet: nothing moves
-            raise PinArrayError(ready.markers_problem)
+        return ready
 
     @property
     def alive(self) -> bool:

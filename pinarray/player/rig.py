@@ -238,9 +238,13 @@ class Rig:
         if self._fd is None:
             raise PinArrayError(f"{self.url}: a player process needs a serial device")
         lock_fd = self._port_lock.fd if self._port_lock is not None else -1
-        self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime,
-                                    markers=self.markers,
-                                    keep_fds=(lock_fd,) if lock_fd >= 0 else ())
+        try:
+            self.player = PlayerProcess(self.bus, self._fd, self.stop, realtime=self._realtime,
+                                        markers=self.markers,
+                                        keep_fds=(lock_fd,) if lock_fd >= 0 else ())
+        except OSError as error:  # what it made is closed again (EMFILE: no file left to open)
+            raise PinArrayError(f"{self.url}: the player process could not be started: "
+                                f"{error.strerror or error}") from None
 
     def present(self, schedule: TrialSchedule, markers: TrialMarkers | None = None, *,
                 onset: Onset = SOON) -> Presentation:
