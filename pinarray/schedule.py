@@ -145,16 +145,20 @@ def _line(offset_ns: Fraction, step_ns: Fraction) -> _Line:
 def _exact_times_ns(k: np.ndarray, line: _Line) -> np.ndarray:
     """``round((k * step + offset) / denominator)`` for integer indices ``k``, halves up.
 
-    Splits ``k = a * D + b`` so that the int64 products stay small:
-    ``a * step + round((b * step + offset) / D)``.
+    Splits ``k = a * D + b``, ``step = q * D + r`` and ``offset = p * D + s`` (floor division:
+    ``b``, ``r`` and ``s`` lie in ``[0, D)``) so that the int64 products stay below ``D**2``:
+    ``a * step + b * q + p + round((b * r + s) / D)``. Exotic decimals (3.14159 Hz: ``D`` in
+    the millions, ``step`` near 1e14) fit so; ``b * step`` alone did not.
     """
     step, offset, d = line
-    if 2 * (d * abs(step) + abs(offset)) + d >= _INT64_SAFE:
-        # Exotic decimals (e.g. 3.14159 Hz) need more than 64 bits: stay exact, pay for it.
+    q, r = divmod(step, d)
+    p, s = divmod(offset, d)
+    if 2 * (d * d + d) + d >= _INT64_SAFE or max(abs(step), abs(offset)) >= _INT64_SAFE:
+        # Denominators past about 1.5e9 need more than 64 bits: stay exact, pay for it.
         big = [(2 * (int(x) * step + offset) + d) // (2 * d) for x in k]
         return np.array(big, dtype=np.int64)
     whole, part = np.divmod(k.astype(np.int64), d)
-    return whole * step + (2 * (part * step + offset) + d) // (2 * d)
+    return whole * step + part * q + p + (2 * (part * r + s) + d) // (2 * d)
 
 
 def _extend_periodic(out: np.ndarray, period: int, increment: int) -> None:
