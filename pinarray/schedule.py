@@ -145,16 +145,20 @@ def _line(offset_ns: Fraction, step_ns: Fraction) -> _Line:
 def _exact_times_ns(k: np.ndarray, line: _Line) -> np.ndarray:
     """``round((k * step + offset) / denominator)`` for integer indices ``k``, halves up.
 
-    Splits ``k = a * D + b`` so that the int64 products stay small:
-    ``a * step + round((b * step + offset) / D)``.
+    Splits ``k = a * D + b``, ``step = q * D + r`` and ``offset = p * D + s`` (floor division:
+    ``b``, ``r`` and ``s`` lie in ``[0, D)``) so that the int64 products stay below ``D**2``:
+    ``a * step + b * q + p + round((b * r + s) / D)``. Exotic decimals (3.14159 Hz: ``D`` in
+    the millions, ``step`` near 1e14) fit so; ``b * step`` alone did not.
     """
     step, offset, d = line
-    if 2 * (d * abs(step) + abs(offset)) + d >= _INT64_SAFE:
-        # Exotic decimals (e.g. 3.14159 Hz) need more than 64 bits: stay exact, pay for it.
+    q, r = divmod(step, d)
+    p, s = divmod(offset, d)
+    if 2 * (d * d + d) + d >= _INT64_SAFE or max(abs(step), abs(offset)) >= _INT64_SAFE:
+        # Denominators past about 1.5e9 need more than 64 bits: stay exact, pay for it.
         big = [(2 * (int(x) * step + offset) + d) // (2 * d) for x in k]
         return np.array(big, dtype=np.int64)
     whole, part = np.divmod(k.astype(np.int64), d)
-    return whole * step + (2 * (part * step + offset) + d) // (2 * d)
+    return whole * step + part * q + p + (2 * (part * r + s) + d) // (2 * d)
 
 
 def _extend_periodic(out: np.ndarray, period: int, increment: int) -> None:
@@ -515,7 +519,9 @@ def daq_words(
         )
     # Pulses of one pin never overlap (drives of a pin do not, and no width exceeds its
     # period), nor do their spans of samples: so each pin's bit is added and taken away once
-    # per pulse, and a running sum of those steps is the word.
+    # per pulse, and a running sum of those steps is the word. The word only changes where a
+    # pulse begins or ends: the sum runs over those changes, and each level is repeated up to
+    # the next (a 100 kHz block of 10 Hz pulses holds a few changes, not 262 144 sums).
     widest_ns = int(pulses.width_ns.max(initial=0))
     for a in range(0, count, block):
         b = min(count, a + block)
@@ -528,10 +534,13 @@ def daq_words(
         first = _first_sample_at_or_after(start_ns, sample_rate_hz) - a
         stop = _first_sample_at_or_after(start_ns + pulses.width_ns[low:high], sample_rate_hz) - a
         bits = np.left_shift(1, pulses.pin[low:high].astype(np.int32) - 1)
-        steps = np.zeros(b - a + 1, dtype=np.int32)
-        np.add.at(steps, np.clip(first, 0, b - a), bits)
-        np.add.at(steps, np.clip(stop, 0, b - a), -bits)
-        yield np.cumsum(steps[:-1], dtype=np.int32).astype("<u2")
+        at = np.concatenate((np.clip(first, 0, b - a), np.clip(stop, 0, b - a)))
+        order = np.argsort(at, kind="stable")
+        levels = np.cumsum(np.concatenate((bits, -bits))[order], dtype=np.int32)
+        # Level 0 up to the first change, then each change's level up to the next; changes at
+        # one sample give runs of none, and those at b (or later) hold for none of the block.
+        held = np.diff(np.concatenate(([0], at[order], [b - a])))
+        yield np.repeat(np.concatenate(([0], levels)).astype("<u2"), held)
 
 
 def _first_sample_at_or_after(time_ns: np.ndarray, sample_rate_hz: int) -> np.ndarray:

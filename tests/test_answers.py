@@ -14,6 +14,7 @@ from pinarray.journal.rows import read_trials
 from pinarray.plan import make_plan
 from pinarray.protocol.load import load_protocol
 from tests.commands import pinarray_here
+from tests.strategies import unicode_characters
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 MOTION = PROTOCOLS / "apparent_motion.yaml"  # 13 trials, one of them practice
@@ -122,7 +123,7 @@ def test_a_sheet_that_is_not_text_is_one_located_line(tmp_path):
 
 
 sheet_texts = st.one_of(
-    st.text(max_size=200),
+    st.text(unicode_characters, max_size=200),
     st.text(alphabet="0123456789,;\t\r\n\0\"' left", max_size=200).map(lambda t: "trial,response\n" + t),
     st.lists(st.tuples(st.sampled_from(["1", "2", "13", "14", "0", "-1", "x", "", "9" * 30,
                                         "1.0", "٣"]),

@@ -84,11 +84,19 @@ def test_a_tenth_of_a_hertz_is_not_a_binary_float():
     assert starts[1] == 1_000_000_000 and starts[-1] == 86_399 * 10**9
 
 
-def test_exotic_decimals_fall_back_to_exact_big_integers():
-    train = seed_train(Fraction("3.14159"), duration_s=60)
+@pytest.mark.parametrize(
+    "frequency_hz",
+    [
+        "3.14159",  # pulse times over a denominator in the millions: exact in 64 bits, split
+        "3.1415926535",  # over one past 2**31 (5.6e10): exact in Python's big integers
+    ],
+)
+def test_exotic_decimals_stay_exact_to_the_nanosecond(frequency_hz):
+    train = seed_train(Fraction(frequency_hz), duration_s=60, phase=Fraction(7, 360))
     starts, _, _ = train_pulses(train)
-    assert [int(s) for s in starts[-3:]] == [
-        exact_start_ns(k, train) for k in range(len(starts) - 3, len(starts))
+    first = int(pulse_indices(train)[0])
+    assert [int(s) for s in starts] == [
+        exact_start_ns(first + i, train) for i in range(len(starts))
     ]
 
 

@@ -14,6 +14,7 @@ from pinarray.protocol.imaging import (
     parse_trigger,
 )
 from pinarray.protocol.load import parse_protocol
+from tests.strategies import unicode_characters
 from tests.test_protocol_load import MINIMAL, problems
 
 S = 1_000_000_000
@@ -65,7 +66,7 @@ def test_an_emulated_tr_that_disagrees_with_the_given_tr_is_refused():
         SyncOverrides(EmulatedTrigger(2 * S), repetition_time_ns=3 * S).over(None)
 
 
-@given(st.from_regex(r"/dev/[a-z]{1,8}(:[a-z]{2,5})?", fullmatch=True),
+@given(st.from_regex(r"/dev/[a-z]{1,8}(:[a-z]{2,5})?", fullmatch=True, alphabet=unicode_characters),
        st.sampled_from("5tS0"))
 def test_a_serial_trigger_reads_back_what_it_describes(path, character):
     trigger = parse_trigger(f"serial:{path}:{character}")
