@@ -16,10 +16,16 @@ Every way out stays safe:
   socket, which a forked copy of the parent may still hold), rests the pins and releases
   torque itself;
 - the child is sent a signal: it rests the pins, releases torque and exits;
-- the child stops answering (frozen, SIGSTOP): the parent gives it until the trial's scheduled
-  end and a margin (`ANSWER_MARGIN_NS`), or `STOP_BUDGET_NS` once told to stop, then kills it
-  and rests the pins through its own descriptor; a request it takes nothing of while stopped
-  (one bigger than the socket holds) ends so at once: this end's writes do not block;
+- the child is stopped (SIGSTOP) while it works on a request, or part way through a message
+  either way: the parent kills it within a few looks and rests the pins through its own
+  descriptor (this end's writes do not block, and a read whose message stops coming looks
+  why); one that stops answering unseen (hung) is given until the trial's scheduled end and a
+  margin (`ANSWER_MARGIN_NS`), or `STOP_BUDGET_NS` once told to stop, then the same;
+- the parent's caller is interrupted mid-request (a Ctrl-C the script catches): the request
+  is sent its stop and its answer taken before the next one (`settle`), so that no answer is
+  taken for another's; a message cut part way kills the child (the stream is of no more use);
+- a write to a side that has gone is an error where it is, never SIGPIPE as well (the child
+  ignores it; the parent's writes take it), which a script may have set to end the process;
 - the parent is suspended (Ctrl-Z) while a stimulus plays or waits for its onset: the child
   cuts it, rests the pins and releases torque (`Suspended`); between stimuli the pins hold at
   rest, as they do while a script waits for anything else;
@@ -394,7 +400,7 @@ class PlayerProcess:
             self._stop_sent = True
             self._settle_owed(doing)
         except (PinArrayError, Interrupted):
-            pass  # the child's end, made safe (`_died`): the caller's interruption goes on
+            self._owed = 0  # the child's end, made safe (`_died`): the interruption goes on
         except BaseException:
             pass  # another interruption: the answer is taken before the next request
 
