@@ -725,3 +725,97 @@ def test_a_script_at_its_limit_of_open_files_is_refused_in_one_line_and_keeps_no
         assert outcome in ("opened", "refused") and kept == "0", line
     assert "refused" in " ".join(attempts)  # the limit was reached, at one free at least
     assert played == "True"
+
+
+DOUBLE_TAPPED_SCRIPT = """\
+import os, signal, sys, threading, time
+import pinarray
+
+def taps():  # Ctrl-C tapped twice, 10 ms apart, a second into the stimulus
+    time.sleep(1.0)
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.01)
+    os.kill(os.getpid(), signal.SIGINT)
+
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    seven = pinarray.Pattern(pins=[7], train=pinarray.Train(frequency_hz=5, duration_s=0.4))
+    ten = pinarray.Pattern(pins=[10], train=pinarray.Train(frequency_hz=5, duration_s=0.4))
+    array.prepare(seven)
+    array.prepare(ten)
+    threading.Thread(target=taps, daemon=True).start()
+    try:  # a trial loop that lets the experimenter skip one
+        array.present(pinarray.find_condition(protocol, pin=6))
+    except KeyboardInterrupt:
+        pass
+    try:
+        time.sleep(0.3)
+    except KeyboardInterrupt:
+        pass
+    for pattern, pin in ((seven, 7), (ten, 10)):
+        delivery = array.present(pattern)
+        print(pin, delivery.delivered, [stroke.pin for stroke in delivery.strokes], flush=True)
+"""
+
+
+@realtime
+def test_a_ctrl_c_tapped_twice_leaves_each_later_present_its_own_report(tmp_path):
+    # Stranger attack 8: the second tap lands while the parent takes the interrupted request's
+    # answer (_settle_owed): its debt is dropped, that answer (PlayStopped) comes back as the
+    # next present()'s ("cancelled ... nothing moved") while pin 7 then plays for 0.4 s, and
+    # the present() after reports pin 7's strokes as pin 10's, delivered.
+    with script_on_a_port(tmp_path, DOUBLE_TAPPED_SCRIPT, buzz(tmp_path, 30)) as (script, server):
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert out.splitlines() == ["7 True [7]", "10 True [10]"], out
+        assert at_rest_and_released(server.sim.servos) == []
+
+
+HANDLER_RAISES_SCRIPT = """\
+import os, signal, sys, time
+import pinarray
+
+kind, checked = sys.argv[3], sys.argv[4]
+AbortTrial = type("AbortTrial", ({"lab": pinarray.PinArrayError, "watchdog": TimeoutError,
+                                  "ctrl-c": KeyboardInterrupt}[kind],), {})
+
+def handler(signum, frame):  # the lab's watchdog: a trial that runs too long is given up
+    raise AbortTrial("the trial took too long")
+
+signal.signal(signal.SIGALRM, handler)
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    try:
+        array.present(pinarray.find_condition(protocol, pin=6))
+        print("played whole", flush=True)
+    except AbortTrial:
+        print("own", flush=True)
+    except pinarray.PinArrayError as error:
+        print(type(error).__name__, flush=True)
+    deadline = time.monotonic() + 60
+    while not os.path.exists(checked) and time.monotonic() < deadline:
+        time.sleep(0.01)  # the test looks at the servos while the script waits here
+"""
+
+
+@realtime
+@pytest.mark.parametrize("kind", ["ctrl-c", "lab", "watchdog"])
+def test_an_exception_a_scripts_handler_raises_in_present_cuts_the_stimulus_and_stays_its_own(
+        tmp_path, kind):
+    # Stranger attack 8: an exception the script's own signal handler raises inside present()
+    # is the script's, and the stimulus is cut before present() lets it through (pin 6 at rest,
+    # torque off, as for a caught Ctrl-C). Found: a PinArrayError subclass ("lab") lets the
+    # stimulus play on to its end (torque on meanwhile); a TimeoutError ("watchdog", an
+    # OSError) is taken for the player's death: the player is killed and PlaybackAborted
+    # ("the player process ended ... killed by signal 9") replaces the script's exception.
+    checked = tmp_path / "checked"
+    with script_on_a_port(tmp_path, HANDLER_RAISES_SCRIPT, buzz(tmp_path, 30), kind,
+                          str(checked)) as (script, server):
+        first = script.stdout.readline().strip()
+        held = [servo_id for servo_id in (6,) if server.sim.servos[servo_id].torque_enabled]
+        checked.write_text("")
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert (first, held) == ("own", []), (first, held, out, err)
+        assert at_rest_and_released(server.sim.servos) == []

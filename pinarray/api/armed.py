@@ -83,6 +83,8 @@ class Armed:
         try:
             return self._future.result(timeout)
         except TimeoutError:
+            if self._future.done():
+                raise  # what the stimulus ended in (a script's watchdog raised it): its own
             raise PinArrayError(f"the stimulus {self._described()} has not ended after "
                                 f"{timeout_s} s") from None
 

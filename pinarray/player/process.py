@@ -43,6 +43,7 @@ parent only, which decides.
 
 from __future__ import annotations
 
+import errno
 import os
 import socket
 import subprocess
@@ -183,6 +184,10 @@ class StartCue:
 # start-up here (136 -> 103 ms of processor, median of 25), threads the scheduler would then
 # keep beside the player's own; MKL and OpenMP builds read the other two.
 PLAYER_ENV = {"OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+
+
+# What a socket pair whose other end has gone (or this end closed) fails with.
+_CHANNEL_ERRNOS = frozenset({errno.EBADF, errno.EPIPE, errno.ECONNRESET, errno.ENOTCONN})
 
 
 class _ChildFrozen(OSError):
@@ -362,20 +367,23 @@ class PlayerProcess:
             if self._owed:
                 self._settle_owed(doing)
             self._requests += 1
+            message = request(self._requests)
             self._working = self._owed = self._requests
             self._stop_sent = False
             try:
-                self._send(request(self._requests))
+                self._send(message)
                 answer = self._answer(doing, due_ns)
                 self._owed = 0
             except _ChildFrozen as frozen:
                 self._died(doing, hung=str(frozen))
-            except OSError:
-                self._died(doing)
-            except (PinArrayError, Interrupted):
-                raise  # the child's end, made safe (`_died`)
-            except BaseException as interruption:  # KeyboardInterrupt: the script's own Ctrl-C
-                self._interrupted(doing, interruption)
+            except BaseException as error:
+                if isinstance(error, PinArrayError | Interrupted) and not self.alive:
+                    raise  # the child's end, made safe (`_died`)
+                if not self.alive or self._channel_failed(error):
+                    self._died(doing)
+                # The caller's own: KeyboardInterrupt (its Ctrl-C), or what a handler of the
+                # script's raised (a watchdog's TimeoutError) while the child works on.
+                self._interrupted(doing, error)
                 raise
             finally:
                 self._working = 0
@@ -414,7 +422,9 @@ class PlayerProcess:
 
     def _settle_owed(self, doing: str) -> None:
         """Take (and drop) the answer to request `_owed`, asked to stop if not yet, within
-        `STOP_BUDGET_NS`: a child that gives none is killed and the pins rested from here."""
+        `STOP_BUDGET_NS`: a child that gives none is killed and the pins rested from here.
+        Interrupted again, it is still owed (unless cut part way through the answer: then the
+        child is killed), and taken before the next request."""
         number, self._working = self._owed, self._owed
         try:
             if not self._stop_sent:
@@ -422,10 +432,25 @@ class PlayerProcess:
                 self._stop_sent = True
             due_ns = self._clock.now_ns() + STOP_BUDGET_NS
             self._answer(doing, lambda: due_ns)
-        except (PinArrayError, Interrupted):
-            pass  # killed and made safe (`_died`): the request after it finds it gone
-        finally:
-            self._owed = self._working = 0
+        except BaseException as error:
+            if self.alive and self.conn.midway:
+                try:
+                    self._died(doing, hung=f"its answer cut short by {type(error).__name__}: "
+                                           "killed")
+                except (PinArrayError, Interrupted):
+                    pass  # made safe: nothing more is owed
+            if self.alive and not self._channel_failed(error):
+                self._working = 0
+                raise  # interrupted again: still owed
+            # Otherwise the child's end, made safe (`_died`): the next request finds it gone.
+        self._owed = self._working = 0
+
+    def _channel_failed(self, error: BaseException) -> bool:
+        """Whether ``error`` is the channel's: the child's end closed or this one (not an
+        exception a handler of the script's raised meanwhile, such as a TimeoutError)."""
+        return (isinstance(error, EOFError | BrokenPipeError | ConnectionResetError)
+                or self.conn.closed
+                or (isinstance(error, OSError) and error.errno in _CHANNEL_ERRNOS))
 
     def _send(self, message: Request | Hello, quietly: bool = False) -> None:
         """One message to the child, whole (a cue may be sent from another thread);
@@ -476,7 +501,9 @@ class PlayerProcess:
                     self._died(f"{doing} (it answered {answer!r})")
             except _ChildFrozen as frozen:
                 self._died(doing, hung=str(frozen))
-            except (EOFError, OSError):
+            except (EOFError, OSError) as error:
+                if self.alive and not self._channel_failed(error):
+                    raise  # a handler of the script's raised it meanwhile: the caller's
                 self._died(doing)
             if self.stop.requested and self._working and not self._stop_sent:
                 self._send_stop()
