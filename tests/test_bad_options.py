@@ -257,6 +257,7 @@ def test_numbers_a_list_repeats_skips_or_writes_in_other_digits_are_refused(opti
     (["--port", "/nowhere/ttyUSB9"], "--port /nowhere/ttyUSB9: no such device (is the adapter plugged in?)"),
     (["--port", "/etc/passwd"], "--port /etc/passwd: not a serial device"),
     (["--port", "."], "--port .: not a serial device"),
+    (["--port", "/dev/tty"], "--port /dev/tty: the terminal this command runs in"),
     (["--sim", "bogus://"], "--sim expects a sim:// URL, found 'bogus://'"),
     (["--results", DEMO], f"{DEMO}: cannot write there: it is a file, expected a folder"),
     (["--results", f"{DEMO}/results"], f"cannot write there: {DEMO} is a file, not a folder"),
@@ -268,3 +269,13 @@ def test_the_ui_refuses_a_port_simulator_or_results_folder_that_cannot_work_befo
     assert done.returncode == 2 and done.stdout == ""
     (line,) = done.stderr.splitlines()
     assert line.startswith("pinarray: ") and said in line, line
+
+
+@pytest.mark.parametrize("command", ["tui", "play"])
+def test_an_empty_port_an_unset_variable_gives_is_refused_not_taken_for_the_simulator(
+        tmp_path, command):
+    done = pinarray_forked(tmp_path / "out", command, DEMO, "--port", "", timeout=60)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.splitlines()[-1].endswith(
+        "argument --port: expected a serial device such as /dev/ttyUSB0, found nothing (an "
+        "unset variable?)"), done.stderr

@@ -127,7 +127,8 @@ def add_bus_choice(parser: argparse.ArgumentParser, simulated_by_default: bool =
     unless not ``simulated_by_default`` (a command that changes or inspects servos: then
     `chosen_bus` refuses to run without one of them)."""
     group = parser.add_mutually_exclusive_group()
-    group.add_argument("--port", metavar="PATH", help="serial device of real servos")
+    group.add_argument("--port", metavar="PATH", type=_port_path,
+                       help="serial device of real servos")
     group.add_argument(
         "--sim", nargs="?", const=SIM_DEFAULT, metavar="URL",
         help="simulated servos (default), optionally a sim:// URL with faults"
@@ -135,6 +136,15 @@ def add_bus_choice(parser: argparse.ArgumentParser, simulated_by_default: bool =
         "simulated servos, to rehearse (this or --port is needed), optionally a sim:// URL "
         "with faults, e.g. 'sim://?ids=1' for one factory-fresh servo",
     )
+
+
+def _port_path(text: str) -> str:
+    """--port's argument: a device or URL, never nothing (an unset shell variable), which would
+    have meant the simulated array."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a serial device such as /dev/ttyUSB0, found "
+                                         "nothing (an unset variable?)")
+    return text
 
 
 def check_bus_choice(args: argparse.Namespace) -> None:
@@ -160,6 +170,10 @@ def check_bus_choice(args: argparse.Namespace) -> None:
     if not stat.S_ISCHR(mode):
         raise PinArrayError(f"--port {args.port}: not a serial device, expected one such as "
                             "/dev/ttyUSB0")
+    terminals = {os.fstat(fd).st_rdev for fd in (0, 1, 2) if os.isatty(fd)}
+    if os.path.realpath(args.port) == "/dev/tty" or os.stat(args.port).st_rdev in terminals:
+        raise PinArrayError(f"--port {args.port}: the terminal this command runs in, not the "
+                            "servos' serial device (the UI draws on it)")
 
 
 def chosen_bus(args: argparse.Namespace, command: str,

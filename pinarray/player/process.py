@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import errno
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -531,14 +532,15 @@ class PlayerProcess:
         not be delivered as scheduled then, while its pins held torque (a stimulus of minutes
         would, until its end). Twice, so that a stop and continue between two looks is not
         taken for it; not a traced stop (a debugger's, or strace's at every call)."""
-        stopped = process_state(self.process.pid) == "T"
+        stopped = self._frozen()
         twice, self._stopped_before = stopped and self._stopped_before, stopped
         return twice
 
     def _frozen(self) -> bool:
-        """Whether the child is stopped (SIGSTOP, a debugger): it cannot answer, however long
-        it is given."""
-        return process_state(self.process.pid) in ("T", "t")
+        """Whether the child is stopped (SIGSTOP): it cannot answer, however long it is given.
+        Not a traced stop: a debugger holding it (or strace, at every call) lets it go on, and
+        is left the time a stimulus has, as a hung child is."""
+        return process_state(self.process.pid) == "T"
 
     def _send_stop(self) -> None:
         self._stop_sent = True
@@ -556,7 +558,10 @@ class PlayerProcess:
             status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
         except subprocess.TimeoutExpired:
             self.process.kill()
-            status = self.process.wait()
+            try:
+                status = self.process.wait(timeout=EXIT_WAIT_S)
+            except subprocess.TimeoutExpired:  # a debugger holds it: reaped once it lets go
+                status = -signal.SIGKILL
         safe = SafeStopReport((), (), ())
         if self.bus is not None and not self._closing:
             safe = self.bus.rest_and_release()
