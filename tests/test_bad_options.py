@@ -271,11 +271,11 @@ def test_the_ui_refuses_a_port_simulator_or_results_folder_that_cannot_work_befo
     assert line.startswith("pinarray: ") and said in line, line
 
 
-@pytest.mark.parametrize("command", ["tui", "play"])
+@pytest.mark.parametrize("command", [("tui", DEMO), ("play", DEMO), ("pwm", "scan")])
 def test_an_empty_port_an_unset_variable_gives_is_refused_not_taken_for_the_simulator(
         tmp_path, command):
-    done = pinarray_forked(tmp_path / "out", command, DEMO, "--port", "", timeout=60)
+    done = pinarray_forked(tmp_path / "out", *command, "--port", "", timeout=60)
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.splitlines()[-1].endswith(
-        "argument --port: expected a serial device such as /dev/ttyUSB0, found nothing (an "
-        "unset variable?)"), done.stderr
+        "argument --port: expected a device such as /dev/ttyUSB0 or /dev/i2c-1, found nothing "
+        "(an unset variable?)"), done.stderr

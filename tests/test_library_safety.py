@@ -777,7 +777,8 @@ import pinarray
 
 kind, checked = sys.argv[3], sys.argv[4]
 AbortTrial = type("AbortTrial", ({"lab": pinarray.PinArrayError, "watchdog": TimeoutError,
-                                  "ctrl-c": KeyboardInterrupt}[kind],), {})
+                                  "ctrl-c": KeyboardInterrupt, "broken-pipe": BrokenPipeError,
+                                  "eof": EOFError}[kind],), {})
 
 def handler(signum, frame):  # the lab's watchdog: a trial that runs too long is given up
     raise AbortTrial("the trial took too long")
@@ -800,7 +801,7 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
 
 
 @realtime
-@pytest.mark.parametrize("kind", ["ctrl-c", "lab", "watchdog"])
+@pytest.mark.parametrize("kind", ["ctrl-c", "lab", "watchdog", "broken-pipe", "eof"])
 def test_an_exception_a_scripts_handler_raises_in_present_cuts_the_stimulus_and_stays_its_own(
         tmp_path, kind):
     # Stranger attack 8: an exception the script's own signal handler raises inside present()
@@ -809,6 +810,9 @@ def test_an_exception_a_scripts_handler_raises_in_present_cuts_the_stimulus_and_
     # stimulus play on to its end (torque on meanwhile); a TimeoutError ("watchdog", an
     # OSError) is taken for the player's death: the player is killed and PlaybackAborted
     # ("the player process ended ... killed by signal 9") replaces the script's exception.
+    # Stranger attack 9: a handler's BrokenPipeError (a print to a closed pipe) or EOFError is
+    # still taken for the channel's: the healthy player is waited for 1 s, killed, and
+    # PlaybackAborted replaces the script's exception.
     checked = tmp_path / "checked"
     with script_on_a_port(tmp_path, HANDLER_RAISES_SCRIPT, buzz(tmp_path, 30), kind,
                           str(checked)) as (script, server):
@@ -818,4 +822,75 @@ def test_an_exception_a_scripts_handler_raises_in_present_cuts_the_stimulus_and_
         out, err = script.communicate(timeout=120)
         assert script.returncode == 0, err
         assert (first, held) == ("own", []), (first, held, out, err)
+        assert at_rest_and_released(server.sim.servos) == []
+
+
+ARMED_WATCHDOG_SCRIPT = """\
+import signal, sys
+import pinarray
+
+class Watchdog(TimeoutError):  # the lab's own: a trial that runs too long is given up
+    pass
+
+def handler(signum, frame):
+    raise Watchdog("the trial took too long")
+
+signal.signal(signal.SIGALRM, handler)
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    armed = array.arm(pinarray.find_condition(protocol, pin=6))
+    armed.start()
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    try:
+        armed.result(None if sys.argv[3] == "none" else 600)
+        print("played whole", flush=True)
+    except Watchdog:
+        print("own", flush=True)
+    except pinarray.PinArrayError as error:
+        print(type(error).__name__, error, flush=True)
+    armed.cancel()
+"""
+
+
+@realtime
+@pytest.mark.parametrize("limit", ["none", "600"])
+def test_a_watchdog_a_script_raises_while_armed_result_waits_reaches_the_script_as_raised(
+        tmp_path, limit):
+    # Stranger attack 9: a script's SIGALRM handler raising its own TimeoutError subclass
+    # while Armed.result() waits is turned into PinArrayError "... has not ended after None s"
+    # (or "after 600 s", 1 s in): the script's watchdog never sees its own exception.
+    with script_on_a_port(tmp_path, ARMED_WATCHDOG_SCRIPT, buzz(tmp_path, 30),
+                          limit) as (script, server):
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert out.splitlines() == ["own"], out
+        assert at_rest_and_released(server.sim.servos) == []
+
+
+# The same trial loop, its Ctrl-C handler raising the lab's own PinArrayError subclass.
+DOUBLE_TAPPED_OWN_ERROR_SCRIPT = DOUBLE_TAPPED_SCRIPT.replace(
+    "import pinarray\n",
+    "import pinarray\n\n"
+    "class AbortTrial(pinarray.PinArrayError):  # the lab's: the experimenter skips a trial\n"
+    "    pass\n\n"
+    "def skip(signum, frame):\n"
+    "    raise AbortTrial('trial skipped')\n\n"
+    "signal.signal(signal.SIGINT, skip)\n", 1).replace("except KeyboardInterrupt:",
+                                                       "except AbortTrial:")
+
+
+@realtime
+def test_a_lab_error_raised_twice_by_a_ctrl_c_handler_leaves_each_later_present_its_own_report(
+        tmp_path):
+    # Stranger attack 9: as the double tap above, but the script's SIGINT handler raises its
+    # own PinArrayError subclass: the second one, raised while the interrupted request's answer
+    # is taken, is taken for the child's end (`_interrupted`) and the debt dropped: the next
+    # present() gets the interrupted request's PlayStopped ("cancelled ... before it started:
+    # nothing moved") while pin 7 then plays.
+    assert DOUBLE_TAPPED_OWN_ERROR_SCRIPT.count("except AbortTrial:") == 2
+    with script_on_a_port(tmp_path, DOUBLE_TAPPED_OWN_ERROR_SCRIPT,
+                          buzz(tmp_path, 30)) as (script, server):
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert out.splitlines() == ["7 True [7]", "10 True [10]"], out
         assert at_rest_and_released(server.sim.servos) == []

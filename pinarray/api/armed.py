@@ -3,6 +3,7 @@ in the background while the script goes on, and can be cancelled at any moment."
 
 from __future__ import annotations
 
+from concurrent import futures
 from concurrent.futures import Future
 from typing import TYPE_CHECKING
 
@@ -80,13 +81,12 @@ class Armed:
                                 "Armed.start(), which has not been called: start it first, or "
                                 "cancel() it (or give a timeout_s while another thread starts "
                                 "it)")
-        try:
-            return self._future.result(timeout)
-        except TimeoutError:
-            if self._future.done():
-                raise  # what the stimulus ended in (a script's watchdog raised it): its own
+        # Waited for here, not by `result(timeout)`: its TimeoutError could not be told from
+        # one a script's watchdog raises (its signal handler's, meanwhile), which is the script's.
+        if not futures.wait([self._future], timeout).done:
             raise PinArrayError(f"the stimulus {self._described()} has not ended after "
-                                f"{timeout_s} s") from None
+                                f"{timeout_s} s")
+        return self._future.result()
 
     def start(self) -> None:
         """Start a stimulus armed without an onset, now: its time zero is the moment the

@@ -127,7 +127,7 @@ def add_bus_choice(parser: argparse.ArgumentParser, simulated_by_default: bool =
     unless not ``simulated_by_default`` (a command that changes or inspects servos: then
     `chosen_bus` refuses to run without one of them)."""
     group = parser.add_mutually_exclusive_group()
-    group.add_argument("--port", metavar="PATH", type=_port_path,
+    group.add_argument("--port", metavar="PATH", type=port_path,
                        help="serial device of real servos")
     group.add_argument(
         "--sim", nargs="?", const=SIM_DEFAULT, metavar="URL",
@@ -138,12 +138,12 @@ def add_bus_choice(parser: argparse.ArgumentParser, simulated_by_default: bool =
     )
 
 
-def _port_path(text: str) -> str:
+def port_path(text: str) -> str:
     """--port's argument: a device or URL, never nothing (an unset shell variable), which would
-    have meant the simulated array."""
+    have meant the simulated array (or, for a PWM command, no bus)."""
     if not text.strip():
-        raise argparse.ArgumentTypeError("expected a serial device such as /dev/ttyUSB0, found "
-                                         "nothing (an unset variable?)")
+        raise argparse.ArgumentTypeError("expected a device such as /dev/ttyUSB0 or "
+                                         "/dev/i2c-1, found nothing (an unset variable?)")
     return text
 
 

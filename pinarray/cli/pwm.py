@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
+from pinarray.cli.bus import port_path
 from pinarray.cli.calibrate import JogDialogue
 from pinarray.cli.output import say
 
@@ -41,7 +42,8 @@ off (no pulses).
 
 def _board_choice(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group()
-    group.add_argument("--port", metavar="PATH", help="the I2C bus of real boards (/dev/i2c-N)")
+    group.add_argument("--port", metavar="PATH", type=port_path,
+                       help="the I2C bus of real boards (/dev/i2c-N)")
     group.add_argument("--sim", nargs="?", const="sim://pca9685", metavar="URL",
                        help="a simulated board, optionally a sim://pca9685 URL "
                             "(e.g. 'sim://pca9685?address=0x40,0x41')")

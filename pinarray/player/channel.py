@@ -99,6 +99,13 @@ class Channel:
             count -= len(chunk)
         return b"".join(chunks)
 
+    def hung_up(self) -> bool:
+        """Whether the other end has gone (the socket hung up or failed), as poll shows it now."""
+        poller = select.poll()
+        poller.register(self.fileno(), select.POLLIN)
+        gone = select.POLLHUP | select.POLLERR | select.POLLNVAL
+        return any(events & gone for _, events in poller.poll(0))
+
     def close(self) -> None:
         if self._fd >= 0:
             fd, self._fd = self._fd, -1

@@ -187,10 +187,6 @@ class StartCue:
 PLAYER_ENV = {"OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 
-# What a socket pair whose other end has gone (or this end closed) fails with.
-_CHANNEL_ERRNOS = frozenset({errno.EBADF, errno.EPIPE, errno.ECONNRESET, errno.ENOTCONN})
-
-
 class _ChildFrozen(OSError):
     """The child took nothing of a message and is stopped (SIGSTOP): it never will."""
 
@@ -235,6 +231,7 @@ class PlayerProcess:
         self._forked_away = False  # True in a forked copy of the process that started it
         self._stopped_before = False  # the child was stopped at the last look (`_stopped_twice`)
         self._owed = 0  # the request whose answer is still to be taken (0: none)
+        self._killed = False  # sent SIGKILL: ended, however long until it is reaped
         # Each descriptor made is closed again when a later one cannot be made (EMFILE: a
         # script near its limit of open files) or the child cannot be started.
         with ExitStack() as undo:
@@ -296,7 +293,12 @@ class PlayerProcess:
 
     @property
     def alive(self) -> bool:
-        return self.process.poll() is None
+        # Killed is ended, reaped or not (a debugger holding it keeps it unreaped until it lets go).
+        return not self._killed and self.process.poll() is None
+
+    def _kill(self) -> None:
+        self.process.kill()
+        self._killed = True
 
     def play(self, trial: PreparedTrial, *, onset: Onset | StartCue = SOON,
              tolerance_ns: int, markers: TrialMarkers | None = None,
@@ -402,16 +404,18 @@ class PlayerProcess:
         rested from here, and the next stimulus starts another."""
         try:
             if self.conn.midway:
-                self._died(doing, hung=f"a message to or from it cut short by "
-                                       f"{type(interruption).__name__}: killed")
+                try:
+                    self._died(doing, hung=f"a message to or from it cut short by "
+                                           f"{type(interruption).__name__}: killed")
+                except (PinArrayError, Interrupted):
+                    self._owed = 0  # made safe: nothing more is owed
+                    return
             self._send(StopPlaying(self._owed, f"cut short by {type(interruption).__name__}",
                                    None), quietly=True)
             self._stop_sent = True
             self._settle_owed(doing)
-        except (PinArrayError, Interrupted):
-            self._owed = 0  # the child's end, made safe (`_died`): the interruption goes on
         except BaseException:
-            pass  # another interruption: the answer is taken before the next request
+            pass  # interrupted again: still owed, taken before the next request
 
     def settle(self) -> None:
         """Take the answer to a request an interruption left (see `_interrupted`), so that
@@ -442,16 +446,32 @@ class PlayerProcess:
                     pass  # made safe: nothing more is owed
             if self.alive and not self._channel_failed(error):
                 self._working = 0
-                raise  # interrupted again: still owed
-            # Otherwise the child's end, made safe (`_died`): the next request finds it gone.
+                raise  # interrupted again (the caller's, whatever its class): still owed
+            if self.alive:
+                try:
+                    self._died(doing)
+                except (PinArrayError, Interrupted):
+                    pass
+            # The child's end, made safe (`_died`): the next request finds it gone.
         self._owed = self._working = 0
 
     def _channel_failed(self, error: BaseException) -> bool:
-        """Whether ``error`` is the channel's: the child's end closed or this one (not an
-        exception a handler of the script's raised meanwhile, such as a TimeoutError)."""
-        return (isinstance(error, EOFError | BrokenPipeError | ConnectionResetError)
-                or self.conn.closed
-                or (isinstance(error, OSError) and error.errno in _CHANNEL_ERRNOS))
+        """Whether ``error`` is the channel's: this end closed, or the child's end gone as the
+        socket shows it (hung up), not only as the exception's class says: a handler of the
+        script's may raise a BrokenPipeError of its own (printing into a closed pipe) while the
+        child plays on."""
+        if self.conn.closed:
+            return True
+        return (isinstance(error, EOFError | OSError)
+                and (self.conn.hung_up() or getattr(error, "errno", None) == errno.EBADF
+                     and not self._fd_open()))
+
+    def _fd_open(self) -> bool:
+        try:
+            os.fstat(self.conn.fileno())
+        except OSError:
+            return False
+        return True
 
     def _send(self, message: Request | Hello, quietly: bool = False) -> None:
         """One message to the child, whole (a cue may be sent from another thread);
@@ -498,7 +518,7 @@ class PlayerProcess:
                     answer = self.conn.recv(while_blocked=self._sending_nothing)
                     if isinstance(answer, ANSWERS):
                         return answer
-                    self.process.kill()  # a child that says what no child says: not ours
+                    self._kill()  # a child that says what no child says: not ours
                     self._died(f"{doing} (it answered {answer!r})")
             except _ChildFrozen as frozen:
                 self._died(doing, hung=str(frozen))
@@ -553,11 +573,11 @@ class PlayerProcess:
         made safe from here."""
         noticed_ns = time.monotonic_ns()
         if hung:
-            self.process.kill()  # a stopped process too: SIGKILL needs no cooperation
+            self._kill()  # a stopped process too: SIGKILL needs no cooperation
         try:
             status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
         except subprocess.TimeoutExpired:
-            self.process.kill()
+            self._kill()
             try:
                 status = self.process.wait(timeout=EXIT_WAIT_S)
             except subprocess.TimeoutExpired:  # a debugger holds it: reaped once it lets go
@@ -592,7 +612,7 @@ class PlayerProcess:
             return
         self._closing = True
         if self.alive and self._frozen():
-            self.process.kill()  # stopped (SIGSTOP): it cannot leave by itself
+            self._kill()  # stopped (SIGSTOP): it cannot leave by itself
         if self.alive:
             try:
                 if self._working:
@@ -602,8 +622,12 @@ class PlayerProcess:
             except (OSError, subprocess.TimeoutExpired):
                 pass
         if self.alive:
-            self.process.kill()
-            self.process.wait()
+            self._kill()
+        if self._killed:
+            try:
+                self.process.wait(timeout=EXIT_WAIT_S)
+            except subprocess.TimeoutExpired:
+                pass  # a debugger holds it: reaped once it lets go
         with self._one_at_a_time:  # a request still waiting sees the socket closed
             self.conn.close()
             self._errors.close()
