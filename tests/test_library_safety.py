@@ -894,3 +894,139 @@ def test_a_lab_error_raised_twice_by_a_ctrl_c_handler_leaves_each_later_present_
         assert script.returncode == 0, err
         assert out.splitlines() == ["7 True [7]", "10 True [10]"], out
         assert at_rest_and_released(server.sim.servos) == []
+
+
+# The lab's watchdog fires as the player dies (an OOM killer, a colleague's kill -9): the
+# handler kills it here, and raises once it is reaped-able (a zombie), so that the moment is
+# the same on every run.
+DEATH_AND_HANDLER_SCRIPT = """\
+import os, signal, sys, time
+import pinarray
+
+kind, checked = sys.argv[3], sys.argv[4]
+AbortTrial = type("AbortTrial", ({"lab": pinarray.PinArrayError, "watchdog": TimeoutError,
+                                  "broken-pipe": BrokenPipeError}[kind],), {})
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    pid = array._rig.player.process.pid
+
+    def handler(signum, frame):
+        os.kill(pid, signal.SIGKILL)
+        deadline = time.monotonic() + 30
+        while open(f"/proc/{pid}/stat").read().split()[2] != "Z" and time.monotonic() < deadline:
+            time.sleep(0.001)
+        raise AbortTrial("the trial took too long")
+
+    signal.signal(signal.SIGALRM, handler)
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    try:
+        array.present(pinarray.find_condition(protocol, pin=6))
+        print("played whole", flush=True)
+    except AbortTrial:
+        print("own", flush=True)
+    except pinarray.PinArrayError as error:
+        print(type(error).__name__, flush=True)
+    deadline = time.monotonic() + 60
+    while not os.path.exists(checked) and time.monotonic() < deadline:
+        time.sleep(0.01)  # the test looks at the servos while the script waits here
+    report = array.present(pinarray.Pattern(
+        pins=[9], train=pinarray.Train(frequency_hz=5, duration_s=0.4)))
+    print(report.delivered, [stroke.pin for stroke in report.strokes], flush=True)
+"""
+
+
+@realtime
+@pytest.mark.parametrize("kind", ["lab", "watchdog", "broken-pipe"])
+def test_a_player_killed_as_a_scripts_handler_raises_still_rests_the_pins_at_once(
+        tmp_path, kind):
+    # Stranger attack 10: the player SIGKILLed at the moment the script's own handler raises
+    # inside present(). A PinArrayError subclass ("lab") is taken for the child's end already
+    # made safe (`_ask`: `isinstance(error, PinArrayError) and not self.alive: raise`), and
+    # nothing rests the pins: pin 6 stays where the dead player left it, torque on, until the
+    # next present() or close() (1 s, or the whole inter-trial interval).
+    checked = tmp_path / "checked"
+    with script_on_a_port(tmp_path, DEATH_AND_HANDLER_SCRIPT, buzz(tmp_path, 30), kind,
+                          str(checked)) as (script, server):
+        first = script.stdout.readline().strip()
+        held = at_rest_and_released(server.sim.servos)
+        checked.write_text("")
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert first in ("own", "PlaybackAborted"), (first, out, err)
+        assert held == [], (first, held)
+        assert out.splitlines() == ["True [9]"], out
+        assert at_rest_and_released(server.sim.servos) == []
+
+
+# The lab's Ctrl-C handler raises its own PinArrayError subclass; the experimenter taps twice,
+# and the player dies (kill -9) at the second tap, while the first tap's stimulus is being
+# ended. The player is held (SIGSTOP) at the first tap, so that the second lands while its
+# answer is awaited on every run, and is a zombie when the second raises.
+DEATH_AT_SECOND_TAP_SCRIPT = """\
+import os, signal, sys, time
+import pinarray
+
+class AbortTrial(pinarray.PinArrayError):  # the lab's: the experimenter skips a trial
+    pass
+
+checked = sys.argv[3]
+protocol = pinarray.load_protocol(sys.argv[1])
+with pinarray.open_array(protocol, port=sys.argv[2]) as array:
+    pid = array._rig.player.process.pid
+    taps = []
+
+    def skip(signum, frame):
+        taps.append(signum)
+        if len(taps) == 1:
+            os.kill(pid, signal.SIGSTOP)
+            signal.setitimer(signal.ITIMER_REAL, 0.002)  # the second tap, 2 ms on
+        else:
+            os.kill(pid, signal.SIGKILL)
+            deadline = time.monotonic() + 30
+            while open(f"/proc/{pid}/stat").read().split()[2] != "Z" and time.monotonic() < deadline:
+                time.sleep(0.001)
+        raise AbortTrial("trial skipped")
+
+    signal.signal(signal.SIGINT, skip)
+    signal.signal(signal.SIGALRM, skip)
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    caught = 0
+    try:
+        array.present(pinarray.find_condition(protocol, pin=6))
+    except AbortTrial:
+        caught += 1
+    deadline = time.monotonic() + 60
+    while len(taps) < 2 and time.monotonic() < deadline:
+        try:
+            time.sleep(0.01)
+        except AbortTrial:
+            caught += 1
+    print(len(taps), caught, flush=True)
+    while not os.path.exists(checked) and time.monotonic() < deadline:
+        time.sleep(0.01)  # the test looks at the servos while the script waits here
+    report = array.present(pinarray.Pattern(
+        pins=[9], train=pinarray.Train(frequency_hz=5, duration_s=0.4)))
+    print(report.delivered, [stroke.pin for stroke in report.strokes], flush=True)
+"""
+
+
+@realtime
+def test_a_player_killed_at_a_second_tap_is_made_safe_at_once(tmp_path):
+    # Stranger attack 10: the second tap's exception arrives while the first tap's stimulus is
+    # being ended (`_settle_owed`), the player dead by then: `_settle_owed` sees it not alive,
+    # skips `_died` and drops the debt, returning normally: nothing rests or releases the
+    # servos (torque on) until the next present() or close(). (The second AbortTrial never
+    # reaches the script either; a live player's second tap is dropped the same way, by
+    # `_interrupted`'s `except BaseException: pass`, which this test does not judge.)
+    checked = tmp_path / "checked"
+    with script_on_a_port(tmp_path, DEATH_AT_SECOND_TAP_SCRIPT, buzz(tmp_path, 30),
+                          str(checked)) as (script, server):
+        first = script.stdout.readline().strip()
+        held = at_rest_and_released(server.sim.servos)
+        checked.write_text("")
+        out, err = script.communicate(timeout=120)
+        assert script.returncode == 0, err
+        assert held == [], (first, held)
+        assert first.split()[0] == "2", (first, out, err)  # both taps landed
+        assert out.splitlines() == ["True [9]"], (first, out, err)
+        assert at_rest_and_released(server.sim.servos) == []

@@ -232,6 +232,7 @@ class PlayerProcess:
         self._stopped_before = False  # the child was stopped at the last look (`_stopped_twice`)
         self._owed = 0  # the request whose answer is still to be taken (0: none)
         self._killed = False  # sent SIGKILL: ended, however long until it is reaped
+        self._death_handled = False  # `_died` has made the pins safe for the child's end
         # Each descriptor made is closed again when a later one cannot be made (EMFILE: a
         # script near its limit of open files) or the child cannot be started.
         with ExitStack() as undo:
@@ -371,6 +372,7 @@ class PlayerProcess:
                 self._settle_owed(doing)
             self._requests += 1
             message = request(self._requests)
+            self._death_handled = False
             self._working = self._owed = self._requests
             self._stop_sent = False
             try:
@@ -380,10 +382,13 @@ class PlayerProcess:
             except _ChildFrozen as frozen:
                 self._died(doing, hung=str(frozen))
             except BaseException as error:
-                if isinstance(error, PinArrayError | Interrupted) and not self.alive:
+                if self._death_handled:
                     raise  # the child's end, made safe (`_died`)
-                if not self.alive or self._channel_failed(error):
-                    self._died(doing)
+                if self._channel_failed(error):
+                    self._died(doing)  # the channel's own error: the child's end
+                if not self.alive:  # it ended as the caller's own exception came: safe first
+                    self._made_safe(doing)
+                    raise
                 # The caller's own: KeyboardInterrupt (its Ctrl-C), or what a handler of the
                 # script's raised (a watchdog's TimeoutError) while the child works on.
                 self._interrupted(doing, error)
@@ -404,12 +409,10 @@ class PlayerProcess:
         rested from here, and the next stimulus starts another."""
         try:
             if self.conn.midway:
-                try:
-                    self._died(doing, hung=f"a message to or from it cut short by "
-                                           f"{type(interruption).__name__}: killed")
-                except (PinArrayError, Interrupted):
-                    self._owed = 0  # made safe: nothing more is owed
-                    return
+                self._made_safe(doing, hung=f"a message to or from it cut short by "
+                                            f"{type(interruption).__name__}: killed")
+                self._owed = 0  # made safe: nothing more is owed
+                return
             self._send(StopPlaying(self._owed, f"cut short by {type(interruption).__name__}",
                                    None), quietly=True)
             self._stop_sent = True
@@ -438,22 +441,22 @@ class PlayerProcess:
             due_ns = self._clock.now_ns() + STOP_BUDGET_NS
             self._answer(doing, lambda: due_ns)
         except BaseException as error:
-            if self.alive and self.conn.midway:
-                try:
-                    self._died(doing, hung=f"its answer cut short by {type(error).__name__}: "
-                                           "killed")
-                except (PinArrayError, Interrupted):
-                    pass  # made safe: nothing more is owed
-            if self.alive and not self._channel_failed(error):
-                self._working = 0
-                raise  # interrupted again (the caller's, whatever its class): still owed
-            if self.alive:
-                try:
-                    self._died(doing)
-                except (PinArrayError, Interrupted):
-                    pass
+            if not self._death_handled:
+                if self.alive and not self.conn.midway and not self._channel_failed(error):
+                    self._working = 0
+                    raise  # interrupted again (the caller's, whatever its class): still owed
+                self._made_safe(doing, hung=f"its answer cut short by {type(error).__name__}: "
+                                            "killed" if self.alive else "")
             # The child's end, made safe (`_died`): the next request finds it gone.
         self._owed = self._working = 0
+
+    def _made_safe(self, doing: str, hung: str = "") -> None:
+        """`_died`, for a child that ended (or is killed, ``hung``) while the caller's own
+        exception is on its way: the pins made safe, what `_died` raises dropped for it."""
+        try:
+            self._died(doing, hung=hung)
+        except (PinArrayError, Interrupted):
+            pass
 
     def _channel_failed(self, error: BaseException) -> bool:
         """Whether ``error`` is the channel's: this end closed, or the child's end gone as the
@@ -572,6 +575,7 @@ class PlayerProcess:
         """The child ended, or (``hung``: why it is taken for hung) is killed now; the pins
         made safe from here."""
         noticed_ns = time.monotonic_ns()
+        self._death_handled = True
         if hung:
             self._kill()  # a stopped process too: SIGKILL needs no cooperation
         try:
