@@ -771,6 +771,23 @@ def test_a_ctrl_c_tapped_twice_leaves_each_later_present_its_own_report(tmp_path
         assert at_rest_and_released(server.sim.servos) == []
 
 
+# A trial the lab's watchdog (SIGALRM, its handler) gives up a second in; the test looks at the
+# servos while the script waits for the file ``checked``.
+WATCHDOG_TRIAL = """\
+    signal.setitimer(signal.ITIMER_REAL, 1.0)
+    try:
+        array.present(pinarray.find_condition(protocol, pin=6))
+        print("played whole", flush=True)
+    except AbortTrial:
+        print("own", flush=True)
+    except pinarray.PinArrayError as error:
+        print(type(error).__name__, flush=True)
+    deadline = time.monotonic() + 60
+    while not os.path.exists(checked) and time.monotonic() < deadline:
+        time.sleep(0.01)  # the test looks at the servos while the script waits here
+"""
+
+
 HANDLER_RAISES_SCRIPT = """\
 import os, signal, sys, time
 import pinarray
@@ -786,18 +803,7 @@ def handler(signum, frame):  # the lab's watchdog: a trial that runs too long is
 signal.signal(signal.SIGALRM, handler)
 protocol = pinarray.load_protocol(sys.argv[1])
 with pinarray.open_array(protocol, port=sys.argv[2]) as array:
-    signal.setitimer(signal.ITIMER_REAL, 1.0)
-    try:
-        array.present(pinarray.find_condition(protocol, pin=6))
-        print("played whole", flush=True)
-    except AbortTrial:
-        print("own", flush=True)
-    except pinarray.PinArrayError as error:
-        print(type(error).__name__, flush=True)
-    deadline = time.monotonic() + 60
-    while not os.path.exists(checked) and time.monotonic() < deadline:
-        time.sleep(0.01)  # the test looks at the servos while the script waits here
-"""
+""" + WATCHDOG_TRIAL
 
 
 @realtime
@@ -918,17 +924,7 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
         raise AbortTrial("the trial took too long")
 
     signal.signal(signal.SIGALRM, handler)
-    signal.setitimer(signal.ITIMER_REAL, 1.0)
-    try:
-        array.present(pinarray.find_condition(protocol, pin=6))
-        print("played whole", flush=True)
-    except AbortTrial:
-        print("own", flush=True)
-    except pinarray.PinArrayError as error:
-        print(type(error).__name__, flush=True)
-    deadline = time.monotonic() + 60
-    while not os.path.exists(checked) and time.monotonic() < deadline:
-        time.sleep(0.01)  # the test looks at the servos while the script waits here
+""" + WATCHDOG_TRIAL + """\
     report = array.present(pinarray.Pattern(
         pins=[9], train=pinarray.Train(frequency_hz=5, duration_s=0.4)))
     print(report.delivered, [stroke.pin for stroke in report.strokes], flush=True)
