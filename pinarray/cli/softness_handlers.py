@@ -417,6 +417,23 @@ def forceps(args) -> int:
     import numpy as np
 
     from pinarray.softness._checks import SoftnessError
+
+    # A radius far below any tissue's (--radius-mm 1e-300) makes the strains overflow: one
+    # line naming it, not numpy's warnings and then an error about a quantity never typed.
+    try:
+        with np.errstate(over="raise", invalid="raise", divide="raise"):
+            return _forceps(args)
+    except FloatingPointError as error:
+        raise SoftnessError(
+            f"--radius-mm {args.radius_mm:g}: the tissue's strains and forces leave the range "
+            f"of floating point at that radius ({error}); a tissue's radius is millimetres"
+        ) from None
+
+
+def _forceps(args) -> int:
+    import numpy as np
+
+    from pinarray.softness._checks import SoftnessError
     from pinarray.softness.forceps import TissueModel, fit_tissue
     from pinarray.softness.tf_display import ConeDisplay
     from pinarray.softness.units import M2_PER_MM2, M_PER_MM, PA_PER_KPA
@@ -465,18 +482,11 @@ def forceps(args) -> int:
 
         order = np.argsort(approach)
         dense = np.linspace(0.0, top_area, 300)
-        _wrote(
-            plot_forceps(
-                approach[order],
-                force[order],
-                tissue.force_for_approach_n(approach[order]),
-                dense,
-                tissue.force_for_area_n(dense),
-                tissue.display_pressure_pa(dense),
-                path,
-                "Forceps -> Hertz -> display pressure",
-            )
-        )
+        curves = (tissue.force_for_approach_n(approach[order]), tissue.force_for_area_n(dense),
+                  tissue.display_pressure_pa(dense))
+        with np.errstate(all="warn", under="ignore"):  # matplotlib's own numerics: numpy's default
+            _wrote(plot_forceps(approach[order], force[order], curves[0], dense, *curves[1:],
+                                path, "Forceps -> Hertz -> display pressure"))
     return 0
 
 

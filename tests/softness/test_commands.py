@@ -78,6 +78,17 @@ def test_a_display_too_large_to_compute_is_one_line_with_status_2_and_no_numpy_w
         in result.stderr and "fewer cylinders or a smaller area_ratio" in result.stderr
 
 
+def test_a_tissue_radius_too_small_to_compute_is_one_line_naming_it_and_no_numpy_warning(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-W", "error", "-m", "pinarray", "softness", "forceps",
+         "--radius-mm", "1e-300", "--png", str(tmp_path / "forceps.png")],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith(
+        "pinarray: --radius-mm 1e-300: the tissue's strains and forces leave the range")
+    assert not (tmp_path / "forceps.png").exists()
+
+
 def test_a_negative_force_names_the_argument(capsys):
     assert main(["softness", "hertz", "--max-force-n", "-1"]) == 2
     assert "force_n must be finite and non-negative" in capsys.readouterr().err
