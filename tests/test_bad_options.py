@@ -259,6 +259,8 @@ def test_numbers_a_list_repeats_skips_or_writes_in_other_digits_are_refused(opti
     (["--port", "."], "--port .: not a serial device"),
     (["--port", "/dev/tty"], "--port /dev/tty: the terminal this command runs in"),
     (["--sim", "bogus://"], "--sim expects a sim:// URL, found 'bogus://'"),
+    (["--sim", "sim://?drop=abc"], "sim://?drop=abc: sim URL key drop: expected a number, found 'abc'"),
+    (["--sim", "sim://?fidelity=motion&drop=0.1"], "sim URL key fidelity: motion computes"),
     (["--results", DEMO], f"{DEMO}: cannot write there: it is a file, expected a folder"),
     (["--results", f"{DEMO}/results"], f"cannot write there: {DEMO} is a file, not a folder"),
 ])

@@ -4,7 +4,7 @@ from the shell."""
 import argparse
 
 from pinarray.cli.output import say
-from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url
+from pinarray.hardware.feetech.faults import SIM_DEFAULT, is_sim_url, parse_sim_url
 
 # Exit status of `play` when a trial's stimulus was not delivered as scheduled.
 EXIT_NOT_DELIVERED = 3
@@ -150,14 +150,19 @@ def port_path(text: str) -> str:
 def check_bus_choice(args: argparse.Namespace) -> None:
     """Refuse, before anything loads, a --port or --sim that names no bus: a path that does not
     exist or is not a device (a pyserial URL such as ``socket://`` is left to opening, as is a
-    device that is not a serial port: /dev/null), or a --sim that is not a sim:// URL."""
+    device that is not a serial port: /dev/null), or a --sim that is not a sim:// URL or that
+    the simulated servos cannot read (a key unknown, a value out of range)."""
     import os
     import stat
 
     from pinarray.errors import PinArrayError
+    from pinarray.hardware.pca9685.sim import is_pca9685_url
 
     if args.sim is not None and not is_sim_url(args.sim):
         raise PinArrayError(f"--sim expects a sim:// URL, found {args.sim!r}")
+    if args.sim is not None and not is_pca9685_url(args.sim):
+        parse_sim_url(args.sim)  # its keys and values, as opening the servos reads them
+        # (a board's URL is read as it opens: its state file with it)
     if not args.port or "://" in args.port:
         return
     try:
