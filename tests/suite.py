@@ -60,11 +60,41 @@ def marks_realtime(path: Path) -> bool:
 
 def rewritten_by_pytest() -> list[Path]:
     """The files pytest rewrites the asserts of as it imports them: the test modules, the
-    conftest files, and every module of pinarray (whose pytest plugin marks it so)."""
+    conftest files, every module of pinarray (whose pytest plugin marks it so) and those of
+    the other packages that bring a pytest plugin (Hypothesis, xdist, syrupy, ...)."""
     tests = [path for path in TESTS.rglob("*.py")
              if (path.name.startswith("test_") or path.name == "conftest.py")
              and "psychopy" not in path.relative_to(TESTS).parts]  # PsychoPy's own run
-    return tests + sorted(PACKAGE.rglob("*.py"))
+    return tests + sorted(PACKAGE.rglob("*.py")) + plugin_packages_files()
+
+
+def plugin_packages_files() -> list[Path]:
+    """The source files of the installed packages pytest marks for rewriting because their
+    distribution brings a pytest plugin, pinarray aside, found as pytest finds them.
+
+    Rewritten copies are cached beside the installed sources, but from a fresh clone every
+    test process starts at once and each rewrites what it imports of them: Hypothesis alone
+    is some 80 modules, 1.2 s of processor in each of the eight processes here. Uses pytest's
+    own reading of the distributions, which is not public API: if it is not found, none."""
+    try:
+        from _pytest.config import _iter_rewritable_modules
+    except ImportError:
+        return []
+    from importlib.metadata import distributions
+    from importlib.util import find_spec
+
+    files = (str(file) for dist in distributions()
+             if any(point.group == "pytest11" for point in dist.entry_points)
+             for file in dist.files or [])
+    found: list[Path] = []
+    for name in sorted(set(_iter_rewritable_modules(files)) - {PACKAGE.name}):
+        spec = find_spec(name)  # a top-level name: found, not imported
+        if spec is None or spec.origin is None or not spec.origin.endswith(".py"):
+            continue
+        origin = Path(spec.origin)
+        found += sorted(origin.parent.rglob("*.py")) if spec.submodule_search_locations \
+            else [origin]
+    return found
 
 
 def rewrite_ahead() -> int:
@@ -109,7 +139,10 @@ def _rewrite(source: Path) -> None:
     from types import SimpleNamespace
 
     from _pytest.assertion import rewrite
-    source_status, code = rewrite._rewrite_test(source, None)
+    try:
+        source_status, code = rewrite._rewrite_test(source, None)
+    except (OSError, SyntaxError, ValueError):
+        return  # left to the test process that imports it, which says what is wrong
     if rewrite.try_makedirs(_cached_rewrite(source).parent):
         rewrite._write_pyc(SimpleNamespace(trace=lambda message: None), code, source_status,
                            _cached_rewrite(source))
