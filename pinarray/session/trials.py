@@ -54,10 +54,10 @@ from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.load import task_label as protocol_task_label
 from pinarray.protocol.model import Condition, Protocol
 from pinarray.schedule import TrialSchedule, compile_drives
-from pinarray.session.procedures import Presented, Procedures
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # an adaptive design's procedures are imported by the session that has one
     from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
+    from pinarray.session.procedures import Presented, Procedures
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
 
@@ -227,9 +227,12 @@ class Session:
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
         adaptive = protocol.design.adaptive
         # An adaptive design's procedures, where the rows on disk leave them.
-        self.procedures = (None if adaptive is None
-                           else Procedures(adaptive, plan.seed, writer.records,
-                                           writer.paths.beh_tsv, plan, prepared))
+        self.procedures: Procedures | None = None
+        if adaptive is not None:
+            from pinarray.session.procedures import Procedures
+
+            self.procedures = Procedures(adaptive, plan.seed, writer.records,
+                                         writer.paths.beh_tsv, plan, prepared)
         self._presented: tuple[PlannedTrial, Presented] | None = None
         self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""
