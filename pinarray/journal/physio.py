@@ -152,17 +152,22 @@ def motion_lines(samples: Sequence[MotionSample] | MotionColumns) -> bytes:
     # fraction 0, nor the point before it).
     last = 8 - np.argmax(fraction_digits[:, ::-1] != ord("0"), axis=1)
     fraction_shown = (np.arange(9) <= last[:, None]) & (fraction != 0)[:, None]
-    tab = _text(b"\t", count)
+    tab = _text(b"\t")
     cells = [
         _decimal(whole, negative=columns.time_ns < 0),
-        _text(b".", count, fraction != 0), (fraction_digits, fraction_shown), tab,
+        _text(b".", fraction != 0), (fraction_digits, fraction_shown), tab,
         _decimal(columns.trial), tab, _decimal(columns.pin), tab,
         _decimal(columns.position_steps), tab,
         _decimal(columns.goal_steps, shown=columns.has_goal),
-        _text(NA.encode("ascii"), count, ~columns.has_goal), _text(b"\n", count),
+        _text(NA.encode("ascii"), ~columns.has_goal), _text(b"\n"),
     ]
-    chars = np.concatenate([c for c, _ in cells], axis=1)
-    shown = np.concatenate([np.broadcast_to(s, c.shape) for c, s in cells], axis=1)
+    width = sum(c.shape[-1] for c, _ in cells)
+    chars, shown = np.empty((count, width), np.uint8), np.empty((count, width), bool)
+    at = 0
+    for cell_chars, cell_shown in cells:  # each broadcast to its rows as it is copied in
+        end = at + cell_chars.shape[-1]
+        chars[:, at:end], shown[:, at:end] = cell_chars, cell_shown
+        at = end
     lines: bytes = chars[shown].tobytes()
     return lines
 
@@ -205,13 +210,11 @@ def _decimal(values: np.ndarray, negative: np.ndarray | None = None,
     return digits, digit_shown if shown is None else digit_shown & shown[:, None]
 
 
-def _text(text: bytes, count: int, shown: np.ndarray | bool = True
-          ) -> tuple[np.ndarray, np.ndarray]:
-    """``text`` on each of ``count`` rows; shown on all of them, or where ``shown``."""
+def _text(text: bytes, shown: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | bool]:
+    """``text`` on every row; shown on all of them, or on those where ``shown``."""
     import numpy as np
 
-    chars = np.broadcast_to(np.frombuffer(text, np.uint8), (count, len(text)))
-    return chars, np.broadcast_to(np.reshape(shown, (-1, 1)), chars.shape)
+    return np.frombuffer(text, np.uint8), True if shown is None else shown[:, None]
 
 
 class MotionRecording:
