@@ -15,7 +15,13 @@ from hypothesis import strategies as st
 
 from pinarray import plan_trials, registry
 from pinarray.analysis.fits import placed
-from pinarray.analysis.seam import AnalysisDefaults, Estimate, EstimateStatus, analysis_of, observer_of
+from pinarray.analysis.seam import (
+    AnalysisDefaults,
+    Estimate,
+    EstimateStatus,
+    analysis_of,
+    observer_of,
+)
 from pinarray.api.sessions import Question, run_session, simulated_observer
 from pinarray.errors import PinArrayError, ProtocolErrors
 from pinarray.journal.seam import rows_of
