@@ -247,10 +247,12 @@ def correct_lines(records: Sequence[TrialRecord]) -> list[str]:
 
 
 def observer_of(name: str) -> Callable[[PinProtocol, str, int | None], Answerer]:
-    """How the paradigm called ``name`` makes its simulated subject
-    (`ParadigmAnalysis.observer`). pinarray's own keep `AnalysisDefaults`' (their room's
-    ``observer`` module), imported alone: a run answered by a simulated subject loads none of
-    their analyses (tables, power, statistics). A plug-in's comes from its analysis."""
+    """How the paradigm called ``name`` makes its simulated subject (`ParadigmAnalysis.observer`).
+
+    pinarray's own paradigms all keep `AnalysisDefaults.observer`, their room's ``observer``
+    module's function: that module is imported alone, and a run answered by a simulated
+    subject loads none of their analyses (tables, power, statistics). A plug-in's comes from
+    its analysis."""
     if name in registry.BUILT_IN:
         package = registry.BUILT_IN[name]
         observer: Callable[[PinProtocol, str, int | None], Answerer] = \

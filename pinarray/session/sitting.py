@@ -44,7 +44,8 @@ from pinarray.session.trials import Phase, Session, Stimulator, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
 # The scanner, the LSL markers and the adaptive procedures are imported where a sitting uses
-# them: a fixed design's run without them (most batches) does not load them.
+# them: a fixed design's run without them (most batches) does not load them. The servos'
+# bring-up is named for its types alone.
 if TYPE_CHECKING:
     from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
     from pinarray.hardware.feetech.bringup import ReturnDelayChange, ServoFailure
