@@ -4,6 +4,7 @@ checked against the servo bus at validate, every cell read back is checked, ever
 carries its status, and a killed run resumes to the same trials and the same simulated
 answers."""
 
+import importlib
 import math
 import re
 from pathlib import Path
@@ -14,7 +15,13 @@ from hypothesis import strategies as st
 
 from pinarray import plan_trials, registry
 from pinarray.analysis.fits import placed
-from pinarray.analysis.seam import Estimate, EstimateStatus, analysis_of
+from pinarray.analysis.seam import (
+    AnalysisDefaults,
+    Estimate,
+    EstimateStatus,
+    analysis_of,
+    observer_of,
+)
 from pinarray.api.sessions import Question, run_session, simulated_observer
 from pinarray.errors import PinArrayError, ProtocolErrors
 from pinarray.journal.seam import rows_of
@@ -40,6 +47,14 @@ def test_every_paradigm_is_one_room_that_implements_the_whole_seam():
         assert analysis_of(name) is room.analysis
         if name in registry.BUILT_IN:  # (a lab's own, if installed, lives in its package)
             assert type(room).__module__.startswith(f"pinarray.paradigms.{name}")
+
+
+def test_each_of_pinarray_s_own_simulated_subjects_is_its_room_s_observer_module_s():
+    # observer_of takes them from there without importing the rooms' analyses (a batch needs
+    # none): right while none of those analyses makes its subject another way.
+    for name, package in registry.BUILT_IN.items():
+        assert type(analysis_of(name)).observer is AnalysisDefaults.observer, name
+        assert observer_of(name) is importlib.import_module(f"{package}.observer").observer
 
 
 def test_a_protocol_naming_no_paradigm_is_told_every_one_there_is():

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from pinarray.cli import COMMANDS, build_parser
+from tests.lab_protocols import short_copy
 
 PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip install` wrote
@@ -121,6 +122,29 @@ def test_a_servo_bring_up_command_loads_no_numpy():
 
     assert "pinarray.hardware.feetech.feetech" in modules  # it did open the bus
     assert sorted(m for m in modules if m.split(".")[0] == "numpy") == []
+
+
+# What a batch of a fixed design answered by a simulated subject, with no scanner and no LSL
+# markers (most batches), has no use for: the analyses beyond the subject, the adaptive
+# procedures, the scanner's and the markers' modules.
+BATCH_NEVER = ("pinarray.adaptive", "pinarray.procedures", "pinarray.session.procedures",
+               "pinarray.imaging.scanner", "pinarray.imaging.markers", "pinarray.imaging.triggers",
+               "pinarray.analysis.load", "pinarray.analysis.tables", "pinarray.analysis.power",
+               "pinarray.analysis.stats", "pinarray.paradigms.localisation.stats")
+
+
+def test_a_fixed_design_s_batch_answered_by_a_simulated_subject_loads_no_analysis_adaptive_procedure_or_scanner(
+        tmp_path):
+    protocol = short_copy("localisation", tmp_path)
+    modules = imported_by([sys.executable, "-m", "pinarray", "batch", str(protocol), "--observer",
+                           "default", "--subject", "01", "--seed", "7",
+                           "--results", str(tmp_path / "results")])
+
+    # the listing is read right: it wrote rows, answered by the simulated subject (its room's
+    # observer, imported by name, is not listed; the models it is built from are)
+    assert {"pinarray.journal.writer", "pinarray.analysis.observers"} <= modules
+    assert sorted(m for m in modules
+                  if any(m == part or m.startswith(part + ".") for part in BATCH_NEVER)) == []
 
 
 def parts_loaded_by(code: str) -> list[str]:

@@ -246,6 +246,21 @@ def correct_lines(records: Sequence[TrialRecord]) -> list[str]:
     return [f"correct {sum(judged)}/{len(judged)} ({100 * sum(judged) / len(judged):.1f} %)"]
 
 
+def observer_of(name: str) -> Callable[[PinProtocol, str, int | None], Answerer]:
+    """How the paradigm called ``name`` makes its simulated subject (`ParadigmAnalysis.observer`).
+
+    pinarray's own paradigms all keep `AnalysisDefaults.observer`, their room's ``observer``
+    module's function: that module is imported alone, and a run answered by a simulated
+    subject loads none of their analyses (tables, power, statistics). A plug-in's comes from
+    its analysis."""
+    if name in registry.BUILT_IN:
+        package = registry.BUILT_IN[name]
+        observer: Callable[[PinProtocol, str, int | None], Answerer] = \
+            importlib.import_module(f"{package}.observer").observer
+        return observer
+    return analysis_of(name).observer
+
+
 @cache  # a protocol's check is slow (typing's), and a results file asks once per row
 def analysis_of(name: str) -> ParadigmAnalysis:
     """The analysis of the paradigm called ``name`` (the registry's), checked."""

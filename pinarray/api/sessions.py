@@ -13,8 +13,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from pinarray.analysis.load import LoadedRun, load_run
 from pinarray.api import arguments
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
@@ -22,6 +22,9 @@ from pinarray.player.rig import choose_clock
 from pinarray.protocol.model import Protocol
 from pinarray.session.sitting import Answer, NotDelivered, Question, SessionRequest, Sitting
 from pinarray.session.trials import SessionError
+
+if TYPE_CHECKING:  # a run read back once it is over: `pinarray batch` reads none
+    from pinarray.analysis.load import LoadedRun
 
 __all__ = ["Answer", "AnswerSource", "NotDelivered", "Question", "run_session",
            "simulated_observer"]
@@ -113,6 +116,8 @@ def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, sessi
             sitting.run_scripted(checked)
     except SessionError as error:  # an answer the paradigm does not take (the run is kept)
         raise PinArrayError(f"{call}: answer: {error}") from None
+    from pinarray.analysis.load import load_run
+
     return load_run(beh)
 
 
@@ -156,9 +161,9 @@ def simulated_observer(protocol: Protocol, model: str = "default", *,
                                    question.adapted_value)
 
         return respond_adaptively
-    from pinarray.analysis.seam import analysis_of, trial_answers
+    from pinarray.analysis.seam import observer_of, trial_answers
 
     # Each answer from the seed and the trial's number: a resumed run answers as an unbroken one.
     answer = trial_answers(
-        analysis_of(protocol.design.paradigm.name).observer(protocol, model, seed), seed)
+        observer_of(protocol.design.paradigm.name)(protocol, model, seed), seed)
     return lambda question: answer(question.trial.trial, question.trial.condition)

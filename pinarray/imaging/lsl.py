@@ -18,7 +18,6 @@ liblsl's configuration: the default scope reaches the lab's network; a file name
 
 from __future__ import annotations
 
-import socket
 from dataclasses import dataclass
 
 from pinarray.clock import Clock
@@ -51,6 +50,8 @@ def _pylsl():
 def source_id() -> str:
     """The stream's source id: the same from every process of this machine, so an inlet
     picks the stream up again when a new player process opens it."""
+    import socket  # here: every batch reads this module's default name to build its options
+
     return f"pinarray-markers@{socket.gethostname()}"
 
 

@@ -21,16 +21,19 @@ from __future__ import annotations
 import os
 import zlib
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from pinarray.errors import ResultsError
 from pinarray.journal.files import read_results_file, results_file
 from pinarray.journal.paths import RunPaths
-from pinarray.journal.timebase import ns_from_seconds, seconds_text
+from pinarray.journal.timebase import ns_from_seconds
 from pinarray.units import NS_PER_S
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from pinarray.journal.records import TrialRecord
 
 NA = "n/a"
@@ -88,21 +91,130 @@ def median_rate_hz(samples: Sequence[MotionSample]) -> float:
     return round(NS_PER_S / gaps[len(gaps) // 2], 1) if gaps else 0
 
 
-def motion_lines(samples: Sequence[MotionSample]) -> bytes:
-    """The rows of ``samples``, tab-separated, as bytes."""
-    lines: list[str] = []
-    append = lines.append
-    # A run records tens of thousands of samples: `seconds_text` inline for the times a run
-    # has (none before time zero), unpacked rather than read field by field, half the cost.
-    for time_ns, trial, pin, position_steps, goal_steps in samples:
-        if time_ns < 0:
-            timestamp = seconds_text(time_ns)
-        else:
-            whole, fraction = divmod(time_ns, NS_PER_S)
-            timestamp = f"{whole}.{fraction:09d}".rstrip("0") if fraction else str(whole)
-        append(f"{timestamp}\t{trial}\t{pin}\t{position_steps}\t"
-               f"{NA if goal_steps is None else goal_steps}\n")
-    return "".join(lines).encode("ascii")
+@dataclass(frozen=True, eq=False)
+class MotionColumns:
+    """Samples column by column, in the recording's order: a run records tens of thousands,
+    and a Python object per sample (a `MotionSample`) costs more than the trial's compute.
+
+    Each a numpy array of one length: ``time_ns`` (int64, on the run's time base), ``trial``,
+    ``pin``, ``position_steps`` and ``goal_steps`` (int64 steps), ``has_goal`` (bool: False
+    before the trial's first goal change, where ``goal_steps`` means nothing).
+    """
+
+    time_ns: np.ndarray
+    trial: np.ndarray
+    pin: np.ndarray
+    position_steps: np.ndarray
+    goal_steps: np.ndarray
+    has_goal: np.ndarray
+
+    @classmethod
+    def of(cls, samples: Sequence[MotionSample] | MotionColumns) -> MotionColumns:
+        """``samples`` as columns, in their order (columns as they are)."""
+        import numpy as np  # the journal reads and checks results without numpy
+
+        if isinstance(samples, MotionColumns):
+            return samples
+        rows = np.array([(*s[:4], 0 if s.goal_steps is None else s.goal_steps, s.goal_steps
+                          is not None) for s in samples], dtype=np.int64).reshape(-1, 6)
+        time_ns, trial, pin, position, goal, has_goal = rows.T.copy()
+        return cls(time_ns, trial, pin, position, goal, has_goal.astype(bool))
+
+    def __len__(self) -> int:
+        return len(self.time_ns)
+
+    def samples(self) -> list[MotionSample]:
+        """One `MotionSample` a row."""
+        goals = [g if known else None
+                 for g, known in zip(self.goal_steps.tolist(), self.has_goal.tolist(),
+                                     strict=True)]
+        return list(map(MotionSample, self.time_ns.tolist(), self.trial.tolist(),
+                        self.pin.tolist(), self.position_steps.tolist(), goals))
+
+
+def motion_lines(samples: Sequence[MotionSample] | MotionColumns) -> bytes:
+    """The rows of ``samples``, tab-separated, as bytes; each time as
+    `pinarray.journal.timebase.seconds_text` writes it.
+
+    Built for all rows at once (tens of thousands a run): each line's characters laid out in
+    a row of a byte matrix, beside a mask of those shown (a number's leading zeros, a time's
+    trailing ones, the n/a or the goal), and the shown ones read out in row order.
+    """
+    import numpy as np  # the journal reads and checks results without numpy
+
+    columns = MotionColumns.of(samples)
+    count = len(columns)
+    if not count:
+        return b""
+    whole, fraction = np.divmod(np.abs(columns.time_ns), NS_PER_S)
+    fraction_digits = _digits(fraction, 9)
+    # Trailing zeros dropped: the digits up to the last that is not 0 are shown (none of a
+    # fraction 0, nor the point before it).
+    last = 8 - np.argmax(fraction_digits[:, ::-1] != ord("0"), axis=1)
+    fraction_shown = (np.arange(9) <= last[:, None]) & (fraction != 0)[:, None]
+    tab = _text(b"\t")
+    cells = [
+        _decimal(whole, negative=columns.time_ns < 0),
+        _text(b".", fraction != 0), (fraction_digits, fraction_shown), tab,
+        _decimal(columns.trial), tab, _decimal(columns.pin), tab,
+        _decimal(columns.position_steps), tab,
+        _decimal(columns.goal_steps, shown=columns.has_goal),
+        _text(NA.encode("ascii"), ~columns.has_goal), _text(b"\n"),
+    ]
+    width = sum(c.shape[-1] for c, _ in cells)
+    chars, shown = np.empty((count, width), np.uint8), np.empty((count, width), bool)
+    at = 0
+    for cell_chars, cell_shown in cells:  # each broadcast to its rows as it is copied in
+        end = at + cell_chars.shape[-1]
+        chars[:, at:end], shown[:, at:end] = cell_chars, cell_shown
+        at = end
+    lines: bytes = chars[shown].tobytes()
+    return lines
+
+
+def _digits(values: np.ndarray, width: int) -> np.ndarray:
+    """The decimal digits (ASCII) of non-negative ``values``, ``width`` of them a row, the
+    leading ones 0."""
+    import numpy as np
+
+    digits = np.empty((len(values), width), np.uint8)
+    # Unsigned, and 32 bits where the values fit: numpy divides those several times faster.
+    rest: np.ndarray = values.astype(np.uint32 if width <= 9 else np.uint64)
+    for place in range(width - 1, -1, -1):
+        tens: np.ndarray = rest // 10
+        digits[:, place] = rest - tens * 10
+        rest = tens
+    digits += ord("0")
+    return digits
+
+
+def _decimal(values: np.ndarray, negative: np.ndarray | None = None,
+             shown: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The characters of integers ``values`` in decimal, a row each, and which of them are
+    shown: a sign where ``negative`` (by default where the value is), then the digits but the
+    leading zeros (0 itself shows one); none where not ``shown`` (by default all are)."""
+    import numpy as np
+
+    magnitude = np.abs(values)
+    width = len(str(int(magnitude.max())))
+    digits = _digits(magnitude, width)
+    # Each digit is shown from the value's first: where the value reaches its place's power
+    # of ten (the last place always).
+    places = 10 ** np.arange(width - 1, -1, -1, dtype=np.int64)
+    places[-1] = 0
+    digit_shown = magnitude[:, None] >= places
+    minus = values < 0 if negative is None else negative
+    if minus.any():
+        digits = np.concatenate([np.full((len(values), 1), ord("-"), np.uint8), digits], axis=1)
+        digit_shown = np.concatenate([minus[:, None], digit_shown], axis=1)
+    return digits, digit_shown if shown is None else digit_shown & shown[:, None]
+
+
+def _text(text: bytes, shown: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | bool]:
+    """``text`` on every row; shown on all of them, or on those where ``shown``."""
+    import numpy as np
+
+    return np.frombuffer(text, np.uint8), True if shown is None else shown[:, None]
 
 
 class MotionRecording:
@@ -143,7 +255,7 @@ class MotionRecording:
         mine = os.fstat(self._file.fileno())
         return (there.st_dev, there.st_ino) == (mine.st_dev, mine.st_ino)
 
-    def append(self, samples: Sequence[MotionSample]) -> None:
+    def append(self, samples: MotionColumns) -> None:
         """The samples compressed onto the stream, flushed to a whole block and fsync'd."""
         stream = self._stream
         self._file.write(stream.compress(motion_lines(samples)) + stream.flush(zlib.Z_FULL_FLUSH))

@@ -58,6 +58,7 @@ from pinarray.journal.manifest import (
 )
 from pinarray.journal.paths import RunPaths, has_files, runs_of
 from pinarray.journal.physio import (
+    MotionColumns,
     MotionRecording,
     MotionSample,
     claimed_samples,
@@ -479,7 +480,7 @@ class RunWriter:
         return remaining_plan(self.manifest.needed, self.records)
 
     def write_trial(self, record: TrialRecord,
-                    motion: Sequence[MotionSample] = ()) -> TrialRecord:
+                    motion: Sequence[MotionSample] | MotionColumns = ()) -> TrialRecord:
         """Append ``record`` to beh.tsv and events.tsv, each fsync'd, and return it as written;
         then ``motion``, the trial's samples, to the run's motion recording, fsync'd.
 
@@ -500,8 +501,8 @@ class RunWriter:
         # The samples first: a row says how many of them are on disk, and is written only once
         # they are (a full disk or a deleted recording leaves no row: the trial is played again).
         record = replace(record, motion_samples=len(motion))
-        if motion:
-            self._write_motion(motion)
+        if len(motion):
+            self._write_motion(MotionColumns.of(motion))
         try:
             with deferred_signals():  # a Ctrl-C must not fall between the two files
                 self._beh.append(trial_row(record, self.rows))
@@ -516,7 +517,7 @@ class RunWriter:
         self._flush_volumes()
         return record
 
-    def _write_motion(self, samples: Sequence[MotionSample]) -> None:
+    def _write_motion(self, samples: MotionColumns) -> None:
         """A trial's samples onto the run's motion recording; its sidecar with the first.
 
         The recording is opened keeping the samples the rows claim (those of a presentation
@@ -533,7 +534,7 @@ class RunWriter:
             if self._motion is None:
                 sidecar = path.with_name(path.name.removesuffix(".tsv.gz") + ".json")
                 if not sidecar.exists():
-                    described = motion_sidecar(samples, self.manifest.task_info.name)
+                    described = motion_sidecar(samples.samples(), self.manifest.task_info.name)
                     write_atomically(sidecar, json.dumps(described, indent=2) + "\n")
                 self._motion = MotionRecording(path, keep=self._claimed)
                 fsync_folder(path.parent)

@@ -30,10 +30,6 @@ from typing import TYPE_CHECKING, TypeVar
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError, ResultsError
 from pinarray.hardware.driver import SafeStopReport
-from pinarray.hardware.feetech.bringup import ReturnDelayChange, ServoFailure
-from pinarray.imaging.lsl import MarkerStream
-from pinarray.imaging.markers import MarkedStimulator, Presenter
-from pinarray.imaging.scanner import Scanner
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
 from pinarray.journal.writer import RunWriter
@@ -42,14 +38,20 @@ from pinarray.player.rehearsal import MAX_ATTEMPTS  # the retry policy, which va
 from pinarray.player.rig import Rig
 from pinarray.player.simulators import SimulatedArrays
 from pinarray.player.timing import CheckSkipped, Verdict
-from pinarray.procedures import prepare_quest_plus
 from pinarray.protocol import Protocol
 from pinarray.protocol.imaging import EmulatedTrigger, ScannerSync
 from pinarray.session.trials import Phase, Session, Stimulator, task_label
 from pinarray.stop import StoppableClock, Stopped, StopRequest
 
+# The scanner, the LSL markers and the adaptive procedures are imported where a sitting uses
+# them: a fixed design's run without them (most batches) does not load them. The servos'
+# bring-up is named for its types alone.
 if TYPE_CHECKING:
     from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
+    from pinarray.hardware.feetech.bringup import ReturnDelayChange, ServoFailure
+    from pinarray.imaging.lsl import MarkerStream
+    from pinarray.imaging.markers import Presenter
+    from pinarray.imaging.scanner import Scanner
 
 QUIT_REASON = "quit from the UI"
 PAUSE_REASON = "paused by the experimenter"
@@ -211,6 +213,8 @@ class Sitting:
         """The LSL marker stream, pylsl checked now, if the sitting sends markers; None if it
         does not. Each connection's rig opens it where its trials play."""
         if self.lsl_name is not None and self.marker_stream is None:
+            from pinarray.imaging.lsl import MarkerStream
+
             stream = MarkerStream(self.lsl_name)
             stream.check()
             self.marker_stream = stream
@@ -250,11 +254,11 @@ class Sitting:
 
     def _marker_stream(self, clock: Clock) -> MarkerStream | None:
         """The marker stream for a connection on ``clock``, if the sitting sends markers."""
+        if self.lsl_name is None:
+            return None
         from pinarray.imaging.lsl import LslError
         from pinarray.imaging.triggers import follows_wall_clock
 
-        if self.lsl_name is None:
-            return None
         if not follows_wall_clock(clock):
             raise LslError("LSL markers are stamped on this machine's clock, and a simulated "
                            "one is not it: start the UI with --speed 1")
@@ -340,6 +344,8 @@ class Sitting:
         assert self.clock is not None and self.rig is not None, "not connected"
         if not isinstance(sync.trigger, EmulatedTrigger):
             self.rig.keep_wall_time()  # the scanner's triggers are stamped on the wall clock
+        from pinarray.imaging.scanner import Scanner
+
         self.scanner = Scanner(sync, self.clock, self.stop)
         try:
             if opened is not None:
@@ -383,7 +389,11 @@ class Sitting:
         adaptive = request.protocol.design.adaptive
         # What can fail without the run is done before it is opened: a failure leaves no new
         # run, participant row or lock behind.
-        prepared = None if adaptive is None else prepare_quest_plus(adaptive)
+        prepared = None
+        if adaptive is not None:
+            from pinarray.procedures import prepare_quest_plus
+
+            prepared = prepare_quest_plus(adaptive)
         writer, plan = open_run(
             request.protocol, self.results_root, request.subject, request.session, request.task,
             resume=request.resume, seed=request.seed, port_url=self.rig.url,
@@ -544,6 +554,8 @@ def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimul
     session: Session | None = None
     presenter: Stimulator = stimulator
     if marked:
+        from pinarray.imaging.markers import MarkedStimulator
+
         presenter = MarkedStimulator(stimulator, protocol, writer.paths.task,
                                      lambda: session.current if session else None)
     if scanner is None:

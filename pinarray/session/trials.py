@@ -38,7 +38,7 @@ from pinarray.grid import Grid
 from pinarray.hardware.delivery import DeliveryRecord, Presentation
 from pinarray.hardware.motion import PinTrace, TrialStrokes, goal_at
 from pinarray.journal.manifest import RunStatus
-from pinarray.journal.physio import MotionSample
+from pinarray.journal.physio import MotionColumns
 from pinarray.journal.records import (
     DeliveryCounts,
     StrokeCounts,
@@ -54,10 +54,10 @@ from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.load import task_label as protocol_task_label
 from pinarray.protocol.model import Condition, Protocol
 from pinarray.schedule import TrialSchedule, compile_drives
-from pinarray.session.procedures import Presented, Procedures
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # an adaptive design's procedures are imported by the session that has one
     from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
+    from pinarray.session.procedures import Presented, Procedures
 
 PAUSE_CUT_SHORT = "cut short by a pause"  # the reason logged for a stimulus a pause stopped
 
@@ -72,19 +72,26 @@ def _stroke(strokes: TrialStrokes | None) -> StrokeCounts | None:
 
 
 def _samples(trial: int, onset_ns: int, traces: tuple[PinTrace, ...],
-             schedule: TrialSchedule) -> list[MotionSample]:
-    """A trial's sampled positions as rows of the run's motion recording, in time order."""
-    samples: list[MotionSample] = []
+             schedule: TrialSchedule) -> MotionColumns:
+    """A trial's sampled positions as rows of the run's motion recording, in time order (then
+    pin, position and goal, as `MotionSample` tuples sort)."""
+    import numpy as np  # the traces are numpy arrays already; the engine itself needs none
+
+    times, pins, positions, goals = [], [], [], []
     for trace in traces:
         mine = schedule.targets.pin == trace.pin
-        goals = list(zip(schedule.targets.time_ns[mine].tolist(),
-                         schedule.targets.position_steps[mine].tolist(), strict=True))
-        in_force = goal_at(goals, trace.time_ns).tolist()
-        samples.extend(
-            MotionSample(onset_ns + t, trial, trace.pin, p, None if g < 0 else g)
-            for t, p, g in zip(trace.time_ns.tolist(), trace.position_steps.tolist(), in_force,
-                               strict=True))
-    return sorted(samples)
+        changes = list(zip(schedule.targets.time_ns[mine].tolist(),
+                           schedule.targets.position_steps[mine].tolist(), strict=True))
+        goals.append(goal_at(changes, trace.time_ns))  # -1 before the first change
+        times.append(trace.time_ns + onset_ns)
+        pins.append(np.full(len(trace.time_ns), trace.pin, np.int64))
+        positions.append(trace.position_steps.astype(np.int64))
+    time_ns, pin, position, goal = (np.concatenate(column)
+                                    for column in (times, pins, positions, goals))
+    order = np.lexsort((goal, position, pin, time_ns))
+    goal = goal[order]
+    return MotionColumns(time_ns[order], np.full(len(order), trial, np.int64), pin[order],
+                         position[order], goal, goal >= 0)
 
 
 def _counts(delivery: DeliveryRecord) -> DeliveryCounts:
@@ -220,9 +227,12 @@ class Session:
         self._compiled: tuple[PlannedTrial, TrialSchedule] | None = None
         adaptive = protocol.design.adaptive
         # An adaptive design's procedures, where the rows on disk leave them.
-        self.procedures = (None if adaptive is None
-                           else Procedures(adaptive, plan.seed, writer.records,
-                                           writer.paths.beh_tsv, plan, prepared))
+        self.procedures: Procedures | None = None
+        if adaptive is not None:
+            from pinarray.session.procedures import Procedures
+
+            self.procedures = Procedures(adaptive, plan.seed, writer.records,
+                                         writer.paths.beh_tsv, plan, prepared)
         self._presented: tuple[PlannedTrial, Presented] | None = None
         self._next_allowed_ns = self._sitting_start_ns
         self.fault = ""
@@ -523,5 +533,5 @@ class Session:
         record = self.writer.rows.row(condition, common, response, pins, self.grid)
         traces, self._trace = self._trace, ()
         samples = _samples(planned.trial, self._onset_ns - self._zero_ns, traces,
-                           self.current_schedule()) if traces else []
+                           self.current_schedule()) if traces else ()
         return self.writer.write_trial(record, samples)
