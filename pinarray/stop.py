@@ -198,16 +198,21 @@ def _raise_unless_deferred(stopped: Stopped) -> None:
 
 @contextmanager
 def deferred_signals() -> Iterator[None]:
-    """Inside the block the stop signals wait; outside any main thread this does nothing.
+    """Inside the block every signal waits that Python handles; outside any main thread this
+    does nothing.
 
     For the few steps that must finish once begun: a pin's safe stop (rest, then torque off)
-    and a results row (``beh.tsv``, then ``events.tsv``). A handler that would raise while
-    the block runs raises when the outermost block ends instead.
+    and a results row (``beh.tsv``, then ``events.tsv``). Each signal that arrives meanwhile
+    is handed to its handler when the outermost block ends, in the order they came: a
+    handler that raises raises there instead. Not only pinarray's: a lab script's Ctrl-C
+    (KeyboardInterrupt) or the exception its watchdog's SIGALRM handler raises would otherwise
+    land between the goals to rest and the torque off, and a servo sent a goal holds torque.
     """
     if threading.current_thread() is not threading.main_thread():
         # Python runs signal handlers in the main thread only: this thread is never interrupted.
         yield
         return
+    held = _hold_handlers() if not _Deferral.depth else None  # the outermost block holds
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
     _Deferral.depth += 1
     try:
@@ -215,11 +220,48 @@ def deferred_signals() -> Iterator[None]:
     finally:
         _Deferral.depth -= 1
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        if held is not None:
+            _hand_over(held)
     # Reached only when the block ended normally (a signal the mask held back may still
     # arrive, as the block ends, on top of an error in it).
     if not _Deferral.depth and _Deferral.pending is not None:
         stopped, _Deferral.pending = _Deferral.pending, None
         raise stopped
+
+
+class _Held:
+    """The handlers `deferred_signals` put aside, and the signals that came for them."""
+
+    def __init__(self) -> None:
+        self.handlers: dict[int, Callable] = {}
+        self.arrived: list[int] = []
+
+    def note(self, signum: int, frame: object) -> None:
+        self.arrived.append(signum)
+
+
+def _hold_handlers() -> _Held:
+    """Every Python handler swapped for one that notes its signal. Masking is not enough:
+    once another thread exists (numpy's OpenBLAS starts one) the kernel hands the signal to
+    that thread, and Python runs the handler in the main one all the same."""
+    held = _Held()
+    for number in signal.valid_signals():
+        handler = signal.getsignal(number)
+        if callable(handler):
+            try:
+                signal.signal(number, held.note)
+            except (OSError, ValueError):  # one Python may not set
+                continue
+            held.handlers[number] = handler
+    return held
+
+
+def _hand_over(held: _Held) -> None:
+    """The handlers put back, then each signal that came handed to its own, in order."""
+    for number, handler in held.handlers.items():
+        signal.signal(number, handler)
+    for number in held.arrived:
+        held.handlers[number](number, None)
 
 
 class StoppableClock:

@@ -1026,3 +1026,52 @@ def test_a_player_killed_at_a_second_tap_is_made_safe_at_once(tmp_path):
         assert first.split()[0] == "2", (first, out, err)  # both taps landed
         assert out.splitlines() == ["True [9]"], (first, out, err)
         assert at_rest_and_released(server.sim.servos) == []
+
+
+# A lab's script with a thread of its own (as numpy's OpenBLAS starts one) closes its array;
+# the experimenter's Ctrl-C comes as close() rests the pins from the script's own port, after
+# the player has let go of them.
+CTRL_C_AS_IT_CLOSES_SCRIPT = """\
+import sys, threading
+import pinarray
+
+idle = threading.Event()
+threading.Thread(target=idle.wait, daemon=True).start()
+protocol = pinarray.load_protocol(sys.argv[1])
+array = pinarray.open_array(protocol, port=sys.argv[2])
+array.present(pinarray.Pattern(pins=[6], train=pinarray.Train(frequency_hz=5, duration_s=0.4)))
+try:
+    array.close()
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+"""
+
+TORQUE_ENABLE, GOAL_POSITION = 40, 42
+WRITE, SYNC_WRITE = 0x03, 0x83
+
+
+@realtime
+def test_a_ctrl_c_as_close_rests_the_pins_waits_until_torque_is_off_whichever_thread_takes_it(
+        tmp_path):
+    # Stranger attack 11: the safe stop held the signals back by masking them in the main
+    # thread only; the kernel gave the Ctrl-C to the script's other thread, and Python raised
+    # KeyboardInterrupt between the goals to rest (which switch a servo's torque on) and the
+    # torque off. The servos held torque after the script had ended.
+    with script_on_a_port(tmp_path, CTRL_C_AS_IT_CLOSES_SCRIPT, buzz(tmp_path, 0.4)) as (
+            script, server):
+        let_go, tapped = threading.Event(), threading.Event()
+
+        def tap_as_the_script_rests(packet):  # on the served bus's thread, as packets arrive
+            if packet.instruction not in (WRITE, SYNC_WRITE) or not packet.params:
+                return
+            if packet.params[0] == TORQUE_ENABLE and packet.params[-1] == 0:
+                let_go.set()  # the player's torque off, before it leaves
+            elif packet.params[0] == GOAL_POSITION and let_go.is_set() and not tapped.is_set():
+                tapped.set()
+                os.kill(script.pid, signal.SIGINT)
+
+        server.sim.packet_listener = tap_as_the_script_rests
+        out, err = script.communicate(timeout=120)
+        assert tapped.is_set(), (out, err)
+        assert script.returncode == 0 and out.splitlines() == ["interrupted"], (out, err)
+        assert at_rest_and_released(server.sim.servos) == []

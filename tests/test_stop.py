@@ -57,6 +57,72 @@ print(" / ".join(steps))
 """
 
 
+A_SCRIPTS_OWN_HANDLERS = """
+import os, select, signal, threading
+from pinarray.stop import deferred_signals
+
+class Watchdog(Exception):
+    pass
+
+def watchdog(signum, frame):
+    raise Watchdog("too slow")
+
+signal.signal(signal.SIGALRM, watchdog)
+arrived, wake = os.pipe()  # a byte each time a signal is taken, by whichever thread
+os.set_blocking(wake, False)
+signal.set_wakeup_fd(wake)
+idle = threading.Event()
+helper = threading.Thread(target=idle.wait, args=(30,))
+helper.start()
+for number, expected in ((signal.SIGINT, KeyboardInterrupt), (signal.SIGALRM, Watchdog)):
+    steps = []
+    try:
+        with deferred_signals():
+            steps.append("rest")
+            for tap in range(2):  # twice
+                signal.pthread_kill(helper.ident, number)  # the thread OpenBLAS would be
+                assert select.select([arrived], [], [], 20)[0], "the signal never came"
+                os.read(arrived, 1)
+            for _ in range(100_000):  # give a handler every chance to run in here
+                pass
+            steps.append("torque off")
+    except expected:
+        steps.append(expected.__name__)
+    print(" / ".join(steps))
+idle.set()
+helper.join()
+"""
+
+
+def test_a_scripts_ctrl_c_and_its_watchdogs_exception_wait_for_the_safe_stop_whichever_thread_takes_them():
+    # A lab's script keeps Python's Ctrl-C (KeyboardInterrupt) and sets its own handlers (a
+    # watchdog on SIGALRM). Given to another thread, as the kernel may, the handler still ran
+    # in the main thread in the middle of the rest: the goals sent, torque never switched off.
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", A_SCRIPTS_OWN_HANDLERS],
+                          capture_output=True, text=True, timeout=60)
+    assert done.stdout.splitlines() == ["rest / torque off / KeyboardInterrupt",
+                                        "rest / torque off / Watchdog"], done.stderr
+
+
+def test_the_handlers_are_back_after_a_deferral():
+    def lab_handler(signum, frame):
+        pass
+
+    ctrl_c = signal.getsignal(signal.SIGINT)
+    previous = signal.signal(signal.SIGUSR2, lab_handler)
+    try:
+        with deferred_signals():
+            with deferred_signals():
+                assert signal.getsignal(signal.SIGUSR2) is not lab_handler
+        assert signal.getsignal(signal.SIGUSR2) is lab_handler
+        assert signal.getsignal(signal.SIGINT) is ctrl_c
+    finally:
+        signal.signal(signal.SIGUSR2, previous)
+
+
 def test_a_deferred_signal_waits_even_when_another_thread_could_take_it():
     # With a second thread (numpy starts one) the kernel may give the signal to that thread;
     # Python still runs the handler in the main thread, in the middle of the block. In a

@@ -571,24 +571,41 @@ class PlayerProcess:
         self._send(StopPlaying(self._working, self.stop.reason, self.stop.signal_number),
                    quietly=True)
 
+    def _ended(self, hung: str) -> int:
+        """The child's exit status, once it has ended (``hung``: killed first)."""
+        if hung:
+            self._kill()  # a stopped process too: SIGKILL needs no cooperation
+        try:
+            return self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
+        except subprocess.TimeoutExpired:
+            self._kill()
+            try:
+                return self.process.wait(timeout=EXIT_WAIT_S)
+            except subprocess.TimeoutExpired:  # a debugger holds it: reaped once it lets go
+                return -signal.SIGKILL
+
+    def _rest_for_death(self) -> SafeStopReport:
+        """The pins made safe from here for the child's end, and that recorded: only once
+        they are (`rest_and_release` holds every signal back), so that an exception of the
+        script's landing before leaves it to be done on the way out."""
+        safe = SafeStopReport((), (), ())
+        if self.bus is not None and not self._closing:
+            safe = self.bus.rest_and_release()
+        self._death_handled = True
+        return safe
+
     def _died(self, doing: str, hung: str = "") -> NoReturn:
         """The child ended, or (``hung``: why it is taken for hung) is killed now; the pins
         made safe from here."""
         noticed_ns = time.monotonic_ns()
-        self._death_handled = True
-        if hung:
-            self._kill()  # a stopped process too: SIGKILL needs no cooperation
         try:
-            status = self.process.wait(timeout=EXIT_WAIT_S)  # its socket closes as it exits
-        except subprocess.TimeoutExpired:
-            self._kill()
-            try:
-                status = self.process.wait(timeout=EXIT_WAIT_S)
-            except subprocess.TimeoutExpired:  # a debugger holds it: reaped once it lets go
-                status = -signal.SIGKILL
-        safe = SafeStopReport((), (), ())
-        if self.bus is not None and not self._closing:
-            safe = self.bus.rest_and_release()
+            status = self._ended(hung)
+        except BaseException:
+            # The script's own exception (its watchdog's) as the child is waited for: the
+            # pins made safe before it goes on.
+            self._rest_for_death()
+            raise
+        safe = self._rest_for_death()
         stop_signal = status - 128 if status > 128 else -status if status < 0 else None
         if self.stop.requested or stop_signal in STOP_SIGNALS:
             # Asked to stop, or stopped by a signal meant for both (pkill, systemd): a stop.
