@@ -39,6 +39,14 @@ class Samples:
     force_n: np.ndarray
 
 
+def _number(cell: str) -> float:
+    """A decimal number as a lab's spreadsheet writes it: float() alone also reads other
+    scripts' digits (an Arabic-Indic 3 as 3) and Python's digit groups (1_0 as 10)."""
+    if not cell.isascii() or "_" in cell:
+        raise ValueError(cell)
+    return float(cell)
+
+
 def parse_samples(text: str, name: str) -> Samples:
     """Read a two-column CSV of force against area or displacement from its text.
 
@@ -60,7 +68,9 @@ def parse_samples(text: str, name: str) -> Samples:
     values = np.empty((len(rows) - 1, 2))
     for line, row in enumerate(rows[1:], start=2):
         try:
-            values[line - 2] = [float(cell) for cell in row]
+            if len(row) != 2:  # one number would be taken for both columns
+                raise ValueError(row)
+            values[line - 2] = [_number(cell) for cell in row]
         except ValueError:
             raise SoftnessError(
                 f"{path}:{line}: expected two numbers, found {','.join(row)}"

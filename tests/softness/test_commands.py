@@ -68,6 +68,21 @@ def test_bad_input_is_one_line_with_status_2(tmp_path):
     assert result.stderr.strip() == f"pinarray: {data}:3: expected two numbers, found 2,oops"
 
 
+@pytest.mark.parametrize(("row", "found"), [
+    ("0.1", "0.1"),  # the force missing: once read as 0.1 mm and 0.1 N
+    ("0.1,0.2,0.3", "0.1,0.2,0.3"),
+    ("0.1,\u0663", "0.1,\u0663"),  # an Arabic-Indic three: once read as 3 N
+    ("0.1,1_0", "0.1,1_0"),  # Python's digit groups: once read as 10 N
+])
+def test_a_samples_row_that_is_not_two_plain_numbers_is_refused_at_its_line(tmp_path, capsys,
+                                                                            row, found):
+    data = tmp_path / "tissue.csv"
+    data.write_text(f"displacement_mm,force_n\n0,0\n{row}\n0.4,0.1\n", encoding="utf-8")
+    assert main(["softness", "forceps", "--csv", str(data)]) == 2
+    out, err = capsys.readouterr()
+    assert err == f"pinarray: {data}:3: expected two numbers, found {found}\n"
+
+
 def test_a_display_too_large_to_compute_is_one_line_with_status_2_and_no_numpy_warning():
     result = subprocess.run(
         [sys.executable, "-W", "error", "-m", "pinarray", "softness", "telescopic",
