@@ -134,3 +134,9 @@ def test_a_level_that_does_not_exist_or_cannot_do_what_is_asked_is_refused():
         parse_sim_url("sim://?drop=0.1&fidelity=motion")
     with pytest.raises(PinArrayError, match="a pseudo-terminal carries bytes"):
         PtyServer(parse_sim_url("sim://?fidelity=packet"))
+    # A seed, or how late a late answer would be, injects nothing by itself.
+    for quiet in ("seed=3", "late_ms=5", "seed=3&late_ms=5"):
+        assert parse_sim_url(f"sim://?{quiet}&fidelity=motion").fidelity is Fidelity.MOTION
+    for fault in ("late=0.1", "missing=3", "vanish_after=100"):
+        with pytest.raises(PinArrayError, match="motion computes every motion sample"):
+            parse_sim_url(f"sim://?{fault}&fidelity=motion")

@@ -40,7 +40,7 @@ Every key is optional:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from urllib.parse import urlsplit
 
 from pinarray.errors import PinArrayError
@@ -130,6 +130,12 @@ class Faults:
     def late_ns(self) -> int:
         return round(self.late_ms * 1_000_000)
 
+    @property
+    def injects(self) -> bool:
+        """Whether any fault happens: a seed, or how late a late answer would be, alone
+        injects nothing."""
+        return self != replace(Faults(), seed=self.seed, late_ms=self.late_ms)
+
 
 @dataclass(frozen=True)
 class SimConfig:
@@ -169,7 +175,7 @@ class SimConfig:
         _check("load", self.load_fraction, -1.0, 1.0, " (a fraction of stall torque)")
         if self.speed_steps_per_s is not None:
             _check("speed", self.speed_steps_per_s, 1.0, MAX_SPEED_STEPS_PER_S, " steps/s")
-        if self.fidelity is Fidelity.MOTION and self.faults != Faults():
+        if self.fidelity is Fidelity.MOTION and self.faults.injects:
             raise PinArrayError(
                 "sim URL key fidelity: motion computes every motion sample and injects no "
                 "faults; expected fidelity=packet or wire with faults, found fidelity=motion")
