@@ -1,5 +1,7 @@
 """Transient faults are retried and counted; persistent ones name the servo and register."""
 
+import re
+
 import pytest
 
 from pinarray.errors import BusError, PinArrayError
@@ -191,3 +193,19 @@ def test_a_sim_url_key_given_twice_is_refused_not_read_as_its_last_value(url):
 
     with pytest.raises(PinArrayError, match="expected it once .* found it twice"):
         parse_sim_url(url)
+
+
+@pytest.mark.parametrize(("url", "said"), [
+    ("sim://pca9685?address=0x40", "found 'pca9685' after sim:// (sim://pca9685 simulates a "
+                                   "PCA9685 board, not STS servos)"),
+    ("sim://pca968", "found 'pca968' after sim://"),
+    ("sim://host/ids=1", "found 'host/ids=1' after sim://"),
+])
+def test_a_sim_url_naming_something_else_than_sts_servos_is_refused_not_simulated_as_them(
+        url, said):
+    # `pinarray play` of a servo-bus protocol once ran simulated STS servos for a board's URL.
+    from pinarray.hardware.feetech.faults import parse_sim_url
+
+    with pytest.raises(PinArrayError, match=re.escape(said)):
+        parse_sim_url(url)
+    assert parse_sim_url("sim://").ids == parse_sim_url("sim://?").ids == tuple(range(1, 17))

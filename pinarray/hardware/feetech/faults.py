@@ -237,6 +237,12 @@ def parse_sim_url(url: str) -> SimConfig:
     parts = urlsplit(url)
     if parts.scheme != SIM_SCHEME:
         raise PinArrayError(f"expected a sim:// URL, found {url!r}")
+    if parts.netloc or parts.path:  # sim://pca9685 is a board's; a typo of it no one's
+        board = " (sim://pca9685 simulates a PCA9685 board, not STS servos)" \
+            if parts.netloc.lower() == "pca9685" else ""
+        raise PinArrayError(f"{url}: expected simulated STS servos as sim:// or "
+                            f"sim://?KEY=VALUE&..., found {parts.netloc + parts.path!r} after "
+                            f"sim://{board}")
     query = sim_query(url, parts.query)
     unknown = sorted(set(query) - _KNOWN_KEYS)
     if unknown:
