@@ -243,17 +243,17 @@ class StoppableClock:
     def now_ns(self) -> int:
         return self.clock.now_ns()
 
-    def doze_until_ns(self, deadline_ns: int) -> None:
-        self.sleep_until_ns(deadline_ns)
-
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        stop, clock = self.stop, self.clock
         while True:
-            self.stop.raise_if_requested()
-            now_ns = self.clock.now_ns()
+            stop.raise_if_requested()
+            now_ns = clock.now_ns()
             if now_ns >= deadline_ns:
                 return
             if deadline_ns - now_ns > SLICE_NS:
-                self.clock.doze_until_ns(now_ns + SLICE_NS)  # not the deadline yet: no spinning
+                clock.doze_until_ns(now_ns + SLICE_NS)  # not the deadline yet: no spinning
             else:
-                self.clock.sleep_until_ns(deadline_ns)
+                clock.sleep_until_ns(deadline_ns)
+
+    doze_until_ns = sleep_until_ns
 

@@ -157,8 +157,8 @@ class Holds:
 
     def sampled(self, servo_id: int, at_ns: int, steps: int) -> None:
         """The servo read ``steps`` at ``at_ns`` (ns after onset)."""
-        goal = self._goals[servo_id].goal_at(at_ns)
-        if (self._last_steps.get(servo_id) == steps and goal is not None
+        if (self._last_steps.get(servo_id) == steps
+                and (goal := self._goals[servo_id].goal_at(at_ns)) is not None
                 and abs(steps - goal) <= ARRIVAL_STEPS):
             self._holding.add(servo_id)
         else:

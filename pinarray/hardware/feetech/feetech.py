@@ -405,6 +405,9 @@ class FeetechBus:
         """
         replies = self._read_words(_POSITION, _POSITION_BYTES, servo_ids, deadline_ns,
                                    "sampling")
+        if len(replies) == 1:  # one servo sampled (the usual): the comprehension's one item
+            ((servo_id, reply),) = replies.items()
+            return {servo_id: decode_position(int.from_bytes(reply.params, "little"))}
         return {i: decode_position(int.from_bytes(r.params, "little"))
                 for i, r in replies.items()}
 
