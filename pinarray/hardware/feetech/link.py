@@ -310,11 +310,6 @@ class Latency:
         ordered = sorted(self.recent_ns)  # here, not in the slack before a read-back
         self._p90_ns = ordered[min(len(ordered) - 1, 9 * len(ordered) // 10)]
 
-    def _known_ns(self) -> int:
-        if self.timer_ms is not None:
-            return max(self.floor_ns, (self.timer_ms + 1) * NS_PER_MS)
-        return self.floor_ns
-
     @property
     def allowance_ns(self) -> int:
         """How long past the wire and return-delay time a reply may still arrive."""
@@ -324,15 +319,19 @@ class Latency:
             if self.samples < self.SAMPLES_BEFORE_TRUST:
                 return max(self.CAUTIOUS_NS, worst_ns)
             return max(self.floor_ns, worst_ns)
-        # `_known_ns` written out: every exchange asks.
+        # The timer and one USB frame, the floor, or worse as seen (every exchange asks).
         return max(self.floor_ns, (timer_ms + 1) * NS_PER_MS, worst_ns)
 
     @property
     def expected_ns(self) -> int:
         """How long past the wire and return-delay time a read-back should plan to wait."""
-        if self.timer_ms is None and len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
-            return self.allowance_ns
-        return max(self._known_ns(), 2 * self._p90_ns)
+        timer_ms = self.timer_ms
+        if timer_ms is None:
+            if len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
+                return self.allowance_ns
+            return max(self.floor_ns, 2 * self._p90_ns)
+        # The timer and one USB frame, the floor, or twice the recent 90th percentile.
+        return max(self.floor_ns, (timer_ms + 1) * NS_PER_MS, 2 * self._p90_ns)
 
 
 class Link:

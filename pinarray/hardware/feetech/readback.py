@@ -158,9 +158,10 @@ class Verifier:
             if planned_ns + room_ns <= limit_ns:
                 start_ns = planned_ns
             else:
-                start_ns = self._next_start_ns(now_ns, cost_ns, request_ns, limit_ns)
-                if start_ns is None:
+                chosen_ns = self._next_start_ns(now_ns, cost_ns, request_ns, limit_ns)
+                if chosen_ns is None:
                     return
+                start_ns = chosen_ns
             if now_ns < start_ns:  # at most one sample a SAMPLE_PERIOD_NS
                 self._next_sample_ns = start_ns
                 clock.doze_until_ns(start_ns)

@@ -21,6 +21,7 @@ from pinarray.hardware.feetech.registers import BROADCAST_ID
 from pinarray.hardware.feetech.sim_serial import SimSerial
 from pinarray.hardware.feetech.sim_wire import STATUS_OVERHEAD_BYTES, Answer
 
+
 def _readable(answer: Answer, longest_params: int) -> bool:
     """Whether `StatusReader.feed`, its buffer empty, takes ``answer``'s bytes whole as one
     status packet (anything else: the bytes go to the reader)."""
