@@ -256,8 +256,13 @@ class Verifier:
 
     def _last_sampled_ns(self) -> int:
         """The moving pins' oldest last sample, ns after onset (onset where one has none)."""
-        return min((int(self._sampled_ns[i][-1]) if self._sampled_ns[i] else 0
-                    for i in self.moving), default=0)
+        oldest_ns = None
+        for servo_id in self.moving:  # a loop, not min() over a generator: once per frame
+            sampled = self._sampled_ns[servo_id]
+            last_ns = sampled[-1] if sampled else 0
+            if oldest_ns is None or last_ns < oldest_ns:
+                oldest_ns = last_ns
+        return oldest_ns or 0
 
     def _first_after_next_frame_ns(self) -> int:
         """When, ns after onset, the first sample after the next frame reads the horns at the

@@ -195,7 +195,8 @@ class SimBus:
             # The usual write: one whole packet and nothing else (`_next_packet`'s first round).
             request = self.whole_packet(data)
             if request is not None:
-                return self.deliver(*request, at_ns, baud_rate)
+                servo_id, instruction, params = request
+                return self.deliver(servo_id, instruction, params, at_ns, baud_rate)
             if _whole(data):  # its checksum failed
                 self.packets_rejected += 1
                 return []

@@ -60,7 +60,8 @@ class PacketLink(Link):
         counters, clock, longest = self.counters, self.clock, self.reader.longest_params
         counters.bytes_written += len(packet)
         counters.exchanges += 1
-        end_ns, answers = port.write_whole(packet, *request)
+        servo_id, instruction, params = request
+        end_ns, answers = port.write_whole(packet, servo_id, instruction, params)
         if len(answers) == 1 and len(wanted) == 1:
             return self._one_answer(answers[0], end_ns, wanted, limit_ns)
         if len(answers) > 1 and not all(answer.chained for answer in answers):
