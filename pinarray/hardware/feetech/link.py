@@ -208,10 +208,11 @@ class PolledWire:
             raise WireLost(errno.EIO, str(error)) from None
 
     def read_some(self, deadline_ns: int) -> bytes:
-        port, clock, readable_at_ns = self.port, self.clock, self._readable_at_ns
+        read_arrived = self._read_arrived
         try:
-            if self._read_arrived is not None:
-                return self._read_arrived(deadline_ns)
+            if read_arrived is not None:
+                return read_arrived(deadline_ns)
+            port, clock, readable_at_ns = self.port, self.clock, self._readable_at_ns
             while True:
                 waiting = port.in_waiting
                 if waiting:

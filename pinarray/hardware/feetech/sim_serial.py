@@ -159,7 +159,8 @@ class SimSerial:
         start_ns = self.clock.now_ns()
         if start_ns < self._wire_free_ns:
             start_ns = self._wire_free_ns
-        end_ns = start_ns + round(len(data) * self._byte_ns)
+        step_ns = self._step_ns  # at a round rate, the product below is whole: no rounding
+        end_ns = start_ns + (len(data) * step_ns if step_ns else round(len(data) * self._byte_ns))
         self._tx_done_ns = self._wire_free_ns = end_ns
         self.bytes_written += len(data)
         self.writes.append(data)
@@ -321,6 +322,9 @@ class SimSerial:
                         # None of it here yet, and its end the one to come (the usual
                         # wait): what the rest of this round does, without counting.
                         clock.sleep_until_ns(times[-1])
+                        if self.is_open and not self.bus.vanished and times[-1] <= clock.now_ns():
+                            # The next round's first test, passed: the whole transmission.
+                            return self._take(len(times) - self._offset)
                         continue
                 count = self._arrived(now_ns)
                 if count:
