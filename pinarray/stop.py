@@ -56,6 +56,9 @@ class StopRequest:
 
     def __init__(self) -> None:
         self._event = threading.Event()
+        # The event's flag as a plain attribute: every wait of a trial looks at it (twice per
+        # motion sample), and `Event.is_set` is a call.
+        self._requested = False
         self.reason = ""
         self.signal_number: int | None = None
         self._callbacks: list[Callable[[], object]] = []
@@ -63,6 +66,7 @@ class StopRequest:
     def request(self, reason: str, signal_number: int | None = None) -> None:
         if not self._event.is_set():
             self.reason, self.signal_number = reason, signal_number
+            self._requested = True
             self._event.set()
             for callback in self._callbacks:
                 callback()
@@ -73,6 +77,7 @@ class StopRequest:
 
     def clear(self) -> None:
         self._event.clear()
+        self._requested = False
         self.reason, self.signal_number = "", None
 
     @property
@@ -84,7 +89,7 @@ class StopRequest:
         return self._event.wait(timeout_s)
 
     def raise_if_requested(self) -> None:
-        if self._event.is_set():
+        if self._requested:
             raise Stopped(self.reason or "stopped", self.signal_number)
 
 
@@ -285,17 +290,17 @@ class StoppableClock:
     def now_ns(self) -> int:
         return self.clock.now_ns()
 
-    def doze_until_ns(self, deadline_ns: int) -> None:
-        self.sleep_until_ns(deadline_ns)
-
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        stop, clock = self.stop, self.clock
         while True:
-            self.stop.raise_if_requested()
-            now_ns = self.clock.now_ns()
+            stop.raise_if_requested()
+            now_ns = clock.now_ns()
             if now_ns >= deadline_ns:
                 return
             if deadline_ns - now_ns > SLICE_NS:
-                self.clock.doze_until_ns(now_ns + SLICE_NS)  # not the deadline yet: no spinning
+                clock.doze_until_ns(now_ns + SLICE_NS)  # not the deadline yet: no spinning
             else:
-                self.clock.sleep_until_ns(deadline_ns)
+                clock.sleep_until_ns(deadline_ns)
+
+    doze_until_ns = sleep_until_ns
 

@@ -157,8 +157,8 @@ class Holds:
 
     def sampled(self, servo_id: int, at_ns: int, steps: int) -> None:
         """The servo read ``steps`` at ``at_ns`` (ns after onset)."""
-        goal = self._goals[servo_id].goal_at(at_ns)
-        if (self._last_steps.get(servo_id) == steps and goal is not None
+        if (self._last_steps.get(servo_id) == steps
+                and (goal := self._goals[servo_id].goal_at(at_ns)) is not None
                 and abs(steps - goal) <= ARRIVAL_STEPS):
             self._holding.add(servo_id)
         else:
@@ -168,7 +168,11 @@ class Holds:
     def gap_fits(self, from_ns: int, to_ns: int) -> bool:
         """Whether every moving pin's cycles allow no sample from ``from_ns`` to ``to_ns``
         (ns after onset): see `PinGoals.gap_fits`."""
-        return all(goals.gap_fits(from_ns, to_ns, self.end_ns) for goals in self._goals.values())
+        end_ns = self.end_ns
+        for goals in self._goals.values():  # a loop, not all() over a generator: per frame
+            if not goals.gap_fits(from_ns, to_ns, end_ns):
+                return False
+        return True
 
     def tightest_gap_ns(self) -> int | None:
         """The shortest gap between samples any moving pin's cycle allows, in ns (None: no
@@ -179,8 +183,10 @@ class Holds:
     def reach_ns(self, from_ns: int) -> int:
         """The latest the next sample may follow one at ``from_ns`` (ns after onset) and keep
         every moving pin's cycle rule: see `PinGoals.reach_ns`."""
-        return min((goals.reach_ns(from_ns, self.end_ns) for goals in self._goals.values()),
-                   default=NEVER_NS)
+        reach_ns = NEVER_NS  # the reach of no pin (none moves, or none has a cycle)
+        for goals in self._goals.values():  # a loop, not min() over a generator: per frame
+            reach_ns = min(reach_ns, goals.reach_ns(from_ns, self.end_ns))
+        return reach_ns
 
     def next_sample_ns(self, last_ns: int, sample_ns: int, after_change_ns: int) -> int:
         """When, after a sample at ``last_ns`` (ns after onset), the next one is needed.

@@ -62,8 +62,10 @@ GOAL_TO_POSITION_BYTES = (Register.PRESENT_POSITION.address + Register.PRESENT_P
 POSITION_OFFSET = Register.PRESENT_POSITION.address - Register.GOAL_POSITION.address
 # Sync reads that get no answer at all, in a row, before read-backs use READs instead.
 SYNC_READ_TRIES = 3
-# Present Position and its size: a sampled bus reads it every few milliseconds.
+# Present Position and its size: a sampled bus reads it every few milliseconds; Goal
+# Position and its size: read back after every frame.
 _POSITION, _POSITION_BYTES = Register.PRESENT_POSITION, Register.PRESENT_POSITION.size
+_GOAL, _GOAL_BYTES = Register.GOAL_POSITION, Register.GOAL_POSITION.size
 # Read requests kept made (a trial asks the same few again and again; a bring-up, many once).
 READ_REQUESTS_KEPT = 64
 # A retry after a silence waits this many times longer than the attempt before it.
@@ -387,15 +389,13 @@ class FeetechBus:
         costs only that servo's reading). One attempt: the player decides when to try again.
         A bus whose servos never answer a SYNC READ (some emulators) falls back to READs.
         """
-        replies = self._read_words(Register.GOAL_POSITION, Register.GOAL_POSITION.size,
-                                   servo_ids, deadline_ns, "reading back")
+        replies = self._read_words(_GOAL, _GOAL_BYTES, servo_ids, deadline_ns, "reading back")
         return {i: GoalReading(decode_position(from_bytes(r.params)), StatusError(r.error))
                 for i, r in replies.items()}
 
     def read_goals_time_ns(self, servo_ids: tuple[int, ...]) -> int:
         """What `read_goals` of these servos should take (to fit it between two frames)."""
-        return self._read_words_time_ns(Register.GOAL_POSITION, Register.GOAL_POSITION.size,
-                                        servo_ids)
+        return self._read_words_time_ns(_GOAL, _GOAL_BYTES, servo_ids)
 
     def read_positions(self, servo_ids: tuple[int, ...], deadline_ns: int) -> dict[int, int]:
         """Where the horns are (Present Position, in steps), as `read_goals` reads goals.
@@ -405,6 +405,9 @@ class FeetechBus:
         """
         replies = self._read_words(_POSITION, _POSITION_BYTES, servo_ids, deadline_ns,
                                    "sampling")
+        if len(replies) == 1:  # one servo sampled (the usual): the comprehension's one item
+            ((servo_id, reply),) = replies.items()
+            return {servo_id: decode_position(int.from_bytes(reply.params, "little"))}
         return {i: decode_position(int.from_bytes(r.params, "little"))
                 for i, r in replies.items()}
 
@@ -420,7 +423,7 @@ class FeetechBus:
         A read-back that samples the horns too, where two exchanges would not fit: each servo
         reads both as the request reaches it. A servo missing: no reply by ``deadline_ns``.
         """
-        replies = self._read_words(Register.GOAL_POSITION, GOAL_TO_POSITION_BYTES, servo_ids,
+        replies = self._read_words(_GOAL, GOAL_TO_POSITION_BYTES, servo_ids,
                                    deadline_ns, "reading back and sampling")
         goal, present = slice(0, 2), slice(POSITION_OFFSET, POSITION_OFFSET + 2)
         return {i: (GoalReading(decode_position(from_bytes(r.params[goal])), StatusError(r.error)),
@@ -429,8 +432,7 @@ class FeetechBus:
 
     def read_goals_and_positions_time_ns(self, servo_ids: tuple[int, ...]) -> int:
         """What `read_goals_and_positions` of these servos should take on this bus."""
-        return self._read_words_time_ns(Register.GOAL_POSITION, GOAL_TO_POSITION_BYTES,
-                                        servo_ids)
+        return self._read_words_time_ns(_GOAL, GOAL_TO_POSITION_BYTES, servo_ids)
 
     def read_request_bytes(self, servo_ids: tuple[int, ...]) -> int:
         """The size of the request `read_goals` or `read_positions` sends for these servos."""

@@ -208,10 +208,11 @@ class PolledWire:
             raise WireLost(errno.EIO, str(error)) from None
 
     def read_some(self, deadline_ns: int) -> bytes:
-        port, clock, readable_at_ns = self.port, self.clock, self._readable_at_ns
+        read_arrived = self._read_arrived
         try:
-            if self._read_arrived is not None:
-                return self._read_arrived(deadline_ns)
+            if read_arrived is not None:
+                return read_arrived(deadline_ns)
+            port, clock, readable_at_ns = self.port, self.clock, self._readable_at_ns
             while True:
                 waiting = port.in_waiting
                 if waiting:
@@ -310,24 +311,28 @@ class Latency:
         ordered = sorted(self.recent_ns)  # here, not in the slack before a read-back
         self._p90_ns = ordered[min(len(ordered) - 1, 9 * len(ordered) // 10)]
 
-    def _known_ns(self) -> int:
-        if self.timer_ms is not None:
-            return max(self.floor_ns, (self.timer_ms + 1) * NS_PER_MS)
-        return self.floor_ns
-
     @property
     def allowance_ns(self) -> int:
         """How long past the wire and return-delay time a reply may still arrive."""
-        if self.timer_ms is None and self.samples < self.SAMPLES_BEFORE_TRUST:
-            return max(self.CAUTIOUS_NS, 3 * self.worst_seen_ns)
-        return max(self._known_ns(), 3 * self.worst_seen_ns)
+        worst_ns = 3 * self.worst_seen_ns
+        timer_ms = self.timer_ms
+        if timer_ms is None:
+            if self.samples < self.SAMPLES_BEFORE_TRUST:
+                return max(self.CAUTIOUS_NS, worst_ns)
+            return max(self.floor_ns, worst_ns)
+        # The timer and one USB frame, the floor, or worse as seen (every exchange asks).
+        return max(self.floor_ns, (timer_ms + 1) * NS_PER_MS, worst_ns)
 
     @property
     def expected_ns(self) -> int:
         """How long past the wire and return-delay time a read-back should plan to wait."""
-        if self.timer_ms is None and len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
-            return self.allowance_ns
-        return max(self._known_ns(), 2 * self._p90_ns)
+        timer_ms = self.timer_ms
+        if timer_ms is None:
+            if len(self.recent_ns) < self.SAMPLES_BEFORE_TRUST:
+                return self.allowance_ns
+            return max(self.floor_ns, 2 * self._p90_ns)
+        # The timer and one USB frame, the floor, or twice the recent 90th percentile.
+        return max(self.floor_ns, (timer_ms + 1) * NS_PER_MS, 2 * self._p90_ns)
 
 
 class Link:
@@ -378,12 +383,14 @@ class Link:
         simulator serving it, for more than the allowance learnt while it was quiet).
         """
         reply_bytes = delays = 0
-        return_delay_ns = self.return_delay_ns
+        delay_of = self.return_delay_ns.get
         for reply in replies:
             reply_bytes += 6 + reply.params_length
-            delays += return_delay_ns.get(reply.servo_id, MAX_RETURN_DELAY_NS)
+            delays += delay_of(reply.servo_id, MAX_RETURN_DELAY_NS)
         latency = self.latency.expected_ns if expected else patience * self.latency.allowance_ns
-        return self.wire_ns(request_bytes + reply_bytes) + delays + latency
+        # `wire_ns` of the request and its replies, written out: every exchange asks.
+        wire_ns = (request_bytes + reply_bytes) * BITS_PER_BYTE * 1_000_000_000 // self.baud_rate
+        return wire_ns + delays + latency
 
     def send(self, packet: bytes) -> None:
         """Put a packet that gets no reply (a sync write) on the wire."""
@@ -429,12 +436,13 @@ class Link:
         self.reader.longest_params = longest
         start_ns = self.clock.now_ns()
         # Bytes still leaving ahead of the request (a frame just written) hold it back.
-        queued_ns = max(0, self._wire_free_ns - start_ns)
-        limit_ns = start_ns + queued_ns + self.reply_time_ns(len(packet), expected,
-                                                             patience=patience)
+        free_ns = self._wire_free_ns
+        queued_ns = free_ns - start_ns if free_ns > start_ns else 0
+        size = len(packet)
+        limit_ns = start_ns + queued_ns + self.reply_time_ns(size, expected, patience=patience)
         if deadline_ns is not None and deadline_ns < limit_ns:
             limit_ns = deadline_ns
-        self._wire_free_ns = start_ns + queued_ns + self.wire_ns(len(packet))
+        self._wire_free_ns = start_ns + queued_ns + self.wire_ns(size)
         replies = self._send_and_collect(packet, wanted, limit_ns)
         if self.latency.learns and replies and len(replies) == len(wanted):
             # The adapter's part of the exchange: what it took beyond the wire and the servos'

@@ -144,13 +144,24 @@ class Verifier:
         if not ids:
             return
         cost_ns, request_ns, after_change_ns, thinning = self._sample_costs(ids)
+        # `_next_start_ns`'s first test, done here (its usual answer, every sample): a sample
+        # planned with another one and itself still fitting before ``limit_ns`` goes as planned.
+        room_ns = max(SAMPLE_PERIOD_NS, cost_ns) + cost_ns
+        onset_ns = self.onset_ns
         while not self.pending:
             now_ns = clock.now_ns()
-            if now_ns < self.onset_ns or now_ns + cost_ns > limit_ns:
+            if now_ns < onset_ns or now_ns + cost_ns > limit_ns:
                 return
-            start_ns = self._next_start_ns(now_ns, cost_ns, request_ns, limit_ns)
-            if start_ns is None:
-                return
+            planned_ns = self._next_sample_ns
+            if planned_ns < now_ns:
+                planned_ns = now_ns
+            if planned_ns + room_ns <= limit_ns:
+                start_ns = planned_ns
+            else:
+                chosen_ns = self._next_start_ns(now_ns, cost_ns, request_ns, limit_ns)
+                if chosen_ns is None:
+                    return
+                start_ns = chosen_ns
             if now_ns < start_ns:  # at most one sample a SAMPLE_PERIOD_NS
                 self._next_sample_ns = start_ns
                 clock.doze_until_ns(start_ns)
@@ -167,6 +178,7 @@ class Verifier:
                 # next servo.
                 ids = ids[1:] + ids[:1]
                 cost_ns, request_ns, after_change_ns, thinning = self._sample_costs(ids)
+                room_ns = max(SAMPLE_PERIOD_NS, cost_ns) + cost_ns
 
     def _next_start_ns(self, now_ns: int, cost_ns: int, request_ns: int,
                        limit_ns: int) -> int | None:
@@ -244,8 +256,13 @@ class Verifier:
 
     def _last_sampled_ns(self) -> int:
         """The moving pins' oldest last sample, ns after onset (onset where one has none)."""
-        return min((int(self._sampled_ns[i][-1]) if self._sampled_ns[i] else 0
-                    for i in self.moving), default=0)
+        oldest_ns = None
+        for servo_id in self.moving:  # a loop, not min() over a generator: once per frame
+            sampled = self._sampled_ns[servo_id]
+            last_ns = sampled[-1] if sampled else 0
+            if oldest_ns is None or last_ns < oldest_ns:
+                oldest_ns = last_ns
+        return oldest_ns or 0
 
     def _first_after_next_frame_ns(self) -> int:
         """When, ns after onset, the first sample after the next frame reads the horns at the

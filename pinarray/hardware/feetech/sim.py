@@ -53,6 +53,10 @@ _WRITE = int(Instruction.WRITE)
 _ID_ADDRESS = Register.ID.address
 # The longest READ answer one status packet can carry, in data bytes.
 _LONGEST_READ = MAX_PACKET_BYTES - status_size(0)
+# Whole instruction packets kept parsed (a sampled bus sends the same few every few ms).
+PACKETS_KEPT = 256
+
+Request = tuple[int, int, bytes]  # servo id, instruction, parameters
 
 __all__ = ["POLL_NS", "WRITE_LOG", "Answer", "InstructionPacket", "SimBus", "SimSerial",
            "StatusReply", "status_packet"]
@@ -83,6 +87,14 @@ def _may_renumber(instruction: int, params: bytes) -> bool:
     else:
         return True
     return start <= _ID_ADDRESS < end
+
+
+def _whole(data: bytes | bytearray) -> bool:
+    """Whether ``data`` is framed as one whole instruction packet and nothing else (a header,
+    a length that fits, its id no header byte), its checksum not yet looked at."""
+    size = len(data)
+    return (size >= 6 and data[0] == 0xFF and data[1] == 0xFF and data[2] != 0xFF
+            and data[3] >= 2 and size == data[3] + 4)
 
 
 def _fits(length: int) -> bool:
@@ -137,6 +149,7 @@ class SimBus:
         self._shadowed: list[SimServo] = []  # servos renumbered onto an id already taken
         self._random = random.Random(faults.seed)
         self._buffer = bytearray()
+        self._parsed: dict[bytes, Request] = {}  # `whole_packet`'s answers, by the bytes
 
     @property
     def vanished(self) -> bool:
@@ -178,14 +191,15 @@ class SimBus:
             for servo in self.all_servos():
                 servo.set_up_baud(baud_rate)
         buffer = self._buffer
-        size = len(data)
-        if (not buffer and size >= 6 and data[0] == 0xFF and data[1] == 0xFF and data[2] != 0xFF
-                and data[3] >= 2 and size == data[3] + 4):
+        if not buffer and type(data) is bytes:
             # The usual write: one whole packet and nothing else (`_next_packet`'s first round).
-            if checksum(data[2:-1]) != data[-1]:
+            request = self.whole_packet(data)
+            if request is not None:
+                servo_id, instruction, params = request
+                return self.deliver(servo_id, instruction, params, at_ns, baud_rate)
+            if _whole(data):  # its checksum failed
                 self.packets_rejected += 1
                 return []
-            return self.deliver(data[2], data[4], data[5:-1], at_ns, baud_rate)
         buffer.extend(data)
         replies: list[StatusReply] = []
         if len(buffer) < 4:  # the tail of a packet to come: nothing whole yet
@@ -232,6 +246,18 @@ class SimBus:
             self._renumber()
         return answers
 
+    def whole_packet(self, data: bytes) -> Request | None:
+        """``data`` as the servos take it when it is one whole instruction packet with a right
+        checksum and nothing else (`_next_packet`'s first round, its buffer empty): whom it
+        addresses, what it asks, its parameters; None for anything else. Kept by the bytes,
+        whose parse cannot change."""
+        request = self._parsed.get(data)
+        if request is None and _whole(data) and checksum(data[2:-1]) == data[-1]:
+            if len(self._parsed) >= PACKETS_KEPT:
+                self._parsed.clear()
+            request = self._parsed[data] = data[2], data[4], data[5:-1]
+        return request
+
     def _lost(self, instruction: int) -> bool:
         if not (self.drop_next or self.drop_rate or self.drop_writes_next
                 or self.drop_write_rate):
@@ -253,9 +279,7 @@ class SimBus:
         buffer = self._buffer
         if not buffer:
             return None
-        size = len(buffer)
-        if (size >= 6 and buffer[0] == 0xFF and buffer[1] == 0xFF and buffer[2] != 0xFF
-                and buffer[3] >= 2 and size == buffer[3] + 4):
+        if _whole(buffer):
             # The usual case, the loop below's first round: one whole packet and nothing else.
             packet = bytes(buffer)
             buffer.clear()

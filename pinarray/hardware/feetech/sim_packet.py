@@ -17,25 +17,9 @@ from __future__ import annotations
 from pinarray.clock import Clock
 from pinarray.hardware.feetech.link import Latency, Link, PolledWire
 from pinarray.hardware.feetech.packets import MAX_ERROR_BYTE, StatusPacket
-from pinarray.hardware.feetech.registers import BROADCAST_ID, checksum
+from pinarray.hardware.feetech.registers import BROADCAST_ID
 from pinarray.hardware.feetech.sim_serial import SimSerial
 from pinarray.hardware.feetech.sim_wire import STATUS_OVERHEAD_BYTES, Answer
-
-# Requests kept parsed (a sampled bus sends the same few every few milliseconds).
-REQUESTS_KEPT = 256
-
-Request = tuple[int, int, bytes]  # servo id, instruction, parameters
-
-
-def _request(packet: bytes) -> Request | None:
-    """``packet`` as the servos take it when it is one whole instruction packet (as
-    `SimBus.receive` finds it); None for anything else."""
-    size = len(packet)
-    if (size >= 6 and packet[0] == 0xFF and packet[1] == 0xFF and packet[2] != 0xFF
-            and packet[3] >= 2 and size == packet[3] + 4
-            and checksum(packet[2:-1]) == packet[-1]):
-        return packet[2], packet[4], packet[5:-1]
-    return None
 
 
 def _readable(answer: Answer, longest_params: int) -> bool:
@@ -66,23 +50,18 @@ class PacketLink(Link):
                  name: str):
         super().__init__(PolledWire(port, clock, name), clock, baud_rate, latency)
         self.port = port
-        self._requests: dict[bytes, Request | None] = {}
 
     def _send_and_collect(self, packet: bytes, wanted: dict[int, int],
                           limit_ns: int) -> dict[int, StatusPacket]:
         port = self.port
-        try:
-            request = self._requests[packet]
-        except KeyError:
-            if len(self._requests) >= REQUESTS_KEPT:
-                self._requests.clear()
-            request = self._requests[packet] = _request(packet)
+        request = port.bus.whole_packet(packet)
         if request is None or not port.computable():
             return super()._send_and_collect(packet, wanted, limit_ns)
         counters, clock, longest = self.counters, self.clock, self.reader.longest_params
         counters.bytes_written += len(packet)
         counters.exchanges += 1
-        end_ns, answers = port.write_whole(packet, *request)
+        servo_id, instruction, params = request
+        end_ns, answers = port.write_whole(packet, servo_id, instruction, params)
         if len(answers) == 1 and len(wanted) == 1:
             return self._one_answer(answers[0], end_ns, wanted, limit_ns)
         if len(answers) > 1 and not all(answer.chained for answer in answers):

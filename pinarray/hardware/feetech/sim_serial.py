@@ -101,6 +101,9 @@ class SimSerial:
             raise ValueError(f"baud rate must be positive, found {baud_rate}")
         self._baud_rate = baud_rate
         self._byte_ns = byte_time_ns(baud_rate)
+        # A byte's whole ns at the round rates (1 Mbit/s: 10 000), else 0 (`arrivals`).
+        step_ns = int(self._byte_ns)
+        self._step_ns = step_ns if step_ns == self._byte_ns else 0
 
     @property
     def wire_free_ns(self) -> int:
@@ -136,9 +139,13 @@ class SimSerial:
         after_ns = reply.instruction_end_ns
         if reply.chained and after_ns < line_free_ns:
             after_ns = line_free_ns
-        times, data = arrivals(Transmission(after_ns + reply.delay_ns, reply.packet,
-                                            self._byte_ns))
-        whole_ns = times[-1]
+        start_ns, data, step_ns = after_ns + reply.delay_ns, reply.packet, self._step_ns
+        if step_ns:  # `arrivals` at a round rate, the same range written out
+            whole_ns = start_ns + step_ns * len(data)
+            times: Sequence[int] = range(start_ns + step_ns, whole_ns + 1, step_ns)
+        else:
+            times, data = arrivals(Transmission(start_ns, data, self._byte_ns))
+            whole_ns = times[-1]
         self._wire_free_ns = whole_ns if whole_ns > line_free_ns else line_free_ns
         self._queued.append((times, data))
         ends = self._ends_ns
@@ -152,7 +159,8 @@ class SimSerial:
         start_ns = self.clock.now_ns()
         if start_ns < self._wire_free_ns:
             start_ns = self._wire_free_ns
-        end_ns = start_ns + round(len(data) * self._byte_ns)
+        step_ns = self._step_ns  # at a round rate, the product below is whole: no rounding
+        end_ns = start_ns + (len(data) * step_ns if step_ns else round(len(data) * self._byte_ns))
         self._tx_done_ns = self._wire_free_ns = end_ns
         self.bytes_written += len(data)
         self.writes.append(data)
@@ -314,6 +322,9 @@ class SimSerial:
                         # None of it here yet, and its end the one to come (the usual
                         # wait): what the rest of this round does, without counting.
                         clock.sleep_until_ns(times[-1])
+                        if self.is_open and not self.bus.vanished and times[-1] <= clock.now_ns():
+                            # The next round's first test, passed: the whole transmission.
+                            return self._take(len(times) - self._offset)
                         continue
                 count = self._arrived(now_ns)
                 if count:

@@ -78,6 +78,8 @@ _MOVING = Register.MOVING.address
 _OFFSET_SIGN = 1 << OFFSET_SIGN_BIT
 _OFFSET_MAGNITUDE = _OFFSET_SIGN - 1
 _POSITION_SIGN = 1 << POSITION_SIGN_BIT
+_VOLTAGE_BIT = int(StatusError.VOLTAGE)
+_BAUD_CODES = len(BAUD_RATE_BY_CODE)
 # The feedback block (present position .. present current), refreshed when read.
 FEEDBACK_START, FEEDBACK_END = 56, 71
 # Addresses a write cannot change: version and model (0-4), and the feedback block.
@@ -233,7 +235,7 @@ class SimServo:
     def baud_rate(self) -> int | None:
         """The wire speed the servo listens at, bit/s (None for a code it does not know)."""
         code = self.table[_BAUD]
-        return BAUD_RATE_BY_CODE[code] if code < len(BAUD_RATE_BY_CODE) else None
+        return BAUD_RATE_BY_CODE[code] if code < _BAUD_CODES else None
 
     def set_up_baud(self, baud_rate: int) -> None:
         """Make the servo listen at ``baud_rate`` as if it had been set up so (saved EEPROM)."""
@@ -245,6 +247,16 @@ class SimServo:
         return baud_rate is None or baud_rate == self.baud_rate
 
     @property
+    def error_bits(self) -> StatusError:
+        """Injected faults, reported in every status packet."""
+        return self._error_bits
+
+    @error_bits.setter
+    def error_bits(self, bits: StatusError) -> None:
+        self._error_bits = StatusError(bits)
+        self._error_byte = int(bits)  # what every status packet carries, worked out once
+
+    @property
     def status_error(self) -> StatusError:
         """Error bits of the next status packet: injected faults and a supply out of limits."""
         return StatusError(self.status_error_byte)
@@ -252,10 +264,10 @@ class SimServo:
     @property
     def status_error_byte(self) -> int:
         """`status_error` as the byte a status packet carries."""
-        bits = int(self.error_bits)
-        if not self.table[_MIN_VOLTAGE] <= self.supply_v * 10 <= self.table[_MAX_VOLTAGE]:
-            bits |= StatusError.VOLTAGE
-        return bits
+        table = self.table
+        if table[_MIN_VOLTAGE] <= self.supply_v * 10 <= table[_MAX_VOLTAGE]:
+            return self._error_byte
+        return self._error_byte | _VOLTAGE_BIT
 
     # -- instructions --------------------------------------------------------------------
 

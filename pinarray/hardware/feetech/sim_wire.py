@@ -14,8 +14,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NamedTuple
 
-from pinarray.hardware.feetech.registers import checksum
-
 BITS_PER_BYTE = 10
 # A status packet with no parameters: FF FF id len error checksum.
 STATUS_OVERHEAD_BYTES = 6
@@ -28,8 +26,10 @@ def byte_time_ns(baud_rate: float) -> float:
 
 def status_packet(servo_id: int, error: int, params: bytes = b"") -> bytes:
     """``FF FF id len err params chk`` with ``len = len(params) + 2``."""
-    body = bytes((servo_id, len(params) + 2, error)) + params
-    return b"\xff\xff" + body + bytes((checksum(body),))
+    length = len(params) + 2
+    # `checksum` of id, length, error and params, summed here instead of over a joined body.
+    total = servo_id + length + error + sum(params)
+    return b"\xff\xff" + bytes((servo_id, length, error)) + params + bytes((~total & 0xFF,))
 
 
 class Answer(NamedTuple):
