@@ -208,28 +208,42 @@ def deferred_signals() -> Iterator[None]:
 
     For the few steps that must finish once begun: a pin's safe stop (rest, then torque off)
     and a results row (``beh.tsv``, then ``events.tsv``). Each signal that arrives meanwhile
-    is handed to its handler when the outermost block ends, in the order they came: a
-    handler that raises raises there instead. Not only pinarray's: a lab script's Ctrl-C
+    is handed, when the outermost block ends, to the handler its signal has then (a handler
+    that installs its successor is followed), in the order Python took them: a handler that
+    raises raises there instead. Not only pinarray's: a lab script's Ctrl-C
     (KeyboardInterrupt) or the exception its watchdog's SIGALRM handler raises would otherwise
     land between the goals to rest and the torque off, and a servo sent a goal holds torque.
+    A stop signal left at its default action (SIGTERM where nothing handles it) is masked
+    instead: it ends the process once the block is done, if this thread is the one given it.
     """
     if threading.current_thread() is not threading.main_thread():
         # Python runs signal handlers in the main thread only: this thread is never interrupted.
         yield
         return
-    held = _hold_handlers() if not _Deferral.depth else None  # the outermost block holds
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    if _Deferral.depth:  # inside another block, which holds them
+        _Deferral.depth += 1
+        try:
+            yield
+        finally:
+            _Deferral.depth -= 1
+        return
+    held = _hold_handlers()
+    try:
+        previous = signal.pthread_sigmask(
+            signal.SIG_BLOCK, [n for n in STOP_SIGNALS if n not in held.handlers])
+    except BaseException:
+        _hand_over(held)
+        raise
     _Deferral.depth += 1
     try:
         yield
     finally:
         _Deferral.depth -= 1
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-        if held is not None:
-            _hand_over(held)
-    # Reached only when the block ended normally (a signal the mask held back may still
-    # arrive, as the block ends, on top of an error in it).
-    if not _Deferral.depth and _Deferral.pending is not None:
+        _hand_over(held)
+    # Reached only when the block ended normally: one of pinarray's handlers that ran in it
+    # anyway (set inside it) raises now.
+    if _Deferral.pending is not None:
         stopped, _Deferral.pending = _Deferral.pending, None
         raise stopped
 
@@ -248,25 +262,46 @@ class _Held:
 def _hold_handlers() -> _Held:
     """Every Python handler swapped for one that notes its signal. Masking is not enough:
     once another thread exists (numpy's OpenBLAS starts one) the kernel hands the signal to
-    that thread, and Python runs the handler in the main one all the same."""
+    that thread, and Python runs the handler in the main one all the same.
+
+    A handler not yet swapped may run meanwhile and raise (a watchdog's): those swapped are
+    put back before its exception goes on, or the script's Ctrl-C would be noted for ever.
+    """
     held = _Held()
-    for number in signal.valid_signals():
-        handler = signal.getsignal(number)
-        if callable(handler):
-            try:
-                signal.signal(number, held.note)
-            except (OSError, ValueError):  # one Python may not set
-                continue
-            held.handlers[number] = handler
+    try:
+        for number in signal.valid_signals():
+            handler = signal.getsignal(number)
+            if callable(handler):
+                held.handlers[number] = handler  # first: put back whatever lands next
+                try:
+                    signal.signal(number, held.note)
+                except (OSError, ValueError):  # one Python may not set
+                    del held.handlers[number]
+    except BaseException:
+        _hand_over(held)
+        raise
     return held
 
 
 def _hand_over(held: _Held) -> None:
-    """The handlers put back, then each signal that came handed to its own, in order."""
+    """The handlers put back, every one of them, then each signal that came handed to the
+    handler its signal has at that moment."""
+    late: BaseException | None = None
     for number, handler in held.handlers.items():
-        signal.signal(number, handler)
+        while True:  # a handler already back may run and raise: the rest go back all the same
+            try:
+                signal.signal(number, handler)
+                break
+            except BaseException as error:
+                late = late or error
     for number in held.arrived:
-        held.handlers[number](number, None)
+        current = signal.getsignal(number)
+        if callable(current):
+            current(number, None)
+        elif current == signal.SIG_DFL:  # a handler before set the default: its action
+            signal.raise_signal(number)
+    if late is not None:
+        raise late
 
 
 class StoppableClock:

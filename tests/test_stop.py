@@ -221,3 +221,89 @@ def test_ctrl_c_as_the_command_loads_or_ends_is_one_line_with_a_defined_status(m
     assert done.stdout.startswith(f"{protocol}: ok")
     late = "pinarray: interrupted as the command ended; its result stands\n"
     assert done.stderr == (late if moment == "as the command ends" else "")
+
+
+def test_a_handler_that_installs_its_successor_is_followed_when_the_signals_are_handed_over():
+    # The usual two-stage Ctrl-C: the first finishes the trial and installs a handler that
+    # aborts at the second. Both taps held back by a safe stop: the second reaches the second.
+    stages = []
+
+    def abort(signum, frame):
+        stages.append("abort")
+
+    def finish(signum, frame):
+        stages.append("finish")
+        signal.signal(signal.SIGUSR2, abort)
+
+    previous = signal.signal(signal.SIGUSR2, finish)
+    try:
+        with deferred_signals():
+            os.kill(os.getpid(), signal.SIGUSR2)
+            os.kill(os.getpid(), signal.SIGUSR2)
+            assert stages == []
+        assert stages == ["finish", "abort"]
+    finally:
+        signal.signal(signal.SIGUSR2, previous)
+
+
+class Watchdog(Exception):
+    pass
+
+
+@pytest.mark.parametrize("when", ["putting them aside", "putting them back"])
+def test_an_exception_landing_as_the_handlers_are_swapped_leaves_every_handler_as_it_was(
+        monkeypatch, when):
+    # Stranger attack 12: a watchdog's exception landing between two swaps left the others
+    # swapped for good: the script's Ctrl-C was noted, never raised, for the rest of its run.
+    # Here it lands at the swap of the second of the script's handlers.
+    def lab_handler(signum, frame):
+        pass
+
+    labs = (signal.SIGUSR1, signal.SIGUSR2, signal.SIGALRM)
+    previous = {number: signal.signal(number, lab_handler) for number in labs}
+    before = {number: signal.getsignal(number) for number in signal.valid_signals()}
+    swap, calls = signal.signal, []
+
+    def landing(number, handler):
+        if number in labs and (handler is lab_handler) == (when == "putting them back"):
+            calls.append(number)
+            if len(calls) == 2:
+                raise Watchdog("too slow")
+        return swap(number, handler)
+
+    try:
+        monkeypatch.setattr(signal, "signal", landing)
+        with pytest.raises(Watchdog):
+            with deferred_signals():
+                pass
+        monkeypatch.undo()
+        assert {number: signal.getsignal(number) for number in signal.valid_signals()} == before
+    finally:
+        monkeypatch.undo()
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def test_counting_handlers_see_every_signal_held_back_once_in_the_order_they_came():
+    # Stranger attack 12: the stop signals were also masked, and the kernel merged each
+    # signal's repeats and gave them after the others: USR1 ALRM USR1 USR2 ALRM USR1 reached
+    # the script's handlers as ALRM ALRM USR1 USR2.
+    seen = []
+
+    def count(signum, frame):
+        seen.append(signal.Signals(signum).name)
+
+    sent = (signal.SIGUSR1, signal.SIGALRM, signal.SIGUSR1, signal.SIGUSR2, signal.SIGALRM,
+            signal.SIGUSR1)
+    previous = {number: signal.signal(number, count) for number in set(sent)}
+    try:
+        with deferred_signals():
+            for number in sent:
+                os.kill(os.getpid(), number)
+            for _ in range(10_000):  # give a handler every chance to run in here
+                pass
+            assert seen == []
+        assert seen == [signal.Signals(number).name for number in sent]
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
