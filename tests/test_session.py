@@ -26,7 +26,7 @@ from pinarray.plan import make_plan
 from pinarray.player.rig import Rig
 from pinarray.protocol.load import load_protocol
 from pinarray.session.trials import PAUSE_CUT_SHORT, Phase, Session, SessionError, task_label
-from pinarray.stop import StoppableClock, StopRequest
+from pinarray.stop import StoppableClock, Stopped, StopRequest
 from tests.commands import Forked, pinarray_here
 from tests.runs import VIRTUAL, write_short_localisation
 
@@ -291,6 +291,33 @@ def test_abort_marks_the_trial_and_the_run_and_resume_presents_it_again(tmp_path
     writer = RunWriter.resume(session.writer.paths, VIRTUAL)
     resumed = Session(protocol, make_plan(protocol, 3), writer, None, VirtualClock())
     assert resumed.queue[0].trial == aborted and len(resumed.queue) == 25
+
+
+def test_a_signal_landing_as_the_run_is_aborted_waits_until_its_row_and_status_are_written(
+        tmp_path, monkeypatch):
+    # Stranger attack 12: a third Ctrl-C landed in the abort's sidecar write; the run said
+    # "aborted" on the screen and "crashed" in its manifest.
+    from pinarray.stop import stop_on_signals
+
+    session, rig = open_session(tmp_path, LOCALISATION)
+    finish = session.writer.finish
+
+    def tapped_while_finishing(status, reason):
+        os.kill(os.getpid(), signal.SIGINT)  # again: it raises at once where it lands
+        for _ in range(10_000):  # every chance to run in here
+            pass
+        return finish(status, reason)
+
+    monkeypatch.setattr(session.writer, "finish", tapped_while_finishing)
+    with rig, stop_on_signals(StopRequest()) as stop:
+        session.begin()
+        session.present()
+        stop.request("stopped by SIGINT", signal.SIGINT)  # the first tap
+        with pytest.raises(Stopped, match="again"):
+            session.abort("stopped by SIGINT")
+    manifest = read_manifest(session.writer.paths.manifest)
+    assert (manifest.status, manifest.abort_reason) == ("aborted", "stopped by SIGINT")
+    assert [r.status for r in rows_on_disk(session)] == ["aborted"]
 
 
 class FailingOnce:

@@ -54,6 +54,7 @@ from pinarray.protocol.drives import trial_drives
 from pinarray.protocol.load import task_label as protocol_task_label
 from pinarray.protocol.model import Condition, Protocol
 from pinarray.schedule import TrialSchedule, compile_drives
+from pinarray.stop import deferred_signals
 
 if TYPE_CHECKING:  # an adaptive design's procedures are imported by the session that has one
     from pinarray.adaptive.questplus import QuestPlus as QuestPlusMachine
@@ -473,8 +474,12 @@ class Session:
             self._paused_from = None
 
     def abort(self, reason: str, status: RunStatus = RunStatus.ABORTED) -> None:
-        """Stop the run for good (it can still be resumed later); ``status``: aborted or crashed."""
-        with self._state:
+        """Stop the run for good (it can still be resumed later); ``status``: aborted or crashed.
+
+        Its last row and the manifest's status are written whole, the stop signals held back
+        meanwhile: a third Ctrl-C landing in them left a run aborted on the screen that its
+        manifest called crashed."""
+        with self._state, deferred_signals():
             if self.phase in (Phase.DONE, Phase.ABORTED):
                 return
             reason = reason or "aborted by the experimenter"
