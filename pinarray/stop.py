@@ -18,6 +18,7 @@ import signal
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from types import FrameType
 
 from pinarray.clock import Clock
 from pinarray.errors import Interrupted
@@ -213,8 +214,8 @@ def deferred_signals() -> Iterator[None]:
     raises raises there instead. Not only pinarray's: a lab script's Ctrl-C
     (KeyboardInterrupt) or the exception its watchdog's SIGALRM handler raises would otherwise
     land between the goals to rest and the torque off, and a servo sent a goal holds torque.
-    A stop signal left at its default action (SIGTERM where nothing handles it) is masked
-    instead: it ends the process once the block is done, if this thread is the one given it.
+    A signal left at its default action of ending the process (SIGTERM or SIGHUP where nothing
+    handles them) is noted too, and ends it, by that signal, once the block is done.
     """
     if threading.current_thread() is not threading.main_thread():
         # Python runs signal handlers in the main thread only: this thread is never interrupted.
@@ -227,19 +228,15 @@ def deferred_signals() -> Iterator[None]:
         finally:
             _Deferral.depth -= 1
         return
-    held = _hold_handlers()
-    try:
-        previous = signal.pthread_sigmask(
-            signal.SIG_BLOCK, [n for n in STOP_SIGNALS if n not in held.handlers])
-    except BaseException:
-        _hand_over(held)
-        raise
-    _Deferral.depth += 1
-    try:
+    held, counted = _Held(), False
+    try:  # a handler may raise at any step (a watchdog's): whatever was swapped goes back
+        _hold_handlers(held)
+        _Deferral.depth += 1
+        counted = True
         yield
     finally:
-        _Deferral.depth -= 1
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        if counted:
+            _Deferral.depth -= 1
         _hand_over(held)
     # Reached only when the block ended normally: one of pinarray's handlers that ran in it
     # anyway (set inside it) raises now.
@@ -248,60 +245,84 @@ def deferred_signals() -> Iterator[None]:
         raise stopped
 
 
+# Signals whose default action ends the process, held back like those with a handler: masking
+# them holds them back from the main thread only, and the kernel gives a signal sent to the
+# process to another thread (numpy's OpenBLAS): the process ended in the middle of the rest.
+_ENDING = frozenset((*STOP_SIGNALS, signal.SIGALRM))
+
+
 class _Held:
     """The handlers `deferred_signals` put aside, and the signals that came for them."""
 
     def __init__(self) -> None:
-        self.handlers: dict[int, Callable] = {}
+        self.handlers: dict[int, Callable[[int, FrameType | None], object] | int] = {}
         self.arrived: list[int] = []
+        self.over = False  # the block has ended: its handlers are being put back
 
-    def note(self, signum: int, frame: object) -> None:
-        self.arrived.append(signum)
+    def note(self, signum: int, frame: FrameType | None) -> None:
+        if not self.over:
+            self.arrived.append(signum)
+            return
+        # Still in place after the block: an exception cut the putting back short. Put back
+        # now and handed on, as if it had been.
+        handler = self.handlers[signum]
+        signal.signal(signum, handler)
+        _deliver(signum, handler, frame)
 
 
-def _hold_handlers() -> _Held:
-    """Every Python handler swapped for one that notes its signal. Masking is not enough:
-    once another thread exists (numpy's OpenBLAS starts one) the kernel hands the signal to
-    that thread, and Python runs the handler in the main one all the same.
+def _hold_handlers(held: _Held) -> None:
+    """Every Python handler, and every default action of ending the process, swapped for a
+    handler that notes its signal. Masking is not enough: once another thread exists (numpy's
+    OpenBLAS starts one) the kernel hands the signal to that thread, and Python runs the
+    handler in the main one all the same (or the default action ends the process).
 
-    A handler not yet swapped may run meanwhile and raise (a watchdog's): those swapped are
-    put back before its exception goes on, or the script's Ctrl-C would be noted for ever.
+    A handler not yet swapped may run meanwhile and raise (a watchdog's): ``held`` says which
+    were, for `_hand_over` to put back, or the script's Ctrl-C would be noted for ever.
     """
-    held = _Held()
-    try:
-        for number in signal.valid_signals():
-            handler = signal.getsignal(number)
-            if callable(handler):
-                held.handlers[number] = handler  # first: put back whatever lands next
-                try:
-                    signal.signal(number, held.note)
-                except (OSError, ValueError):  # one Python may not set
-                    del held.handlers[number]
-    except BaseException:
-        _hand_over(held)
-        raise
-    return held
+    for number in signal.valid_signals():
+        handler = signal.getsignal(number)
+        if callable(handler) or handler == signal.SIG_DFL and number in _ENDING:
+            held.handlers[number] = handler  # first: put back whatever lands next
+            try:
+                signal.signal(number, held.note)
+            except (OSError, ValueError):  # one Python may not set
+                del held.handlers[number]
 
 
 def _hand_over(held: _Held) -> None:
     """The handlers put back, every one of them, then each signal that came handed to the
     handler its signal has at that moment."""
-    late: BaseException | None = None
-    for number, handler in held.handlers.items():
-        while True:  # a handler already back may run and raise: the rest go back all the same
-            try:
-                signal.signal(number, handler)
-                break
-            except BaseException as error:
-                late = late or error
+    held.over = True
+    late = _put_back(held)
     for number in held.arrived:
-        current = signal.getsignal(number)
-        if callable(current):
-            current(number, None)
-        elif current == signal.SIG_DFL:  # a handler before set the default: its action
-            signal.raise_signal(number)
+        _deliver(number, signal.getsignal(number), None)
     if late is not None:
         raise late
+
+
+def _put_back(held: _Held) -> BaseException | None:
+    """Every handler put back; the first exception a handler already back raised meanwhile
+    (a watchdog's), kept for after: the others go back all the same."""
+    late: BaseException | None = None
+    left = list(held.handlers.items())
+    while left:
+        try:
+            while left:
+                number, handler = left[-1]
+                signal.signal(number, handler)
+                left.pop()
+        except BaseException as error:
+            late = late or error
+    return late
+
+
+def _deliver(number: int, handler: object, frame: FrameType | None) -> None:
+    """``number`` handed to ``handler``: called, or its default action if that ends the
+    process."""
+    if callable(handler):
+        handler(number, frame)
+    elif handler == signal.SIG_DFL and number in _ENDING:
+        signal.raise_signal(number)
 
 
 class StoppableClock:

@@ -307,3 +307,38 @@ def test_counting_handlers_see_every_signal_held_back_once_in_the_order_they_cam
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
+
+
+ENDED_BY_DEFAULT = """
+import os, select, signal, sys, threading
+from pinarray.stop import deferred_signals
+
+signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a lab script that handles nothing
+arrived, wake = os.pipe()  # a byte when the signal is taken, by whichever thread
+os.set_blocking(wake, False)
+signal.set_wakeup_fd(wake)
+idle = threading.Event()
+helper = threading.Thread(target=idle.wait, args=(30,), daemon=True)
+helper.start()
+with deferred_signals():
+    print("rest", flush=True)
+    signal.pthread_kill(helper.ident, signal.SIGTERM)  # the thread OpenBLAS would be
+    select.select([arrived], [], [], 20)
+    for _ in range(100_000):
+        pass
+    print("torque off", flush=True)
+print("went on", flush=True)
+"""
+
+
+def test_a_signal_whose_default_ends_the_script_ends_it_once_torque_is_off():
+    # Stranger attack 13: a script with no handler of its own (SIGTERM, SIGHUP at their
+    # default) was ended by the kernel in the middle of close()'s rest, when the signal went
+    # to numpy's thread: the masking held it back from the main thread only. Torque stayed on.
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", ENDED_BY_DEFAULT], capture_output=True,
+                          text=True, timeout=60)
+    assert done.stdout.splitlines() == ["rest", "torque off"], done.stderr
+    assert done.returncode == -signal.SIGTERM
