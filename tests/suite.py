@@ -19,6 +19,7 @@ import hashlib
 import importlib.util
 import os
 import re
+import signal
 import struct
 import subprocess
 import sys
@@ -206,6 +207,17 @@ REALTIME_UNUSED_PLUGINS = ("textual-snapshot", "syrupy")
 REALTIME_ENV = {"OPENBLAS_NUM_THREADS": "1"}
 
 
+def terminal_keys() -> None:
+    """Ctrl-C and Ctrl-\\ as in a terminal, for every test process. A shell that starts
+    `make test` in the background (a CI runner's script, ``make test &``, ``nohup``) hands it
+    both ignored, and the children inherit that: a lab script's Ctrl-C would never raise
+    KeyboardInterrupt there, and the tests of it would fail for the way they were started."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGQUIT) == signal.SIG_IGN:
+        signal.signal(signal.SIGQUIT, signal.SIG_DFL)
+
+
 def pytest_command(marker: str, workers: int, args: list[str], basetemp: str) -> list[str]:
     # A temporary folder of this run's own: pytest's default one is cleaned of older runs' folders
     # by every worker as it starts, a walk over thousands of results files on a busy machine.
@@ -215,6 +227,7 @@ def pytest_command(marker: str, workers: int, args: list[str], basetemp: str) ->
 
 
 def main(argv: list[str]) -> int:
+    terminal_keys()
     workers = 2 * len(os.sched_getaffinity(0))
     if argv[:1] == ["-n"]:
         workers, argv = int(argv[1]), argv[2:]

@@ -68,6 +68,8 @@ def watchdog(signum, frame):
     raise Watchdog("too slow")
 
 signal.signal(signal.SIGALRM, watchdog)
+# Ctrl-C as Python sets it up in a terminal (a shell starting us in the background ignores it)
+signal.signal(signal.SIGINT, signal.default_int_handler)
 arrived, wake = os.pipe()  # a byte each time a signal is taken, by whichever thread
 os.set_blocking(wake, False)
 signal.set_wakeup_fd(wake)
