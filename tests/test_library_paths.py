@@ -123,6 +123,16 @@ def wait_moving(servos, pin: int = 6, timeout_s: float = 30.0) -> None:
     raise AssertionError(f"pin {pin} never moved")
 
 
+def start_playing(array, protocol, way):
+    """Pin 6's buzz armed, started on its cue and moving: a cue, not a time a little ahead, so
+    that a busy host cannot make its onset pass before playback begins (it would end "not
+    delivered, nothing moved", rightly, and never move)."""
+    armed = array.arm(pinarray.find_condition(protocol, pin=6))
+    armed.start()
+    wait_moving(way.servos(array))
+    return armed
+
+
 @realtime
 def test_a_stimulus_plays_the_same_way_through_either_path(way, tmp_path):
     # A host program's default socket timeout (PsychoPy sets one on import) made every
@@ -148,8 +158,7 @@ def test_a_stimulus_plays_the_same_way_through_either_path(way, tmp_path):
 def test_stop_cuts_a_playing_stimulus_and_every_servo_rests_released(way, tmp_path):
     protocol = buzz(tmp_path, 10)
     array = way.open(protocol)
-    armed = array.arm(pinarray.find_condition(protocol, pin=6), at_ns=array.now_ns() + 10**8)
-    wait_moving(way.servos(array))
+    armed = start_playing(array, protocol, way)
     before_ns = array.now_ns()
     report = array.stop()
     assert at_rest_and_released(way.servos(array)) == []  # as the servos show it
@@ -200,9 +209,7 @@ def test_close_and_an_error_leaving_the_block_cut_a_playing_stimulus(way, tmp_pa
     protocol = buzz(tmp_path, 10)
     array = way.open(protocol)
     with pytest.raises(KeyboardInterrupt) if leaving == "error" else nullcontext(), array:
-        armed = array.arm(pinarray.find_condition(protocol, pin=6),
-                          at_ns=array.now_ns() + 10**8)
-        wait_moving(way.servos(array))
+        armed = start_playing(array, protocol, way)
         if leaving == "close":
             array.close()
         else:
