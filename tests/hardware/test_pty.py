@@ -100,7 +100,10 @@ def ended(process: subprocess.Popen) -> int:
 def test_sim_serve_prints_its_path_serves_a_scan_and_stops_on_sigterm():
     with sim_serve("--ids", "1-3") as (process, path):
         scan = subprocess.run(
-            [sys.executable, "-m", "pinarray", "scan", "--port", path, "--ids", "1-4"],
+            # 200 ms an id, not the pseudo-terminal's 10: a simulator starved of the processor
+            # by a busy machine (load 5 here) answered one servo later than 10 and 40 ms.
+            [sys.executable, "-m", "pinarray", "scan", "--port", path, "--ids", "1-4",
+             "--timeout-ms", "200"],
             capture_output=True, text=True, timeout=60,
         )
         assert "3 servo(s) answered" in scan.stdout, scan.stdout + scan.stderr
