@@ -754,7 +754,8 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
         pass
     for pattern, pin in ((seven, 7), (ten, 10)):
         delivery = array.present(pattern)
-        print(pin, delivery.delivered, [stroke.pin for stroke in delivery.strokes], flush=True)
+        print(pin, delivery.delivered, [stroke.pin for stroke in delivery.strokes],
+              *([] if delivery.delivered else [delivery.problem]), flush=True)
 """
 
 
@@ -927,7 +928,8 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
 """ + WATCHDOG_TRIAL + """\
     report = array.present(pinarray.Pattern(
         pins=[9], train=pinarray.Train(frequency_hz=5, duration_s=0.4)))
-    print(report.delivered, [stroke.pin for stroke in report.strokes], flush=True)
+    print(report.delivered, [stroke.pin for stroke in report.strokes],
+          *([] if report.delivered else [report.problem]), flush=True)
 """
 
 
@@ -1002,7 +1004,8 @@ with pinarray.open_array(protocol, port=sys.argv[2]) as array:
         time.sleep(0.01)  # the test looks at the servos while the script waits here
     report = array.present(pinarray.Pattern(
         pins=[9], train=pinarray.Train(frequency_hz=5, duration_s=0.4)))
-    print(report.delivered, [stroke.pin for stroke in report.strokes], flush=True)
+    print(report.delivered, [stroke.pin for stroke in report.strokes],
+          *([] if report.delivered else [report.problem]), flush=True)
 """
 
 
