@@ -72,6 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if _signal.getsignal(_signal.SIGINT) is pinarray._interrupted_at_start:
         _signal.signal(_signal.SIGINT, _signal.default_int_handler)  # KeyboardInterrupt again
+    _escape_what_the_streams_cannot_encode()
     try:
         status = _main(sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
@@ -79,6 +80,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         _say_late_interrupts()
     return status
+
+
+def _escape_what_the_streams_cannot_encode() -> None:
+    """What standard output cannot encode is printed as Python escapes (as standard error
+    always does), not a traceback: a file name in bytes the locale cannot read (a protocol in
+    a folder named in Latin-1 on a UTF-8 system holds a lone surrogate), or a character beyond
+    the terminal's encoding (PYTHONIOENCODING=ascii). Python's own choice for a UTF-8 locale
+    is to fail ("strict"); under C.UTF-8 it is to pass the bytes through, so `validate` said ok
+    on one machine and crashed on the next."""
+    import io
+
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+            stream.reconfigure(errors="backslashreplace")
 
 
 LATE_INTERRUPT = b"pinarray: interrupted as the command ended; its result stands\n"
