@@ -31,3 +31,12 @@ def test_a_suite_started_with_signals_ignored_reads_exit_statuses_and_takes_ctrl
                           preexec_fn=ignoring_what_a_launcher_may_ignore,
                           capture_output=True, text=True, timeout=60)
     assert done.stdout.split() == ["3", "True", "True"], done.stderr
+
+
+def test_the_helpers_checks_hold_under_python_o_as_the_tests_own_do():
+    # pytest rewrites an assert into a test of its own, which `python -O` keeps; a helper
+    # module imported unrewritten has plain ones, which it removes (tests/conftest.py).
+    import tests.hardware.lab
+    import tests.runs
+
+    assert "@pytest_ar" in vars(tests.hardware.lab) and "@pytest_ar" in vars(tests.runs)
