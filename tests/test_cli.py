@@ -46,6 +46,7 @@ def test_a_users_mistake_is_one_line_on_stderr_with_status_2():
 @pytest.mark.parametrize(("folder", "encoding"), [
     (b"M\xfcller", "utf-8:strict"),  # named in Latin-1, read on a UTF-8 system (en_US.UTF-8)
     ("Müller".encode(), "ascii:strict"),  # a terminal that takes ASCII only
+    ("Müller".encode(), "ascii:surrogateescape"),  # Python's way in an ASCII locale (C)
 ])
 def test_a_protocol_whose_name_the_terminal_cannot_show_is_still_validated(tmp_path, folder,
                                                                           encoding):

@@ -86,14 +86,32 @@ def _escape_what_the_streams_cannot_encode() -> None:
     """What standard output cannot encode is printed as Python escapes (as standard error
     always does), not a traceback: a file name in bytes the locale cannot read (a protocol in
     a folder named in Latin-1 on a UTF-8 system holds a lone surrogate), or a character beyond
-    the terminal's encoding (PYTHONIOENCODING=ascii). Python's own choice for a UTF-8 locale
-    is to fail ("strict"); under C.UTF-8 it is to pass the bytes through, so `validate` said ok
-    on one machine and crashed on the next."""
+    the terminal's encoding (the degree sign of ``servos scan`` in an ASCII locale). Python's
+    own choice for a UTF-8 locale is to fail ("strict"); under C.UTF-8 it is to pass a name's
+    bytes through ("surrogateescape"), which still fails on any other character: `validate`
+    said ok on one machine and crashed on the next."""
+    import codecs
     import io
 
+    codecs.register_error(_BYTES_OR_ESCAPES, _bytes_or_escapes)
     for stream in (sys.stdout, sys.stderr):
-        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
-            stream.reconfigure(errors="backslashreplace")
+        if isinstance(stream, io.TextIOWrapper) and stream.errors in ("strict",
+                                                                       "surrogateescape"):
+            stream.reconfigure(errors="backslashreplace" if stream.errors == "strict"
+                               else _BYTES_OR_ESCAPES)
+
+
+_BYTES_OR_ESCAPES = "pinarray.bytes-or-escapes"
+
+
+def _bytes_or_escapes(error: UnicodeError) -> tuple[str | bytes, int]:
+    """A name's own bytes where Python kept them as surrogates, else Python escapes."""
+    import codecs
+
+    try:
+        return codecs.lookup_error("surrogateescape")(error)
+    except UnicodeError:
+        return codecs.backslashreplace_errors(error)
 
 
 LATE_INTERRUPT = b"pinarray: interrupted as the command ended; its result stands\n"
