@@ -42,7 +42,7 @@ $(STAMP): pyproject.toml Makefile
 # Bytecode cached, as on any lab PC, even where this environment says not to
 # (PYTHONDONTWRITEBYTECODE): the UI would otherwise compile pinarray at every start.
 run: $(STAMP)
-	@PYTHONDONTWRITEBYTECODE= $(BIN)/pinarray tui protocols/localisation.yaml --sim || [ $$? -eq 4 ]
+	@PYTHONDONTWRITEBYTECODE= "$(BIN)/pinarray" tui protocols/localisation.yaml --sim || [ $$? -eq 4 ]
 
 # On every core, twice over: much of the suite waits (pseudo-terminals, the UI's idle waits),
 # so more workers than cores keep the processors busy; the real-time tests run beside the

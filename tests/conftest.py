@@ -5,12 +5,24 @@ them is left running alone at the end; the garbage collector runs less often, an
 
 import contextlib
 import gc
+from pathlib import Path
 
 import pytest
-from hypothesis import settings
-from hypothesis.internal import entropy
 
-from tests.lsl_local import keep_lsl_on_this_machine
+# The helper modules' asserts (tests/runs.py, tests/hardware/lab.py: every servo at rest and
+# released, ...) rewritten as pytest rewrites the test modules', before any of them is
+# imported: a plain assert vanishes under `python -O` (PYTHONOPTIMIZE=1 in a lab's
+# environment), and those checks would pass whatever happened. pytest's own stay.
+_TESTS = Path(__file__).resolve().parent
+pytest.register_assert_rewrite(*sorted(
+    ".".join(("tests", *path.relative_to(_TESTS).with_suffix("").parts))
+    for path in _TESTS.rglob("*.py")
+    if not path.name.startswith("test_") and path.name not in ("conftest.py", "__init__.py")))
+
+from hypothesis import settings  # noqa: E402
+from hypothesis.internal import entropy  # noqa: E402
+
+from tests.lsl_local import keep_lsl_on_this_machine  # noqa: E402
 
 # The PsychoPy plugin's tests run in PsychoPy's environment (`make psychopy`), not here.
 collect_ignore = ["psychopy"]

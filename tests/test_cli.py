@@ -1,9 +1,13 @@
 """The `pinarray` command as a user meets it: help, version, one-line errors, exit status 2."""
 
+import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 from pinarray import __version__
 from pinarray.cli import main
@@ -37,6 +41,26 @@ def test_a_users_mistake_is_one_line_on_stderr_with_status_2():
     lines = result.stderr.strip().splitlines()
     assert lines == ["pinarray: pin 17 is not on the 4x4 grid: expected a pin from 1 to 16"]
     assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize(("folder", "encoding"), [
+    (b"M\xfcller", "utf-8:strict"),  # named in Latin-1, read on a UTF-8 system (en_US.UTF-8)
+    ("Müller".encode(), "ascii:strict"),  # a terminal that takes ASCII only
+    ("Müller".encode(), "ascii:surrogateescape"),  # Python's way in an ASCII locale (C)
+])
+def test_a_protocol_whose_name_the_terminal_cannot_show_is_still_validated(tmp_path, folder,
+                                                                          encoding):
+    # Python prints to a UTF-8 locale's terminal strictly (but not under C.UTF-8): the name of
+    # a protocol in such a folder once made `validate` end in a traceback, status 1.
+    place = os.path.join(os.fsencode(tmp_path), folder)
+    os.mkdir(place)
+    protocol = os.path.join(place, b"localisation.yaml")
+    shutil.copyfile(Path(__file__).parent.parent / "protocols" / "localisation.yaml", protocol)
+    done = subprocess.run([sys.executable, "-m", "pinarray", "validate", protocol],
+                          capture_output=True, timeout=60,
+                          env={**os.environ, "PYTHONIOENCODING": encoding})
+    assert done.returncode == 0 and b"Traceback" not in done.stderr, done.stderr
+    assert b"localisation.yaml: ok (localisation," in done.stdout
 
 
 def test_preview_prints_the_seed_of_the_plan_it_drew_so_the_same_plan_can_be_seen_again(capsys):

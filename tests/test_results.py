@@ -231,6 +231,20 @@ def test_a_hand_edited_manifest_with_a_repeated_trial_is_refused(tmp_path):
     assert read_manifest(writer.paths.manifest) == manifest
 
 
+def test_a_protocol_named_in_bytes_the_locale_cannot_read_is_recorded_and_read_back(tmp_path):
+    # A protocol in a folder named in Latin-1 on a UTF-8 system (an old share, a USB stick):
+    # Python holds its name with a lone surrogate, which UTF-8 cannot encode. The run once
+    # failed as it opened, with a traceback; the manifest is still UTF-8 JSON.
+    writer = start(tmp_path)
+    writer.close()
+    manifest = read_manifest(writer.paths.manifest)
+    named = replace(manifest, provenance=replace(
+        manifest.provenance, protocol_file=os.fsdecode(b"/data/M\xfcller/localisation.yaml")))
+    write_manifest(writer.paths.manifest, named)
+    assert read_manifest(writer.paths.manifest) == named
+    json.loads(writer.paths.manifest.read_bytes().decode("utf-8"))
+
+
 @pytest.fixture(scope="module")
 def runs_root(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("runs")

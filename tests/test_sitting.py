@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from pinarray.clock import VirtualClock
+from pinarray.errors import PinArrayError
 from pinarray.journal.manifest import read_manifest
 from pinarray.journal.rows import read_trials
 from pinarray.journal.runs import unfinished_run
@@ -245,6 +246,20 @@ def test_a_scanner_that_fails_to_close_does_not_keep_the_rig_held(tmp_path):
         sitting.release()
     assert sitting.rig is None
     assert not any(s.torque_enabled for s in rig.bus.sim.servos.values())
+
+
+def test_a_worker_that_asks_for_the_rig_after_the_release_is_told_it_is_not_connected(tmp_path):
+    # The pre-flight's timing check, pin test and return-delay change run in workers, and the
+    # experimenter may leave the pre-flight as one starts: the UI shows the error the sitting
+    # raises. An assert said so before, which `python -O` (PYTHONOPTIMIZE=1) removes: the worker
+    # then failed on None instead, which the UI does not expect.
+    sitting, request = sitting_on(tmp_path)
+    sitting.connect(request)
+    sitting.release()
+    for call in (lambda: sitting.check_timing(0), lambda: sitting.test_pin(1),
+                 lambda: sitting.lower_return_delay(0), sitting.connected):
+        with pytest.raises(PinArrayError, match="not connected"):
+            call()
 
 
 def test_servos_connected_again_are_the_ones_the_release_left_with_their_lowered_return_delay(

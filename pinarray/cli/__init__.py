@@ -72,6 +72,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     if _signal.getsignal(_signal.SIGINT) is pinarray._interrupted_at_start:
         _signal.signal(_signal.SIGINT, _signal.default_int_handler)  # KeyboardInterrupt again
+    _escape_what_the_streams_cannot_encode()
     try:
         status = _main(sys.argv[1:] if argv is None else list(argv))
     except KeyboardInterrupt:
@@ -79,6 +80,38 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv is None:
         _say_late_interrupts()
     return status
+
+
+def _escape_what_the_streams_cannot_encode() -> None:
+    """What standard output cannot encode is printed as Python escapes (as standard error
+    always does), not a traceback: a file name in bytes the locale cannot read (a protocol in
+    a folder named in Latin-1 on a UTF-8 system holds a lone surrogate), or a character beyond
+    the terminal's encoding (the degree sign of ``servos scan`` in an ASCII locale). Python's
+    own choice for a UTF-8 locale is to fail ("strict"); under C.UTF-8 it is to pass a name's
+    bytes through ("surrogateescape"), which still fails on any other character: `validate`
+    said ok on one machine and crashed on the next."""
+    import codecs
+    import io
+
+    codecs.register_error(_BYTES_OR_ESCAPES, _bytes_or_escapes)
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors in ("strict",
+                                                                       "surrogateescape"):
+            stream.reconfigure(errors="backslashreplace" if stream.errors == "strict"
+                               else _BYTES_OR_ESCAPES)
+
+
+_BYTES_OR_ESCAPES = "pinarray.bytes-or-escapes"
+
+
+def _bytes_or_escapes(error: UnicodeError) -> tuple[str | bytes, int]:
+    """A name's own bytes where Python kept them as surrogates, else Python escapes."""
+    import codecs
+
+    try:
+        return codecs.lookup_error("surrogateescape")(error)
+    except UnicodeError:
+        return codecs.backslashreplace_errors(error)
 
 
 LATE_INTERRUPT = b"pinarray: interrupted as the command ended; its result stands\n"

@@ -15,6 +15,7 @@ same code; apart, they drift. A plan entry's condition is its paradigm's to chec
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
@@ -349,9 +350,19 @@ def _task_info(data: Any, task: str, paradigm: str) -> TaskInfo:
                                   for a, m in dict(data.get("answers", {})).items()))
 
 
+# A lone surrogate: what Python makes of a byte of a file name not in the locale's encoding
+# (a protocol in a folder named in Latin-1 on a UTF-8 system: b"M\xfcller" is "M\udcfcller").
+_LONE_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
 def write_manifest(path: Path, manifest: RunManifest) -> None:
-    """Write ``manifest`` to ``path`` atomically, as indented JSON."""
-    write_atomically(path, json.dumps(manifest.to_json(), indent=2, ensure_ascii=False) + "\n")
+    """Write ``manifest`` to ``path`` atomically, as indented UTF-8 JSON.
+
+    Text as it reads, but a lone surrogate (the protocol file's name, say) as its JSON escape:
+    UTF-8 has no code for it, and reading the file back gives the same name again."""
+    text = json.dumps(manifest.to_json(), indent=2, ensure_ascii=False)
+    write_atomically(path, _LONE_SURROGATE.sub(lambda lone: f"\\u{ord(lone[0]):04x}", text)
+                     + "\n")
 
 
 def read_manifest(path: Path | str) -> RunManifest:

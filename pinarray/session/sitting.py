@@ -265,14 +265,19 @@ class Sitting:
         return self.markers()
 
     def connected(self) -> Rig:
-        """The connected rig (only asked for once `connect` has succeeded)."""
-        assert self.rig is not None, "not connected"
-        return self.rig
+        """The connected rig; raises `PinArrayError` if there is none (never connected, or
+        released meanwhile: a worker may start as the experimenter leaves the pre-flight).
+        Not an ``assert``: under ``python -O`` (PYTHONOPTIMIZE) that would vanish and the
+        caller would fail on None instead."""
+        rig = self.rig
+        if rig is None:
+            raise PinArrayError("not connected")
+        return rig
 
     def test_pin(self, pin: int) -> None:
         """Wiggle one pin (blocking: call it from a worker)."""
-        rig, request = self.rig, self.request
-        assert rig is not None and request is not None
+        rig, request = self.connected(), self.request
+        assert request is not None
         request.protocol.device.grid.check_pin(pin)
         self._busy(lambda: rig.test_pin(pin))
 
@@ -341,12 +346,13 @@ class Sitting:
         `pinarray.imaging.triggers.TriggerError` for a device that cannot be opened or a
         scanner that sends nothing in time. No run is opened either way.
         """
-        assert self.clock is not None and self.rig is not None, "not connected"
+        rig, clock = self.connected(), self.clock
+        assert clock is not None  # set with the rig
         if not isinstance(sync.trigger, EmulatedTrigger):
-            self.rig.keep_wall_time()  # the scanner's triggers are stamped on the wall clock
+            rig.keep_wall_time()  # the scanner's triggers are stamped on the wall clock
         from pinarray.imaging.scanner import Scanner
 
-        self.scanner = Scanner(sync, self.clock, self.stop)
+        self.scanner = Scanner(sync, clock, self.stop)
         try:
             if opened is not None:
                 opened(self.scanner)
