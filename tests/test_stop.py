@@ -11,6 +11,7 @@ from pinarray.stop import (
     Stopped,
     StopRequest,
     deferred_signals,
+    signal_name,
     stop_on_signals,
 )
 
@@ -20,7 +21,12 @@ def test_every_stop_signal_sets_the_request_instead_of_ending_the_process():
         with stop_on_signals(StopRequest()) as stop:
             os.kill(os.getpid(), number)
             assert stop.requested and stop.signal_number == number
-            assert stop.reason == f"stopped by {signal.Signals(number).name}"
+            assert stop.reason == f"stopped by {signal_name(number)}"
+
+
+def test_real_time_signals_are_named_as_kill_names_them():
+    assert [signal_name(signal.SIGRTMIN + 3), signal_name(signal.SIGRTMAX)] == [
+        "SIGRTMIN+3", "SIGRTMAX"]
 
 
 def test_a_second_signal_raises_at_once_unless_something_must_finish_first():
