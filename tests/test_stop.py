@@ -350,3 +350,30 @@ def test_a_signal_whose_default_ends_the_script_ends_it_once_torque_is_off():
                           text=True, timeout=60)
     assert done.stdout.splitlines() == ["rest", "torque off"], done.stderr
     assert done.returncode == -signal.SIGTERM
+
+
+@pytest.mark.realtime
+def test_a_command_whose_terminal_closed_with_its_hang_up_ends_by_the_signal_not_a_crash():
+    # Stranger attack (attack-stop): an SSH session closing sends SIGHUP and takes the terminal
+    # with it. The stop's one line, printed into the closed terminal after the handlers were
+    # put back, raised BrokenPipeError out of the command: exit status 1, a traceback for
+    # nobody, instead of 128 + the signal.
+    import subprocess
+    import sys
+
+    demo = Path(__file__).resolve().parent.parent / "protocols" / "demo.yaml"
+    read_end, write_end = os.pipe()
+    process = subprocess.Popen([sys.executable, "-m", "pinarray", "play", str(demo), "--sim",
+                                "--speed", "1"], stdout=write_end, stderr=write_end)
+    os.close(write_end)
+    try:
+        with os.fdopen(read_end, "rb") as terminal:
+            assert terminal.readline().startswith(b"demo: 16 trial(s)")  # playing now
+        process.send_signal(signal.SIGHUP)  # the terminal is gone with it
+        process.wait(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    # Stopped by the hang-up, or by the broken pipe that came with it (a second stop signal).
+    assert process.returncode in (128 + signal.SIGHUP, 128 + signal.SIGPIPE)

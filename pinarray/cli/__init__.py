@@ -128,22 +128,26 @@ def _main(argv: list[str]) -> int:
 
 
 def _interrupted() -> int:
-    print("pinarray: interrupted", file=sys.stderr)
+    from pinarray.cli.output import say
+
+    say("pinarray: interrupted", error=True)
     return 130
 
 
 def _run(args: argparse.Namespace) -> int:
     """The command ``args`` name, its errors said in one line each; its exit status."""
+    from pinarray.cli.output import say
     from pinarray.errors import PinArrayError
 
     try:
         return int(args.func(args) or 0)
     except _stopped() as stopped:
-        print(f"pinarray: {stopped}", file=sys.stderr)
+        # `say`: the terminal may be gone with the signal (SIGHUP as an SSH session closes).
+        say(f"pinarray: {stopped}", error=True)
         return stopped.exit_status
     except PinArrayError as error:
         for line in str(error).splitlines() or [type(error).__name__]:
-            print(f"pinarray: {line}", file=sys.stderr)
+            say(f"pinarray: {line}", error=True)
         return 2
     except KeyboardInterrupt:
         return _interrupted()
