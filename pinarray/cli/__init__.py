@@ -136,18 +136,19 @@ def _interrupted() -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """The command ``args`` name, its errors said in one line each; its exit status."""
-    from pinarray.cli.output import say
     from pinarray.errors import PinArrayError
 
     try:
         return int(args.func(args) or 0)
     except _stopped() as stopped:
         # `say`: the terminal may be gone with the signal (SIGHUP as an SSH session closes).
+        from pinarray.cli.output import say
+
         say(f"pinarray: {stopped}", error=True)
         return stopped.exit_status
     except PinArrayError as error:
         for line in str(error).splitlines() or [type(error).__name__]:
-            say(f"pinarray: {line}", error=True)
+            print(f"pinarray: {line}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return _interrupted()
