@@ -2,8 +2,9 @@
 
 The only module that handles signals. ``pinarray play``, ``batch``, ``sim-serve`` and the TUI
 wrap their work in `stop_on_signals`; SIGHUP (terminal or SSH session closed), SIGINT
-(Ctrl-C), SIGQUIT, SIGTERM, SIGUSR1/2 and SIGPIPE then set a `StopRequest` instead of killing
-the process. Whatever waits (the player between frames, the session between trials) waits on a
+(Ctrl-C), SIGQUIT, SIGTERM, SIGUSR1/2, SIGPIPE and every other signal whose default action
+would end the process (`STOP_SIGNALS`) then set a `StopRequest` instead of killing it.
+Whatever waits (the player between frames, the session between trials) waits on a
 `StoppableClock`, which raises `Stopped` at its next look at the request, so every way out runs
 through the same ``finally`` that puts the pins at rest and switches torque off.
 
@@ -23,11 +24,18 @@ from types import FrameType
 from pinarray.clock import Clock
 from pinarray.errors import Interrupted
 
+# Every signal a stranger can send whose default action ends the process, not only those a
+# terminal or a service manager sends: `kill -ALRM`, a CPU-time limit (SIGXCPU), a timer left by
+# a wrapper (SIGALRM, SIGVTALRM, SIGPROF), a real-time signal. Left at their default, each ended
+# `pinarray servos calibrate` with its pin holding torque. Not the faults a process raises on
+# itself (SIGSEGV, SIGABRT, ...), nor SIGXFSZ, which Python ignores so that a write fails where
+# it is.
 STOP_SIGNALS = tuple(
     getattr(signal, name)
-    for name in ("SIGHUP", "SIGINT", "SIGQUIT", "SIGTERM", "SIGUSR1", "SIGUSR2", "SIGPIPE")
+    for name in ("SIGHUP", "SIGINT", "SIGQUIT", "SIGTERM", "SIGUSR1", "SIGUSR2", "SIGPIPE",
+                 "SIGALRM", "SIGVTALRM", "SIGPROF", "SIGXCPU", "SIGIO", "SIGPWR", "SIGSTKFLT")
     if hasattr(signal, name)
-)
+) + tuple(range(signal.SIGRTMIN, signal.SIGRTMAX + 1) if hasattr(signal, "SIGRTMIN") else ())
 _SIGPIPE = getattr(signal, "SIGPIPE", None)
 # Longest single wait between looks at the stop request, in clock nanoseconds.
 SLICE_NS = 20_000_000
@@ -98,7 +106,10 @@ def signal_name(signal_number: int) -> str:
     try:
         return signal.Signals(signal_number).name
     except ValueError:
-        return f"signal {signal_number}"
+        pass
+    if hasattr(signal, "SIGRTMIN") and signal.SIGRTMIN < signal_number < signal.SIGRTMAX:
+        return f"SIGRTMIN+{signal_number - signal.SIGRTMIN}"
+    return f"signal {signal_number}"
 
 
 @contextmanager
@@ -248,7 +259,7 @@ def deferred_signals() -> Iterator[None]:
 # Signals whose default action ends the process, held back like those with a handler: masking
 # them holds them back from the main thread only, and the kernel gives a signal sent to the
 # process to another thread (numpy's OpenBLAS): the process ended in the middle of the rest.
-_ENDING = frozenset((*STOP_SIGNALS, signal.SIGALRM))
+_ENDING = frozenset(STOP_SIGNALS)
 
 
 class _Held:

@@ -1078,3 +1078,21 @@ def test_a_ctrl_c_as_close_rests_the_pins_waits_until_torque_is_off_whichever_th
         assert tapped.is_set(), (out, err)
         assert script.returncode == 0 and out.splitlines() == ["interrupted"], (out, err)
         assert at_rest_and_released(server.sim.servos) == []
+
+
+@realtime
+def test_a_player_killed_as_it_rests_the_pins_on_its_way_out_leaves_them_released_all_the_same(
+        tmp_path):
+    # Stranger attack (attack-stop): `pinarray batch` stopped by a storm of SIGTERM on a busy
+    # machine left every servo holding torque. Told to quit, the player rests the pins on its
+    # way out (its goals to rest switch torque on); given 300 ms, a player slowed down is
+    # killed part way, and close() trusted the stop before it ("at rest, released") and sent
+    # nothing. Here the servos' answers come late instead of the machine being busy.
+    protocol = buzz(tmp_path, 10)
+    with array_on_a_port(protocol) as (array, server):
+        armed_and_moving(array, server.sim.servos)
+        array.stop()  # every pin at rest, torque off: as the stop said
+        server.sim.late_rate, server.sim.late_ns = 1.0, 60_000_000  # every answer 60 ms late
+        array.close()
+        server.sim.late_rate = 0.0
+        assert at_rest_and_released(server.sim.servos) == []

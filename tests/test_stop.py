@@ -11,6 +11,7 @@ from pinarray.stop import (
     Stopped,
     StopRequest,
     deferred_signals,
+    signal_name,
     stop_on_signals,
 )
 
@@ -20,7 +21,12 @@ def test_every_stop_signal_sets_the_request_instead_of_ending_the_process():
         with stop_on_signals(StopRequest()) as stop:
             os.kill(os.getpid(), number)
             assert stop.requested and stop.signal_number == number
-            assert stop.reason == f"stopped by {signal.Signals(number).name}"
+            assert stop.reason == f"stopped by {signal_name(number)}"
+
+
+def test_real_time_signals_are_named_as_kill_names_them():
+    assert [signal_name(signal.SIGRTMIN + 3), signal_name(signal.SIGRTMAX)] == [
+        "SIGRTMIN+3", "SIGRTMAX"]
 
 
 def test_a_second_signal_raises_at_once_unless_something_must_finish_first():
@@ -344,3 +350,30 @@ def test_a_signal_whose_default_ends_the_script_ends_it_once_torque_is_off():
                           text=True, timeout=60)
     assert done.stdout.splitlines() == ["rest", "torque off"], done.stderr
     assert done.returncode == -signal.SIGTERM
+
+
+@pytest.mark.realtime
+def test_a_command_whose_terminal_closed_with_its_hang_up_ends_by_the_signal_not_a_crash():
+    # Stranger attack (attack-stop): an SSH session closing sends SIGHUP and takes the terminal
+    # with it. The stop's one line, printed into the closed terminal after the handlers were
+    # put back, raised BrokenPipeError out of the command: exit status 1, a traceback for
+    # nobody, instead of 128 + the signal.
+    import subprocess
+    import sys
+
+    demo = Path(__file__).resolve().parent.parent / "protocols" / "demo.yaml"
+    read_end, write_end = os.pipe()
+    process = subprocess.Popen([sys.executable, "-m", "pinarray", "play", str(demo), "--sim",
+                                "--speed", "1"], stdout=write_end, stderr=write_end)
+    os.close(write_end)
+    try:
+        with os.fdopen(read_end, "rb") as terminal:
+            assert terminal.readline().startswith(b"demo: 16 trial(s)")  # playing now
+        process.send_signal(signal.SIGHUP)  # the terminal is gone with it
+        process.wait(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    # Stopped by the hang-up, or by the broken pipe that came with it (a second stop signal).
+    assert process.returncode in (128 + signal.SIGHUP, 128 + signal.SIGPIPE)

@@ -161,7 +161,9 @@ def _main(argv: list[str]) -> int:
 
 
 def _interrupted() -> int:
-    print("pinarray: interrupted", file=sys.stderr)
+    from pinarray.cli.output import say
+
+    say("pinarray: interrupted", error=True)
     return 130
 
 
@@ -172,7 +174,10 @@ def _run(args: argparse.Namespace) -> int:
     try:
         return int(args.func(args) or 0)
     except _stopped() as stopped:
-        print(f"pinarray: {stopped}", file=sys.stderr)
+        # `say`: the terminal may be gone with the signal (SIGHUP as an SSH session closes).
+        from pinarray.cli.output import say
+
+        say(f"pinarray: {stopped}", error=True)
         return stopped.exit_status
     except PinArrayError as error:
         for line in str(error).splitlines() or [type(error).__name__]:

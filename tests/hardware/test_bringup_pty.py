@@ -96,6 +96,39 @@ def test_calibrating_a_real_time_pin_leaves_it_at_rest_with_torque_off(sim_serve
     assert (result, torque) == (COMM_SUCCESS, 0) and abs(position - 2028) <= 4
 
 
+@pytest.mark.parametrize("sim_serve", ["6"], indirect=True)
+@pytest.mark.parametrize("number", [signal.SIGALRM, signal.SIGXCPU, signal.SIGVTALRM,
+                                    signal.SIGRTMIN + 3])
+def test_a_calibration_ended_by_any_signal_that_would_end_it_leaves_the_pin_released(
+        sim_serve, tmp_path, number):  # noqa: F811
+    # Stranger attack (attack-stop): only the signals a terminal sends were handled; `kill
+    # -ALRM`, a CPU-time limit (SIGXCPU) or a real-time signal ended the calibration at its
+    # prompt by their default action, the pin holding torque where it was jogged.
+    protocol = tmp_path / "localisation.yaml"
+    protocol.write_bytes(PROTOCOL.read_bytes())
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "servos", "calibrate", str(protocol), "--pin", "6",
+         "--port", sim_serve], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True)
+    try:
+        for line in process.stdout:  # the pin held, torque on, waiting at the prompt
+            if line.startswith("Jog pin 6"):
+                break
+        process.send_signal(number)
+        process.wait(timeout=60)  # stdin still open: only the signal ends it
+        err = process.stderr.read()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + number, err
+    assert "Traceback" not in err and " stopped by SIG" in err.splitlines()[-1], err
+    port, handler = vendor_port(sim_serve)
+    torque, result, _ = handler.read1ByteTxRx(port, 6, Register.TORQUE_ENABLE.address)
+    port.closePort()
+    assert (result, torque) == (COMM_SUCCESS, 0)
+
+
 @pytest.mark.parametrize("sim_serve", ["1,2"], indirect=True)
 def test_ctrl_c_during_a_sweep_ends_it_at_once(sim_serve):  # noqa: F811
     process = subprocess.Popen(
