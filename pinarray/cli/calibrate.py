@@ -307,9 +307,11 @@ def _jog_until_ok(jogger: Jogger, what: str, step: int, stop, check) -> int | No
 
     say(f"Jog {jogger.name} to {what.upper()}, then type ok.")
     while True:
-        stop.raise_if_requested()
         try:
             with raise_on_signals("calibration"):
+                # Looked at inside the block: a signal taken just before it only set the
+                # request, and the prompt would have waited on with the pin holding torque.
+                stop.raise_if_requested()
                 line = input(f"{what}> ")
         except EOFError:
             raise BusError(f"{jogger.name}: input ended before the {what} position was chosen; "
