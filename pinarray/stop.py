@@ -8,6 +8,9 @@ Whatever waits (the player between frames, the session between trials) waits on 
 `StoppableClock`, which raises `Stopped` at its next look at the request, so every way out runs
 through the same ``finally`` that puts the pins at rest and switches torque off.
 
+A terminal's signal that whoever started the process ignored stays ignored (`nohup`: SIGHUP;
+a script's background job: SIGINT and SIGQUIT): the run goes on, as asked.
+
 A second signal while a stop is already pending raises `Stopped` at once, wherever the main
 thread is: an escape hatch if something does not look at the request. The few steps that must
 not be cut in half (a pin's safe stop, a results row) run inside `deferred_signals`.
@@ -37,6 +40,12 @@ STOP_SIGNALS = tuple(
     if hasattr(signal, name)
 ) + tuple(range(signal.SIGRTMIN, signal.SIGRTMAX + 1) if hasattr(signal, "SIGRTMIN") else ())
 _SIGPIPE = getattr(signal, "SIGPIPE", None)
+# The signals a terminal sends, which whoever started us may have set to be ignored: `nohup`
+# (SIGHUP: the run outlives the SSH session) and a script's background job (SIGINT, SIGQUIT).
+# Left ignored, as asked (a batch started with nohup was aborted as the session closed): no
+# exit path begins, so nothing needs to rest.
+_TERMINAL_SIGNALS = frozenset(
+    getattr(signal, name) for name in ("SIGHUP", "SIGINT", "SIGQUIT") if hasattr(signal, name))
 # Longest single wait between looks at the stop request, in clock nanoseconds.
 SLICE_NS = 20_000_000
 
@@ -102,6 +111,12 @@ class StopRequest:
             raise Stopped(self.reason or "stopped", self.signal_number)
 
 
+def taken_signals() -> tuple[int, ...]:
+    """`STOP_SIGNALS` but a terminal's signal that whoever started this process ignored."""
+    return tuple(number for number in STOP_SIGNALS
+                 if number not in _TERMINAL_SIGNALS or signal.getsignal(number) != signal.SIG_IGN)
+
+
 def signal_name(signal_number: int) -> str:
     try:
         return signal.Signals(signal_number).name
@@ -127,7 +142,7 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
             _raise_unless_deferred(Stopped(f"stopped by {signal_name(signum)} (again)", signum))
         stop.request(f"stopped by {signal_name(signum)}", signum)
 
-    previous = {number: signal.signal(number, handler) for number in STOP_SIGNALS}
+    previous = {number: signal.signal(number, handler) for number in taken_signals()}
     try:
         yield stop
     finally:
@@ -146,7 +161,7 @@ def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]) -> Non
         stop.request(f"stopped by {signal_name(signal_number)}", signal_number)
         then(signal_number)
 
-    for number in STOP_SIGNALS:
+    for number in taken_signals():
         loop.add_signal_handler(number, handle, number)
 
 
@@ -189,7 +204,7 @@ def raise_on_signals(what: str, *, pipe_ignored: bool = False) -> Iterator[None]
 
     previous = {number: signal.signal(
         number, signal.SIG_IGN if pipe_ignored and number == _SIGPIPE else handler)
-        for number in STOP_SIGNALS}
+        for number in taken_signals()}
     try:
         yield
     finally:

@@ -377,3 +377,31 @@ def test_a_command_whose_terminal_closed_with_its_hang_up_ends_by_the_signal_not
             process.wait()
     # Stopped by the hang-up, or by the broken pipe that came with it (a second stop signal).
     assert process.returncode in (128 + signal.SIGHUP, 128 + signal.SIGPIPE)
+
+
+@pytest.mark.realtime
+def test_a_command_started_with_nohup_outlives_the_hang_up_and_stops_on_the_next_signal():
+    # Stranger attack (attack-launch): `nohup pinarray batch ... &` sets SIGHUP to be ignored so
+    # that the run outlives the SSH session; the command took it back and the run was aborted
+    # as the session closed ("stopped by SIGHUP", exit 129).
+    import subprocess
+    import sys
+
+    demo = Path(__file__).resolve().parent.parent / "protocols" / "demo.yaml"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "play", str(demo), "--sim", "--speed", "1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))  # as nohup does
+    try:
+        assert process.stdout.readline().startswith(b"demo: 16 trial(s)")  # playing now
+        process.send_signal(signal.SIGHUP)  # the session closes
+        with pytest.raises(subprocess.TimeoutExpired):
+            process.wait(timeout=1)  # still playing
+        process.send_signal(signal.SIGTERM)
+        err = process.communicate(timeout=60)[1].decode()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 128 + signal.SIGTERM, err
+    assert err.splitlines()[-1] == "pinarray: stopped by SIGTERM", err

@@ -33,7 +33,8 @@ default 10 ms) is reported and the exit status is 3.
 
 Ctrl-C, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1/2, SIGPIPE and every other signal that would end it
 (SIGALRM, SIGXCPU, a real-time signal, ...) stop playback cleanly: pins go to rest and torque
-off before exit (status 128 + the signal's number).
+off before exit (status 128 + the signal's number). Started with nohup, a command plays on
+through the hang-up of the session it was started from.
 """
 
 TIMING_EPILOG = """\
