@@ -11,6 +11,9 @@ import pytest
 
 from pinarray import __version__
 from pinarray.cli import main
+from pinarray.journal.manifest import RunStatus, read_manifest
+
+PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
@@ -41,6 +44,26 @@ def test_a_users_mistake_is_one_line_on_stderr_with_status_2():
     lines = result.stderr.strip().splitlines()
     assert lines == ["pinarray: pin 17 is not on the 4x4 grid: expected a pin from 1 to 16"]
     assert "Traceback" not in result.stderr
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full to stand for a full disk")
+def test_standard_output_on_a_full_disk_is_one_line_and_status_2_and_a_batchs_results_stand(
+        tmp_path):
+    # Stranger attack (attack-launch): `pinarray validate ... > /dev/full` ended in an OSError
+    # traceback, status 1; so did a batch, at its last line, after its run was written.
+    with open("/dev/full", "w") as full:
+        validated = subprocess.run(
+            [sys.executable, "-m", "pinarray", "validate", str(PROTOCOLS / "localisation.yaml")],
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=60)
+        batched = subprocess.run(
+            [sys.executable, "-m", "pinarray", "batch", str(PROTOCOLS / "demo.yaml"),
+             "--subject", "01", "--observer", "default", "--sim", "--results", str(tmp_path)],
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
+    for done in (validated, batched):
+        assert (done.returncode, done.stderr) == (
+            2, "pinarray: standard output: No space left on device\n")
+    (manifest,) = tmp_path.rglob("*_manifest.json")
+    assert read_manifest(manifest).status is RunStatus.COMPLETED
 
 
 @pytest.mark.parametrize(("folder", "encoding"), [

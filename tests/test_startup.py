@@ -25,8 +25,10 @@ PROTOCOLS = Path(__file__).resolve().parent.parent / "protocols"
 SCRIPT = Path(sys.executable).parent / "pinarray"  # the console script `pip install` wrote
 
 HEAVY = ("numpy", "scipy", "matplotlib", "textual", "serial", "scservo_sdk")
-# What validating needs of pinarray: the reader of protocol files and the validate command.
-NEEDED = ("pinarray", "pinarray.version", "pinarray.cli", "pinarray.cli.common", "pinarray.cli.protocols",
+# What validating needs of pinarray: the reader of protocol files and the validate command
+# (with the guard on its standard output, `pinarray.cli.output`).
+NEEDED = ("pinarray", "pinarray.version", "pinarray.cli", "pinarray.cli.common",
+          "pinarray.cli.output", "pinarray.cli.protocols",
           "pinarray.errors", "pinarray.units", "pinarray.grid", "pinarray.text_files",
           "pinarray.protocol", "pinarray.registry", "pinarray.paradigms", "pinarray.paradigms.base")
 # ... and of the protocol's paradigm (found by the registry), its room's design alone: not its

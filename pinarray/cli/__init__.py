@@ -169,10 +169,12 @@ def _interrupted() -> int:
 
 def _run(args: argparse.Namespace) -> int:
     """The command ``args`` name, its errors said in one line each; its exit status."""
+    from pinarray.cli.output import StandardOutputFailed, discard, guarded_stdout
     from pinarray.errors import PinArrayError
 
     try:
-        return int(args.func(args) or 0)
+        with guarded_stdout():
+            return int(args.func(args) or 0)
     except _stopped() as stopped:
         # `say`: the terminal may be gone with the signal (SIGHUP as an SSH session closes).
         from pinarray.cli.output import say
@@ -187,13 +189,17 @@ def _run(args: argparse.Namespace) -> int:
         return _interrupted()
     except BrokenPipeError:
         # The reader went away (``pinarray play ... | head``): end as if by SIGPIPE, quietly.
-        try:
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        except OSError:
-            pass
         import signal
 
+        discard(sys.stdout)
         return 128 + signal.SIGPIPE
+    except StandardOutputFailed as failed:
+        # ``> /dev/full``, a full disk: one line and status 2, as any output that cannot be
+        # written; the command's own files (a batch's results) stand as written.
+        discard(sys.stdout)
+        (cause,) = failed.args
+        print(f"pinarray: standard output: {cause.strerror or cause}", file=sys.stderr)
+        return 2
 
 
 def _warn_of_ignored_plug_ins() -> None:

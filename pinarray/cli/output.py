@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import TextIO
 
 
 def say(text: str, *, error: bool = False) -> None:
@@ -15,10 +18,60 @@ def say(text: str, *, error: bool = False) -> None:
     stream = sys.stderr if error else sys.stdout
     try:
         print(text, file=stream, flush=True)
-    except OSError:
-        # What the stream still holds would fail again as the interpreter flushes it on its
-        # way out (exit status 120, "Exception ignored"): written where nobody reads instead.
+    except (OSError, StandardOutputFailed):
+        discard(stream)
+
+
+class StandardOutputFailed(Exception):
+    """Standard output could not take a line (a full disk, an I/O error); ``args[0]`` is the
+    ``OSError``. Its own kind: an ``OSError`` there would read as a results file's."""
+
+
+class _Guarded:
+    """A text stream whose failures to write are `StandardOutputFailed` (a reader gone stays
+    ``BrokenPipeError``: it ends a command as SIGPIPE would)."""
+
+    def __init__(self, stream: TextIO):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
         try:
-            os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
-        except (OSError, ValueError):
-            pass
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as error:
+            raise StandardOutputFailed(error) from error
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as error:
+            raise StandardOutputFailed(error) from error
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def guarded_stdout() -> Iterator[None]:
+    """Inside the block, a line standard output cannot take raises `StandardOutputFailed`."""
+    stream = sys.stdout
+    guarded = _Guarded(stream)
+    sys.stdout = guarded  # type: ignore[assignment]  # a text stream in all it is asked
+    try:
+        yield
+    finally:
+        if sys.stdout is guarded:
+            sys.stdout = stream
+
+
+def discard(stream: TextIO) -> None:
+    """What ``stream`` still holds, and whatever follows, written where nobody reads: it would
+    fail again as the interpreter flushes it on its way out (exit status 120, "Exception
+    ignored")."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
+    except (OSError, ValueError):
+        pass
