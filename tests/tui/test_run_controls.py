@@ -58,6 +58,7 @@ async def begin(pilot):
     return pilot.app.screen.session
 
 
+@pytest.mark.long
 async def test_pause_holds_the_run_redo_and_q_ask_first_and_the_quit_run_is_offered_with_its_counts_and_seed(
         results, short_localisation):
     """One run: practice 1 paused and resumed (no answer taken while paused); practice 2
@@ -131,6 +132,7 @@ async def test_pause_holds_the_run_redo_and_q_ask_first_and_the_quit_run_is_offe
         assert again.screen.query_one("#seed").value == "3"  # ...but the run keeps its own
 
 
+@pytest.mark.long
 async def test_abort_asks_first_and_the_aborted_run_resumes_where_it_stopped_every_screen_whole(
         results, short_localisation):
     """The run aborted, its end screen, the start form offering to resume it and the resumed
@@ -219,6 +221,7 @@ async def test_a_bus_fault_is_shown_in_words_retry_presents_the_trial_again_and_
     assert manifest(results).status == "aborted"
 
 
+@pytest.mark.long
 async def test_mistakes_are_explained_on_screen_in_view_and_nothing_is_written_then_ctrl_c_keeps_every_row(
         results, short_localisation):
     """A subject label not allowed, a pin that does not exist, an answer out of range: each

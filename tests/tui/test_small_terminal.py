@@ -214,6 +214,7 @@ async def answer(pilot, protocol):
     await settle(pilot)
 
 
+@pytest.mark.long
 @PARADIGMS
 async def test_every_phase_of_a_run_shows_every_key_answer_and_notice_whole(
         results, protocol, short_localisation):
