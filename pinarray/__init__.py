@@ -44,7 +44,8 @@ def _command_starting() -> bool:
 if _command_starting():
     import _signal
 
-    _signal.signal(_signal.SIGINT, _interrupted_at_start)
+    if _signal.getsignal(_signal.SIGINT) is not _signal.SIG_IGN:  # ignored: left so (nohup)
+        _signal.signal(_signal.SIGINT, _interrupted_at_start)
 
 import importlib  # noqa: E402
 

@@ -2,8 +2,8 @@
 
 The only module that handles signals. ``pinarray play``, ``batch``, ``sim-serve`` and the TUI
 wrap their work in `stop_on_signals`; SIGHUP (terminal or SSH session closed), SIGINT
-(Ctrl-C), SIGQUIT, SIGTERM, SIGUSR1/2, SIGPIPE and every other signal whose default action
-would end the process (`STOP_SIGNALS`) then set a `StopRequest` instead of killing it.
+(Ctrl-C), SIGQUIT, SIGTERM, SIGUSR1/2, SIGPIPE and every other signal sent to end a process
+(`STOP_SIGNALS`: not those of its own faults) then set a `StopRequest` instead of killing it.
 Whatever waits (the player between frames, the session between trials) waits on a
 `StoppableClock`, which raises `Stopped` at its next look at the request, so every way out runs
 through the same ``finally`` that puts the pins at rest and switches torque off.

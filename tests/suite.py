@@ -208,7 +208,9 @@ REALTIME_ENV = {"OPENBLAS_NUM_THREADS": "1"}
 
 
 def terminal_keys() -> None:
-    """Ctrl-C and Ctrl-\\ as in a terminal, and children's ends heard, for every test process.
+    """Ctrl-C, Ctrl-\\ and a hang-up as in a terminal, and children's ends heard, for every test
+    process (a command keeps a terminal's signal ignored where whoever started it ignored it:
+    ``nohup make test`` would otherwise fail every test of a hang-up).
 
     A shell that starts `make test` in the background (a CI runner's script, ``make test &``,
     ``nohup``) hands it Ctrl-C and Ctrl-\\ ignored, and the children inherit that: a lab
@@ -220,7 +222,7 @@ def terminal_keys() -> None:
     21 tests of the usual selection failing."""
     if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
-    for number in (signal.SIGQUIT, signal.SIGCHLD):
+    for number in (signal.SIGQUIT, signal.SIGHUP, signal.SIGCHLD):
         if signal.getsignal(number) == signal.SIG_IGN:
             signal.signal(number, signal.SIG_DFL)
 

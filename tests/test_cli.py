@@ -51,19 +51,36 @@ def test_standard_output_on_a_full_disk_is_one_line_and_status_2_and_a_batchs_re
         tmp_path):
     # Stranger attack (attack-launch): `pinarray validate ... > /dev/full` ended in an OSError
     # traceback, status 1; so did a batch, at its last line, after its run was written.
+    # Standard output to a file is written in blocks (unless PYTHONUNBUFFERED says not, as it
+    # does here): the failure then comes with the last flush.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
     with open("/dev/full", "w") as full:
         validated = subprocess.run(
             [sys.executable, "-m", "pinarray", "validate", str(PROTOCOLS / "localisation.yaml")],
-            stdout=full, stderr=subprocess.PIPE, text=True, timeout=60)
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=60, env=env)
+        unbuffered = subprocess.run(
+            [sys.executable, "-m", "pinarray", "validate", str(PROTOCOLS / "localisation.yaml")],
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=60,
+            env={**env, "PYTHONUNBUFFERED": "1"})
         batched = subprocess.run(
             [sys.executable, "-m", "pinarray", "batch", str(PROTOCOLS / "demo.yaml"),
              "--subject", "01", "--observer", "default", "--sim", "--results", str(tmp_path)],
-            stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
-    for done in (validated, batched):
+            stdout=full, stderr=subprocess.PIPE, text=True, timeout=120, env=env)
+    for done in (validated, unbuffered, batched):
         assert (done.returncode, done.stderr) == (
             2, "pinarray: standard output: No space left on device\n")
     (manifest,) = tmp_path.rglob("*_manifest.json")
     assert read_manifest(manifest).status is RunStatus.COMPLETED
+
+
+def test_a_command_started_with_its_standard_output_closed_does_its_work_silently(tmp_path):
+    # Stranger review: `pinarray validate FILE >&-` (Python's sys.stdout is then None) ended in
+    # a traceback, status 1, once standard output was guarded.
+    validated = subprocess.run(
+        [sys.executable, "-m", "pinarray", "validate", str(PROTOCOLS / "localisation.yaml")],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=60,
+        preexec_fn=lambda: os.close(1))
+    assert (validated.returncode, validated.stderr) == (0, "")
 
 
 @pytest.mark.parametrize(("folder", "encoding"), [

@@ -380,10 +380,12 @@ def test_a_command_whose_terminal_closed_with_its_hang_up_ends_by_the_signal_not
 
 
 @pytest.mark.realtime
-def test_a_command_started_with_nohup_outlives_the_hang_up_and_stops_on_the_next_signal():
+@pytest.mark.parametrize("ignored", [signal.SIGHUP, signal.SIGINT], ids=["nohup", "background"])
+def test_a_command_started_with_nohup_outlives_the_hang_up_and_stops_on_the_next_signal(ignored):
     # Stranger attack (attack-launch): `nohup pinarray batch ... &` sets SIGHUP to be ignored so
     # that the run outlives the SSH session; the command took it back and the run was aborted
-    # as the session closed ("stopped by SIGHUP", exit 129).
+    # as the session closed ("stopped by SIGHUP", exit 129). A script's background job has
+    # SIGINT ignored the same way (review: the command's first line took it back).
     import subprocess
     import sys
 
@@ -391,10 +393,10 @@ def test_a_command_started_with_nohup_outlives_the_hang_up_and_stops_on_the_next
     process = subprocess.Popen(
         [sys.executable, "-m", "pinarray", "play", str(demo), "--sim", "--speed", "1"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))  # as nohup does
+        preexec_fn=lambda: signal.signal(ignored, signal.SIG_IGN))  # as nohup does
     try:
         assert process.stdout.readline().startswith(b"demo: 16 trial(s)")  # playing now
-        process.send_signal(signal.SIGHUP)  # the session closes
+        process.send_signal(ignored)  # the session closes
         with pytest.raises(subprocess.TimeoutExpired):
             process.wait(timeout=1)  # still playing
         process.send_signal(signal.SIGTERM)

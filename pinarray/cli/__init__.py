@@ -197,9 +197,11 @@ def _run(args: argparse.Namespace) -> int:
         # ``> /dev/full``, a full disk: one line and status 2, as any output that cannot be
         # written; the command's own files (a batch's results) stand as written.
         discard(sys.stdout)
+        from pinarray.cli.output import say
+
         (cause,) = failed.args
-        print(f"pinarray: standard output: {cause.strerror or cause}", file=sys.stderr)
-        return 2
+        say(f"pinarray: standard output: {cause.strerror or cause}", error=True)  # to the same
+        return 2  # full disk, perhaps (``> log 2>&1``): then said to nobody, the status stands
 
 
 def _warn_of_ignored_plug_ins() -> None:

@@ -31,8 +31,8 @@ its own at real-time priority when the OS grants it. Every goal change is read b
 servo and re-sent if lost; a trial not delivered as scheduled (device: delivery_tolerance_ms,
 default 10 ms) is reported and the exit status is 3.
 
-Ctrl-C, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1/2, SIGPIPE and every other signal that would end it
-(SIGALRM, SIGXCPU, a real-time signal, ...) stop playback cleanly: pins go to rest and torque
+Ctrl-C, SIGTERM, SIGHUP, SIGQUIT, SIGUSR1/2, SIGPIPE and every other signal sent to end it
+(SIGALRM, SIGXCPU, a real-time signal, ...; not SIGKILL) stop playback cleanly: pins go to rest and torque
 off before exit (status 128 + the signal's number). Started with nohup, a command plays on
 through the hang-up of the session it was started from.
 """

@@ -56,12 +56,19 @@ class _Guarded:
 
 @contextmanager
 def guarded_stdout() -> Iterator[None]:
-    """Inside the block, a line standard output cannot take raises `StandardOutputFailed`."""
+    """Inside the block, a line standard output cannot take raises `StandardOutputFailed`;
+    what it still holds is flushed as the block ends (to a file it is written in blocks: the
+    failure would otherwise come as the interpreter exits, status 120). No standard output at
+    all (started with it closed: Python's ``sys.stdout`` is None) is left so: prints vanish."""
     stream = sys.stdout
+    if stream is None:
+        yield
+        return
     guarded = _Guarded(stream)
     sys.stdout = guarded  # type: ignore[assignment]  # a text stream in all it is asked
     try:
         yield
+        guarded.flush()
     finally:
         if sys.stdout is guarded:
             sys.stdout = stream
@@ -73,5 +80,5 @@ def discard(stream: TextIO) -> None:
     ignored")."""
     try:
         os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
-    except (OSError, ValueError):
+    except (OSError, ValueError, AttributeError):  # AttributeError: no stream (None)
         pass

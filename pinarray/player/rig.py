@@ -482,17 +482,16 @@ class Rig:
             return SafeStopReport((), (), ())  # the array is the original process's to close
         try:
             player, self.player = self.player, None
-            rested_by_player = player is None
             try:
                 if player is not None:
                     player.close()
-                    # Told to quit, it rests the pins on its way out: its goals to rest switch
-                    # torque on. Killed part way (too slow for its budget), it left them so.
-                    rested_by_player = player.process.returncode == 0
             finally:
-                # However the player's end went (a second Ctrl-C as it left), pins go to rest
-                # (unless the last stop left them so and nothing was sent since).
-                safe = (self._safe if self._safe is not None and rested_by_player
+                # However the player's end went (a second Ctrl-C as it left), pins go to rest,
+                # unless the last stop left them so and nothing was sent since: no player. One
+                # that ended rested the pins on its way out, and its goals to rest switch
+                # torque on; whether its torque off was heard, killed part way (too slow for
+                # its budget) or not (a lossy bus: its report is not ours), only ours says.
+                safe = (self._safe if self._safe is not None and player is None
                         else self.bus.rest_and_release())
         finally:
             try:
