@@ -11,6 +11,7 @@ import asyncio
 import os
 import signal
 import termios
+import threading
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -120,6 +121,7 @@ class PinArrayApp(App[None]):
         self.ending: Ending = Quit()
         self._leaving_app = False
         self._crash_closed = False  # after an error: the run is marked and the pins rest
+        self._unmounted = threading.Event()  # ends the terminal's watch (`_watch_terminal`)
 
     # -- screens ------------------------------------------------------------------------------
 
@@ -143,14 +145,23 @@ class PinArrayApp(App[None]):
         if os.isatty(TERMINAL_FD):
             # A terminal can vanish without a SIGHUP reaching us (a shell that ignores it, a
             # closed tmux pane whose shell was the session leader): Textual's input thread then
-            # spins on end-of-file forever. Looking at the terminal now and then catches it.
-            self.set_interval(TERMINAL_CHECK_S, self._check_terminal)
+            # spins on end-of-file forever. Looking at the terminal now and then catches it,
+            # from a thread of its own: a terminal that stopped reading first (an SSH link
+            # frozen, then dropped) fills Textual's output queue, whose writer then dies on the
+            # dead terminal, and the event loop waits on that queue for good, signals and all:
+            # a look from the loop never came (the UI stayed, spinning, with the port held).
+            threading.Thread(target=self._watch_terminal, name="terminal-watch",
+                             daemon=True).start()
 
-    def _check_terminal(self) -> None:
-        try:
-            termios.tcgetattr(TERMINAL_FD)
-        except (termios.error, OSError):  # EIO: the terminal hung up
-            self._hang_up()
+    def on_unmount(self) -> None:
+        self._unmounted.set()
+
+    def _watch_terminal(self) -> None:
+        while not self._unmounted.wait(TERMINAL_CHECK_S):
+            try:
+                termios.tcgetattr(TERMINAL_FD)
+            except (termios.error, OSError):  # EIO: the terminal hung up
+                self._hang_up()
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action in ("quit", "interrupt") and isinstance(self.ending, Crashed):

@@ -56,3 +56,37 @@ def test_the_ui_leaves_when_its_terminal_is_gone_even_without_a_hangup_signal(tm
         if main >= 0:
             os.close(main)
     assert status == 128 + signal.SIGHUP
+
+
+def test_the_ui_leaves_when_its_terminal_stopped_reading_then_went_away(tmp_path):
+    # Found by `make run` in a pseudo-terminal that stopped being read (an SSH link frozen,
+    # then dropped): Textual's output queue filled, its writer thread died on the dead terminal
+    # and the event loop waited on that queue for good; the look at the terminal, made from the
+    # loop, never came, nor did SIGTERM's handler: the UI stayed, its input thread spinning
+    # (half a processor for as long as one let it), the port held.
+    main, terminal = pty.openpty()
+    os.set_blocking(main, False)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "pinarray", "tui", "protocols/localisation.yaml", "--sim",
+         "--subject", "01", "--results", str(tmp_path / "results")],
+        cwd=REPO, stdin=terminal, stdout=terminal, stderr=terminal, start_new_session=True,
+        env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
+    os.close(terminal)
+    try:
+        assert b"start a session" in read_until(main, b"start a session", SCREEN_WAIT_S)
+        for _ in range(400):  # keys keep coming, each a redraw; nothing is read any more
+            try:
+                os.write(main, b"\t")
+            except BlockingIOError:
+                pass  # the keys' side is full too
+            time.sleep(0.01)
+        os.close(main)  # the link drops
+        main = -1
+        status = process.wait(timeout=EXIT_WAIT_S)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        if main >= 0:
+            os.close(main)
+    assert status == 128 + signal.SIGHUP
