@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 
 import pytest
 
@@ -33,29 +34,48 @@ def read_until(fd: int, text: bytes, wait_s: float) -> bytes:
     return seen
 
 
-def test_the_ui_leaves_when_its_terminal_is_gone_even_without_a_hangup_signal(tmp_path):
-    main, terminal = pty.openpty()
+class Terminal:
+    """The other end of the UI's pseudo-terminal: the window, the SSH client."""
+
+    def __init__(self, fd: int) -> None:
+        self.fd = fd
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+
+@contextmanager
+def ui_on_a_terminal(tmp_path):
+    """The UI on a pseudo-terminal, its start screen shown: its process and the terminal.
+
+    A session of its own: the pseudo-terminal is not its controlling terminal, so closing the
+    other end sends no SIGHUP, as when a shell ignoring SIGHUP is the session leader."""
+    main, its_device = pty.openpty()
     os.set_blocking(main, False)
-    # A session of its own: the pseudo-terminal is not its controlling terminal, so closing
-    # the other end sends no SIGHUP, as when a shell ignoring SIGHUP is the session leader.
+    terminal = Terminal(main)
     process = subprocess.Popen(
         [sys.executable, "-m", "pinarray", "tui", "protocols/localisation.yaml", "--sim",
          "--subject", "01", "--results", str(tmp_path / "results")],
-        cwd=REPO, stdin=terminal, stdout=terminal, stderr=terminal, start_new_session=True,
+        cwd=REPO, stdin=its_device, stdout=its_device, stderr=its_device,
+        start_new_session=True,
         env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
-    os.close(terminal)
+    os.close(its_device)
     try:
         assert b"start a session" in read_until(main, b"start a session", SCREEN_WAIT_S)
-        os.close(main)  # the terminal window is closed
-        main = -1
-        status = process.wait(timeout=EXIT_WAIT_S)
+        yield process, terminal
     finally:
         if process.poll() is None:
             process.kill()
             process.wait()
-        if main >= 0:
-            os.close(main)
-    assert status == 128 + signal.SIGHUP
+        terminal.close()
+
+
+def test_the_ui_leaves_when_its_terminal_is_gone_even_without_a_hangup_signal(tmp_path):
+    with ui_on_a_terminal(tmp_path) as (process, terminal):
+        terminal.close()  # the terminal window is closed
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGHUP
 
 
 def test_the_ui_leaves_when_its_terminal_stopped_reading_then_went_away(tmp_path):
@@ -64,29 +84,12 @@ def test_the_ui_leaves_when_its_terminal_stopped_reading_then_went_away(tmp_path
     # and the event loop waited on that queue for good; the look at the terminal, made from the
     # loop, never came, nor did SIGTERM's handler: the UI stayed, its input thread spinning
     # (half a processor for as long as one let it), the port held.
-    main, terminal = pty.openpty()
-    os.set_blocking(main, False)
-    process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "tui", "protocols/localisation.yaml", "--sim",
-         "--subject", "01", "--results", str(tmp_path / "results")],
-        cwd=REPO, stdin=terminal, stdout=terminal, stderr=terminal, start_new_session=True,
-        env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
-    os.close(terminal)
-    try:
-        assert b"start a session" in read_until(main, b"start a session", SCREEN_WAIT_S)
+    with ui_on_a_terminal(tmp_path) as (process, terminal):
         for _ in range(400):  # keys keep coming, each a redraw; nothing is read any more
             try:
-                os.write(main, b"\t")
+                os.write(terminal.fd, b"\t")
             except BlockingIOError:
                 pass  # the keys' side is full too
             time.sleep(0.01)
-        os.close(main)  # the link drops
-        main = -1
-        status = process.wait(timeout=EXIT_WAIT_S)
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-        if main >= 0:
-            os.close(main)
-    assert status == 128 + signal.SIGHUP
+        terminal.close()  # the link drops
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGHUP
