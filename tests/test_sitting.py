@@ -324,16 +324,24 @@ def test_a_sitting_through_a_serial_port_runs_as_on_the_simulator_and_leaves_ser
         sitting = Sitting(tmp_path, clock_factory=lambda port: MonotonicClock(),
                           rig_factory=rig_factory)
         request = SessionRequest(buzz(tmp_path, 0.3), "01", "1", "", server.path, None, 3, False)
+        failed = []
         with pytest.raises(Stopped) if stopped else nullcontext(), sitting:
             assert sitting.connect(request).isolated  # played by a player process
             session = sitting.open_session()
-            sitting.run_scripted(lambda question: 6)
+            sitting.run_scripted(lambda question: 6, failed=failed.append)
         manifest = read_manifest(session.writer.paths.manifest)
         if stopped:
             assert (manifest.status, manifest.abort_reason) == ("aborted", "stopped by SIGHUP")
         else:
             assert manifest.status == "completed"
-            assert [r.status for r in rows(session)] == ["ok"] * session.total
+            # On the wall clock a busy machine may starve the served bus: a stimulus is then
+            # reported not delivered, logged invalid and presented again, and nothing else.
+            assert all(f.fault.startswith("the stimulus was not delivered as scheduled: ")
+                       for f in failed), failed
+            written = rows(session)
+            assert [r.status_reason for r in written if r.status == "invalid"] == [
+                f.fault for f in failed]
+            assert [r.status for r in written if r.status != "invalid"] == ["ok"] * session.total
         assert at_rest_and_released(server.sim.servos) == []
     finally:
         server.stop()

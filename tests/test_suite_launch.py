@@ -1,11 +1,13 @@
 """`make test` the same however it is started: a launcher's ignored signals are not the test
-processes' (tests/suite.py, `terminal_keys`)."""
+processes' (tests/suite.py, `terminal_keys`); a real-time test starved once is tried again, and
+the report says so and why."""
 
 import signal
 import subprocess
 import sys
 
 from tests.runs import REPO
+from tests.suite import pytest_command
 
 # What a test process sees once the suite has set up: a child's exit status, and Ctrl-C and
 # Ctrl-\ as Python sets them up in a terminal.
@@ -40,3 +42,38 @@ def test_the_helpers_checks_hold_under_python_o_as_the_tests_own_do():
     import tests.runs
 
     assert "@pytest_ar" in vars(tests.hardware.lab) and "@pytest_ar" in vars(tests.runs)
+
+
+# A real-time test that fails its first try only (as one starved by a busy machine does), and
+# one that fails every try (as a fault of the code's own does).
+STARVED_ONCE_AND_BROKEN = """\
+import pytest
+
+tries = []
+
+
+@pytest.mark.realtime
+def test_starved_once():
+    tries.append(1)
+    assert len(tries) > 1, "the stimulus was not delivered as scheduled: 9.0 ms late"
+
+
+@pytest.mark.realtime
+def test_broken():
+    assert False, "a fault of the code's own"
+"""
+
+
+def test_a_real_time_test_failing_once_is_tried_again_and_the_report_says_why(tmp_path):
+    probe = tmp_path / "test_probe.py"
+    probe.write_text(STARVED_ONCE_AND_BROKEN)
+    command = pytest_command("realtime", 1, [
+        "-c", str(REPO / "pyproject.toml"), "-p", "no:cacheprovider",
+        str(probe)], str(tmp_path / "base"))
+    done = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=120)
+    report = done.stdout
+    assert done.returncode == 1, report  # the broken one fails, after its rerun
+    assert "1 failed, 1 passed, 2 rerun" in report.splitlines()[-1]
+    assert ("::test_starved_once (call): AssertionError: the stimulus was not "
+            "delivered as scheduled: 9.0 ms late") in report
+    assert "::test_broken (call): AssertionError: a fault of the code's own" in report
