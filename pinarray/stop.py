@@ -18,6 +18,8 @@ not be cut in half (a pin's safe stop, a results row) run inside `deferred_signa
 
 from __future__ import annotations
 
+import os
+import select
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -150,20 +152,55 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
             signal.signal(number, old)
 
 
-def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]) -> None:
+def on_loop_signals(loop, stop: StopRequest, then: Callable[[int], None]) -> tuple[int, ...]:
     """For an asyncio program (the TUI): every stop signal sets ``stop``, then calls ``then``.
 
-    Raises whatever ``loop.add_signal_handler`` raises where signals cannot be handled (not
-    the main thread, Windows).
+    Returns the signals taken. Raises whatever ``loop.add_signal_handler`` raises where
+    signals cannot be handled (not the main thread, Windows).
     """
 
     def handle(signal_number: int) -> None:
         stop.request(f"stopped by {signal_name(signal_number)}", signal_number)
         then(signal_number)
 
-    for number in taken_signals():
+    taken = taken_signals()
+    for number in taken:
         loop.add_signal_handler(number, handle, number)
+    return taken
 
+
+class SignalTap:
+    """The signals an asyncio loop is told of, seen by another thread as well: for a loop that
+    can be held (blocked in a call that does not return) while a signal must be acted on.
+
+    asyncio hears of a signal through a byte written to Python's wakeup descriptor the moment
+    the signal arrives (`on_loop_signals`); the tap puts a pipe of its own there, and `wait`
+    passes every byte on to the loop's descriptor, returning the signals among ``watched``.
+    Made from the main thread, after the loop's handlers; bytes pass on for as long as the
+    process lives, so whoever reads them must keep calling `wait`.
+    """
+
+    def __init__(self, watched: tuple[int, ...]) -> None:
+        self.watched = frozenset(watched)
+        self._read, write = os.pipe()
+        os.set_blocking(self._read, False)
+        os.set_blocking(write, False)
+        self._loop_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+
+    def wait(self, timeout_s: float) -> tuple[int, ...]:
+        """The watched signals that arrived, waiting up to ``timeout_s`` for any signal."""
+        if not select.select([self._read], [], [], timeout_s)[0]:
+            return ()
+        try:
+            data = os.read(self._read, 512)
+        except BlockingIOError:
+            return ()
+        if self._loop_fd >= 0:
+            try:
+                os.write(self._loop_fd, data)
+            except OSError:
+                pass  # full (the loop has bytes to wake it) or closed (the loop has ended)
+        return tuple(number for number in data if number in self.watched)
 
 
 @contextmanager

@@ -24,7 +24,7 @@ from textual.message_pump import active_message_pump
 from textual.screen import Screen
 from textual.worker import WorkerFailed
 
-from pinarray.clock import Clock
+from pinarray.clock import Clock, MonotonicClock
 from pinarray.errors import PinArrayError
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
@@ -32,7 +32,7 @@ from pinarray.player.rig import Rig, choose_clock
 from pinarray.protocol.imaging import SyncOverrides
 from pinarray.session.sitting import QUIT_REASON, RigFactory, Sitting
 from pinarray.session.trials import Session
-from pinarray.stop import on_loop_signals, signal_name
+from pinarray.stop import SignalTap, on_loop_signals, signal_name
 from pinarray.tui.outcome import (
     Crashed,
     Ending,
@@ -47,6 +47,11 @@ from pinarray.version import __version__
 
 TERMINAL_FD = 0  # the terminal Textual reads keys from (standard input)
 TERMINAL_CHECK_S = 1.0  # how often the UI looks whether its terminal is still there
+# A stop signal the UI has not left on this long after it came is acted on from the
+# terminal's watch: the event loop is held (by a terminal that stopped reading: Textual's
+# output queue full, before the signal's handler ran or while the UI closed) and would never
+# leave. A usual close (the stimulus cut short, pins to rest) takes well under a second.
+SIGNAL_LEAVE_NS = 10_000_000_000
 
 
 @dataclass(frozen=True)
@@ -138,30 +143,43 @@ class PinArrayApp(App[None]):
 
         self.push_screen(StartScreen(self.options, self.list_ports))
         try:
-            # Any stop signal: same as q. Closing the terminal: see `_hang_up`.
-            on_loop_signals(asyncio.get_running_loop(), self.sitting.stop, self._signalled)
+            # Any stop signal: same as q. Closing the terminal: see `_leave_at_once`.
+            taken = on_loop_signals(asyncio.get_running_loop(), self.sitting.stop,
+                                    self._signalled)
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
-            pass  # not the main thread (tests) or no such signals (Windows)
+            taken = ()  # not the main thread (tests) or no such signals (Windows)
         if os.isatty(TERMINAL_FD):
             # A terminal can vanish without a SIGHUP reaching us (a shell that ignores it, a
             # closed tmux pane whose shell was the session leader): Textual's input thread then
             # spins on end-of-file forever. Looking at the terminal now and then catches it,
-            # from a thread of its own: a terminal that stopped reading first (an SSH link
-            # frozen, then dropped) fills Textual's output queue, whose writer then dies on the
-            # dead terminal, and the event loop waits on that queue for good, signals and all:
-            # a look from the loop never came (the UI stayed, spinning, with the port held).
-            threading.Thread(target=self._watch_terminal, name="terminal-watch",
+            # from a thread of its own: a terminal that stopped reading (an SSH link frozen)
+            # fills Textual's output queue, and the event loop waits on that queue, signals and
+            # all, until the terminal reads again; once it is gone, for good (the UI stayed,
+            # spinning, with the port held, deaf to SIGTERM). The thread hears the signals too.
+            tap = SignalTap(taken) if taken else None
+            threading.Thread(target=self._watch_terminal, args=(tap,), name="terminal-watch",
                              daemon=True).start()
 
     def on_unmount(self) -> None:
         self._unmounted.set()
 
-    def _watch_terminal(self) -> None:
-        while not self._unmounted.wait(TERMINAL_CHECK_S):
-            try:
-                termios.tcgetattr(TERMINAL_FD)
-            except (termios.error, OSError):  # EIO: the terminal hung up
-                self._hang_up()
+    def _watch_terminal(self, tap: SignalTap | None) -> None:
+        clock = MonotonicClock()
+        first: tuple[int, int] | None = None  # the first stop signal: (number, ns it came at)
+        while True:
+            if tap is None:
+                if self._unmounted.wait(TERMINAL_CHECK_S):
+                    return
+            else:  # passes signals on to the loop for as long as the process lives
+                for number in tap.wait(TERMINAL_CHECK_S):
+                    first = first or (number, clock.now_ns())
+            if first is not None and clock.now_ns() - first[1] > SIGNAL_LEAVE_NS:
+                self._leave_at_once(first[0])  # the loop is held: it never will
+            if not self._unmounted.is_set():
+                try:
+                    termios.tcgetattr(TERMINAL_FD)
+                except (termios.error, OSError):  # EIO: the terminal hung up
+                    self._leave_at_once(signal.SIGHUP)
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action in ("quit", "interrupt") and isinstance(self.ending, Crashed):
@@ -172,20 +190,22 @@ class PinArrayApp(App[None]):
 
     def _signalled(self, signal_number: int) -> None:
         if signal_number == signal.SIGHUP:
-            self._hang_up()
+            self._leave_at_once(signal.SIGHUP)
         else:
             self.call_later(self._close, f"stopped by {signal_name(signal_number)}",
                             Signalled(signal_number))
 
-    def _hang_up(self) -> None:
-        """The terminal is gone: close the run and rest the pins, then leave at once.
+    def _leave_at_once(self, signal_number: int) -> None:
+        """The terminal is gone (SIGHUP), or the event loop is held and cannot act on a stop
+        signal: close the run and rest the pins, then leave at once, with 128 + the signal.
 
         A normal exit would restore a terminal that no longer exists, and Textual's driver
-        then waits forever (seen closing a tmux window mid-run). Rows and the manifest are
-        already fsync'd by the time `Sitting.finish` returns, so nothing is lost by not unwinding.
+        then waits forever (seen closing a tmux window mid-run); a held loop never gets to
+        it. Rows and the manifest are already fsync'd by the time `Sitting.finish` returns,
+        so nothing is lost by not unwinding.
         """
-        self.sitting.finish(f"stopped by {signal_name(signal.SIGHUP)}")
-        os._exit(128 + signal.SIGHUP)
+        self.sitting.finish(f"stopped by {signal_name(signal_number)}")
+        os._exit(128 + signal_number)
 
     def finish_run(self, session: Session, reason: str) -> None:
         """End the run (aborted with ``reason`` unless complete) and show the end screen."""

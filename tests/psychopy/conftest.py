@@ -7,6 +7,7 @@ in a process of its own, the independent emulator whose log tells what reached t
 from psychopy import plugins, visual  # noqa: I001  # first, before pinarray
 
 import os
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -25,6 +26,15 @@ LOCALISATION = REPO / "protocols" / "localisation.yaml"
 TORQUE_ENABLE, GOAL_POSITION = 40, 42
 
 plugins.activatePlugins()  # as a Builder script begins
+
+
+def pytest_configure(config):
+    # In the process that hands the tests to the test processes (-n) and runs none of them:
+    # pytest-rerunfailures' status server there (127.0.0.1, one connection per test process)
+    # takes PsychoPy's default timeout too, and dropped a test process that asked nothing for
+    # 10 s (a run of `make psychopy` ended in an internal error). The tests keep the timeout.
+    if not hasattr(config, "workerinput") and config.getoption("numprocesses", None):
+        socket.setdefaulttimeout(None)
 
 
 @pytest.fixture(scope="session")

@@ -1,5 +1,6 @@
 """A terminal that goes away without a SIGHUP (a shell that ignores it, a closed tmux pane)
-still ends the UI like a hang-up: exit 128 + SIGHUP, never a process left spinning."""
+still ends the UI like a hang-up: exit 128 + SIGHUP, never a process left spinning; one that
+stopped reading leaves the UI's event loop held, and a stop signal still ends it."""
 
 import os
 import pty
@@ -39,6 +40,16 @@ class Terminal:
 
     def __init__(self, fd: int) -> None:
         self.fd = fd
+
+    def stop_reading(self) -> None:
+        """Keys keep coming, each a redraw, and nothing is read any more: the UI's output
+        fills the terminal's buffer, then Textual's output queue."""
+        for _ in range(400):
+            try:
+                os.write(self.fd, b"\t")
+            except BlockingIOError:
+                pass  # the keys' side is full too
+            time.sleep(0.01)
 
     def close(self) -> None:
         if self.fd >= 0:
@@ -85,11 +96,28 @@ def test_the_ui_leaves_when_its_terminal_stopped_reading_then_went_away(tmp_path
     # loop, never came, nor did SIGTERM's handler: the UI stayed, its input thread spinning
     # (half a processor for as long as one let it), the port held.
     with ui_on_a_terminal(tmp_path) as (process, terminal):
-        for _ in range(400):  # keys keep coming, each a redraw; nothing is read any more
-            try:
-                os.write(terminal.fd, b"\t")
-            except BlockingIOError:
-                pass  # the keys' side is full too
-            time.sleep(0.01)
+        terminal.stop_reading()
         terminal.close()  # the link drops
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGHUP
+
+
+def test_the_ui_whose_terminal_stopped_reading_still_leaves_on_sigterm(tmp_path):
+    # The link frozen but not dropped (an SSH session hung, its window still open): the event
+    # loop waits on Textual's full output queue, so a signal's handler on the loop never runs.
+    # SIGTERM (an experimenter's `kill` from another terminal) is still heard: the pins go to
+    # rest and the UI leaves with 128 + SIGTERM.
+    with ui_on_a_terminal(tmp_path) as (process, terminal):
+        terminal.stop_reading()
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
+
+
+def test_sigterm_to_the_ui_on_a_live_terminal_leaves_the_terminal_as_it_found_it(tmp_path):
+    # The signal passes through the terminal's watch to the event loop, which closes the UI
+    # the usual way: the terminal's own screen is back, the last line says why it ended.
+    with ui_on_a_terminal(tmp_path) as (process, terminal):
+        process.send_signal(signal.SIGTERM)
+        shown = read_until(terminal.fd, b"SIGTERM", EXIT_WAIT_S)
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
+        assert b"\x1b[?1049l" in shown  # the alternate screen left
+        assert b"SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
