@@ -191,6 +191,15 @@ class _ChildFrozen(OSError):
     """The child took nothing of a message and is stopped (SIGSTOP): it never will."""
 
 
+def ended_how(status: int) -> str:
+    """How a child process ended, from its exit status as `subprocess` reads it."""
+    if signal.getsignal(signal.SIGCHLD) == signal.SIG_IGN:
+        # The system reaps the children of a process that ignores SIGCHLD (as some process
+        # supervisors start a lab's script) and keeps no exit status: subprocess reads 0.
+        return "its exit status unknown: SIGCHLD is ignored in this process"
+    return f"killed by signal {-status}" if status < 0 else f"exit status {status}"
+
+
 class PlayerProcess:
     """A player process driving the servos of ``bus`` through the port descriptor ``fd``.
 
@@ -617,7 +626,7 @@ class PlayerProcess:
             raise stopped
         self._errors.seek(0)
         last_words = self._errors.read().decode(errors="replace").strip().splitlines()[-1:]
-        how = hung or (f"killed by signal {-status}" if status < 0 else f"exit status {status}")
+        how = hung or ended_how(status)
         text = f"the player process ended while {doing} ({how}"
         text += f": {last_words[0]})" if last_words else ")"
         raise PlayerDied(f"{text}; {safe.describe()}", safe, noticed_ns)

@@ -140,6 +140,25 @@ def test_a_player_process_killed_mid_trial_is_noticed_and_the_parent_rests_the_p
     wait_until_safe(server, IDS)
 
 
+def test_a_player_killed_under_a_script_that_ignores_sigchld_is_not_said_to_have_exited_well(
+        server):
+    # Some supervisors start a lab's script with SIGCHLD ignored: the system then keeps no
+    # exit status of its children, and a player killed mid-trial read as "exit status 0".
+    previous = signal.signal(signal.SIGCHLD, signal.SIG_IGN)
+    try:
+        bus, player = connected(server)
+        threading.Timer(0.5, os.kill, args=(player.process.pid, signal.SIGKILL)).start()
+        with pytest.raises(PlayerDied, match=r"\(its exit status unknown: SIGCHLD is ignored") \
+                as died:
+            player.play(prepare_trial(bus, pulse_train(IDS, 5, 20)), tolerance_ns=10**7)
+        assert died.value.safe_stop.complete
+        player.close()
+        bus.close()
+    finally:
+        signal.signal(signal.SIGCHLD, previous)
+    wait_until_safe(server, IDS)
+
+
 @pytest.mark.parametrize("sent", ["SIGTERM", "SIGHUP", "SIGQUIT", "SIGUSR1", "SIGINT"])
 def test_a_signal_sent_to_the_player_process_itself_rests_the_pins_and_stops_the_run(server, sent):
     # As when `pkill` or systemd signals every process of pinarray: a stop, not a failure.
