@@ -125,7 +125,11 @@ def signal_name(signal_number: int) -> str:
     except ValueError:
         pass
     if hasattr(signal, "SIGRTMIN") and signal.SIGRTMIN < signal_number < signal.SIGRTMAX:
-        return f"SIGRTMIN+{signal_number - signal.SIGRTMIN}"
+        # As kill -l names them: the lower half from SIGRTMIN up, the upper from SIGRTMAX down.
+        above_min, below_max = signal_number - signal.SIGRTMIN, signal.SIGRTMAX - signal_number
+        if above_min <= (signal.SIGRTMAX - signal.SIGRTMIN) // 2:
+            return f"SIGRTMIN+{above_min}"
+        return f"SIGRTMAX-{below_max}"
     return f"signal {signal_number}"
 
 
