@@ -121,3 +121,17 @@ def test_sigterm_to_the_ui_on_a_live_terminal_leaves_the_terminal_as_it_found_it
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
         assert b"\x1b[?1049l" in shown  # the alternate screen left
         assert b"SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
+
+
+def test_the_ui_whose_terminal_stopped_reading_during_the_timing_check_leaves_on_sigterm(
+        tmp_path):
+    # The pre-flight measures this machine, telling the screen how far it got after every
+    # slice; with the terminal frozen the screen never hears it. SIGTERM still ends the UI:
+    # the check ends, the pins go to rest and the UI leaves with 128 + SIGTERM.
+    with ui_on_a_terminal(tmp_path) as (process, terminal):
+        os.write(terminal.fd, b"\r")  # Start new run: the pre-flight connects, then measures
+        assert b"measuring this machine" in read_until(terminal.fd, b"measuring this machine",
+                                                       SCREEN_WAIT_S)
+        terminal.stop_reading()
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
