@@ -148,9 +148,37 @@ def stop_on_signals(stop: StopRequest) -> Iterator[StopRequest]:
             _raise_unless_deferred(Stopped(f"stopped by {signal_name(signum)} (again)", signum))
         stop.request(f"stopped by {signal_name(signum)}", signum)
 
+    with _taken_by(handler):
+        yield stop
+
+
+@contextmanager
+def note_signals(stop: StopRequest) -> Iterator[StopRequest]:
+    """Inside the block, every stop signal sets ``stop`` and does nothing else, second ones
+    included: for a program whose event loop takes the signals once it runs (the TUI,
+    `on_loop_signals`) and looks at ``stop`` then. A signal while it starts would otherwise
+    end it at the signal's default action, the terminal left in its hands (alternate screen,
+    keys raw); raised instead, it would land in the middle of the loop's own start.
+
+    Outside the main thread this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def handler(signum, frame):
+        stop.request(f"stopped by {signal_name(signum)}", signum)
+
+    with _taken_by(handler):
+        yield stop
+
+
+@contextmanager
+def _taken_by(handler: Callable[[int, FrameType | None], object]) -> Iterator[None]:
+    """Inside the block, ``handler`` handles every one of `taken_signals`."""
     previous = {number: signal.signal(number, handler) for number in taken_signals()}
     try:
-        yield stop
+        yield
     finally:
         for number, old in previous.items():
             signal.signal(number, old)

@@ -99,8 +99,12 @@ def _cmd_tui(args: argparse.Namespace) -> int:
         subject=args.subject, session=args.session,
         sync=sync, lsl=args.lsl,
     )
+    from pinarray.stop import note_signals
+
     app = PinArrayApp(options)
-    with on_the_terminal():
+    # A stop signal before the UI's own handlers are in place is noted, and acted on as they
+    # are: its default action would end the UI with the terminal left in its hands.
+    with on_the_terminal(), note_signals(app.sitting.stop):
         app.run()
     # However the app stopped (even an error Textual reported itself), the run is closed
     # and the pins rest before the line is said.

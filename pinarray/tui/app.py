@@ -148,6 +148,9 @@ class PinArrayApp(App[None]):
                                     self._signalled)
         except (NotImplementedError, RuntimeError, ValueError, AttributeError):
             taken = ()  # not the main thread (tests) or no such signals (Windows)
+        early = self.sitting.stop.signal_number
+        if early is not None:  # came as the UI started (`pinarray.cli.tui`): acted on now
+            self._signalled(early)
         if os.isatty(TERMINAL_FD):
             # A terminal can vanish without a SIGHUP reaching us (a shell that ignores it, a
             # closed tmux pane whose shell was the session leader): Textual's input thread then

@@ -10,6 +10,7 @@ from textual import on, work
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, VerticalScroll
+from textual.message import Message
 from textual.screen import Screen
 from textual.widgets import Button, DataTable, Input, Static
 
@@ -50,6 +51,14 @@ class PreflightScreen(KeyNotices, Screen):
                 Binding("b", "begin", "begin run", priority=True),
                 # Said on the timing line while the check measures, not in the footer.
                 Binding("s", "skip_timing", "skip timing check", priority=True, show=False)]
+
+    class Measured(Message):
+        """The timing check has measured ``done_ns`` of its ``total_ns``."""
+
+        def __init__(self, done_ns: int, total_ns: int):
+            super().__init__()
+            self.done_ns = done_ns
+            self.total_ns = total_ns
 
     def __init__(self, sitting: Sitting, request: SessionRequest):
         super().__init__()
@@ -152,7 +161,10 @@ class PreflightScreen(KeyNotices, Screen):
     @work(thread=True, exclusive=True, group="timing")
     def _timing(self, duration_ns: int | None) -> None:
         def measured(done_ns: int, total_ns: int) -> bool:
-            self.app.call_from_thread(self._measured, done_ns, total_ns)
+            # Posted, not waited for: the check holds the port, and an event loop held by a
+            # terminal that stopped reading would hold the check with it, and every close
+            # after it (the UI never left on SIGTERM, the port held).
+            self.post_message(self.Measured(done_ns, total_ns))
             return not self._skip.is_set()
 
         try:
@@ -162,8 +174,10 @@ class PreflightScreen(KeyNotices, Screen):
             verdict = None
         self.app.call_from_thread(self._timing_done, verdict)
 
-    def _measured(self, done_ns: int, total_ns: int) -> None:
+    @on(Measured)
+    def _measured(self, message: Measured) -> None:
         """A slice of the check measured: the seconds left, and what Begin and s do now."""
+        done_ns, total_ns = message.done_ns, message.total_ns
         if not self._measuring or self._skip.is_set():
             return
         left_s = math.ceil((total_ns - done_ns) / 1e9)

@@ -121,3 +121,61 @@ def test_sigterm_to_the_ui_on_a_live_terminal_leaves_the_terminal_as_it_found_it
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
         assert b"\x1b[?1049l" in shown  # the alternate screen left
         assert b"SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
+
+
+def test_the_ui_whose_terminal_stopped_reading_during_the_timing_check_leaves_on_sigterm(
+        tmp_path):
+    # The pre-flight measures this machine, telling the screen how far it got after every
+    # slice; with the terminal frozen the screen never hears it. SIGTERM still ends the UI:
+    # the check ends, the pins go to rest and the UI leaves with 128 + SIGTERM.
+    with ui_on_a_terminal(tmp_path) as (process, terminal):
+        os.write(terminal.fd, b"\r")  # Start new run: the pre-flight connects, then measures
+        assert b"measuring this machine" in read_until(terminal.fd, b"measuring this machine",
+                                                       SCREEN_WAIT_S)
+        terminal.stop_reading()
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
+
+
+# The UI as `pinarray tui` starts it, but a SIGTERM comes to it as its screen is being put up:
+# the terminal already in the UI's hands (alternate screen, keys raw), its own handlers not
+# yet in place.
+SIGNALLED_AS_IT_STARTS = """
+import os, signal, sys
+from pinarray.cli import main
+from pinarray.tui.app import PinArrayApp
+
+putting_up = PinArrayApp.on_mount
+
+def on_mount(app):
+    os.kill(os.getpid(), signal.SIGTERM)
+    putting_up(app)
+
+PinArrayApp.on_mount = on_mount
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sigterm_as_the_ui_starts_ends_it_with_the_terminal_as_it_found_it(tmp_path):
+    # A SIGTERM there used to kill the UI at once: no status of its own, the terminal left on
+    # the alternate screen with keys raw.
+    main, its_device = pty.openpty()
+    os.set_blocking(main, False)
+    process = subprocess.Popen(
+        [sys.executable, "-c", SIGNALLED_AS_IT_STARTS, "tui", "protocols/localisation.yaml",
+         "--sim", "--subject", "01", "--results", str(tmp_path / "results")],
+        cwd=REPO, stdin=its_device, stdout=its_device, stderr=its_device,
+        start_new_session=True,
+        env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
+    os.close(its_device)
+    try:
+        shown = read_until(main, b"SIGTERM", EXIT_WAIT_S)
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
+        shown += read_until(main, b"\n", 1)
+        assert b"\x1b[?1049l" in shown  # the alternate screen left
+        assert b"stopped by SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        os.close(main)
