@@ -20,7 +20,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -189,6 +189,9 @@ class Sitting:
         self._jobs_done = threading.Condition()
         # Set while the rig is being closed: a pause must not clear the stop a close relies on.
         self._closing = False
+        # Held by the `finish` or `release` at work: a second one (another thread's) waits for
+        # it, since whoever calls it may end the process as soon as it returns.
+        self._ending = threading.RLock()
 
     def __enter__(self) -> Sitting:
         return self
@@ -324,16 +327,29 @@ class Sitting:
     def release(self, reason: str = "left the pre-flight") -> SafeStopReport | None:
         """Stop what the hardware is doing, then pins to rest, torque off, port closed.
 
-        Returns the `SafeStopReport`, or None if nothing was connected. Safe from any thread.
+        Returns the `SafeStopReport`, or None if nothing was connected. Safe from any thread:
+        one called while another thread's is at work returns once that one has rested the
+        pins (or `STOP_WAIT_S` on, if it never does).
         """
-        self._stop_jobs(reason)
-        rig, self.rig = self.rig, None
+        with self._one_ending():
+            self._stop_jobs(reason)
+            rig, self.rig = self.rig, None
+            try:
+                self.close_scanner()
+            finally:
+                if rig is not None:
+                    self.last_safe = rig.close()  # pins first, whatever the scanner's close did
+            return None if rig is None else self.last_safe
+
+    @contextlib.contextmanager
+    def _one_ending(self) -> Iterator[None]:
+        """One `finish` or `release` at a time; a second waits for the first, a bounded time."""
+        held = self._ending.acquire(timeout=STOP_WAIT_S)
         try:
-            self.close_scanner()
+            yield
         finally:
-            if rig is not None:
-                self.last_safe = rig.close()  # pins first, whatever the scanner's close did
-        return None if rig is None else self.last_safe
+            if held:
+                self._ending.release()
 
     # -- the scanner ------------------------------------------------------------------------
 
@@ -528,19 +544,22 @@ class Sitting:
         """End the sitting: cut a stimulus short, mark an unfinished run ``status`` (aborted,
         or crashed), pins to rest (the rig takes its LSL stream with it).
 
-        Safe to call more than once and from any thread. Returns the `SafeStopReport` (None
+        Safe to call more than once and from any thread; one called while another is at work
+        returns once that one has ended (see `release`). Returns the `SafeStopReport` (None
         if nothing was connected). The pins go to rest even if marking the run fails.
         """
-        self._stop_jobs(reason)
-        session, self.session = self.session, None
-        try:
-            # A run whose writer already said how it ended (a crash in `run_scripted`) stays so.
-            if (session is not None and session.phase not in (Phase.DONE, Phase.ABORTED)
-                    and session.writer.manifest.status is RunStatus.RUNNING):
-                session.abort(reason, status)
-        finally:
-            safe = self.release(reason)
-        return safe
+        with self._one_ending():
+            self._stop_jobs(reason)
+            session, self.session = self.session, None
+            try:
+                # A run whose writer already said how it ended (a crash in `run_scripted`)
+                # stays so.
+                if (session is not None and session.phase not in (Phase.DONE, Phase.ABORTED)
+                        and session.writer.manifest.status is RunStatus.RUNNING):
+                    session.abort(reason, status)
+            finally:
+                safe = self.release(reason)
+            return safe
 
 
 def start_session(protocol: Protocol, plan: TrialPlan, writer: RunWriter, stimulator: Presenter,
