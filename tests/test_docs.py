@@ -25,3 +25,17 @@ def test_the_readme_is_a_front_page_that_links_to_pages_that_exist():
     assert "make run" in readme and "make test" in readme
     targets = re.findall(r"\]\(((?!https?:)[^)#]+)", readme)
     assert targets and [t for t in targets if not (REPO / t).exists()] == []
+
+
+def test_the_protocol_guide_s_own_device_stimulus_and_design_make_a_protocol_that_validates(tmp_path, capsys):
+    """A newcomer writes a first protocol by copying the guide's `device`, its first `stimuli`
+    and its first `design` example into one file: that file must validate (the seed's train at
+    10 Hz on the guide's calibration), not be refused as a stroke the servo cannot make."""
+    from pinarray.cli import main
+
+    guide = (REPO / "protocols" / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```yaml\n(.*?)```", guide, flags=re.S)
+    first = {key: next(b for b in blocks if b.startswith(key + ":")) for key in ("device", "stimuli", "design")}
+    protocol = tmp_path / "first.yaml"
+    protocol.write_text("protocol: first\n" + first["device"] + first["stimuli"] + first["design"], encoding="utf-8")
+    assert main(["validate", str(protocol)]) == 0, capsys.readouterr().err
