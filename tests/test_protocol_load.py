@@ -210,6 +210,11 @@ def test_malformed_yaml_and_duplicate_keys_are_located():
                      "(first at line 7)"]
 
 
+def test_a_tab_indenting_a_line_is_said_once_as_the_tab_it_is():
+    (line,) = problems("protocol: x\n\tstimuli:\n")
+    assert line == "p.yaml:2:1: malformed YAML: expected spaces to indent, found a tab (YAML indents with spaces)"
+
+
 @pytest.mark.parametrize(("text", "found"), [
     ("", "an empty file"), ("\n  \n", "an empty file"),
     ("# nothing yet\n\n", "only comments and blank lines")])
