@@ -39,3 +39,36 @@ def test_the_protocol_guide_s_own_device_stimulus_and_design_make_a_protocol_tha
     protocol = tmp_path / "first.yaml"
     protocol.write_text("protocol: first\n" + first["device"] + first["stimuli"] + first["design"], encoding="utf-8")
     assert main(["validate", str(protocol)]) == 0, capsys.readouterr().err
+
+
+def shown_command_lines() -> list[tuple[str, str]]:
+    """Every whole command line a page shows to be typed: the `pinarray ...` lines of its code
+    blocks (fenced or indented), continuations joined, a trailing `# comment` dropped."""
+    shown = []
+    for page in sorted((REPO / "docs").rglob("*.md")):
+        text = page.read_text(encoding="utf-8")
+        blocks = re.findall(r"```[a-z]*\n(.*?)```", text, flags=re.S)
+        blocks += ["\n".join(line[4:] for line in indented.splitlines())
+                   for indented in re.findall(r"(?:^    \S.*\n)+", text, flags=re.M)]
+        for block in blocks:
+            for line in re.sub(r"\\\n\s*", " ", block).splitlines():
+                if line.startswith("pinarray "):
+                    shown.append((page.name, line.split(" # ")[0].strip()))
+    return shown
+
+
+def test_every_command_line_a_page_shows_is_one_pinarray_accepts():
+    """A newcomer copies a page's command as written: its command and options must exist and
+    go together (a `batch` without an answer source is refused before anything runs)."""
+    import shlex
+
+    from pinarray.cli import build_parser
+
+    refused = []
+    lines = shown_command_lines()
+    for page, line in lines:
+        try:
+            build_parser().parse_args(shlex.split(line)[1:])
+        except SystemExit:
+            refused.append((page, line))
+    assert len(lines) >= 5 and refused == []
