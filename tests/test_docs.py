@@ -72,3 +72,23 @@ def test_every_command_line_a_page_shows_is_one_pinarray_accepts():
         except SystemExit:
             refused.append((page, line))
     assert len(lines) >= 5 and refused == []
+
+
+def test_the_resume_line_the_pages_and_the_results_readme_give_is_one_batch_accepts():
+    """The line a lab copies to continue a killed run, its placeholders filled in, is accepted:
+    `batch` asks for the answers' option on a resume too."""
+    import shlex
+
+    from pinarray.cli import build_parser
+    from pinarray.journal.dataset import DATASET_README
+
+    texts = [page.read_text(encoding="utf-8") for page in (REPO / "docs").rglob("*.md")] + [DATASET_README]
+    lines = [line for text in texts for line in re.findall(r"`(pinarray batch [^`(]*--resume)`", words(text))]
+    filled = {"FILE": "protocols/demo.yaml", "ID": "01", "MODEL": "default", "CSV": "answers.csv"}
+    refused = []
+    for line in lines:
+        try:
+            build_parser().parse_args([filled.get(word, word) for word in shlex.split(line)[1:]])
+        except SystemExit:
+            refused.append(line)
+    assert len(lines) >= 2 and refused == []
