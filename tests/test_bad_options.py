@@ -273,6 +273,15 @@ def test_the_ui_refuses_a_port_simulator_or_results_folder_that_cannot_work_befo
     assert line.startswith("pinarray: ") and said in line, line
 
 
+@pytest.mark.parametrize("command", [("play", DEMO), ("scan",), ("servos", "rest"), ("timing", DEMO)])
+def test_a_servo_port_that_is_not_there_is_said_once_in_the_lab_s_words(tmp_path, command):
+    # An adapter left unplugged: one line naming the port, not pyserial's errno twice over.
+    status, err = run([*command, "--port", str(tmp_path / "ttyUSB9")])
+    assert status == 2
+    assert err.splitlines() == [f"pinarray: cannot open servo port {tmp_path / 'ttyUSB9'}: no such device "
+                                "(is the adapter plugged in?)"]
+
+
 @pytest.mark.parametrize("command", [("tui", DEMO), ("play", DEMO), ("pwm", "scan")])
 def test_an_empty_port_an_unset_variable_gives_is_refused_not_taken_for_the_simulator(
         tmp_path, command):

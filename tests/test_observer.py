@@ -271,6 +271,7 @@ def test_a_model_can_be_written_on_the_command_line():
     ("correct_infhz=0.9", "'correct_infhz': expected correct_<Hz>hz with a frequency above 0"),
     ("correct_0hz=0.9", "expected correct_<Hz>hz with a frequency above 0"),
     ("miss_rate", "'miss_rate': expected name=number"),
+    ("defualt", "'defualt': expected name=number, or 'default'"),
 ])
 def test_a_model_written_twice_over_or_in_numbers_a_protocol_would_refuse_is_refused(spec,
                                                                                       message):

@@ -210,6 +210,21 @@ def test_malformed_yaml_and_duplicate_keys_are_located():
                      "(first at line 7)"]
 
 
+def test_a_servo_response_file_beside_the_protocols_is_said_to_be_one_not_a_broken_protocol():
+    # `servos response` writes PROTOCOL_response_pinN.yaml beside the protocol: a lab's
+    # `pinarray validate protocols/*.yaml` then meets it.
+    response = ("# pinarray servos response: pin 6\npin: 6\nservo: STS3215\nspeed_steps_per_s: 3000\n"
+                "cycles: 10\npoints:\n  - {frequency_hz: 10.0, stroke_commanded_steps: 65}\n")
+    assert problems(response) == [
+        "p.yaml:2:1: expected a protocol (protocol:, stimuli:, design:), found a servo response file "
+        "(`pinarray servos response` writes it; a protocol names it under device: response)"]
+
+
+def test_a_tab_indenting_a_line_is_said_once_as_the_tab_it_is():
+    (line,) = problems("protocol: x\n\tstimuli:\n")
+    assert line == "p.yaml:2:1: malformed YAML: expected spaces to indent, found a tab (YAML indents with spaces)"
+
+
 @pytest.mark.parametrize(("text", "found"), [
     ("", "an empty file"), ("\n  \n", "an empty file"),
     ("# nothing yet\n\n", "only comments and blank lines")])

@@ -52,7 +52,7 @@ def observer_items(spec: str) -> list[tuple[str, str, str]]:
     for item in spec.split(","):
         name, equals, text = (part.strip() for part in item.partition("="))
         if not equals:
-            raise PinArrayError(f"observer: {quoted(item)}: expected name=number")
+            raise PinArrayError(f"observer: {quoted(item)}: expected name=number, or 'default'")
         if any(name == seen for _, seen, _ in found):
             raise PinArrayError(f"observer: {quoted(name)} is given twice; give each parameter "
                                 "once")

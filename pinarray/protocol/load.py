@@ -57,6 +57,7 @@ def parse_protocol(
 ) -> Protocol:
     reader = Reader(source)
     root = reader.compose(text, "a protocol mapping (protocol:, stimuli:, design:)")
+    _refuse_a_response_file(reader, root)
     none: dict[str, Node] = {}
     top = reader.attempt(
         lambda: reader.mapping(
@@ -98,6 +99,25 @@ def parse_protocol(
         hashlib.sha256(text.encode("utf-8")).hexdigest(),
         sync,
     )
+
+
+# The keys a `pinarray servos response` file holds and a protocol never does at its top.
+_RESPONSE_FILE_KEYS = frozenset({"pin", "points"})
+
+
+def _refuse_a_response_file(reader: Reader, root: Node) -> None:
+    """A servo response file (written beside the protocol, so `validate protocols/*.yaml`
+    meets it) is said to be one, in one line, not taken for a protocol missing every key."""
+    from yaml import MappingNode, ScalarNode
+
+    if not isinstance(root, MappingNode):
+        return
+    keys = {key.value for key, _ in root.value if isinstance(key, ScalarNode)}
+    if _RESPONSE_FILE_KEYS <= keys and not keys & {"protocol", "stimuli", "design"}:
+        reader.error(root, "expected a protocol (protocol:, stimuli:, design:), found a servo "
+                           "response file (`pinarray servos response` writes it; a protocol names it "
+                           "under device: response)")
+        reader.raise_if_errors()
 
 
 def task_label(name: str) -> str:

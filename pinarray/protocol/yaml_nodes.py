@@ -92,6 +92,8 @@ def _expected_found(problem: str, found: str) -> str:
     if problem.startswith("mapping values are not allowed"):
         return ("expected one 'key: value' per line, found a second ':' "
                 "(quote a value that holds ': ')")
+    if "tab character" in problem:
+        return "expected spaces to indent, found a tab (YAML indents with spaces)"
     if problem == "expected the closing quote":
         return f"{problem}, found {found}"
     if problem.startswith(("expected", "more than", "alias")):

@@ -156,6 +156,18 @@ def fidelity_of(bus: FeetechBus) -> Fidelity | None:
     return Fidelity.PACKET if isinstance(bus.link, PacketLink) else Fidelity.WIRE
 
 
+def _why_not_opened(exc: Exception) -> str:
+    """Why a port did not open, once: pyserial's words repeat the errno and the path
+    ("[Errno 2] could not open port X: [Errno 2] No such file or directory: 'X'")."""
+    import errno
+    import os
+
+    number = getattr(exc, "errno", None)
+    if number == errno.ENOENT:
+        return "no such device (is the adapter plugged in?)"
+    return os.strerror(number) if isinstance(number, int) else str(exc)
+
+
 def _open_device(url: str, baud_rate: int, clock: Clock) -> Wire:
     """A wire over a serial device: its file descriptor when it has one, else polled."""
     import serial
@@ -163,7 +175,7 @@ def _open_device(url: str, baud_rate: int, clock: Clock) -> Wire:
     try:
         port = serial.serial_for_url(url, baudrate=baud_rate, timeout=0)
     except (OSError, ValueError) as exc:  # serial.SerialException is an OSError
-        raise BusError(f"cannot open servo port {url}: {exc}") from None
+        raise BusError(f"cannot open servo port {url}: {_why_not_opened(exc)}") from None
     try:
         fd = port.fileno()
     except (AttributeError, OSError, ValueError):
