@@ -239,3 +239,20 @@ def test_a_width_the_calibration_lacks_is_one_located_line_before_the_stroke_is_
     line, col, message = refusal(tmp_path, capsys, text)
     assert (line, col) == (15, 12)
     assert message == "pin 1: expected a pulse width it is calibrated for (2 ms), found 1.5 ms"
+
+
+def test_a_stroke_the_servo_cannot_make_at_its_rate_is_refused_with_what_to_change(
+        tmp_path, capsys):
+    # The seed's experiment without a device section: the default calibration (114 steps, 1 mm
+    # on a 6 mm horn) is more than an STS3215 makes in the 50 ms half-cycle of 10 Hz. The
+    # refusal says which pin fell short, and what a lab changes so that it plays.
+    seed = (PROTOCOLS / "localisation.yaml").read_text()
+    without_device = seed[:seed.index("device:")] + seed[seed.index("stimuli:"):]
+    line, _, message = refusal(tmp_path, capsys, without_device)
+    assert without_device.splitlines()[line - 1].lstrip().startswith("frequencies_hz:")
+    assert "pin 1 moved" in message and "of 114 commanded steps" in message
+    assert message.endswith("; command a smaller stroke (device: calibration: positions; "
+                            "on a longer horn, lever_mm, fewer steps lift the pin as far) or "
+                            "a lower frequency")
+    # As the shipped protocol does: 65 steps, 1 mm on a 10 mm horn.
+    assert run(capsys, "validate", written(tmp_path, seed, "seed.yaml"))[0] == 0

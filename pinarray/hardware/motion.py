@@ -155,12 +155,17 @@ class TrialStrokes:
         """The pins with a stroke commanded and a cycle sampled too sparsely to judge."""
         return tuple(p for p in self.pins if p.commanded_steps and p.unmeasured_cycles)
 
+    @property
+    def short(self) -> tuple[PinStroke, ...]:
+        """The measured pins that moved less than the tolerance's share of their stroke."""
+        return tuple(p for p in self.pins if p.measured and p.commanded_steps
+                     and Fraction(p.achieved_steps or 0, p.commanded_steps) < self.tolerance)
+
     def problem(self) -> str:
         """Empty when every pin was measured in every cycle and moved enough; else, in words,
         which pin fell short or, failing that, which was not measured. A tolerance of 0 checks
         no stroke: no cycle can fall short, so none unmeasured can hide one."""
-        short = [p for p in self.pins if p.measured and p.commanded_steps
-                 and Fraction(p.achieved_steps or 0, p.commanded_steps) < self.tolerance]
+        short = self.short
         if short:
             worst = min(short, key=lambda p: Fraction(p.achieved_steps or 0, p.commanded_steps))
             share = 100 * (worst.achieved_steps or 0) / worst.commanded_steps

@@ -46,6 +46,9 @@ from pinarray.schedule import compile_drives
 # How many times a trial whose stimulus failed is presented before the run stops: a sitting's
 # retry policy (`pinarray.session.sitting`), which a rehearsal follows.
 MAX_ATTEMPTS = 3
+# Said after a pin that fell short with every goal on time: what a lab changes so that it plays.
+STROKE_ADVICE = ("; command a smaller stroke (device: calibration: positions; on a longer "
+                 "horn, lever_mm, fewer steps lift the pin as far) or a lower frequency")
 
 Shape = tuple[tuple[int, int, Train, PinCalibration], ...]
 
@@ -86,6 +89,9 @@ class Rehearsal:
                 problem = report.delivery.problem
                 if not problem:
                     return None
+            strokes = report.delivery.strokes
+            if strokes is not None and strokes.short and problem == strokes.problem():
+                problem += STROKE_ADVICE  # every goal on time, the servo too slow to follow
         except PinArrayError as error:
             problem = str(error)
         assert isinstance(device.servo, ServoSettings)
