@@ -207,32 +207,46 @@ class SignalTap:
 
     asyncio hears of a signal through a byte written to Python's wakeup descriptor the moment
     the signal arrives (`on_loop_signals`); the tap puts a pipe of its own there, and `wait`
-    passes every byte on to the loop's descriptor, returning the signals among ``watched``.
-    Made from the main thread, after the loop's handlers; bytes pass on for as long as the
-    process lives, so whoever reads them must keep calling `wait`.
+    passes every byte on to the loop's descriptor (while told to), returning the signals among
+    ``watched``. Made from the main thread, after the loop's handlers. Its reader stops passing
+    bytes on before the loop closes (a closed descriptor's number may be a file's by then);
+    once the main thread has called `detach`, the reader calls `close`.
     """
 
     def __init__(self, watched: tuple[int, ...]) -> None:
         self.watched = frozenset(watched)
-        self._read, write = os.pipe()
+        self._read, self._write = os.pipe()
         os.set_blocking(self._read, False)
-        os.set_blocking(write, False)
-        self._loop_fd = signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+        os.set_blocking(self._write, False)
+        self._loop_fd = signal.set_wakeup_fd(self._write, warn_on_full_buffer=False)
 
-    def wait(self, timeout_s: float) -> tuple[int, ...]:
-        """The watched signals that arrived, waiting up to ``timeout_s`` for any signal."""
+    def wait(self, timeout_s: float, *, forward: bool = True) -> tuple[int, ...]:
+        """The watched signals that arrived, waiting up to ``timeout_s`` for any signal;
+        ``forward``: each byte passed on to the loop."""
         if not select.select([self._read], [], [], timeout_s)[0]:
             return ()
         try:
             data = os.read(self._read, 512)
         except BlockingIOError:
             return ()
-        if self._loop_fd >= 0:
+        if forward and self._loop_fd >= 0:
             try:
                 os.write(self._loop_fd, data)
             except OSError:
-                pass  # full (the loop has bytes to wake it) or closed (the loop has ended)
+                pass  # full: the loop has bytes to wake it already
         return tuple(number for number in data if number in self.watched)
+
+    def detach(self) -> None:
+        """From the main thread, the loop closed: Python's wakeup descriptor no longer the
+        tap's (none, as the loop's close left it)."""
+        current = signal.set_wakeup_fd(-1)
+        if current != self._write:
+            signal.set_wakeup_fd(current, warn_on_full_buffer=False)  # someone else's: theirs
+
+    def close(self) -> None:
+        """From the reader, after `detach`: the pipe closed."""
+        os.close(self._read)
+        os.close(self._write)
 
 
 @contextmanager

@@ -1,4 +1,4 @@
-"""`make test`: the whole suite in two runs side by side, so a busy machine cannot fail it.
+"""`make test`: the whole suite in two runs side by side, so that a busy machine rarely fails it.
 
 Most tests only compute (the UI through Textual's pilot, numerics, analysis): they run on
 every core, twice over, at a lower priority (nice 10). The tests marked ``realtime`` drive
@@ -9,7 +9,9 @@ a pseudo-terminal, for a process to start), and the scheduler serves them first.
 test that fails is tried once more, and the report lists it as rerun ("RERUN", and "1 rerun" in
 its last line): starved all the same (other programs busy beside, a CI runner shared), the
 simulator answers late and the stimulus is rightly reported not delivered, which is what the
-product must do and not what the test is about; a test that fails twice fails. Their report
+product must do and not what the test is about; a test that fails twice fails (and a race
+that fails now and then may pass its second try: the report says how each first try failed).
+Their report
 follows the other's. Their lane collects only the files that mark
 tests real-time (`realtime_files`; importing every test module cost it 4 s of processor
 before its first test); the other lane, which collects everything, fails on a real-time
@@ -36,8 +38,10 @@ from pathlib import Path
 NO_TESTS_COLLECTED = 5
 REALTIME_WORKERS = 2
 # The tries a failed real-time test gets beyond its first (pytest-rerunfailures): a starved
-# moment passes, a fault of the code's own comes back (the CI runner's one failure in 194 real-time
-# tests on 2026-11-29 was a trial rightly reported not delivered, then repeated and delivered).
+# moment passes (the CI runner's one failure in 194 real-time tests on 2026-11-29 was a trial
+# rightly reported not delivered, then repeated and delivered). So may an intermittent fault
+# of the code's own, a race that signals and processes can hide: every rerun is listed, with
+# how its first try failed (tests/reruns.py), so that one seen twice is looked into.
 REALTIME_RERUNS = 1
 BULK_NICENESS = 10
 TESTS = Path(__file__).resolve().parent

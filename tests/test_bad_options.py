@@ -282,6 +282,29 @@ def test_a_servo_port_that_is_not_there_is_said_once_in_the_lab_s_words(tmp_path
                                 "(is the adapter plugged in?)"]
 
 
+def test_a_servo_port_the_user_may_not_open_says_how_to_be_allowed(monkeypatch):
+    # The first day on Linux: the adapter is there, owned by the dialout group. (Tested with
+    # pyserial's own error: a test run as root opens any port.)
+    import errno
+
+    import serial
+
+    from pinarray.clock import MonotonicClock
+    from pinarray.errors import BusError
+    from pinarray.hardware.feetech.transport import open_bus
+
+    def refused(url, **settings):
+        raise serial.SerialException(errno.EACCES, f"could not open port {url}: [Errno 13] "
+                                                   f"Permission denied: '{url}'")
+
+    monkeypatch.setattr(serial, "serial_for_url", refused)
+    with pytest.raises(BusError) as error:
+        open_bus("/dev/ttyUSB0", clock=MonotonicClock())
+    assert str(error.value) == (
+        "cannot open servo port /dev/ttyUSB0: permission denied (add your user to the group "
+        "that owns the port, e.g. dialout: sudo usermod -aG dialout $USER, then log in again)")
+
+
 @pytest.mark.parametrize("command", [("tui", DEMO), ("play", DEMO), ("pwm", "scan")])
 def test_an_empty_port_an_unset_variable_gives_is_refused_not_taken_for_the_simulator(
         tmp_path, command):

@@ -349,32 +349,30 @@ def test_a_sitting_through_a_serial_port_runs_as_on_the_simulator_and_leaves_ser
         server.stop()
 
 
-class RigSlowToRest(Rig):
-    """The simulated rig, whose rest at the end takes a while (a lossy bus healing its goals)."""
-
-    resting = threading.Event()
-    rested = threading.Event()
-
-    def close(self):
-        RigSlowToRest.resting.set()
-        time.sleep(0.5)
-        safe = super().close()
-        RigSlowToRest.rested.set()
-        return safe
-
-
 def test_a_second_finish_returns_only_once_the_first_has_rested_the_pins(tmp_path):
     # A signal's close and a hang-up's, one on the UI's worker and one on its watch: the
     # second leaves the process (os._exit) as soon as its finish returns, which must not cut
     # the first one's rest short.
+    resting, rested = threading.Event(), threading.Event()
+
+    class RigSlowToRest(Rig):
+        """The simulated rig, whose rest takes a while (a lossy bus healing its goals)."""
+
+        def close(self):
+            resting.set()
+            time.sleep(0.5)
+            safe = super().close()
+            rested.set()
+            return safe
+
     sitting, request = sitting_on(tmp_path, rig_factory=RigSlowToRest)
     sitting.connect(request, VirtualClock())
     sitting.open_session()
     first = threading.Thread(target=sitting.finish, args=("stopped by SIGTERM",))
     first.start()
-    assert RigSlowToRest.resting.wait(30)
+    assert resting.wait(30)
     sitting.finish("stopped by SIGHUP")
-    assert RigSlowToRest.rested.is_set()
+    assert rested.is_set()
     first.join()
     manifest = read_manifest(sitting.runs[-1][1].writer.paths.manifest)
     assert (manifest.status, manifest.abort_reason) == ("aborted", "stopped by SIGTERM")

@@ -81,8 +81,8 @@ fast) and where it joins the run's time are in the run's manifest and its sideca
 
 A run has one writer at a time (the `.lock` file in `sourcedata/` names it while it writes).
 A run that was stopped or killed resumes with exactly its remaining trials:
-`pinarray batch FILE --subject ID --observer MODEL --resume` (or `--responses CSV`, as the
-run was answered), or Resume on the UI's start screen.
+Resume on the UI's start screen for a subject's run; for a scripted one, the line `pinarray
+batch` printed as it stopped (`pinarray batch FILE --subject ID --responses CSV --resume`).
 
 ## Provenance
 

@@ -193,7 +193,7 @@ class _ChildFrozen(OSError):
 
 def ended_how(status: int) -> str:
     """How a child process ended, from its exit status as `subprocess` reads it."""
-    if signal.getsignal(signal.SIGCHLD) == signal.SIG_IGN:
+    if status == 0 and signal.getsignal(signal.SIGCHLD) == signal.SIG_IGN:
         # The system reaps the children of a process that ignores SIGCHLD (as some process
         # supervisors start a lab's script) and keeps no exit status: subprocess reads 0.
         return "its exit status unknown: SIGCHLD is ignored in this process"

@@ -47,11 +47,12 @@ from pinarray.version import __version__
 
 TERMINAL_FD = 0  # the terminal Textual reads keys from (standard input)
 TERMINAL_CHECK_S = 1.0  # how often the UI looks whether its terminal is still there
-# A stop signal the UI has not left on this long after it came is acted on from the
-# terminal's watch: the event loop is held (by a terminal that stopped reading: Textual's
-# output queue full, before the signal's handler ran or while the UI closed) and would never
-# leave. A usual close (the stimulus cut short, pins to rest) takes well under a second.
-SIGNAL_LEAVE_NS = 10_000_000_000
+# The event loop says it is at work this often (`_beat`). A stop signal come while it has not
+# said so for LOOP_HELD_NS is acted on from the terminal's watch: the loop is held (by a
+# terminal that stopped reading: Textual's output queue full) and would never act on it, or
+# never leave. A loop at work is left to close as it does, however long the pins take to rest.
+LOOP_BEAT_S = 0.5
+LOOP_HELD_NS = 3_000_000_000
 
 
 @dataclass(frozen=True)
@@ -126,7 +127,13 @@ class PinArrayApp(App[None]):
         self.ending: Ending = Quit()
         self._leaving_app = False
         self._crash_closed = False  # after an error: the run is marked and the pins rest
-        self._unmounted = threading.Event()  # ends the terminal's watch (`_watch_terminal`)
+        # The terminal's watch (`_watch_terminal`) stops looking at the terminal once the app
+        # has unmounted, and ends once `run` has returned.
+        self._unmounted = threading.Event()
+        self._returned = threading.Event()
+        self._tap: SignalTap | None = None
+        self._beat_clock = MonotonicClock()
+        self._beat_ns = self._beat_clock.now_ns()  # when the event loop last said it is at work
 
     # -- screens ------------------------------------------------------------------------------
 
@@ -159,30 +166,51 @@ class PinArrayApp(App[None]):
             # fills Textual's output queue, and the event loop waits on that queue, signals and
             # all, until the terminal reads again; once it is gone, for good (the UI stayed,
             # spinning, with the port held, deaf to SIGTERM). The thread hears the signals too.
-            tap = SignalTap(taken) if taken else None
-            threading.Thread(target=self._watch_terminal, args=(tap,), name="terminal-watch",
-                             daemon=True).start()
+            self._tap = SignalTap(taken) if taken else None
+            self.set_interval(LOOP_BEAT_S, self._beat)
+            threading.Thread(target=self._watch_terminal, args=(self._tap,),
+                             name="terminal-watch", daemon=True).start()
 
     def on_unmount(self) -> None:
         self._unmounted.set()
 
+    def run(self, *args, **kwargs):  # type: ignore[no-untyped-def, override]
+        try:
+            return super().run(*args, **kwargs)
+        finally:
+            if self._tap is not None:
+                self._tap.detach()  # the loop has closed: the watch no longer hears signals
+            self._returned.set()
+
+    def _beat(self) -> None:
+        self._beat_ns = self._beat_clock.now_ns()
+
     def _watch_terminal(self, tap: SignalTap | None) -> None:
-        clock = MonotonicClock()
+        # A thread of the composition root: it waits on the pipe and the events it watches,
+        # and reads the loop's beat on the clock the loop writes it with.
+        clock = self._beat_clock
         first: tuple[int, int] | None = None  # the first stop signal: (number, ns it came at)
-        while True:
-            if tap is None:
-                if self._unmounted.wait(TERMINAL_CHECK_S):
-                    return
-            else:  # passes signals on to the loop for as long as the process lives
-                for number in tap.wait(TERMINAL_CHECK_S):
-                    first = first or (number, clock.now_ns())
-            if first is not None and clock.now_ns() - first[1] > SIGNAL_LEAVE_NS:
-                self._leave_at_once(first[0])  # the loop is held: it never will
-            if not self._unmounted.is_set():
-                try:
-                    termios.tcgetattr(TERMINAL_FD)
-                except (termios.error, OSError):  # EIO: the terminal hung up
-                    self._leave_at_once(signal.SIGHUP)
+        try:
+            while not self._returned.is_set():
+                if tap is None:
+                    if self._unmounted.wait(TERMINAL_CHECK_S):
+                        return
+                else:
+                    for number in tap.wait(TERMINAL_CHECK_S,
+                                           forward=not self._unmounted.is_set()):
+                        first = first or (number, clock.now_ns())
+                now_ns = clock.now_ns()
+                if (first is not None and now_ns - first[1] > LOOP_HELD_NS
+                        and now_ns - self._beat_ns > LOOP_HELD_NS and not self._returned.is_set()):
+                    self._leave_at_once(first[0])  # the loop is held: it never will
+                if not self._unmounted.is_set():
+                    try:
+                        termios.tcgetattr(TERMINAL_FD)
+                    except (termios.error, OSError):  # EIO: the terminal hung up
+                        self._leave_at_once(signal.SIGHUP)
+        finally:
+            if tap is not None and self._returned.is_set():
+                tap.close()
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         if action in ("quit", "interrupt") and isinstance(self.ending, Crashed):
@@ -207,8 +235,10 @@ class PinArrayApp(App[None]):
         it. Rows and the manifest are already fsync'd by the time `Sitting.finish` returns,
         so nothing is lost by not unwinding.
         """
-        self.sitting.finish(f"stopped by {signal_name(signal_number)}")
-        os._exit(128 + signal_number)
+        try:
+            self.sitting.finish(f"stopped by {signal_name(signal_number)}")
+        finally:  # the pins rest before any error marking the run is raised: leave all the same
+            os._exit(128 + signal_number)
 
     def finish_run(self, session: Session, reason: str) -> None:
         """End the run (aborted with ``reason`` unless complete) and show the end screen."""

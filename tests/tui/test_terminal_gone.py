@@ -13,7 +13,11 @@ from contextlib import contextmanager
 
 import pytest
 
+from pinarray.hardware.feetech.faults import SimConfig
+from pinarray.hardware.feetech.serve import PtyServer
+from pinarray.tui.app import LOOP_HELD_NS
 from tests.runs import REPO
+from tests.test_library_paths import at_rest_and_released
 
 # Pseudo-terminals, player processes or the wall clock: run apart from the CPU-bound tests
 # (tests/suite.py), so that a busy machine does not starve the simulated servos.
@@ -57,24 +61,36 @@ class Terminal:
             self.fd = -1
 
 
-@contextmanager
-def ui_on_a_terminal(tmp_path):
-    """The UI on a pseudo-terminal, its start screen shown: its process and the terminal.
+def start_ui(tmp_path, launcher: str | None = None, port: str | None = None):
+    """`pinarray tui` on a pseudo-terminal (``launcher``: Python code that runs it instead of
+    ``python -m pinarray``; ``port``: a served port instead of the in-process simulator): its
+    process and the terminal.
 
     A session of its own: the pseudo-terminal is not its controlling terminal, so closing the
     other end sends no SIGHUP, as when a shell ignoring SIGHUP is the session leader."""
     main, its_device = pty.openpty()
     os.set_blocking(main, False)
-    terminal = Terminal(main)
+    python = ["-m", "pinarray"] if launcher is None else ["-c", launcher]
+    servos = ["--sim"] if port is None else ["--port", port]
     process = subprocess.Popen(
-        [sys.executable, "-m", "pinarray", "tui", "protocols/localisation.yaml", "--sim",
+        [sys.executable, *python, "tui", "protocols/localisation.yaml", *servos,
          "--subject", "01", "--results", str(tmp_path / "results")],
         cwd=REPO, stdin=its_device, stdout=its_device, stderr=its_device,
         start_new_session=True,
         env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
     os.close(its_device)
+    return process, Terminal(main)
+
+
+@contextmanager
+def ui_on_a_terminal(tmp_path, launcher: str | None = None, port: str | None = None,
+                     shown: bytes | None = b"start a session"):
+    """`start_ui`, once the terminal shows ``shown`` (its start screen; None: at once); killed
+    at the end if it is still there."""
+    process, terminal = start_ui(tmp_path, launcher, port)
     try:
-        assert b"start a session" in read_until(main, b"start a session", SCREEN_WAIT_S)
+        if shown is not None:
+            assert shown in read_until(terminal.fd, shown, SCREEN_WAIT_S)
         yield process, terminal
     finally:
         if process.poll() is None:
@@ -86,6 +102,31 @@ def ui_on_a_terminal(tmp_path):
 def test_the_ui_leaves_when_its_terminal_is_gone_even_without_a_hangup_signal(tmp_path):
     with ui_on_a_terminal(tmp_path) as (process, terminal):
         terminal.close()  # the terminal window is closed
+        assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGHUP
+
+
+# The UI as `pinarray tui` starts it, its results folder failing as the run is closed (a full
+# disk): `Sitting.finish` rests the pins, then raises the error marking the run.
+MARKING_FAILS = """
+import sys
+from pinarray.cli import main
+from pinarray.errors import ResultsError
+from pinarray.session.sitting import Sitting
+
+finishing = Sitting.finish
+
+def finish(sitting, *args, **kwargs):
+    finishing(sitting, *args, **kwargs)
+    raise ResultsError("results/sub-01: No space left on device")
+
+Sitting.finish = finish
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_the_ui_leaves_when_its_terminal_is_gone_even_if_the_run_cannot_be_marked(tmp_path):
+    with ui_on_a_terminal(tmp_path, MARKING_FAILS) as (process, terminal):
+        terminal.close()
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGHUP
 
 
@@ -127,14 +168,51 @@ def test_the_ui_whose_terminal_stopped_reading_during_the_timing_check_leaves_on
         tmp_path):
     # The pre-flight measures this machine, telling the screen how far it got after every
     # slice; with the terminal frozen the screen never hears it. SIGTERM still ends the UI:
-    # the check ends, the pins go to rest and the UI leaves with 128 + SIGTERM.
-    with ui_on_a_terminal(tmp_path) as (process, terminal):
-        os.write(terminal.fd, b"\r")  # Start new run: the pre-flight connects, then measures
-        assert b"measuring this machine" in read_until(terminal.fd, b"measuring this machine",
-                                                       SCREEN_WAIT_S)
-        terminal.stop_reading()
+    # the check ends, the servos rest with torque off and the UI leaves with 128 + SIGTERM.
+    server = PtyServer(SimConfig(ids=tuple(range(1, 17)))).start()
+    try:
+        with ui_on_a_terminal(tmp_path, port=server.path) as (process, terminal):
+            os.write(terminal.fd, b"\r")  # Start new run: the pre-flight connects, then measures
+            assert b"measuring this machine" in read_until(
+                terminal.fd, b"measuring this machine", SCREEN_WAIT_S)
+            terminal.stop_reading()
+            process.send_signal(signal.SIGTERM)
+            assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
+        assert at_rest_and_released(server.sim.servos) == []
+    finally:
+        server.stop()
+
+
+# The UI as `pinarray tui` starts it, its rig slow to rest the pins as it closes (a lossy bus
+# healing its goals): longer than the terminal's watch gives a held event loop.
+SLOW_TO_REST = f"""
+import sys, time
+from pinarray.cli import main
+from pinarray.player.rig import Rig
+
+closing = Rig.close
+
+def close(rig):
+    time.sleep({4 * LOOP_HELD_NS / 1e9})  # four times what a held loop is given
+    return closing(rig)
+
+Rig.close = close
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_ui_slow_to_rest_the_pins_on_sigterm_still_leaves_the_usual_way(tmp_path):
+    # Its event loop at work all along: the terminal's watch leaves it to close as it does,
+    # the terminal's own screen back and the last line saying how the pins were left.
+    with ui_on_a_terminal(tmp_path, SLOW_TO_REST) as (process, terminal):
+        os.write(terminal.fd, b"\r")  # Start new run: the pre-flight connects
+        assert b"measuring this machine" in read_until(
+            terminal.fd, b"measuring this machine", SCREEN_WAIT_S)
         process.send_signal(signal.SIGTERM)
+        shown = read_until(terminal.fd, b"at rest", EXIT_WAIT_S)
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
+        assert b"\x1b[?1049l" in shown  # the alternate screen left
+        assert b"stopped by SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
 
 
 # The UI as `pinarray tui` starts it, but a SIGTERM comes to it as its screen is being put up:
@@ -159,23 +237,9 @@ sys.exit(main(sys.argv[1:]))
 def test_sigterm_as_the_ui_starts_ends_it_with_the_terminal_as_it_found_it(tmp_path):
     # A SIGTERM there used to kill the UI at once: no status of its own, the terminal left on
     # the alternate screen with keys raw.
-    main, its_device = pty.openpty()
-    os.set_blocking(main, False)
-    process = subprocess.Popen(
-        [sys.executable, "-c", SIGNALLED_AS_IT_STARTS, "tui", "protocols/localisation.yaml",
-         "--sim", "--subject", "01", "--results", str(tmp_path / "results")],
-        cwd=REPO, stdin=its_device, stdout=its_device, stderr=its_device,
-        start_new_session=True,
-        env={**os.environ, "TERM": "xterm-256color", "COLUMNS": "100", "LINES": "30"})
-    os.close(its_device)
-    try:
-        shown = read_until(main, b"SIGTERM", EXIT_WAIT_S)
+    with ui_on_a_terminal(tmp_path, SIGNALLED_AS_IT_STARTS, shown=None) as (process, terminal):
+        shown = read_until(terminal.fd, b"SIGTERM", EXIT_WAIT_S)
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGTERM
-        shown += read_until(main, b"\n", 1)
+        shown += read_until(terminal.fd, b"\n", 1)
         assert b"\x1b[?1049l" in shown  # the alternate screen left
         assert b"stopped by SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
-    finally:
-        if process.poll() is None:
-            process.kill()
-            process.wait()
-        os.close(main)

@@ -165,6 +165,9 @@ def _why_not_opened(exc: Exception) -> str:
     number = getattr(exc, "errno", None)
     if number == errno.ENOENT:
         return "no such device (is the adapter plugged in?)"
+    if number == errno.EACCES:
+        return ("permission denied (add your user to the group that owns the port, e.g. "
+                "dialout: sudo usermod -aG dialout $USER, then log in again)")
     return os.strerror(number) if isinstance(number, int) else str(exc)
 
 
