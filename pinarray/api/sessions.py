@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from pinarray.api import arguments
 from pinarray.clock import Clock
 from pinarray.errors import PinArrayError
+from pinarray.journal.timebase import Answers
 from pinarray.player.rig import choose_clock
 from pinarray.protocol.model import Protocol
 from pinarray.session.sitting import Answer, NotDelivered, Question, SessionRequest, Sitting
@@ -100,7 +101,8 @@ def run_session(protocol: Protocol, answer: AnswerSource, *, subject: str, sessi
     if protocol.sync is not None:
         raise PinArrayError(f"{protocol.source}: a protocol with a sync: section waits for the "
                             "scanner's triggers: run it with `pinarray batch` or the UI")
-    request = SessionRequest(protocol, subject, session, experimenter, port, sim, seed, resume)
+    request = SessionRequest(protocol, subject, session, experimenter, port, sim, seed, resume,
+                             Answers.SCRIPT)
 
     def clock_for(chosen_port: str | None) -> Clock:
         return clock if clock is not None else choose_clock(chosen_port, None, paced=True,

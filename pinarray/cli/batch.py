@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from pinarray.cli.bus import add_bus_choice
 from pinarray.journal.paths import DEFAULT_RESULTS_ROOT
+from pinarray.journal.timebase import Answers
 
 if TYPE_CHECKING:  # the command imports what it runs when it runs
     from pinarray.api.sessions import AnswerSource
@@ -95,7 +96,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
                   f"{stream.source_id})", file=sys.stderr)
         for index, protocol in enumerate(protocols):
             request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
-                                     args.sim, args.seed, resume=index in resumable)
+                                     args.sim, args.seed, resume=index in resumable,
+                                     answers=Answers.OBSERVER if responses is None
+                                     else Answers.SHEET)
             resume_hint = _resume_hint(args, args.files[index:], scanned=syncs[index] is not None)
             try:
                 run_batch(sitting, request, args, responses, sync=syncs[index],

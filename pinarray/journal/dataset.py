@@ -38,7 +38,13 @@ from pinarray.journal.manifest import RunManifest
 from pinarray.journal.paths import SOURCEDATA, RunPaths
 from pinarray.journal.records import EVENT_ONLY
 from pinarray.journal.seam import columns_of, rows_of
-from pinarray.journal.timebase import FIRST_TRIAL_ONSET, ClockKind, Sitting, seconds_text
+from pinarray.journal.timebase import (
+    FIRST_TRIAL_ONSET,
+    Answers,
+    ClockKind,
+    Sitting,
+    seconds_text,
+)
 from pinarray.version import __version__
 
 BIDS_VERSION = "1.10.0"
@@ -187,8 +193,10 @@ def _sitting(sitting: Sitting) -> dict[str, Any]:
         start, joins = float(text), f"at {text} s"
     return {"Sitting": sitting.number, "StartedAt": sitting.started_at,
             "Clock": sitting.clock.kind.value, "TimeScale": sitting.clock.factor,
-            "RunTimeAtStart": start,
-            "Description": f"{sitting.clock.describe()}; joins the run's time base {joins}"}
+            "RunTimeAtStart": start, "AnsweredBy": sitting.answers.value,
+            "Description": f"{sitting.clock.describe()}; joins the run's time base {joins}"
+                           + (f"; answers: {sitting.answers.describe()}"
+                              if sitting.answers is not Answers.UNKNOWN else "")}
 
 
 def _time_base(manifest: RunManifest) -> dict[str, Any]:

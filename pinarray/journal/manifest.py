@@ -27,6 +27,7 @@ from pinarray.journal.files import now_iso, read_results_json, results_file, wri
 from pinarray.journal.paths import SOURCEDATA, RunPaths, check_label
 from pinarray.journal.records import TrialRecord, TrialStatus
 from pinarray.journal.timebase import (
+    Answers,
     ClockKind,
     Sitting,
     TimeScale,
@@ -300,7 +301,9 @@ def _sitting_to_json(sitting: Sitting) -> dict[str, Any]:
             "start_s": None if sitting.start_ns is None else float(seconds_text(sitting.start_ns)),
             "pid": sitting.pid, "host": sitting.host,
             "software_version": sitting.software_version,
-            **({"timing_check": sitting.timing_check} if sitting.timing_check else {})}
+            **({"timing_check": sitting.timing_check} if sitting.timing_check else {}),
+            **({"answers": sitting.answers.value}
+               if sitting.answers is not Answers.UNKNOWN else {})}
 
 
 def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
@@ -311,7 +314,8 @@ def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
                     start_ns=None if s.get("start_s") is None else ns_from_seconds(str(s["start_s"])),
                     pid=int(s.get("pid", 0)), host=str(s.get("host", "")),
                     software_version=str(s.get("software_version", "")),
-                    timing_check=str(s.get("timing_check", "")))
+                    timing_check=str(s.get("timing_check", "")),
+                    answers=Answers(s.get("answers", Answers.UNKNOWN.value)))
             for s in data["sittings"])
     # Written before sittings were recorded: a start time and a pid, then one time per resume.
     unknown = TimeScale(ClockKind.UNKNOWN, None)

@@ -24,7 +24,7 @@ from pinarray.journal.manifest import (
 )
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.rows import read_trials
-from pinarray.journal.timebase import REAL_TIME, ClockKind, TimeScale
+from pinarray.journal.timebase import REAL_TIME, Answers, ClockKind, TimeScale
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
@@ -131,7 +131,7 @@ SCANNED = ("was timed from scanner volumes and cannot be resumed, with no scanne
 def open_run(
     protocol: Protocol, root: Path | str, subject: str, session: str, task: str, *,
     resume: bool, seed: int | None, port_url: str, clock: Clock, experimenter: str = "",
-    scanner: ScannerRecord | None = None,
+    scanner: ScannerRecord | None = None, answers: Answers = Answers.UNKNOWN,
 ) -> tuple[RunWriter, TrialPlan]:
     """(writer, plan) for the subject's unfinished run (``resume``) or a new one.
 
@@ -155,6 +155,9 @@ def open_run(
         Who runs it, for the manifest.
     scanner : ScannerRecord or None
         A new run timed from scanner volumes: its trigger settings, for the manifest.
+    answers : Answers
+        Who or what answers the sitting's trials; a resumed run's earlier sittings must have
+        been answered so too.
     """
     scale = time_scale_of(clock)
     if resume:
@@ -174,7 +177,7 @@ def open_run(
         if manifest.plan != plan_entries(plan):
             raise PinArrayError(f"{paths.manifest}: the saved plan does not match the protocol's "
                                 f"plan for seed {manifest.seed}")
-        return RunWriter.resume(paths, scale), plan
+        return RunWriter.resume(paths, scale, answers=answers), plan
     plan = make_plan(protocol, seed)
     provenance = Provenance(
         seed=plan.seed, protocol_sha256=protocol.sha256, port=port_url,
@@ -183,5 +186,5 @@ def open_run(
         experimenter=experimenter,
     )
     writer = RunWriter.start(root, subject, session, task, plan_entries(plan), provenance,
-                             task_info(protocol), scale, scanner=scanner)
+                             task_info(protocol), scale, scanner=scanner, answers=answers)
     return writer, plan

@@ -75,6 +75,40 @@ class TimeScale:
 REAL_TIME = TimeScale(ClockKind.REAL, 1.0)
 
 
+class Answers(StrEnum):
+    """Who or what answered a sitting's trials: a run resumes answered as it started, so that
+    a person's answers and a model's never share a run."""
+
+    SUBJECT = "subject"  # a person, in the UI
+    SHEET = "responses"  # a sheet of answers (`pinarray batch --responses`)
+    OBSERVER = "observer"  # a simulated observer (`pinarray batch --observer`): a rehearsal
+    SCRIPT = "script"  # a lab's own code (`import pinarray`)
+    UNKNOWN = "unknown"  # a sitting an earlier pinarray wrote
+
+    @property
+    def known(self) -> bool:
+        """Whether these are surely a person's or surely not: a lab script's may be either (a
+        script rehearsing with a simulated observer is resumed by `batch --observer`)."""
+        return self in (Answers.SUBJECT, Answers.SHEET, Answers.OBSERVER)
+
+    def describe(self) -> str:
+        return _ANSWERS_SAID[self]
+
+    def how_to_resume(self) -> str:
+        return _RESUMED_BY[self]
+
+
+_ANSWERS_SAID = {
+    Answers.SUBJECT: "a subject's, in the UI", Answers.SHEET: "a responses sheet's",
+    Answers.OBSERVER: "a simulated observer's", Answers.SCRIPT: "a lab script's",
+    Answers.UNKNOWN: "not recorded"}
+_RESUMED_BY = {
+    Answers.SUBJECT: "in the UI (Resume on the start screen of pinarray tui)",
+    Answers.SHEET: "with pinarray batch --responses CSV --resume",
+    Answers.OBSERVER: "with pinarray batch --observer MODEL --resume",
+    Answers.SCRIPT: "from the lab's script (resume=True)", Answers.UNKNOWN: "as it started"}
+
+
 @dataclass(frozen=True)
 class Sitting:
     """One stretch of a run in one process: started, clock, and where it joins the run's time.
@@ -99,6 +133,8 @@ class Sitting:
     timing_check : str
         What the pre-flight's timing check said before the sitting began, in words (its
         verdict, or that the experimenter skipped it); empty where none ran (batch).
+    answers : Answers
+        Who or what answered its trials.
     """
 
     number: int
@@ -109,6 +145,7 @@ class Sitting:
     host: str = ""
     software_version: str = ""
     timing_check: str = ""
+    answers: Answers = Answers.UNKNOWN
 
 
 @dataclass(frozen=True)

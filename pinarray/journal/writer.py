@@ -82,6 +82,7 @@ from pinarray.journal.seam import ParadigmRows, rows_of
 from pinarray.journal.timebase import (
     FIRST_TRIAL_ONSET,
     REAL_TIME,
+    Answers,
     Sitting,
     TimeScale,
     TimeZero,
@@ -277,6 +278,7 @@ class RunWriter:
         *,
         wall: Wall = wall_now,
         scanner: ScannerRecord | None = None,
+        answers: Answers = Answers.UNKNOWN,
     ) -> RunWriter:
         """Start the next free run: root files, manifest (status running), sidecars.
 
@@ -294,6 +296,8 @@ class RunWriter:
             The wall clock (tests pass their own).
         scanner
             For a run timed from scanner volumes: the trigger and its log, for the manifest.
+        answers
+            Who or what answers the sitting's trials.
         """
         root = Path(root)
         lock = None
@@ -302,7 +306,8 @@ class RunWriter:
             ensure_dataset(root, probe.subject)
             paths, lock = _claim_next_run(root, probe.subject, probe.session, probe.task)
             now = wall()
-            sitting = Sitting(1, iso(now), clock, None, os.getpid(), this_host(), __version__)
+            sitting = Sitting(1, iso(now), clock, None, os.getpid(), this_host(), __version__,
+                              answers=answers)
             if scanner is not None:  # its log is named after the run just claimed
                 log = volume_log_path(paths).relative_to(root).as_posix()
                 scanner = replace(scanner, volume_log=log)
@@ -326,18 +331,21 @@ class RunWriter:
 
     @classmethod
     def resume(cls, paths: RunPaths, clock: TimeScale = REAL_TIME, *,
-               wall: Wall = wall_now) -> RunWriter:
-        """Reopen an unfinished run: lock it, drop a torn row, rebuild events, start a sitting.
+               wall: Wall = wall_now, answers: Answers = Answers.UNKNOWN) -> RunWriter:
+        """Reopen an unfinished run: lock it, drop a torn row, rebuild events, start a sitting
+        whose trials ``answers`` answers.
 
         Refused (`RunLocked`) while another process writes it; refused (`ResultsError`) when
-        its rows finish a trial twice, which only a second writer or a hand edit leaves.
+        its rows finish a trial twice, which only a second writer or a hand edit leaves, and
+        when its sittings were answered otherwise (a subject's run resumed by a simulated
+        observer would hold a person's answers and a model's).
         """
         try:
             lock = RunLock.acquire(paths.lock, paths.label, _command())
         except OSError as problem:
             raise unwritable(problem, paths.lock) from None
         try:
-            return cls._resume_locked(paths, lock, clock, wall)
+            return cls._resume_locked(paths, lock, clock, wall, answers)
         except OSError as problem:
             lock.release()
             raise unwritable(problem, paths.root) from None
@@ -347,7 +355,7 @@ class RunWriter:
 
     @classmethod
     def _resume_locked(cls, paths: RunPaths, lock: RunLock, clock: TimeScale,
-                       wall: Wall) -> RunWriter:
+                       wall: Wall, answers: Answers) -> RunWriter:
         source = paths.manifest_on_disk()
         if source is None:
             raise ResultsError(f"{paths.manifest}: no run manifest here")
@@ -355,6 +363,11 @@ class RunWriter:
         if not manifest.status.unfinished:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
+        started = next((s.answers for s in manifest.sittings if s.answers.known), Answers.UNKNOWN)
+        if started.known and answers.known and answers is not started:
+            raise ResultsError(
+                f"{paths.label}: expected the answers it started with ({started.describe()}), "
+                f"found {answers.describe()}; resume it {started.how_to_resume()}")
         # Everything is looked at before anything is written: a resume refused leaves every
         # file of the run as it found it.
         for path in run_files(paths):
@@ -388,7 +401,7 @@ class RunWriter:
         start_ns = resumed_start_ns(max((r.end_ns for r in records), default=None), zero_at,
                                     now, clock)
         sitting = Sitting(len(manifest.sittings) + 1, iso(now), clock, start_ns, os.getpid(),
-                          this_host(), __version__)
+                          this_host(), __version__, answers=answers)
         manifest = updated(manifest, status=RunStatus.RUNNING, abort_reason="",
                            sittings=(*manifest.sittings, sitting))
         write_manifest(paths.manifest, manifest)

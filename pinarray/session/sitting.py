@@ -32,6 +32,7 @@ from pinarray.errors import PinArrayError, ResultsError
 from pinarray.hardware.driver import SafeStopReport
 from pinarray.journal.manifest import RunStatus
 from pinarray.journal.runs import open_run
+from pinarray.journal.timebase import Answers
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan
 from pinarray.player.rehearsal import MAX_ATTEMPTS  # the retry policy, which validate plays too
@@ -106,6 +107,9 @@ class SessionRequest:
     sim_url: str | None
     seed: int | None
     resume: bool
+    # Who or what answers the trials: a run resumes answered as it started (a subject's, in
+    # the UI, by default).
+    answers: Answers = Answers.SUBJECT
 
     @property
     def task(self) -> str:
@@ -420,7 +424,7 @@ class Sitting:
             request.protocol, self.results_root, request.subject, request.session, request.task,
             resume=request.resume, seed=request.seed, port_url=self.rig.url,
             clock=self.rig.bus_clock, experimenter=request.experimenter,
-            scanner=None if scanner is None else scanner.record(),
+            scanner=None if scanner is None else scanner.record(), answers=request.answers,
         )
         with contextlib.ExitStack() as opened:
             # A session that cannot start on it (its rows refused) marks the run and gives up
