@@ -142,6 +142,7 @@ def test_the_ui_leaves_when_its_terminal_stopped_reading_then_went_away(tmp_path
         assert process.wait(timeout=EXIT_WAIT_S) == 128 + signal.SIGHUP
 
 
+@pytest.mark.long
 def test_the_ui_whose_terminal_stopped_reading_still_leaves_on_sigterm(tmp_path):
     # The link frozen but not dropped (an SSH session hung, its window still open): the event
     # loop waits on Textual's full output queue, so a signal's handler on the loop never runs.
@@ -164,6 +165,7 @@ def test_sigterm_to_the_ui_on_a_live_terminal_leaves_the_terminal_as_it_found_it
         assert b"SIGTERM" in shown.rpartition(b"\x1b[?1049l")[2]
 
 
+@pytest.mark.long
 def test_the_ui_whose_terminal_stopped_reading_during_the_timing_check_leaves_on_sigterm(
         tmp_path):
     # The pre-flight measures this machine, telling the screen how far it got after every
@@ -193,7 +195,7 @@ from pinarray.player.rig import Rig
 closing = Rig.close
 
 def close(rig):
-    time.sleep({4 * LOOP_HELD_NS / 1e9})  # four times what a held loop is given
+    time.sleep({LOOP_HELD_NS / 1e9 + 2})  # longer than a held loop is given
     return closing(rig)
 
 Rig.close = close
@@ -201,6 +203,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.long
 def test_a_ui_slow_to_rest_the_pins_on_sigterm_still_leaves_the_usual_way(tmp_path):
     # Its event loop at work all along: the terminal's watch leaves it to close as it does,
     # the terminal's own screen back and the last line saying how the pins were left.
