@@ -235,8 +235,12 @@ class PinArrayApp(App[None]):
         it. Rows and the manifest are already fsync'd by the time `Sitting.finish` returns,
         so nothing is lost by not unwinding.
         """
+        reason = f"stopped by {signal_name(signal_number)}"
+        # Asked as a signal asks it (the loop's handler may never have run): a connection a
+        # worker is making meanwhile keeps the stop, and gives up.
+        self.sitting.stop.request(reason, signal_number)
         try:
-            self.sitting.finish(f"stopped by {signal_name(signal_number)}")
+            self.sitting.finish(reason)
         finally:  # the pins rest before any error marking the run is raised: leave all the same
             os._exit(128 + signal_number)
 
