@@ -13,7 +13,7 @@ from pinarray.journal.manifest import PlanEntry, Provenance, RunStatus, TaskInfo
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.records import TrialRecord
 from pinarray.journal.runs import open_run
-from pinarray.journal.timebase import ClockKind, TimeScale
+from pinarray.journal.timebase import Answers, ClockKind, TimeScale
 from pinarray.journal.writer import RunWriter
 from pinarray.paradigms.apparent_motion.rows import MotionRecord
 from pinarray.paradigms.localisation.rows import LocalisationRecord
@@ -109,11 +109,13 @@ def open_elsewhere(paths: RunPaths) -> Iterator[subprocess.Popen]:
 
 
 def unfinished_batch_run(root: Path, protocol_file: Path, subject: str = "01",
-                         seed: int = 7) -> RunPaths:
-    """A run of ``protocol_file`` as `pinarray batch` opens it, left aborted before trial 1."""
+                         seed: int = 7, answers: Answers = Answers.UNKNOWN) -> RunPaths:
+    """A run of ``protocol_file`` as `pinarray batch` opens it, left aborted before trial 1;
+    who answers it, ``answers`` (by default not recorded, as an earlier pinarray wrote it:
+    any resume may take it on)."""
     protocol = load_protocol(protocol_file)
     writer, _ = open_run(protocol, root, subject, "1", task_label(protocol), resume=False,
-                         seed=seed, port_url="sim://", clock=VirtualClock())
+                         seed=seed, port_url="sim://", clock=VirtualClock(), answers=answers)
     writer.finish(RunStatus.ABORTED, "stopped before trial 1")
     return writer.paths
 

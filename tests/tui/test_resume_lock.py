@@ -4,6 +4,7 @@ import json
 import socket
 
 from pinarray.journal.manifest import RunStatus, read_manifest
+from pinarray.journal.timebase import Answers
 from pinarray.tui import start_screen
 from pinarray.tui.preflight_screen import PreflightScreen
 from pinarray.tui.run_screen import RunScreen
@@ -92,3 +93,23 @@ async def test_a_protocol_file_edited_while_the_start_screen_is_open_is_read_aga
         await fill_start(pilot, subject="1")
         await fill_start(pilot, subject=["backspace"])
         assert not app.screen.query_one("#resume").disabled
+
+
+async def test_a_rehearsals_run_resumed_in_the_ui_is_refused_in_words(results):
+    # Started by `pinarray batch --observer`: a person's answers would follow a model's.
+    paths = unfinished_batch_run(results, LOCALISATION, seed=3, answers=Answers.OBSERVER)
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        assert not app.screen.query_one("#resume").disabled
+        await pilot.click("#resume")
+        await settle(pilot)
+        await pilot.press("b")
+        await settle(pilot)
+        assert isinstance(app.screen, PreflightScreen)
+        assert text(app, "#preflight-status") == (
+            f"Cannot open the run: {paths.label}: expected the answers it started with (a "
+            "simulated observer's), found a subject's, in the UI; resume it with pinarray "
+            "batch --observer MODEL --resume")
+    manifest = read_manifest(paths.manifest)
+    assert len(manifest.sittings) == 1 and manifest.status is RunStatus.ABORTED
