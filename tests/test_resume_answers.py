@@ -15,6 +15,7 @@ from pinarray.journal.manifest import read_manifest
 from pinarray.journal.timebase import Answers
 from pinarray.session.sitting import SessionRequest
 from pinarray.stop import Stopped
+from tests.lab_protocols import PROTOCOLS
 from tests.test_resume_files import snapshot
 from tests.test_sitting import RigStoppedMidStimulus, sitting_on
 
@@ -62,6 +63,22 @@ def test_a_subjects_run_is_not_resumed_by_a_model_or_a_sheet(tmp_path, capsys, k
         f"UI), found {found}; resume it in the UI (Resume on the start screen of pinarray tui)"]
     assert snapshot(tmp_path) == before
 
+
+
+def test_a_batch_refused_one_resume_runs_none_of_its_protocols(tmp_path, capsys):
+    # The subject's run comes second: the model's run of the first would be written, whole,
+    # before the refusal, were the answers not checked with the seeds and locks, up front.
+    paths, protocol = a_subjects_run_stopped_mid_stimulus(tmp_path)
+    before = snapshot(tmp_path)
+    status, err = run(capsys, "batch", PROTOCOLS / "apparent_motion.yaml", protocol,
+                      "--subject", "01", "--session", "1", "--results", tmp_path,
+                      "--observer", "default", "--resume")
+    assert status == 2
+    assert err.splitlines() == [
+        f"pinarray: {paths.label}: expected the answers it started with (a subject's, in the "
+        "UI), found a simulated observer's; resume it in the UI (Resume on the start screen "
+        "of pinarray tui)"]
+    assert snapshot(tmp_path) == before
 
 def test_a_subjects_run_resumes_as_a_subjects(tmp_path):
     paths, protocol = a_subjects_run_stopped_mid_stimulus(tmp_path)
