@@ -86,6 +86,7 @@ from pinarray.journal.timebase import (
     Sitting,
     TimeScale,
     TimeZero,
+    answered_otherwise,
     resumed_start_ns,
     zero_wall_time,
 )
@@ -229,8 +230,8 @@ def refuse_other_answers(label: str, manifest: RunManifest, answers: Answers) ->
     """Refused (`ResultsError`, in one line saying how to resume it) when the run ``label``
     was answered by another known kind than ``answers``: a subject's run resumed by a simulated
     observer would hold a person's answers and a model's."""
-    started = next((s.answers for s in manifest.sittings if s.answers.known), Answers.UNKNOWN)
-    if started.known and answers.known and answers is not started:
+    started = answered_otherwise(manifest.sittings, answers)
+    if started is not None:
         raise ResultsError(
             f"{label}: expected the answers it started with ({started.describe()}), "
             f"found {answers.describe()}; resume it {started.how_to_resume()}")
