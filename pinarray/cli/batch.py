@@ -81,7 +81,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for warning in protocol_warnings(protocol):
             print(f"pinarray: warning: {protocol.source}: {warning}", file=sys.stderr)
     syncs = [_scanner_settings(args, protocol) for protocol in protocols]  # all checked first
-    resumable = (_resumable(protocols, args.results, subject, session, args.seed)
+    answers = Answers.OBSERVER if responses is None else Answers.SHEET
+    resumable = (_resumable(protocols, args.results, subject, session, args.seed, answers)
                  if args.resume else set())
     _refuse_resumed_scans(protocols, syncs, resumable)
     _check_markers(args)
@@ -97,8 +98,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         for index, protocol in enumerate(protocols):
             request = SessionRequest(protocol, subject, session, args.experimenter, args.port,
                                      args.sim, args.seed, resume=index in resumable,
-                                     answers=Answers.OBSERVER if responses is None
-                                     else Answers.SHEET)
+                                     answers=answers)
             resume_hint = _resume_hint(args, args.files[index:], scanned=syncs[index] is not None)
             try:
                 run_batch(sitting, request, args, responses, sync=syncs[index],
@@ -194,15 +194,17 @@ def _check_markers(args: argparse.Namespace) -> None:
 
 
 def _resumable(protocols: list[Protocol], root: str, subject: str, session: str,
-               seed: int | None) -> set[int]:
+               seed: int | None, answers: Answers) -> set[int]:
     """Which protocols have an unfinished run to resume; every one checked before any runs.
 
-    Refused (exit 2) when none has one, when one is open in another process, or when
-    ``seed`` (--seed) is not the seed one was planned with: a resumed run keeps its own.
+    Refused (exit 2) when none has one, when one is open in another process, when ``seed``
+    (--seed) is not the seed one was planned with (a resumed run keeps its own), or when one
+    was answered by another kind than ``answers`` (a subject's, in the UI, say).
     """
     from pinarray.errors import PinArrayError
     from pinarray.journal.lock import RunLocked, locked_message
     from pinarray.journal.runs import SCANNED, NothingToResume, unfinished_run
+    from pinarray.journal.writer import refuse_other_answers
     from pinarray.session.trials import task_label
 
     found = set()
@@ -218,6 +220,7 @@ def _resumable(protocols: list[Protocol], root: str, subject: str, session: str,
         if unfinished is not None and unfinished.manifest.scanner is not None:
             raise PinArrayError(f"{protocol.source}: --resume: {unfinished.paths.label} {SCANNED}")
         if unfinished is not None:
+            refuse_other_answers(unfinished.paths.label, unfinished.manifest, answers)
             found.add(index)
     if not found:
         tasks = ", ".join(sorted({task_label(p) for p in protocols}))

@@ -306,6 +306,17 @@ def _sitting_to_json(sitting: Sitting) -> dict[str, Any]:
                if sitting.answers is not Answers.UNKNOWN else {})}
 
 
+def _answers(sitting: Mapping[str, Any]) -> Answers:
+    """A sitting's answers (not recorded: an earlier pinarray's); a value a hand typed
+    otherwise named in words (ValueError), not as Python names it."""
+    value = sitting.get("answers", Answers.UNKNOWN.value)
+    if isinstance(value, str) and value in tuple(Answers):
+        return Answers(value)
+    found = repr(value) if isinstance(value, str) else _json_kind(value)
+    raise ValueError(f"sitting {sitting.get('number', '?')}'s answers: expected one of "
+                     f"{', '.join(Answers)}, found {found}")
+
+
 def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
     if "sittings" in data:
         return tuple(
@@ -315,7 +326,7 @@ def _sittings(data: Mapping[str, Any]) -> tuple[Sitting, ...]:
                     pid=int(s.get("pid", 0)), host=str(s.get("host", "")),
                     software_version=str(s.get("software_version", "")),
                     timing_check=str(s.get("timing_check", "")),
-                    answers=Answers(s.get("answers", Answers.UNKNOWN.value)))
+                    answers=_answers(s))
             for s in data["sittings"])
     # Written before sittings were recorded: a start time and a pid, then one time per resume.
     unknown = TimeScale(ClockKind.UNKNOWN, None)

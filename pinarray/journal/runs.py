@@ -24,7 +24,13 @@ from pinarray.journal.manifest import (
 )
 from pinarray.journal.paths import RunPaths
 from pinarray.journal.rows import read_trials
-from pinarray.journal.timebase import REAL_TIME, Answers, ClockKind, TimeScale
+from pinarray.journal.timebase import (
+    REAL_TIME,
+    Answers,
+    ClockKind,
+    TimeScale,
+    answered_otherwise,
+)
 from pinarray.journal.volumes import ScannerRecord
 from pinarray.journal.writer import RunWriter
 from pinarray.plan import PlannedTrial, TrialPlan, make_plan
@@ -90,6 +96,12 @@ class Unfinished:
     practice: tuple[int, int]  # practice trials finished, of the plan's
     holder: LockHolder | None  # the process writing it now, or None when it can be resumed
 
+    @property
+    def answered_otherwise(self) -> Answers | None:
+        """What answered the run when a subject in the UI may not resume it (a simulated
+        observer's, a responses sheet's), else None."""
+        return answered_otherwise(self.manifest.sittings, Answers.SUBJECT)
+
     def describe(self) -> str:
         """One line for the start screen."""
         m = self.manifest
@@ -97,9 +109,13 @@ class Unfinished:
             return (f"Run {self.paths.run} is open in another process, {self.holder.describe()}; "
                     "it can be resumed once that one ends.")
         why = f" ({m.abort_reason})" if m.abort_reason else ""
-        return (f"Unfinished run {self.paths.run}: {m.status}{why}, "
-                f"{progress_text(self.counted, self.practice)} done, seed {m.seed}. "
-                "Resume continues it (with its own seed).")
+        done = (f"Unfinished run {self.paths.run}: {m.status}{why}, "
+                f"{progress_text(self.counted, self.practice)} done, seed {m.seed}.")
+        other = self.answered_otherwise
+        if other is not None:
+            return (f"{done} Its answers are {other.describe()}: resume it "
+                    f"{other.how_to_resume()}; Start begins a new run.")
+        return f"{done} Resume continues it (with its own seed)."
 
 
 def unfinished_run(root: Path | str, subject: str, session: str, task: str) -> Unfinished | None:

@@ -18,6 +18,7 @@ Pure functions and values; the caller reads the clocks.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from decimal import Decimal, InvalidOperation
@@ -94,6 +95,7 @@ class Answers(StrEnum):
     def describe(self) -> str:
         return _ANSWERS_SAID[self]
 
+
     def how_to_resume(self) -> str:
         return _RESUMED_BY[self]
 
@@ -154,6 +156,14 @@ class TimeZero:
 
     event: str
     at: str
+
+
+def answered_otherwise(sittings: Sequence[Sitting], answers: Answers) -> Answers | None:
+    """The answers a run of ``sittings`` began with (its first sitting of a known kind's)
+    when a resume answered by ``answers`` may not take it on, another known kind; else None
+    (a lab script's and an earlier pinarray's go with any)."""
+    started = next((s.answers for s in sittings if s.answers.known), Answers.UNKNOWN)
+    return started if answers.known and started.known and started is not answers else None
 
 
 def seconds_text(time_ns: int) -> str:

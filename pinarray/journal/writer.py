@@ -86,6 +86,7 @@ from pinarray.journal.timebase import (
     Sitting,
     TimeScale,
     TimeZero,
+    answered_otherwise,
     resumed_start_ns,
     zero_wall_time,
 )
@@ -222,6 +223,18 @@ def _claim_next_run(root: Path, subject: str, session: str, task: str) -> tuple[
             return paths, lock
         lock.release()  # it finished this number while we looked: take the next
         run += 1
+
+
+
+def refuse_other_answers(label: str, manifest: RunManifest, answers: Answers) -> None:
+    """Refused (`ResultsError`, in one line saying how to resume it) when the run ``label``
+    was answered by another known kind than ``answers``: a subject's run resumed by a simulated
+    observer would hold a person's answers and a model's."""
+    started = answered_otherwise(manifest.sittings, answers)
+    if started is not None:
+        raise ResultsError(
+            f"{label}: expected the answers it started with ({started.describe()}), "
+            f"found {answers.describe()}; resume it {started.how_to_resume()}")
 
 
 class RunWriter:
@@ -363,11 +376,7 @@ class RunWriter:
         if not manifest.status.unfinished:
             raise ResultsError(f"{source}: the run is {manifest.status}; only a running, "
                                "crashed or aborted run can be resumed")
-        started = next((s.answers for s in manifest.sittings if s.answers.known), Answers.UNKNOWN)
-        if started.known and answers.known and answers is not started:
-            raise ResultsError(
-                f"{paths.label}: expected the answers it started with ({started.describe()}), "
-                f"found {answers.describe()}; resume it {started.how_to_resume()}")
+        refuse_other_answers(paths.label, manifest, answers)
         # Everything is looked at before anything is written: a resume refused leaves every
         # file of the run as it found it.
         for path in run_files(paths):

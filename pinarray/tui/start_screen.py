@@ -198,7 +198,8 @@ class StartScreen(KeyNotices, Screen):
                 problem = f"Cannot look for an unfinished run: {error}"
         # A run open in another process (its lock is held) cannot be resumed from here; look
         # again shortly, so the offer appears once that process ends.
-        resumable = found is not None and found.holder is None
+        # Nor one a simulated observer or a sheet answered: a person's answers would follow.
+        resumable = found is not None and found.holder is None and found.answered_otherwise is None
         if self._recheck is not None:
             self._recheck.stop()
         self._recheck = None

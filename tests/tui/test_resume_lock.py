@@ -3,6 +3,8 @@
 import json
 import socket
 
+import pytest
+
 from pinarray.journal.manifest import RunStatus, read_manifest
 from pinarray.journal.timebase import Answers
 from pinarray.tui import start_screen
@@ -95,15 +97,40 @@ async def test_a_protocol_file_edited_while_the_start_screen_is_open_is_read_aga
         assert not app.screen.query_one("#resume").disabled
 
 
-async def test_a_rehearsals_run_resumed_in_the_ui_is_refused_in_words(results):
-    # Started by `pinarray batch --observer`: a person's answers would follow a model's.
-    paths = unfinished_batch_run(results, LOCALISATION, seed=3, answers=Answers.OBSERVER)
+@pytest.mark.parametrize(("answers", "how"), [
+    (Answers.OBSERVER, "a simulated observer's: resume it with pinarray batch --observer MODEL "
+                       "--resume"),
+    (Answers.SHEET, "a responses sheet's: resume it with pinarray batch --responses CSV "
+                    "--resume")])
+async def test_a_rehearsals_run_is_not_offered_and_the_start_screen_says_how_to_resume_it(
+        results, answers, how):
+    # Started by `pinarray batch`: a person's answers would follow a model's (or a sheet's).
+    paths = unfinished_batch_run(results, LOCALISATION, seed=3, answers=answers)
+    app = make_app(results)
+    async with app.run_test(size=SIZE) as pilot:
+        await fill_start(pilot)
+        assert app.screen.query_one("#resume").disabled
+        assert text(app, "#resume-info") == (
+            "Unfinished run 1: aborted (stopped before trial 1), 0 of 24 trials (practice 0 of "
+            f"2) done, seed 3. Its answers are {how}; Start begins a new run.")
+    manifest = read_manifest(paths.manifest)
+    assert len(manifest.sittings) == 1 and manifest.status is RunStatus.ABORTED
+
+
+async def test_a_run_a_rehearsal_took_on_after_the_offer_is_refused_in_words(results):
+    # Offered (an earlier pinarray's run: its answers not recorded), then resumed meanwhile by
+    # `pinarray batch --observer` and stopped, before Begin: a person's answers would follow.
+    paths = unfinished_batch_run(results, LOCALISATION, seed=3)
     app = make_app(results)
     async with app.run_test(size=SIZE) as pilot:
         await fill_start(pilot)
         assert not app.screen.query_one("#resume").disabled
         await pilot.click("#resume")
         await settle(pilot)
+        manifest = json.loads(paths.manifest.read_text())
+        manifest["sittings"].append({**manifest["sittings"][0], "number": 2,
+                                     "answers": "observer"})
+        paths.manifest.write_text(json.dumps(manifest))
         await pilot.press("b")
         await settle(pilot)
         assert isinstance(app.screen, PreflightScreen)
@@ -112,4 +139,4 @@ async def test_a_rehearsals_run_resumed_in_the_ui_is_refused_in_words(results):
             "simulated observer's), found a subject's, in the UI; resume it with pinarray "
             "batch --observer MODEL --resume")
     manifest = read_manifest(paths.manifest)
-    assert len(manifest.sittings) == 1 and manifest.status is RunStatus.ABORTED
+    assert len(manifest.sittings) == 2 and manifest.status is RunStatus.ABORTED
