@@ -59,7 +59,7 @@ def test_a_subjects_run_is_not_resumed_by_a_model_or_a_sheet(tmp_path, capsys, k
                       "--results", tmp_path, *answers, "--resume")
     assert status == 2
     assert err.splitlines() == [
-        f"pinarray: {paths.label}: expected the answers it started with (a subject's, in the "
+        f"pinarray: {paths.label}: expected the answers its sittings had (a subject's, in the "
         f"UI), found {found}; resume it in the UI (Resume on the start screen of pinarray tui)"]
     assert snapshot(tmp_path) == before
 
@@ -75,7 +75,7 @@ def test_a_batch_refused_one_resume_runs_none_of_its_protocols(tmp_path, capsys)
                       "--observer", "default", "--resume")
     assert status == 2
     assert err.splitlines() == [
-        f"pinarray: {paths.label}: expected the answers it started with (a subject's, in the "
+        f"pinarray: {paths.label}: expected the answers its sittings had (a subject's, in the "
         "UI), found a simulated observer's; resume it in the UI (Resume on the start screen "
         "of pinarray tui)"]
     assert snapshot(tmp_path) == before
@@ -103,7 +103,7 @@ def test_a_rehearsals_run_is_not_resumed_by_a_subject(tmp_path):
         sitting.connect(replace(request, resume=True), VirtualClock())
         sitting.open_session()
     assert str(refused.value) == (
-        f"{paths.label}: expected the answers it started with (a simulated observer's), found "
+        f"{paths.label}: expected the answers its sittings had (a simulated observer's), found "
         "a subject's, in the UI; resume it with pinarray batch --observer MODEL --resume")
     assert snapshot(tmp_path) == before
 

@@ -95,7 +95,6 @@ class Answers(StrEnum):
     def describe(self) -> str:
         return _ANSWERS_SAID[self]
 
-
     def how_to_resume(self) -> str:
         return _RESUMED_BY[self]
 

@@ -225,7 +225,6 @@ def _claim_next_run(root: Path, subject: str, session: str, task: str) -> tuple[
         run += 1
 
 
-
 def refuse_other_answers(label: str, manifest: RunManifest, answers: Answers) -> None:
     """Refused (`ResultsError`, in one line saying how to resume it) when the run ``label``
     was answered by another known kind than ``answers``: a subject's run resumed by a simulated
@@ -233,7 +232,7 @@ def refuse_other_answers(label: str, manifest: RunManifest, answers: Answers) ->
     started = answered_otherwise(manifest.sittings, answers)
     if started is not None:
         raise ResultsError(
-            f"{label}: expected the answers it started with ({started.describe()}), "
+            f"{label}: expected the answers its sittings had ({started.describe()}), "
             f"found {answers.describe()}; resume it {started.how_to_resume()}")
 
 

@@ -135,7 +135,7 @@ async def test_a_run_a_rehearsal_took_on_after_the_offer_is_refused_in_words(res
         await settle(pilot)
         assert isinstance(app.screen, PreflightScreen)
         assert text(app, "#preflight-status") == (
-            f"Cannot open the run: {paths.label}: expected the answers it started with (a "
+            f"Cannot open the run: {paths.label}: expected the answers its sittings had (a "
             "simulated observer's), found a subject's, in the UI; resume it with pinarray "
             "batch --observer MODEL --resume")
     manifest = read_manifest(paths.manifest)
